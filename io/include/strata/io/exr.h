@@ -1,0 +1,28 @@
+// Strata io: the displacement map as single-channel OpenEXR (docs/FORMAT.md).
+#pragma once
+
+#include "strata/displacement_map.h"
+#include "strata/status.h"
+
+#include <string>
+
+namespace strata {
+namespace io {
+
+/// The channel Strata writes and reads: luminance "Y".
+constexpr const char* kDisplacementChannel = "Y";
+
+enum class ExrPixelType { Half, Float };
+
+/// Reads a displacement map.  Rejects, with a message naming the file: a
+/// missing or non-EXR file, a file without the "Y" channel (listing the
+/// channels it has), a size over kMaxDisplacementMapSize, and NaN/inf texels.
+/// The map's factor/offset are left at 1/0; the rig supplies them.
+Status readDisplacementExr(const std::string& path, DisplacementMap* out);
+
+/// Writes map's texels (not decoded: factor/offset live in the rig) as one
+/// "Y" channel, ZIP-compressed, atomically.
+Status writeDisplacementExr(const std::string& path, const DisplacementMap& map, ExrPixelType type = ExrPixelType::Half);
+
+}  // namespace io
+}  // namespace strata

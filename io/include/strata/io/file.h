@@ -1,0 +1,39 @@
+// Strata io: whole-file reads and atomic writes.
+//
+// Every output the project writes goes through writeFileAtomic: the bytes go
+// to a temporary file beside the target, which is renamed over the target
+// only once complete, so a failed or interrupted write never leaves a
+// half-written file under the final name.
+#pragma once
+
+#include "strata/status.h"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+
+/// Reads a whole file.  Fails with a message naming the path when it is
+/// missing, unreadable, a directory, empty, or larger than maxBytes.
+Status readFile(const std::string& path, std::vector<unsigned char>* out, size_t maxBytes = size_t(1) << 31);
+
+/// Writes bytes to path atomically (temporary file + rename).
+Status writeFileAtomic(const std::string& path, const void* data, size_t size);
+
+/// For libraries that insist on writing a file by name themselves (OpenEXR):
+/// calls write(tempPath), then renames tempPath over path; removes the
+/// temporary file on failure.  write returns an empty string on success or a
+/// message.
+Status writeViaTempFile(const std::string& path, const std::function<std::string(const std::string& tempPath)>& write);
+
+/// Lower-case extension including the dot (".glb"), or "" when none.
+std::string extensionOf(const std::string& path);
+/// The directory part of path ("" when none), without a trailing slash.
+std::string directoryOf(const std::string& path);
+/// The file name without directory and extension.
+std::string stemOf(const std::string& path);
+
+}  // namespace io
+}  // namespace strata

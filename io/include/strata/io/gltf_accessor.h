@@ -1,0 +1,30 @@
+// Strata io: bounds-checked reading of glTF accessors from untrusted files.
+#pragma once
+
+#include "strata/status.h"
+
+#include <string>
+#include <vector>
+
+namespace tinygltf {
+class Model;
+}
+
+namespace strata {
+namespace io {
+
+/// Reads accessor `index` as floats, `components` per element (2, 3, 4 or
+/// 16).  FLOAT data is copied; normalized UNSIGNED_BYTE / UNSIGNED_SHORT
+/// data is converted to [0, 1].  Every offset, stride and count is checked
+/// against the buffers; sparse accessors and non-finite values are rejected.
+/// `what` names the data in error messages ("POSITION").
+Status readFloatAccessor(const tinygltf::Model& model, int index, int components, const std::string& what,
+                         std::vector<float>* out);
+
+/// Reads an accessor of unsigned integers (UNSIGNED_BYTE/SHORT/INT) with
+/// `components` per element (1 for indices, 4 for JOINTS_n).
+Status readUintAccessor(const tinygltf::Model& model, int index, int components, const std::string& what,
+                        std::vector<uint32_t>* out);
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,43 @@
+// Strata io: plain mesh files (OBJ in; OBJ, PLY, glTF out).
+#pragma once
+
+#include "strata/control_mesh.h"
+#include "strata/status.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <string>
+
+namespace strata {
+namespace io {
+
+struct ObjReadInfo {
+    size_t polygons = 0;      ///< faces in the file
+    size_t triangulated = 0;  ///< of which had more than 3 corners (fan-triangulated)
+};
+
+/// Reads an OBJ as a control mesh: `v` positions, `vt` UVs (flipped to
+/// glTF's v-down convention), `f` faces with optional /vt (negative indices
+/// allowed), polygons fan-triangulated.  Other statements are ignored.
+/// Errors name the file and line.
+Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info = nullptr);
+
+/// A mesh to write: arrays owned by the caller.
+struct MeshView {
+    const glm::vec3* positions = nullptr;  ///< vertexCount
+    const glm::vec3* normals = nullptr;    ///< vertexCount, or nullptr
+    size_t vertexCount = 0;
+    const uint32_t* triangles = nullptr;   ///< 3 * faceCount
+    size_t faceCount = 0;
+    const glm::vec2* uvs = nullptr;        ///< face-varying values (glTF convention), or nullptr
+    size_t uvCount = 0;
+    const uint32_t* uvIndices = nullptr;   ///< 3 * faceCount, with uvs
+};
+
+/// Writes the mesh by extension: .obj (v/vt/vn), .ply (binary, per-vertex
+/// position and normal), .glb/.gltf (split where UVs differ).  Atomic.
+Status writeMesh(const std::string& path, const MeshView& mesh);
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,115 @@
+#include "strata/io/file.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace strata {
+namespace io {
+
+Status readFile(const std::string& path, std::vector<unsigned char>* out, size_t maxBytes)
+{
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0)
+        return Status(StatusCode::IoError, path + ": " + std::strerror(errno));
+    if (S_ISDIR(st.st_mode))
+        return Status(StatusCode::IoError, path + ": is a directory");
+    if (st.st_size == 0)
+        return Status(StatusCode::InvalidData, path + ": file is empty");
+    if (size_t(st.st_size) > maxBytes)
+        return Status(StatusCode::InvalidData, path + ": file is " + std::to_string(st.st_size) +
+                                                   " bytes, more than the " + std::to_string(maxBytes) + " accepted");
+    std::ifstream in(path, std::ios::binary);
+    if (!in)
+        return Status(StatusCode::IoError, path + ": cannot open for reading");
+    out->resize(size_t(st.st_size));
+    in.read(reinterpret_cast<char*>(out->data()), std::streamsize(out->size()));
+    if (!in || in.gcount() != std::streamsize(out->size()))
+        return Status(StatusCode::IoError, path + ": read failed");
+    return Status::ok();
+}
+
+namespace {
+
+std::string temporaryNameFor(const std::string& path)
+{
+    std::random_device rd;
+    char suffix[32];
+    std::snprintf(suffix, sizeof(suffix), ".tmp%d.%08x", int(::getpid()), unsigned(rd()));
+    // Keep the extension last: some writers (OpenEXR, tinygltf) look at it.
+    const std::string ext = extensionOf(path);
+    return path.substr(0, path.size() - ext.size()) + suffix + ext;
+}
+
+}  // namespace
+
+Status writeViaTempFile(const std::string& path, const std::function<std::string(const std::string&)>& write)
+{
+    const std::string tmp = temporaryNameFor(path);
+    std::string err;
+    try {
+        err = write(tmp);
+    } catch (const std::exception& e) {
+        err = e.what();
+    } catch (...) {
+        err = "unknown error";
+    }
+    if (!err.empty()) {
+        std::remove(tmp.c_str());
+        return Status(StatusCode::IoError, path + ": " + err);
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        const std::string reason = std::strerror(errno);
+        std::remove(tmp.c_str());
+        return Status(StatusCode::IoError, path + ": " + reason);
+    }
+    return Status::ok();
+}
+
+Status writeFileAtomic(const std::string& path, const void* data, size_t size)
+{
+    return writeViaTempFile(path, [&](const std::string& tmp) -> std::string {
+        FILE* f = std::fopen(tmp.c_str(), "wb");
+        if (!f)
+            return std::string("cannot create file: ") + std::strerror(errno);
+        const bool ok = std::fwrite(data, 1, size, f) == size;
+        const bool flushed = std::fflush(f) == 0 && ::fsync(::fileno(f)) == 0;
+        const bool closed = std::fclose(f) == 0;
+        if (!ok || !flushed || !closed)
+            return std::string("write failed: ") + std::strerror(errno);
+        return std::string();
+    });
+}
+
+std::string extensionOf(const std::string& path)
+{
+    const size_t slash = path.find_last_of('/');
+    const size_t dot = path.find_last_of('.');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash))
+        return std::string();
+    std::string ext = path.substr(dot);
+    for (char& c : ext)
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+std::string directoryOf(const std::string& path)
+{
+    const size_t slash = path.find_last_of('/');
+    return slash == std::string::npos ? std::string() : path.substr(0, slash);
+}
+
+std::string stemOf(const std::string& path)
+{
+    const size_t slash = path.find_last_of('/');
+    std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+    const size_t dot = name.find_last_of('.');
+    return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
+}
+
+}  // namespace io
+}  // namespace strata

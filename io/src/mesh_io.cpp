@@ -1,0 +1,368 @@
+// OBJ reading and OBJ / PLY / glTF writing of plain meshes.
+#include "strata/io/mesh_io.h"
+
+#include "strata/io/file.h"
+#include "gltf_mesh_writer.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <unordered_map>
+
+namespace strata {
+namespace io {
+namespace {
+
+// Strict number parsing: the whole token must be a finite number.
+bool parseFloat(const char*& p, float* out)
+{
+    while (*p == ' ' || *p == '\t')
+        ++p;
+    char* end = nullptr;
+    errno = 0;
+    const double v = std::strtod(p, &end);
+    if (end == p || errno == ERANGE || !std::isfinite(v) || std::fabs(v) > 3.0e38)
+        return false;
+    p = end;
+    *out = float(v);
+    return true;
+}
+
+Status lineError(const std::string& path, size_t line, const std::string& what)
+{
+    return Status(StatusCode::InvalidData, path + ":" + std::to_string(line) + ": " + what);
+}
+
+// Resolves a 1-based (or negative, relative) OBJ index against count.
+bool resolveIndex(long raw, size_t count, uint32_t* out)
+{
+    long idx = raw > 0 ? raw - 1 : long(count) + raw;
+    if (raw == 0 || idx < 0 || size_t(idx) >= count)
+        return false;
+    *out = uint32_t(idx);
+    return true;
+}
+
+}  // namespace
+
+Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
+{
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes);
+    if (!st)
+        return st;
+    bytes.push_back(0);
+    ControlMesh mesh;
+    ObjReadInfo stats;
+    bool anyUV = false, anyNoUV = false;
+    std::vector<uint32_t> fv, ft;
+    const char* p = reinterpret_cast<const char*>(bytes.data());
+    const char* endAll = p + bytes.size() - 1;
+    size_t lineNo = 0;
+    while (p < endAll) {
+        ++lineNo;
+        const char* eol = p;
+        while (eol < endAll && *eol != '\n')
+            ++eol;
+        std::string line(p, eol);
+        p = eol < endAll ? eol + 1 : endAll;
+        if (!line.empty() && line.back() == '\r')
+            line.pop_back();
+        if (line.find('\0') != std::string::npos)
+            return lineError(path, lineNo, "binary data in a text OBJ file");
+        const char* s = line.c_str();
+        while (*s == ' ' || *s == '\t')
+            ++s;
+        if (s[0] == 'v' && (s[1] == ' ' || s[1] == '\t')) {
+            s += 2;
+            glm::vec3 v;
+            if (!parseFloat(s, &v.x) || !parseFloat(s, &v.y) || !parseFloat(s, &v.z))
+                return lineError(path, lineNo, "vertex position is not three finite numbers");
+            mesh.positions.push_back(v);
+        } else if (s[0] == 'v' && s[1] == 't' && (s[2] == ' ' || s[2] == '\t')) {
+            s += 3;
+            glm::vec2 t;
+            if (!parseFloat(s, &t.x) || !parseFloat(s, &t.y))
+                return lineError(path, lineNo, "texture coordinate is not two finite numbers");
+            mesh.uvs.emplace_back(t.x, 1.0f - t.y);  // OBJ v points up; glTF's points down
+        } else if (s[0] == 'f' && (s[1] == ' ' || s[1] == '\t')) {
+            s += 2;
+            fv.clear();
+            ft.clear();
+            bool faceUV = false, faceNoUV = false;
+            while (true) {
+                while (*s == ' ' || *s == '\t')
+                    ++s;
+                if (!*s)
+                    break;
+                char* end = nullptr;
+                const long vi = std::strtol(s, &end, 10);
+                if (end == s)
+                    return lineError(path, lineNo, "malformed face index");
+                s = end;
+                uint32_t v;
+                if (!resolveIndex(vi, mesh.positions.size(), &v))
+                    return lineError(path, lineNo, "face references vertex " + std::to_string(vi) + " of " +
+                                                       std::to_string(mesh.positions.size()));
+                fv.push_back(v);
+                bool hasT = false;
+                if (*s == '/') {
+                    ++s;
+                    if (*s != '/') {
+                        const long ti = std::strtol(s, &end, 10);
+                        if (end == s)
+                            return lineError(path, lineNo, "malformed texture index");
+                        s = end;
+                        uint32_t t;
+                        if (!resolveIndex(ti, mesh.uvs.size(), &t))
+                            return lineError(path, lineNo, "face references texture coordinate " +
+                                                               std::to_string(ti) + " of " +
+                                                               std::to_string(mesh.uvs.size()));
+                        ft.push_back(t);
+                        hasT = true;
+                    }
+                    if (*s == '/') {
+                        ++s;
+                        std::strtol(s, &end, 10);  // normal index: unused, control normals are computed
+                        s = end;
+                    }
+                }
+                (hasT ? faceUV : faceNoUV) = true;
+                if (*s && *s != ' ' && *s != '\t')
+                    return lineError(path, lineNo, "malformed face corner");
+            }
+            if (fv.size() < 3)
+                return lineError(path, lineNo, "face has fewer than 3 corners");
+            if (faceUV && faceNoUV)
+                return lineError(path, lineNo, "face mixes corners with and without texture coordinates");
+            anyUV = anyUV || faceUV;
+            anyNoUV = anyNoUV || faceNoUV;
+            ++stats.polygons;
+            if (fv.size() > 3)
+                ++stats.triangulated;
+            for (size_t k = 1; k + 1 < fv.size(); ++k) {
+                mesh.triangles.insert(mesh.triangles.end(), {fv[0], fv[k], fv[k + 1]});
+                if (faceUV)
+                    mesh.uvIndices.insert(mesh.uvIndices.end(), {ft[0], ft[k], ft[k + 1]});
+            }
+        }
+    }
+    if (mesh.positions.empty())
+        return Status(StatusCode::InvalidData, path + ": no vertices in the OBJ file");
+    if (mesh.triangles.empty())
+        return Status(StatusCode::InvalidData, path + ": no faces in the OBJ file");
+    if (anyUV && anyNoUV)
+        return Status(StatusCode::InvalidData, path + ": some faces have texture coordinates and some do not");
+    if (!anyUV)
+        mesh.uvs.clear();
+    *out = std::move(mesh);
+    if (info)
+        *info = stats;
+    return Status::ok();
+}
+
+namespace {
+
+Status writeObj(const std::string& path, const MeshView& m)
+{
+    std::string out;
+    out.reserve(m.vertexCount * 80 + m.faceCount * 40);
+    out += "# written by Strata\n";
+    char buf[128];
+    for (size_t i = 0; i < m.vertexCount; ++i) {
+        std::snprintf(buf, sizeof(buf), "v %.9g %.9g %.9g\n", double(m.positions[i].x), double(m.positions[i].y),
+                      double(m.positions[i].z));
+        out += buf;
+    }
+    for (size_t i = 0; m.uvs && i < m.uvCount; ++i) {
+        std::snprintf(buf, sizeof(buf), "vt %.9g %.9g\n", double(m.uvs[i].x), double(1.0f - m.uvs[i].y));
+        out += buf;
+    }
+    for (size_t i = 0; m.normals && i < m.vertexCount; ++i) {
+        std::snprintf(buf, sizeof(buf), "vn %.7g %.7g %.7g\n", double(m.normals[i].x), double(m.normals[i].y),
+                      double(m.normals[i].z));
+        out += buf;
+    }
+    for (size_t f = 0; f < m.faceCount; ++f) {
+        out += 'f';
+        for (int c = 0; c < 3; ++c) {
+            const unsigned v = m.triangles[3 * f + size_t(c)] + 1;
+            if (m.uvs && m.normals)
+                std::snprintf(buf, sizeof(buf), " %u/%u/%u", v, m.uvIndices[3 * f + size_t(c)] + 1, v);
+            else if (m.uvs)
+                std::snprintf(buf, sizeof(buf), " %u/%u", v, m.uvIndices[3 * f + size_t(c)] + 1);
+            else if (m.normals)
+                std::snprintf(buf, sizeof(buf), " %u//%u", v, v);
+            else
+                std::snprintf(buf, sizeof(buf), " %u", v);
+            out += buf;
+        }
+        out += '\n';
+    }
+    return writeFileAtomic(path, out.data(), out.size());
+}
+
+Status writePly(const std::string& path, const MeshView& m)
+{
+    std::ostringstream header;
+    header << "ply\nformat binary_little_endian 1.0\ncomment written by Strata\nelement vertex " << m.vertexCount
+           << "\nproperty float x\nproperty float y\nproperty float z\n";
+    if (m.normals)
+        header << "property float nx\nproperty float ny\nproperty float nz\n";
+    header << "element face " << m.faceCount << "\nproperty list uchar uint vertex_indices\nend_header\n";
+    std::string out = header.str();
+    const size_t vbytes = m.normals ? 24 : 12;
+    out.reserve(out.size() + m.vertexCount * vbytes + m.faceCount * 13);
+    for (size_t i = 0; i < m.vertexCount; ++i) {
+        out.append(reinterpret_cast<const char*>(&m.positions[i]), 12);
+        if (m.normals)
+            out.append(reinterpret_cast<const char*>(&m.normals[i]), 12);
+    }
+    for (size_t f = 0; f < m.faceCount; ++f) {
+        out += char(3);
+        out.append(reinterpret_cast<const char*>(&m.triangles[3 * f]), 12);
+    }
+    return writeFileAtomic(path, out.data(), out.size());
+}
+
+int appendBufferView(tinygltf::Model& model, const void* data, size_t bytes, int target)
+{
+    std::vector<unsigned char>& buf = model.buffers[0].data;
+    while (buf.size() % 4)
+        buf.push_back(0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buf.size();
+    view.byteLength = bytes;
+    view.target = target;
+    const unsigned char* p = static_cast<const unsigned char*>(data);
+    buf.insert(buf.end(), p, p + bytes);
+    model.bufferViews.push_back(view);
+    return int(model.bufferViews.size() - 1);
+}
+
+int appendAccessor(tinygltf::Model& model, int view, int componentType, int type, size_t count)
+{
+    tinygltf::Accessor acc;
+    acc.bufferView = view;
+    acc.componentType = componentType;
+    acc.type = type;
+    acc.count = count;
+    model.accessors.push_back(acc);
+    return int(model.accessors.size() - 1);
+}
+
+}  // namespace
+
+Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras)
+{
+    const bool hasUV = m.uvs != nullptr;
+    // Split vertices where their UVs differ: glTF attributes are per vertex.
+    std::unordered_map<uint64_t, uint32_t> split;
+    std::vector<uint32_t> fileVertexOf;
+    std::vector<glm::vec2> fileUV;
+    std::vector<uint32_t> indices(m.faceCount * 3);
+    for (size_t i = 0; i < indices.size(); ++i) {
+        const uint32_t v = m.triangles[i];
+        const uint32_t u = hasUV ? m.uvIndices[i] : 0;
+        auto it = split.emplace((uint64_t(v) << 32) | u, uint32_t(fileVertexOf.size()));
+        if (it.second) {
+            fileVertexOf.push_back(v);
+            if (hasUV)
+                fileUV.push_back(m.uvs[u]);
+        }
+        indices[i] = it.first->second;
+    }
+    const size_t nv = fileVertexOf.size();
+    std::vector<glm::vec3> pos(nv), nrm(m.normals ? nv : 0);
+    std::vector<double> pmin(3, 1e300), pmax(3, -1e300);
+    bool unitNormals = m.normals != nullptr;
+    for (size_t i = 0; i < nv; ++i) {
+        pos[i] = m.positions[fileVertexOf[i]];
+        for (int c = 0; c < 3; ++c) {
+            pmin[size_t(c)] = std::min(pmin[size_t(c)], double(pos[i][c]));
+            pmax[size_t(c)] = std::max(pmax[size_t(c)], double(pos[i][c]));
+        }
+        if (m.normals) {
+            nrm[i] = m.normals[fileVertexOf[i]];
+            const float l2 = nrm[i].x * nrm[i].x + nrm[i].y * nrm[i].y + nrm[i].z * nrm[i].z;
+            unitNormals = unitNormals && std::fabs(l2 - 1.0f) < 1e-4f;
+        }
+    }
+
+    tinygltf::Model model;
+    model.asset.version = "2.0";
+    model.asset.generator = "Strata " STRATA_VERSION;
+    model.buffers.resize(1);
+    tinygltf::Primitive prim;
+    prim.mode = TINYGLTF_MODE_TRIANGLES;
+    int view = appendBufferView(model, pos.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+    prim.attributes["POSITION"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+    model.accessors.back().minValues = pmin;
+    model.accessors.back().maxValues = pmax;
+    if (unitNormals) {
+        view = appendBufferView(model, nrm.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+        prim.attributes["NORMAL"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+    }
+    if (hasUV) {
+        view = appendBufferView(model, fileUV.data(), nv * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
+        prim.attributes["TEXCOORD_0"] =
+            appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, nv);
+    }
+    view = appendBufferView(model, indices.data(), indices.size() * sizeof(uint32_t),
+                            TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    prim.indices =
+        appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+    prim.material = 0;
+
+    tinygltf::Material material;
+    material.name = name;
+    material.pbrMetallicRoughness.metallicFactor = 0.0;
+    material.pbrMetallicRoughness.roughnessFactor = 0.6;
+    model.materials.push_back(material);
+    tinygltf::Mesh mesh;
+    mesh.name = name;
+    mesh.primitives.push_back(prim);
+    if (meshExtras)
+        mesh.extras = *meshExtras;
+    model.meshes.push_back(mesh);
+    tinygltf::Node node;
+    node.name = name;
+    node.mesh = 0;
+    model.nodes.push_back(node);
+    tinygltf::Scene scene;
+    scene.nodes.push_back(0);
+    model.scenes.push_back(scene);
+    model.defaultScene = 0;
+    model.buffers[0].data.resize((model.buffers[0].data.size() + 3) & ~size_t(3), 0);
+
+    tinygltf::TinyGLTF writer;
+    std::ostringstream stream;
+    const bool binary = extensionOf(path) == ".glb";
+    if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/!binary, binary))
+        return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+    const std::string bytes = stream.str();
+    return writeFileAtomic(path, bytes.data(), bytes.size());
+}
+
+Status writeMesh(const std::string& path, const MeshView& mesh)
+{
+    if (!mesh.positions || !mesh.triangles || mesh.vertexCount == 0 || mesh.faceCount == 0)
+        return Status(StatusCode::InvalidArgument, path + ": nothing to write (empty mesh)");
+    if (mesh.uvs && !mesh.uvIndices)
+        return Status(StatusCode::InvalidArgument, path + ": UVs without UV indices");
+    const std::string ext = extensionOf(path);
+    if (ext == ".obj")
+        return writeObj(path, mesh);
+    if (ext == ".ply")
+        return writePly(path, mesh);
+    if (ext == ".glb" || ext == ".gltf")
+        return writeGltfMesh(path, mesh, "strata_mesh", nullptr);
+    return Status(StatusCode::InvalidArgument, path + ": unknown output format \"" + ext +
+                                                   "\" (use .obj, .ply, .glb or .gltf)");
+}
+
+}  // namespace io
+}  // namespace strata

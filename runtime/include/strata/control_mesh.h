@@ -1,0 +1,48 @@
+// Strata runtime: the control mesh M^L (paper section 2).
+//
+// Positions are stored once per *topological* vertex; UVs are face-varying
+// (one index per triangle corner), so a UV seam never splits a vertex.  This
+// is the representation the refiner, the normal function and the baker share.
+#pragma once
+
+#include "strata/status.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace strata {
+
+struct ControlMesh {
+    std::vector<glm::vec3> positions;   ///< one per topological vertex
+    std::vector<uint32_t> triangles;    ///< 3 vertex indices per face, counter-clockwise seen from outside
+    std::vector<glm::vec2> uvs;         ///< face-varying UV values, glTF convention (v = 0 is the image's first row)
+    std::vector<uint32_t> uvIndices;    ///< 3 indices into uvs per face; empty when the mesh has no UVs
+
+    size_t vertexCount() const { return positions.size(); }
+    size_t faceCount() const { return triangles.size() / 3; }
+    bool hasUVs() const { return !uvIndices.empty(); }
+};
+
+/// Checks that a control mesh can be refined: at least one face, indices in
+/// range, no repeated vertex inside a face, finite positions and UVs, UV
+/// indices matching the faces, and every edge shared by at most two faces
+/// with consistent orientation (OpenSubdiv's Loop scheme needs a manifold).
+/// The message names the first offending face, vertex or edge.
+Status validateControlMesh(const ControlMesh& mesh);
+
+/// Counts used by tests and tools: edges, boundary edges, non-manifold edges.
+struct MeshTopologyStats {
+    size_t vertices = 0;          ///< vertices referenced by at least one face
+    size_t edges = 0;
+    size_t boundaryEdges = 0;     ///< edges with exactly one face
+    size_t nonManifoldEdges = 0;  ///< edges with more than two faces
+    long eulerCharacteristic = 0; ///< V - E + F over referenced vertices
+};
+
+/// Topology statistics of an indexed triangle list (3 indices per face).
+MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount);
+
+}  // namespace strata

@@ -1,0 +1,86 @@
+// Strata: the displacement formulas, in one source compiled as C++ and GLSL.
+//
+// This header is included by the CPU runtime (C++17 with GLM, where the GLSL
+// vector types and built-ins exist under the same names) and embedded
+// verbatim into the shaders (shaders/*.glsl), so the CPU and GPU paths cannot
+// drift.  Keep it in the common subset of both languages: no references, no
+// templates, no overloading, no integer/float implicit conversions.
+//
+// Conventions (docs/FORMAT.md):
+//   * UV (0,0) is the top-left corner of the image's first row (glTF).
+//   * Texel (i, j) covers [i, i+1] x [j, j+1] in texel space; its centre is
+//     at uv = ((i + 0.5) / W, (j + 0.5) / H).  Sampling is bilinear between
+//     texel centres with clamp-to-edge addressing.
+//   * A texel value t decodes to a distance d = t * factor + offset.
+//   * Paper equation 2: x = p + d * n, where p is the surface point and n the
+//     direction (the barycentric interpolation of unit control normals in the
+//     linear scheme, left unnormalised as eq. 2 has it; the unit limit normal
+//     in the smooth scheme).
+#ifndef STRATA_DISPLACEMENT_MATH_H
+#define STRATA_DISPLACEMENT_MATH_H
+
+#ifdef __cplusplus
+#include <glm/common.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#define STRATA_FN inline
+#define STRATA_OUT(T) T&
+namespace strata {
+namespace shared {
+using glm::clamp;
+using glm::floor;
+using glm::max;
+using glm::ivec2;
+using glm::vec2;
+using glm::vec3;
+#else
+#define STRATA_FN
+#define STRATA_OUT(T) out T
+#endif
+
+/// Bilinear footprint of uv in a size.x by size.y map: the top-left texel of
+/// the 2x2 block (clamped so the block stays inside the map) and the weights
+/// of its right and bottom columns.  Clamp-to-edge: outside the texel-centre
+/// range the weight saturates, so the border texel's value is returned.
+STRATA_FN void strata_bilinear_footprint(vec2 uv, ivec2 size, STRATA_OUT(ivec2) texel0, STRATA_OUT(vec2) frac)
+{
+    vec2 fsize = vec2(float(size.x), float(size.y));
+    vec2 t = uv * fsize - vec2(0.5, 0.5);
+    vec2 maxT = fsize - vec2(1.0, 1.0);
+    t = clamp(t, vec2(0.0, 0.0), maxT);
+    vec2 base = floor(t);
+    // Keep the 2x2 block inside the map; at the last row/column the weight
+    // of the (clamped) far texel becomes 1 or the block degenerates to one.
+    base = clamp(base, vec2(0.0, 0.0), max(maxT - vec2(1.0, 1.0), vec2(0.0, 0.0)));
+    texel0 = ivec2(int(base.x), int(base.y));
+    frac = clamp(t - base, vec2(0.0, 0.0), vec2(1.0, 1.0));
+}
+
+/// Bilinear blend of the 2x2 block t00 (top-left), t10 (right), t01 (below), t11.
+STRATA_FN float strata_bilinear(float t00, float t10, float t01, float t11, vec2 frac)
+{
+    float top = t00 + (t10 - t00) * frac.x;
+    float bottom = t01 + (t11 - t01) * frac.x;
+    return top + (bottom - top) * frac.y;
+}
+
+/// Texel value to distance (the rig's displacementGeometryFactor / Offset).
+STRATA_FN float strata_decode_distance(float texel, float factor, float offset)
+{
+    return texel * factor + offset;
+}
+
+/// Paper equation 2: displaced point = surface point + d * direction.
+STRATA_FN vec3 strata_displace(vec3 surface, vec3 direction, float d)
+{
+    return surface + direction * d;
+}
+
+#ifdef __cplusplus
+}  // namespace shared
+}  // namespace strata
+#endif
+#undef STRATA_FN
+#undef STRATA_OUT
+
+#endif  // STRATA_DISPLACEMENT_MATH_H

@@ -1,0 +1,161 @@
+// Strata runtime: uniform refinement plans and CPU reconstruction
+// (paper sections 2.3 and 3.1; the smooth scheme follows Lee, Moreton and
+// Hoppe's Displaced Subdivision Surfaces).
+//
+// A Plan is built once per (control topology, scheme, level).  It owns the
+// OpenSubdiv stencil tables, the refined topology and UVs, and one sample
+// location (control face, barycentrics, UV) and one displacement per refined
+// vertex.  Per frame, evaluate() turns the current control positions and
+// normals into displaced refined positions; it allocates nothing, is const,
+// and may be called from several threads on disjoint vertex ranges.
+#pragma once
+
+#include "strata/control_mesh.h"
+#include "strata/displacement_map.h"
+#include "strata/status.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+/// How the refined surface is placed before displacement.
+enum class Scheme {
+    /// The paper's 1-to-4 midpoint split: refined vertices lie on the flat
+    /// control triangles and move along the barycentric interpolation of the
+    /// control vertex normals (eq. 2).  OpenSubdiv Loop with every edge and
+    /// vertex infinitely sharp; at most 3 weights per refined vertex.
+    Linear,
+    /// The Loop limit surface, displaced along the unit limit normal
+    /// (Displaced Subdivision Surfaces).  Smaller displacements, smoother.
+    Smooth,
+};
+
+const char* schemeName(Scheme scheme);
+/// Parses "linear" or "smooth"; returns false for anything else.
+bool parseScheme(const std::string& text, Scheme* out);
+
+/// Highest uniform level a plan accepts (4^6 = 4096 triangles per control triangle).
+constexpr int kMaxLevel = 6;
+
+/// Where a refined vertex sits on the control mesh: control face and the
+/// barycentric weights (b1, b2) of its 2nd and 3rd corner (b0 = 1 - b1 - b2),
+/// which is also the (s, t) of OpenSubdiv's triangular ptex parameterisation.
+struct SampleLocation {
+    uint32_t face;
+    glm::vec2 bary;
+};
+
+class Plan {
+public:
+    /// Builds the plan: topology refiner, stencil tables (vertex and, with
+    /// UVs, face-varying), refined topology, sample locations.
+    /// \param out    receives the plan on success, untouched on failure
+    /// \param mesh   the control mesh (validated here; the plan keeps no reference)
+    /// \param level  0..kMaxLevel
+    static Status create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level);
+
+    ~Plan();
+    Plan(const Plan&) = delete;
+    Plan& operator=(const Plan&) = delete;
+
+    Scheme scheme() const { return scheme_; }
+    int level() const { return level_; }
+    size_t controlVertexCount() const { return controlVertexCount_; }
+
+    /// Refined topology: refinedVertexCount() vertices, 3 indices per face,
+    /// counter-clockwise like the control mesh.  4^level faces per control face.
+    size_t refinedVertexCount() const { return samples_.size(); }
+    size_t refinedFaceCount() const { return triangles_.size() / 3; }
+    const std::vector<uint32_t>& refinedTriangles() const { return triangles_; }
+
+    /// Refined face-varying UVs (empty when the control mesh has none):
+    /// refinedUVs() values, 3 indices into them per refined face.
+    const std::vector<glm::vec2>& refinedUVs() const { return uvs_; }
+    const std::vector<uint32_t>& refinedUVIndices() const { return uvIndices_; }
+
+    /// Per refined vertex: its canonical location and UV.  A vertex on a UV
+    /// seam has several face-varying UVs; the canonical one is the UV of its
+    /// first corner in refined face order.  It is sampled once, so the
+    /// reconstructed surface has no cracks along seams.
+    const std::vector<SampleLocation>& sampleLocations() const { return samples_; }
+    const std::vector<glm::vec2>& sampleUVs() const { return sampleUVs_; }
+
+    /// Samples the map once per refined vertex at its canonical UV (the
+    /// barycentric samples never change under animation, paper 2.4), scaled by
+    /// `scale`.  Needs a control mesh with UVs.
+    Status setDisplacement(const DisplacementMap& map, float scale = 1.0f);
+    /// Sets every displacement to zero (the bare refined surface).
+    void clearDisplacement();
+    /// refinedVertexCount() distances, in model units.
+    const std::vector<float>& displacements() const { return displacements_; }
+
+    /// Per-frame reconstruction of refined vertices [begin, end):
+    ///   dstPositions[i - begin] = surface(i) + d_i * direction(i)   (eq. 2)
+    /// \param dstPositions    end - begin positions (caller-owned)
+    /// \param dstDirections   optional (nullptr to skip): end - begin displacement
+    ///                        directions (unnormalised in the linear scheme, unit in smooth)
+    /// \param controlPositions, controlNormals  controlCount values each; the
+    ///                        normals from computeControlNormals() (unused by Smooth,
+    ///                        which may pass nullptr)
+    /// Allocates nothing; thread-safe on disjoint ranges.
+    Status evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
+                    const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount) const;
+
+    /// Shading normals of a reconstructed (displaced) refined mesh: the
+    /// area-weighted sum of the incident refined face normals, normalised.
+    /// \param dst        refinedVertexCount() normals (caller-owned)
+    /// \param positions  refinedVertexCount() displaced positions from evaluate()
+    void computeShadingNormals(glm::vec3* dst, const glm::vec3* positions) const;
+
+    /// Bytes held by the plan's tables (stencils, topology, UVs, samples).
+    size_t memoryBytes() const;
+    /// Number of stencil weights per refined vertex, summed (for reports).
+    size_t stencilWeightCount() const;
+
+    /// The raw refined-level stencil table in CSR form, for benchmarking
+    /// against OpenSubdiv's own evaluators: sizes/offsets per refined vertex,
+    /// control indices and weights.  Linear scheme only (empty otherwise).
+    struct CsrStencils {
+        std::vector<int> sizes, offsets, indices;
+        std::vector<float> weights;
+    };
+    const CsrStencils& linearStencils() const { return linearCsr_; }
+
+private:
+    Plan() = default;
+    Status build(const ControlMesh& mesh);
+
+    Scheme scheme_ = Scheme::Linear;
+    int level_ = 0;
+    size_t controlVertexCount_ = 0;
+
+    std::vector<uint32_t> triangles_;
+    std::vector<glm::vec2> uvs_;
+    std::vector<uint32_t> uvIndices_;
+    std::vector<SampleLocation> samples_;
+    std::vector<glm::vec2> sampleUVs_;
+    std::vector<float> displacements_;
+
+    // Linear scheme: exactly three (index, weight) pairs per refined vertex,
+    // padded with zero weights; the hot loop is branch-free.
+    struct Stencil3 {
+        uint32_t index[3];
+        float weight[3];
+    };
+    std::vector<Stencil3> linear_;
+    CsrStencils linearCsr_;
+
+    // Smooth scheme: limit stencils (position, d/ds, d/dt), CSR per refined vertex.
+    std::vector<uint32_t> limitOffsets_;  // refinedVertexCount() + 1
+    std::vector<uint32_t> limitIndices_;
+    std::vector<float> limitWeights_;     // 3 per entry: position, du, dv
+};
+
+}  // namespace strata

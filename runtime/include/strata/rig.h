@@ -1,0 +1,37 @@
+// Strata runtime: the control rig as plain data (docs/FORMAT.md).
+//
+// The io layer fills this from a .glb/.gltf file; engines that have their own
+// asset pipeline can fill it directly.  No file format code lives here.
+#pragma once
+
+#include "strata/control_mesh.h"
+#include "strata/plan.h"
+
+#include <string>
+#include <vector>
+
+namespace strata {
+
+/// Version of the rig's "strata" extras block this build reads and writes.
+constexpr int kRigFormatVersion = 1;
+
+/// How the rig's displacement map is stored and applied.
+struct DisplacementInfo {
+    std::string uri;            ///< image beside the rig, relative URI (empty: no map)
+    std::string encoding;       ///< "exr" (half or float texels), "png8" or "png16"
+    int width = 0;              ///< map size the image must have
+    int height = 0;
+    float factor = 1.0f;        ///< displacementGeometryFactor: d = texel * factor + offset
+    float offset = 0.0f;        ///< displacementGeometryOffset
+    Scheme scheme = Scheme::Linear;
+    int recommendedLevel = 3;
+};
+
+struct Rig {
+    ControlMesh mesh;                 ///< welded: one position per topological vertex
+    std::vector<uint32_t> sourceVertex;  ///< per file vertex: its topological vertex in mesh
+    bool hasDisplacement = false;     ///< false for a plain glTF without a strata block
+    DisplacementInfo displacement;
+};
+
+}  // namespace strata

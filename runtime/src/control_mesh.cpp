@@ -1,0 +1,123 @@
+// Validation and topology statistics of control meshes.  Control meshes come
+// from files, so everything here assumes hostile input.
+#include "strata/control_mesh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace strata {
+namespace {
+
+struct DirectedEdge {
+    uint64_t key;   // (min << 32) | max
+    uint32_t face;
+    bool forward;   // true when the face traverses min -> max
+};
+
+std::vector<DirectedEdge> sortedEdges(const uint32_t* triangles, size_t faceCount)
+{
+    std::vector<DirectedEdge> edges;
+    edges.reserve(faceCount * 3);
+    for (size_t f = 0; f < faceCount; ++f) {
+        for (int c = 0; c < 3; ++c) {
+            const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
+            const uint32_t lo = std::min(a, b), hi = std::max(a, b);
+            edges.push_back({(uint64_t(lo) << 32) | hi, uint32_t(f), a == lo});
+        }
+    }
+    std::sort(edges.begin(), edges.end(), [](const DirectedEdge& x, const DirectedEdge& y) {
+        return x.key != y.key ? x.key < y.key : x.face < y.face;
+    });
+    return edges;
+}
+
+std::string edgeName(uint64_t key)
+{
+    return "(" + std::to_string(key >> 32) + ", " + std::to_string(key & 0xffffffffu) + ")";
+}
+
+}  // namespace
+
+MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount)
+{
+    MeshTopologyStats s;
+    const std::vector<DirectedEdge> edges = sortedEdges(triangles, faceCount);
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j].key == edges[i].key)
+            ++j;
+        ++s.edges;
+        if (j - i == 1)
+            ++s.boundaryEdges;
+        else if (j - i > 2)
+            ++s.nonManifoldEdges;
+        i = j;
+    }
+    std::vector<uint32_t> verts(triangles, triangles + faceCount * 3);
+    std::sort(verts.begin(), verts.end());
+    s.vertices = size_t(std::unique(verts.begin(), verts.end()) - verts.begin());
+    s.eulerCharacteristic = long(s.vertices) - long(s.edges) + long(faceCount);
+    return s;
+}
+
+Status validateControlMesh(const ControlMesh& mesh)
+{
+    const size_t nv = mesh.positions.size();
+    if (mesh.triangles.empty())
+        return Status(StatusCode::InvalidData, "control mesh has no faces");
+    if (mesh.triangles.size() % 3 != 0)
+        return Status(StatusCode::InvalidData, "control mesh index count " + std::to_string(mesh.triangles.size()) +
+                                                   " is not a multiple of 3");
+    if (nv >= 0xffffffffu)
+        return Status(StatusCode::InvalidData, "control mesh has too many vertices");
+    for (size_t i = 0; i < nv; ++i) {
+        const glm::vec3& p = mesh.positions[i];
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            return Status(StatusCode::InvalidData, "control vertex " + std::to_string(i) + " has a non-finite position");
+    }
+    const size_t nf = mesh.faceCount();
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t a = mesh.triangles[3 * f], b = mesh.triangles[3 * f + 1], c = mesh.triangles[3 * f + 2];
+        if (a >= nv || b >= nv || c >= nv)
+            return Status(StatusCode::InvalidData, "control face " + std::to_string(f) + " references a vertex beyond the " +
+                                                       std::to_string(nv) + " vertices");
+        if (a == b || b == c || a == c)
+            return Status(StatusCode::InvalidData, "control face " + std::to_string(f) + " repeats a vertex (" +
+                                                       std::to_string(a) + ", " + std::to_string(b) + ", " +
+                                                       std::to_string(c) + ")");
+    }
+    if (!mesh.uvIndices.empty()) {
+        if (mesh.uvIndices.size() != mesh.triangles.size())
+            return Status(StatusCode::InvalidData, "control mesh has " + std::to_string(mesh.uvIndices.size()) +
+                                                       " UV indices for " + std::to_string(mesh.triangles.size()) +
+                                                       " corners");
+        for (size_t i = 0; i < mesh.uvIndices.size(); ++i)
+            if (mesh.uvIndices[i] >= mesh.uvs.size())
+                return Status(StatusCode::InvalidData, "control face " + std::to_string(i / 3) +
+                                                           " references a UV beyond the " +
+                                                           std::to_string(mesh.uvs.size()) + " UVs");
+        for (size_t i = 0; i < mesh.uvs.size(); ++i)
+            if (!std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y))
+                return Status(StatusCode::InvalidData, "control UV " + std::to_string(i) + " is not finite");
+    }
+
+    const std::vector<DirectedEdge> edges = sortedEdges(mesh.triangles.data(), nf);
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j].key == edges[i].key)
+            ++j;
+        if (j - i > 2)
+            return Status(StatusCode::InvalidData, "control mesh edge " + edgeName(edges[i].key) + " is shared by " +
+                                                       std::to_string(j - i) + " faces (non-manifold)");
+        if (j - i == 2 && edges[i].forward == edges[i + 1].forward)
+            return Status(StatusCode::InvalidData, "control faces " + std::to_string(edges[i].face) + " and " +
+                                                       std::to_string(edges[i + 1].face) +
+                                                       " have opposite orientations across edge " +
+                                                       edgeName(edges[i].key));
+        i = j;
+    }
+    return Status::ok();
+}
+
+}  // namespace strata

@@ -1,0 +1,459 @@
+// Uniform refinement plans (paper 2.3, 3.1) built on OpenSubdiv Far.
+//
+// Both schemes share one topology: Loop refinement of the control triangles,
+// with every edge and vertex tagged infinitely sharp for the paper's linear
+// 1-to-4 split (sharpness changes weights, never topology).  The sharp
+// refiner's stencils are the barycentric weights of each refined vertex in
+// its control face; the smooth scheme additionally evaluates OpenSubdiv limit
+// stencils at those same (face, s, t) locations.
+#include "strata/plan.h"
+
+#include "strata/displacement_math.h"
+
+#include <opensubdiv/far/stencilTable.h>
+#include <opensubdiv/far/stencilTableFactory.h>
+#include <opensubdiv/far/topologyDescriptor.h>
+#include <opensubdiv/far/topologyRefiner.h>
+#include <opensubdiv/far/topologyRefinerFactory.h>
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace strata {
+
+using namespace OpenSubdiv;
+
+const char* schemeName(Scheme scheme)
+{
+    return scheme == Scheme::Linear ? "linear" : "smooth";
+}
+
+bool parseScheme(const std::string& text, Scheme* out)
+{
+    if (text == "linear")
+        *out = Scheme::Linear;
+    else if (text == "smooth")
+        *out = Scheme::Smooth;
+    else
+        return false;
+    return true;
+}
+
+namespace {
+
+// The Sdc options baker and runtime agree on (docs/FORMAT.md): boundary
+// edges and corners sharp, face-varying data interpolated linearly.
+Sdc::Options subdivisionOptions()
+{
+    Sdc::Options opts;
+    opts.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_AND_CORNER);
+    opts.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_ALL);
+    return opts;
+}
+
+struct TopologyInput {
+    std::vector<int> vertsPerFace;
+    std::vector<int> faceVerts;
+    std::vector<int> uvIndices;
+    std::vector<int> creasePairs;
+    std::vector<float> creaseWeights;
+    std::vector<int> corners;
+    std::vector<float> cornerWeights;
+};
+
+std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in)
+{
+    const size_t nf = mesh.faceCount();
+    in.vertsPerFace.assign(nf, 3);
+    in.faceVerts.assign(mesh.triangles.begin(), mesh.triangles.end());
+    in.uvIndices.assign(mesh.uvIndices.begin(), mesh.uvIndices.end());
+
+    Far::TopologyDescriptor desc;
+    desc.numVertices = int(mesh.positions.size());
+    desc.numFaces = int(nf);
+    desc.numVertsPerFace = in.vertsPerFace.data();
+    desc.vertIndicesPerFace = in.faceVerts.data();
+
+    if (allSharp) {
+        // Every directed edge of every face: interior edges are listed twice,
+        // which OpenSubdiv resolves to the same edge with the same sharpness.
+        in.creasePairs.clear();
+        for (size_t f = 0; f < nf; ++f)
+            for (int c = 0; c < 3; ++c) {
+                in.creasePairs.push_back(int(mesh.triangles[3 * f + c]));
+                in.creasePairs.push_back(int(mesh.triangles[3 * f + (c + 1) % 3]));
+            }
+        in.creaseWeights.assign(in.creasePairs.size() / 2, Sdc::Crease::SHARPNESS_INFINITE);
+        desc.numCreases = int(in.creaseWeights.size());
+        desc.creaseVertexIndexPairs = in.creasePairs.data();
+        desc.creaseWeights = in.creaseWeights.data();
+        in.corners.resize(mesh.positions.size());
+        for (size_t v = 0; v < mesh.positions.size(); ++v)
+            in.corners[v] = int(v);
+        in.cornerWeights.assign(in.corners.size(), Sdc::Crease::SHARPNESS_INFINITE);
+        desc.numCorners = int(in.corners.size());
+        desc.cornerVertexIndices = in.corners.data();
+        desc.cornerWeights = in.cornerWeights.data();
+    }
+
+    Far::TopologyDescriptor::FVarChannel uvChannel;
+    if (!in.uvIndices.empty()) {
+        uvChannel.numValues = int(mesh.uvs.size());
+        uvChannel.valueIndices = in.uvIndices.data();
+        desc.numFVarChannels = 1;
+        desc.fvarChannels = &uvChannel;
+    }
+
+    using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+    Factory::Options options(Sdc::SCHEME_LOOP, subdivisionOptions());
+    options.validateFullTopology = false;
+    return std::unique_ptr<Far::TopologyRefiner>(Factory::Create(desc, options));
+}
+
+}  // namespace
+
+Plan::~Plan() = default;
+
+Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level)
+{
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "Plan::create: null output");
+    if (level < 0 || level > kMaxLevel)
+        return Status(StatusCode::InvalidArgument,
+                      "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel));
+    if (scheme != Scheme::Linear && scheme != Scheme::Smooth)
+        return Status(StatusCode::InvalidArgument, "unknown subdivision scheme");
+    Status st = validateControlMesh(mesh);
+    if (!st)
+        return st;
+    std::unique_ptr<Plan> plan(new Plan());
+    plan->scheme_ = scheme;
+    plan->level_ = level;
+    plan->controlVertexCount_ = mesh.positions.size();
+    st = plan->build(mesh);
+    if (!st)
+        return st;
+    *out = std::move(plan);
+    return Status::ok();
+}
+
+Status Plan::build(const ControlMesh& mesh)
+{
+    const size_t nf0 = mesh.faceCount();
+    TopologyInput input;
+    std::unique_ptr<Far::TopologyRefiner> refiner = createRefiner(mesh, /*allSharp=*/true, input);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    if (level_ > 0) {
+        Far::TopologyRefiner::UniformOptions uniform(level_);
+        uniform.fullTopologyInLastLevel = false;
+        refiner->RefineUniform(uniform);
+    }
+    const Far::TopologyLevel& last = refiner->GetLevel(level_);
+    const size_t nv = size_t(last.GetNumVertices());
+    const size_t nf = size_t(last.GetNumFaces());
+    if (nf != nf0 << (2 * level_))
+        return Status(StatusCode::InvalidData, "refinement produced " + std::to_string(nf) + " faces, expected " +
+                                                   std::to_string(nf0 << (2 * level_)));
+
+    triangles_.resize(nf * 3);
+    for (size_t f = 0; f < nf; ++f) {
+        Far::ConstIndexArray fv = last.GetFaceVertices(Far::Index(f));
+        if (fv.size() != 3)
+            return Status(StatusCode::InvalidData, "refinement produced a non-triangular face");
+        for (int c = 0; c < 3; ++c)
+            triangles_[3 * f + c] = uint32_t(fv[c]);
+    }
+
+    // Vertex stencils of the sharp (linear) refinement, factorised down to
+    // the control vertices: for each refined vertex, its barycentric weights.
+    linearCsr_ = CsrStencils();
+    if (level_ == 0) {
+        linearCsr_.sizes.assign(nv, 1);
+        linearCsr_.offsets.resize(nv);
+        linearCsr_.indices.resize(nv);
+        linearCsr_.weights.assign(nv, 1.0f);
+        for (size_t v = 0; v < nv; ++v)
+            linearCsr_.offsets[v] = linearCsr_.indices[v] = int(v);
+    } else {
+        Far::StencilTableFactory::Options so;
+        so.interpolationMode = Far::StencilTableFactory::INTERPOLATE_VERTEX;
+        so.generateIntermediateLevels = false;
+        so.generateOffsets = true;
+        std::unique_ptr<const Far::StencilTable> table(Far::StencilTableFactory::Create(*refiner, so));
+        if (!table || size_t(table->GetNumStencils()) != nv)
+            return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected vertex stencil table");
+        linearCsr_.sizes = table->GetSizes();
+        linearCsr_.offsets.assign(table->GetOffsets().begin(), table->GetOffsets().end());
+        linearCsr_.indices = table->GetControlIndices();
+        linearCsr_.weights = table->GetWeights();
+    }
+
+    // Canonical face of every refined vertex: the first refined face that
+    // uses it.  Uniform refinement numbers child faces by parent face, so the
+    // control face is f >> 2*level; the barycentric check below rejects the
+    // plan if that ever stopped holding.
+    std::vector<uint32_t> firstFace(nv, std::numeric_limits<uint32_t>::max());
+    std::vector<uint8_t> firstCorner(nv, 0);
+    for (size_t f = 0; f < nf; ++f)
+        for (int c = 0; c < 3; ++c) {
+            const uint32_t v = triangles_[3 * f + c];
+            if (firstFace[v] == std::numeric_limits<uint32_t>::max()) {
+                firstFace[v] = uint32_t(f);
+                firstCorner[v] = uint8_t(c);
+            }
+        }
+
+    samples_.resize(nv);
+    linear_.resize(nv);
+    for (size_t v = 0; v < nv; ++v) {
+        if (firstFace[v] == std::numeric_limits<uint32_t>::max())
+            return Status(StatusCode::InvalidData, "control mesh has an unreferenced vertex; remove it before refining");
+        const uint32_t face = firstFace[v] >> (2 * level_);
+        const uint32_t* corners = &mesh.triangles[3 * size_t(face)];
+        float bary[3] = {0.0f, 0.0f, 0.0f};
+        Stencil3 s3 = {{corners[0], corners[1], corners[2]}, {0.0f, 0.0f, 0.0f}};
+        const int size = linearCsr_.sizes[v], offset = linearCsr_.offsets[v];
+        if (size < 1 || size > 3)
+            return Status(StatusCode::InvalidData, "linear stencil of refined vertex " + std::to_string(v) + " has " +
+                                                       std::to_string(size) + " weights (expected 1..3)");
+        for (int k = 0; k < size; ++k) {
+            const uint32_t idx = uint32_t(linearCsr_.indices[size_t(offset + k)]);
+            const float w = linearCsr_.weights[size_t(offset + k)];
+            int corner = -1;
+            for (int c = 0; c < 3; ++c)
+                if (corners[c] == idx)
+                    corner = c;
+            if (corner < 0)
+                return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
+                                                           " is not inside its parent control face " +
+                                                           std::to_string(face));
+            bary[corner] += w;
+        }
+        s3.weight[0] = bary[0];
+        s3.weight[1] = bary[1];
+        s3.weight[2] = bary[2];
+        linear_[v] = s3;
+        samples_[v] = {face, glm::vec2(bary[1], bary[2])};
+    }
+
+    // Face-varying UVs, interpolated linearly (FVAR_LINEAR_ALL), and each
+    // vertex's canonical UV: the value of its first corner.
+    uvs_.clear();
+    uvIndices_.clear();
+    sampleUVs_.clear();
+    if (mesh.hasUVs()) {
+        const size_t nuv = size_t(last.GetNumFVarValues(0));
+        uvs_.resize(nuv);
+        if (level_ == 0) {
+            uvs_ = mesh.uvs;
+        } else {
+            Far::StencilTableFactory::Options so;
+            so.interpolationMode = Far::StencilTableFactory::INTERPOLATE_FACE_VARYING;
+            so.generateIntermediateLevels = false;
+            so.generateOffsets = true;
+            so.fvarChannel = 0;
+            std::unique_ptr<const Far::StencilTable> table(Far::StencilTableFactory::Create(*refiner, so));
+            if (!table || size_t(table->GetNumStencils()) != nuv)
+                return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
+            const std::vector<int>& sizes = table->GetSizes();
+            const std::vector<Far::Index>& offsets = table->GetOffsets();
+            const std::vector<Far::Index>& idx = table->GetControlIndices();
+            const std::vector<float>& w = table->GetWeights();
+            for (size_t i = 0; i < nuv; ++i) {
+                glm::vec2 uv(0.0f);
+                for (int k = 0; k < sizes[i]; ++k)
+                    uv += w[size_t(offsets[i] + k)] * mesh.uvs[size_t(idx[size_t(offsets[i] + k)])];
+                uvs_[i] = uv;
+            }
+        }
+        uvIndices_.resize(nf * 3);
+        for (size_t f = 0; f < nf; ++f) {
+            Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(f), 0);
+            for (int c = 0; c < 3; ++c)
+                uvIndices_[3 * f + c] = uint32_t(fvv[c]);
+        }
+        sampleUVs_.resize(nv);
+        for (size_t v = 0; v < nv; ++v)
+            sampleUVs_[v] = uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
+    }
+    displacements_.assign(nv, 0.0f);
+
+    if (scheme_ == Scheme::Smooth) {
+        // Limit stencils need an adaptively refined, crease-free refiner.
+        TopologyInput smoothInput;
+        std::unique_ptr<Far::TopologyRefiner> smooth = createRefiner(mesh, /*allSharp=*/false, smoothInput);
+        if (!smooth)
+            return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+        smooth->RefineAdaptive(Far::TopologyRefiner::AdaptiveOptions(4));
+
+        // One location array per control face (its ptex face), listing the
+        // refined vertices whose canonical face it is.
+        std::vector<uint32_t> order(nv);
+        for (size_t v = 0; v < nv; ++v)
+            order[v] = uint32_t(v);
+        std::stable_sort(order.begin(), order.end(),
+                         [&](uint32_t a, uint32_t b) { return samples_[a].face < samples_[b].face; });
+        std::vector<float> s(nv), t(nv);
+        for (size_t k = 0; k < nv; ++k) {
+            s[k] = samples_[order[k]].bary.x;
+            t[k] = samples_[order[k]].bary.y;
+        }
+        Far::LimitStencilTableFactory::LocationArrayVec locations;
+        for (size_t k = 0; k < nv;) {
+            size_t j = k;
+            while (j < nv && samples_[order[j]].face == samples_[order[k]].face)
+                ++j;
+            Far::LimitStencilTableFactory::LocationArray loc;
+            loc.ptexIdx = int(samples_[order[k]].face);
+            loc.numLocations = int(j - k);
+            loc.s = &s[k];
+            loc.t = &t[k];
+            locations.push_back(loc);
+            k = j;
+        }
+        Far::LimitStencilTableFactory::Options lo;
+        lo.generate1stDerivatives = true;
+        std::unique_ptr<const Far::LimitStencilTable> limit(
+            Far::LimitStencilTableFactory::Create(*smooth, locations, nullptr, nullptr, lo));
+        if (!limit || size_t(limit->GetNumStencils()) != nv)
+            return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected limit stencil table");
+
+        const std::vector<int>& sizes = limit->GetSizes();
+        const std::vector<Far::Index>& offsets = limit->GetOffsets();
+        const std::vector<Far::Index>& idx = limit->GetControlIndices();
+        const std::vector<float>& w = limit->GetWeights();
+        const std::vector<float>& du = limit->GetDuWeights();
+        const std::vector<float>& dv = limit->GetDvWeights();
+        // Re-order into refined-vertex order so evaluate() streams linearly.
+        std::vector<uint32_t> stencilOf(nv);
+        for (size_t k = 0; k < nv; ++k)
+            stencilOf[order[k]] = uint32_t(k);
+        limitOffsets_.assign(nv + 1, 0);
+        for (size_t v = 0; v < nv; ++v)
+            limitOffsets_[v + 1] = limitOffsets_[v] + uint32_t(sizes[stencilOf[v]]);
+        limitIndices_.resize(limitOffsets_[nv]);
+        limitWeights_.resize(size_t(limitOffsets_[nv]) * 3);
+        for (size_t v = 0; v < nv; ++v) {
+            const size_t src = size_t(offsets[stencilOf[v]]);
+            for (uint32_t k = 0, n = uint32_t(sizes[stencilOf[v]]); k < n; ++k) {
+                const size_t dst = limitOffsets_[v] + k;
+                limitIndices_[dst] = uint32_t(idx[src + k]);
+                limitWeights_[3 * dst + 0] = w[src + k];
+                limitWeights_[3 * dst + 1] = du[src + k];
+                limitWeights_[3 * dst + 2] = dv[src + k];
+            }
+        }
+        linear_ = std::vector<Stencil3>();
+        linearCsr_ = CsrStencils();
+    }
+    return Status::ok();
+}
+
+Status Plan::setDisplacement(const DisplacementMap& map, float scale)
+{
+    if (sampleUVs_.empty())
+        return Status(StatusCode::InvalidArgument, "the control mesh has no UVs, so no displacement map can be applied");
+    if (!std::isfinite(scale))
+        return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
+    Status st = validateDisplacementMap(map);
+    if (!st)
+        return st;
+    for (size_t v = 0; v < sampleUVs_.size(); ++v)
+        displacements_[v] = scale * sampleDisplacement(map, sampleUVs_[v]);
+    return Status::ok();
+}
+
+void Plan::clearDisplacement()
+{
+    std::fill(displacements_.begin(), displacements_.end(), 0.0f);
+}
+
+Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
+                      const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount) const
+{
+    if (begin > end || end > samples_.size())
+        return Status(StatusCode::InvalidArgument, "evaluate: range [" + std::to_string(begin) + ", " +
+                                                       std::to_string(end) + ") exceeds the " +
+                                                       std::to_string(samples_.size()) + " refined vertices");
+    if (controlCount != controlVertexCount_)
+        return Status(StatusCode::InvalidArgument, "evaluate: got " + std::to_string(controlCount) +
+                                                       " control vertices, the plan was built for " +
+                                                       std::to_string(controlVertexCount_));
+    if (!dstPositions || !controlPositions || (scheme_ == Scheme::Linear && !controlNormals))
+        return Status(StatusCode::InvalidArgument, "evaluate: null buffer");
+
+    const float* d = displacements_.data();
+    if (scheme_ == Scheme::Linear) {
+        const Stencil3* st = linear_.data();
+        for (size_t v = begin; v < end; ++v) {
+            const Stencil3& s = st[v];
+            const glm::vec3 p = s.weight[0] * controlPositions[s.index[0]] +
+                                s.weight[1] * controlPositions[s.index[1]] +
+                                s.weight[2] * controlPositions[s.index[2]];
+            const glm::vec3 n = s.weight[0] * controlNormals[s.index[0]] + s.weight[1] * controlNormals[s.index[1]] +
+                                s.weight[2] * controlNormals[s.index[2]];
+            dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
+            if (dstDirections)
+                dstDirections[v - begin] = n;
+        }
+        return Status::ok();
+    }
+
+    for (size_t v = begin; v < end; ++v) {
+        glm::vec3 p(0.0f), du(0.0f), dv(0.0f);
+        for (uint32_t k = limitOffsets_[v], e = limitOffsets_[v + 1]; k < e; ++k) {
+            const glm::vec3 c = controlPositions[limitIndices_[k]];
+            p += limitWeights_[3 * k + 0] * c;
+            du += limitWeights_[3 * k + 1] * c;
+            dv += limitWeights_[3 * k + 2] * c;
+        }
+        glm::vec3 n = glm::cross(du, dv);
+        const float len = glm::length(n);
+        n = len > 0.0f ? n / len : glm::vec3(0.0f);
+        dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
+        if (dstDirections)
+            dstDirections[v - begin] = n;
+    }
+    return Status::ok();
+}
+
+void Plan::computeShadingNormals(glm::vec3* dst, const glm::vec3* positions) const
+{
+    const size_t nv = samples_.size();
+    for (size_t v = 0; v < nv; ++v)
+        dst[v] = glm::vec3(0.0f);
+    const size_t nf = triangles_.size() / 3;
+    const uint32_t* tri = triangles_.data();
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
+        // |cross| is twice the area: area weighting for free.
+        const glm::vec3 n = glm::cross(positions[b] - positions[a], positions[c] - positions[a]);
+        dst[a] += n;
+        dst[b] += n;
+        dst[c] += n;
+    }
+    for (size_t v = 0; v < nv; ++v) {
+        const float len = glm::length(dst[v]);
+        dst[v] = len > 0.0f ? dst[v] / len : glm::vec3(0.0f);
+    }
+}
+
+size_t Plan::memoryBytes() const
+{
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    return bytes(triangles_) + bytes(uvs_) + bytes(uvIndices_) + bytes(samples_) + bytes(sampleUVs_) +
+           bytes(displacements_) + bytes(linear_) + bytes(limitOffsets_) + bytes(limitIndices_) +
+           bytes(limitWeights_) + bytes(linearCsr_.sizes) + bytes(linearCsr_.offsets) + bytes(linearCsr_.indices) +
+           bytes(linearCsr_.weights);
+}
+
+size_t Plan::stencilWeightCount() const
+{
+    return scheme_ == Scheme::Linear ? linearCsr_.weights.size() : limitIndices_.size();
+}
+
+}  // namespace strata
