@@ -11,7 +11,10 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfTestFile.h>
 
+#include <Imath/half.h>
+
 #include <cmath>
+#include <vector>
 #include <fstream>
 
 namespace strata {
@@ -88,12 +91,20 @@ Status writeDisplacementExr(const std::string& path, const DisplacementMap& map,
         Imf::Header header(map.width, map.height);
         header.channels().insert(kDisplacementChannel, Imf::Channel(type == ExrPixelType::Half ? Imf::HALF : Imf::FLOAT));
         header.compression() = Imf::ZIP_COMPRESSION;
-        {
-            Imf::OutputFile file(tmp.c_str(), header);
-            Imf::FrameBuffer fb;
+        // OpenEXR converts pixel types only when reading: hand it halves to write halves.
+        std::vector<Imath::half> halves;
+        Imf::FrameBuffer fb;
+        if (type == ExrPixelType::Half) {
+            halves.assign(map.texels.begin(), map.texels.end());
+            fb.insert(kDisplacementChannel, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(halves.data()),
+                                                       sizeof(Imath::half), size_t(map.width) * sizeof(Imath::half)));
+        } else {
             fb.insert(kDisplacementChannel,
                       Imf::Slice(Imf::FLOAT, const_cast<char*>(reinterpret_cast<const char*>(map.texels.data())),
                                  sizeof(float), size_t(map.width) * sizeof(float)));
+        }
+        {
+            Imf::OutputFile file(tmp.c_str(), header);
             file.setFrameBuffer(fb);
             file.writePixels(map.height);
         }  // the file is complete only once OutputFile is destroyed

@@ -1,0 +1,52 @@
+#include "strata/io/reconstruct.h"
+
+#include "strata/io/mesh_io.h"
+#include "strata/normals.h"
+
+namespace strata {
+namespace io {
+
+Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
+                   float scale)
+{
+    Reconstruction rec;
+    Status st = Plan::create(&rec.plan, rig.mesh, scheme, level);
+    if (!st)
+        return st;
+    if (map && !(st = rec.plan->setDisplacement(*map, scale)))
+        return st;
+    const ControlMesh& cm = rig.mesh;
+    rec.controlNormals.resize(cm.positions.size());
+    computeControlNormals(rec.controlNormals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
+                          cm.faceCount());
+    const size_t n = rec.plan->refinedVertexCount();
+    rec.positions.resize(n);
+    rec.normals.resize(n);
+    st = rec.plan->evaluate(rec.positions.data(), nullptr, 0, n, cm.positions.data(), rec.controlNormals.data(),
+                            cm.positions.size());
+    if (!st)
+        return st;
+    rec.plan->computeShadingNormals(rec.normals.data(), rec.positions.data());
+    *out = std::move(rec);
+    return Status::ok();
+}
+
+Status writeReconstruction(const std::string& path, const Reconstruction& rec)
+{
+    const Plan& plan = *rec.plan;
+    MeshView view;
+    view.positions = rec.positions.data();
+    view.normals = rec.normals.data();
+    view.vertexCount = rec.positions.size();
+    view.triangles = plan.refinedTriangles().data();
+    view.faceCount = plan.refinedFaceCount();
+    if (!plan.refinedUVs().empty()) {
+        view.uvs = plan.refinedUVs().data();
+        view.uvCount = plan.refinedUVs().size();
+        view.uvIndices = plan.refinedUVIndices().data();
+    }
+    return writeMesh(path, view);
+}
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,54 @@
+// Shared command-line plumbing for Strata's tools: errors become one line on
+// stderr and exit code 2 (gltfpack's convention); never a stack trace.
+#pragma once
+
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+namespace strata {
+namespace cli {
+
+/// Thrown inside a tool for any user-facing failure; main prints it.
+struct Error : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+inline int parseInt(const std::string& flag, const std::string& text, int lo, int hi)
+{
+    char* end = nullptr;
+    const long v = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end || v < lo || v > hi)
+        throw Error(flag + " expects an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got \"" +
+                    text + "\"");
+    return int(v);
+}
+
+inline float parseFloat(const std::string& flag, const std::string& text)
+{
+    char* end = nullptr;
+    const float v = std::strtof(text.c_str(), &end);
+    if (text.empty() || *end || !(v == v) || v > 3.0e38f || v < -3.0e38f)
+        throw Error(flag + " expects a finite number, got \"" + text + "\"");
+    return v;
+}
+
+/// Runs body, turning exceptions into "tool: error: message" and exit 2.
+template <typename F>
+int run(const char* tool, F&& body)
+{
+    try {
+        return body();
+    } catch (const Error& e) {
+        std::fprintf(stderr, "%s: error: %s\n", tool, e.what());
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "%s: error: out of memory\n", tool);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s: error: %s\n", tool, e.what());
+    }
+    return 2;
+}
+
+}  // namespace cli
+}  // namespace strata
