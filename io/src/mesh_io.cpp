@@ -8,8 +8,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <sstream>
-#include <unordered_map>
 
 namespace strata {
 namespace io {
@@ -259,22 +259,26 @@ int appendAccessor(tinygltf::Model& model, int view, int componentType, int type
 Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras)
 {
     const bool hasUV = m.uvs != nullptr;
-    // Split vertices where their UVs differ: glTF attributes are per vertex.
-    std::unordered_map<uint64_t, uint32_t> split;
-    std::vector<uint32_t> fileVertexOf;
-    std::vector<glm::vec2> fileUV;
-    std::vector<uint32_t> indices(m.faceCount * 3);
-    for (size_t i = 0; i < indices.size(); ++i) {
-        const uint32_t v = m.triangles[i];
-        const uint32_t u = hasUV ? m.uvIndices[i] : 0;
-        auto it = split.emplace((uint64_t(v) << 32) | u, uint32_t(fileVertexOf.size()));
-        if (it.second) {
-            fileVertexOf.push_back(v);
-            if (hasUV)
-                fileUV.push_back(m.uvs[u]);
-        }
-        indices[i] = it.first->second;
+    // Split vertices where their UVs differ (glTF attributes are per vertex).
+    // File vertices are ordered by (topological vertex, UV), so the first copy
+    // of each vertex appears in topological order and a welding loader
+    // restores the original numbering.
+    std::vector<uint64_t> keys(m.faceCount * 3);
+    for (size_t i = 0; i < keys.size(); ++i)
+        keys[i] = (uint64_t(m.triangles[i]) << 32) | (hasUV ? m.uvIndices[i] : 0u);
+    std::vector<uint64_t> unique = keys;
+    std::sort(unique.begin(), unique.end());
+    unique.erase(std::unique(unique.begin(), unique.end()), unique.end());
+    std::vector<uint32_t> fileVertexOf(unique.size());
+    std::vector<glm::vec2> fileUV(hasUV ? unique.size() : 0);
+    for (size_t i = 0; i < unique.size(); ++i) {
+        fileVertexOf[i] = uint32_t(unique[i] >> 32);
+        if (hasUV)
+            fileUV[i] = m.uvs[uint32_t(unique[i])];
     }
+    std::vector<uint32_t> indices(keys.size());
+    for (size_t i = 0; i < keys.size(); ++i)
+        indices[i] = uint32_t(std::lower_bound(unique.begin(), unique.end(), keys[i]) - unique.begin());
     const size_t nv = fileVertexOf.size();
     std::vector<glm::vec3> pos(nv), nrm(m.normals ? nv : 0);
     std::vector<double> pmin(3, 1e300), pmax(3, -1e300);

@@ -1,0 +1,349 @@
+// strata_io: EXR maps, glTF rigs, OBJ meshes, atomic writes; every bad input
+// gives a clear Status naming the file, never a crash.
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/io/exr.h"
+#include "strata/io/file.h"
+#include "strata/io/mesh_io.h"
+#include "strata/io/rig_io.h"
+#include "test_util.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
+
+#include <dirent.h>
+#include <fstream>
+#include <sstream>
+
+using namespace strata;
+
+namespace {
+
+void writeText(const std::string& path, const std::string& text)
+{
+    std::ofstream(path, std::ios::binary) << text;
+}
+
+std::string readText(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// Writes a float EXR with arbitrary channels and values, bypassing the
+// project's writer (which refuses bad maps).
+void writeRawExr(const std::string& path, const char* channel, int w, int h, float fill, float special = 0.0f)
+{
+    Imf::Header header(w, h);
+    header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
+    std::vector<float> px(size_t(w) * h, fill);
+    px[px.size() / 2] = special == 0.0f ? fill : special;
+    Imf::OutputFile file(path.c_str(), header);
+    Imf::FrameBuffer fb;
+    fb.insert(channel, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(px.data()), sizeof(float), sizeof(float) * w));
+    file.setFrameBuffer(fb);
+    file.writePixels(h);
+}
+
+size_t filesIn(const std::string& dir)
+{
+    size_t n = 0;
+    if (DIR* d = opendir(dir.c_str())) {
+        while (dirent* e = readdir(d))
+            if (e->d_name[0] != '.')
+                ++n;
+        closedir(d);
+    }
+    return n;
+}
+
+Rig exampleRig(int mapSize)
+{
+    Rig rig;
+    rig.mesh = examples::makeIcosphere(0);
+    EXPECT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {mapSize, 2}).isOk());
+    rig.hasDisplacement = true;
+    rig.displacement.uri = "rig.exr";
+    rig.displacement.encoding = "exr";
+    rig.displacement.width = rig.displacement.height = mapSize;
+    rig.displacement.factor = 0.5f;
+    rig.displacement.offset = -0.25f;
+    rig.displacement.scheme = Scheme::Smooth;
+    rig.displacement.recommendedLevel = 4;
+    return rig;
+}
+
+}  // namespace
+
+TEST(Exr, RoundTripsHalfAndFloat)
+{
+    const std::string dir = test::tempDir("exr_roundtrip");
+    DisplacementMap map;
+    map.width = 37;
+    map.height = 23;
+    for (int i = 0; i < map.width * map.height; ++i)
+        map.texels.push_back(std::sin(float(i)) * 0.3f);
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/f.exr", map, io::ExrPixelType::Float).isOk());
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/h.exr", map, io::ExrPixelType::Half).isOk());
+    DisplacementMap f, h;
+    ASSERT_TRUE(io::readDisplacementExr(dir + "/f.exr", &f).isOk());
+    ASSERT_TRUE(io::readDisplacementExr(dir + "/h.exr", &h).isOk());
+    ASSERT_EQ(f.width, 37);
+    ASSERT_EQ(f.height, 23);
+    EXPECT_EQ(f.texels, map.texels);
+    for (size_t i = 0; i < map.texels.size(); ++i)
+        EXPECT_NEAR(h.texels[i], map.texels[i], 2e-4f);  // half: 11-bit mantissa
+    EXPECT_EQ(filesIn(dir), 2u);                         // no temporary files left
+}
+
+TEST(Exr, RejectsBadFiles)
+{
+    const std::string dir = test::tempDir("exr_bad");
+    DisplacementMap map;
+    Status st = io::readDisplacementExr(dir + "/missing.exr", &map);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("missing.exr"), std::string::npos);
+
+    writeText(dir + "/empty.exr", "");
+    st = io::readDisplacementExr(dir + "/empty.exr", &map);
+    EXPECT_NE(st.message().find("empty"), std::string::npos) << st.message();
+
+    writeText(dir + "/text.exr", "this is not an image at all");
+    st = io::readDisplacementExr(dir + "/text.exr", &map);
+    EXPECT_NE(st.message().find("not an OpenEXR"), std::string::npos) << st.message();
+
+    writeRawExr(dir + "/rgb.exr", "R", 8, 8, 0.0f);
+    st = io::readDisplacementExr(dir + "/rgb.exr", &map);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("no \"Y\" channel (the file has: R)"), std::string::npos) << st.message();
+
+    writeRawExr(dir + "/nan.exr", "Y", 8, 8, 0.0f, std::nanf(""));
+    st = io::readDisplacementExr(dir + "/nan.exr", &map);
+    EXPECT_NE(st.message().find("not finite"), std::string::npos) << st.message();
+
+    writeRawExr(dir + "/inf.exr", "Y", 8, 8, 0.0f, INFINITY);
+    st = io::readDisplacementExr(dir + "/inf.exr", &map);
+    EXPECT_NE(st.message().find("not finite"), std::string::npos) << st.message();
+
+    // Truncated: a valid header whose pixel data is cut off.
+    writeRawExr(dir + "/whole.exr", "Y", 64, 64, 0.5f);
+    const std::string bytes = readText(dir + "/whole.exr");
+    writeText(dir + "/cut.exr", bytes.substr(0, bytes.size() / 2));
+    EXPECT_FALSE(io::readDisplacementExr(dir + "/cut.exr", &map).isOk());
+
+    // Values a half cannot hold are refused rather than written as inf.
+    DisplacementMap big;
+    big.width = big.height = 2;
+    big.texels = {0.0f, 1e6f, 0.0f, 0.0f};
+    st = io::writeDisplacementExr(dir + "/big.exr", big, io::ExrPixelType::Half);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_FALSE(test::fileExists(dir + "/big.exr"));
+}
+
+TEST(Rig, RoundTripsThroughGlbAndGltf)
+{
+    const std::string dir = test::tempDir("rig_roundtrip");
+    const Rig rig = exampleRig(256);
+    for (const char* name : {"/rig.glb", "/rig.gltf"}) {
+        ASSERT_TRUE(io::saveRig(dir + name, rig).isOk());
+        Rig back;
+        const Status st = io::loadRig(dir + name, &back);
+        ASSERT_TRUE(st.isOk()) << st.message();
+        EXPECT_EQ(back.mesh.positions, rig.mesh.positions);
+        EXPECT_EQ(back.mesh.triangles, rig.mesh.triangles);
+        ASSERT_EQ(back.mesh.uvIndices.size(), rig.mesh.uvIndices.size());
+        for (size_t i = 0; i < rig.mesh.uvIndices.size(); ++i)
+            EXPECT_EQ(back.mesh.uvs[back.mesh.uvIndices[i]], rig.mesh.uvs[rig.mesh.uvIndices[i]]);
+        ASSERT_TRUE(back.hasDisplacement);
+        EXPECT_EQ(back.displacement.uri, "rig.exr");
+        EXPECT_EQ(back.displacement.width, 256);
+        EXPECT_EQ(back.displacement.factor, 0.5f);
+        EXPECT_EQ(back.displacement.offset, -0.25f);
+        EXPECT_EQ(back.displacement.scheme, Scheme::Smooth);
+        EXPECT_EQ(back.displacement.recommendedLevel, 4);
+    }
+}
+
+TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
+{
+    const std::string dir = test::tempDir("rig_map");
+    Rig rig = exampleRig(64);
+    ASSERT_TRUE(io::saveRig(dir + "/rig.glb", rig).isOk());
+    DisplacementMap map;
+    Status st = io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map);
+    EXPECT_FALSE(st.isOk());  // the EXR is not there yet
+    EXPECT_NE(st.message().find("rig.exr"), std::string::npos) << st.message();
+
+    DisplacementMap wrong;
+    wrong.width = wrong.height = 32;
+    wrong.texels.assign(32 * 32, 0.25f);
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/rig.exr", wrong).isOk());
+    st = io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("32x32"), std::string::npos) << st.message();
+
+    DisplacementMap right;
+    right.width = right.height = 64;
+    right.texels.assign(64 * 64, 0.25f);
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/rig.exr", right).isOk());
+    ASSERT_TRUE(io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map).isOk());
+    EXPECT_EQ(map.factor, 0.5f);
+    EXPECT_FLOAT_EQ(sampleDisplacement(map, {0.3f, 0.7f}), 0.25f * 0.5f - 0.25f);
+}
+
+TEST(Rig, RejectsAnotherFormatVersion)
+{
+    const std::string dir = test::tempDir("rig_version");
+    ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", exampleRig(64)).isOk());
+    std::string json = readText(dir + "/rig.gltf");
+    const size_t at = json.find("\"version\": 1");
+    ASSERT_NE(at, std::string::npos);
+    json.replace(at, 12, "\"version\": 7");
+    writeText(dir + "/v7.gltf", json);
+    Rig rig;
+    const Status st = io::loadRig(dir + "/v7.gltf", &rig);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("version 7, this build reads version 1"), std::string::npos) << st.message();
+}
+
+TEST(Rig, RejectsBrokenGltf)
+{
+    const std::string dir = test::tempDir("rig_broken");
+    Rig rig;
+    auto expectError = [&](const std::string& name, const std::string& content, const std::string& needle) {
+        writeText(dir + "/" + name, content);
+        const Status st = io::loadRig(dir + "/" + name, &rig);
+        EXPECT_FALSE(st.isOk()) << name;
+        EXPECT_NE(st.message().find(name), std::string::npos) << st.message();
+        EXPECT_NE(st.message().find(needle), std::string::npos) << name << ": " << st.message();
+    };
+    expectError("empty.glb", "", "empty");
+    expectError("garbage.glb", std::string(200, 'x'), "");
+    expectError("garbage.gltf", "{ this is not json", "");
+    expectError("nomesh.gltf", R"({"asset":{"version":"2.0"}})", "no triangle mesh");
+    // 3 vertices declared, but the buffer holds 12 bytes.
+    const std::string shortBuffer =
+        R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":12,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAA"}],
+            "bufferViews":[{"buffer":0,"byteLength":12}],
+            "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],
+            "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]})";
+    expectError("short.gltf", shortBuffer, "past the end");
+    const std::string noPosition =
+        R"({"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{}}]}]})";
+    expectError("noposition.gltf", noPosition, "POSITION");
+    std::string truncated = readText(dir + "/../rig_version/rig.gltf");
+    if (!truncated.empty())
+        expectError("truncated.gltf", truncated.substr(0, truncated.size() / 2), "");
+    ASSERT_TRUE(io::saveRig(dir + "/ok.glb", exampleRig(64)).isOk());
+    const std::string glb = readText(dir + "/ok.glb");
+    expectError("cut.glb", glb.substr(0, glb.size() - 100), "");
+    // Out-of-range index: one triangle referencing vertex 7 of 3.
+    const std::string badIndex =
+        R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAcAAAA="}],
+            "bufferViews":[{"buffer":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],
+            "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]},
+                         {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}],
+            "meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}]})";
+    expectError("badindex.gltf", badIndex, "beyond");
+    expectError("rig.txt", "whatever", "not a .glb or .gltf");
+}
+
+TEST(Rig, WeldsSplitVerticesOfPlainGltf)
+{
+    STRATA_REQUIRE_DATA(path, "Fox.glb");
+    Rig rig;
+    const Status st = io::loadRig(path, &rig);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_FALSE(rig.hasDisplacement);
+    EXPECT_EQ(rig.sourceVertex.size(), 1728u);  // non-indexed: 3 file vertices per triangle
+    EXPECT_LT(rig.mesh.positions.size(), 1728u / 2);
+    EXPECT_TRUE(rig.mesh.hasUVs());
+}
+
+TEST(Obj, ReadsPolygonsAndUVs)
+{
+    const std::string dir = test::tempDir("obj_read");
+    writeText(dir + "/quad.obj", "# a quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                 "f 1/1 2/2 3/3 4/4\n");
+    ControlMesh m;
+    io::ObjReadInfo info;
+    ASSERT_TRUE(io::readObj(dir + "/quad.obj", &m, &info).isOk());
+    EXPECT_EQ(m.faceCount(), 2u);
+    EXPECT_EQ(info.triangulated, 1u);
+    EXPECT_EQ(m.uvs[0], glm::vec2(0.0f, 1.0f));  // v flipped to glTF's convention
+    writeText(dir + "/neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n");
+    ASSERT_TRUE(io::readObj(dir + "/neg.obj", &m).isOk());
+    EXPECT_EQ(m.triangles, (std::vector<uint32_t>{0, 1, 2}));
+    EXPECT_FALSE(m.hasUVs());
+}
+
+TEST(Obj, RejectsBadFiles)
+{
+    const std::string dir = test::tempDir("obj_bad");
+    ControlMesh m;
+    auto expectError = [&](const std::string& name, const std::string& content, const std::string& needle) {
+        writeText(dir + "/" + name, content);
+        const Status st = io::readObj(dir + "/" + name, &m);
+        EXPECT_FALSE(st.isOk()) << name;
+        EXPECT_NE(st.message().find(name), std::string::npos) << st.message();
+        EXPECT_NE(st.message().find(needle), std::string::npos) << name << ": " << st.message();
+    };
+    expectError("empty.obj", "", "empty");
+    expectError("novertices.obj", "# nothing\n", "no vertices");
+    expectError("nofaces.obj", "v 0 0 0\n", "no faces");
+    expectError("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", ":2:");
+    expectError("inf.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n", ":2:");
+    expectError("index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "vertex 9 of 3");
+    expectError("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", ":4:");
+    expectError("two.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n", "fewer than 3");
+    expectError("mixed.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2 3\n", "mixes");
+    expectError("binary.obj", std::string("v 0 0 0\n\0\0\0", 11), "binary");
+    EXPECT_FALSE(io::readObj(dir + "/does-not-exist.obj", &m).isOk());
+    EXPECT_FALSE(io::readObj(dir, &m).isOk());  // a directory
+}
+
+TEST(AtomicWrite, FailsCleanlyAndLeavesNothing)
+{
+    const std::string dir = test::tempDir("atomic");
+    const char data[] = "hello";
+    EXPECT_FALSE(io::writeFileAtomic(dir + "/no/such/dir/file.bin", data, 5).isOk());
+    ASSERT_TRUE(io::writeFileAtomic(dir + "/file.bin", data, 5).isOk());
+    EXPECT_EQ(readText(dir + "/file.bin"), "hello");
+    // A writer that fails half-way leaves neither the target nor a temporary.
+    const Status st = io::writeViaTempFile(dir + "/half.bin", [](const std::string& tmp) {
+        writeText(tmp, "partial");
+        return std::string("simulated failure");
+    });
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("simulated failure"), std::string::npos);
+    EXPECT_EQ(filesIn(dir), 1u);
+    // Overwriting keeps the old content until the new one is complete.
+    ASSERT_TRUE(io::writeFileAtomic(dir + "/file.bin", "bye", 3).isOk());
+    EXPECT_EQ(readText(dir + "/file.bin"), "bye");
+}
+
+TEST(MeshWrite, WritesEveryFormatAndRejectsUnknownOnes)
+{
+    const std::string dir = test::tempDir("mesh_write");
+    const ControlMesh m = examples::makeSquare();
+    io::MeshView view;
+    view.positions = m.positions.data();
+    view.vertexCount = m.positions.size();
+    view.triangles = m.triangles.data();
+    view.faceCount = m.faceCount();
+    view.uvs = m.uvs.data();
+    view.uvCount = m.uvs.size();
+    view.uvIndices = m.uvIndices.data();
+    for (const char* ext : {".obj", ".ply", ".glb", ".gltf"})
+        EXPECT_TRUE(io::writeMesh(dir + "/m" + ext, view).isOk()) << ext;
+    ControlMesh back;
+    ASSERT_TRUE(io::readObj(dir + "/m.obj", &back).isOk());
+    EXPECT_EQ(back.positions, m.positions);
+    EXPECT_EQ(back.uvs, m.uvs);
+    EXPECT_FALSE(io::writeMesh(dir + "/m.xyz", view).isOk());
+    EXPECT_EQ(filesIn(dir), 4u);
+}

@@ -1,0 +1,54 @@
+// Control vertex normals (paper eq. 1's n_j): closed-form cases.
+#include "procedural.h"
+#include "strata/normals.h"
+#include "test_util.h"
+
+using namespace strata;
+
+TEST(ControlNormals, IcosphereNormalsAreRadial)
+{
+    for (int s = 0; s <= 2; ++s) {
+        const ControlMesh m = examples::makeIcosphere(s);
+        std::vector<glm::vec3> n(m.positions.size());
+        computeControlNormals(n.data(), m.positions.data(), m.positions.size(), m.triangles.data(), m.faceCount());
+        for (size_t v = 0; v < n.size(); ++v) {
+            EXPECT_NEAR(glm::length(n[v]), 1.0f, 1e-6f);
+            // By symmetry of the regular icosahedron the normal is exactly radial;
+            // subdivided spheres are near-radial.
+            EXPECT_GT(glm::dot(n[v], glm::normalize(m.positions[v])), s == 0 ? 1.0f - 1e-6f : 0.999f) << v;
+        }
+    }
+}
+
+TEST(ControlNormals, AngleWeightingIgnoresTessellationDensity)
+{
+    // A roof ridge at the origin: the left plane z = x holds one triangle,
+    // the right plane z = -x two larger triangles spanning the same angle at
+    // the origin.  Angle weighting gives the exact bisector (0, 0, 1);
+    // counting faces or weighting by area would tilt it to the right.
+    ControlMesh m;
+    m.positions = {{0, 0, 0}, {-1, 1, -1}, {-1, -1, -1}, {2, -2, -2}, {2, 0, -2}, {2, 2, -2}};
+    m.triangles = {0, 1, 2, 0, 3, 4, 0, 4, 5};
+    std::vector<glm::vec3> n(m.positions.size());
+    computeControlNormals(n.data(), m.positions.data(), n.size(), m.triangles.data(), m.faceCount());
+    EXPECT_NEAR(n[0].x, 0.0f, 1e-6f);
+    EXPECT_NEAR(n[0].y, 0.0f, 1e-6f);
+    EXPECT_NEAR(n[0].z, 1.0f, 1e-6f);
+    // A vertex inside one plane takes that plane's normal.
+    EXPECT_NEAR(glm::dot(n[4], glm::normalize(glm::vec3(1, 0, 1))), 1.0f, 1e-6f);
+}
+
+TEST(ControlNormals, DegenerateTrianglesContributeNothing)
+{
+    ControlMesh m;
+    m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 0, 0}, {5, 5, 5}};
+    // A proper triangle, plus a zero-area one (collinear 0,1,3).
+    m.triangles = {0, 1, 2, 0, 1, 3};
+    std::vector<glm::vec3> n(5);
+    computeControlNormals(n.data(), m.positions.data(), 5, m.triangles.data(), 2);
+    EXPECT_NEAR(n[0].z, 1.0f, 1e-6f);
+    EXPECT_NEAR(n[1].z, 1.0f, 1e-6f);
+    // Vertex 3 only touches the degenerate face; vertex 4 is isolated.
+    EXPECT_EQ(n[3], glm::vec3(0.0f));
+    EXPECT_EQ(n[4], glm::vec3(0.0f));
+}

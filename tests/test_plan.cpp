@@ -1,0 +1,403 @@
+// Refinement plans and CPU reconstruction (paper 2.3, 3.1): counts, the
+// linear scheme's flatness, the smooth scheme against OpenSubdiv's own limit,
+// closed-form displaced surfaces, watertightness across UV seams.
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/io/mesh_io.h"
+#include "strata/io/reconstruct.h"
+#include "strata/io/rig_io.h"
+#include "strata/normals.h"
+#include "strata/plan.h"
+#include "test_util.h"
+
+#include <opensubdiv/far/primvarRefiner.h>
+#include <opensubdiv/far/topologyDescriptor.h>
+#include <opensubdiv/far/topologyRefinerFactory.h>
+
+#include <cmath>
+#include <random>
+
+using namespace strata;
+
+namespace {
+
+std::unique_ptr<Plan> makePlan(const ControlMesh& m, Scheme scheme, int level)
+{
+    std::unique_ptr<Plan> plan;
+    const Status st = Plan::create(&plan, m, scheme, level);
+    EXPECT_TRUE(st.isOk()) << st.message();
+    return plan;
+}
+
+std::vector<glm::vec3> normalsOf(const ControlMesh& m)
+{
+    std::vector<glm::vec3> n(m.positions.size());
+    computeControlNormals(n.data(), m.positions.data(), n.size(), m.triangles.data(), m.faceCount());
+    return n;
+}
+
+std::vector<glm::vec3> evaluateAll(const Plan& plan, const ControlMesh& m)
+{
+    const std::vector<glm::vec3> n = normalsOf(m);
+    std::vector<glm::vec3> out(plan.refinedVertexCount());
+    const Status st = plan.evaluate(out.data(), nullptr, 0, out.size(), m.positions.data(), n.data(), n.size());
+    EXPECT_TRUE(st.isOk()) << st.message();
+    return out;
+}
+
+ControlMesh spotOrSkip(const std::string& path)
+{
+    ControlMesh m;
+    const Status st = io::readObj(path, &m);
+    EXPECT_TRUE(st.isOk()) << st.message();
+    return m;
+}
+
+void checkCounts(const ControlMesh& m)
+{
+    MeshTopologyStats s = computeTopologyStats(m.triangles.data(), m.faceCount());
+    size_t V = s.vertices, E = s.edges, F = m.faceCount();
+    size_t UV = m.uvs.size(), EUV = 0;
+    if (m.hasUVs())
+        EUV = computeTopologyStats(m.uvIndices.data(), m.faceCount()).edges;
+    for (int level = 0; level <= 4; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        ASSERT_TRUE(plan);
+        EXPECT_EQ(plan->refinedFaceCount(), m.faceCount() << (2 * level)) << "level " << level;
+        EXPECT_EQ(plan->refinedVertexCount(), V) << "level " << level;
+        EXPECT_EQ(plan->refinedUVs().size(), UV) << "level " << level;
+        EXPECT_EQ(plan->refinedTriangles().size(), 3 * plan->refinedFaceCount());
+        // One midpoint per edge, 3 new edges inside each face, 4 child faces.
+        V += E;
+        E = 2 * E + 3 * F;
+        if (m.hasUVs()) {
+            UV += EUV;
+            EUV = 2 * EUV + 3 * F;
+        }
+        F *= 4;
+    }
+}
+
+void checkLinearOnControlTriangles(const ControlMesh& m, int maxLevel)
+{
+    const float tol = 1e-6f * test::boundingBoxDiagonal(m);
+    for (int level = 1; level <= maxLevel; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        ASSERT_TRUE(plan);
+        const std::vector<glm::vec3> x = evaluateAll(*plan, m);  // zero displacement
+        const auto& tri = plan->refinedTriangles();
+        float worst = 0.0f;
+        for (size_t f = 0; f < plan->refinedFaceCount(); ++f) {
+            const size_t parent = f >> (2 * level);
+            const glm::vec3 a = m.positions[m.triangles[3 * parent]], b = m.positions[m.triangles[3 * parent + 1]],
+                            c = m.positions[m.triangles[3 * parent + 2]];
+            for (int k = 0; k < 3; ++k)
+                worst = std::max(worst, test::pointTriangleDistance(x[tri[3 * f + k]], a, b, c));
+        }
+        EXPECT_LE(worst, tol) << "level " << level;
+    }
+}
+
+}  // namespace
+
+TEST(Plan, CountsFollowTheSubdivisionFormulas)
+{
+    checkCounts(examples::makeIcosphere(0));
+    ControlMesh square = examples::makeSquare();
+    checkCounts(square);  // open mesh: boundary edges split too
+    ControlMesh atlased = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&atlased, {512, 2}).isOk());
+    checkCounts(atlased);  // every edge a UV seam
+}
+
+TEST(Plan, CountsOnSpot)
+{
+    STRATA_REQUIRE_DATA(path, "spot_control_mesh.obj");
+    checkCounts(spotOrSkip(path));
+}
+
+TEST(Plan, LinearSchemeStaysOnTheControlTriangles)
+{
+    checkLinearOnControlTriangles(examples::makeIcosphere(0), 5);
+    checkLinearOnControlTriangles(examples::makeSquare(), 5);
+}
+
+TEST(Plan, LinearSchemeStaysOnTheControlTrianglesOfSpot)
+{
+    STRATA_REQUIRE_DATA(path, "spot_control_mesh.obj");
+    checkLinearOnControlTriangles(spotOrSkip(path), 5);
+}
+
+TEST(Plan, LinearStencilsAreBarycentric)
+{
+    const ControlMesh m = examples::makeIcosphere(0);
+    for (int level = 0; level <= 3; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        const auto& s = plan->linearStencils();
+        for (size_t v = 0; v < plan->refinedVertexCount(); ++v) {
+            ASSERT_GE(s.sizes[v], 1);
+            ASSERT_LE(s.sizes[v], 3);
+            float sum = 0.0f;
+            for (int k = 0; k < s.sizes[v]; ++k)
+                sum += s.weights[size_t(s.offsets[v] + k)];
+            EXPECT_NEAR(sum, 1.0f, 1e-6f);
+            const SampleLocation loc = plan->sampleLocations()[v];
+            EXPECT_GE(loc.bary.x, -1e-7f);
+            EXPECT_GE(loc.bary.y, -1e-7f);
+            EXPECT_LE(loc.bary.x + loc.bary.y, 1.0f + 1e-6f);
+        }
+    }
+}
+
+namespace {
+
+// OpenSubdiv's own answer for the smooth scheme: refine uniformly with Loop,
+// then project the last level's vertices to the limit.
+void osdLimit(const ControlMesh& m, int level, std::vector<glm::vec3>* pos, std::vector<glm::vec3>* nrm)
+{
+    using namespace OpenSubdiv;
+    std::vector<int> vpf(m.faceCount(), 3), fv(m.triangles.begin(), m.triangles.end());
+    Far::TopologyDescriptor desc;
+    desc.numVertices = int(m.positions.size());
+    desc.numFaces = int(m.faceCount());
+    desc.numVertsPerFace = vpf.data();
+    desc.vertIndicesPerFace = fv.data();
+    Sdc::Options opts;
+    opts.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_AND_CORNER);
+    using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+    std::unique_ptr<Far::TopologyRefiner> r(Factory::Create(desc, Factory::Options(Sdc::SCHEME_LOOP, opts)));
+    Far::TopologyRefiner::UniformOptions uniform(level);
+    uniform.fullTopologyInLastLevel = true;
+    r->RefineUniform(uniform);
+    struct V {
+        glm::vec3 p;
+        void Clear() { p = glm::vec3(0.0f); }
+        void AddWithWeight(const V& s, float w) { p += w * s.p; }
+    };
+    std::vector<V> buf(size_t(r->GetNumVerticesTotal()));
+    for (size_t i = 0; i < m.positions.size(); ++i)
+        buf[i].p = m.positions[i];
+    Far::PrimvarRefiner pr(*r);
+    V* src = buf.data();
+    for (int l = 1; l <= level; ++l) {
+        V* dst = src + r->GetLevel(l - 1).GetNumVertices();
+        pr.Interpolate(l, src, dst);
+        src = dst;
+    }
+    const size_t n = size_t(r->GetLevel(level).GetNumVertices());
+    std::vector<V> lp(n), du(n), dv(n);
+    pr.Limit(src, lp, du, dv);
+    pos->resize(n);
+    nrm->resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        (*pos)[i] = lp[i].p;
+        (*nrm)[i] = glm::normalize(glm::cross(du[i].p, dv[i].p));
+    }
+}
+
+void checkSmoothAgainstOpenSubdiv(const ControlMesh& m, int maxLevel, float tolerance)
+{
+    const float diag = test::boundingBoxDiagonal(m);
+    for (int level = 0; level <= maxLevel; ++level) {
+        auto plan = makePlan(m, Scheme::Smooth, level);
+        ASSERT_TRUE(plan);
+        std::vector<glm::vec3> x(plan->refinedVertexCount()), dir(x.size());
+        ASSERT_TRUE(plan->evaluate(x.data(), dir.data(), 0, x.size(), m.positions.data(), nullptr, m.positions.size())
+                        .isOk());
+        std::vector<glm::vec3> ref, refN;
+        osdLimit(m, level, &ref, &refN);
+        ASSERT_EQ(ref.size(), x.size());
+        float worst = 0.0f, worstAngle = 1.0f;
+        for (size_t v = 0; v < x.size(); ++v) {
+            worst = std::max(worst, glm::length(x[v] - ref[v]));
+            worstAngle = std::min(worstAngle, glm::dot(dir[v], refN[v]));
+        }
+        EXPECT_LE(worst, tolerance * diag) << "level " << level;
+        EXPECT_GT(worstAngle, 0.999f) << "level " << level;
+    }
+}
+
+}  // namespace
+
+TEST(Plan, SmoothSchemeMatchesOpenSubdivLimit)
+{
+    checkSmoothAgainstOpenSubdiv(examples::makeIcosphere(0), 4, 1e-5f);
+    checkSmoothAgainstOpenSubdiv(examples::makeSquare(), 3, 1e-5f);
+}
+
+TEST(Plan, SmoothSchemeMatchesOpenSubdivLimitOnSpot)
+{
+    STRATA_REQUIRE_DATA(path, "spot_control_mesh.obj");
+    checkSmoothAgainstOpenSubdiv(spotOrSkip(path), 3, 1e-5f);
+}
+
+TEST(Reconstruction, IcosahedronAndSphereMapGiveTheSphere)
+{
+    ControlMesh m = examples::makeIcosphere(0);
+    const int size = 512, gutter = 2;
+    ASSERT_TRUE(baker::buildTriangleAtlas(&m, {size, gutter}).isOk());
+    DisplacementMap map;
+    ASSERT_TRUE(examples::bakeRadialSurface(&map, m, size, gutter, [](const glm::vec3&) { return 1.0f; }).isOk());
+    // Bilinear interpolation of a function with second derivatives bounded
+    // by K on a grid of spacing h errs by at most h^2 (|fxx| + |fyy| + 2|fxy|) / 8
+    // <= K h^2 / 2.  Here h is the largest model-space texel: a chart cell is
+    // size/4 texels for 10 cells and each right-triangle chart has legs of
+    // cell - 4 * gutter texels for an icosahedron edge.  d(p) solves
+    // |p + d n| = 1 with |n| >= 0.79 on the inscribed faces, which bounds its
+    // second derivatives by K = 4.
+    const float edge = glm::length(m.positions[m.triangles[0]] - m.positions[m.triangles[1]]);
+    const float h = edge / float(size / 4 - 4 * gutter);
+    const float bound = 4.0f * h * h / 2.0f;
+    for (int level = 0; level <= 5; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        ASSERT_TRUE(plan->setDisplacement(map).isOk());
+        const std::vector<glm::vec3> x = evaluateAll(*plan, m);
+        float worst = 0.0f;
+        for (const glm::vec3& p : x)
+            worst = std::max(worst, std::fabs(glm::length(p) - 1.0f));
+        EXPECT_LE(worst, bound) << "level " << level;
+    }
+}
+
+TEST(Reconstruction, FlatSquareWithSineMapGivesTheSine)
+{
+    const ControlMesh m = examples::makeSquare();
+    const int size = 256;
+    const float amplitude = 0.05f, twoPiK = 2.0f * float(M_PI) * 3.0f;
+    DisplacementMap map;
+    map.width = map.height = size;
+    map.texels.resize(size_t(size) * size);
+    for (int y = 0; y < size; ++y)
+        for (int x = 0; x < size; ++x)
+            map.texels[size_t(y) * size + size_t(x)] = amplitude * std::sin(twoPiK * (float(x) + 0.5f) / float(size));
+    const float h = 1.0f / float(size);
+    const float interior = amplitude * twoPiK * twoPiK * h * h / 8.0f + 1e-6f;  // bilinear bound
+    const float border = amplitude * twoPiK * h / 2.0f + 1e-6f;                 // clamp-to-edge half texel
+    for (int level = 0; level <= 6; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        ASSERT_TRUE(plan->setDisplacement(map).isOk());
+        const std::vector<glm::vec3> x = evaluateAll(*plan, m);
+        for (const glm::vec3& p : x) {
+            const float expected = amplitude * std::sin(twoPiK * p.x);
+            const bool nearBorder = p.x < 0.5f * h || p.x > 1.0f - 0.5f * h;
+            ASSERT_LE(std::fabs(p.z - expected), nearBorder ? border : interior) << "level " << level << " x " << p.x;
+        }
+    }
+}
+
+TEST(Reconstruction, WatertightAcrossUVSeamsOnSpot)
+{
+    STRATA_REQUIRE_DATA(path, "spot_control_mesh.obj");
+    Rig rig;
+    rig.mesh = spotOrSkip(path);
+    ASSERT_TRUE(rig.mesh.hasUVs());
+    const MeshTopologyStats control = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());
+    // Noise in the map: both sides of every seam read unrelated texels, so
+    // any per-corner sampling would open cracks.
+    DisplacementMap map;
+    map.width = map.height = 256;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> noise(-0.02f, 0.02f);
+    map.texels.resize(256 * 256);
+    for (float& t : map.texels)
+        t = noise(rng);
+    const std::string dir = test::tempDir("watertight");
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        for (int level = 0; level <= (scheme == Scheme::Linear ? 5 : 3); ++level) {
+            io::Reconstruction rec;
+            ASSERT_TRUE(io::reconstruct(&rec, rig, &map, scheme, level).isOk());
+            // Through a file with split vertices, as any consumer sees it, then
+            // welded again by exact position.
+            const std::string out = dir + "/spot.glb";
+            ASSERT_TRUE(io::writeReconstruction(out, rec).isOk());
+            Rig back;
+            const Status st = io::loadRig(out, &back);
+            ASSERT_TRUE(st.isOk()) << st.message();
+            EXPECT_EQ(back.mesh.positions.size(), rec.positions.size()) << "level " << level;
+            const MeshTopologyStats s = computeTopologyStats(back.mesh.triangles.data(), back.mesh.faceCount());
+            EXPECT_EQ(s.eulerCharacteristic, control.eulerCharacteristic) << "level " << level;
+            EXPECT_EQ(s.boundaryEdges, control.boundaryEdges << level) << "level " << level;
+            EXPECT_EQ(s.nonManifoldEdges, 0u);
+        }
+    }
+}
+
+TEST(Reconstruction, OpenBoundaryKeepsItsBoundary)
+{
+    // The square is open: 4 boundary edges, Euler characteristic 1.
+    Rig rig;
+    rig.mesh = examples::makeSquare();
+    for (int level = 0; level <= 4; ++level) {
+        io::Reconstruction rec;
+        ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, level).isOk());
+        const auto& t = rec.plan->refinedTriangles();
+        const MeshTopologyStats s = computeTopologyStats(t.data(), t.size() / 3);
+        EXPECT_EQ(s.boundaryEdges, 4u << level);
+        EXPECT_EQ(s.eulerCharacteristic, 1);
+    }
+}
+
+TEST(Plan, RejectsBadArgumentsWithStatus)
+{
+    const ControlMesh m = examples::makeIcosphere(0);
+    std::unique_ptr<Plan> plan;
+    EXPECT_FALSE(Plan::create(&plan, m, Scheme::Linear, -1).isOk());
+    EXPECT_FALSE(Plan::create(&plan, m, Scheme::Linear, kMaxLevel + 1).isOk());
+    EXPECT_FALSE(plan);
+    ASSERT_TRUE(Plan::create(&plan, m, Scheme::Linear, 2).isOk());
+    const std::vector<glm::vec3> n = normalsOf(m);
+    std::vector<glm::vec3> out(plan->refinedVertexCount());
+    Status st = plan->evaluate(out.data(), nullptr, 0, out.size(), m.positions.data(), n.data(), 5);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("control vertices"), std::string::npos) << st.message();
+    EXPECT_FALSE(plan->evaluate(out.data(), nullptr, 0, out.size() + 1, m.positions.data(), n.data(), 12).isOk());
+    EXPECT_FALSE(plan->evaluate(out.data(), nullptr, 0, out.size(), m.positions.data(), nullptr, 12).isOk());
+    // A range evaluation equals the matching slice of a full one.
+    std::vector<glm::vec3> part(10);
+    ASSERT_TRUE(plan->evaluate(part.data(), nullptr, 20, 30, m.positions.data(), n.data(), 12).isOk());
+    ASSERT_TRUE(plan->evaluate(out.data(), nullptr, 0, out.size(), m.positions.data(), n.data(), 12).isOk());
+    for (int i = 0; i < 10; ++i)
+        EXPECT_EQ(part[size_t(i)], out[size_t(20 + i)]);
+    // No UVs: no map can be applied.
+    DisplacementMap map;
+    map.width = map.height = 2;
+    map.texels.assign(4, 0.0f);
+    EXPECT_FALSE(plan->setDisplacement(map).isOk());
+}
+
+TEST(Plan, RejectsBadControlMeshes)
+{
+    std::unique_ptr<Plan> plan;
+    ControlMesh empty;
+    EXPECT_FALSE(Plan::create(&plan, empty, Scheme::Linear, 1).isOk());
+
+    ControlMesh nan = examples::makeIcosphere(0);
+    nan.positions[3].y = std::nanf("");
+    Status st = Plan::create(&plan, nan, Scheme::Linear, 1);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("vertex 3"), std::string::npos) << st.message();
+
+    ControlMesh fin = examples::makeSquare();  // three faces on one edge
+    fin.positions.push_back({0.5f, 0.5f, 1.0f});
+    fin.triangles.insert(fin.triangles.end(), {0, 2, 4});
+    fin.uvIndices.clear();
+    fin.uvs.clear();
+    st = Plan::create(&plan, fin, Scheme::Linear, 1);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("non-manifold"), std::string::npos) << st.message();
+
+    ControlMesh repeated = examples::makeSquare();
+    repeated.triangles[1] = repeated.triangles[0];
+    EXPECT_FALSE(Plan::create(&plan, repeated, Scheme::Linear, 1).isOk());
+
+    ControlMesh range = examples::makeSquare();
+    range.triangles[2] = 99;
+    EXPECT_FALSE(Plan::create(&plan, range, Scheme::Smooth, 1).isOk());
+
+    ControlMesh flipped = examples::makeSquare();
+    std::swap(flipped.triangles[4], flipped.triangles[5]);
+    st = Plan::create(&plan, flipped, Scheme::Linear, 1);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("orientation"), std::string::npos) << st.message();
+    EXPECT_FALSE(plan);
+}

@@ -1,0 +1,79 @@
+// The command-line tools: success paths and bad input (one-line error naming
+// the file, exit code 2, no output left behind).
+#include "test_util.h"
+
+#include <array>
+
+namespace {
+
+struct Result {
+    int code;
+    std::string output;
+};
+
+Result run(const std::string& args)
+{
+    const std::string cmd = args + " 2>&1";
+    Result r{-1, ""};
+    FILE* pipe = popen(cmd.c_str(), "r");
+    if (!pipe)
+        return r;
+    std::array<char, 512> buf;
+    while (fgets(buf.data(), int(buf.size()), pipe))
+        r.output += buf.data();
+    const int status = pclose(pipe);
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+const std::string demo = STRATA_DEMO_EXE;
+const std::string reconstruct = STRATA_RECONSTRUCT_EXE;
+
+}  // namespace
+
+TEST(Tools, DemoThenReconstructEveryFormat)
+{
+    const std::string dir = strata::test::tempDir("tools_demo");
+    Result r = run(demo + " --out '" + dir + "' --max-level 3 --size 256");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("wrote"), std::string::npos) << r.output;
+    ASSERT_TRUE(strata::test::fileExists(dir + "/head.glb"));
+    ASSERT_TRUE(strata::test::fileExists(dir + "/head.exr"));
+    for (const char* ext : {"obj", "ply", "glb"}) {
+        const std::string out = dir + "/out." + ext;
+        r = run(reconstruct + " '" + dir + "/head.glb' --level 2 --scheme smooth -o '" + out + "'");
+        EXPECT_EQ(r.code, 0) << r.output;
+        EXPECT_TRUE(strata::test::fileExists(out)) << out;
+    }
+}
+
+TEST(Tools, ReconstructRejectsBadInputWithExitCode2)
+{
+    const std::string dir = strata::test::tempDir("tools_bad");
+    ASSERT_EQ(run(demo + " --out '" + dir + "' --max-level 0 --size 256").code, 0);
+    struct Case {
+        std::string args, needle;
+    };
+    const Case cases[] = {
+        {"'" + dir + "/missing.glb' -o '" + dir + "/o.obj'", "missing.glb"},
+        {"'" + dir + "/head.glb' --level 9 -o '" + dir + "/o.obj'", "--level"},
+        {"'" + dir + "/head.glb' --scheme cubic -o '" + dir + "/o.obj'", "--scheme"},
+        {"'" + dir + "/head.glb' -o '" + dir + "/o.xyz'", "unknown output format"},
+        {"'" + dir + "/head.glb' -o '" + dir + "/no/such/dir/o.obj'", "o.obj"},
+        {"'" + dir + "/head.glb'", "-o OUTPUT"},
+        {"'" + dir + "/head.glb' --bogus -o '" + dir + "/o.obj'", "unknown option"},
+    };
+    for (const Case& c : cases) {
+        const Result r = run(reconstruct + " " + c.args);
+        EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find("strata-reconstruct: error:"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_FALSE(strata::test::fileExists(dir + "/o.obj"));
+    }
+    // A rig whose map was deleted: clear error naming the map.
+    ASSERT_EQ(std::remove((dir + "/head.exr").c_str()), 0);
+    const Result r = run(reconstruct + " '" + dir + "/head.glb' -o '" + dir + "/o.obj'");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.output.find("head.exr"), std::string::npos) << r.output;
+    EXPECT_FALSE(strata::test::fileExists(dir + "/o.obj"));
+}

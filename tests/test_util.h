@@ -1,0 +1,89 @@
+// Shared helpers for Strata's tests.
+#pragma once
+
+#include "strata/control_mesh.h"
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include <cstdio>
+#include <string>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace strata {
+namespace test {
+
+/// Path of a third-party asset in ../shared/data, or "" when the folder is absent.
+inline std::string sharedData(const std::string& name)
+{
+    const std::string path = std::string(STRATA_SHARED_DATA) + "/" + name;
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0 ? path : std::string();
+}
+
+/// Skips the calling test (with a message) when a shared asset is missing.
+#define STRATA_REQUIRE_DATA(var, name)                                                 \
+    const std::string var = ::strata::test::sharedData(name);                          \
+    if (var.empty())                                                                   \
+    GTEST_SKIP() << "../shared/data/" << name << " is absent; test needs it"
+
+/// A fresh empty directory under the build tree's temp area.
+inline std::string tempDir(const std::string& name)
+{
+    const std::string dir = std::string(STRATA_TEST_TMP) + "/" + name;
+    std::string cmd = "rm -rf '" + dir + "' && mkdir -p '" + dir + "'";
+    if (std::system(cmd.c_str()) != 0)
+        ADD_FAILURE() << "cannot create " << dir;
+    return dir;
+}
+
+inline bool fileExists(const std::string& path)
+{
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0;
+}
+
+inline float boundingBoxDiagonal(const ControlMesh& m)
+{
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : m.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    return glm::length(hi - lo);
+}
+
+/// Distance from p to triangle (a, b, c) (Ericson, Real-Time Collision
+/// Detection 5.1.5), in double precision: the region tests cancel badly in
+/// float on thin triangles.
+inline float pointTriangleDistance(const glm::vec3& pf, const glm::vec3& af, const glm::vec3& bf, const glm::vec3& cf)
+{
+    const glm::dvec3 p(pf), a(af), b(bf), c(cf);
+    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0)
+        return float(glm::length(p - a));
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3)
+        return float(glm::length(p - b));
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0)
+        return float(glm::length(p - (a + ab * (d1 / (d1 - d3)))));
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6)
+        return float(glm::length(p - c));
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0)
+        return float(glm::length(p - (a + ac * (d2 / (d2 - d6)))));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+        return float(glm::length(p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))));
+    const double denom = 1.0 / (va + vb + vc);
+    return float(glm::length(p - (a + ab * (vb * denom) + ac * (vc * denom))));
+}
+
+}  // namespace test
+}  // namespace strata

@@ -1,0 +1,74 @@
+// Every glTF the project writes passes the Khronos glTF-Validator with 0
+// errors and 0 warnings (node + npm gltf-validator, installed by
+// cmake/install-deps.sh).
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/io/exr.h"
+#include "strata/io/reconstruct.h"
+#include "strata/io/rig_io.h"
+#include "test_util.h"
+
+#include <array>
+#include <cstdio>
+
+using namespace strata;
+
+namespace {
+
+std::string runValidator(const std::vector<std::string>& files, int* exitCode)
+{
+    std::string cmd = "node '" + std::string(STRATA_SOURCE_DIR) + "/tests/validate_gltf.mjs' '" +
+                      std::string(STRATA_VALIDATOR_MODULES) + "'";
+    for (const std::string& f : files)
+        cmd += " '" + f + "'";
+    cmd += " 2>&1";
+    std::string output;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    if (!pipe) {
+        *exitCode = -1;
+        return "cannot run node";
+    }
+    std::array<char, 512> buf;
+    while (fgets(buf.data(), int(buf.size()), pipe))
+        output += buf.data();
+    const int status = pclose(pipe);
+    *exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return output;
+}
+
+}  // namespace
+
+TEST(GltfValidator, EveryFileTheProjectWritesIsClean)
+{
+    ASSERT_TRUE(test::fileExists(std::string(STRATA_VALIDATOR_MODULES) + "/gltf-validator/package.json"))
+        << "gltf-validator is not installed; run cmake/install-deps.sh";
+    const std::string dir = test::tempDir("validator");
+    Rig rig;
+    rig.mesh = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {256, 2}).isOk());
+    DisplacementMap map;
+    ASSERT_TRUE(examples::bakeRadialSurface(&map, rig.mesh, 256, 2, examples::headRadius).isOk());
+    rig.hasDisplacement = true;
+    rig.displacement.uri = "rig.exr";
+    rig.displacement.encoding = "exr";
+    rig.displacement.width = rig.displacement.height = 256;
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/rig.exr", map).isOk());
+    std::vector<std::string> files = {dir + "/rig.glb", dir + "/rig.gltf"};
+    ASSERT_TRUE(io::saveRig(files[0], rig).isOk());
+    ASSERT_TRUE(io::saveRig(files[1], rig).isOk());
+    // A rig without UVs or displacement, and reconstructions in both schemes.
+    Rig plain;
+    plain.mesh = examples::makeIcosphere(0);
+    files.push_back(dir + "/plain.glb");
+    ASSERT_TRUE(io::saveRig(files.back(), plain).isOk());
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        io::Reconstruction rec;
+        ASSERT_TRUE(io::reconstruct(&rec, rig, &map, scheme, 3).isOk());
+        files.push_back(dir + "/level3_" + schemeName(scheme) + ".glb");
+        ASSERT_TRUE(io::writeReconstruction(files.back(), rec).isOk());
+    }
+    int code = 0;
+    const std::string report = runValidator(files, &code);
+    EXPECT_EQ(code, 0) << report;
+    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+}

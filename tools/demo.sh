@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Sets up, builds and runs the main job on the built-in procedural example.
+# Output folder: first argument, default ./strata-out.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash cmake/install-deps.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j "$(nproc)" --target strata-demo strata-reconstruct
+out="${1:-strata-out}"
+./build/tools/strata-demo --out "$out"
