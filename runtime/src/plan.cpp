@@ -26,6 +26,13 @@ namespace strata {
 
 using namespace OpenSubdiv;
 
+// The ...Real<float> factories directly: the Far::StencilTableFactory
+// wrappers static_cast their result to a subclass it is not (UBSan reports it).
+using StencilFactory = Far::StencilTableFactoryReal<float>;
+using LimitFactory = Far::LimitStencilTableFactoryReal<float>;
+using StencilTable = Far::StencilTableReal<float>;
+using LimitStencilTable = Far::LimitStencilTableReal<float>;
+
 const char* schemeName(Scheme scheme)
 {
     return scheme == Scheme::Linear ? "linear" : "smooth";
@@ -179,11 +186,11 @@ Status Plan::build(const ControlMesh& mesh)
         for (size_t v = 0; v < nv; ++v)
             linearCsr_.offsets[v] = linearCsr_.indices[v] = int(v);
     } else {
-        Far::StencilTableFactory::Options so;
-        so.interpolationMode = Far::StencilTableFactory::INTERPOLATE_VERTEX;
+        StencilFactory::Options so;
+        so.interpolationMode = StencilFactory::INTERPOLATE_VERTEX;
         so.generateIntermediateLevels = false;
         so.generateOffsets = true;
-        std::unique_ptr<const Far::StencilTable> table(Far::StencilTableFactory::Create(*refiner, so));
+        std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
         if (!table || size_t(table->GetNumStencils()) != nv)
             return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected vertex stencil table");
         linearCsr_.sizes = table->GetSizes();
@@ -251,12 +258,12 @@ Status Plan::build(const ControlMesh& mesh)
         if (level_ == 0) {
             uvs_ = mesh.uvs;
         } else {
-            Far::StencilTableFactory::Options so;
-            so.interpolationMode = Far::StencilTableFactory::INTERPOLATE_FACE_VARYING;
+            StencilFactory::Options so;
+            so.interpolationMode = StencilFactory::INTERPOLATE_FACE_VARYING;
             so.generateIntermediateLevels = false;
             so.generateOffsets = true;
             so.fvarChannel = 0;
-            std::unique_ptr<const Far::StencilTable> table(Far::StencilTableFactory::Create(*refiner, so));
+            std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
             if (!table || size_t(table->GetNumStencils()) != nuv)
                 return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
             const std::vector<int>& sizes = table->GetSizes();
@@ -302,12 +309,12 @@ Status Plan::build(const ControlMesh& mesh)
             s[k] = samples_[order[k]].bary.x;
             t[k] = samples_[order[k]].bary.y;
         }
-        Far::LimitStencilTableFactory::LocationArrayVec locations;
+        LimitFactory::LocationArrayVec locations;
         for (size_t k = 0; k < nv;) {
             size_t j = k;
             while (j < nv && samples_[order[j]].face == samples_[order[k]].face)
                 ++j;
-            Far::LimitStencilTableFactory::LocationArray loc;
+            LimitFactory::LocationArray loc;
             loc.ptexIdx = int(samples_[order[k]].face);
             loc.numLocations = int(j - k);
             loc.s = &s[k];
@@ -315,10 +322,9 @@ Status Plan::build(const ControlMesh& mesh)
             locations.push_back(loc);
             k = j;
         }
-        Far::LimitStencilTableFactory::Options lo;
+        LimitFactory::Options lo;
         lo.generate1stDerivatives = true;
-        std::unique_ptr<const Far::LimitStencilTable> limit(
-            Far::LimitStencilTableFactory::Create(*smooth, locations, nullptr, nullptr, lo));
+        std::unique_ptr<const LimitStencilTable> limit(LimitFactory::Create(*smooth, locations, nullptr, nullptr, lo));
         if (!limit || size_t(limit->GetNumStencils()) != nv)
             return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected limit stencil table");
 

@@ -1,0 +1,154 @@
+// bench_runtime: refinement + reconstruction cost per level (runtime-core issue).
+//
+// For a ~2k-triangle control mesh (a cube with 13x13 quads per side, 2028
+// triangles) and for spot (../shared/data, when present), per level 0..6:
+// refined vertices, one-time setup, per-evaluate time (positions, directions
+// and displacement), million displaced vertices per second, shading-normal
+// pass, table memory, and OpenSubdiv's own Osd::CpuEvaluator::EvalStencils on
+// positions alone over the same stencil table, all on one core.
+#include "bench_common.h"
+
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/io/mesh_io.h"
+#include "strata/normals.h"
+#include "strata/plan.h"
+
+#include <opensubdiv/osd/bufferDescriptor.h>
+#include <opensubdiv/osd/cpuEvaluator.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <sys/stat.h>
+
+using namespace strata;
+
+namespace {
+
+// A cube [-1,1]^3 with n x n quads per side, each split into two triangles.
+ControlMesh makeCube(int n)
+{
+    ControlMesh m;
+    auto vertex = [&](glm::vec3 p) {
+        for (size_t i = 0; i < m.positions.size(); ++i)
+            if (m.positions[i] == p)
+                return uint32_t(i);
+        m.positions.push_back(p);
+        return uint32_t(m.positions.size() - 1);
+    };
+    for (int axis = 0; axis < 3; ++axis)
+        for (int sign = -1; sign <= 1; sign += 2) {
+            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < n; ++j) {
+                    uint32_t q[4];
+                    const int di[4] = {0, 1, 1, 0}, dj[4] = {0, 0, 1, 1};
+                    for (int k = 0; k < 4; ++k) {
+                        glm::vec3 p;
+                        p[axis] = float(sign);
+                        p[u] = -1.0f + 2.0f * float(i + di[k]) / float(n);
+                        p[v] = -1.0f + 2.0f * float(j + dj[k]) / float(n);
+                        q[k] = vertex(p);
+                    }
+                    if (sign > 0)
+                        m.triangles.insert(m.triangles.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+                    else
+                        m.triangles.insert(m.triangles.end(), {q[0], q[2], q[1], q[0], q[3], q[2]});
+                }
+        }
+    return m;
+}
+
+void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
+{
+    if (!mesh.hasUVs() && !baker::buildTriangleAtlas(&mesh, {2048, 2}).isOk()) {
+        std::printf("%s: atlas failed\n", name);
+        return;
+    }
+    DisplacementMap map;
+    map.width = map.height = 1024;
+    map.texels.resize(size_t(1024) * 1024);
+    for (size_t i = 0; i < map.texels.size(); ++i)
+        map.texels[i] = 0.01f * std::sin(float(i % 1024) * 0.05f) * std::cos(float(i / 1024) * 0.07f);
+
+    std::vector<glm::vec3> normals(mesh.positions.size());
+    computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
+                          mesh.faceCount());
+    std::printf("\n%s, %zu control triangles, scheme %s, one core\n", name, mesh.faceCount(), schemeName(scheme));
+    std::printf("level | refined verts | setup ms | evaluate ms | M verts/s | shading normals ms | tables MB |"
+                " Osd EvalStencils ms (xyz) | evaluate / Osd\n");
+    std::printf("------+---------------+----------+-------------+-----------+--------------------+-----------+"
+                "---------------------------+---------------\n");
+    for (int level = 0; level <= maxLevel; ++level) {
+        const double t0 = bench::nowMs();
+        std::unique_ptr<Plan> plan;
+        Status st = Plan::create(&plan, mesh, scheme, level);
+        if (st)
+            st = plan->setDisplacement(map);
+        const double setup = bench::nowMs() - t0;
+        if (!st) {
+            std::printf("%5d | error: %s\n", level, st.message().c_str());
+            continue;
+        }
+        const size_t n = plan->refinedVertexCount();
+        std::vector<glm::vec3> out(n), dir(n), shading(n);
+        const double eval = bench::medianMs([&] {
+            plan->evaluate(out.data(), dir.data(), 0, n, mesh.positions.data(), normals.data(), mesh.positions.size());
+        });
+        const double shade = bench::medianMs([&] { plan->computeShadingNormals(shading.data(), out.data()); });
+        std::string osd = "-", ratio = "-";
+        if (scheme == Scheme::Linear) {
+            const Plan::CsrStencils& s = plan->linearStencils();
+            using OpenSubdiv::Osd::BufferDescriptor;
+            const BufferDescriptor desc(0, 3, 3);
+            const double t = bench::medianMs([&] {
+                OpenSubdiv::Osd::CpuEvaluator::EvalStencils(&mesh.positions[0].x, desc, &out[0].x, desc, s.sizes.data(),
+                                                             s.offsets.data(), s.indices.data(), s.weights.data(), 0,
+                                                             int(n));
+            });
+            char buf[64];
+            std::snprintf(buf, sizeof(buf), "%.3f", t);
+            osd = buf;
+            std::snprintf(buf, sizeof(buf), "%.2fx", eval / t);
+            ratio = buf;
+        }
+        std::printf("%5d | %13zu | %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s\n", level, n, setup, eval,
+                    double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0, osd.c_str(),
+                    ratio.c_str());
+        std::fflush(stdout);
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    int maxLevel = kMaxLevel, maxSmooth = 5;
+    for (int i = 1; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--max-level") && i + 1 < argc)
+            maxLevel = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--max-smooth-level") && i + 1 < argc)
+            maxSmooth = std::atoi(argv[++i]);
+        else {
+            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N]\n");
+            return 2;
+        }
+    }
+    std::printf("bench_runtime: median of 7 runs per cell; evaluate = positions + directions + displacement\n");
+    const ControlMesh cube = makeCube(13);
+    runTable("cube 13x13 per side", cube, maxLevel, Scheme::Linear);
+    ControlMesh spot;
+    const std::string spotPath = std::string(STRATA_SHARED_DATA) + "/spot_control_mesh.obj";
+    struct stat st;
+    const bool haveSpot = ::stat(spotPath.c_str(), &st) == 0 && io::readObj(spotPath, &spot).isOk();
+    if (haveSpot)
+        runTable("spot", spot, maxLevel, Scheme::Linear);
+    else
+        std::printf("\nspot: %s not found, skipped\n", spotPath.c_str());
+    runTable("cube 13x13 per side", cube, std::min(maxLevel, maxSmooth), Scheme::Smooth);
+    if (haveSpot)
+        runTable("spot", spot, std::min(maxLevel, maxSmooth), Scheme::Smooth);
+    return 0;
+}
