@@ -54,7 +54,7 @@ int main(int argc, char** argv)
             } else if (a == "-o" || a == "--output") {
                 outPath = value();
             } else if (!a.empty() && a[0] == '-') {
-                throw cli::Error("unknown option " + a + "\n" + kUsage);
+                throw cli::Error("unknown option " + a + " (see --help)");
             } else if (rigPath.empty()) {
                 rigPath = a;
             } else {
@@ -62,7 +62,7 @@ int main(int argc, char** argv)
             }
         }
         if (rigPath.empty() || outPath.empty())
-            throw cli::Error(std::string("an input rig and -o OUTPUT are required\n") + kUsage);
+            throw cli::Error("an input rig and -o OUTPUT are required (see --help)");
 
         Rig rig;
         Status st = io::loadRig(rigPath, &rig);

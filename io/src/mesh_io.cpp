@@ -45,6 +45,33 @@ bool resolveIndex(long raw, size_t count, uint32_t* out)
     return true;
 }
 
+// The corner to fan-triangulate a polygon from: the first whose triangles
+// all keep the polygon's orientation in UV space, so a non-convex UV polygon
+// is not split into triangles that fold over each other (spot's control
+// mesh has such quads).  Corner 0 when no fan qualifies.
+size_t fanStart(const std::vector<glm::vec2>& uvs, const std::vector<uint32_t>& ft)
+{
+    const size_t n = ft.size();
+    if (n <= 3)
+        return 0;
+    double area = 0.0;  // shoelace
+    for (size_t k = 0; k < n; ++k) {
+        const glm::dvec2 a(uvs[ft[k]]), b(uvs[ft[(k + 1) % n]]);
+        area += a.x * b.y - a.y * b.x;
+    }
+    for (size_t s = 0; s < n; ++s) {
+        bool consistent = true;
+        for (size_t k = 1; k + 1 < n && consistent; ++k) {
+            const glm::dvec2 a(uvs[ft[s]]), b(uvs[ft[(s + k) % n]]), c(uvs[ft[(s + k + 1) % n]]);
+            const double t = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+            consistent = t * area > 0.0;
+        }
+        if (consistent)
+            return s;
+    }
+    return 0;
+}
+
 }  // namespace
 
 Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
@@ -142,10 +169,13 @@ Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
             ++stats.polygons;
             if (fv.size() > 3)
                 ++stats.triangulated;
-            for (size_t k = 1; k + 1 < fv.size(); ++k) {
-                mesh.triangles.insert(mesh.triangles.end(), {fv[0], fv[k], fv[k + 1]});
+            const size_t start = faceUV ? fanStart(mesh.uvs, ft) : 0;
+            const size_t n = fv.size();
+            for (size_t k = 1; k + 1 < n; ++k) {
+                const size_t a = start, b = (start + k) % n, c = (start + k + 1) % n;
+                mesh.triangles.insert(mesh.triangles.end(), {fv[a], fv[b], fv[c]});
                 if (faceUV)
-                    mesh.uvIndices.insert(mesh.uvIndices.end(), {ft[0], ft[k], ft[k + 1]});
+                    mesh.uvIndices.insert(mesh.uvIndices.end(), {ft[a], ft[b], ft[c]});
             }
         }
     }

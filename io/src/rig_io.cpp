@@ -5,6 +5,7 @@
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
 #include "strata/io/gltf_accessor.h"
+#include "strata/io/png.h"
 #include "gltf_mesh_writer.h"
 #include "strata/normals.h"
 
@@ -127,6 +128,17 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, D
         return Status(StatusCode::Unsupported, path + ": displacement direction \"" + direction + "\" is not supported");
     if (weighting != "angle")
         return Status(StatusCode::Unsupported, path + ": normal weighting \"" + weighting + "\" is not supported");
+    if (const tinygltf::Value* q = member(block, "quantizedMap")) {
+        double bits = 0, dmin = 0, dmax = 0;
+        if (!(st = stringField(*q, "uri", path, &info->quantized.uri)) || !(st = numberField(*q, "bits", path, &bits)) ||
+            !(st = numberField(*q, "dmin", path, &dmin)) || !(st = numberField(*q, "dmax", path, &dmax)))
+            return st;
+        if ((bits != 8 && bits != 16) || !(dmax >= dmin))
+            return Status(StatusCode::InvalidData, path + ": quantizedMap needs bits 8 or 16 and dmin <= dmax");
+        info->quantized.bits = int(bits);
+        info->quantized.dmin = float(dmin);
+        info->quantized.dmax = float(dmax);
+    }
     info->width = int(w);
     info->height = int(h);
     info->factor = float(factor);
@@ -148,13 +160,20 @@ struct VertexKeyHash {
 
 }  // namespace
 
-Status loadRig(const std::string& path, Rig* out)
+namespace {
+
+// The geometry of the chosen triangle primitive, welded by exact position.
+struct LoadedPrimitive {
+    Rig rig;                 // mesh (not yet validated) and sourceVertex
+    int meshIndex = -1;
+};
+
+Status loadPrimitive(const std::string& path, tinygltf::Model* modelOut, LoadedPrimitive* out)
 {
-    tinygltf::Model model;
+    tinygltf::Model& model = *modelOut;
     Status st = loadModel(path, &model);
     if (!st)
         return st;
-
     int meshIndex = -1;
     for (size_t m = 0; m < model.meshes.size() && meshIndex < 0; ++m)
         if (member(model.meshes[m].extras, "strata"))
@@ -237,6 +256,36 @@ Status loadRig(const std::string& path, Rig* out)
         for (size_t i = 0; i < nFile; ++i)
             rig.mesh.uvs[i] = glm::vec2(uv[2 * i], uv[2 * i + 1]);
     }
+    out->rig = std::move(rig);
+    out->meshIndex = meshIndex;
+    return Status::ok();
+}
+
+}  // namespace
+
+Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
+{
+    tinygltf::Model model;
+    LoadedPrimitive prim;
+    Status st = loadPrimitive(path, &model, &prim);
+    if (!st)
+        return st;
+    if (prim.rig.mesh.triangles.empty())
+        return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
+    *positions = std::move(prim.rig.mesh.positions);
+    *triangles = std::move(prim.rig.mesh.triangles);
+    return Status::ok();
+}
+
+Status loadRig(const std::string& path, Rig* out)
+{
+    tinygltf::Model model;
+    LoadedPrimitive prim;
+    Status st = loadPrimitive(path, &model, &prim);
+    if (!st)
+        return st;
+    Rig rig = std::move(prim.rig);
+    const tinygltf::Mesh& mesh = model.meshes[size_t(prim.meshIndex)];
     if (!(st = validateControlMesh(rig.mesh)))
         return Status(st.code(), path + ": " + st.message());
 
@@ -272,6 +321,32 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
     return Status::ok();
 }
 
+Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out)
+{
+    const DisplacementInfo::Quantized& q = rig.displacement.quantized;
+    if (!rig.hasDisplacement || q.uri.empty())
+        return Status(StatusCode::InvalidArgument, rigPath + ": the rig has no quantised map");
+    const std::string dir = directoryOf(rigPath);
+    const std::string mapPath = dir.empty() ? q.uri : dir + "/" + q.uri;
+    DisplacementMap map;
+    int bits = 0;
+    std::vector<uint16_t> samples;
+    Status st = readPngGray(mapPath, &map.width, &map.height, &bits, &samples);
+    if (!st)
+        return st;
+    if (bits != q.bits)
+        return Status(StatusCode::InvalidData, mapPath + ": " + std::to_string(bits) + "-bit image, the rig declares " +
+                                                   std::to_string(q.bits));
+    if (map.width != rig.displacement.width || map.height != rig.displacement.height)
+        return Status(StatusCode::InvalidData, mapPath + ": image size differs from the rig's");
+    map.texels.assign(samples.begin(), samples.end());
+    // Paper eq. 12 inverted: 2^n levels span [dmin, dmax] with the factor 2^n - 1.
+    map.factor = (q.dmax - q.dmin) / float((1 << bits) - 1);
+    map.offset = q.dmin;
+    *out = std::move(map);
+    return Status::ok();
+}
+
 namespace {
 
 tinygltf::Value strataBlock(const DisplacementInfo& d)
@@ -296,6 +371,14 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     block["direction"] = tinygltf::Value(std::string("interpolated-control-normal"));
     block["normalWeighting"] = tinygltf::Value(std::string("angle"));
     block["subdivision"] = tinygltf::Value(subdivision);
+    if (!d.quantized.uri.empty()) {
+        tinygltf::Value::Object q;
+        q["uri"] = tinygltf::Value(d.quantized.uri);
+        q["bits"] = tinygltf::Value(d.quantized.bits);
+        q["dmin"] = tinygltf::Value(double(d.quantized.dmin));
+        q["dmax"] = tinygltf::Value(double(d.quantized.dmax));
+        block["quantizedMap"] = tinygltf::Value(q);
+    }
     return tinygltf::Value(block);
 }
 

@@ -25,6 +25,13 @@ struct DisplacementInfo {
     float offset = 0.0f;        ///< displacementGeometryOffset
     Scheme scheme = Scheme::Linear;
     int recommendedLevel = 3;
+    /// Optional second copy of the map as an 8- or 16-bit PNG quantised with
+    /// paper eq. 12: q = round((2^bits - 1) (d - dmin) / (dmax - dmin)).
+    struct Quantized {
+        std::string uri;  ///< empty: none
+        int bits = 0;     ///< 8 or 16
+        float dmin = 0.0f, dmax = 0.0f;
+    } quantized;
 };
 
 struct Rig {

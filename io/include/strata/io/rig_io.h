@@ -18,9 +18,18 @@ namespace io {
 /// version, malformed metadata or bad geometry is a clear error.
 Status loadRig(const std::string& path, Rig* out);
 
+/// Loads the first triangle primitive of any glTF as a triangle soup welded
+/// by exact position, without the control-mesh checks (a captured
+/// high-resolution mesh may be non-manifold; the baker tolerates that).
+Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles);
+
 /// Loads the displacement map a rig names (the URI is relative to the rig),
 /// checks its size against the rig, and sets factor/offset from the rig.
 Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
+
+/// Loads the rig's optional quantised PNG map (paper eq. 12) with factor and
+/// offset set so texels decode to distances.
+Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
 
 /// Writes rig as .glb (binary) or .gltf (JSON with an embedded buffer) by
 /// path extension, atomically.  Vertices are split where UVs differ; the

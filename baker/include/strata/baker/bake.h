@@ -1,0 +1,95 @@
+// Strata baker: the whole bake of paper sections 2.1-2.3 and 3.2, from a
+// high-resolution mesh and a control mesh with UVs to a displacement map.
+#pragma once
+
+#include "strata/baker/rasterize.h"
+#include "strata/control_mesh.h"
+#include "strata/displacement_map.h"
+#include "strata/plan.h"
+#include "strata/status.h"
+
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace baker {
+
+/// A high-resolution mesh: positions and triangles only.
+struct TriangleMesh {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    size_t faceCount() const { return triangles.size() / 3; }
+};
+
+struct BakeOptions {
+    Scheme scheme = Scheme::Linear;
+    int size = 0;                       ///< map side; 0 = automatic (paper 2.3 rule)
+    int maxSize = 8192;
+    OverlapPolicy overlap = OverlapPolicy::Max;
+    int threads = 2;
+    int denseLevel = 3;                 ///< smooth scheme: limit-surface sampling level
+    int gutter = 4;                     ///< dilation passes (texels)
+    int lineRings = 2;                  ///< gutter rings measured by line intersection before dilation
+};
+
+struct StageTimes {
+    double mapping = 0, rasterize = 0, dilate = 0;  ///< ms (dilate includes hole filling)
+};
+
+struct BakeReport {
+    size_t highVertices = 0, highTriangles = 0, controlTriangles = 0;
+    size_t fallbackVertices = 0;
+    double searchDistance = 0;
+    RasterStats raster;
+    int size = 0;
+    std::string sizeReason;
+    double typicalEdge = 0;             ///< median high-res edge length
+    double coverage = 0;                ///< fraction of texels inside charts hit by forward mapping
+    size_t lineFilledTexels = 0;        ///< holes and gutter rings measured by line intersection
+    double overlapFraction = 0;         ///< covered texels hit by more than one layer
+    float dmin = 0, dmax = 0;
+    double diagonal = 0;                ///< high-res bounding-box diagonal
+    StageTimes times;
+};
+
+/// Median edge length of a triangle mesh (the paper's "typical edge").
+double medianEdgeLength(const TriangleMesh& mesh);
+
+/// Paper 2.3: a texel about the high-resolution mesh's typical edge.  With
+/// A3 the control mesh's 3D area and Auv its UV area (unit square), the side
+/// N = sqrt(A3 / Auv) / typicalEdge, rounded up to a power of two and clamped
+/// to [64, maxSize].  `reason` explains the choice.
+int chooseMapSize(const ControlMesh& control, double typicalEdge, int maxSize, std::string* reason);
+
+/// Checks UVs for baking: inside [0, 1] and no two triangles overlapping in
+/// UV space (tested by rasterising at `size`); the message names the triangles.
+Status checkUVs(const ControlMesh& control, int size);
+
+/// When the UV layout leaves the unit square (real assets overshoot: spot's
+/// reaches u = -0.052), fits it back with one uniform scale and offset, which
+/// keeps every chart's shape and the layout free of overlaps.  Returns true
+/// and describes the change in `note` when it had to.
+bool fitUVsToUnitSquare(ControlMesh* control, std::string* note);
+
+/// Checks a high-resolution mesh: finite positions, indices in range, at
+/// least one non-degenerate triangle.
+Status checkHighMesh(const TriangleMesh& high);
+
+/// Runs mapping, rasterisation and dilation.  The control mesh must have UVs.
+/// layersOut (optional) receives the per-texel layer counts (paper Fig. 6f).
+Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* report, const ControlMesh& control,
+            const TriangleMesh& high, const BakeOptions& options);
+
+/// Closed-loop error of one level: RMS and max distance, both directions,
+/// between the runtime's reconstruction and the high-res surface.
+struct LevelError {
+    int level = 0;
+    size_t vertices = 0, triangles = 0;
+    double forwardRms = 0, forwardMax = 0;    ///< reconstructed -> high-res
+    double backwardRms = 0, backwardMax = 0;  ///< high-res -> reconstructed
+};
+Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
+                       Scheme scheme, const TriangleMesh& high, int maxLevel, int threads);
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,168 @@
+// Strata baker: a bounding-volume hierarchy over axis-aligned boxes, used as
+// the spatial index of normal volumes (point containment) and of triangle
+// meshes (nearest point).  Median-split build, flat node array, iterative
+// queries; const queries are thread-safe.
+#pragma once
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace strata {
+namespace baker {
+
+struct Box {
+    glm::vec3 lo{1e30f}, hi{-1e30f};
+    void extend(const glm::vec3& p);
+    void extend(const Box& b);
+    bool contains(const glm::vec3& p) const;
+    /// Squared distance from p to the box (0 inside).
+    float distance2(const glm::vec3& p) const;
+};
+
+class Bvh {
+public:
+    /// Builds over items 0..boxes.size()-1.
+    void build(const std::vector<Box>& boxes);
+
+    /// Calls visit(item) for every item whose box contains p.
+    template <typename Visit>
+    void forEachContaining(const glm::vec3& p, Visit&& visit) const;
+
+    /// Best-first search: visit(item) returns the item's squared distance to
+    /// the query (or a large value); boxes farther than the best so far are
+    /// pruned.  Returns the best item (or -1) and its squared distance.
+    template <typename Distance2>
+    int64_t nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2) const;
+
+    /// Calls visit(item) for every item whose box meets the segment
+    /// origin + t * dir, t in [t0, t1].
+    template <typename Visit>
+    void forEachOnSegment(const glm::vec3& origin, const glm::vec3& dir, float t0, float t1, Visit&& visit) const;
+
+    bool empty() const { return nodes_.empty(); }
+
+private:
+    struct Node {
+        Box box;
+        uint32_t first;  // leaf: first index into items_; inner: left child (right = first + 1... see build)
+        uint32_t count;  // leaf: item count; inner: 0
+        uint32_t right;  // inner: right child
+    };
+    std::vector<Node> nodes_;
+    std::vector<uint32_t> items_;
+};
+
+/// Closest point on triangle (a, b, c) to p (Ericson 5.1.5), in double.
+glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
+                                  double* bary1, double* bary2);
+
+// ---- implementation of the templates ----
+
+template <typename Visit>
+void Bvh::forEachContaining(const glm::vec3& p, Visit&& visit) const
+{
+    if (nodes_.empty())
+        return;
+    uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& n = nodes_[stack[--top]];
+        if (!n.box.contains(p))
+            continue;
+        if (n.count > 0) {
+            for (uint32_t i = 0; i < n.count; ++i)
+                visit(items_[n.first + i]);
+        } else {
+            stack[top++] = n.first;
+            stack[top++] = n.right;
+        }
+    }
+}
+
+template <typename Visit>
+void Bvh::forEachOnSegment(const glm::vec3& origin, const glm::vec3& dir, float t0, float t1, Visit&& visit) const
+{
+    if (nodes_.empty())
+        return;
+    glm::vec3 inv;
+    for (int a = 0; a < 3; ++a)
+        inv[a] = dir[a] != 0.0f ? 1.0f / dir[a] : 3.0e38f;
+    auto hits = [&](const Box& b) {
+        float lo = t0, hi = t1;
+        for (int a = 0; a < 3; ++a) {
+            float ta = (b.lo[a] - origin[a]) * inv[a], tb = (b.hi[a] - origin[a]) * inv[a];
+            if (dir[a] == 0.0f) {
+                if (origin[a] < b.lo[a] || origin[a] > b.hi[a])
+                    return false;
+                continue;
+            }
+            if (ta > tb)
+                std::swap(ta, tb);
+            lo = ta > lo ? ta : lo;
+            hi = tb < hi ? tb : hi;
+            if (lo > hi)
+                return false;
+        }
+        return true;
+    };
+    uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& n = nodes_[stack[--top]];
+        if (!hits(n.box))
+            continue;
+        if (n.count > 0) {
+            for (uint32_t i = 0; i < n.count; ++i)
+                visit(items_[n.first + i]);
+        } else {
+            stack[top++] = n.first;
+            stack[top++] = n.right;
+        }
+    }
+}
+
+template <typename Distance2>
+int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2) const
+{
+    int64_t best = -1;
+    float bestD2 = maxDistance2;
+    if (!nodes_.empty()) {
+        uint32_t stack[64];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& n = nodes_[stack[--top]];
+            if (n.box.distance2(p) >= bestD2)
+                continue;
+            if (n.count > 0) {
+                for (uint32_t i = 0; i < n.count; ++i) {
+                    const float d2 = distance2(items_[n.first + i]);
+                    if (d2 < bestD2) {
+                        bestD2 = d2;
+                        best = items_[n.first + i];
+                    }
+                }
+            } else {
+                // Visit the nearer child first.
+                const float dl = nodes_[n.first].box.distance2(p), dr = nodes_[n.right].box.distance2(p);
+                if (dl < dr) {
+                    stack[top++] = n.right;
+                    stack[top++] = n.first;
+                } else {
+                    stack[top++] = n.first;
+                    stack[top++] = n.right;
+                }
+            }
+        }
+    }
+    *bestDistance2 = bestD2;
+    return best;
+}
+
+}  // namespace baker
+}  // namespace strata

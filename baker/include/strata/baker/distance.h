@@ -1,0 +1,48 @@
+// Strata baker: nearest-point queries on triangle meshes, and the surface
+// distance metric used by the closed-loop error and the evidence report.
+#pragma once
+
+#include "strata/baker/bvh.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace strata {
+namespace baker {
+
+class TriangleIndex {
+public:
+    /// Indexes faceCount triangles; the arrays must outlive the index.
+    void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount);
+    /// Distance from x to the nearest triangle; face and barycentrics of the
+    /// nearest point when the pointers are non-null.  -1 when empty.
+    double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr) const;
+
+    /// The intersection of the line origin + t * dir with the mesh that has
+    /// the smallest |t| within |t| <= maxT (Moller-Trumbore); false if none.
+    bool intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* t) const;
+
+private:
+    const glm::vec3* positions_ = nullptr;
+    const uint32_t* triangles_ = nullptr;
+    Bvh bvh_;
+};
+
+struct DistanceStats {
+    double rms = 0.0;
+    double max = 0.0;
+    size_t samples = 0;
+};
+
+/// One-sided distance from the samples to the indexed surface.
+DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads);
+
+/// Points that sample a mesh densely: every vertex and every face centroid.
+std::vector<glm::vec3> surfaceSamples(const glm::vec3* positions, size_t vertexCount, const uint32_t* triangles,
+                                      size_t faceCount);
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,90 @@
+// Strata baker: mapping every high-resolution vertex onto the bake surface
+// (paper 2.1: the parameters (r_i, alpha_i, beta_i, d_i) of each vertex).
+#pragma once
+
+#include "strata/baker/bvh.h"
+#include "strata/baker/distance.h"
+#include "strata/baker/normal_volume.h"
+#include "strata/baker/surface.h"
+#include "strata/status.h"
+
+#include <vector>
+
+namespace strata {
+namespace baker {
+
+struct VertexMapping {
+    uint32_t face;   ///< r: the bake-surface triangle
+    float b1, b2;    ///< barycentrics of its corners 1 and 2
+    float d;         ///< eq. 2 distance parameter
+};
+
+struct MappingStats {
+    size_t vertices = 0;
+    size_t fallbacks = 0;         ///< in no normal volume: mapped to the nearest surface point
+    double searchDistance = 0.0;  ///< |d| bound of the normal-volume index
+};
+
+/// Spatial indices over one bake surface: normal-volume prisms (bounded by
+/// |d| <= searchDistance) and the triangles themselves (nearest point).
+class SurfaceIndex {
+public:
+    void build(const BakeSurface& surface, double searchDistance);
+    const BakeSurface& surface() const { return *surface_; }
+    double searchDistance() const { return searchDistance_; }
+    NormalVolumeTriangle triangle(uint32_t face) const;
+
+    /// Closed-form mapping of x: the containing normal volume with the
+    /// smallest |d|.  False when x lies in none.
+    bool map(const glm::dvec3& x, VertexMapping* out) const;
+    /// Fallback: the nearest surface point, with d the projection of the
+    /// offset onto the interpolated normal there.
+    VertexMapping mapNearest(const glm::dvec3& x) const;
+    /// Nearest distance from x to the surface triangles.
+    double nearestDistance(const glm::vec3& x) const;
+
+private:
+    const BakeSurface* surface_ = nullptr;
+    double searchDistance_ = 0.0;
+    Bvh prisms_;
+    TriangleIndex faces_;
+};
+
+/// Maps n points in parallel (threads >= 1; the result does not depend on
+/// the thread count).  The search distance is 2x the largest nearest
+/// distance over a deterministic sample of the points, capped at
+/// maxSearchFraction of the surface's bounding-box diagonal.
+Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const BakeSurface& surface,
+                   const glm::vec3* points, size_t n, int threads, MappingStats* stats,
+                   double maxSearchFraction = 0.25);
+
+/// Runs f(begin, end) over [0, n) split into `threads` contiguous chunks.
+template <typename F>
+void parallelFor(size_t n, int threads, F&& f);
+
+}  // namespace baker
+}  // namespace strata
+
+#include <thread>
+
+namespace strata {
+namespace baker {
+template <typename F>
+void parallelFor(size_t n, int threads, F&& f)
+{
+    if (threads <= 1 || n < 1024) {
+        f(size_t(0), n);
+        return;
+    }
+    std::vector<std::thread> pool;
+    const size_t chunk = (n + size_t(threads) - 1) / size_t(threads);
+    for (int t = 0; t < threads; ++t) {
+        const size_t b = std::min(n, chunk * size_t(t)), e = std::min(n, b + chunk);
+        if (b < e)
+            pool.emplace_back([&f, b, e] { f(b, e); });
+    }
+    for (std::thread& th : pool)
+        th.join();
+}
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,35 @@
+// Strata baker: reading captured meshes and deriving control meshes.
+#pragma once
+
+#include "strata/baker/bake.h"
+#include "strata/control_mesh.h"
+#include "strata/status.h"
+
+#include <string>
+
+namespace strata {
+namespace baker {
+
+/// What was tolerated while reading a high-resolution mesh.
+struct HighMeshStats {
+    size_t polygonsTriangulated = 0;
+    size_t duplicateVertices = 0;   ///< vertices at the exact position of an earlier one
+    size_t degenerateTriangles = 0; ///< zero area (skipped by the rasteriser)
+    size_t nonManifoldEdges = 0;    ///< edges with more than two faces (harmless to the bake)
+};
+
+/// Reads OBJ (own reader), PLY / STL / OFF (OpenMesh, polygons
+/// triangulated) or glTF / GLB.  Errors name the file.
+Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats);
+
+/// Reads a control mesh: OBJ (with UVs when present) or glTF / GLB (a rig or
+/// any triangle mesh).  Errors name the file.
+Status loadControlMesh(const std::string& path, ControlMesh* out);
+
+/// Derives a control mesh from a high-resolution one by OpenMesh's quadric
+/// Decimater (with normal-flip protection) down to about targetFaces
+/// triangles, as the paper suggests (section 2).  No UVs.
+Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out);
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,136 @@
+// Median-split BVH (spatial index for normal volumes and nearest-point queries).
+#include "strata/baker/bvh.h"
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+
+namespace strata {
+namespace baker {
+
+void Box::extend(const glm::vec3& p)
+{
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+}
+
+void Box::extend(const Box& b)
+{
+    lo = glm::min(lo, b.lo);
+    hi = glm::max(hi, b.hi);
+}
+
+bool Box::contains(const glm::vec3& p) const
+{
+    return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
+}
+
+float Box::distance2(const glm::vec3& p) const
+{
+    const glm::vec3 d = glm::max(glm::max(lo - p, p - hi), glm::vec3(0.0f));
+    return glm::dot(d, d);
+}
+
+void Bvh::build(const std::vector<Box>& boxes)
+{
+    nodes_.clear();
+    items_.resize(boxes.size());
+    if (boxes.empty())
+        return;
+    std::vector<glm::vec3> centre(boxes.size());
+    for (size_t i = 0; i < boxes.size(); ++i) {
+        items_[i] = uint32_t(i);
+        centre[i] = 0.5f * (boxes[i].lo + boxes[i].hi);
+    }
+    nodes_.reserve(2 * boxes.size() / 2 + 1);
+    struct Task {
+        uint32_t node, first, count;
+    };
+    std::vector<Task> tasks;
+    nodes_.push_back({});
+    tasks.push_back({0, 0, uint32_t(boxes.size())});
+    const uint32_t leafSize = 4;
+    while (!tasks.empty()) {
+        const Task t = tasks.back();
+        tasks.pop_back();
+        Box box, cbox;
+        for (uint32_t i = t.first; i < t.first + t.count; ++i) {
+            box.extend(boxes[items_[i]]);
+            cbox.extend(centre[items_[i]]);
+        }
+        nodes_[t.node].box = box;
+        const glm::vec3 ext = cbox.hi - cbox.lo;
+        if (t.count <= leafSize || (ext.x <= 0.0f && ext.y <= 0.0f && ext.z <= 0.0f)) {
+            nodes_[t.node].first = t.first;
+            nodes_[t.node].count = t.count;
+            continue;
+        }
+        const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
+        const uint32_t mid = t.first + t.count / 2;
+        std::nth_element(items_.begin() + t.first, items_.begin() + mid, items_.begin() + t.first + t.count,
+                         [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
+        const uint32_t left = uint32_t(nodes_.size()), right = left + 1;
+        nodes_.push_back({});
+        nodes_.push_back({});
+        nodes_[t.node].first = left;
+        nodes_[t.node].right = right;
+        nodes_[t.node].count = 0;
+        tasks.push_back({left, t.first, mid - t.first});
+        tasks.push_back({right, mid, t.first + t.count - mid});
+    }
+}
+
+glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
+                                  double* bary1, double* bary2)
+{
+    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) {
+        *bary1 = *bary2 = 0.0;
+        return a;
+    }
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) {
+        *bary1 = 1.0;
+        *bary2 = 0.0;
+        return b;
+    }
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        const double v = d1 / (d1 - d3);
+        *bary1 = v;
+        *bary2 = 0.0;
+        return a + v * ab;
+    }
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) {
+        *bary1 = 0.0;
+        *bary2 = 1.0;
+        return c;
+    }
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        const double w = d2 / (d2 - d6);
+        *bary1 = 0.0;
+        *bary2 = w;
+        return a + w * ac;
+    }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        *bary1 = 1.0 - w;
+        *bary2 = w;
+        return b + w * (c - b);
+    }
+    const double denom = 1.0 / (va + vb + vc);
+    const double v = vb * denom, w = vc * denom;
+    *bary1 = v;
+    *bary2 = w;
+    return a + ab * v + ac * w;
+}
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,108 @@
+// Nearest-point distances between meshes (closed-loop error, paper 2.3's bound).
+#include "strata/baker/distance.h"
+
+#include "strata/baker/mapping.h"
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+
+namespace strata {
+namespace baker {
+
+void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount)
+{
+    positions_ = positions;
+    triangles_ = triangles;
+    std::vector<Box> boxes(faceCount);
+    for (size_t f = 0; f < faceCount; ++f)
+        for (int k = 0; k < 3; ++k)
+            boxes[f].extend(positions[triangles[3 * f + k]]);
+    bvh_.build(boxes);
+}
+
+double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2) const
+{
+    float best2 = 0.0f;
+    auto corner = [&](uint32_t f, int k) { return glm::dvec3(positions_[triangles_[3 * size_t(f) + k]]); };
+    const int64_t f = bvh_.nearest(glm::vec3(x), 3.0e38f, [&](uint32_t t) {
+        double u, v;
+        const glm::dvec3 c = closestPointOnTriangle(x, corner(t, 0), corner(t, 1), corner(t, 2), &u, &v);
+        return float(glm::dot(c - x, c - x));
+    }, &best2);
+    if (f < 0)
+        return -1.0;
+    double u, v;
+    const glm::dvec3 c = closestPointOnTriangle(x, corner(uint32_t(f), 0), corner(uint32_t(f), 1), corner(uint32_t(f), 2),
+                                                &u, &v);
+    if (face)
+        *face = uint32_t(f);
+    if (b1)
+        *b1 = u;
+    if (b2)
+        *b2 = v;
+    return glm::length(c - x);
+}
+
+bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut) const
+{
+    bool found = false;
+    double best = maxT;
+    bvh_.forEachOnSegment(glm::vec3(origin), glm::vec3(dir), float(-maxT), float(maxT), [&](uint32_t f) {
+        const glm::dvec3 a(positions_[triangles_[3 * size_t(f)]]), b(positions_[triangles_[3 * size_t(f) + 1]]),
+            c(positions_[triangles_[3 * size_t(f) + 2]]);
+        const glm::dvec3 e1 = b - a, e2 = c - a;
+        const glm::dvec3 pv = glm::cross(dir, e2);
+        const double det = glm::dot(e1, pv);
+        if (std::fabs(det) < 1e-300)
+            return;
+        const double inv = 1.0 / det;
+        const glm::dvec3 tv = origin - a;
+        const double u = glm::dot(tv, pv) * inv;
+        if (u < 0.0 || u > 1.0)
+            return;
+        const glm::dvec3 qv = glm::cross(tv, e1);
+        const double v = glm::dot(dir, qv) * inv;
+        if (v < 0.0 || u + v > 1.0)
+            return;
+        const double t = glm::dot(e2, qv) * inv;
+        if (std::fabs(t) <= best) {
+            best = std::fabs(t);
+            *tOut = t;
+            found = true;
+        }
+    });
+    return found;
+}
+
+DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads)
+{
+    std::vector<double> d(samples.size());
+    parallelFor(samples.size(), threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i)
+            d[i] = to.nearest(glm::dvec3(samples[i]));
+    });
+    DistanceStats s;
+    double sum = 0.0;
+    for (double v : d) {
+        sum += v * v;
+        s.max = std::max(s.max, v);
+    }
+    s.samples = d.size();
+    s.rms = d.empty() ? 0.0 : std::sqrt(sum / double(d.size()));
+    return s;
+}
+
+std::vector<glm::vec3> surfaceSamples(const glm::vec3* positions, size_t vertexCount, const uint32_t* triangles,
+                                      size_t faceCount)
+{
+    std::vector<glm::vec3> s(positions, positions + vertexCount);
+    s.reserve(vertexCount + faceCount);
+    for (size_t f = 0; f < faceCount; ++f)
+        s.push_back((positions[triangles[3 * f]] + positions[triangles[3 * f + 1]] + positions[triangles[3 * f + 2]]) /
+                    3.0f);
+    return s;
+}
+
+}  // namespace baker
+}  // namespace strata

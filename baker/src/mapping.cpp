@@ -1,0 +1,146 @@
+// Normal-volume mapping of the high-resolution vertices (paper 2.1), through
+// a BVH over the normal-volume prisms rather than a scan of all triangles.
+#include "strata/baker/mapping.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+namespace baker {
+
+NormalVolumeTriangle SurfaceIndex::triangle(uint32_t f) const
+{
+    NormalVolumeTriangle t;
+    for (int k = 0; k < 3; ++k) {
+        const uint32_t v = surface_->triangles[3 * size_t(f) + k];
+        t.v[k] = glm::dvec3(surface_->positions[v]);
+        t.n[k] = glm::dvec3(surface_->normals[v]);
+    }
+    return t;
+}
+
+void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
+{
+    surface_ = &surface;
+    searchDistance_ = searchDistance;
+    const size_t nf = surface.faceCount();
+    std::vector<Box> prisms(nf);
+    const float D = float(searchDistance);
+    for (size_t f = 0; f < nf; ++f) {
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = surface.triangles[3 * f + k];
+            const glm::vec3 p = surface.positions[v], n = surface.normals[v];
+            // T(d) moves linearly in d, so the prism lies in the hull of T(-D) and T(D).
+            prisms[f].extend(p + D * n);
+            prisms[f].extend(p - D * n);
+        }
+        // Pad by a relative epsilon so points on a shared face are found from both sides.
+        const glm::vec3 pad = 1e-5f * (prisms[f].hi - prisms[f].lo) + glm::vec3(1e-7f);
+        prisms[f].lo -= pad;
+        prisms[f].hi += pad;
+    }
+    prisms_.build(prisms);
+    faces_.build(surface.positions.data(), surface.triangles.data(), nf);
+}
+
+bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out) const
+{
+    bool found = false;
+    NormalVolumeHit best;
+    uint32_t bestFace = 0;
+    prisms_.forEachContaining(glm::vec3(x), [&](uint32_t f) {
+        NormalVolumeHit hit;
+        if (!mapToNormalVolume(triangle(f), x, searchDistance_, 1e-7, &hit))
+            return;
+        // Smallest |d| wins; ties (shared edges) go to the lower face index
+        // so the result does not depend on traversal order.
+        if (!found || std::fabs(hit.d) < std::fabs(best.d) ||
+            (std::fabs(hit.d) == std::fabs(best.d) && f < bestFace)) {
+            best = hit;
+            bestFace = f;
+            found = true;
+        }
+    });
+    if (found) {
+        // Clamp the tolerance band back onto the triangle.
+        double b1 = std::max(best.b1, 0.0), b2 = std::max(best.b2, 0.0);
+        const double s = b1 + b2;
+        if (s > 1.0) {
+            b1 /= s;
+            b2 /= s;
+        }
+        *out = {bestFace, float(b1), float(b2), float(best.d)};
+    }
+    return found;
+}
+
+VertexMapping SurfaceIndex::mapNearest(const glm::dvec3& x) const
+{
+    VertexMapping m{0, 0.0f, 0.0f, 0.0f};
+    uint32_t face = 0;
+    double b1 = 0.0, b2 = 0.0;
+    if (faces_.nearest(x, &face, &b1, &b2) < 0.0)
+        return m;
+    const NormalVolumeTriangle t = triangle(face);
+    const glm::dvec3 c = evaluateNormalVolume(t, b1, b2, 0.0);
+    const double b0 = 1.0 - b1 - b2;
+    const glm::dvec3 n = b0 * t.n[0] + b1 * t.n[1] + b2 * t.n[2];
+    const double nn = glm::dot(n, n);
+    m.face = face;
+    m.b1 = float(b1);
+    m.b2 = float(b2);
+    m.d = nn > 0.0 ? float(glm::dot(x - c, n) / nn) : 0.0f;
+    return m;
+}
+
+double SurfaceIndex::nearestDistance(const glm::vec3& x) const
+{
+    return faces_.nearest(glm::dvec3(x));
+}
+
+Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const BakeSurface& surface,
+                   const glm::vec3* points, size_t n, int threads, MappingStats* stats, double maxSearchFraction)
+{
+    if (surface.faceCount() == 0)
+        return Status(StatusCode::InvalidArgument, "empty bake surface");
+    Box bounds;
+    for (const glm::vec3& p : surface.positions)
+        bounds.extend(p);
+    const double diag = glm::length(glm::dvec3(bounds.hi - bounds.lo));
+    // Index the triangles first (search distance 0) to size the prisms.
+    index->build(surface, 0.0);
+    const size_t step = std::max<size_t>(1, n / 4096);
+    std::vector<double> sample((n + step - 1) / step, 0.0);
+    parallelFor(sample.size(), threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i)
+            sample[i] = index->nearestDistance(points[i * step]);
+    });
+    double far = 0.0;
+    for (double s : sample)
+        far = std::max(far, s);
+    const double D = std::min(2.0 * far + 1e-4 * diag, maxSearchFraction * diag);
+    index->build(surface, D);
+
+    out->resize(n);
+    std::vector<uint8_t> fellBack(n, 0);
+    parallelFor(n, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            const glm::dvec3 x(points[i]);
+            if (!index->map(x, &(*out)[i])) {
+                (*out)[i] = index->mapNearest(x);
+                fellBack[i] = 1;
+            }
+        }
+    });
+    if (stats) {
+        stats->vertices = n;
+        stats->fallbacks = size_t(std::count(fellBack.begin(), fellBack.end(), uint8_t(1)));
+        stats->searchDistance = D;
+    }
+    return Status::ok();
+}
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,168 @@
+// Mesh input and control-mesh derivation.  The only OpenMesh translation
+// unit (its Decimater templates are heavy to compile).
+#include <OpenMesh/Core/IO/MeshIO.hh>  // before the kernel headers, as OpenMesh requires
+
+#include "strata/baker/mesh_input.h"
+
+#include "strata/io/file.h"
+#include "strata/io/mesh_io.h"
+#include "strata/io/rig_io.h"
+
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
+#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cstring>
+
+namespace strata {
+namespace baker {
+namespace {
+
+using OMesh = OpenMesh::TriMesh_ArrayKernelT<>;
+
+void countTolerated(const TriangleMesh& m, HighMeshStats* s)
+{
+    std::vector<glm::vec3> sorted = m.positions;
+    std::sort(sorted.begin(), sorted.end(), [](const glm::vec3& a, const glm::vec3& b) {
+        return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+    });
+    for (size_t i = 1; i < sorted.size(); ++i)
+        s->duplicateVertices += sorted[i] == sorted[i - 1];
+    for (size_t f = 0; f < m.faceCount(); ++f) {
+        const glm::vec3 n = glm::cross(m.positions[m.triangles[3 * f + 1]] - m.positions[m.triangles[3 * f]],
+                                       m.positions[m.triangles[3 * f + 2]] - m.positions[m.triangles[3 * f]]);
+        s->degenerateTriangles += !(glm::dot(n, n) > 0.0f);
+    }
+    s->nonManifoldEdges = computeTopologyStats(m.triangles.data(), m.faceCount()).nonManifoldEdges;
+}
+
+}  // namespace
+
+Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats)
+{
+    const std::string ext = io::extensionOf(path);
+    TriangleMesh mesh;
+    HighMeshStats s;
+    Status st;
+    if (ext == ".obj") {
+        ControlMesh cm;
+        io::ObjReadInfo info;
+        if (!(st = io::readObj(path, &cm, &info)))
+            return st;
+        mesh.positions = std::move(cm.positions);
+        mesh.triangles = std::move(cm.triangles);
+        s.polygonsTriangulated = info.triangulated;
+    } else if (ext == ".glb" || ext == ".gltf") {
+        if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles)))
+            return st;
+    } else if (ext == ".ply" || ext == ".stl" || ext == ".off") {
+        std::vector<unsigned char> probe;
+        if (!(st = io::readFile(path, &probe)))
+            return st;
+        OMesh om;
+        OpenMesh::IO::Options opt;
+        omerr().disable();  // OpenMesh reports through its own streams; errors become Status here
+        omout().disable();
+        const bool ok = OpenMesh::IO::read_mesh(om, path, opt);
+        omerr().enable();
+        omout().enable();
+        if (!ok || om.n_faces() == 0)
+            return Status(StatusCode::InvalidData, path + ": cannot read a triangle mesh from this " + ext + " file");
+        for (auto v : om.vertices()) {
+            const auto p = om.point(v);
+            mesh.positions.emplace_back(p[0], p[1], p[2]);
+        }
+        for (auto f : om.faces()) {
+            std::vector<uint32_t> corners;
+            for (auto v : om.fv_range(f))
+                corners.push_back(uint32_t(v.idx()));
+            s.polygonsTriangulated += corners.size() > 3;
+            for (size_t k = 1; k + 1 < corners.size(); ++k)
+                mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[k], corners[k + 1]});
+        }
+    } else {
+        return Status(StatusCode::InvalidArgument,
+                      path + ": unknown mesh format \"" + ext + "\" (use .obj, .ply, .stl, .off, .glb or .gltf)");
+    }
+    if (!(st = checkHighMesh(mesh)))
+        return Status(st.code(), path + ": " + st.message());
+    countTolerated(mesh, &s);
+    *out = std::move(mesh);
+    if (stats)
+        *stats = s;
+    return Status::ok();
+}
+
+Status loadControlMesh(const std::string& path, ControlMesh* out)
+{
+    const std::string ext = io::extensionOf(path);
+    Status st;
+    ControlMesh mesh;
+    if (ext == ".obj") {
+        if (!(st = io::readObj(path, &mesh)))
+            return st;
+    } else if (ext == ".glb" || ext == ".gltf") {
+        Rig rig;
+        if (!(st = io::loadRig(path, &rig)))
+            return st;
+        mesh = std::move(rig.mesh);
+    } else {
+        return Status(StatusCode::InvalidArgument,
+                      path + ": unknown control mesh format \"" + ext + "\" (use .obj, .glb or .gltf)");
+    }
+    if (!(st = validateControlMesh(mesh)))
+        return Status(st.code(), path + ": not a usable control mesh: " + st.message());
+    *out = std::move(mesh);
+    return Status::ok();
+}
+
+Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out)
+{
+    if (targetFaces < 4)
+        return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
+    OMesh om;
+    std::vector<OMesh::VertexHandle> vh;
+    vh.reserve(high.positions.size());
+    for (const glm::vec3& p : high.positions)
+        vh.push_back(om.add_vertex(OMesh::Point(p.x, p.y, p.z)));
+    omerr().disable();  // complex (non-manifold) faces are refused by OpenMesh and simply not added
+    for (size_t f = 0; f < high.faceCount(); ++f)
+        om.add_face(vh[high.triangles[3 * f]], vh[high.triangles[3 * f + 1]], vh[high.triangles[3 * f + 2]]);
+    omerr().enable();
+    om.delete_isolated_vertices();
+    om.garbage_collection();
+    if (om.n_faces() == 0)
+        return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
+    using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
+    Decimater decimater(om);
+    OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
+    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
+    decimater.add(quadric);
+    decimater.add(flipping);
+    decimater.module(flipping).set_max_normal_deviation(60.0);
+    if (!decimater.initialize())
+        return Status(StatusCode::InvalidData, "OpenMesh's decimater could not be initialised");
+    decimater.decimate_to_faces(0, targetFaces);
+    om.garbage_collection();
+
+    ControlMesh cm;
+    for (auto v : om.vertices()) {
+        const auto p = om.point(v);
+        cm.positions.emplace_back(p[0], p[1], p[2]);
+    }
+    for (auto f : om.faces())
+        for (auto v : om.fv_range(f))
+            cm.triangles.push_back(uint32_t(v.idx()));
+    Status st = validateControlMesh(cm);
+    if (!st)
+        return Status(st.code(), "the simplified control mesh is unusable: " + st.message());
+    *out = std::move(cm);
+    return Status::ok();
+}
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,67 @@
+// The surface the baker maps onto, built with the runtime's own code
+// (computeControlNormals, Plan) so that what is baked is what is drawn.
+#include "strata/baker/surface.h"
+
+#include "strata/normals.h"
+
+#include <algorithm>
+
+namespace strata {
+namespace baker {
+
+bool BakeSurface::edgeAdjacent(uint32_t a, uint32_t b) const
+{
+    int shared = 0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            shared += triangles[3 * size_t(a) + i] == triangles[3 * size_t(b) + j];
+    return shared >= 2;
+}
+
+Status buildBakeSurface(BakeSurface* out, const ControlMesh& control, Scheme scheme, int denseLevel)
+{
+    Status st = validateControlMesh(control);
+    if (!st)
+        return st;
+    if (!control.hasUVs())
+        return Status(StatusCode::InvalidArgument, "the control mesh has no UVs to bake into");
+    BakeSurface s;
+    if (scheme == Scheme::Linear) {
+        s.positions = control.positions;
+        s.normals.resize(control.positions.size());
+        computeControlNormals(s.normals.data(), control.positions.data(), control.positions.size(),
+                              control.triangles.data(), control.faceCount());
+        s.triangles = control.triangles;
+        s.uvs = control.uvs;
+        s.uvIndices = control.uvIndices;
+    } else {
+        std::unique_ptr<Plan> plan;
+        if (!(st = Plan::create(&plan, control, Scheme::Smooth, denseLevel)))
+            return st;
+        const size_t n = plan->refinedVertexCount();
+        s.positions.resize(n);
+        s.normals.resize(n);
+        if (!(st = plan->evaluate(s.positions.data(), s.normals.data(), 0, n, control.positions.data(), nullptr,
+                                  control.positions.size())))
+            return st;
+        s.triangles = plan->refinedTriangles();
+        s.uvs = plan->refinedUVs();
+        s.uvIndices = plan->refinedUVIndices();
+    }
+    // Vertex -> face rings.
+    const size_t nv = s.positions.size();
+    s.ringOffsets.assign(nv + 1, 0);
+    for (uint32_t v : s.triangles)
+        ++s.ringOffsets[v + 1];
+    for (size_t v = 0; v < nv; ++v)
+        s.ringOffsets[v + 1] += s.ringOffsets[v];
+    s.ringFaces.resize(s.triangles.size());
+    std::vector<uint32_t> fill(s.ringOffsets.begin(), s.ringOffsets.end() - 1);
+    for (size_t i = 0; i < s.triangles.size(); ++i)
+        s.ringFaces[fill[s.triangles[i]]++] = uint32_t(i / 3);
+    *out = std::move(s);
+    return Status::ok();
+}
+
+}  // namespace baker
+}  // namespace strata

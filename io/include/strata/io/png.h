@@ -1,0 +1,24 @@
+// Strata io: PNG images (the paper's quantised displacement maps, eq. 12,
+// and diagnostic images).
+#pragma once
+
+#include "strata/status.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+
+/// Writes a greyscale PNG, 8 or 16 bits per sample, row-major (row 0 first).
+Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples);
+
+/// Writes an 8-bit RGB PNG (3 bytes per pixel).
+Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb);
+
+/// Reads a greyscale PNG of 8 or 16 bits; *bits receives which.
+Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples);
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,123 @@
+// PNG writing with zlib (stb_image_write has no 16-bit output) and reading
+// with stb_image (Debian's libstb holds the implementation).
+#include "strata/io/png.h"
+
+#include "strata/io/file.h"
+
+#include <stb/stb_image.h>
+#include <zlib.h>
+
+namespace strata {
+namespace io {
+namespace {
+
+void put32(std::string& out, uint32_t v)
+{
+    out += char(v >> 24);
+    out += char(v >> 16);
+    out += char(v >> 8);
+    out += char(v);
+}
+
+void chunk(std::string& out, const char* type, const std::string& data)
+{
+    put32(out, uint32_t(data.size()));
+    const std::string typed = std::string(type, 4) + data;
+    out += typed;
+    put32(out, uint32_t(crc32(0, reinterpret_cast<const Bytef*>(typed.data()), uInt(typed.size()))));
+}
+
+// colourType 0 = grey, 2 = RGB; rows already laid out big-endian.
+Status writePng(const std::string& path, int width, int height, int bits, int colourType, int channels,
+                const std::vector<uint8_t>& rowBytes)
+{
+    if (width <= 0 || height <= 0)
+        return Status(StatusCode::InvalidArgument, path + ": empty image");
+    const size_t stride = size_t(width) * size_t(channels) * size_t(bits / 8);
+    std::string raw;
+    raw.reserve((stride + 1) * size_t(height));
+    for (int y = 0; y < height; ++y) {
+        raw += char(0);  // filter: none
+        raw.append(reinterpret_cast<const char*>(rowBytes.data()) + size_t(y) * stride, stride);
+    }
+    uLongf zsize = compressBound(uLong(raw.size()));
+    std::string z(zsize, '\0');
+    if (compress2(reinterpret_cast<Bytef*>(&z[0]), &zsize, reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()),
+                  9) != Z_OK)
+        return Status(StatusCode::IoError, path + ": PNG compression failed");
+    z.resize(zsize);
+    std::string out("\x89PNG\r\n\x1a\n", 8);
+    std::string ihdr;
+    put32(ihdr, uint32_t(width));
+    put32(ihdr, uint32_t(height));
+    ihdr += char(bits);
+    ihdr += char(colourType);
+    ihdr += std::string(3, '\0');  // compression, filter, interlace
+    chunk(out, "IHDR", ihdr);
+    chunk(out, "IDAT", z);
+    chunk(out, "IEND", std::string());
+    return writeFileAtomic(path, out.data(), out.size());
+}
+
+}  // namespace
+
+Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples)
+{
+    if (bits != 8 && bits != 16)
+        return Status(StatusCode::InvalidArgument, path + ": PNG depth must be 8 or 16 bits");
+    if (samples.size() != size_t(width) * size_t(height))
+        return Status(StatusCode::InvalidArgument, path + ": sample count does not match the image size");
+    std::vector<uint8_t> bytes;
+    bytes.reserve(samples.size() * size_t(bits / 8));
+    for (uint16_t s : samples) {
+        if (bits == 16)
+            bytes.push_back(uint8_t(s >> 8));
+        bytes.push_back(uint8_t(s & 0xff));
+    }
+    return writePng(path, width, height, bits, 0, 1, bytes);
+}
+
+Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb)
+{
+    if (rgb.size() != size_t(width) * size_t(height) * 3)
+        return Status(StatusCode::InvalidArgument, path + ": pixel count does not match the image size");
+    return writePng(path, width, height, 8, 2, 3, rgb);
+}
+
+Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
+{
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes, size_t(1) << 30);
+    if (!st)
+        return st;
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp))
+        return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
+    if (comp != 1)
+        return Status(StatusCode::InvalidData, path + ": expected a greyscale image, found " + std::to_string(comp) +
+                                                   " channels");
+    if (w > 16384 || h > 16384)
+        return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
+    const bool sixteen = stbi_is_16_bit_from_memory(bytes.data(), int(bytes.size())) != 0;
+    samples->resize(size_t(w) * size_t(h));
+    if (sixteen) {
+        stbi_us* px = stbi_load_16_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 1);
+        if (!px)
+            return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
+        std::copy(px, px + samples->size(), samples->begin());
+        stbi_image_free(px);
+    } else {
+        stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 1);
+        if (!px)
+            return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
+        std::copy(px, px + samples->size(), samples->begin());
+        stbi_image_free(px);
+    }
+    *width = w;
+    *height = h;
+    *bits = sixteen ? 16 : 8;
+    return Status::ok();
+}
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,144 @@
+// strata-bake's command line: a full bake of the built-in shape, and every
+// bad input giving one line naming the file, exit code 2 and no output.
+#include "procedural.h"
+#include "strata/io/mesh_io.h"
+#include "test_util.h"
+
+#include <array>
+#include <dirent.h>
+#include <fstream>
+
+namespace {
+
+struct Result {
+    int code;
+    std::string output;
+};
+
+Result run(const std::string& args)
+{
+    Result r{-1, ""};
+    FILE* pipe = popen((std::string(STRATA_BAKE_EXE) + " " + args + " 2>&1").c_str(), "r");
+    if (!pipe)
+        return r;
+    std::array<char, 512> buf;
+    while (fgets(buf.data(), int(buf.size()), pipe))
+        r.output += buf.data();
+    const int status = pclose(pipe);
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+void writeText(const std::string& path, const std::string& text)
+{
+    std::ofstream(path, std::ios::binary) << text;
+}
+
+size_t filesIn(const std::string& dir)
+{
+    size_t n = 0;
+    if (DIR* d = opendir(dir.c_str())) {
+        while (dirent* e = readdir(d))
+            n += e->d_name[0] != '.';
+        closedir(d);
+    }
+    return n;
+}
+
+// A detailed head over a sphere, as OBJ files: control (icosphere 1) and high (icosphere 4).
+void writeInputs(const std::string& dir)
+{
+    using namespace strata;
+    ControlMesh high = examples::makeIcosphere(4);
+    for (glm::vec3& p : high.positions)
+        p *= examples::headRadius(p);
+    io::MeshView v;
+    v.positions = high.positions.data();
+    v.vertexCount = high.positions.size();
+    v.triangles = high.triangles.data();
+    v.faceCount = high.faceCount();
+    ASSERT_TRUE(io::writeMesh(dir + "/high.obj", v).isOk());
+    ControlMesh control = examples::makeIcosphere(1);
+    v.positions = control.positions.data();
+    v.vertexCount = control.positions.size();
+    v.triangles = control.triangles.data();
+    v.faceCount = control.faceCount();
+    ASSERT_TRUE(io::writeMesh(dir + "/control.obj", v).isOk());
+}
+
+}  // namespace
+
+TEST(BakeCli, BakesTheBuiltInShapeAndReportsIt)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_ok");
+    writeInputs(dir);
+    const Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --png8 --report " + dir +
+                         "/report.json --error-levels 3 -o " + dir + "/rig.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    for (const char* f : {"rig.glb", "rig.exr", "rig_layers.png", "rig.png8.png", "report.json"})
+        EXPECT_TRUE(strata::test::fileExists(dir + "/" + f)) << f;
+    EXPECT_NE(r.output.find("closed loop"), std::string::npos) << r.output;
+    std::ifstream report(dir + "/report.json");
+    std::string json((std::istreambuf_iterator<char>(report)), std::istreambuf_iterator<char>());
+    for (const char* key : {"\"closedLoop\"", "\"fallbacks\"", "\"overlapFraction\"", "\"coverage\"", "\"timeMs\"",
+                            "\"outputBytes\"", "\"dmin\""})
+        EXPECT_NE(json.find(key), std::string::npos) << key;
+}
+
+TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_bad");
+    writeInputs(dir);
+    writeText(dir + "/empty.obj", "");
+    writeText(dir + "/nan.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
+    writeText(dir + "/garbage.ply", "this is not a ply file\n");
+    // A control mesh with an edge shared by three faces.
+    writeText(dir + "/fin.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
+    // The control mesh moved far away.
+    {
+        std::ifstream in(dir + "/control.obj");
+        std::ofstream out(dir + "/far.obj");
+        std::string line;
+        while (std::getline(in, line)) {
+            if (line.rfind("v ", 0) == 0) {
+                float x, y, z;
+                std::sscanf(line.c_str(), "v %f %f %f", &x, &y, &z);
+                out << "v " << x + 100.0f << " " << y << " " << z << "\n";
+            } else {
+                out << line << "\n";
+            }
+        }
+    }
+    // Two triangles with the same UVs (overlap).
+    writeText(dir + "/overlap.obj", "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\n"
+                                    "f 1/1 2/2 3/3\nf 1/1 3/2 4/3\n");
+    const std::string ok = " --high " + dir + "/high.obj --control " + dir + "/control.obj";
+    struct Case {
+        std::string args, needle;
+    };
+    const std::string out = dir + "/out/rig.glb";
+    std::system(("mkdir -p " + dir + "/out").c_str());
+    const Case cases[] = {
+        {"--high " + dir + "/empty.obj --control " + dir + "/control.obj -o " + out, "empty.obj"},
+        {"--high " + dir + "/missing.obj --control " + dir + "/control.obj -o " + out, "missing.obj"},
+        {"--high " + dir + "/nan.obj --control " + dir + "/control.obj -o " + out, "nan.obj"},
+        {"--high " + dir + "/garbage.ply --control " + dir + "/control.obj -o " + out, "garbage.ply"},
+        {"--high " + dir + "/high.obj --control " + dir + "/fin.obj -o " + out, "fin.obj"},
+        {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "control mesh"},
+        {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "high.obj"},
+        {ok + " --uv keep -o " + out, "no UVs"},
+        {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj -o " + out, "overlap"},
+        {ok + " -o " + dir + "/no/such/dir/rig.glb", "rig.exr"},
+        {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
+        {ok + " --size 3 -o " + out, "--size"},
+        {ok, "-o are required"},
+    };
+    for (const Case& c : cases) {
+        const Result r = run(c.args);
+        EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find("strata-bake: error: "), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+        EXPECT_EQ(filesIn(dir + "/out"), 0u) << c.args;
+    }
+}

@@ -1,0 +1,276 @@
+// The baker (paper 2.1, 2.2, 3.2): the closed-form normal-volume solve,
+// closed-form bakes (sphere over icosahedron, sine over a square), real
+// pairs, determinism, and the command line's handling of bad input.
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/baker/bake.h"
+#include "strata/baker/mesh_input.h"
+#include "strata/baker/normal_volume.h"
+#include "strata/io/exr.h"
+#include "strata/io/rig_io.h"
+#include "strata/normals.h"
+#include "test_util.h"
+
+#include <array>
+#include <cstring>
+#include <cmath>
+#include <fstream>
+#include <random>
+
+using namespace strata;
+using namespace strata::baker;
+
+namespace {
+
+TriangleMesh icosphereMesh(int subdivisions, float radius)
+{
+    const ControlMesh m = examples::makeIcosphere(subdivisions);
+    TriangleMesh t;
+    for (const glm::vec3& p : m.positions)
+        t.positions.push_back(radius * p);
+    t.triangles = m.triangles;
+    return t;
+}
+
+}  // namespace
+
+TEST(NormalVolume, MapThenEquationTwoReturnsThePoint)
+{
+    std::mt19937 rng(1234);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), unit(0.0, 1.0);
+    int checked = 0;
+    for (int trial = 0; trial < 4000; ++trial) {
+        NormalVolumeTriangle t;
+        for (int k = 0; k < 3; ++k)
+            t.v[k] = glm::dvec3(u(rng), u(rng), 0.2 * u(rng));
+        const glm::dvec3 fn = glm::cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+        if (glm::length(fn) < 0.05)
+            continue;  // keep triangles well shaped
+        for (int k = 0; k < 3; ++k)
+            t.n[k] = glm::normalize(glm::normalize(fn) + 0.4 * glm::dvec3(u(rng), u(rng), u(rng)));
+        // Barycentrics anywhere inside, near edges, near and at vertices.
+        double b1 = unit(rng), b2 = unit(rng);
+        if (b1 + b2 > 1.0) {
+            b1 = 1.0 - b1;
+            b2 = 1.0 - b2;
+        }
+        switch (trial % 5) {
+        case 1: b2 = 1e-9; break;                      // on an edge
+        case 2: b1 = 1.0 - 1e-9; b2 = 0.0; break;      // at a vertex
+        case 3: b1 = 0.5 * (1.0 - b2); break;          // interior
+        default: break;
+        }
+        const double d = trial % 7 == 0 ? 0.0 : 0.3 * u(rng);
+        const glm::dvec3 x = evaluateNormalVolume(t, b1, b2, d);
+        NormalVolumeHit hit;
+        ASSERT_TRUE(mapToNormalVolume(t, x, 1.0, 1e-7, &hit)) << "trial " << trial;
+        const glm::dvec3 back = evaluateNormalVolume(t, hit.b1, hit.b2, hit.d);
+        const double diag = 2.0 * std::sqrt(3.0);
+        EXPECT_LE(glm::length(back - x), 1e-6 * diag) << "trial " << trial;
+        if (d == 0.0) {
+            EXPECT_NEAR(hit.d, 0.0, 1e-9) << "trial " << trial;  // on the surface, d = 0 is the smallest root
+        }
+        ++checked;
+    }
+    EXPECT_GT(checked, 2000);
+}
+
+TEST(NormalVolume, PointOutsideEveryVolumeIsReported)
+{
+    NormalVolumeTriangle t;
+    t.v[0] = {0, 0, 0};
+    t.v[1] = {1, 0, 0};
+    t.v[2] = {0, 1, 0};
+    t.n[0] = t.n[1] = t.n[2] = {0, 0, 1};  // a straight prism
+    NormalVolumeHit hit;
+    EXPECT_FALSE(mapToNormalVolume(t, {2.0, 2.0, 0.5}, 10.0, 1e-7, &hit));
+    ASSERT_TRUE(mapToNormalVolume(t, {0.25, 0.25, 0.5}, 10.0, 1e-7, &hit));
+    EXPECT_NEAR(hit.d, 0.5, 1e-12);
+    // Negative barycentrics are allowed when re-mapping into a neighbour's plane.
+    ASSERT_TRUE(mapToNormalVolumePlane(t, {2.0, 2.0, 0.5}, 0.4, 1.0, &hit));
+    EXPECT_NEAR(hit.b1 + hit.b2, 4.0, 1e-9);
+}
+
+TEST(Bake, SphereOntoIcosahedronReconstructsTheSphere)
+{
+    ControlMesh control = examples::makeIcosphere(0);
+    ASSERT_TRUE(buildTriangleAtlas(&control, {512, 2}).isOk());
+    const TriangleMesh high = icosphereMesh(5, 1.0f);  // 20480 triangles on the unit sphere
+    BakeOptions options;
+    options.size = 512;
+    DisplacementMap map;
+    BakeReport report;
+    const Status st = bake(&map, nullptr, &report, control, high, options);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(report.fallbackVertices, 0u);
+    EXPECT_EQ(report.raster.multiLayerTexels, 0u);  // a convex control mesh has no overfolds
+    EXPECT_GT(report.coverage, 0.99);
+    std::vector<LevelError> errors;
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 6, 2).isOk());
+    // Both meshes are chords of the unit sphere: the input (edge 1.05 / 32)
+    // sags by edge^2 / 8 = 1.3e-4, level 6 (edge 1.05 / 64) by 3.4e-5, and
+    // bilinear sampling adds |d''| h^2 / 2 ~ 4e-5 (h = 1.05 / 120).  Their sum,
+    // 2.1e-4, is 6e-5 of the diagonal 2 sqrt(3): the RMS must stay below 1e-4
+    // and the maximum below 3e-4.
+    const double diag = report.diagonal;
+    EXPECT_LT(errors[6].forwardRms / diag, 1e-4);
+    EXPECT_LT(errors[6].backwardRms / diag, 1e-4);
+    EXPECT_LT(errors[6].forwardMax / diag, 3e-4);
+    EXPECT_LT(errors[6].backwardMax / diag, 3e-4);
+    // Coarser levels only add their own faceting.
+    for (int level = 0; level < 6; ++level)
+        EXPECT_GE(errors[size_t(level)].backwardRms, errors[6].backwardRms * 0.9) << level;
+    // And every reconstructed vertex lies on the unit sphere up to that.
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, control, Scheme::Linear, 4).isOk());
+    ASSERT_TRUE(plan->setDisplacement(map).isOk());
+    std::vector<glm::vec3> n(control.positions.size()), x(plan->refinedVertexCount());
+    computeControlNormals(n.data(), control.positions.data(), n.size(), control.triangles.data(), control.faceCount());
+    ASSERT_TRUE(plan->evaluate(x.data(), nullptr, 0, x.size(), control.positions.data(), n.data(), n.size()).isOk());
+    float worst = 0.0f;
+    for (const glm::vec3& p : x)
+        worst = std::max(worst, std::fabs(glm::length(p) - 1.0f));
+    EXPECT_LT(worst, 1e-3f);  // level-4 chords sag by 5.4e-4 between vertices; the vertices themselves lie closer
+}
+
+TEST(Bake, PlaneWithSineOntoTwoTrianglesReconstructsTheSine)
+{
+    const ControlMesh control = examples::makeSquare();
+    const float amplitude = 0.03f, k = 2.0f * float(M_PI) * 2.0f;
+    TriangleMesh high;
+    const int n = 200;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+            const float x = float(i) / n, y = float(j) / n;
+            high.positions.emplace_back(x, y, amplitude * std::sin(k * x));
+        }
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+            high.triangles.insert(high.triangles.end(), {a, b, d, a, d, c});
+        }
+    BakeOptions options;
+    options.size = 256;
+    DisplacementMap map;
+    BakeReport report;
+    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, options).isOk());
+    EXPECT_EQ(report.fallbackVertices, 0u);
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, control, Scheme::Linear, 6).isOk());
+    ASSERT_TRUE(plan->setDisplacement(map).isOk());
+    std::vector<glm::vec3> normals(4, glm::vec3(0, 0, 1)), x(plan->refinedVertexCount());
+    ASSERT_TRUE(plan->evaluate(x.data(), nullptr, 0, x.size(), control.positions.data(), normals.data(), 4).isOk());
+    // Error budget: the input's own piecewise-linear sampling (A k^2 h^2 / 8
+    // for h = 1/200) plus bilinear reconstruction (same with h = 1/256).
+    const float hi = 1.0f / n, hm = 1.0f / 256.0f;
+    const float tol = amplitude * k * k * (hi * hi + hm * hm) / 8.0f * 1.5f + 1e-6f;
+    float worst = 0.0f;
+    for (const glm::vec3& p : x)
+        if (p.x > hm && p.x < 1.0f - hm)
+            worst = std::max(worst, std::fabs(p.z - amplitude * std::sin(k * p.x)));
+    EXPECT_LT(worst, tol);
+}
+
+TEST(Bake, OutputDoesNotDependOnThreadCount)
+{
+    ControlMesh control = examples::makeIcosphere(1);
+    ASSERT_TRUE(buildTriangleAtlas(&control, {512, 2}).isOk());
+    TriangleMesh high = icosphereMesh(4, 1.0f);
+    for (glm::vec3& p : high.positions)
+        p *= examples::headRadius(glm::normalize(p));
+    BakeOptions options;
+    options.size = 512;
+    DisplacementMap one, two;
+    options.threads = 1;
+    ASSERT_TRUE(bake(&one, nullptr, nullptr, control, high, options).isOk());
+    options.threads = 2;
+    ASSERT_TRUE(bake(&two, nullptr, nullptr, control, high, options).isOk());
+    ASSERT_EQ(one.texels.size(), two.texels.size());
+    EXPECT_EQ(0, std::memcmp(one.texels.data(), two.texels.data(), one.texels.size() * sizeof(float)));
+}
+
+TEST(Bake, DegenerateDuplicateAndNonManifoldInputIsTolerated)
+{
+    ControlMesh control = examples::makeIcosphere(0);
+    ASSERT_TRUE(buildTriangleAtlas(&control, {256, 2}).isOk());
+    TriangleMesh high = icosphereMesh(4, 1.0f);
+    const size_t clean = high.faceCount();
+    // A zero-area triangle, a duplicated vertex and a fin making an edge non-manifold.
+    high.triangles.insert(high.triangles.end(), {0, 0, 1});
+    high.positions.push_back(high.positions[5]);
+    high.positions.push_back(1.02f * high.positions[7]);
+    const uint32_t dup = uint32_t(high.positions.size() - 2), tip = dup + 1;
+    high.triangles.insert(high.triangles.end(), {high.triangles[0], high.triangles[1], tip});
+    high.triangles.insert(high.triangles.end(), {dup, high.triangles[4], high.triangles[5]});
+    BakeOptions options;
+    options.size = 256;
+    DisplacementMap map;
+    BakeReport report;
+    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, options).isOk());
+    EXPECT_EQ(report.raster.degenerateTriangles, 1u);
+    EXPECT_EQ(report.highTriangles, clean + 3);
+}
+
+namespace {
+
+struct RealPair {
+    const char* high;
+    const char* control;
+};
+
+void checkRealPair(const RealPair& pair, const std::string& highPath, const std::string& controlPath)
+{
+    TriangleMesh high;
+    ASSERT_TRUE(loadHighMesh(highPath, &high, nullptr).isOk());
+    ControlMesh control;
+    ASSERT_TRUE(loadControlMesh(controlPath, &control).isOk());
+    AtlasOptions atlas;
+    atlas.mapSize = 1024;
+    atlas.gutter = 2;
+    ASSERT_TRUE(buildTriangleAtlas(&control, atlas).isOk());
+    BakeOptions options;
+    options.scheme = Scheme::Smooth;
+    options.size = 1024;
+    DisplacementMap map;
+    BakeReport report;
+    const Status st = bake(&map, nullptr, &report, control, high, options);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    int level = 0;
+    while (level < kMaxLevel && (control.faceCount() << (2 * level)) <= high.faceCount())
+        ++level;
+    std::vector<LevelError> errors;
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Smooth, high, level, 2).isOk());
+    const LevelError& e = errors.back();
+    // Issue bar: RMS at most 0.1% of the bounding-box diagonal, both directions.
+    EXPECT_LE(e.forwardRms / report.diagonal, 1e-3) << pair.high << " level " << level;
+    EXPECT_LE(e.backwardRms / report.diagonal, 1e-3) << pair.high << " level " << level;
+}
+
+}  // namespace
+
+TEST(BakeRealData, SpotSmoothWithinTheRmsBar)
+{
+    STRATA_REQUIRE_DATA(high, "spot_triangulated.obj");
+    STRATA_REQUIRE_DATA(control, "spot_control_mesh.obj");
+    checkRealPair({"spot", "spot"}, high, control);
+}
+
+TEST(BakeRealData, PenguinSmoothWithinTheRmsBar)
+{
+    STRATA_REQUIRE_DATA(high, "penguin_hr.obj");
+    STRATA_REQUIRE_DATA(control, "penguin_control_mesh.obj");
+    checkRealPair({"penguin", "penguin"}, high, control);
+}
+
+TEST(BakeRealData, SpotsShippedUVsAreRejectedAsOverlapping)
+{
+    STRATA_REQUIRE_DATA(controlPath, "spot_control_mesh.obj");
+    ControlMesh control;
+    ASSERT_TRUE(loadControlMesh(controlPath, &control).isOk());
+    std::string note;
+    EXPECT_TRUE(fitUVsToUnitSquare(&control, &note));  // spot's u reaches -0.052
+    EXPECT_NE(note.find("rescaled"), std::string::npos);
+    const Status st = checkUVs(control, 1024);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("overlap in UV space"), std::string::npos) << st.message();
+}

@@ -1,0 +1,403 @@
+// strata-bake: captured high-resolution mesh + control mesh -> control rig
+// (RIG.glb) and displacement map (RIG.exr) beside it (paper 2.1-2.3, 3.2).
+//
+//   strata-bake --high HIGH --control CONTROL|auto [--control-faces K]
+//       [--uv keep|auto] [--size auto|N] [--scheme linear|smooth] [--float]
+//       [--png8|--png16] [--overlap max|nearest] [--threads N]
+//       [--error-levels N] -o RIG.glb [--report REPORT.json]
+#include "cli.h"
+
+#include "strata/baker/atlas.h"
+#include "strata/baker/bake.h"
+#include "strata/baker/mesh_input.h"
+#include "strata/io/exr.h"
+#include "strata/io/file.h"
+#include "strata/io/png.h"
+#include "strata/io/rig_io.h"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <mutex>
+#include <thread>
+
+using namespace strata;
+
+namespace {
+
+const char* kUsage =
+    "usage: strata-bake --high HIGH.{obj,ply,stl,off,glb,gltf} --control CONTROL.{obj,glb,gltf}|auto\n"
+    "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
+    "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
+    "                   [--error-levels N] -o RIG.{glb,gltf} [--report REPORT.json]\n";
+
+double msSince(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Prints "stage..." on stderr only if the stage runs longer than a second,
+// then its duration when it ends.
+class Progress {
+public:
+    explicit Progress(const char* stage) : stage_(stage), t0_(std::chrono::steady_clock::now())
+    {
+        watcher_ = std::thread([this] {
+            std::unique_lock<std::mutex> lock(m_);
+            if (!cv_.wait_for(lock, std::chrono::seconds(1), [this] { return done_; })) {
+                std::fprintf(stderr, "strata-bake: %s...\n", stage_);
+                announced_ = true;
+            }
+        });
+    }
+    ~Progress()
+    {
+        {
+            std::lock_guard<std::mutex> lock(m_);
+            done_ = true;
+        }
+        cv_.notify_all();
+        watcher_.join();
+        if (announced_)
+            std::fprintf(stderr, "strata-bake: %s done in %.1f s\n", stage_, msSince(t0_) / 1000.0);
+    }
+
+private:
+    const char* stage_;
+    std::chrono::steady_clock::time_point t0_;
+    std::mutex m_;
+    std::condition_variable cv_;
+    bool done_ = false;
+    bool announced_ = false;
+    std::thread watcher_;
+};
+
+// Files written by this run, removed again if a later step fails, so a
+// failed bake leaves nothing behind.
+struct Outputs {
+    std::vector<std::string> written;
+    bool committed = false;
+    ~Outputs()
+    {
+        if (!committed)
+            for (const std::string& p : written)
+                std::remove(p.c_str());
+    }
+};
+
+std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
+{
+    // Paper Figure 6f: one layer blue, two green, three or more red.
+    std::vector<uint8_t> rgb(layers.size() * 3, 0);
+    for (size_t i = 0; i < layers.size(); ++i) {
+        const uint16_t l = layers[i];
+        uint8_t* p = &rgb[3 * i];
+        if (l == 1) {
+            p[2] = 160;
+        } else if (l == 2) {
+            p[1] = 200;
+        } else if (l >= 3) {
+            p[0] = 230;
+        }
+    }
+    return rgb;
+}
+
+}  // namespace
+
+int main(int argc, char** argv)
+{
+    return cli::run("strata-bake", [&]() -> int {
+        std::string highPath, controlPath, outPath, reportPath, uvMode, sizeArg = "auto";
+        size_t controlFaces = 0;
+        baker::BakeOptions options;
+        bool asFloat = false;
+        int pngBits = 0, errorLevels = kMaxLevel;
+        options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+        for (int i = 1; i < argc; ++i) {
+            const std::string a = argv[i];
+            auto value = [&]() -> std::string {
+                if (i + 1 >= argc)
+                    throw cli::Error(a + " needs a value");
+                return argv[++i];
+            };
+            if (a == "-h" || a == "--help") {
+                std::fputs(kUsage, stdout);
+                return 0;
+            } else if (a == "--high") {
+                highPath = value();
+            } else if (a == "--control") {
+                controlPath = value();
+            } else if (a == "--control-faces") {
+                controlFaces = size_t(cli::parseInt(a, value(), 4, 10000000));
+            } else if (a == "--uv") {
+                uvMode = value();
+                if (uvMode != "keep" && uvMode != "auto")
+                    throw cli::Error("--uv expects keep or auto");
+            } else if (a == "--size") {
+                sizeArg = value();
+                if (sizeArg != "auto")
+                    options.size = cli::parseInt(a, sizeArg, 16, 8192);
+            } else if (a == "--scheme") {
+                if (!parseScheme(value(), &options.scheme))
+                    throw cli::Error("--scheme expects linear or smooth");
+            } else if (a == "--float") {
+                asFloat = true;
+            } else if (a == "--png8") {
+                pngBits = 8;
+            } else if (a == "--png16") {
+                pngBits = 16;
+            } else if (a == "--overlap") {
+                const std::string v = value();
+                if (v == "max")
+                    options.overlap = baker::OverlapPolicy::Max;
+                else if (v == "nearest")
+                    options.overlap = baker::OverlapPolicy::Nearest;
+                else
+                    throw cli::Error("--overlap expects max or nearest");
+            } else if (a == "--threads") {
+                options.threads = cli::parseInt(a, value(), 1, 256);
+            } else if (a == "--error-levels") {
+                errorLevels = cli::parseInt(a, value(), -1, kMaxLevel);
+            } else if (a == "-o" || a == "--output") {
+                outPath = value();
+            } else if (a == "--report") {
+                reportPath = value();
+            } else {
+                throw cli::Error("unknown argument " + a + " (see --help)");
+            }
+        }
+        if (highPath.empty() || controlPath.empty() || outPath.empty())
+            throw cli::Error("--high, --control and -o are required (see --help)");
+        const std::string ext = io::extensionOf(outPath);
+        if (ext != ".glb" && ext != ".gltf")
+            throw cli::Error(outPath + ": the rig must be a .glb or .gltf file");
+        const std::string base = outPath.substr(0, outPath.size() - ext.size());
+        const std::string stem = io::stemOf(outPath);
+
+        nlohmann::json report;
+        auto t0 = std::chrono::steady_clock::now();
+        baker::TriangleMesh high;
+        baker::HighMeshStats highStats;
+        Status st = baker::loadHighMesh(highPath, &high, &highStats);
+        if (!st)
+            throw cli::Error(st.message());
+        ControlMesh control;
+        if (controlPath == "auto") {
+            if (controlFaces == 0)
+                controlFaces = std::max<size_t>(200, high.faceCount() / 50);
+            Progress p("simplifying the high-resolution mesh");
+            if (!(st = baker::decimateToControlMesh(high, controlFaces, &control)))
+                throw cli::Error(highPath + ": " + st.message());
+            if (uvMode == "keep")
+                throw cli::Error("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
+            uvMode = "auto";
+        } else {
+            if (!(st = baker::loadControlMesh(controlPath, &control)))
+                throw cli::Error(st.message());
+            if (uvMode.empty())
+                uvMode = control.hasUVs() ? "keep" : "auto";
+            if (uvMode == "keep" && !control.hasUVs())
+                throw cli::Error(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+        }
+        const double loadMs = msSince(t0);
+
+        // UVs and map size.
+        std::string sizeReason;
+        const double typicalEdge = baker::medianEdgeLength(high);
+        if (uvMode == "auto") {
+            int size = options.size;
+            baker::AtlasOptions atlas;
+            atlas.gutter = 2;
+            if (size == 0) {
+                atlas.mapSize = 4096;  // provisional layout to measure the UV area
+                if (!(st = baker::buildTriangleAtlas(&control, atlas)))
+                    throw cli::Error(st.message());
+                size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+            } else {
+                sizeReason = "forced by --size";
+            }
+            // Grow until every triangle gets a usable chart.
+            for (atlas.mapSize = size; atlas.mapSize <= 8192; atlas.mapSize *= 2) {
+                if ((st = baker::buildTriangleAtlas(&control, atlas)))
+                    break;
+                if (options.size > 0)
+                    throw cli::Error(st.message());
+                sizeReason += "; raised to fit " + std::to_string(control.faceCount()) + " charts";
+            }
+            if (!st)
+                throw cli::Error(st.message());
+            options.size = atlas.mapSize;
+        } else {
+            std::string uvNote;
+            if (baker::fitUVsToUnitSquare(&control, &uvNote))
+                std::fprintf(stderr, "strata-bake: warning: %s: %s\n", controlPath.c_str(), uvNote.c_str());
+            if (options.size == 0)
+                options.size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+            else
+                sizeReason = "forced by --size";
+            if (!(st = baker::checkUVs(control, std::max(options.size, 1024))))
+                throw cli::Error(controlPath + ": " + st.message());
+        }
+
+        DisplacementMap map;
+        std::vector<uint16_t> layers;
+        baker::BakeReport rep;
+        {
+            Progress p("baking");
+            if (!(st = baker::bake(&map, &layers, &rep, control, high, options)))
+                throw cli::Error(highPath + ": " + st.message());
+        }
+        rep.sizeReason = sizeReason;
+
+        // Outputs.
+        t0 = std::chrono::steady_clock::now();
+        Outputs outputs;
+        Rig rig;
+        rig.mesh = control;
+        rig.hasDisplacement = true;
+        rig.displacement.uri = stem + ".exr";
+        rig.displacement.encoding = "exr";
+        rig.displacement.width = rig.displacement.height = map.width;
+        rig.displacement.scheme = options.scheme;
+        // Recommended level: the first whose triangle count exceeds the high-res mesh's.
+        int recommended = 0;
+        while (recommended < kMaxLevel && (control.faceCount() << (2 * recommended)) <= high.faceCount())
+            ++recommended;
+        rig.displacement.recommendedLevel = recommended;
+        if (!(st = io::writeDisplacementExr(base + ".exr", map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half)))
+            throw cli::Error(st.message());
+        outputs.written.push_back(base + ".exr");
+        if (pngBits) {
+            const float range = rep.dmax - rep.dmin;
+            const double levels = double((1 << pngBits) - 1);  // eq. 12 with 2^n - 1 so dmax maps to the top level
+            std::vector<uint16_t> q(map.texels.size());
+            for (size_t i = 0; i < q.size(); ++i) {
+                const double t = range > 0.0f ? (double(map.texels[i]) - rep.dmin) / double(range) : 0.0;
+                q[i] = uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * levels));
+            }
+            const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
+            if (!(st = io::writePngGray(png, map.width, map.height, pngBits, q)))
+                throw cli::Error(st.message());
+            outputs.written.push_back(png);
+            rig.displacement.quantized.uri = io::stemOf(png) + ".png";
+            rig.displacement.quantized.bits = pngBits;
+            rig.displacement.quantized.dmin = rep.dmin;
+            rig.displacement.quantized.dmax = rep.dmax;
+        }
+        const std::string layersPath = base + "_layers.png";
+        if (!(st = io::writePngRgb(layersPath, map.width, map.height, layerImage(layers))))
+            throw cli::Error(st.message());
+        outputs.written.push_back(layersPath);
+        if (!(st = io::saveRig(outPath, rig)))
+            throw cli::Error(st.message());
+        outputs.written.push_back(outPath);
+        const double writeMs = msSince(t0);
+
+        // Closed loop: reconstruct from the files just written, as the runtime will.
+        std::vector<baker::LevelError> errors;
+        double errorMs = 0.0;
+        if (errorLevels >= 0) {
+            Rig written;
+            DisplacementMap writtenMap;
+            if (!(st = io::loadRig(outPath, &written)) || !(st = io::loadRigDisplacementMap(outPath, written, &writtenMap)))
+                throw cli::Error(st.message());
+            t0 = std::chrono::steady_clock::now();
+            Progress p("measuring the closed-loop error");
+            if (!(st = baker::closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorLevels,
+                                              options.threads)))
+                throw cli::Error(st.message());
+            errorMs = msSince(t0);
+        }
+
+        auto fileSize = [](const std::string& p) {
+            std::vector<unsigned char> b;
+            return io::readFile(p, &b).isOk() ? double(b.size()) : 0.0;
+        };
+        const double diag = rep.diagonal;
+        std::printf("strata-bake: %s onto %s (%s scheme)\n", highPath.c_str(), controlPath.c_str(),
+                    schemeName(options.scheme));
+        std::printf("  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
+                    rep.highTriangles, rep.typicalEdge);
+        if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
+            highStats.nonManifoldEdges)
+            std::printf("  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
+                        "triangles, %zu non-manifold edges\n",
+                        highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
+                        highStats.nonManifoldEdges);
+        std::printf("  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
+                    control.faceCount(), uvMode == "auto" ? "generated (per-triangle atlas)" : "kept");
+        std::printf("  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        std::printf("  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
+                    rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
+        std::printf("  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
+                    rep.raster.borderTriangles, rep.raster.pieces, 100.0 * rep.coverage, 100.0 * rep.overlapFraction);
+        std::printf("  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
+                    rep.lineFilledTexels);
+        std::printf("  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
+                    100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
+        std::printf("  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
+                    "closed loop %.0f ms\n",
+                    loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
+        std::printf("  outputs      ");
+        for (const std::string& p : outputs.written)
+            std::printf(" %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
+        std::printf("\n");
+        const double bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
+        if (!errors.empty()) {
+            std::printf("  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
+            std::printf("    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
+            for (const baker::LevelError& e : errors)
+                std::printf("    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
+                            100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
+                            100.0 * e.backwardMax / diag);
+        }
+
+        if (!reportPath.empty()) {
+            report["high"] = {{"path", highPath},
+                              {"vertices", rep.highVertices},
+                              {"triangles", rep.highTriangles},
+                              {"medianEdge", rep.typicalEdge},
+                              {"diagonal", diag},
+                              {"polygonsTriangulated", highStats.polygonsTriangulated},
+                              {"duplicateVertices", highStats.duplicateVertices},
+                              {"degenerateTriangles", highStats.degenerateTriangles},
+                              {"nonManifoldEdges", highStats.nonManifoldEdges}};
+            report["control"] = {{"path", controlPath},
+                                 {"vertices", control.positions.size()},
+                                 {"triangles", control.faceCount()},
+                                 {"uv", uvMode}};
+            report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
+                             {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
+                             {"multiLayerTexels", rep.raster.multiLayerTexels},
+                             {"coveredTexels", rep.raster.coveredTexels},
+                             {"lineFilledTexels", rep.lineFilledTexels}};
+            report["mapping"] = {{"fallbacks", rep.fallbackVertices}, {"searchDistance", rep.searchDistance},
+                                 {"borderTriangles", rep.raster.borderTriangles}, {"pieces", rep.raster.pieces}};
+            report["scheme"] = schemeName(options.scheme);
+            report["recommendedLevel"] = recommended;
+            report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
+                                {"dilate", rep.times.dilate}, {"write", writeMs}, {"closedLoop", errorMs}};
+            nlohmann::json files = nlohmann::json::object();
+            for (const std::string& p : outputs.written)
+                files[p] = fileSize(p);
+            report["outputBytes"] = files;
+            report["paperBound"] = {{"maxError", bound}, {"relative", bound / diag}};
+            nlohmann::json levels = nlohmann::json::array();
+            for (const baker::LevelError& e : errors)
+                levels.push_back({{"level", e.level}, {"vertices", e.vertices}, {"triangles", e.triangles},
+                                  {"forwardRms", e.forwardRms / diag}, {"forwardMax", e.forwardMax / diag},
+                                  {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
+            report["closedLoop"] = levels;
+            const std::string text = report.dump(2) + "\n";
+            if (!(st = io::writeFileAtomic(reportPath, text.data(), text.size())))
+                throw cli::Error(st.message());
+        }
+        outputs.committed = true;
+        return 0;
+    });
+}
