@@ -234,10 +234,16 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
     for (size_t i = 0; i < valid.size(); ++i)
         hit += valid[i] && owners[i] >= 0;
     rep.coverage = chartTexels ? double(hit) / double(chartTexels) : 0.0;
-    TriangleIndex highIndex;
-    highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
-    rep.lineFilledTexels = fillByLineIntersection(&raster.distance, &valid, owners, surface, highIndex, rep.size,
-                                                  4.0 * ms.searchDistance, options.threads);
+    // The high-res index is only worth building when there is something to fill.
+    bool holes = false;
+    for (size_t i = 0; i < owners.size() && !holes; ++i)
+        holes = owners[i] >= 0 && !valid[i];
+    if (holes) {
+        TriangleIndex highIndex;
+        highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
+        rep.lineFilledTexels = fillByLineIntersection(&raster.distance, &valid, owners, surface, highIndex, rep.size,
+                                                      4.0 * ms.searchDistance, options.threads);
+    }
     for (size_t i = 0; i < valid.size(); ++i)
         if (valid[i]) {
             dmin = std::min(dmin, raster.distance[i]);

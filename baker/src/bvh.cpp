@@ -39,28 +39,28 @@ void Bvh::build(const std::vector<Box>& boxes)
     if (boxes.empty())
         return;
     std::vector<glm::vec3> centre(boxes.size());
+    Box all;
     for (size_t i = 0; i < boxes.size(); ++i) {
         items_[i] = uint32_t(i);
         centre[i] = 0.5f * (boxes[i].lo + boxes[i].hi);
+        all.extend(centre[i]);
     }
-    nodes_.reserve(2 * boxes.size() / 2 + 1);
+    nodes_.reserve(boxes.size() / 2 + 1);
+    // Split at the median centre along the longest axis of the node's centre
+    // bounds; children's centre bounds are the parent's cut at the median, so
+    // nothing is rescanned.  Node boxes are filled bottom-up afterwards.
     struct Task {
         uint32_t node, first, count;
+        Box centres;
     };
     std::vector<Task> tasks;
     nodes_.push_back({});
-    tasks.push_back({0, 0, uint32_t(boxes.size())});
+    tasks.push_back({0, 0, uint32_t(boxes.size()), all});
     const uint32_t leafSize = 4;
     while (!tasks.empty()) {
         const Task t = tasks.back();
         tasks.pop_back();
-        Box box, cbox;
-        for (uint32_t i = t.first; i < t.first + t.count; ++i) {
-            box.extend(boxes[items_[i]]);
-            cbox.extend(centre[items_[i]]);
-        }
-        nodes_[t.node].box = box;
-        const glm::vec3 ext = cbox.hi - cbox.lo;
+        const glm::vec3 ext = t.centres.hi - t.centres.lo;
         if (t.count <= leafSize || (ext.x <= 0.0f && ext.y <= 0.0f && ext.z <= 0.0f)) {
             nodes_[t.node].first = t.first;
             nodes_[t.node].count = t.count;
@@ -70,14 +70,30 @@ void Bvh::build(const std::vector<Box>& boxes)
         const uint32_t mid = t.first + t.count / 2;
         std::nth_element(items_.begin() + t.first, items_.begin() + mid, items_.begin() + t.first + t.count,
                          [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
-        const uint32_t left = uint32_t(nodes_.size()), right = left + 1;
+        const float cut = centre[items_[mid]][axis];
+        Box left = t.centres, right = t.centres;
+        left.hi[axis] = cut;
+        right.lo[axis] = cut;
+        const uint32_t l = uint32_t(nodes_.size()), r = l + 1;
         nodes_.push_back({});
         nodes_.push_back({});
-        nodes_[t.node].first = left;
-        nodes_[t.node].right = right;
+        nodes_[t.node].first = l;
+        nodes_[t.node].right = r;
         nodes_[t.node].count = 0;
-        tasks.push_back({left, t.first, mid - t.first});
-        tasks.push_back({right, mid, t.first + t.count - mid});
+        tasks.push_back({l, t.first, mid - t.first, left});
+        tasks.push_back({r, mid, t.first + t.count - mid, right});
+    }
+    // Children always come after their parent: fill boxes in reverse order.
+    for (size_t i = nodes_.size(); i-- > 0;) {
+        Node& n = nodes_[i];
+        n.box = Box();
+        if (n.count > 0) {
+            for (uint32_t k = 0; k < n.count; ++k)
+                n.box.extend(boxes[items_[n.first + k]]);
+        } else {
+            n.box.extend(nodes_[n.first].box);
+            n.box.extend(nodes_[n.right].box);
+        }
     }
 }
 

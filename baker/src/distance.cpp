@@ -21,7 +21,7 @@ void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles,
     bvh_.build(boxes);
 }
 
-double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2) const
+double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
 {
     float best2 = 0.0f;
     auto corner = [&](uint32_t f, int k) { return glm::dvec3(positions_[triangles_[3 * size_t(f) + k]]); };
@@ -29,7 +29,7 @@ double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, d
         double u, v;
         const glm::dvec3 c = closestPointOnTriangle(x, corner(t, 0), corner(t, 1), corner(t, 2), &u, &v);
         return float(glm::dot(c - x, c - x));
-    }, &best2);
+    }, &best2, hint);
     if (f < 0)
         return -1.0;
     double u, v;

@@ -12,13 +12,7 @@ namespace baker {
 
 NormalVolumeTriangle SurfaceIndex::triangle(uint32_t f) const
 {
-    NormalVolumeTriangle t;
-    for (int k = 0; k < 3; ++k) {
-        const uint32_t v = surface_->triangles[3 * size_t(f) + k];
-        t.v[k] = glm::dvec3(surface_->positions[v]);
-        t.n[k] = glm::dvec3(surface_->normals[v]);
-    }
-    return t;
+    return triangles_[f];
 }
 
 void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
@@ -26,6 +20,16 @@ void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
     surface_ = &surface;
     searchDistance_ = searchDistance;
     const size_t nf = surface.faceCount();
+    triangles_.resize(nf);
+    cubics_.resize(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = surface.triangles[3 * f + k];
+            triangles_[f].v[k] = glm::dvec3(surface.positions[v]);
+            triangles_[f].n[k] = glm::dvec3(surface.normals[v]);
+        }
+        cubics_[f] = NormalVolumeCubic::of(triangles_[f]);
+    }
     std::vector<Box> prisms(nf);
     const float D = float(searchDistance);
     for (size_t f = 0; f < nf; ++f) {
@@ -45,31 +49,57 @@ void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
     faces_.build(surface.positions.data(), surface.triangles.data(), nf);
 }
 
-bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out) const
+bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) const
 {
     bool found = false;
     NormalVolumeHit best;
     uint32_t bestFace = 0;
-    prisms_.forEachContaining(glm::vec3(x), [&](uint32_t f) {
+    auto consider = [&](uint32_t f) {
         NormalVolumeHit hit;
-        if (!mapToNormalVolume(triangle(f), x, searchDistance_, 1e-7, &hit))
+        if (!mapToNormalVolume(triangles_[f], cubics_[f], x, searchDistance_, 1e-7, &hit))
             return;
         // Smallest |d| wins; ties (shared edges) go to the lower face index
-        // so the result does not depend on traversal order.
+        // so the result does not depend on visiting order.
         if (!found || std::fabs(hit.d) < std::fabs(best.d) ||
             (std::fabs(hit.d) == std::fabs(best.d) && f < bestFace)) {
             best = hit;
             bestFace = f;
             found = true;
         }
-    });
+    };
+    // First the volumes around the nearest surface triangle (its corners'
+    // rings): the point's own neighbourhood, a handful of cubic solves.
+    uint32_t nearest = 0;
+    if (faces_.nearest(x, &nearest, nullptr, nullptr, hint) >= 0) {
+        const BakeSurface& s = *surface_;
+        uint32_t seen[96];
+        int nseen = 0;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = s.triangles[3 * size_t(nearest) + k];
+            for (uint32_t r = s.ringOffsets[v]; r < s.ringOffsets[v + 1]; ++r) {
+                const uint32_t f = s.ringFaces[r];
+                bool dup = false;
+                for (int i = 0; i < nseen && !dup; ++i)
+                    dup = seen[i] == f;
+                if (dup)
+                    continue;
+                if (nseen < 96)
+                    seen[nseen++] = f;
+                consider(f);
+            }
+        }
+    }
+    // Then, only if the neighbourhood holds no volume containing the point
+    // (concave regions), every prism of the index.
+    if (!found)
+        prisms_.forEachContaining(glm::vec3(x), consider);
     if (found) {
         // Clamp the tolerance band back onto the triangle.
         double b1 = std::max(best.b1, 0.0), b2 = std::max(best.b2, 0.0);
-        const double s = b1 + b2;
-        if (s > 1.0) {
-            b1 /= s;
-            b2 /= s;
+        const double sum = b1 + b2;
+        if (sum > 1.0) {
+            b1 /= sum;
+            b2 /= sum;
         }
         *out = {bestFace, float(b1), float(b2), float(best.d)};
     }
@@ -126,9 +156,12 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
     out->resize(n);
     std::vector<uint8_t> fellBack(n, 0);
     parallelFor(n, threads, [&](size_t b, size_t e) {
+        int64_t hint = -1;  // consecutive vertices are usually neighbours
         for (size_t i = b; i < e; ++i) {
             const glm::dvec3 x(points[i]);
-            if (!index->map(x, &(*out)[i])) {
+            if (index->map(x, &(*out)[i], hint)) {
+                hint = (*out)[i].face;
+            } else {
                 (*out)[i] = index->mapNearest(x);
                 fellBack[i] = 1;
             }

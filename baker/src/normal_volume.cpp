@@ -10,65 +10,87 @@ namespace strata {
 namespace baker {
 namespace {
 
-double det3(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c)
-{
-    return glm::dot(a, glm::cross(b, c));
-}
-
-// Real roots of c3 d^3 + c2 d^2 + c1 d + c0 = 0, degrading gracefully to
-// quadratic and linear when the leading coefficients vanish (parallel
-// normals make the offset planes parallel).  Returns the count.
-int solveCubic(double c3, double c2, double c1, double c0, double roots[3])
+// Real roots of c3 d^3 + c2 d^2 + c1 d + c0 inside [lo, hi].  The window is
+// split at the cubic's critical points into monotonic pieces; a piece whose
+// ends differ in sign holds exactly one root, found by Newton's method
+// safeguarded by bisection.  No trigonometry, and pieces without a sign
+// change cost two polynomial evaluations.  Degrades gracefully to quadratics
+// and lines (parallel normals make c3 vanish).  Returns the count.
+int solveCubicInRange(double c3, double c2, double c1, double c0, double lo, double hi, double roots[3])
 {
     const double scale = std::max({std::fabs(c3), std::fabs(c2), std::fabs(c1), std::fabs(c0)});
-    if (scale == 0.0)
+    if (scale == 0.0 || !(lo <= hi))
         return 0;
     c3 /= scale;
     c2 /= scale;
     c1 /= scale;
     c0 /= scale;
-    const double eps = 1e-12;
-    if (std::fabs(c3) < eps) {
-        if (std::fabs(c2) < eps) {
-            if (std::fabs(c1) < eps)
-                return 0;
-            roots[0] = -c0 / c1;
-            return 1;
+    auto f = [&](double d) { return ((c3 * d + c2) * d + c1) * d + c0; };
+    auto df = [&](double d) { return (3.0 * c3 * d + 2.0 * c2) * d + c1; };
+    double cuts[4];
+    int nc = 0;
+    cuts[nc++] = lo;
+    // Critical points: 3 c3 d^2 + 2 c2 d + c1 = 0.
+    const double a = 3.0 * c3, b = 2.0 * c2, c = c1;
+    double cp[2];
+    int ncp = 0;
+    if (std::fabs(a) > 1e-300) {
+        const double disc = b * b - 4.0 * a * c;
+        if (disc > 0.0) {
+            const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+            cp[ncp++] = q / a;
+            if (q != 0.0)
+                cp[ncp++] = c / q;
         }
-        const double disc = c1 * c1 - 4.0 * c2 * c0;
-        if (disc < 0.0)
-            return 0;
-        // Numerically stable quadratic roots.
-        const double q = -0.5 * (c1 + std::copysign(std::sqrt(disc), c1));
-        int n = 0;
-        if (q != 0.0) {
-            roots[n++] = q / c2;
-            roots[n++] = c0 / q;
-        } else {
-            roots[n++] = 0.0;
+    } else if (std::fabs(b) > 1e-300) {
+        cp[ncp++] = -c / b;
+    }
+    if (ncp == 2 && cp[0] > cp[1])
+        std::swap(cp[0], cp[1]);
+    for (int i = 0; i < ncp; ++i)
+        if (cp[i] > lo && cp[i] < hi)
+            cuts[nc++] = cp[i];
+    cuts[nc++] = hi;
+    int n = 0;
+    for (int i = 0; i + 1 < nc; ++i) {
+        double x0 = cuts[i], x1 = cuts[i + 1];
+        double f0 = f(x0), f1 = f(x1);
+        if (f0 == 0.0) {
+            if (n == 0 || roots[n - 1] != x0)
+                roots[n++] = x0;
+            continue;
         }
-        return n;
+        if (f1 == 0.0) {
+            if (i + 2 == nc)
+                roots[n++] = x1;  // the window's end; interior cuts are handled as the next piece's start
+            continue;
+        }
+        if ((f0 < 0.0) == (f1 < 0.0))
+            continue;
+        double x = 0.5 * (x0 + x1);
+        for (int it = 0; it < 60; ++it) {
+            const double fx = f(x);
+            if (fx == 0.0)
+                break;
+            if ((fx < 0.0) == (f0 < 0.0)) {
+                x0 = x;
+                f0 = fx;
+            } else {
+                x1 = x;
+            }
+            const double d = df(x);
+            double next = d != 0.0 ? x - fx / d : 0.5 * (x0 + x1);
+            if (!(next > x0 && next < x1))
+                next = 0.5 * (x0 + x1);  // Newton left the bracket: bisect
+            if (std::fabs(next - x) <= 1e-15 * std::max(1.0, std::fabs(x))) {
+                x = next;
+                break;
+            }
+            x = next;
+        }
+        roots[n++] = x;
     }
-    // Depressed cubic t^3 + p t + q with d = t - a/3.
-    const double a = c2 / c3, b = c1 / c3, c = c0 / c3;
-    const double p = b - a * a / 3.0;
-    const double q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c;
-    const double shift = -a / 3.0;
-    const double disc = q * q / 4.0 + p * p * p / 27.0;
-    if (disc > 0.0) {
-        const double s = std::sqrt(disc);
-        roots[0] = std::cbrt(-q / 2.0 + s) + std::cbrt(-q / 2.0 - s) + shift;
-        return 1;
-    }
-    if (p == 0.0) {
-        roots[0] = shift;
-        return 1;
-    }
-    const double r = 2.0 * std::sqrt(-p / 3.0);
-    const double phi = std::acos(std::clamp(3.0 * q / (p * r), -1.0, 1.0)) / 3.0;
-    for (int k = 0; k < 3; ++k)
-        roots[k] = r * std::cos(phi - 2.0 * M_PI * k / 3.0) + shift;
-    return 3;
+    return n;
 }
 
 // Barycentrics of x in the offset triangle T(d); false when T(d) is degenerate.
@@ -88,31 +110,20 @@ bool offsetBarycentrics(const NormalVolumeTriangle& t, const glm::dvec3& x, doub
 // Keeps, among roots with |d - centre| <= maxDistance and accepted
 // barycentrics, the one closest to centre.
 template <typename Accept>
-bool solve(const NormalVolumeTriangle& t, const glm::dvec3& x, double centre, double maxDistance, Accept accept,
-           NormalVolumeHit* hit)
+bool solve(const NormalVolumeTriangle& t, const NormalVolumeCubic& cubic, const glm::dvec3& x, double centre,
+           double maxDistance, Accept accept, NormalVolumeHit* hit)
 {
-    const glm::dvec3 e1 = t.v[1] - t.v[0], e2 = t.v[2] - t.v[0];
-    const glm::dvec3 f1 = t.n[1] - t.n[0], f2 = t.n[2] - t.n[0];
-    const glm::dvec3 g = x - t.v[0], h = -t.n[0];
     // det[e1 + d f1, e2 + d f2, g + d h], expanded by powers of d.
-    const double c0 = det3(e1, e2, g);
-    const double c1 = det3(f1, e2, g) + det3(e1, f2, g) + det3(e1, e2, h);
-    const double c2 = det3(f1, f2, g) + det3(f1, e2, h) + det3(e1, f2, h);
-    const double c3 = det3(f1, f2, h);
+    const glm::dvec3 g = x - t.v[0];
+    const double c0 = glm::dot(g, cubic.A);
+    const double c1 = glm::dot(g, cubic.B) + cubic.hA;
+    const double c2 = glm::dot(g, cubic.C) + cubic.hB;
+    const double c3 = cubic.hC;
     double roots[3];
-    const int n = solveCubic(c3, c2, c1, c0, roots);
+    const int n = solveCubicInRange(c3, c2, c1, c0, centre - maxDistance, centre + maxDistance, roots);
     bool found = false;
     for (int k = 0; k < n; ++k) {
-        double d = roots[k];
-        // Two Newton steps polish the closed-form root to full precision.
-        for (int it = 0; it < 2; ++it) {
-            const double f = ((c3 * d + c2) * d + c1) * d + c0;
-            const double df = (3.0 * c3 * d + 2.0 * c2) * d + c1;
-            if (df != 0.0)
-                d -= f / df;
-        }
-        if (!std::isfinite(d) || std::fabs(d - centre) > maxDistance)
-            continue;
+        const double d = roots[k];
         double b1, b2;
         if (!offsetBarycentrics(t, x, d, &b1, &b2) || !accept(b1, b2))
             continue;
@@ -126,19 +137,40 @@ bool solve(const NormalVolumeTriangle& t, const glm::dvec3& x, double centre, do
 
 }  // namespace
 
+NormalVolumeCubic NormalVolumeCubic::of(const NormalVolumeTriangle& t)
+{
+    const glm::dvec3 e1 = t.v[1] - t.v[0], e2 = t.v[2] - t.v[0];
+    const glm::dvec3 f1 = t.n[1] - t.n[0], f2 = t.n[2] - t.n[0];
+    const glm::dvec3 h = -t.n[0];
+    NormalVolumeCubic k;
+    k.A = glm::cross(e1, e2);
+    k.B = glm::cross(f1, e2) + glm::cross(e1, f2);
+    k.C = glm::cross(f1, f2);
+    k.hA = glm::dot(h, k.A);
+    k.hB = glm::dot(h, k.B);
+    k.hC = glm::dot(h, k.C);
+    return k;
+}
+
+bool mapToNormalVolume(const NormalVolumeTriangle& tri, const NormalVolumeCubic& cubic, const glm::dvec3& x,
+                       double maxDistance, double tolerance, NormalVolumeHit* hit)
+{
+    return solve(
+        tri, cubic, x, 0.0, maxDistance,
+        [&](double b1, double b2) { return b1 >= -tolerance && b2 >= -tolerance && 1.0 - b1 - b2 >= -tolerance; },
+        hit);
+}
+
 bool mapToNormalVolume(const NormalVolumeTriangle& tri, const glm::dvec3& x, double maxDistance, double tolerance,
                        NormalVolumeHit* hit)
 {
-    return solve(
-        tri, x, 0.0, maxDistance,
-        [&](double b1, double b2) { return b1 >= -tolerance && b2 >= -tolerance && 1.0 - b1 - b2 >= -tolerance; },
-        hit);
+    return mapToNormalVolume(tri, NormalVolumeCubic::of(tri), x, maxDistance, tolerance, hit);
 }
 
 bool mapToNormalVolumePlane(const NormalVolumeTriangle& tri, const glm::dvec3& x, double nearD, double maxDeviation,
                             NormalVolumeHit* hit)
 {
-    return solve(tri, x, nearD, maxDeviation, [](double, double) { return true; }, hit);
+    return solve(tri, NormalVolumeCubic::of(tri), x, nearD, maxDeviation, [](double, double) { return true; }, hit);
 }
 
 glm::dvec3 evaluateNormalVolume(const NormalVolumeTriangle& t, double b1, double b2, double d)

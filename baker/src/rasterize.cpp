@@ -81,6 +81,21 @@ glm::vec2 texelUV(const BakeSurface& s, uint32_t face, double b1, double b2, dou
     return glm::vec2(((1.0 - b1 - b2) * u0 + b1 * u1 + b2 * u2) * size);  // eq. 3, in texel units
 }
 
+// Whether high-res triangle tri passes close to control vertex v: closer than
+// its longest edge plus the largest |d| of its vertices (both bound how far
+// the triangle's image can reach across the vertex's faces).
+bool nearControlVertex(const BakeSurface& s, uint32_t v, const glm::vec3* pos, const uint32_t* tri,
+                       const VertexMapping* const m[3])
+{
+    const glm::dvec3 a(pos[tri[0]]), b(pos[tri[1]]), c(pos[tri[2]]);
+    const double edge = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+    const double reach = edge + std::max({std::fabs(double(m[0]->d)), std::fabs(double(m[1]->d)),
+                                          std::fabs(double(m[2]->d))});
+    double u, w;
+    const glm::dvec3 p = closestPointOnTriangle(glm::dvec3(s.positions[v]), a, b, c, &u, &w);
+    return glm::length(p - glm::dvec3(s.positions[v])) <= reach;
+}
+
 // The pieces of one high-res triangle (paper 3.2.2).
 void triangulatePieces(const SurfaceIndex& index, const glm::vec3* pos, const uint32_t* tri,
                        const std::vector<VertexMapping>& mapping, double size, std::vector<Piece>* out,
@@ -129,7 +144,11 @@ void triangulatePieces(const SurfaceIndex& index, const glm::vec3* pos, const ui
                 for (int j = 0; j < 3; ++j)
                     if (s.triangles[3 * size_t(fa) + i] == s.triangles[3 * size_t(fb) + j]) {
                         sharedVertex = true;
-                        addRing(s.triangles[3 * size_t(fa) + i]);
+                        // Only a triangle that comes near the shared control
+                        // vertex can reach the faces around it.
+                        const uint32_t v = s.triangles[3 * size_t(fa) + i];
+                        if (nearControlVertex(s, v, pos, tri, m))
+                            addRing(v);
                     }
             if (!sharedVertex)
                 for (uint32_t f : {fa, fb})

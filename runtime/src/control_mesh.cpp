@@ -41,11 +41,19 @@ std::string edgeName(uint64_t key)
 
 MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount)
 {
+    // Undirected edge keys only: counting needs no face or direction, and
+    // sorting plain integers keeps this cheap on million-triangle meshes.
     MeshTopologyStats s;
-    const std::vector<DirectedEdge> edges = sortedEdges(triangles, faceCount);
-    for (size_t i = 0; i < edges.size();) {
+    std::vector<uint64_t> keys(faceCount * 3);
+    for (size_t f = 0; f < faceCount; ++f)
+        for (int c = 0; c < 3; ++c) {
+            const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
+            keys[3 * f + c] = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+        }
+    std::sort(keys.begin(), keys.end());
+    for (size_t i = 0; i < keys.size();) {
         size_t j = i;
-        while (j < edges.size() && edges[j].key == edges[i].key)
+        while (j < keys.size() && keys[j] == keys[i])
             ++j;
         ++s.edges;
         if (j - i == 1)
@@ -54,9 +62,13 @@ MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCou
             ++s.nonManifoldEdges;
         i = j;
     }
-    std::vector<uint32_t> verts(triangles, triangles + faceCount * 3);
-    std::sort(verts.begin(), verts.end());
-    s.vertices = size_t(std::unique(verts.begin(), verts.end()) - verts.begin());
+    uint32_t maxIndex = 0;
+    for (size_t i = 0; i < faceCount * 3; ++i)
+        maxIndex = std::max(maxIndex, triangles[i]);
+    std::vector<bool> used(faceCount ? size_t(maxIndex) + 1 : 0, false);
+    for (size_t i = 0; i < faceCount * 3; ++i)
+        used[triangles[i]] = true;
+    s.vertices = size_t(std::count(used.begin(), used.end(), true));
     s.eulerCharacteristic = long(s.vertices) - long(s.edges) + long(faceCount);
     return s;
 }

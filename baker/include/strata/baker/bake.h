@@ -29,7 +29,7 @@ struct BakeOptions {
     int threads = 2;
     int denseLevel = 3;                 ///< smooth scheme: limit-surface sampling level
     int gutter = 4;                     ///< dilation passes (texels)
-    int lineRings = 2;                  ///< gutter rings measured by line intersection before dilation
+    int lineRings = 0;                  ///< gutter rings measured by line intersection before dilation
 };
 
 struct StageTimes {

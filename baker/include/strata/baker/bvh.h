@@ -31,11 +31,14 @@ public:
     template <typename Visit>
     void forEachContaining(const glm::vec3& p, Visit&& visit) const;
 
-    /// Best-first search: visit(item) returns the item's squared distance to
-    /// the query (or a large value); boxes farther than the best so far are
-    /// pruned.  Returns the best item (or -1) and its squared distance.
+    /// Best-first search: distance2(item) returns the item's squared distance
+    /// to the query; boxes farther than the best so far are pruned.  Returns
+    /// the item with the smallest distance, ties going to the lowest index, so
+    /// the answer does not depend on traversal order or on `hint` (an item to
+    /// evaluate first, e.g. the previous query's answer, or -1).
     template <typename Distance2>
-    int64_t nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2) const;
+    int64_t nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2,
+                    int64_t hint = -1) const;
 
     /// Calls visit(item) for every item whose box meets the segment
     /// origin + t * dir, t in [t0, t1].
@@ -127,24 +130,35 @@ void Bvh::forEachOnSegment(const glm::vec3& origin, const glm::vec3& dir, float 
 }
 
 template <typename Distance2>
-int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2) const
+int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distance2, float* bestDistance2,
+                     int64_t hint) const
 {
     int64_t best = -1;
     float bestD2 = maxDistance2;
+    if (hint >= 0 && size_t(hint) < items_.size()) {
+        const float d2 = distance2(uint32_t(hint));
+        if (d2 <= bestD2) {
+            bestD2 = d2;
+            best = hint;
+        }
+    }
     if (!nodes_.empty()) {
         uint32_t stack[64];
         int top = 0;
         stack[top++] = 0;
         while (top > 0) {
             const Node& n = nodes_[stack[--top]];
-            if (n.box.distance2(p) >= bestD2)
+            if (n.box.distance2(p) > bestD2)
                 continue;
             if (n.count > 0) {
                 for (uint32_t i = 0; i < n.count; ++i) {
-                    const float d2 = distance2(items_[n.first + i]);
-                    if (d2 < bestD2) {
+                    const uint32_t item = items_[n.first + i];
+                    if (int64_t(item) == hint)
+                        continue;
+                    const float d2 = distance2(item);
+                    if (d2 < bestD2 || (d2 == bestD2 && (best < 0 || item < best))) {
                         bestD2 = d2;
-                        best = items_[n.first + i];
+                        best = item;
                     }
                 }
             } else {

@@ -19,7 +19,9 @@ public:
     void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount);
     /// Distance from x to the nearest triangle; face and barycentrics of the
     /// nearest point when the pointers are non-null.  -1 when empty.
-    double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr) const;
+    /// `hint` (a face to try first, or -1) only speeds the search up.
+    double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr,
+                   int64_t hint = -1) const;
 
     /// The intersection of the line origin + t * dir with the mesh that has
     /// the smallest |t| within |t| <= maxT (Moller-Trumbore); false if none.

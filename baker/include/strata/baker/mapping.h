@@ -34,9 +34,12 @@ public:
     double searchDistance() const { return searchDistance_; }
     NormalVolumeTriangle triangle(uint32_t face) const;
 
-    /// Closed-form mapping of x: the containing normal volume with the
-    /// smallest |d|.  False when x lies in none.
-    bool map(const glm::dvec3& x, VertexMapping* out) const;
+    /// Closed-form mapping of x: among the normal volumes around the nearest
+    /// surface triangle (the rings of its corners) the containing one with the
+    /// smallest |d|; if none contains x, the same over every volume of the
+    /// index.  False when x lies in none.
+    /// `hint`: a face to start the nearest-triangle search from (speed only).
+    bool map(const glm::dvec3& x, VertexMapping* out, int64_t hint = -1) const;
     /// Fallback: the nearest surface point, with d the projection of the
     /// offset onto the interpolated normal there.
     VertexMapping mapNearest(const glm::dvec3& x) const;
@@ -48,6 +51,8 @@ private:
     double searchDistance_ = 0.0;
     Bvh prisms_;
     TriangleIndex faces_;
+    std::vector<NormalVolumeTriangle> triangles_;  // per face, in double
+    std::vector<NormalVolumeCubic> cubics_;        // per face: the point-independent part of eq. 2's cubic
 };
 
 /// Maps n points in parallel (threads >= 1; the result does not depend on

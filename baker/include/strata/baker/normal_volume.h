@@ -20,6 +20,16 @@ struct NormalVolumeTriangle {
     glm::dvec3 n[3];
 };
 
+/// The point-independent part of the cubic, precomputed once per triangle:
+/// with e_k = v_k - v_0, f_k = n_k - n_0, h = -n_0 and g = x - v_0, the
+/// coefficients are c0 = g.A, c1 = g.B + h.A, c2 = g.C + h.B, c3 = h.C where
+/// A = e1 x e2, B = f1 x e2 + e1 x f2, C = f1 x f2.
+struct NormalVolumeCubic {
+    glm::dvec3 A, B, C;
+    double hA, hB, hC;
+    static NormalVolumeCubic of(const NormalVolumeTriangle& t);
+};
+
 struct NormalVolumeHit {
     double b1 = 0.0, b2 = 0.0;  ///< barycentrics of corners 1 and 2 (b0 = 1 - b1 - b2)
     double d = 0.0;             ///< distance parameter of eq. 2
@@ -31,6 +41,9 @@ struct NormalVolumeHit {
 /// false when x is in no part of this normal volume within range.
 bool mapToNormalVolume(const NormalVolumeTriangle& tri, const glm::dvec3& x, double maxDistance, double tolerance,
                        NormalVolumeHit* hit);
+/// The same with the triangle's cubic precomputed (the baker's hot path).
+bool mapToNormalVolume(const NormalVolumeTriangle& tri, const NormalVolumeCubic& cubic, const glm::dvec3& x,
+                       double maxDistance, double tolerance, NormalVolumeHit* hit);
 
 /// The same solve without the inside test (paper 3.2.2: a border triangle's
 /// vertices re-mapped into the plane of a neighbouring control triangle, with
