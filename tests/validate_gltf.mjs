@@ -5,7 +5,7 @@ import fs from 'fs';
 import path from 'path';
 
 const [, , modulesDir, ...files] = process.argv;
-const require = createRequire(path.join(modulesDir, 'noop.js'));
+const require = createRequire(path.resolve(modulesDir, 'noop.js'));
 const validator = require('gltf-validator');
 
 let failed = false;

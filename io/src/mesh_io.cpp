@@ -286,7 +286,8 @@ int appendAccessor(tinygltf::Model& model, int view, int componentType, int type
 
 }  // namespace
 
-Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras)
+Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras,
+                     const Skeleton* skeleton)
 {
     const bool hasUV = m.uvs != nullptr;
     // Split vertices where their UVs differ (glTF attributes are per vertex).
@@ -362,12 +363,106 @@ Status writeGltfMesh(const std::string& path, const MeshView& m, const char* nam
     if (meshExtras)
         mesh.extras = *meshExtras;
     model.meshes.push_back(mesh);
-    tinygltf::Node node;
-    node.name = name;
-    node.mesh = 0;
-    model.nodes.push_back(node);
     tinygltf::Scene scene;
-    scene.nodes.push_back(0);
+    const bool skinned = skeleton && !skeleton->empty();
+    if (skinned) {
+        // Influences per file vertex, copied from its topological vertex.
+        const VertexWeights& vw = skeleton->weights;
+        for (int set = 0; set * 4 < vw.influences; ++set) {
+            std::vector<uint16_t> joints(nv * 4);
+            std::vector<float> weights(nv * 4);
+            for (size_t i = 0; i < nv; ++i)
+                for (int k = 0; k < 4; ++k) {
+                    const size_t slot = size_t(fileVertexOf[i]) * size_t(vw.influences) + size_t(4 * set + k);
+                    joints[4 * i + size_t(k)] = vw.weights[slot] != 0.0f ? vw.joints[slot] : 0;
+                    weights[4 * i + size_t(k)] = vw.weights[slot];
+                }
+            view = appendBufferView(model, joints.data(), joints.size() * 2, TINYGLTF_TARGET_ARRAY_BUFFER);
+            model.meshes[0].primitives[0].attributes["JOINTS_" + std::to_string(set)] =
+                appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC4, nv);
+            view = appendBufferView(model, weights.data(), weights.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+            model.meshes[0].primitives[0].attributes["WEIGHTS_" + std::to_string(set)] =
+                appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, nv);
+        }
+        for (size_t i = 0; i < skeleton->nodes.size(); ++i) {
+            const SkeletonNode& sn = skeleton->nodes[i];
+            tinygltf::Node n;
+            n.name = sn.name.empty() ? "node" + std::to_string(i) : sn.name;
+            if (sn.hasMatrix) {
+                for (int k = 0; k < 16; ++k)
+                    n.matrix.push_back(double(sn.matrix[k / 4][k % 4]));
+            } else {
+                const NodeTransform& t = sn.rest;
+                if (t.translation != glm::vec3(0.0f))
+                    n.translation = {t.translation.x, t.translation.y, t.translation.z};
+                if (t.rotation != glm::quat(1.0f, 0.0f, 0.0f, 0.0f))
+                    n.rotation = {t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w};
+                if (t.scale != glm::vec3(1.0f))
+                    n.scale = {t.scale.x, t.scale.y, t.scale.z};
+            }
+            model.nodes.push_back(n);
+        }
+        for (size_t i = 0; i < skeleton->nodes.size(); ++i) {
+            const int parent = skeleton->nodes[i].parent;
+            if (parent >= 0)
+                model.nodes[size_t(parent)].children.push_back(int(i));
+            else
+                scene.nodes.push_back(int(i));
+        }
+        tinygltf::Skin skin;
+        skin.joints = skeleton->skin.joints;
+        view = appendBufferView(model, skeleton->skin.inverseBindMatrices.data(),
+                                skeleton->skin.inverseBindMatrices.size() * sizeof(glm::mat4), -1);
+        model.bufferViews.back().target = 0;
+        skin.inverseBindMatrices = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_MAT4,
+                                                  skeleton->skin.inverseBindMatrices.size());
+        model.skins.push_back(skin);
+        for (const Animation& a : skeleton->animations) {
+            tinygltf::Animation anim;
+            anim.name = a.name;
+            for (const AnimationChannel& c : a.channels) {
+                tinygltf::AnimationSampler sa;
+                view = appendBufferView(model, c.times.data(), c.times.size() * 4, -1);
+                model.bufferViews.back().target = 0;
+                sa.input = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, c.times.size());
+                model.accessors.back().minValues = {double(c.times.front())};
+                model.accessors.back().maxValues = {double(c.times.back())};
+                const int comps = c.path == AnimationPath::Rotation ? 4 : 3;
+                view = appendBufferView(model, c.values.data(), c.values.size() * 4, -1);
+                model.bufferViews.back().target = 0;
+                sa.output = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                           comps == 4 ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3,
+                                           c.values.size() / size_t(comps));
+                sa.interpolation = c.interpolation == AnimationInterpolation::Step          ? "STEP"
+                                   : c.interpolation == AnimationInterpolation::CubicSpline ? "CUBICSPLINE"
+                                                                                            : "LINEAR";
+                anim.samplers.push_back(sa);
+                tinygltf::AnimationChannel ch;
+                ch.sampler = int(anim.samplers.size() - 1);
+                ch.target_node = c.node;
+                ch.target_path = c.path == AnimationPath::Translation ? "translation"
+                                 : c.path == AnimationPath::Rotation  ? "rotation"
+                                                                      : "scale";
+                anim.channels.push_back(ch);
+            }
+            model.animations.push_back(anim);
+        }
+    }
+    if (skinned && skeleton->meshNode >= 0 && size_t(skeleton->meshNode) < skeleton->nodes.size() &&
+        skeleton->nodes[size_t(skeleton->meshNode)].parent < 0) {
+        // Keep the mesh on the root node that carried it (a skinned mesh
+        // elsewhere goes on a new root node: parents cannot move it anyway).
+        model.nodes[size_t(skeleton->meshNode)].mesh = 0;
+        model.nodes[size_t(skeleton->meshNode)].skin = 0;
+    } else {
+        tinygltf::Node node;
+        node.name = name;
+        node.mesh = 0;
+        if (skinned)
+            node.skin = 0;
+        model.nodes.push_back(node);
+        scene.nodes.push_back(int(model.nodes.size() - 1));
+    }
     model.scenes.push_back(scene);
     model.defaultScene = 0;
     model.buffers[0].data.resize((model.buffers[0].data.size() + 3) & ~size_t(3), 0);

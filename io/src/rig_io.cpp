@@ -263,6 +263,175 @@ Status loadPrimitive(const std::string& path, tinygltf::Model* modelOut, LoadedP
 
 }  // namespace
 
+// Nodes, the mesh node's skin, per-vertex influences and animations.
+Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int meshIndex, const tinygltf::Primitive& prim,
+                    Rig* rig)
+{
+    Skeleton& sk = rig->skeleton;
+    const size_t nn = model.nodes.size();
+    sk.nodes.resize(nn);
+    for (size_t i = 0; i < nn; ++i) {
+        const tinygltf::Node& n = model.nodes[i];
+        SkeletonNode& out = sk.nodes[i];
+        out.name = n.name;
+        if (n.matrix.size() == 16) {
+            out.hasMatrix = true;
+            for (int k = 0; k < 16; ++k)
+                out.matrix[k / 4][k % 4] = float(n.matrix[size_t(k)]);
+        }
+        if (n.translation.size() == 3)
+            out.rest.translation = glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2]));
+        if (n.rotation.size() == 4)
+            out.rest.rotation = glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                                          float(n.rotation[2]));
+        if (n.scale.size() == 3)
+            out.rest.scale = glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2]));
+    }
+    for (size_t i = 0; i < nn; ++i)
+        for (int c : model.nodes[i].children) {
+            if (c < 0 || size_t(c) >= nn)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " has a missing child");
+            if (sk.nodes[size_t(c)].parent >= 0)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(c) + " has two parents");
+            sk.nodes[size_t(c)].parent = int(i);
+        }
+    int skinIndex = -1;
+    for (size_t i = 0; i < nn; ++i)
+        if (model.nodes[i].mesh == meshIndex && model.nodes[i].skin >= 0 && skinIndex < 0) {
+            skinIndex = model.nodes[i].skin;
+            sk.meshNode = int(i);
+        }
+    Status st;
+    if (skinIndex >= 0) {
+        if (size_t(skinIndex) >= model.skins.size())
+            return Status(StatusCode::InvalidData, path + ": the mesh node references a missing skin");
+        const tinygltf::Skin& skin = model.skins[size_t(skinIndex)];
+        sk.skin.joints = skin.joints;
+        if (sk.skin.joints.empty())
+            return Status(StatusCode::InvalidData, path + ": the skin has no joints");
+        if (skin.inverseBindMatrices >= 0) {
+            std::vector<float> m;
+            if (!(st = readFloatAccessor(model, skin.inverseBindMatrices, 16, "inverseBindMatrices", &m)))
+                return Status(st.code(), path + ": " + st.message());
+            if (m.size() / 16 < sk.skin.joints.size())
+                return Status(StatusCode::InvalidData, path + ": inverseBindMatrices holds " + std::to_string(m.size() / 16) +
+                                                           " matrices for " + std::to_string(sk.skin.joints.size()) +
+                                                           " joints");
+            sk.skin.inverseBindMatrices.resize(sk.skin.joints.size());
+            for (size_t j = 0; j < sk.skin.joints.size(); ++j)
+                for (int k = 0; k < 16; ++k)
+                    sk.skin.inverseBindMatrices[j][k / 4][k % 4] = m[16 * j + size_t(k)];
+        }
+        // Influences per file vertex, then per topological vertex (its first copy).
+        auto attr = [&](const char* name) {
+            auto it = prim.attributes.find(name);
+            return it == prim.attributes.end() ? -1 : it->second;
+        };
+        if (attr("JOINTS_0") < 0 || attr("WEIGHTS_0") < 0)
+            return Status(StatusCode::InvalidData, path + ": a skinned mesh needs JOINTS_0 and WEIGHTS_0");
+        const int sets = attr("JOINTS_1") >= 0 && attr("WEIGHTS_1") >= 0 ? 2 : 1;
+        const size_t nFile = rig->sourceVertex.size();
+        std::vector<uint32_t> joints[2];
+        std::vector<float> weights[2];
+        for (int set = 0; set < sets; ++set) {
+            const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
+            if (!(st = readUintAccessor(model, attr(js.c_str()), 4, js, &joints[set])) ||
+                !(st = readFloatAccessor(model, attr(ws.c_str()), 4, ws, &weights[set])))
+                return Status(st.code(), path + ": " + st.message());
+            if (joints[set].size() != 4 * nFile || weights[set].size() != 4 * nFile)
+                return Status(StatusCode::InvalidData, path + ": " + js + "/" + ws + " do not have one element per vertex");
+        }
+        const size_t nv = rig->mesh.positions.size();
+        std::vector<uint32_t> firstCopy(nv, uint32_t(-1));
+        for (size_t f = 0; f < nFile; ++f)
+            if (firstCopy[rig->sourceVertex[f]] == uint32_t(-1))
+                firstCopy[rig->sourceVertex[f]] = uint32_t(f);
+        VertexWeights& vw = sk.weights;
+        vw.influences = 4 * sets;
+        vw.joints.assign(nv * size_t(vw.influences), 0);
+        vw.weights.assign(nv * size_t(vw.influences), 0.0f);
+        size_t renormalised = 0;
+        for (size_t v = 0; v < nv; ++v) {
+            const size_t f = firstCopy[v];
+            float sum = 0.0f;
+            for (int set = 0; set < sets; ++set)
+                for (int k = 0; k < 4; ++k) {
+                    const uint32_t j = joints[set][4 * f + size_t(k)];
+                    const float w = weights[set][4 * f + size_t(k)];
+                    if (w != 0.0f && j >= sk.skin.joints.size())
+                        return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) +
+                                                                   " is skinned to joint " + std::to_string(j) +
+                                                                   " of a " + std::to_string(sk.skin.joints.size()) +
+                                                                   "-joint skin");
+                    if (w < 0.0f)
+                        return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) +
+                                                                   " has a negative skin weight");
+                    const size_t slot = v * size_t(vw.influences) + size_t(4 * set + k);
+                    vw.joints[slot] = uint16_t(w != 0.0f ? j : 0);
+                    vw.weights[slot] = w;
+                    sum += w;
+                }
+            if (!(sum > 0.0f))
+                return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) + " has no skin weight");
+            if (std::fabs(sum - 1.0f) > 1e-3f) {
+                ++renormalised;
+                for (int k = 0; k < vw.influences; ++k)
+                    vw.weights[v * size_t(vw.influences) + size_t(k)] /= sum;
+            }
+        }
+        if (renormalised)
+            rig->warnings.push_back(std::to_string(renormalised) +
+                                    " vertices had skin weights not summing to 1; renormalised");
+    }
+    for (size_t a = 0; a < model.animations.size(); ++a) {
+        const tinygltf::Animation& in = model.animations[a];
+        Animation anim;
+        anim.name = in.name.empty() ? "animation" + std::to_string(a) : in.name;
+        if (in.samplers.empty() || in.channels.empty())
+            return Status(StatusCode::InvalidData, path + ": animation " + std::to_string(a) + " (" + anim.name +
+                                                       ") has no samplers or channels");
+        for (const tinygltf::AnimationChannel& ch : in.channels) {
+            if (ch.target_path == "weights") {
+                rig->warnings.push_back("animation " + anim.name + ": morph-target weights are not supported, ignored");
+                continue;
+            }
+            if (ch.sampler < 0 || size_t(ch.sampler) >= in.samplers.size())
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has a channel without a sampler");
+            const tinygltf::AnimationSampler& sa = in.samplers[size_t(ch.sampler)];
+            AnimationChannel c;
+            c.node = ch.target_node;
+            if (ch.target_path == "translation")
+                c.path = AnimationPath::Translation;
+            else if (ch.target_path == "rotation")
+                c.path = AnimationPath::Rotation;
+            else if (ch.target_path == "scale")
+                c.path = AnimationPath::Scale;
+            else
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown path '" +
+                                                           ch.target_path + "'");
+            if (sa.interpolation == "LINEAR" || sa.interpolation.empty())
+                c.interpolation = AnimationInterpolation::Linear;
+            else if (sa.interpolation == "STEP")
+                c.interpolation = AnimationInterpolation::Step;
+            else if (sa.interpolation == "CUBICSPLINE")
+                c.interpolation = AnimationInterpolation::CubicSpline;
+            else
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown interpolation");
+            const std::string what = "animation " + anim.name;
+            if (!(st = readFloatAccessor(model, sa.input, 1, what + " key times", &c.times)) ||
+                !(st = readFloatAccessor(model, sa.output, c.path == AnimationPath::Rotation ? 4 : 3, what + " key values",
+                                         &c.values)))
+                return Status(st.code(), path + ": " + st.message());
+            anim.channels.push_back(std::move(c));
+        }
+        if (!anim.channels.empty())
+            sk.animations.push_back(std::move(anim));
+    }
+    if (!(st = finalizeSkeleton(&sk, rig->mesh.positions.size())))
+        return Status(st.code(), path + ": " + st.message());
+    return Status::ok();
+}
+
 Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
 {
     tinygltf::Model model;
@@ -288,6 +457,12 @@ Status loadRig(const std::string& path, Rig* out)
     const tinygltf::Mesh& mesh = model.meshes[size_t(prim.meshIndex)];
     if (!(st = validateControlMesh(rig.mesh)))
         return Status(st.code(), path + ": " + st.message());
+    const tinygltf::Primitive* triangles = nullptr;
+    for (const tinygltf::Primitive& p : mesh.primitives)
+        if (!triangles && (p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1))
+            triangles = &p;
+    if (!(st = loadSkeleton(path, model, prim.meshIndex, *triangles, &rig)))
+        return st;
 
     if (const tinygltf::Value* block = member(mesh.extras, "strata")) {
         if (!(st = parseStrataBlock(*block, path, &rig.displacement)))
@@ -412,9 +587,9 @@ Status saveRig(const std::string& path, const Rig& rig)
         tinygltf::Value::Object extras;
         extras["strata"] = block;
         const tinygltf::Value value(extras);
-        return writeGltfMesh(path, view, "control_mesh", &value);
+        return writeGltfMesh(path, view, "control_mesh", &value, &rig.skeleton);
     }
-    return writeGltfMesh(path, view, "control_mesh", nullptr);
+    return writeGltfMesh(path, view, "control_mesh", nullptr, &rig.skeleton);
 }
 
 }  // namespace io

@@ -4,6 +4,7 @@
 // asset pipeline can fill it directly.  No file format code lives here.
 #pragma once
 
+#include "strata/animation.h"
 #include "strata/control_mesh.h"
 #include "strata/plan.h"
 
@@ -39,6 +40,8 @@ struct Rig {
     std::vector<uint32_t> sourceVertex;  ///< per file vertex: its topological vertex in mesh
     bool hasDisplacement = false;     ///< false for a plain glTF without a strata block
     DisplacementInfo displacement;
+    Skeleton skeleton;                ///< empty when the mesh is not skinned
+    std::vector<std::string> warnings;  ///< tolerated problems found while loading
 };
 
 }  // namespace strata
