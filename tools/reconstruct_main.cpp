@@ -1,23 +1,29 @@
 // strata-reconstruct: writes a rig's displaced surface at level N.
 //
 //   strata-reconstruct RIG.glb --level N [--scheme linear|smooth]
-//       [--anim NAME|INDEX] [--time SECONDS] [--scale S] [--no-displacement]
+//       [--anim NAME|INDEX] [--time SECONDS] [--frames START:END:FPS]
+//       [--skinning linear|dq] [--scale S] [--no-displacement]
 //       -o OUT.{obj,ply,glb,gltf}
+// With --frames, OUT gets a 4-digit frame number before its extension.
 //
 // Pipelines and tests script this interface: keep it stable.
 #include "cli.h"
 
+#include "strata/io/file.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
+#include <vector>
 
 using namespace strata;
 
 static const char* kUsage =
     "usage: strata-reconstruct RIG.glb [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
-    "                          [--time SECONDS] [--scale S] [--no-displacement] -o OUT.{obj,ply,glb,gltf}\n";
+    "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq]\n"
+    "                          [--scale S] [--no-displacement] -o OUT.{obj,ply,glb,gltf}\n";
 
 int main(int argc, char** argv)
 {
@@ -27,6 +33,9 @@ int main(int argc, char** argv)
         bool haveScheme = false, displace = true;
         Scheme scheme = Scheme::Linear;
         float scale = 1.0f, time = 0.0f;
+        bool frames = false, haveTime = false;
+        float frameStart = 0.0f, frameEnd = 0.0f, fps = 30.0f;
+        SkinningMethod method = SkinningMethod::Linear;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
             auto value = [&]() -> std::string {
@@ -47,6 +56,26 @@ int main(int argc, char** argv)
                 anim = value();
             } else if (a == "--time") {
                 time = cli::parseFloat(a, value());
+                haveTime = true;
+            } else if (a == "--frames") {
+                const std::string v = value();
+                float s0, s1, f;
+                char tail;
+                if (std::sscanf(v.c_str(), "%f:%f:%f%c", &s0, &s1, &f, &tail) != 3 || !(f > 0.0f) || !(s1 >= s0) ||
+                    (s1 - s0) * f > 100000.0f)
+                    throw cli::Error("--frames expects START:END:FPS with END >= START and FPS > 0, got \"" + v + "\"");
+                frames = true;
+                frameStart = s0;
+                frameEnd = s1;
+                fps = f;
+            } else if (a == "--skinning") {
+                const std::string v = value();
+                if (v == "linear")
+                    method = SkinningMethod::Linear;
+                else if (v == "dq")
+                    method = SkinningMethod::DualQuaternion;
+                else
+                    throw cli::Error("--skinning expects linear or dq");
             } else if (a == "--scale") {
                 scale = cli::parseFloat(a, value());
             } else if (a == "--no-displacement") {
@@ -76,20 +105,67 @@ int main(int argc, char** argv)
             scheme = rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;
         if (level < 0)
             level = rig.hasDisplacement ? rig.displacement.recommendedLevel : 0;
-        if (!anim.empty() || time != 0.0f)
-            std::fprintf(stderr, "strata-reconstruct: note: %s has no animation support in this build; writing the bind pose\n",
-                         rigPath.c_str());
+        io::Pose pose;
+        pose.time = time;
+        pose.method = method;
+        const bool skinned = !rig.skeleton.empty();
+        if (!anim.empty()) {
+            if (!skinned)
+                throw cli::Error(rigPath + ": --anim given but the rig has no skin");
+            pose.animation = findAnimation(rig.skeleton, anim);
+            if (pose.animation < 0) {
+                std::string names;
+                for (const Animation& a : rig.skeleton.animations)
+                    names += (names.empty() ? "" : ", ") + a.name;
+                throw cli::Error(rigPath + ": no animation \"" + anim + "\" (it has: " + (names.empty() ? "none" : names) +
+                                 ")");
+            }
+        } else if (skinned && (haveTime || frames) && !rig.skeleton.animations.empty()) {
+            pose.animation = 0;
+        } else if (!skinned && (haveTime || frames)) {
+            std::fprintf(stderr, "strata-reconstruct: note: %s is not skinned; writing its bind pose\n", rigPath.c_str());
+        }
+        for (const std::string& w : rig.warnings)
+            std::fprintf(stderr, "strata-reconstruct: warning: %s: %s\n", rigPath.c_str(), w.c_str());
 
         const auto t0 = std::chrono::steady_clock::now();
         io::Reconstruction rec;
-        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale)))
+        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale, skinned ? &pose : nullptr)))
             throw cli::Error(rigPath + ": " + st.message());
         const auto t1 = std::chrono::steady_clock::now();
-        if (!(st = io::writeReconstruction(outPath, rec)))
-            throw cli::Error(st.message());
-        std::fprintf(stderr, "strata-reconstruct: %s level %d (%s): %zu vertices, %zu triangles in %.1f ms -> %s\n",
-                     rigPath.c_str(), level, schemeName(scheme), rec.positions.size(), rec.plan->refinedFaceCount(),
-                     std::chrono::duration<double, std::milli>(t1 - t0).count(), outPath.c_str());
+        if (!frames) {
+            if (!(st = io::writeReconstruction(outPath, rec)))
+                throw cli::Error(st.message());
+            std::fprintf(stderr, "strata-reconstruct: %s level %d (%s): %zu vertices, %zu triangles in %.1f ms -> %s\n",
+                         rigPath.c_str(), level, schemeName(scheme), rec.positions.size(), rec.plan->refinedFaceCount(),
+                         std::chrono::duration<double, std::milli>(t1 - t0).count(), outPath.c_str());
+            return 0;
+        }
+        // Frame sequence: one plan, one animator, a file per frame.
+        const std::string ext = io::extensionOf(outPath);
+        const std::string base = outPath.substr(0, outPath.size() - ext.size());
+        Animator animator;
+        if (skinned && !(st = animator.init(rig.skeleton, rig.mesh)))
+            throw cli::Error(rigPath + ": " + st.message());
+        const int count = int(std::floor((frameEnd - frameStart) * fps + 1e-4f)) + 1;
+        std::vector<std::string> written;
+        for (int f = 0; f < count; ++f) {
+            pose.time = frameStart + float(f) / fps;
+            if (skinned && !(st = io::reconstructPose(&rec, &animator, rig, pose)))
+                throw cli::Error(rigPath + ": " + st.message());
+            char suffix[16];
+            std::snprintf(suffix, sizeof(suffix), "_%04d", f);
+            const std::string framePath = base + suffix + ext;
+            if (!(st = io::writeReconstruction(framePath, rec))) {
+                for (const std::string& p : written)
+                    std::remove(p.c_str());
+                throw cli::Error(st.message());
+            }
+            written.push_back(framePath);
+        }
+        std::fprintf(stderr, "strata-reconstruct: %s level %d: %d frames %.3f..%.3f s at %.3g fps -> %s_NNNN%s\n",
+                     rigPath.c_str(), level, count, double(frameStart), double(frameEnd), double(fps), base.c_str(),
+                     ext.c_str());
         return 0;
     });
 }

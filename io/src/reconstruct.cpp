@@ -6,8 +6,23 @@
 namespace strata {
 namespace io {
 
+Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose)
+{
+    Status st = animator->pose(pose.animation, pose.time, pose.method);
+    if (!st)
+        return st;
+    rec->controlNormals = animator->normals();
+    const size_t n = rec->plan->refinedVertexCount();
+    st = rec->plan->evaluate(rec->positions.data(), nullptr, 0, n, animator->positions().data(),
+                             animator->normals().data(), rig.mesh.positions.size());
+    if (!st)
+        return st;
+    rec->plan->computeShadingNormals(rec->normals.data(), rec->positions.data());
+    return Status::ok();
+}
+
 Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
-                   float scale)
+                   float scale, const Pose* pose)
 {
     Reconstruction rec;
     Status st = Plan::create(&rec.plan, rig.mesh, scheme, level);
@@ -16,6 +31,17 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     if (map && !(st = rec.plan->setDisplacement(*map, scale)))
         return st;
     const ControlMesh& cm = rig.mesh;
+    if (pose && !rig.skeleton.empty()) {
+        Animator animator;
+        if (!(st = animator.init(rig.skeleton, rig.mesh)))
+            return st;
+        rec.positions.resize(rec.plan->refinedVertexCount());
+        rec.normals.resize(rec.plan->refinedVertexCount());
+        if (!(st = reconstructPose(&rec, &animator, rig, *pose)))
+            return st;
+        *out = std::move(rec);
+        return Status::ok();
+    }
     rec.controlNormals.resize(cm.positions.size());
     computeControlNormals(rec.controlNormals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
                           cm.faceCount());

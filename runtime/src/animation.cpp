@@ -304,6 +304,16 @@ void Animator::sample(int animation, float time)
 
 void Animator::skin(SkinningMethod method)
 {
+    // Zero joint motion (every skin matrix exactly identity, as at the bind
+    // pose): the rest positions themselves, so the frame reproduces the
+    // static reconstruction bit for bit rather than up to blending round-off.
+    bool identity = true;
+    for (const glm::mat4& m : skinMatrices_)
+        identity = identity && m == glm::mat4(1.0f);
+    if (identity) {
+        std::copy(mesh_->positions.begin(), mesh_->positions.end(), positions_.begin());
+        return;
+    }
     if (method == SkinningMethod::DualQuaternion)
         skinDualQuaternion(positions_.data(), mesh_->positions.data(), positions_.size(), skeleton_->weights,
                            skinMatrices_.data(), skinMatrices_.size(), dualQuaternions_.data());

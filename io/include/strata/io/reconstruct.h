@@ -1,6 +1,7 @@
 // Strata io: one-call reconstruction of a rig at level N, for tools and tests.
 #pragma once
 
+#include "strata/animation.h"
 #include "strata/displacement_map.h"
 #include "strata/plan.h"
 #include "strata/rig.h"
@@ -20,10 +21,20 @@ struct Reconstruction {
     std::vector<glm::vec3> normals;         ///< shading normals of the displaced mesh
 };
 
+/// A pose of a skinned rig: animation index (-1: the nodes' rest pose) and time.
+struct Pose {
+    int animation = -1;
+    float time = 0.0f;
+    SkinningMethod method = SkinningMethod::Linear;
+};
+
 /// Builds a plan for rig.mesh, applies `map` (nullptr: no displacement) scaled
-/// by `scale`, and evaluates the bind pose.
+/// by `scale`, and evaluates the bind pose, or `pose` when the rig is skinned.
 Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
-                   float scale = 1.0f);
+                   float scale = 1.0f, const Pose* pose = nullptr);
+
+/// Re-evaluates an existing reconstruction at another pose (same plan).
+Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose);
 
 /// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
 Status writeReconstruction(const std::string& path, const Reconstruction& rec);
