@@ -187,6 +187,7 @@ int main(int argc, char** argv)
         if (!st)
             throw cli::Error(st.message());
         ControlMesh control;
+        Skeleton skeleton;  // carried through from a skinned glTF control rig
         if (controlPath == "auto") {
             if (controlFaces == 0)
                 controlFaces = std::max<size_t>(200, high.faceCount() / 50);
@@ -197,7 +198,7 @@ int main(int argc, char** argv)
                 throw cli::Error("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
             uvMode = "auto";
         } else {
-            if (!(st = baker::loadControlMesh(controlPath, &control)))
+            if (!(st = baker::loadControlMesh(controlPath, &control, &skeleton)))
                 throw cli::Error(st.message());
             if (uvMode.empty())
                 uvMode = control.hasUVs() ? "keep" : "auto";
@@ -259,6 +260,7 @@ int main(int argc, char** argv)
         Outputs outputs;
         Rig rig;
         rig.mesh = control;
+        rig.skeleton = std::move(skeleton);
         rig.hasDisplacement = true;
         rig.displacement.uri = stem + ".exr";
         rig.displacement.encoding = "exr";

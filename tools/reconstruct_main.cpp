@@ -130,7 +130,9 @@ int main(int argc, char** argv)
 
         const auto t0 = std::chrono::steady_clock::now();
         io::Reconstruction rec;
-        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale, skinned ? &pose : nullptr)))
+        // Without --anim/--time/--frames: the bind pose, in mesh space, as stored.
+        const bool posed = skinned && (!anim.empty() || haveTime || frames);
+        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale, posed ? &pose : nullptr)))
             throw cli::Error(rigPath + ": " + st.message());
         const auto t1 = std::chrono::steady_clock::now();
         if (!frames) {

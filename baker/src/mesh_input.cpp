@@ -193,7 +193,7 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     return Status::ok();
 }
 
-Status loadControlMesh(const std::string& path, ControlMesh* out)
+Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skeleton)
 {
     const std::string ext = io::extensionOf(path);
     Status st;
@@ -206,6 +206,8 @@ Status loadControlMesh(const std::string& path, ControlMesh* out)
         if (!(st = io::loadRig(path, &rig)))
             return st;
         mesh = std::move(rig.mesh);
+        if (skeleton)
+            *skeleton = std::move(rig.skeleton);
     } else {
         return Status(StatusCode::InvalidArgument,
                       path + ": unknown control mesh format \"" + ext + "\" (use .obj, .glb or .gltf)");

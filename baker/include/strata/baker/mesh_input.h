@@ -2,6 +2,7 @@
 #pragma once
 
 #include "strata/baker/bake.h"
+#include "strata/animation.h"
 #include "strata/control_mesh.h"
 #include "strata/status.h"
 
@@ -23,8 +24,9 @@ struct HighMeshStats {
 Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats);
 
 /// Reads a control mesh: OBJ (with UVs when present) or glTF / GLB (a rig or
-/// any triangle mesh).  Errors name the file.
-Status loadControlMesh(const std::string& path, ControlMesh* out);
+/// any triangle mesh).  A glTF's skin, skeleton and animations go to
+/// `skeleton` (when non-null) so the baked rig carries them.  Errors name the file.
+Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skeleton = nullptr);
 
 /// Derives a control mesh from a high-resolution one by OpenMesh's quadric
 /// Decimater (with normal-flip protection) down to about targetFaces
