@@ -13,25 +13,13 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 using namespace strata;
 
 namespace {
 
-std::string readText(const std::string& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
-void writeText(const std::string& path, const std::string& text)
-{
-    std::ofstream(path, std::ios::binary) << text;
-}
+using strata::test::readText;
+using strata::test::writeText;
 
 // A vertical column of control vertices bound to a two-joint chain: hip at
 // y = 0, knee at y = 1; weights blend linearly between y = 0.5 and 1.5.

@@ -5,45 +5,17 @@
 #include "strata/io/rig_io.h"
 #include "test_util.h"
 
-#include <array>
-#include <dirent.h>
 #include <fstream>
 
 namespace {
 
-struct Result {
-    int code;
-    std::string output;
-};
+using strata::test::filesIn;
+using strata::test::writeText;
+using Result = strata::test::CommandResult;
 
 Result run(const std::string& args)
 {
-    Result r{-1, ""};
-    FILE* pipe = popen((std::string(STRATA_BAKE_EXE) + " " + args + " 2>&1").c_str(), "r");
-    if (!pipe)
-        return r;
-    std::array<char, 512> buf;
-    while (fgets(buf.data(), int(buf.size()), pipe))
-        r.output += buf.data();
-    const int status = pclose(pipe);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-void writeText(const std::string& path, const std::string& text)
-{
-    std::ofstream(path, std::ios::binary) << text;
-}
-
-size_t filesIn(const std::string& dir)
-{
-    size_t n = 0;
-    if (DIR* d = opendir(dir.c_str())) {
-        while (dirent* e = readdir(d))
-            n += e->d_name[0] != '.';
-        closedir(d);
-    }
-    return n;
+    return strata::test::runCommand(std::string(STRATA_BAKE_EXE) + " " + args);
 }
 
 // A detailed head over a sphere, as OBJ files: control (icosphere 1) and high (icosphere 4).

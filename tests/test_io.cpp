@@ -13,26 +13,14 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
 
-#include <dirent.h>
-#include <fstream>
-#include <sstream>
 
 using namespace strata;
 
 namespace {
 
-void writeText(const std::string& path, const std::string& text)
-{
-    std::ofstream(path, std::ios::binary) << text;
-}
-
-std::string readText(const std::string& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using strata::test::filesIn;
+using strata::test::readText;
+using strata::test::writeText;
 
 // Writes a float EXR with arbitrary channels and values, bypassing the
 // project's writer (which refuses bad maps).
@@ -47,18 +35,6 @@ void writeRawExr(const std::string& path, const char* channel, int w, int h, flo
     fb.insert(channel, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(px.data()), sizeof(float), sizeof(float) * w));
     file.setFrameBuffer(fb);
     file.writePixels(h);
-}
-
-size_t filesIn(const std::string& dir)
-{
-    size_t n = 0;
-    if (DIR* d = opendir(dir.c_str())) {
-        while (dirent* e = readdir(d))
-            if (e->d_name[0] != '.')
-                ++n;
-        closedir(d);
-    }
-    return n;
 }
 
 Rig exampleRig(int mapSize)

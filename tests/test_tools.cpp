@@ -2,28 +2,12 @@
 // the file, exit code 2, no output left behind).
 #include "test_util.h"
 
-#include <array>
-
 namespace {
 
-struct Result {
-    int code;
-    std::string output;
-};
-
-Result run(const std::string& args)
+using Result = strata::test::CommandResult;
+Result run(const std::string& command)
 {
-    const std::string cmd = args + " 2>&1";
-    Result r{-1, ""};
-    FILE* pipe = popen(cmd.c_str(), "r");
-    if (!pipe)
-        return r;
-    std::array<char, 512> buf;
-    while (fgets(buf.data(), int(buf.size()), pipe))
-        r.output += buf.data();
-    const int status = pclose(pipe);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
+    return strata::test::runCommand(command);
 }
 
 const std::string demo = STRATA_DEMO_EXE;

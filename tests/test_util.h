@@ -7,8 +7,12 @@
 #include <glm/geometric.hpp>
 
 #include <cstdio>
+#include <dirent.h>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace strata {
@@ -27,6 +31,51 @@ inline std::string sharedData(const std::string& name)
     const std::string var = ::strata::test::sharedData(name);                          \
     if (var.empty())                                                                   \
     GTEST_SKIP() << "../shared/data/" << name << " is absent; test needs it"
+
+/// Runs a shell command, returning its exit code and its stdout + stderr.
+struct CommandResult {
+    int code = -1;
+    std::string output;
+};
+
+inline CommandResult runCommand(const std::string& command)
+{
+    CommandResult r;
+    FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+    if (!pipe)
+        return r;
+    char buf[512];
+    while (fgets(buf, int(sizeof(buf)), pipe))
+        r.output += buf;
+    const int status = pclose(pipe);
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+inline void writeText(const std::string& path, const std::string& text)
+{
+    std::ofstream(path, std::ios::binary) << text;
+}
+
+inline std::string readText(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+/// Entries of a directory, not counting hidden ones.
+inline size_t filesIn(const std::string& dir)
+{
+    size_t n = 0;
+    if (DIR* d = opendir(dir.c_str())) {
+        while (dirent* e = readdir(d))
+            n += e->d_name[0] != '.';
+        closedir(d);
+    }
+    return n;
+}
 
 /// A fresh empty directory under the build tree's temp area.
 inline std::string tempDir(const std::string& name)

@@ -8,8 +8,6 @@
 #include "strata/io/rig_io.h"
 #include "test_util.h"
 
-#include <array>
-#include <cstdio>
 
 using namespace strata;
 
@@ -21,19 +19,9 @@ std::string runValidator(const std::vector<std::string>& files, int* exitCode)
                       std::string(STRATA_VALIDATOR_MODULES) + "'";
     for (const std::string& f : files)
         cmd += " '" + f + "'";
-    cmd += " 2>&1";
-    std::string output;
-    FILE* pipe = popen(cmd.c_str(), "r");
-    if (!pipe) {
-        *exitCode = -1;
-        return "cannot run node";
-    }
-    std::array<char, 512> buf;
-    while (fgets(buf.data(), int(buf.size()), pipe))
-        output += buf.data();
-    const int status = pclose(pipe);
-    *exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return output;
+    const test::CommandResult r = test::runCommand(cmd);
+    *exitCode = r.code;
+    return r.output;
 }
 
 }  // namespace

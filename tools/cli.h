@@ -34,6 +34,15 @@ inline float parseFloat(const std::string& flag, const std::string& text)
     return v;
 }
 
+/// The value after argv[*i] (a flag that takes one), advancing *i; an error
+/// naming the flag when the command line ends first.
+inline std::string flagValue(int argc, char** argv, int* i)
+{
+    if (*i + 1 >= argc)
+        throw Error(std::string(argv[*i]) + " needs a value");
+    return argv[++*i];
+}
+
 /// Runs body, turning exceptions into "tool: error: message" and exit 2.
 template <typename F>
 int run(const char* tool, F&& body)

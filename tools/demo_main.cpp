@@ -53,11 +53,7 @@ int main(int argc, char** argv)
         int maxLevel = 5, mapSize = 1024;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
-            auto value = [&]() -> std::string {
-                if (i + 1 >= argc)
-                    throw cli::Error(a + " needs a value");
-                return argv[++i];
-            };
+            auto value = [&] { return cli::flagValue(argc, argv, &i); };
             if (a == "--out" || a == "-o")
                 outDir = value();
             else if (a == "--max-level")

@@ -38,11 +38,7 @@ int main(int argc, char** argv)
         SkinningMethod method = SkinningMethod::Linear;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
-            auto value = [&]() -> std::string {
-                if (i + 1 >= argc)
-                    throw cli::Error(a + " needs a value");
-                return argv[++i];
-            };
+            auto value = [&] { return cli::flagValue(argc, argv, &i); };
             if (a == "-h" || a == "--help") {
                 std::fputs(kUsage, stdout);
                 return 0;

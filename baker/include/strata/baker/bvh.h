@@ -48,6 +48,11 @@ public:
     bool empty() const { return nodes_.empty(); }
 
 private:
+    // Depth-first walk: visits the items of every leaf whose box, and every
+    // ancestor's box, passes `enter`.
+    template <typename Enter, typename Visit>
+    void walk(Enter&& enter, Visit&& visit) const;
+
     struct Node {
         Box box;
         uint32_t first;  // leaf: first index into items_; inner: left child (right = first + 1... see build)
@@ -64,8 +69,8 @@ glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, cons
 
 // ---- implementation of the templates ----
 
-template <typename Visit>
-void Bvh::forEachContaining(const glm::vec3& p, Visit&& visit) const
+template <typename Enter, typename Visit>
+void Bvh::walk(Enter&& enter, Visit&& visit) const
 {
     if (nodes_.empty())
         return;
@@ -74,7 +79,7 @@ void Bvh::forEachContaining(const glm::vec3& p, Visit&& visit) const
     stack[top++] = 0;
     while (top > 0) {
         const Node& n = nodes_[stack[--top]];
-        if (!n.box.contains(p))
+        if (!enter(n.box))
             continue;
         if (n.count > 0) {
             for (uint32_t i = 0; i < n.count; ++i)
@@ -87,10 +92,14 @@ void Bvh::forEachContaining(const glm::vec3& p, Visit&& visit) const
 }
 
 template <typename Visit>
+void Bvh::forEachContaining(const glm::vec3& p, Visit&& visit) const
+{
+    walk([&](const Box& b) { return b.contains(p); }, visit);
+}
+
+template <typename Visit>
 void Bvh::forEachOnSegment(const glm::vec3& origin, const glm::vec3& dir, float t0, float t1, Visit&& visit) const
 {
-    if (nodes_.empty())
-        return;
     glm::vec3 inv;
     for (int a = 0; a < 3; ++a)
         inv[a] = dir[a] != 0.0f ? 1.0f / dir[a] : 3.0e38f;
@@ -112,21 +121,7 @@ void Bvh::forEachOnSegment(const glm::vec3& origin, const glm::vec3& dir, float 
         }
         return true;
     };
-    uint32_t stack[64];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& n = nodes_[stack[--top]];
-        if (!hits(n.box))
-            continue;
-        if (n.count > 0) {
-            for (uint32_t i = 0; i < n.count; ++i)
-                visit(items_[n.first + i]);
-        } else {
-            stack[top++] = n.first;
-            stack[top++] = n.right;
-        }
-    }
+    walk(hits, visit);
 }
 
 template <typename Distance2>
