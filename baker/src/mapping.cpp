@@ -17,8 +17,13 @@ NormalVolumeTriangle SurfaceIndex::triangle(uint32_t f) const
 
 void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
 {
+    buildFaces(surface);
+    buildPrisms(searchDistance);
+}
+
+void SurfaceIndex::buildFaces(const BakeSurface& surface)
+{
     surface_ = &surface;
-    searchDistance_ = searchDistance;
     const size_t nf = surface.faceCount();
     triangles_.resize(nf);
     cubics_.resize(nf);
@@ -30,6 +35,14 @@ void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
         }
         cubics_[f] = NormalVolumeCubic::of(triangles_[f]);
     }
+    faces_.build(surface.positions.data(), surface.triangles.data(), nf);
+}
+
+void SurfaceIndex::buildPrisms(double searchDistance)
+{
+    const BakeSurface& surface = *surface_;
+    searchDistance_ = searchDistance;
+    const size_t nf = surface.faceCount();
     std::vector<Box> prisms(nf);
     const float D = float(searchDistance);
     for (size_t f = 0; f < nf; ++f) {
@@ -46,7 +59,6 @@ void SurfaceIndex::build(const BakeSurface& surface, double searchDistance)
         prisms[f].hi += pad;
     }
     prisms_.build(prisms);
-    faces_.build(surface.positions.data(), surface.triangles.data(), nf);
 }
 
 bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) const
@@ -139,8 +151,8 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
     for (const glm::vec3& p : surface.positions)
         bounds.extend(p);
     const double diag = glm::length(glm::dvec3(bounds.hi - bounds.lo));
-    // Index the triangles first (search distance 0) to size the prisms.
-    index->build(surface, 0.0);
+    // Index the triangles first: their nearest distances size the prisms.
+    index->buildFaces(surface);
     const size_t step = std::max<size_t>(1, n / 4096);
     std::vector<double> sample((n + step - 1) / step, 0.0);
     parallelFor(sample.size(), threads, [&](size_t b, size_t e) {
@@ -151,7 +163,7 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
     for (double s : sample)
         far = std::max(far, s);
     const double D = std::min(2.0 * far + 1e-4 * diag, maxSearchFraction * diag);
-    index->build(surface, D);
+    index->buildPrisms(D);
 
     out->resize(n);
     std::vector<uint8_t> fellBack(n, 0);

@@ -6,19 +6,31 @@
 namespace strata {
 namespace io {
 
+namespace {
+
+// Displaced positions and shading normals for control positions and normals.
+Status evaluate(Reconstruction* rec, const glm::vec3* controlPositions, size_t controlCount)
+{
+    const size_t n = rec->plan->refinedVertexCount();
+    rec->positions.resize(n);
+    rec->normals.resize(n);
+    Status st = rec->plan->evaluate(rec->positions.data(), nullptr, 0, n, controlPositions, rec->controlNormals.data(),
+                                    controlCount);
+    if (!st)
+        return st;
+    rec->plan->computeShadingNormals(rec->normals.data(), rec->positions.data());
+    return Status::ok();
+}
+
+}  // namespace
+
 Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose)
 {
     Status st = animator->pose(pose.animation, pose.time, pose.method);
     if (!st)
         return st;
     rec->controlNormals = animator->normals();
-    const size_t n = rec->plan->refinedVertexCount();
-    st = rec->plan->evaluate(rec->positions.data(), nullptr, 0, n, animator->positions().data(),
-                             animator->normals().data(), rig.mesh.positions.size());
-    if (!st)
-        return st;
-    rec->plan->computeShadingNormals(rec->normals.data(), rec->positions.data());
-    return Status::ok();
+    return evaluate(rec, animator->positions().data(), rig.mesh.positions.size());
 }
 
 Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
@@ -35,8 +47,6 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
         Animator animator;
         if (!(st = animator.init(rig.skeleton, rig.mesh)))
             return st;
-        rec.positions.resize(rec.plan->refinedVertexCount());
-        rec.normals.resize(rec.plan->refinedVertexCount());
         if (!(st = reconstructPose(&rec, &animator, rig, *pose)))
             return st;
         *out = std::move(rec);
@@ -45,14 +55,8 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     rec.controlNormals.resize(cm.positions.size());
     computeControlNormals(rec.controlNormals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
                           cm.faceCount());
-    const size_t n = rec.plan->refinedVertexCount();
-    rec.positions.resize(n);
-    rec.normals.resize(n);
-    st = rec.plan->evaluate(rec.positions.data(), nullptr, 0, n, cm.positions.data(), rec.controlNormals.data(),
-                            cm.positions.size());
-    if (!st)
+    if (!(st = evaluate(&rec, cm.positions.data(), cm.positions.size())))
         return st;
-    rec.plan->computeShadingNormals(rec.normals.data(), rec.positions.data());
     *out = std::move(rec);
     return Status::ok();
 }

@@ -30,6 +30,10 @@ struct MappingStats {
 class SurfaceIndex {
 public:
     void build(const BakeSurface& surface, double searchDistance);
+    /// The two halves of build(): the triangles (nearest-point queries, the
+    /// per-face cubics), then the prisms once the search distance is known.
+    void buildFaces(const BakeSurface& surface);
+    void buildPrisms(double searchDistance);
     const BakeSurface& surface() const { return *surface_; }
     double searchDistance() const { return searchDistance_; }
     NormalVolumeTriangle triangle(uint32_t face) const;
