@@ -95,12 +95,9 @@ Status checkUVs(const ControlMesh& control, int size)
         }
         if (!(area > 0.0))
             continue;
-        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x})))),
-                  x1 = std::min(size - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x})))),
-                  y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y})))),
-                  y1 = std::min(size - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}))));
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
+        const TexelRect r = texelRect(t, size);
+        for (int y = r.y0; y <= r.y1; ++y)
+            for (int x = r.x0; x <= r.x1; ++x) {
                 const glm::dvec2 c(x + 0.5, y + 0.5);
                 // Strictly inside by more than a hundredth of a texel: shared
                 // edges and vertices never count as overlap.
