@@ -19,6 +19,7 @@
 #include "strata/plan.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -55,9 +56,9 @@ void run(const std::string& name, const std::string& path)
     std::printf("\n%s: %zu control vertices, %zu triangles, %zu joints, animation \"%s\"; one core, median of 7 runs\n",
                 name.c_str(), rig.mesh.positions.size(), rig.mesh.faceCount(), rig.skeleton.skin.joints.size(),
                 rig.skeleton.animations[0].name.c_str());
-    std::printf("level | refined verts | sample ms | skin ms | normals ms | evaluate ms | frame ms | M verts/s |"
+    std::printf("level | refined verts | sample ms | skin ms | eq.6 ms | normals ms | evaluate ms | frame ms | M verts/s |"
                 " LBS pos ms | LBS pos+nrm ms | frame/LBS pos | layered KB | high-res KB | size ratio\n");
-    std::printf("------+---------------+-----------+---------+------------+-------------+----------+-----------+"
+    std::printf("------+---------------+-----------+---------+---------+------------+-------------+----------+-----------+"
                 "------------+----------------+---------------+------------+-------------+-----------\n");
     for (int level = 0; level <= 5; ++level) {
         std::unique_ptr<Plan> plan;
@@ -67,6 +68,10 @@ void run(const std::string& name, const std::string& path)
         std::vector<glm::vec3> out(n);
         const double sample = bench::medianMs([&] { animator.sample(0, nextTime()); });
         const double skin = bench::medianMs([&] { animator.skin(SkinningMethod::Linear); });
+        // The paper's eq. 6 deformer in place of skin weights (not in "frame").
+        const double segments = animator.segmentStatus().isOk()
+                                    ? bench::medianMs([&] { animator.skin(SkinningMethod::Segments); })
+                                    : std::nan("");
         const double normals = bench::medianMs([&] { animator.updateNormals(); });
         const double eval = bench::medianMs([&] {
             plan->evaluate(out.data(), nullptr, 0, n, animator.positions().data(), animator.normals().data(),
@@ -116,9 +121,9 @@ void run(const std::string& name, const std::string& path)
             std::max(0.0, rigBytes - geometryBytes(double(rig.sourceVertex.size()), double(rig.mesh.faceCount())));
         const double layeredKB = (rigBytes + 2.0 * double(n)) / 1024.0;
         const double highKB = (geometryBytes(double(n), double(plan->refinedFaceCount())) + shared) / 1024.0;
-        std::printf("%5d | %13zu | %9.4f | %7.4f | %10.4f | %11.4f | %8.4f | %9.1f | %10.4f | %14.4f | %13.2f | "
+        std::printf("%5d | %13zu | %9.4f | %7.4f | %7.4f | %10.4f | %11.4f | %8.4f | %9.1f | %10.4f | %14.4f | %13.2f | "
                     "%10.1f | %11.1f | %9.1fx\n",
-                    level, n, sample, skin, normals, eval, frame, double(n) / frame / 1000.0, lbs, lbsN, frame / lbs,
+                    level, n, sample, skin, segments, normals, eval, frame, double(n) / frame / 1000.0, lbs, lbsN, frame / lbs,
                     layeredKB, highKB, highKB / layeredKB);
         std::fflush(stdout);
     }

@@ -175,7 +175,7 @@ TEST(Animation, SimpleSkinMatchesHandComputation)
 
 namespace {
 
-void checkAllAnimations(const std::string& path)
+void checkAllAnimations(const std::string& path, SkinningMethod method)
 {
     Rig rig;
     const Status st = io::loadRig(path, &rig);
@@ -183,6 +183,9 @@ void checkAllAnimations(const std::string& path)
     ASSERT_FALSE(rig.skeleton.animations.empty());
     Animator animator;
     ASSERT_TRUE(animator.init(rig.skeleton, rig.mesh).isOk());
+    if (method == SkinningMethod::Segments) {
+        ASSERT_TRUE(animator.segmentStatus().isOk()) << animator.segmentStatus().message();
+    }
     glm::vec3 lo(1e30f), hi(-1e30f);
     ASSERT_TRUE(animator.pose(-1, 0.0f).isOk());
     for (const glm::vec3& p : animator.positions()) {
@@ -195,7 +198,7 @@ void checkAllAnimations(const std::string& path)
     for (size_t i = 0; i < rig.skeleton.animations.size(); ++i) {
         const Animation& anim = rig.skeleton.animations[i];
         for (float t = anim.start; t <= anim.end + 1e-6f; t += 1.0f / 30.0f) {
-            ASSERT_TRUE(animator.pose(int(i), t).isOk());
+            ASSERT_TRUE(animator.pose(int(i), t, method).isOk());
             a = animator.positions();
             for (const glm::vec3& p : a) {
                 ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) << anim.name << " " << t;
@@ -203,7 +206,7 @@ void checkAllAnimations(const std::string& path)
                 ASSERT_LE(glm::length(p - centre), 3.0f * diag) << anim.name << " t " << t;
             }
             // Continuity: 0.1 ms later nothing may have jumped.
-            ASSERT_TRUE(animator.pose(int(i), t + 1e-4f).isOk());
+            ASSERT_TRUE(animator.pose(int(i), t + 1e-4f, method).isOk());
             b = animator.positions();
             float jump = 0.0f;
             for (size_t v = 0; v < a.size(); ++v)
@@ -218,13 +221,17 @@ void checkAllAnimations(const std::string& path)
 TEST(AnimationRealData, FoxEveryAnimationFiniteBoundedContinuous)
 {
     STRATA_REQUIRE_DATA(path, "Fox.glb");
-    checkAllAnimations(path);
+    checkAllAnimations(path, SkinningMethod::Linear);
+    checkAllAnimations(path, SkinningMethod::DualQuaternion);
+    // The paper's deformer from Fox's joints alone, ignoring its weights.
+    checkAllAnimations(path, SkinningMethod::Segments);
 }
 
 TEST(AnimationRealData, CesiumManEveryAnimationFiniteBoundedContinuous)
 {
     STRATA_REQUIRE_DATA(path, "CesiumMan.glb");
-    checkAllAnimations(path);
+    checkAllAnimations(path, SkinningMethod::Linear);
+    checkAllAnimations(path, SkinningMethod::Segments);
 }
 
 TEST(AnimationRealData, BakedPenguinStaysWatertightWhileAnimated)

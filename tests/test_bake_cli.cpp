@@ -3,6 +3,7 @@
 #include "procedural.h"
 #include "strata/io/mesh_io.h"
 #include "strata/io/rig_io.h"
+#include "strata/segment_deformer.h"
 #include "test_util.h"
 
 #include <fstream>
@@ -142,4 +143,83 @@ TEST(BakeCli, SkinnedControlRigIsCarriedThrough)
     ASSERT_EQ(a.positions().size(), b.positions().size());
     for (size_t v = 0; v < a.positions().size(); ++v)
         EXPECT_LE(glm::length(a.positions()[v] - b.positions()[v]), 1e-5f);
+}
+
+TEST(BakeCli, JointFileBecomesAGltfSkinThatPlaysAnywhere)
+{
+    STRATA_REQUIRE_DATA(high, "penguin_hr.obj");
+    STRATA_REQUIRE_DATA(control, "penguin_control_mesh.obj");
+    const std::string dir = strata::test::tempDir("bake_cli_joints");
+    const std::string joints = std::string(STRATA_SOURCE_DIR) + "/tests/data/penguin_joints.json";
+    const Result r = run("--high " + high + " --control " + control + " --uv auto --size 256 --error-levels 1" +
+                         " --skeleton " + joints + " -o " + dir + "/penguin.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/penguin.glb", &rig).isOk());
+    ASSERT_EQ(rig.skeleton.skin.joints.size(), 8u);
+    ASSERT_EQ(rig.skeleton.animations.size(), 2u);
+    EXPECT_EQ(rig.skeleton.animations[1].name, "flap");
+    // Standard weights: every vertex sums to one over at most three joints.
+    for (size_t v = 0; v < rig.mesh.vertexCount(); ++v) {
+        float sum = 0.0f;
+        for (int k = 0; k < rig.skeleton.weights.influences; ++k)
+            sum += rig.skeleton.weights.weights[v * size_t(rig.skeleton.weights.influences) + size_t(k)];
+        EXPECT_NEAR(sum, 1.0f, 1e-5f) << v;
+    }
+    // Both deformers pose it.  Where no joint plane moves (the trunk, while
+    // the flippers flap and the root rises) both are the same rigid motion;
+    // elsewhere eq. 6 leans the whole segment with its joint planes while
+    // skin weights bend only near the joint, so they differ there.
+    strata::Animator lbs, paper;
+    ASSERT_TRUE(lbs.init(rig.skeleton, rig.mesh).isOk());
+    ASSERT_TRUE(paper.init(rig.skeleton, rig.mesh).isOk());
+    ASSERT_TRUE(lbs.pose(1, 0.4f, strata::SkinningMethod::Linear).isOk());
+    ASSERT_TRUE(paper.pose(1, 0.4f, strata::SkinningMethod::Segments).isOk());
+    std::vector<glm::vec3> jointPositions;
+    std::vector<int> parents;
+    strata::skinJointHierarchy(&jointPositions, &parents, rig.skeleton);
+    strata::SegmentBinding binding;
+    ASSERT_TRUE(strata::bindSegments(&binding, jointPositions.data(), parents.data(), jointPositions.size(),
+                                     rig.mesh.positions.data(), rig.mesh.vertexCount())
+                    .isOk());
+    size_t trunk = 0;
+    float maxGap = 0.0f;
+    for (size_t v = 0; v < rig.mesh.vertexCount(); ++v) {
+        const float gap = glm::length(lbs.positions()[v] - paper.positions()[v]);
+        maxGap = std::max(maxGap, gap);
+        const strata::SkeletonSegment& g = binding.segments[binding.segment[v]];
+        bool onTrunk = g.to == 1 || g.to == 2;  // root->spine, spine->neck
+        for (int k = 0; k < 4; ++k) {
+            const size_t i = v * 4 + size_t(k);
+            onTrunk = onTrunk && (rig.skeleton.weights.weights[i] == 0.0f || rig.skeleton.weights.joints[i] <= 1);
+        }
+        if (onTrunk) {
+            ++trunk;
+            EXPECT_LT(gap, 1e-5f) << v;
+        }
+    }
+    EXPECT_GT(trunk, 20u);
+    EXPECT_LT(maxGap, 1.0f);
+    const std::string reconstruct = STRATA_RECONSTRUCT_EXE;
+    for (const char* method : {"linear", "segments"}) {
+        const std::string out = dir + "/flap_" + method + ".glb";
+        const strata::test::CommandResult c = strata::test::runCommand(
+            reconstruct + " " + dir + "/penguin.glb --level 2 --anim flap --time 0.4 --skinning " + method + " -o " + out);
+        ASSERT_EQ(c.code, 0) << c.output;
+    }
+    // A bare control mesh plus the joint file at reconstruction time.
+    const strata::test::CommandResult bare = strata::test::runCommand(
+        reconstruct + " " + control + " --skeleton " + joints + " --anim nod --time 0.5 -o " + dir + "/nod.ply");
+    EXPECT_EQ(bare.code, 0) << bare.output;
+    int code = 0;
+    const std::string report = strata::test::runGltfValidator({dir + "/penguin.glb", dir + "/flap_segments.glb"}, &code);
+    EXPECT_EQ(code, 0) << report;
+    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+    // A broken joint file is a one-line error and nothing is written.
+    strata::test::writeText(dir + "/cycle.json", R"({"joints": [{"name": "a", "parent": "a", "position": [0,0,0]}]})");
+    const Result bad = run("--high " + high + " --control " + control + " --uv auto --size 256 --skeleton " + dir +
+                           "/cycle.json -o " + dir + "/bad.glb");
+    EXPECT_EQ(bad.code, 2) << bad.output;
+    EXPECT_NE(bad.output.find("cycle.json"), std::string::npos) << bad.output;
+    EXPECT_FALSE(strata::test::fileExists(dir + "/bad.glb"));
 }

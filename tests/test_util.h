@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <vector>
 
 namespace strata {
 namespace test {
@@ -50,6 +51,19 @@ inline CommandResult runCommand(const std::string& command)
     const int status = pclose(pipe);
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
+}
+
+/// Runs the Khronos glTF-Validator (node + npm gltf-validator) on files;
+/// returns its report.
+inline std::string runGltfValidator(const std::vector<std::string>& files, int* exitCode)
+{
+    std::string cmd = "node '" + std::string(STRATA_SOURCE_DIR) + "/tests/validate_gltf.mjs' '" +
+                      std::string(STRATA_VALIDATOR_MODULES) + "'";
+    for (const std::string& f : files)
+        cmd += " '" + f + "'";
+    const CommandResult r = runCommand(cmd);
+    *exitCode = r.code;
+    return r.output;
 }
 
 inline void writeText(const std::string& path, const std::string& text)

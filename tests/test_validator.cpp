@@ -11,20 +11,6 @@
 
 using namespace strata;
 
-namespace {
-
-std::string runValidator(const std::vector<std::string>& files, int* exitCode)
-{
-    std::string cmd = "node '" + std::string(STRATA_SOURCE_DIR) + "/tests/validate_gltf.mjs' '" +
-                      std::string(STRATA_VALIDATOR_MODULES) + "'";
-    for (const std::string& f : files)
-        cmd += " '" + f + "'";
-    const test::CommandResult r = test::runCommand(cmd);
-    *exitCode = r.code;
-    return r.output;
-}
-
-}  // namespace
 
 TEST(GltfValidator, EveryFileTheProjectWritesIsClean)
 {
@@ -56,7 +42,7 @@ TEST(GltfValidator, EveryFileTheProjectWritesIsClean)
         ASSERT_TRUE(io::writeReconstruction(files.back(), rec).isOk());
     }
     int code = 0;
-    const std::string report = runValidator(files, &code);
+    const std::string report = test::runGltfValidator(files, &code);
     EXPECT_EQ(code, 0) << report;
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
 }

@@ -4,14 +4,17 @@
 //   strata-bake --high HIGH --control CONTROL|auto [--control-faces K]
 //       [--uv keep|auto] [--size auto|N] [--scheme linear|smooth] [--float]
 //       [--png8|--png16] [--overlap max|nearest] [--threads N]
-//       [--error-levels N] -o RIG.glb [--report REPORT.json]
+//       [--error-levels N] [--skeleton JOINTS.json] -o RIG.glb
+//       [--report REPORT.json]
 #include "cli.h"
 
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
 #include "strata/baker/mesh_input.h"
+#include "strata/segment_deformer.h"
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
+#include "strata/io/joint_file.h"
 #include "strata/io/png.h"
 #include "strata/io/rig_io.h"
 
@@ -33,7 +36,8 @@ const char* kUsage =
     "usage: strata-bake --high HIGH.{obj,ply,stl,off,glb,gltf} --control CONTROL.{obj,glb,gltf}|auto\n"
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
-    "                   [--error-levels N] -o RIG.{glb,gltf} [--report REPORT.json]\n";
+    "                   [--error-levels N] [--skeleton JOINTS.json] -o RIG.{glb,gltf}\n"
+    "                   [--report REPORT.json]\n";
 
 double msSince(std::chrono::steady_clock::time_point t0)
 {
@@ -112,7 +116,7 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
 int main(int argc, char** argv)
 {
     return cli::run("strata-bake", [&]() -> int {
-        std::string highPath, controlPath, outPath, reportPath, uvMode, sizeArg = "auto";
+        std::string highPath, controlPath, outPath, reportPath, uvMode, skeletonPath, sizeArg = "auto";
         size_t controlFaces = 0;
         baker::BakeOptions options;
         bool asFloat = false;
@@ -128,6 +132,8 @@ int main(int argc, char** argv)
                 highPath = value();
             } else if (a == "--control") {
                 controlPath = value();
+            } else if (a == "--skeleton") {
+                skeletonPath = value();
             } else if (a == "--control-faces") {
                 controlFaces = size_t(cli::parseInt(a, value(), 4, 10000000));
             } else if (a == "--uv") {
@@ -200,6 +206,17 @@ int main(int argc, char** argv)
                 uvMode = control.hasUVs() ? "keep" : "auto";
             if (uvMode == "keep" && !control.hasUVs())
                 throw cli::Error(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+        }
+        if (!skeletonPath.empty()) {
+            // The paper's joint file: its point-to-line binding becomes
+            // standard skin weights, so the rig plays in any glTF viewer.
+            if (!skeleton.empty())
+                std::fprintf(stderr, "strata-bake: warning: %s: its skin is replaced by %s\n", controlPath.c_str(),
+                             skeletonPath.c_str());
+            if (!(st = io::loadJointFile(skeletonPath, &skeleton)))
+                throw cli::Error(st.message());
+            if (!(st = bindSkeletonWeights(&skeleton, control)))
+                throw cli::Error(skeletonPath + ": " + st.message());
         }
         const double loadMs = msSince(t0);
 

@@ -2,7 +2,8 @@
 //
 //   strata-reconstruct RIG.glb --level N [--scheme linear|smooth]
 //       [--anim NAME|INDEX] [--time SECONDS] [--frames START:END:FPS]
-//       [--skinning linear|dq] [--scale S] [--no-displacement]
+//       [--skinning linear|dq|segments] [--skeleton JOINTS.json] [--scale S]
+//       [--no-displacement]
 //       -o OUT.{obj,ply,glb,gltf}
 // With --frames, OUT gets a 4-digit frame number before its extension.
 //
@@ -10,8 +11,11 @@
 #include "cli.h"
 
 #include "strata/io/file.h"
+#include "strata/io/joint_file.h"
+#include "strata/io/mesh_io.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
+#include "strata/segment_deformer.h"
 
 #include <chrono>
 #include <cmath>
@@ -21,14 +25,18 @@
 using namespace strata;
 
 static const char* kUsage =
-    "usage: strata-reconstruct RIG.glb [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
-    "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq]\n"
-    "                          [--scale S] [--no-displacement] -o OUT.{obj,ply,glb,gltf}\n";
+    "usage: strata-reconstruct RIG.{glb,gltf}|CONTROL.obj [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
+    "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq|segments]\n"
+    "                          [--skeleton JOINTS.json] [--scale S] [--no-displacement]\n"
+    "                          -o OUT.{obj,ply,glb,gltf}\n"
+    "  --skinning segments: the paper's point-to-line deformer (eq. 6) from the joints alone\n"
+    "  --skeleton: a joint file (JSON) that replaces the rig's skin; implies --skinning segments\n";
 
 int main(int argc, char** argv)
 {
     return cli::run("strata-reconstruct", [&]() -> int {
-        std::string rigPath, outPath, anim;
+        std::string rigPath, outPath, anim, skeletonPath;
+        bool haveMethod = false;
         int level = -1;
         bool haveScheme = false, displace = true;
         Scheme scheme = Scheme::Linear;
@@ -70,8 +78,13 @@ int main(int argc, char** argv)
                     method = SkinningMethod::Linear;
                 else if (v == "dq")
                     method = SkinningMethod::DualQuaternion;
+                else if (v == "segments")
+                    method = SkinningMethod::Segments;
                 else
-                    throw cli::Error("--skinning expects linear or dq");
+                    throw cli::Error("--skinning expects linear, dq or segments");
+                haveMethod = true;
+            } else if (a == "--skeleton") {
+                skeletonPath = value();
             } else if (a == "--scale") {
                 scale = cli::parseFloat(a, value());
             } else if (a == "--no-displacement") {
@@ -90,9 +103,23 @@ int main(int argc, char** argv)
             throw cli::Error("an input rig and -o OUTPUT are required (see --help)");
 
         Rig rig;
-        Status st = io::loadRig(rigPath, &rig);
-        if (!st)
+        Status st;
+        if (io::extensionOf(rigPath) == ".obj") {
+            // A bare control mesh (no displacement): with --skeleton, the
+            // paper's deformer animates it directly.
+            if (!(st = io::readObj(rigPath, &rig.mesh)) || !(st = validateControlMesh(rig.mesh)))
+                throw cli::Error(st.message().rfind(rigPath, 0) == 0 ? st.message() : rigPath + ": " + st.message());
+        } else if (!(st = io::loadRig(rigPath, &rig))) {
             throw cli::Error(st.message());
+        }
+        if (!skeletonPath.empty()) {
+            if (!(st = io::loadJointFile(skeletonPath, &rig.skeleton)))
+                throw cli::Error(st.message());
+            if (!(st = bindSkeletonWeights(&rig.skeleton, rig.mesh)))
+                throw cli::Error(skeletonPath + ": " + st.message());
+            if (!haveMethod)
+                method = SkinningMethod::Segments;
+        }
         DisplacementMap map;
         const bool useMap = displace && rig.hasDisplacement;
         if (useMap && !(st = io::loadRigDisplacementMap(rigPath, rig, &map)))

@@ -2,6 +2,7 @@
 #include "strata/animation.h"
 
 #include "strata/normals.h"
+#include "strata/segment_deformer.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtx/quaternion.hpp>
@@ -274,6 +275,16 @@ void skinDualQuaternion(glm::vec3* dst, const glm::vec3* rest, size_t n, const V
     }
 }
 
+struct Animator::Segments {
+    SegmentBinding binding;
+    SegmentPose pose;
+};
+
+Animator::Animator() = default;
+Animator::~Animator() = default;
+Animator::Animator(Animator&&) noexcept = default;
+Animator& Animator::operator=(Animator&&) noexcept = default;
+
 Status Animator::init(const Skeleton& skeleton, const ControlMesh& mesh)
 {
     if (skeleton.empty())
@@ -289,6 +300,16 @@ Status Animator::init(const Skeleton& skeleton, const ControlMesh& mesh)
     positions_ = mesh.positions;
     normals_.assign(mesh.positions.size(), glm::vec3(0.0f));
     updateNormals();
+    // The paper's deformer is bound once here, from the bind pose, when the
+    // skin's joints form at least one segment.
+    std::vector<glm::vec3> joints;
+    std::vector<int> parents;
+    skinJointHierarchy(&joints, &parents, skeleton);
+    segments_ = std::make_unique<Segments>();
+    segmentStatus_ = bindSegments(&segments_->binding, joints.data(), parents.data(), joints.size(),
+                                  mesh.positions.data(), mesh.vertexCount());
+    if (segmentStatus_.isOk())
+        segments_->pose.joints.reserve(joints.size());
     return Status::ok();
 }
 
@@ -314,7 +335,9 @@ void Animator::skin(SkinningMethod method)
         std::copy(mesh_->positions.begin(), mesh_->positions.end(), positions_.begin());
         return;
     }
-    if (method == SkinningMethod::DualQuaternion)
+    if (method == SkinningMethod::Segments && segmentStatus_.isOk())
+        deformSegments(positions_.data(), segments_->binding, skinMatrices_.data(), &segments_->pose);
+    else if (method == SkinningMethod::DualQuaternion)
         skinDualQuaternion(positions_.data(), mesh_->positions.data(), positions_.size(), skeleton_->weights,
                            skinMatrices_.data(), skinMatrices_.size(), dualQuaternions_.data());
     else
@@ -336,6 +359,8 @@ Status Animator::pose(int animation, float time, SkinningMethod method)
         return Status(StatusCode::InvalidArgument, "animation " + std::to_string(animation) + " does not exist");
     if (!std::isfinite(time))
         return Status(StatusCode::InvalidArgument, "animation time is not finite");
+    if (method == SkinningMethod::Segments && !segmentStatus_.isOk())
+        return segmentStatus_;
     sample(animation, time);
     skin(method);
     updateNormals();

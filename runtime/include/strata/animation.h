@@ -14,6 +14,7 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -93,7 +94,9 @@ void computeWorldMatrices(glm::mat4* world, const Skeleton& skeleton, const Node
 /// Skin matrices: world(joint) * inverseBind(joint), one per joint.
 void computeSkinMatrices(glm::mat4* skinMatrices, const Skeleton& skeleton, const glm::mat4* world);
 
-enum class SkinningMethod { Linear, DualQuaternion };
+/// Linear blend skinning, dual quaternions, or the paper's point-to-line
+/// segment deformer (eq. 6, segment_deformer.h), which ignores the weights.
+enum class SkinningMethod { Linear, DualQuaternion, Segments };
 
 /// Linear blend skinning of n control positions.
 void skinLinear(glm::vec3* dst, const glm::vec3* rest, size_t n, const VertexWeights& weights,
@@ -111,6 +114,11 @@ void skinDualQuaternion(glm::vec3* dst, const glm::vec3* rest, size_t n, const V
 /// same computeControlNormals the baker uses.  pose() allocates nothing.
 class Animator {
 public:
+    Animator();
+    ~Animator();
+    Animator(Animator&&) noexcept;
+    Animator& operator=(Animator&&) noexcept;
+
     /// \pre skeleton was finalised for mesh.vertexCount(); both outlive the animator.
     Status init(const Skeleton& skeleton, const ControlMesh& mesh);
 
@@ -120,6 +128,10 @@ public:
     const std::vector<glm::vec3>& positions() const { return positions_; }
     const std::vector<glm::vec3>& normals() const { return normals_; }
     const std::vector<glm::mat4>& skinMatrices() const { return skinMatrices_; }
+
+    /// Why SkinningMethod::Segments is unavailable (ok when it is): it needs
+    /// a skin with at least one joint whose parent is a joint.
+    const Status& segmentStatus() const { return segmentStatus_; }
 
     /// The stages of pose(), for benchmarks: sample + world + skin matrices,
     /// vertex skinning, control normals.
@@ -134,6 +146,9 @@ private:
     std::vector<glm::mat4> world_, skinMatrices_;
     std::vector<float> dualQuaternions_;
     std::vector<glm::vec3> positions_, normals_;
+    struct Segments;
+    std::unique_ptr<Segments> segments_;
+    Status segmentStatus_;
 };
 
 }  // namespace strata
