@@ -39,10 +39,9 @@ float sampleDisplacement(const DisplacementMap& map, glm::vec2 uv)
     glm::ivec2 t0;
     glm::vec2 frac;
     shared::strata_bilinear_footprint(uv, glm::ivec2(map.width, map.height), t0, frac);
-    const int x1 = std::min(t0.x + 1, map.width - 1);
-    const int y1 = std::min(t0.y + 1, map.height - 1);
-    const float v = shared::strata_bilinear(map.texel(t0.x, t0.y), map.texel(x1, t0.y), map.texel(t0.x, y1),
-                                            map.texel(x1, y1), frac);
+    const glm::ivec2 t1 = shared::strata_far_texel(t0, glm::ivec2(map.width, map.height));
+    const float v = shared::strata_bilinear(map.texel(t0.x, t0.y), map.texel(t1.x, t0.y), map.texel(t0.x, t1.y),
+                                            map.texel(t1.x, t1.y), frac);
     return shared::strata_decode_distance(v, map.factor, map.offset);
 }
 

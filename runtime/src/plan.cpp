@@ -427,6 +427,30 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
     return Status::ok();
 }
 
+void Plan::flattenStencils(FlatStencils* out) const
+{
+    const size_t nv = samples_.size();
+    if (scheme_ == Scheme::Linear) {
+        out->weightsPerEntry = 1;
+        out->offsets.resize(nv + 1);
+        out->indices.resize(3 * nv);
+        out->weights.resize(3 * nv);
+        for (size_t v = 0; v < nv; ++v) {
+            out->offsets[v] = uint32_t(3 * v);
+            for (int k = 0; k < 3; ++k) {
+                out->indices[3 * v + size_t(k)] = linear_[v].index[k];
+                out->weights[3 * v + size_t(k)] = linear_[v].weight[k];
+            }
+        }
+        out->offsets[nv] = uint32_t(3 * nv);
+        return;
+    }
+    out->weightsPerEntry = 3;
+    out->offsets = limitOffsets_;
+    out->indices = limitIndices_;
+    out->weights = limitWeights_;
+}
+
 void Plan::computeShadingNormals(glm::vec3* dst, const glm::vec3* positions) const
 {
     const size_t nv = samples_.size();

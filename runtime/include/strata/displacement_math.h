@@ -30,6 +30,7 @@ namespace shared {
 using glm::clamp;
 using glm::floor;
 using glm::max;
+using glm::min;
 using glm::ivec2;
 using glm::vec2;
 using glm::vec3;
@@ -54,6 +55,13 @@ STRATA_FN void strata_bilinear_footprint(vec2 uv, ivec2 size, STRATA_OUT(ivec2) 
     base = clamp(base, vec2(0.0, 0.0), max(maxT - vec2(1.0, 1.0), vec2(0.0, 0.0)));
     texel0 = ivec2(int(base.x), int(base.y));
     frac = clamp(t - base, vec2(0.0, 0.0), vec2(1.0, 1.0));
+}
+
+/// The far corner (right column, bottom row) of the 2x2 block at texel0,
+/// clamped to the map (a one-texel-wide map repeats its only column).
+STRATA_FN ivec2 strata_far_texel(ivec2 texel0, ivec2 size)
+{
+    return ivec2(min(texel0.x + 1, size.x - 1), min(texel0.y + 1, size.y - 1));
 }
 
 /// Bilinear blend of the 2x2 block t00 (top-left), t10 (right), t01 (below), t11.

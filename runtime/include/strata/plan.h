@@ -128,6 +128,19 @@ public:
     };
     const CsrStencils& linearStencils() const { return linearCsr_; }
 
+    /// The stencils evaluate() applies, as flat arrays for a GPU: refined
+    /// vertex v reads entries [offsets[v], offsets[v + 1]) of indices, with
+    /// weightsPerEntry floats per entry (linear: 1, the weight of position
+    /// and normal, three entries per vertex including zero-weight padding;
+    /// smooth: 3, the limit position, d/ds and d/dt weights).  Same entries
+    /// in the same order as the CPU loop, so a GPU sums the same terms.
+    struct FlatStencils {
+        std::vector<uint32_t> offsets, indices;
+        std::vector<float> weights;
+        int weightsPerEntry = 1;
+    };
+    void flattenStencils(FlatStencils* out) const;
+
 private:
     Plan() = default;
     Status build(const ControlMesh& mesh);

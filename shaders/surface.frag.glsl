@@ -1,0 +1,45 @@
+// Shading: a key light, a fill light and a sky/ground hemisphere, enough to
+// show displaced detail; or false colour of the displacement or of a
+// per-vertex error.
+in vec3 v_position;
+in vec3 v_normal;
+in float v_displacement;
+in float v_error;
+
+uniform int u_colorMode;       // 0 shaded, 1 displacement, 2 error, 3 flat (wireframe)
+uniform vec2 u_colorRange;     // value range mapped onto the colour ramp
+uniform vec3 u_eye;
+uniform vec3 u_baseColor;
+
+out vec4 o_color;
+
+vec3 ramp(float t)
+{
+    // Blue -> cyan -> green -> yellow -> red, as the paper's Fig. 6 maps.
+    t = clamp(t, 0.0, 1.0);
+    return clamp(vec3(1.5 - abs(4.0 * t - 3.0), 1.5 - abs(4.0 * t - 2.0), 1.5 - abs(4.0 * t - 1.0)), 0.0, 1.0);
+}
+
+void main()
+{
+    if (u_colorMode == 3) {
+        o_color = vec4(u_baseColor, 1.0);
+        return;
+    }
+    vec3 n = normalize(v_normal);
+    vec3 view = normalize(u_eye - v_position);
+    if (dot(n, view) < 0.0)
+        n = -n;  // back faces of open meshes
+    vec3 base = u_baseColor;
+    if (u_colorMode == 1)
+        base = ramp((v_displacement - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
+    else if (u_colorMode == 2)
+        base = ramp((v_error - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
+    vec3 key = normalize(vec3(0.5, 0.8, 0.6));
+    vec3 fill = normalize(vec3(-0.6, 0.2, -0.4));
+    float diffuse = max(dot(n, key), 0.0) * 0.75 + max(dot(n, fill), 0.0) * 0.2;
+    float hemi = 0.5 + 0.5 * n.y;
+    vec3 ambient = mix(vec3(0.18, 0.16, 0.14), vec3(0.32, 0.36, 0.42), hemi);
+    float specular = pow(max(dot(reflect(-key, n), view), 0.0), 40.0) * 0.25;
+    o_color = vec4(base * (ambient + diffuse) + vec3(specular), 1.0);
+}

@@ -1,0 +1,30 @@
+// Draw pass: the displacement is sampled here, per refined vertex, at its
+// canonical UV, and applied along the stencil pass's direction (paper eq. 2),
+// exactly as the CPU runtime does.  Also used alone, with transform feedback,
+// to read the displaced positions back.
+layout(std430, binding = 5) readonly buffer Surface { vec4 surface[]; };
+layout(std430, binding = 11) readonly buffer Normals { vec4 normals[]; };
+
+layout(location = 0) in vec2 a_uv;
+layout(location = 1) in float a_error;
+
+uniform mat4 u_viewProjection;
+uniform int u_haveNormals;
+
+out vec3 v_position;
+out vec3 v_normal;
+out float v_displacement;
+out float v_error;
+
+void main()
+{
+    uint v = uint(gl_VertexID);
+    vec3 p = surface[2u * v].xyz;
+    vec3 n = surface[2u * v + 1u].xyz;
+    float d = strata_sample_displacement(a_uv);
+    v_position = strata_displace(p, n, d);
+    v_normal = u_haveNormals != 0 ? normals[v].xyz : normalize(n);
+    v_displacement = d;
+    v_error = a_error;
+    gl_Position = u_viewProjection * vec4(v_position, 1.0);
+}

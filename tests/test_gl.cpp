@@ -1,0 +1,174 @@
+// The GPU path against the CPU runtime: positions read back from the very
+// vertex shader that draws (transform feedback) match Plan::evaluate to 1e-5
+// of the bounding-box diagonal at levels 0..4, both schemes, in the rest
+// pose and in animated frames.  Headless through EGL (llvmpipe in CI).
+#include "procedural.h"
+#include "strata/animation.h"
+#include "strata/baker/atlas.h"
+#include "strata/gl/context.h"
+#include "strata/gl/gpu_surface.h"
+#include "strata/normals.h"
+#include "strata/plan.h"
+#include "test_util.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+
+using namespace strata;
+
+namespace {
+
+gl::HeadlessContext* context()
+{
+    static std::unique_ptr<gl::HeadlessContext> ctx;
+    static Status status = gl::HeadlessContext::create(&ctx);
+    EXPECT_TRUE(status.isOk()) << status.message();
+    return ctx.get();
+}
+
+// The built-in example's rig (icosphere(1) + closed-form head map) with a
+// two-joint skin that turns the upper half of the head.
+struct ExampleRig {
+    ControlMesh mesh;
+    DisplacementMap map;
+    Skeleton skeleton;
+    float diagonal = 0.0f;
+};
+
+ExampleRig makeExampleRig()
+{
+    ExampleRig r;
+    r.mesh = examples::makeIcosphere(1);
+    EXPECT_TRUE(baker::buildTriangleAtlas(&r.mesh, {256, 2}).isOk());
+    EXPECT_TRUE(examples::bakeRadialSurface(&r.map, r.mesh, 256, 2, examples::headRadius).isOk());
+    Skeleton& s = r.skeleton;
+    s.nodes.resize(2);
+    s.nodes[0].name = "neck";
+    s.nodes[1].name = "head";
+    s.nodes[1].parent = 0;
+    s.nodes[1].rest.translation = glm::vec3(0.0f, 0.5f, 0.0f);
+    s.skin.joints = {0, 1};
+    s.skin.inverseBindMatrices = {glm::mat4(1.0f), glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -0.5f, 0.0f))};
+    s.weights.influences = 4;
+    for (const glm::vec3& p : r.mesh.positions) {
+        const float w = glm::clamp(p.y + 0.5f, 0.0f, 1.0f);
+        s.weights.joints.insert(s.weights.joints.end(), {0, 1, 0, 0});
+        s.weights.weights.insert(s.weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
+    }
+    Animation turn;
+    turn.name = "turn";
+    AnimationChannel c;
+    c.node = 1;
+    c.path = AnimationPath::Rotation;
+    const glm::quat q0(1, 0, 0, 0), q1 = glm::angleAxis(glm::radians(50.0f), glm::normalize(glm::vec3(1, 1, 0)));
+    c.times = {0.0f, 1.0f};
+    c.values = {q0.x, q0.y, q0.z, q0.w, q1.x, q1.y, q1.z, q1.w};
+    turn.channels.push_back(c);
+    s.animations.push_back(turn);
+    EXPECT_TRUE(finalizeSkeleton(&s, r.mesh.vertexCount()).isOk());
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : r.mesh.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    r.diagonal = glm::length(hi - lo);
+    return r;
+}
+
+float maxDistance(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
+{
+    float m = 0.0f;
+    for (size_t i = 0; i < a.size(); ++i)
+        m = std::max(m, glm::length(a[i] - b[i]));
+    return m;
+}
+
+}  // namespace
+
+TEST(Gpu, HeadlessContextIsOpenGL45Core)
+{
+    gl::HeadlessContext* ctx = context();
+    ASSERT_NE(ctx, nullptr);
+    GLint major = 0, minor = 0;
+    glGetIntegerv(GL_MAJOR_VERSION, &major);
+    glGetIntegerv(GL_MINOR_VERSION, &minor);
+    EXPECT_GE(major * 10 + minor, 45) << ctx->description();
+}
+
+TEST(Gpu, DisplacedPositionsMatchTheCpuAtLevels0To4RestAndAnimated)
+{
+    ASSERT_NE(context(), nullptr);
+    const ExampleRig rig = makeExampleRig();
+    Animator animator;
+    ASSERT_TRUE(animator.init(rig.skeleton, rig.mesh).isOk());
+    float worst[2] = {0.0f, 0.0f};
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        for (int level = 0; level <= 4; ++level) {
+            std::unique_ptr<Plan> plan;
+            ASSERT_TRUE(Plan::create(&plan, rig.mesh, scheme, level).isOk());
+            ASSERT_TRUE(plan->setDisplacement(rig.map).isOk());
+            std::unique_ptr<gl::GpuSurface> gpu;
+            const Status st = gl::GpuSurface::create(&gpu, *plan);
+            ASSERT_TRUE(st.isOk()) << st.message();
+            ASSERT_TRUE(gpu->setDisplacementMap(rig.map).isOk());
+            const size_t n = plan->refinedVertexCount();
+            std::vector<glm::vec3> cpu(n), fromGpu;
+            // Rest pose (animation -1), then two animated frames.
+            for (float t : {-1.0f, 0.4f, 1.0f}) {
+                ASSERT_TRUE(animator.pose(t < 0.0f ? -1 : 0, std::max(t, 0.0f)).isOk());
+                const std::vector<glm::vec3>& cp = animator.positions();
+                ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, n, cp.data(), animator.normals().data(), cp.size())
+                                .isOk());
+                ASSERT_TRUE(gpu->update(cp.data(), animator.normals().data(), cp.size()).isOk());
+                ASSERT_TRUE(gpu->readPositions(&fromGpu).isOk());
+                ASSERT_EQ(fromGpu.size(), n);
+                const float err = maxDistance(cpu, fromGpu) / rig.diagonal;
+                EXPECT_LE(err, 1e-5f) << schemeName(scheme) << " level " << level << " t " << t;
+                worst[int(scheme)] = std::max(worst[int(scheme)], err);
+                if (t == 0.4f && level == 3) {
+                    // Shading normals from the normal pass match the CPU's.
+                    std::vector<glm::vec3> cpuNormals(n), gpuNormals;
+                    plan->computeShadingNormals(cpuNormals.data(), cpu.data());
+                    ASSERT_TRUE(gpu->readNormals(&gpuNormals).isOk());
+                    EXPECT_LE(maxDistance(cpuNormals, gpuNormals), 1e-4f) << schemeName(scheme);
+                }
+            }
+        }
+    }
+    std::printf("GPU vs CPU, largest difference / diagonal: linear %.2g, smooth %.2g (%s)\n", double(worst[0]),
+                double(worst[1]), context()->description().c_str());
+}
+
+TEST(Gpu, HardwareFilteringStaysCloseAndScaleZeroIsTheBareSurface)
+{
+    ASSERT_NE(context(), nullptr);
+    const ExampleRig rig = makeExampleRig();
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, rig.mesh, Scheme::Linear, 3).isOk());
+    ASSERT_TRUE(plan->setDisplacement(rig.map).isOk());
+    std::unique_ptr<gl::GpuSurface> gpu;
+    ASSERT_TRUE(gl::GpuSurface::create(&gpu, *plan).isOk());
+    ASSERT_TRUE(gpu->setDisplacementMap(rig.map).isOk());
+    std::vector<glm::vec3> normals(rig.mesh.vertexCount()), cpu(plan->refinedVertexCount()), fromGpu;
+    computeControlNormals(normals.data(), rig.mesh.positions.data(), normals.size(), rig.mesh.triangles.data(),
+                          rig.mesh.faceCount());
+    ASSERT_TRUE(gpu->update(rig.mesh.positions.data(), normals.data(), normals.size()).isOk());
+    ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, cpu.size(), rig.mesh.positions.data(), normals.data(),
+                               normals.size())
+                    .isOk());
+    // The texture unit's bilinear weights have 8 fractional bits: close,
+    // not identical.
+    gpu->setSampleFilter(gl::SampleFilter::Hardware);
+    ASSERT_TRUE(gpu->readPositions(&fromGpu).isOk());
+    EXPECT_LE(maxDistance(cpu, fromGpu) / rig.diagonal, 1e-3f);
+    // Scale 0: the undisplaced refined surface.
+    gpu->setSampleFilter(gl::SampleFilter::Shared);
+    gpu->setDisplacementScale(0.0f);
+    plan->clearDisplacement();
+    ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, cpu.size(), rig.mesh.positions.data(), normals.data(),
+                               normals.size())
+                    .isOk());
+    ASSERT_TRUE(gpu->readPositions(&fromGpu).isOk());
+    EXPECT_LE(maxDistance(cpu, fromGpu) / rig.diagonal, 1e-6f);
+    // Wrong control count: an error, not a crash.
+    EXPECT_FALSE(gpu->update(rig.mesh.positions.data(), normals.data(), 3).isOk());
+}
