@@ -84,6 +84,27 @@ Status writePngRgb(const std::string& path, int width, int height, const std::ve
     return writePng(path, width, height, 8, 2, 3, rgb);
 }
 
+Status readPngRgb(const std::string& path, int* width, int* height, std::vector<uint8_t>* rgb)
+{
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes, size_t(1) << 30);
+    if (!st)
+        return st;
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp))
+        return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
+    if (w > 16384 || h > 16384)
+        return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
+    stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
+    if (!px)
+        return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
+    rgb->assign(px, px + size_t(w) * size_t(h) * 3);
+    stbi_image_free(px);
+    *width = w;
+    *height = h;
+    return Status::ok();
+}
+
 Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
 {
     std::vector<unsigned char> bytes;

@@ -17,6 +17,9 @@ Status writePngGray(const std::string& path, int width, int height, int bits, co
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
 Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb);
 
+/// Reads any 8-bit PNG as RGB (3 bytes per pixel, row 0 first).
+Status readPngRgb(const std::string& path, int* width, int* height, std::vector<uint8_t>* rgb);
+
 /// Reads a greyscale PNG of 8 or 16 bits; *bits receives which.
 Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples);
 

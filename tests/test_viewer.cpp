@@ -1,0 +1,177 @@
+// strata-view screenshots: the built-in example and Fox render, are in
+// frame, change with the level, and the displaced image differs from the
+// undisplaced one where the detail is (nose, ears) and nowhere outside the
+// model.  Headless through EGL; the windowed path once under xvfb-run.
+#include "procedural.h"
+#include "strata/baker/atlas.h"
+#include "strata/io/exr.h"
+#include "strata/io/png.h"
+#include "strata/io/rig_io.h"
+#include "test_util.h"
+
+#include <cstdlib>
+
+using namespace strata;
+
+namespace {
+
+struct Image {
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgb;
+    const uint8_t* at(int x, int y) const { return &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3]; }
+};
+
+// The viewer's clear colour (0.16, 0.17, 0.19) in 8 bits.
+bool isBackground(const uint8_t* p)
+{
+    return std::abs(p[0] - 41) <= 2 && std::abs(p[1] - 43) <= 2 && std::abs(p[2] - 48) <= 2;
+}
+
+Image shoot(const std::string& file, const std::string& flags, const std::string& out)
+{
+    const test::CommandResult r = test::runCommand(std::string(STRATA_VIEW_EXE) + " '" + file +
+                                                   "' --headless --no-grid --size 320x240 " + flags +
+                                                   " --screenshot '" + out + "'");
+    EXPECT_EQ(r.code, 0) << r.output;
+    Image img;
+    EXPECT_TRUE(io::readPngRgb(out, &img.width, &img.height, &img.rgb).isOk()) << out;
+    return img;
+}
+
+struct Coverage {
+    double fraction = 0.0;
+    int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+};
+
+Coverage coverage(const Image& img)
+{
+    Coverage c;
+    size_t n = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x)
+            if (!isBackground(img.at(x, y))) {
+                ++n;
+                c.x0 = std::min(c.x0, x);
+                c.y0 = std::min(c.y0, y);
+                c.x1 = std::max(c.x1, x);
+                c.y1 = std::max(c.y1, y);
+            }
+    c.fraction = double(n) / double(img.width * img.height);
+    return c;
+}
+
+void expectInFrame(const Image& img, const std::string& what)
+{
+    ASSERT_EQ(img.width, 320) << what;
+    ASSERT_EQ(img.height, 240) << what;
+    const Coverage c = coverage(img);
+    EXPECT_GT(c.fraction, 0.05) << what << ": nearly blank";
+    EXPECT_LT(c.fraction, 0.9) << what << ": fills the frame";
+    // Framed: the model's box leaves a margin on every side.
+    EXPECT_GT(c.x0, 0) << what;
+    EXPECT_GT(c.y0, 0) << what;
+    EXPECT_LT(c.x1, img.width - 1) << what;
+    EXPECT_LT(c.y1, img.height - 1) << what;
+}
+
+// Mean absolute difference over a window, per channel, 0..255.
+double meanDifference(const Image& a, const Image& b, int x0, int y0, int x1, int y1)
+{
+    double sum = 0.0;
+    for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x)
+            for (int k = 0; k < 3; ++k)
+                sum += std::abs(int(a.at(x, y)[k]) - int(b.at(x, y)[k]));
+    return sum / double(3 * (x1 - x0) * (y1 - y0));
+}
+
+// The built-in example's rig: icosphere(1) with the head map.
+std::string writeExampleRig(const std::string& dir)
+{
+    Rig rig;
+    rig.mesh = examples::makeIcosphere(1);
+    EXPECT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {256, 2}).isOk());
+    DisplacementMap map;
+    EXPECT_TRUE(examples::bakeRadialSurface(&map, rig.mesh, 256, 2, examples::headRadius).isOk());
+    rig.hasDisplacement = true;
+    rig.displacement.uri = "head.exr";
+    rig.displacement.encoding = "exr";
+    rig.displacement.width = rig.displacement.height = 256;
+    rig.displacement.recommendedLevel = 4;
+    EXPECT_TRUE(io::writeDisplacementExr(dir + "/head.exr", map).isOk());
+    EXPECT_TRUE(io::saveRig(dir + "/head.glb", rig).isOk());
+    return dir + "/head.glb";
+}
+
+}  // namespace
+
+TEST(Viewer, BuiltInExampleScreenshotsShowTheDetail)
+{
+    const std::string dir = test::tempDir("viewer");
+    const std::string rig = writeExampleRig(dir);
+    // Front view (yaw 0): the head faces +z, the nose is in the middle.
+    const Image l0 = shoot(rig, "--level 0 --yaw 0 --pitch 0", dir + "/l0.png");
+    const Image l4 = shoot(rig, "--level 4 --yaw 0 --pitch 0", dir + "/l4.png");
+    const Image bare = shoot(rig, "--level 4 --yaw 0 --pitch 0 --no-displacement", dir + "/bare.png");
+    expectInFrame(l0, "level 0");
+    expectInFrame(l4, "level 4");
+    expectInFrame(bare, "no displacement");
+    // Levels differ over the model.
+    const Coverage c = coverage(l4);
+    EXPECT_GT(meanDifference(l0, l4, c.x0, c.y0, c.x1, c.y1), 2.0);
+    // Displacement changes the centre of the face (the nose) strongly...
+    const int cx = (c.x0 + c.x1) / 2, cy = (c.y0 + c.y1) / 2, r = (c.x1 - c.x0) / 8;
+    EXPECT_GT(meanDifference(l4, bare, cx - r, cy - r, cx + r, cy + r), 8.0);
+    // ...and nothing outside the model: the corners stay background.
+    EXPECT_EQ(meanDifference(l4, bare, 0, 0, 20, 20), 0.0);
+    EXPECT_EQ(meanDifference(l4, bare, 300, 220, 320, 240), 0.0);
+    // The false-colour view is not the shaded one.
+    const Image colour = shoot(rig, "--level 4 --yaw 0 --pitch 0 --color displacement", dir + "/colour.png");
+    EXPECT_GT(meanDifference(l4, colour, c.x0, c.y0, c.x1, c.y1), 10.0);
+}
+
+TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)
+{
+    const std::string dir = test::tempDir("viewer_bad");
+    test::writeText(dir + "/broken.glb", "glTF this is not");
+    const test::CommandResult r = test::runCommand(std::string(STRATA_VIEW_EXE) + " " + dir +
+                                                   "/broken.glb --headless --screenshot " + dir + "/out.png");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("broken.glb"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("strata-view: error: "), std::string::npos) << r.output;
+    EXPECT_FALSE(test::fileExists(dir + "/out.png"));
+}
+
+TEST(Viewer, WindowedScreenshotUnderXvfb)
+{
+    // xvfb-run and xauth come with cmake/install-deps.sh.
+    ASSERT_EQ(test::runCommand("command -v xvfb-run").code, 0) << "xvfb-run is not installed";
+    const std::string dir = test::tempDir("viewer_window");
+    const std::string rig = writeExampleRig(dir);
+    const test::CommandResult r =
+        test::runCommand("env -u WAYLAND_DISPLAY xvfb-run -a -s '-screen 0 640x480x24' " + std::string(STRATA_VIEW_EXE) +
+                         " " + rig + " --no-grid --size 640x480 --screenshot " + dir + "/window.png");
+    ASSERT_EQ(r.code, 0) << r.output;
+    Image img;
+    ASSERT_TRUE(io::readPngRgb(dir + "/window.png", &img.width, &img.height, &img.rgb).isOk());
+    ASSERT_EQ(img.width, 640);
+    // The panel sits top left; the model is drawn around the centre and
+    // does not reach the bottom-right corner.
+    size_t model = 0;
+    for (int y = 280; y < 340; ++y)
+        for (int x = 300; x < 420; ++x)
+            model += isBackground(img.at(x, y)) ? 0 : 1;
+    EXPECT_GT(model, 5000u);
+    EXPECT_TRUE(isBackground(img.at(639, 479)));
+}
+
+TEST(ViewerRealData, FoxPlaysAndIsFramed)
+{
+    STRATA_REQUIRE_DATA(fox, "Fox.glb");
+    const std::string dir = test::tempDir("viewer_fox");
+    const Image a = shoot(fox, "--anim Run --time 0.1", dir + "/a.png");
+    const Image b = shoot(fox, "--anim Run --time 0.4", dir + "/b.png");
+    expectInFrame(a, "Fox t 0.1");
+    expectInFrame(b, "Fox t 0.4");
+    EXPECT_GT(meanDifference(a, b, 0, 0, 320, 240), 0.5);  // it moved
+}

@@ -1,0 +1,333 @@
+#include "scene.h"
+
+#include "strata/baker/distance.h"
+#include "strata/baker/mesh_input.h"
+#include "strata/gl/shaders.h"
+#include "strata/io/file.h"
+#include "strata/io/mesh_io.h"
+#include "strata/io/rig_io.h"
+#include "strata/normals.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+
+namespace strata {
+namespace viewer {
+
+Scene::Scene() = default;
+
+Scene::~Scene()
+{
+    if (lineProgram_) {
+        glDeleteProgram(lineProgram_);
+        glDeleteVertexArrays(1, &lineVao_);
+        glDeleteBuffers(1, &lineBuffer_);
+    }
+}
+
+Status Scene::open(const std::string& path)
+{
+    auto rig = std::make_unique<Rig>();
+    Status st;
+    if (io::extensionOf(path) == ".obj") {
+        if (!(st = io::readObj(path, &rig->mesh)) || !(st = validateControlMesh(rig->mesh)))
+            st = Status(st.code(), st.message().rfind(path, 0) == 0 ? st.message() : path + ": " + st.message());
+    } else {
+        st = io::loadRig(path, rig.get());
+    }
+    DisplacementMap map;
+    if (st && rig->hasDisplacement)
+        st = io::loadRigDisplacementMap(path, *rig, &map);
+    if (!st) {
+        lastError_ = st.message();
+        return st;
+    }
+    // Commit: the new model replaces the old one.
+    rig_ = std::move(rig);
+    path_ = path;
+    map_ = std::move(map);
+    haveMap_ = rig_->hasDisplacement;
+    highPositions_.clear();
+    highTriangles_.clear();
+    animated_ = !rig_->skeleton.empty() && animator_.init(rig_->skeleton, rig_->mesh).isOk();
+    restNormals_.assign(rig_->mesh.vertexCount(), glm::vec3(0.0f));
+    computeControlNormals(restNormals_.data(), rig_->mesh.positions.data(), restNormals_.size(),
+                          rig_->mesh.triangles.data(), rig_->mesh.faceCount());
+    if (!settings.schemeGiven)
+        settings.scheme = haveMap_ ? rig_->displacement.scheme : Scheme::Linear;
+    if (settings.level < 0)
+        settings.level = haveMap_ ? rig_->displacement.recommendedLevel : 2;
+    settings.level = std::min(settings.level, kMaxLevel);
+    if (settings.animation >= int(rig_->skeleton.animations.size()))
+        settings.animation = -1;
+    lo_ = glm::vec3(1e30f);
+    hi_ = glm::vec3(-1e30f);
+    for (const glm::vec3& p : rig_->mesh.positions) {
+        lo_ = glm::min(lo_, p);
+        hi_ = glm::max(hi_, p);
+    }
+    radius_ = std::max(0.5f * glm::length(hi_ - lo_), 1e-6f);
+    dMin_ = dMax_ = 0.0f;
+    if (haveMap_ && !map_.texels.empty()) {
+        const auto mm = std::minmax_element(map_.texels.begin(), map_.texels.end());
+        dMin_ = *mm.first * map_.factor + map_.offset;
+        dMax_ = *mm.second * map_.factor + map_.offset;
+    }
+    description_ = io::stemOf(path) + ": " + std::to_string(rig_->mesh.vertexCount()) + " control vertices, " +
+                   std::to_string(rig_->mesh.faceCount()) + " triangles" +
+                   (haveMap_ ? ", " + std::to_string(map_.width) + "x" + std::to_string(map_.height) + " map" : "") +
+                   (animated_ ? ", " + std::to_string(rig_->skeleton.skin.joints.size()) + " joints" : "");
+    builtLevel_ = -1;
+    lastError_.clear();
+    frameModel();
+    if ((st = rebuild()))
+        buildLines();
+    return st;
+}
+
+Status Scene::openHigh(const std::string& path)
+{
+    baker::TriangleMesh high;
+    Status st = baker::loadHighMesh(path, &high, nullptr);
+    if (!st) {
+        lastError_ = st.message();
+        return st;
+    }
+    highPositions_ = std::move(high.positions);
+    highTriangles_ = std::move(high.triangles);
+    computeErrors();
+    return Status::ok();
+}
+
+void Scene::frameModel()
+{
+    camera.target = 0.5f * (lo_ + hi_);
+    camera.distance = radius_ * 0.95f / std::tan(0.5f * camera.fovY);
+}
+
+float Scene::animationLength() const
+{
+    if (!rig_ || settings.animation < 0)
+        return 0.0f;
+    const Animation& a = rig_->skeleton.animations[size_t(settings.animation)];
+    return a.end - a.start;
+}
+
+void Scene::setTiming(bool on)
+{
+    timing_ = on;
+    if (surface_)
+        surface_->setTiming(on);
+}
+
+const gl::GpuTimings& Scene::gpuTimings() const
+{
+    static const gl::GpuTimings none;
+    return surface_ ? surface_->timings() : none;
+}
+
+Status Scene::rebuild()
+{
+    std::unique_ptr<Plan> plan;
+    Status st = Plan::create(&plan, rig_->mesh, settings.scheme, settings.level);
+    std::unique_ptr<gl::GpuSurface> surface;
+    if (st)
+        st = gl::GpuSurface::create(&surface, *plan);
+    if (st && haveMap_)
+        st = surface->setDisplacementMap(map_);
+    if (!st) {
+        lastError_ = st.message();
+        return st;
+    }
+    plan_ = std::move(plan);
+    surface_ = std::move(surface);
+    surface_->setTiming(timing_);
+    builtLevel_ = settings.level;
+    builtScheme_ = settings.scheme;
+    computeErrors();
+    return Status::ok();
+}
+
+void Scene::computeErrors()
+{
+    if (!surface_ || highPositions_.empty())
+        return;
+    // Distance of the bind-pose reconstruction to the high-res mesh.
+    std::unique_ptr<Plan> plan;
+    if (!Plan::create(&plan, rig_->mesh, builtScheme_, builtLevel_).isOk())
+        return;
+    if (haveMap_ && !plan->setDisplacement(map_).isOk())
+        return;
+    std::vector<glm::vec3> positions(plan->refinedVertexCount());
+    if (!plan->evaluate(positions.data(), nullptr, 0, positions.size(), rig_->mesh.positions.data(),
+                        restNormals_.data(), restNormals_.size()))
+        return;
+    baker::TriangleIndex index;
+    index.build(highPositions_.data(), highTriangles_.data(), highTriangles_.size() / 3);
+    std::vector<float> errors(positions.size());
+    errorMax_ = 0.0f;
+    for (size_t v = 0; v < positions.size(); ++v) {
+        errors[v] = float(index.nearest(glm::dvec3(positions[v])));
+        errorMax_ = std::max(errorMax_, errors[v]);
+    }
+    surface_->setVertexErrors(errors.data());
+}
+
+void Scene::buildLines()
+{
+    if (!lineProgram_) {
+        if (!gl::buildProgram(&lineProgram_, "lines",
+                              {{GL_VERTEX_SHADER, gl::shaderSource(gl::ShaderId::LinesVertex)},
+                               {GL_FRAGMENT_SHADER, gl::shaderSource(gl::ShaderId::LinesFragment)}}))
+            return;
+        glCreateVertexArrays(1, &lineVao_);
+    }
+    lines_.clear();
+    // Ground grid under the model, 20 cells across its size.
+    const float y = lo_.y, extent = 2.0f * radius_, step = extent / 10.0f;
+    const glm::vec3 c = 0.5f * (lo_ + hi_);
+    for (int i = -10; i <= 10; ++i) {
+        const float o = float(i) * step;
+        lines_.push_back({c.x + o, y, c.z - extent});
+        lines_.push_back({c.x + o, y, c.z + extent});
+        lines_.push_back({c.x - extent, y, c.z + o});
+        lines_.push_back({c.x + extent, y, c.z + o});
+    }
+    gridFirst_ = 0;
+    gridCount_ = int(lines_.size());
+    // Control cage: one segment per unique edge (re-filled every frame).
+    cageFirst_ = int(lines_.size());
+    std::set<std::pair<uint32_t, uint32_t>> edges;
+    const std::vector<uint32_t>& t = rig_->mesh.triangles;
+    for (size_t f = 0; f < t.size(); f += 3)
+        for (int k = 0; k < 3; ++k) {
+            uint32_t a = t[f + size_t(k)], b = t[f + size_t((k + 1) % 3)];
+            if (a > b)
+                std::swap(a, b);
+            if (edges.insert({a, b}).second) {
+                lines_.push_back(rig_->mesh.positions[a]);
+                lines_.push_back(rig_->mesh.positions[b]);
+            }
+        }
+    cageCount_ = int(lines_.size()) - cageFirst_;
+    if (lineBuffer_)
+        glDeleteBuffers(1, &lineBuffer_);
+    glCreateBuffers(1, &lineBuffer_);
+    glNamedBufferStorage(lineBuffer_, GLsizeiptr(lines_.size() * sizeof(glm::vec3)), lines_.data(),
+                         GL_DYNAMIC_STORAGE_BIT);
+    glVertexArrayVertexBuffer(lineVao_, 0, lineBuffer_, 0, sizeof(glm::vec3));
+    glVertexArrayAttribFormat(lineVao_, 0, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(lineVao_, 0, 0);
+    glEnableVertexArrayAttrib(lineVao_, 0);
+}
+
+void Scene::update(float dt)
+{
+    if (!rig_)
+        return;
+    settings.level = std::clamp(settings.level, 0, kMaxLevel);
+    if (settings.level != builtLevel_ || settings.scheme != builtScheme_) {
+        if (!rebuild()) {
+            // Stay on what works.
+            settings.level = builtLevel_;
+            settings.scheme = builtScheme_;
+            if (!surface_)
+                return;
+        }
+    }
+    if (settings.animation >= 0 && settings.playing) {
+        const float len = animationLength();
+        settings.time = len > 0.0f ? std::fmod(settings.time + dt, len) : 0.0f;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const glm::vec3* positions = rig_->mesh.positions.data();
+    const glm::vec3* normals = restNormals_.data();
+    if (animated_) {
+        const float start =
+            settings.animation >= 0 ? rig_->skeleton.animations[size_t(settings.animation)].start : 0.0f;
+        SkinningMethod method = settings.skinning;
+        if (method == SkinningMethod::Segments && !animator_.segmentStatus().isOk())
+            method = SkinningMethod::Linear;
+        if (animator_.pose(settings.animation, start + settings.time, method)) {
+            positions = animator_.positions().data();
+            normals = animator_.normals().data();
+        }
+    }
+    cpuFrameMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    surface_->setDisplacementScale(settings.displacement ? settings.scale : 0.0f);
+    Status st = surface_->update(positions, normals, rig_->mesh.vertexCount());
+    if (!st)
+        lastError_ = st.message();
+    if (settings.cage && lineBuffer_ && cageCount_ > 0) {
+        // Posed cage edges.
+        std::set<std::pair<uint32_t, uint32_t>> seen;
+        size_t k = size_t(cageFirst_);
+        const std::vector<uint32_t>& t = rig_->mesh.triangles;
+        for (size_t f = 0; f < t.size(); f += 3)
+            for (int e = 0; e < 3; ++e) {
+                uint32_t a = t[f + size_t(e)], b = t[f + size_t((e + 1) % 3)];
+                if (a > b)
+                    std::swap(a, b);
+                if (seen.insert({a, b}).second) {
+                    lines_[k++] = positions[a];
+                    lines_[k++] = positions[b];
+                }
+            }
+        glNamedBufferSubData(lineBuffer_, GLintptr(size_t(cageFirst_) * sizeof(glm::vec3)),
+                             GLsizeiptr(size_t(cageCount_) * sizeof(glm::vec3)), &lines_[size_t(cageFirst_)]);
+    }
+}
+
+void Scene::render(int width, int height)
+{
+    glViewport(0, 0, width, height);
+    glClearColor(0.16f, 0.17f, 0.19f, 1.0f);
+    glClearDepth(1.0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    if (!surface_)
+        return;
+    glEnable(GL_DEPTH_TEST);
+    const float aspect = float(width) / float(std::max(height, 1));
+    const glm::vec3 dir(std::cos(camera.pitch) * std::sin(camera.yaw), std::sin(camera.pitch),
+                        std::cos(camera.pitch) * std::cos(camera.yaw));
+    const glm::vec3 eye = camera.target + camera.distance * dir;
+    const float nearPlane = std::max(camera.distance - 4.0f * radius_, camera.distance * 0.01f);
+    const glm::mat4 viewProjection = glm::perspective(camera.fovY, aspect, nearPlane, camera.distance + 6.0f * radius_) *
+                                     glm::lookAt(eye, camera.target, glm::vec3(0, 1, 0));
+    gl::DrawParams p;
+    p.viewProjection = viewProjection;
+    p.eye = eye;
+    p.colorMode = settings.colorMode;
+    p.wireframe = settings.wireframe;
+    if (settings.colorMode == gl::ColorMode::Displacement)
+        p.colorRange = glm::vec2(dMin_ * settings.scale, dMax_ * settings.scale);
+    else if (settings.colorMode == gl::ColorMode::Error)
+        p.colorRange = glm::vec2(0.0f, std::max(errorMax_, 1e-12f));
+    surface_->draw(p);
+    if (lineProgram_) {
+        glUseProgram(lineProgram_);
+        glUniformMatrix4fv(glGetUniformLocation(lineProgram_, "u_viewProjection"), 1, GL_FALSE,
+                           glm::value_ptr(viewProjection));
+        glBindVertexArray(lineVao_);
+        if (settings.grid) {
+            glUniform4f(glGetUniformLocation(lineProgram_, "u_color"), 0.42f, 0.44f, 0.48f, 1.0f);
+            glDrawArrays(GL_LINES, gridFirst_, gridCount_);
+        }
+        if (settings.cage) {
+            glUniform4f(glGetUniformLocation(lineProgram_, "u_color"), 1.0f, 0.55f, 0.1f, 1.0f);
+            glDisable(GL_DEPTH_TEST);
+            glDrawArrays(GL_LINES, cageFirst_, cageCount_);
+            glEnable(GL_DEPTH_TEST);
+        }
+        glBindVertexArray(0);
+        glUseProgram(0);
+    }
+}
+
+}  // namespace viewer
+}  // namespace strata

@@ -1,0 +1,109 @@
+// strata-view: what the viewer shows, independent of the window system, so
+// the windowed viewer and headless screenshots render the same thing.
+#pragma once
+
+#include "strata/animation.h"
+#include "strata/gl/gpu_surface.h"
+#include "strata/plan.h"
+#include "strata/rig.h"
+
+#include <glm/vec3.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace viewer {
+
+struct Settings {
+    int level = -1;  ///< -1: the rig's recommended level
+    Scheme scheme = Scheme::Linear;
+    bool schemeGiven = false;
+    bool displacement = true;
+    float scale = 1.0f;
+    int animation = -1;  ///< -1: bind pose
+    float time = 0.0f;
+    bool playing = false;
+    SkinningMethod skinning = SkinningMethod::Linear;
+    bool wireframe = false, cage = false, grid = true;
+    gl::ColorMode colorMode = gl::ColorMode::Shaded;
+};
+
+struct Camera {
+    glm::vec3 target{0.0f};
+    float distance = 3.0f, yaw = 0.5f, pitch = 0.25f, fovY = 0.7f;
+};
+
+class Scene {
+public:
+    Scene();
+    ~Scene();
+
+    /// Loads a rig (.glb/.gltf, with its EXR when it has one) or a plain
+    /// glTF / OBJ.  On failure the previous model stays and the message
+    /// says why (it is also kept in lastError()).
+    Status open(const std::string& path);
+    /// The high-resolution mesh for the error view (distance of every
+    /// refined vertex to it, in the bind pose).
+    Status openHigh(const std::string& path);
+
+    bool loaded() const { return rig_ != nullptr; }
+    const std::string& path() const { return path_; }
+    const Rig* rig() const { return rig_.get(); }
+    const std::string& lastError() const { return lastError_; }
+    const std::string& description() const { return description_; }
+
+    Settings settings;
+    Camera camera;
+
+    /// Applies changed settings (rebuilds the plan when level or scheme
+    /// changed), advances the animation by dt when playing, and runs the
+    /// GPU passes.  Errors are kept in lastError(), never thrown.
+    void update(float dt);
+    /// Draws into the bound framebuffer.
+    void render(int width, int height);
+    void frameModel();
+
+    size_t vertexCount() const { return surface_ ? surface_->vertexCount() : 0; }
+    size_t faceCount() const { return surface_ ? surface_->faceCount() : 0; }
+    int currentLevel() const { return builtLevel_; }
+    float displacementMin() const { return dMin_; }
+    float displacementMax() const { return dMax_; }
+    float errorMax() const { return errorMax_; }
+    bool hasHigh() const { return !highPositions_.empty(); }
+    float animationLength() const;
+    double cpuFrameMs() const { return cpuFrameMs_; }
+    const gl::GpuTimings& gpuTimings() const;
+    void setTiming(bool on);
+
+private:
+    Status rebuild();
+    void computeErrors();
+    void buildLines();
+
+    std::unique_ptr<Rig> rig_;
+    std::string path_, lastError_, description_;
+    DisplacementMap map_;
+    bool haveMap_ = false;
+    std::unique_ptr<Plan> plan_;
+    std::unique_ptr<gl::GpuSurface> surface_;
+    Animator animator_;
+    bool animated_ = false;
+    std::vector<glm::vec3> restNormals_;
+    int builtLevel_ = -1;
+    Scheme builtScheme_ = Scheme::Linear;
+    bool timing_ = false;
+    float dMin_ = 0.0f, dMax_ = 0.0f, errorMax_ = 0.0f, radius_ = 1.0f;
+    glm::vec3 lo_{0.0f}, hi_{0.0f};
+    double cpuFrameMs_ = 0.0;
+    std::vector<glm::vec3> highPositions_;
+    std::vector<uint32_t> highTriangles_;
+
+    unsigned lineProgram_ = 0, lineVao_ = 0, lineBuffer_ = 0;
+    int gridFirst_ = 0, gridCount_ = 0, cageFirst_ = 0, cageCount_ = 0;
+    std::vector<glm::vec3> lines_;
+};
+
+}  // namespace viewer
+}  // namespace strata
