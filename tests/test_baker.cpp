@@ -4,6 +4,7 @@
 #include "procedural.h"
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
+#include "strata/baker/distance.h"
 #include "strata/baker/mesh_input.h"
 #include "strata/baker/normal_volume.h"
 #include "strata/io/exr.h"
@@ -273,4 +274,34 @@ TEST(BakeRealData, SpotsShippedUVsAreRejectedAsOverlapping)
     const Status st = checkUVs(control, 1024);
     EXPECT_FALSE(st.isOk());
     EXPECT_NE(st.message().find("overlap in UV space"), std::string::npos) << st.message();
+}
+
+// The evidence report's accuracy column rests on TriangleIndex /
+// sampleDistance: cross-check them on a sphere against a scaled sphere.  For
+// a polyhedron inscribed in the unit sphere, every vertex v is its own
+// nearest point from s v (s > 1): v . w <= 1 = v . v for every w in it, so v
+// lies in its normal cone.  So the one-sided distance from the scaled
+// sphere's vertices is exactly s - 1, and the Hausdorff distance of the two
+// spheres is s - 1 up to the tessellation's sagitta.
+TEST(Distance, SphereAgainstScaledSphereIsExact)
+{
+    const ControlMesh a = examples::makeIcosphere(4);
+    const float s = 1.25f;
+    std::vector<glm::vec3> scaled = a.positions;
+    for (glm::vec3& p : scaled)
+        p *= s;
+    baker::TriangleIndex ia, ib;
+    ia.build(a.positions.data(), a.triangles.data(), a.faceCount());
+    ib.build(scaled.data(), a.triangles.data(), a.faceCount());
+    const baker::DistanceStats outward = baker::sampleDistance(scaled, ia, 2);
+    EXPECT_NEAR(outward.max, s - 1.0f, 2e-6);
+    EXPECT_NEAR(outward.rms, s - 1.0f, 2e-6);
+    // Face centroids and the other direction: within the sagitta of a
+    // level-4 icosphere edge (about 0.0012 of the radius).
+    const std::vector<glm::vec3> samples =
+        baker::surfaceSamples(a.positions.data(), a.positions.size(), a.triangles.data(), a.faceCount());
+    const baker::DistanceStats inward = baker::sampleDistance(samples, ib, 2);
+    EXPECT_NEAR(inward.max, s - 1.0f, 0.002 * s);
+    EXPECT_NEAR(inward.rms, s - 1.0f, 0.002 * s);
+    EXPECT_GT(inward.samples, a.positions.size());
 }

@@ -223,6 +223,10 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
     OMesh om;
+    // Deleting (isolated vertices, collapsed elements) needs status flags.
+    om.request_vertex_status();
+    om.request_edge_status();
+    om.request_face_status();
     std::vector<OMesh::VertexHandle> vh;
     vh.reserve(high.positions.size());
     for (const glm::vec3& p : high.positions)
