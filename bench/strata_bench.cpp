@@ -22,6 +22,10 @@
 #include "strata/io/rig_io.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
+#ifdef STRATA_HAVE_GL
+#include "strata/gl/context.h"
+#include "strata/gl/gpu_surface.h"
+#endif
 
 #include <nlohmann/json.hpp>
 
@@ -140,6 +144,26 @@ Status draco(const std::string& dir, const std::string& stem, const std::vector<
     *dp = std::move(decoded.positions);
     *dt = std::move(decoded.triangles);
     return Status::ok();
+}
+
+#ifdef STRATA_HAVE_GL
+gl::HeadlessContext* gpuContext()
+{
+    static std::unique_ptr<gl::HeadlessContext> ctx;
+    static const bool ok = gl::HeadlessContext::create(&ctx).isOk();
+    return ok ? ctx.get() : nullptr;
+}
+#endif
+
+std::string gpuName()
+{
+#ifdef STRATA_HAVE_GL
+    if (gpuContext()) {
+        const std::string d = gpuContext()->description();
+        return d.substr(0, d.find(" ("));
+    }
+#endif
+    return "none";
 }
 
 Json runPair(const Pair& pair, const std::string& out, const std::string& bakeExe, std::string* md)
@@ -270,8 +294,9 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
     computeControlNormals(normals.data(), rig.mesh.positions.data(), normals.size(), rig.mesh.triangles.data(),
                           rig.mesh.faceCount());
     Json regen = Json::array();
-    std::string regenMd = "| N | refined vertices | triangles | setup ms | regenerate ms (eq. 2) | + shading normals ms |\n"
-                          "|---|---|---|---|---|---|\n";
+    std::string regenMd = "| N | refined vertices | triangles | setup ms | regenerate ms (eq. 2) | + shading normals ms |"
+                          " GPU (" + gpuName() + ") stencils + displace + normals ms |\n"
+                          "|---|---|---|---|---|---|---|\n";
     for (int n = 0; n <= kMaxLevel; ++n) {
         const double t0 = bench::nowMs();
         std::unique_ptr<Plan> plan;
@@ -284,11 +309,24 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
                            normals.size());
         }, 5, 20.0);
         const double shade = bench::medianMs([&] { plan->computeShadingNormals(sn.data(), pos.data()); }, 5, 20.0);
+        double gpu = -1.0;
+#ifdef STRATA_HAVE_GL
+        std::unique_ptr<gl::GpuSurface> surface;
+        if (gpuContext() && n <= 5 && gl::GpuSurface::create(&surface, *plan) && surface->setDisplacementMap(map)) {
+            gpu = bench::medianMs([&] {
+                surface->update(rig.mesh.positions.data(), normals.data(), normals.size());
+                glFinish();
+            }, 5, 20.0);
+        }
+#endif
         regen.push_back({{"level", n}, {"vertices", pos.size()}, {"triangles", plan->refinedFaceCount()},
-                         {"setupMs", setup}, {"regenerateMs", eval}, {"shadingNormalsMs", shade}});
-        char line[200];
-        std::snprintf(line, sizeof(line), "| %d | %zu | %zu | %.1f | %.3f | %.3f |\n", n, pos.size(),
-                      plan->refinedFaceCount(), setup, eval, shade);
+                         {"setupMs", setup}, {"regenerateMs", eval}, {"shadingNormalsMs", shade}, {"gpuMs", gpu}});
+        char line[240];
+        char gpuText[32] = "n/a";
+        if (gpu >= 0.0)
+            std::snprintf(gpuText, sizeof(gpuText), "%.3f", gpu);
+        std::snprintf(line, sizeof(line), "| %d | %zu | %zu | %.1f | %.3f | %.3f | %s |\n", n, pos.size(),
+                      plan->refinedFaceCount(), setup, eval, shade, gpuText);
         regenMd += line;
     }
 
