@@ -154,13 +154,8 @@ int main(int argc, char** argv)
             } else if (a == "--png16") {
                 pngBits = 16;
             } else if (a == "--overlap") {
-                const std::string v = value();
-                if (v == "max")
-                    options.overlap = baker::OverlapPolicy::Max;
-                else if (v == "nearest")
-                    options.overlap = baker::OverlapPolicy::Nearest;
-                else
-                    throw cli::Error("--overlap expects max or nearest");
+                options.overlap = cli::parseChoice<baker::OverlapPolicy>(
+                    a, value(), {{"max", baker::OverlapPolicy::Max}, {"nearest", baker::OverlapPolicy::Nearest}});
             } else if (a == "--threads") {
                 options.threads = cli::parseInt(a, value(), 1, 256);
             } else if (a == "--error-levels") {

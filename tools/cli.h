@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
+#include <initializer_list>
 #include <string>
+#include <utility>
 
 namespace strata {
 namespace cli {
@@ -41,6 +43,24 @@ inline std::string flagValue(int argc, char** argv, int* i)
     if (*i + 1 >= argc)
         throw Error(std::string(argv[*i]) + " needs a value");
     return argv[++*i];
+}
+
+/// One of a fixed set of words, e.g. --overlap max|nearest: the value paired
+/// with `text`, else an error naming the flag and every choice ("--overlap
+/// expects max or nearest").
+template <typename T>
+T parseChoice(const std::string& flag, const std::string& text,
+              std::initializer_list<std::pair<const char*, T>> choices)
+{
+    std::string expected;
+    size_t k = 0;
+    for (const auto& c : choices) {
+        if (text == c.first)
+            return c.second;
+        expected += (k == 0 ? "" : k + 1 == choices.size() ? " or " : ", ") + std::string(c.first);
+        ++k;
+    }
+    throw Error(flag + " expects " + expected);
 }
 
 /// Runs body, turning exceptions into "tool: error: message" and exit 2.

@@ -73,15 +73,9 @@ int main(int argc, char** argv)
                 frameEnd = s1;
                 fps = f;
             } else if (a == "--skinning") {
-                const std::string v = value();
-                if (v == "linear")
-                    method = SkinningMethod::Linear;
-                else if (v == "dq")
-                    method = SkinningMethod::DualQuaternion;
-                else if (v == "segments")
-                    method = SkinningMethod::Segments;
-                else
-                    throw cli::Error("--skinning expects linear, dq or segments");
+                method = cli::parseChoice<SkinningMethod>(a, value(), {{"linear", SkinningMethod::Linear},
+                                                                   {"dq", SkinningMethod::DualQuaternion},
+                                                                   {"segments", SkinningMethod::Segments}});
                 haveMethod = true;
             } else if (a == "--skeleton") {
                 skeletonPath = value();

@@ -321,27 +321,15 @@ int main(int argc, char** argv)
             } else if (a == "--time") {
                 s.time = cli::parseFloat(a, value());
             } else if (a == "--skinning") {
-                const std::string v = value();
-                if (v == "linear")
-                    s.skinning = SkinningMethod::Linear;
-                else if (v == "dq")
-                    s.skinning = SkinningMethod::DualQuaternion;
-                else if (v == "segments")
-                    s.skinning = SkinningMethod::Segments;
-                else
-                    throw cli::Error("--skinning expects linear, dq or segments");
+                s.skinning = cli::parseChoice<SkinningMethod>(a, value(), {{"linear", SkinningMethod::Linear},
+                                                                   {"dq", SkinningMethod::DualQuaternion},
+                                                                   {"segments", SkinningMethod::Segments}});
             } else if (a == "--high") {
                 o.high = value();
             } else if (a == "--color") {
-                const std::string v = value();
-                if (v == "shaded")
-                    s.colorMode = gl::ColorMode::Shaded;
-                else if (v == "displacement")
-                    s.colorMode = gl::ColorMode::Displacement;
-                else if (v == "error")
-                    s.colorMode = gl::ColorMode::Error;
-                else
-                    throw cli::Error("--color expects shaded, displacement or error");
+                s.colorMode = cli::parseChoice<gl::ColorMode>(a, value(), {{"shaded", gl::ColorMode::Shaded},
+                                                                          {"displacement", gl::ColorMode::Displacement},
+                                                                          {"error", gl::ColorMode::Error}});
             } else if (a == "--no-displacement") {
                 s.displacement = false;
             } else if (a == "--scale") {

@@ -84,17 +84,30 @@ Status writePngRgb(const std::string& path, int width, int height, const std::ve
     return writePng(path, width, height, 8, 2, 3, rgb);
 }
 
+namespace {
+
+// Reads a PNG file and its header: size (capped at 16384 per side) and
+// channel count, leaving the bytes for decoding.
+Status readPngHeader(const std::string& path, std::vector<unsigned char>* bytes, int* w, int* h, int* comp)
+{
+    Status st = readFile(path, bytes, size_t(1) << 30);
+    if (!st)
+        return st;
+    if (!stbi_info_from_memory(bytes->data(), int(bytes->size()), w, h, comp))
+        return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
+    if (*w > 16384 || *h > 16384)
+        return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
+    return Status::ok();
+}
+
+}  // namespace
+
 Status readPngRgb(const std::string& path, int* width, int* height, std::vector<uint8_t>* rgb)
 {
     std::vector<unsigned char> bytes;
-    Status st = readFile(path, &bytes, size_t(1) << 30);
-    if (!st)
-        return st;
     int w = 0, h = 0, comp = 0;
-    if (!stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp))
-        return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
-    if (w > 16384 || h > 16384)
-        return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
+    if (Status st = readPngHeader(path, &bytes, &w, &h, &comp); !st)
+        return st;
     stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 3);
     if (!px)
         return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
@@ -108,17 +121,12 @@ Status readPngRgb(const std::string& path, int* width, int* height, std::vector<
 Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
 {
     std::vector<unsigned char> bytes;
-    Status st = readFile(path, &bytes, size_t(1) << 30);
-    if (!st)
-        return st;
     int w = 0, h = 0, comp = 0;
-    if (!stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp))
-        return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
+    if (Status st = readPngHeader(path, &bytes, &w, &h, &comp); !st)
+        return st;
     if (comp != 1)
         return Status(StatusCode::InvalidData, path + ": expected a greyscale image, found " + std::to_string(comp) +
                                                    " channels");
-    if (w > 16384 || h > 16384)
-        return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
     const bool sixteen = stbi_is_16_bit_from_memory(bytes.data(), int(bytes.size())) != 0;
     samples->resize(size_t(w) * size_t(h));
     if (sixteen) {
