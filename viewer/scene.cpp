@@ -157,15 +157,14 @@ void Scene::computeErrors()
 {
     if (!surface_ || highPositions_.empty())
         return;
-    // Distance of the bind-pose reconstruction to the high-res mesh.
-    std::unique_ptr<Plan> plan;
-    if (!Plan::create(&plan, rig_->mesh, builtScheme_, builtLevel_).isOk())
+    // Distance of the bind-pose reconstruction to the high-res mesh, on the
+    // CPU with the plan the GPU surface was built from (the map is sampled
+    // into it only here: without a high-res mesh the CPU never needs it).
+    if (haveMap_ && !plan_->setDisplacement(map_))
         return;
-    if (haveMap_ && !plan->setDisplacement(map_).isOk())
-        return;
-    std::vector<glm::vec3> positions(plan->refinedVertexCount());
-    if (!plan->evaluate(positions.data(), nullptr, 0, positions.size(), rig_->mesh.positions.data(),
-                        restNormals_.data(), restNormals_.size()))
+    std::vector<glm::vec3> positions(plan_->refinedVertexCount());
+    if (!plan_->evaluate(positions.data(), nullptr, 0, positions.size(), rig_->mesh.positions.data(),
+                         restNormals_.data(), restNormals_.size()))
         return;
     baker::TriangleIndex index;
     index.build(highPositions_.data(), highTriangles_.data(), highTriangles_.size() / 3);
@@ -200,20 +199,22 @@ void Scene::buildLines()
     }
     gridFirst_ = 0;
     gridCount_ = int(lines_.size());
-    // Control cage: one segment per unique edge (re-filled every frame).
+    // Control cage: one segment per unique edge, found once here; update()
+    // re-fills the segments from the posed control vertices.
     cageFirst_ = int(lines_.size());
     std::set<std::pair<uint32_t, uint32_t>> edges;
     const std::vector<uint32_t>& t = rig_->mesh.triangles;
     for (size_t f = 0; f < t.size(); f += 3)
         for (int k = 0; k < 3; ++k) {
-            uint32_t a = t[f + size_t(k)], b = t[f + size_t((k + 1) % 3)];
-            if (a > b)
-                std::swap(a, b);
-            if (edges.insert({a, b}).second) {
-                lines_.push_back(rig_->mesh.positions[a]);
-                lines_.push_back(rig_->mesh.positions[b]);
-            }
+            const uint32_t a = t[f + size_t(k)], b = t[f + size_t((k + 1) % 3)];
+            edges.insert({std::min(a, b), std::max(a, b)});
         }
+    cageEdges_.clear();
+    for (const auto& e : edges) {
+        cageEdges_.insert(cageEdges_.end(), {e.first, e.second});
+        lines_.push_back(rig_->mesh.positions[e.first]);
+        lines_.push_back(rig_->mesh.positions[e.second]);
+    }
     cageCount_ = int(lines_.size()) - cageFirst_;
     if (lineBuffer_)
         glDeleteBuffers(1, &lineBuffer_);
@@ -265,19 +266,8 @@ void Scene::update(float dt)
         lastError_ = st.message();
     if (settings.cage && lineBuffer_ && cageCount_ > 0) {
         // Posed cage edges.
-        std::set<std::pair<uint32_t, uint32_t>> seen;
-        size_t k = size_t(cageFirst_);
-        const std::vector<uint32_t>& t = rig_->mesh.triangles;
-        for (size_t f = 0; f < t.size(); f += 3)
-            for (int e = 0; e < 3; ++e) {
-                uint32_t a = t[f + size_t(e)], b = t[f + size_t((e + 1) % 3)];
-                if (a > b)
-                    std::swap(a, b);
-                if (seen.insert({a, b}).second) {
-                    lines_[k++] = positions[a];
-                    lines_[k++] = positions[b];
-                }
-            }
+        for (size_t k = 0; k < cageEdges_.size(); ++k)
+            lines_[size_t(cageFirst_) + k] = positions[cageEdges_[k]];
         glNamedBufferSubData(lineBuffer_, GLintptr(size_t(cageFirst_) * sizeof(glm::vec3)),
                              GLsizeiptr(size_t(cageCount_) * sizeof(glm::vec3)), &lines_[size_t(cageFirst_)]);
     }

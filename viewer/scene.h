@@ -103,6 +103,7 @@ private:
     unsigned lineProgram_ = 0, lineVao_ = 0, lineBuffer_ = 0;
     int gridFirst_ = 0, gridCount_ = 0, cageFirst_ = 0, cageCount_ = 0;
     std::vector<glm::vec3> lines_;
+    std::vector<uint32_t> cageEdges_;  ///< control vertex pairs, one per unique edge
 };
 
 }  // namespace viewer
