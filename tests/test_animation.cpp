@@ -3,12 +3,9 @@
 // finite and continuous, baked detail following watertight, bad input.
 #include "procedural.h"
 #include "strata/animation.h"
-#include "strata/baker/atlas.h"
-#include "strata/baker/bake.h"
-#include "strata/baker/mesh_input.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
-#include "test_util.h"
+#include "test_rigs.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -238,15 +235,9 @@ TEST(AnimationRealData, BakedPenguinStaysWatertightWhileAnimated)
 {
     STRATA_REQUIRE_DATA(highPath, "penguin_hr.obj");
     STRATA_REQUIRE_DATA(controlPath, "penguin_control_mesh.obj");
-    baker::TriangleMesh high;
     Rig rig;
-    ASSERT_TRUE(baker::loadHighMesh(highPath, &high, nullptr).isOk());
-    ASSERT_TRUE(baker::loadControlMesh(controlPath, &rig.mesh).isOk());
-    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {512, 2}).isOk());
-    baker::BakeOptions options;
-    options.size = 512;
     DisplacementMap map;
-    ASSERT_TRUE(baker::bake(&map, nullptr, nullptr, rig.mesh, high, options).isOk());
+    ASSERT_NO_FATAL_FAILURE(test::bakePenguin(highPath, controlPath, &rig, &map));
     // A skeleton authored for the penguin (standing along y): pelvis at
     // y = -0.5, neck at y = 0.5 (exact in binary, so the bind pose is exactly
     // the identity); the upper body bends forward about x.
@@ -296,14 +287,8 @@ TEST(AnimationRealData, BakedPenguinStaysWatertightWhileAnimated)
             ASSERT_TRUE(io::reconstructPose(&rec, &animator, rig, pose).isOk());
             if (level > 3 && t != 0.5f)
                 continue;  // the file round trip below is the slow part
-            const std::string out = dir + "/frame.glb";
-            ASSERT_TRUE(io::writeReconstruction(out, rec).isOk());
-            Rig back;
-            ASSERT_TRUE(io::loadRig(out, &back).isOk());
-            const MeshTopologyStats st = computeTopologyStats(back.mesh.triangles.data(), back.mesh.faceCount());
-            EXPECT_EQ(back.mesh.positions.size(), rec.positions.size()) << "level " << level << " t " << t;
-            EXPECT_EQ(st.eulerCharacteristic, control.eulerCharacteristic) << "level " << level << " t " << t;
-            EXPECT_EQ(st.boundaryEdges, 0u);
+            test::expectWatertightRoundTrip(rec, control, dir + "/frame.glb",
+                                            "level " + std::to_string(level) + " t " + std::to_string(t));
         }
     }
 }

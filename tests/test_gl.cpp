@@ -2,14 +2,14 @@
 // vertex shader that draws (transform feedback) match Plan::evaluate to 1e-5
 // of the bounding-box diagonal at levels 0..4, both schemes, in the rest
 // pose and in animated frames.  Headless through EGL (llvmpipe in CI).
-#include "procedural.h"
 #include "strata/animation.h"
-#include "strata/baker/atlas.h"
 #include "strata/gl/context.h"
 #include "strata/gl/gpu_surface.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
-#include "test_util.h"
+#include "test_rigs.h"
+
+using strata::test::maxDistance;
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -37,9 +37,9 @@ struct ExampleRig {
 ExampleRig makeExampleRig()
 {
     ExampleRig r;
-    r.mesh = examples::makeIcosphere(1);
-    EXPECT_TRUE(baker::buildTriangleAtlas(&r.mesh, {256, 2}).isOk());
-    EXPECT_TRUE(examples::bakeRadialSurface(&r.map, r.mesh, 256, 2, examples::headRadius).isOk());
+    Rig example;
+    test::makeExampleRig(&example, &r.map);
+    r.mesh = example.mesh;
     Skeleton& s = r.skeleton;
     s.nodes.resize(2);
     s.nodes[0].name = "neck";
@@ -72,14 +72,6 @@ ExampleRig makeExampleRig()
     }
     r.diagonal = glm::length(hi - lo);
     return r;
-}
-
-float maxDistance(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
-{
-    float m = 0.0f;
-    for (size_t i = 0; i < a.size(); ++i)
-        m = std::max(m, glm::length(a[i] - b[i]));
-    return m;
 }
 
 }  // namespace

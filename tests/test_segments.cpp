@@ -1,13 +1,12 @@
 // The paper's own deformer (eq. 6, point-to-line mapping to skeleton
 // segments), its joint file and its conversion to glTF skin weights.
-#include "strata/baker/atlas.h"
-#include "strata/baker/bake.h"
-#include "strata/baker/mesh_input.h"
 #include "strata/io/joint_file.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 #include "strata/segment_deformer.h"
-#include "test_util.h"
+#include "test_rigs.h"
+
+using strata::test::maxDistance;
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -47,14 +46,6 @@ std::vector<glm::mat4> bendElbow(float degrees)
                            glm::rotate(glm::mat4(1.0f), glm::radians(degrees), glm::vec3(0, 0, 1)) *
                            glm::translate(glm::mat4(1.0f), glm::vec3(0, -1, 0));
     return {glm::mat4(1.0f), bend, bend};
-}
-
-float maxDistance(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
-{
-    float m = 0.0f;
-    for (size_t i = 0; i < a.size(); ++i)
-        m = std::max(m, glm::length(a[i] - b[i]));
-    return m;
 }
 
 }  // namespace
@@ -282,15 +273,9 @@ TEST(SegmentsRealData, BakedPenguinWithAuthoredJointsStaysWatertight)
 {
     STRATA_REQUIRE_DATA(highPath, "penguin_hr.obj");
     STRATA_REQUIRE_DATA(controlPath, "penguin_control_mesh.obj");
-    baker::TriangleMesh high;
     Rig rig;
-    ASSERT_TRUE(baker::loadHighMesh(highPath, &high, nullptr).isOk());
-    ASSERT_TRUE(baker::loadControlMesh(controlPath, &rig.mesh).isOk());
-    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {512, 2}).isOk());
-    baker::BakeOptions options;
-    options.size = 512;
     DisplacementMap map;
-    ASSERT_TRUE(baker::bake(&map, nullptr, nullptr, rig.mesh, high, options).isOk());
+    ASSERT_NO_FATAL_FAILURE(test::bakePenguin(highPath, controlPath, &rig, &map));
     ASSERT_TRUE(io::loadJointFile(kPenguinJoints, &rig.skeleton).isOk());
     const Status bound = bindSkeletonWeights(&rig.skeleton, rig.mesh);
     ASSERT_TRUE(bound.isOk()) << bound.message();
@@ -343,14 +328,8 @@ TEST(SegmentsRealData, BakedPenguinWithAuthoredJointsStaysWatertight)
                 EXPECT_LT(moved, 2.0f) << "level " << level << " t " << t;
                 if (level > 3 && t != 0.4f)
                     continue;  // the file round trip below is the slow part
-                const std::string out = dir + "/frame.glb";
-                ASSERT_TRUE(io::writeReconstruction(out, rec).isOk());
-                Rig back;
-                ASSERT_TRUE(io::loadRig(out, &back).isOk());
-                const MeshTopologyStats st = computeTopologyStats(back.mesh.triangles.data(), back.mesh.faceCount());
-                EXPECT_EQ(back.mesh.positions.size(), rec.positions.size()) << "level " << level << " t " << t;
-                EXPECT_EQ(st.eulerCharacteristic, control.eulerCharacteristic) << "level " << level << " t " << t;
-                EXPECT_EQ(st.boundaryEdges, 0u);
+                test::expectWatertightRoundTrip(rec, control, dir + "/frame.glb",
+                                                "level " + std::to_string(level) + " t " + std::to_string(t));
             }
         }
     }

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <dirent.h>
 #include <fstream>
@@ -64,6 +65,15 @@ inline std::string runGltfValidator(const std::vector<std::string>& files, int* 
     const CommandResult r = runCommand(cmd);
     *exitCode = r.code;
     return r.output;
+}
+
+/// Largest distance between corresponding points of two equal-length arrays.
+inline float maxDistance(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
+{
+    float m = 0.0f;
+    for (size_t i = 0; i < a.size() && i < b.size(); ++i)
+        m = std::max(m, glm::length(a[i] - b[i]));
+    return m;
 }
 
 inline void writeText(const std::string& path, const std::string& text)

@@ -2,11 +2,10 @@
 // errors and 0 warnings (node + npm gltf-validator, installed by
 // cmake/install-deps.sh).
 #include "procedural.h"
-#include "strata/baker/atlas.h"
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
-#include "test_util.h"
+#include "test_rigs.h"
 
 
 using namespace strata;
@@ -18,14 +17,9 @@ TEST(GltfValidator, EveryFileTheProjectWritesIsClean)
         << "gltf-validator is not installed; run cmake/install-deps.sh";
     const std::string dir = test::tempDir("validator");
     Rig rig;
-    rig.mesh = examples::makeIcosphere(1);
-    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {256, 2}).isOk());
     DisplacementMap map;
-    ASSERT_TRUE(examples::bakeRadialSurface(&map, rig.mesh, 256, 2, examples::headRadius).isOk());
-    rig.hasDisplacement = true;
+    ASSERT_NO_FATAL_FAILURE(test::makeExampleRig(&rig, &map));
     rig.displacement.uri = "rig.exr";
-    rig.displacement.encoding = "exr";
-    rig.displacement.width = rig.displacement.height = 256;
     ASSERT_TRUE(io::writeDisplacementExr(dir + "/rig.exr", map).isOk());
     std::vector<std::string> files = {dir + "/rig.glb", dir + "/rig.gltf"};
     ASSERT_TRUE(io::saveRig(files[0], rig).isOk());

@@ -2,12 +2,8 @@
 // frame, change with the level, and the displaced image differs from the
 // undisplaced one where the detail is (nose, ears) and nowhere outside the
 // model.  Headless through EGL; the windowed path once under xvfb-run.
-#include "procedural.h"
-#include "strata/baker/atlas.h"
-#include "strata/io/exr.h"
 #include "strata/io/png.h"
-#include "strata/io/rig_io.h"
-#include "test_util.h"
+#include "test_rigs.h"
 
 #include <cstdlib>
 
@@ -85,30 +81,12 @@ double meanDifference(const Image& a, const Image& b, int x0, int y0, int x1, in
     return sum / double(3 * (x1 - x0) * (y1 - y0));
 }
 
-// The built-in example's rig: icosphere(1) with the head map.
-std::string writeExampleRig(const std::string& dir)
-{
-    Rig rig;
-    rig.mesh = examples::makeIcosphere(1);
-    EXPECT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {256, 2}).isOk());
-    DisplacementMap map;
-    EXPECT_TRUE(examples::bakeRadialSurface(&map, rig.mesh, 256, 2, examples::headRadius).isOk());
-    rig.hasDisplacement = true;
-    rig.displacement.uri = "head.exr";
-    rig.displacement.encoding = "exr";
-    rig.displacement.width = rig.displacement.height = 256;
-    rig.displacement.recommendedLevel = 4;
-    EXPECT_TRUE(io::writeDisplacementExr(dir + "/head.exr", map).isOk());
-    EXPECT_TRUE(io::saveRig(dir + "/head.glb", rig).isOk());
-    return dir + "/head.glb";
-}
-
 }  // namespace
 
 TEST(Viewer, BuiltInExampleScreenshotsShowTheDetail)
 {
     const std::string dir = test::tempDir("viewer");
-    const std::string rig = writeExampleRig(dir);
+    const std::string rig = test::writeExampleRig(dir, "head");
     // Front view (yaw 0): the head faces +z, the nose is in the middle.
     const Image l0 = shoot(rig, "--level 0 --yaw 0 --pitch 0", dir + "/l0.png");
     const Image l4 = shoot(rig, "--level 4 --yaw 0 --pitch 0", dir + "/l4.png");
@@ -147,7 +125,7 @@ TEST(Viewer, WindowedScreenshotUnderXvfb)
     // xvfb-run and xauth come with cmake/install-deps.sh.
     ASSERT_EQ(test::runCommand("command -v xvfb-run").code, 0) << "xvfb-run is not installed";
     const std::string dir = test::tempDir("viewer_window");
-    const std::string rig = writeExampleRig(dir);
+    const std::string rig = test::writeExampleRig(dir, "head");
     const test::CommandResult r =
         test::runCommand("env -u WAYLAND_DISPLAY xvfb-run -a -s '-screen 0 640x480x24' " + std::string(STRATA_VIEW_EXE) +
                          " " + rig + " --no-grid --size 640x480 --screenshot " + dir + "/window.png");

@@ -159,7 +159,7 @@ Status bindSegments(SegmentBinding* binding, const glm::vec3* joints, const int*
         // Enclosed by the segment's joint planes at the smallest distance
         // first; otherwise the segment nearest in space that has a mapping.
         size_t best = segmentCount;
-        float bestKey = std::numeric_limits<float>::infinity();
+        float bestKey = std::numeric_limits<float>::infinity(), bestReach = 0.0f;
         Mapping bestMap;
         for (size_t i = 0; i < segmentCount; ++i) {
             const SkeletonSegment& g = out.segments[i];
@@ -175,17 +175,17 @@ Status bindSegments(SegmentBinding* binding, const glm::vec3* joints, const int*
                 bestKey = key;
                 best = i;
                 bestMap = m;
+                bestReach = reach;
             }
         }
         if (best == segmentCount)
             return Status(StatusCode::InvalidData,
                           "vertex " + std::to_string(v) + " cannot be mapped to any skeleton segment");
-        const SkeletonSegment& g = out.segments[best];
         out.segment[v] = uint32_t(best);
         out.alpha[v] = bestMap.alpha;
         out.distance[v] = bestMap.d;
         out.direction[v] = bestMap.n;
-        out.reach[v] = glm::length(p - closestOnSegment(p, joints[g.from], joints[g.to]));
+        out.reach[v] = bestReach;
     }
     *binding = std::move(out);
     return Status::ok();
