@@ -27,30 +27,14 @@ Rig columnRig()
     for (glm::vec3& p : rig.mesh.positions)
         p = glm::vec3(0.3f * p.x, 1.0f + p.y, 0.3f * p.z);
     Skeleton& s = rig.skeleton;
-    s.nodes.resize(2);
-    s.nodes[0].name = "hip";
-    s.nodes[1].name = "knee";
-    s.nodes[1].parent = 0;
-    s.nodes[1].rest.translation = glm::vec3(0.0f, 1.0f, 0.0f);
-    s.skin.joints = {0, 1};
-    s.skin.inverseBindMatrices = {glm::mat4(1.0f), glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -1.0f, 0.0f))};
-    s.weights.influences = 4;
-    for (const glm::vec3& p : rig.mesh.positions) {
-        const float w = glm::clamp(p.y - 0.5f, 0.0f, 1.0f);
-        s.weights.joints.insert(s.weights.joints.end(), {0, 1, 0, 0});
-        s.weights.weights.insert(s.weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
-    }
+    test::twoJointSkin(&s, rig.mesh, "hip", "knee", glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f),
+                       [](const glm::vec3& p) { return glm::clamp(p.y - 0.5f, 0.0f, 1.0f); });
     // "bend": the knee turns 60 degrees about z over one second; "still":
     // keys equal to the rest transform (identity joint motion).
     Animation bend;
     bend.name = "bend";
-    AnimationChannel c;
-    c.node = 1;
-    c.path = AnimationPath::Rotation;
     const glm::quat q0(1.0f, 0.0f, 0.0f, 0.0f), q1 = glm::angleAxis(glm::radians(60.0f), glm::vec3(0, 0, 1));
-    c.times = {0.0f, 1.0f};
-    c.values = {q0.x, q0.y, q0.z, q0.w, q1.x, q1.y, q1.z, q1.w};
-    bend.channels.push_back(c);
+    bend.channels.push_back(test::rotationKeys(1, {0.0f, 1.0f}, {q0, q1}));
     Animation still;
     still.name = "still";
     AnimationChannel t;
@@ -242,30 +226,12 @@ TEST(AnimationRealData, BakedPenguinStaysWatertightWhileAnimated)
     // y = -0.5, neck at y = 0.5 (exact in binary, so the bind pose is exactly
     // the identity); the upper body bends forward about x.
     Skeleton& s = rig.skeleton;
-    s.nodes.resize(2);
-    s.nodes[0].name = "pelvis";
-    s.nodes[0].rest.translation = glm::vec3(0.0f, -0.5f, 0.0f);
-    s.nodes[1].name = "neck";
-    s.nodes[1].parent = 0;
-    s.nodes[1].rest.translation = glm::vec3(0.0f, 1.0f, 0.0f);
-    s.skin.joints = {0, 1};
-    s.skin.inverseBindMatrices = {glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 0.5f, 0.0f)),
-                                  glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -0.5f, 0.0f))};
-    s.weights.influences = 4;
-    for (const glm::vec3& p : rig.mesh.positions) {
-        const float w = glm::clamp((p.y - 0.1f) / 0.8f, 0.0f, 1.0f);
-        s.weights.joints.insert(s.weights.joints.end(), {0, 1, 0, 0});
-        s.weights.weights.insert(s.weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
-    }
+    test::twoJointSkin(&s, rig.mesh, "pelvis", "neck", glm::vec3(0.0f, -0.5f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f),
+                       [](const glm::vec3& p) { return glm::clamp((p.y - 0.1f) / 0.8f, 0.0f, 1.0f); });
     Animation nod;
     nod.name = "nod";
-    AnimationChannel c;
-    c.node = 1;
-    c.path = AnimationPath::Rotation;
     const glm::quat q0(1, 0, 0, 0), q1 = glm::angleAxis(glm::radians(35.0f), glm::vec3(1, 0, 0));
-    c.times = {0.0f, 0.5f, 1.0f};
-    c.values = {q0.x, q0.y, q0.z, q0.w, q1.x, q1.y, q1.z, q1.w, q0.x, q0.y, q0.z, q0.w};
-    nod.channels.push_back(c);
+    nod.channels.push_back(test::rotationKeys(1, {0.0f, 0.5f, 1.0f}, {q0, q1, q0}));
     s.animations.push_back(nod);
     ASSERT_TRUE(finalizeSkeleton(&s, rig.mesh.positions.size()).isOk());
     const MeshTopologyStats control = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());

@@ -41,28 +41,12 @@ ExampleRig makeExampleRig()
     test::makeExampleRig(&example, &r.map);
     r.mesh = example.mesh;
     Skeleton& s = r.skeleton;
-    s.nodes.resize(2);
-    s.nodes[0].name = "neck";
-    s.nodes[1].name = "head";
-    s.nodes[1].parent = 0;
-    s.nodes[1].rest.translation = glm::vec3(0.0f, 0.5f, 0.0f);
-    s.skin.joints = {0, 1};
-    s.skin.inverseBindMatrices = {glm::mat4(1.0f), glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -0.5f, 0.0f))};
-    s.weights.influences = 4;
-    for (const glm::vec3& p : r.mesh.positions) {
-        const float w = glm::clamp(p.y + 0.5f, 0.0f, 1.0f);
-        s.weights.joints.insert(s.weights.joints.end(), {0, 1, 0, 0});
-        s.weights.weights.insert(s.weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
-    }
+    test::twoJointSkin(&s, r.mesh, "neck", "head", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
+                       [](const glm::vec3& p) { return glm::clamp(p.y + 0.5f, 0.0f, 1.0f); });
     Animation turn;
     turn.name = "turn";
-    AnimationChannel c;
-    c.node = 1;
-    c.path = AnimationPath::Rotation;
     const glm::quat q0(1, 0, 0, 0), q1 = glm::angleAxis(glm::radians(50.0f), glm::normalize(glm::vec3(1, 1, 0)));
-    c.times = {0.0f, 1.0f};
-    c.values = {q0.x, q0.y, q0.z, q0.w, q1.x, q1.y, q1.z, q1.w};
-    turn.channels.push_back(c);
+    turn.channels.push_back(test::rotationKeys(1, {0.0f, 1.0f}, {q0, q1}));
     s.animations.push_back(turn);
     EXPECT_TRUE(finalizeSkeleton(&s, r.mesh.vertexCount()).isOk());
     glm::vec3 lo(1e30f), hi(-1e30f);

@@ -11,7 +11,12 @@
 #include "strata/io/rig_io.h"
 #include "test_util.h"
 
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include <functional>
 #include <string>
+#include <vector>
 
 namespace strata {
 namespace test {
@@ -69,6 +74,44 @@ inline void expectWatertightRoundTrip(const io::Reconstruction& rec, const MeshT
     EXPECT_EQ(back.mesh.positions.size(), rec.positions.size()) << label;
     EXPECT_EQ(st.eulerCharacteristic, control.eulerCharacteristic) << label;
     EXPECT_EQ(st.boundaryEdges, 0u) << label;
+}
+
+/// A two-joint glTF-style skin on `mesh`: `root` at rootPosition, `child`
+/// at rootPosition + childOffset, inverse bind matrices from those places,
+/// and per vertex the weight childWeight(position) on the child (4 influences).
+inline void twoJointSkin(Skeleton* s, const ControlMesh& mesh, const char* root, const char* child,
+                         glm::vec3 rootPosition, glm::vec3 childOffset,
+                         const std::function<float(const glm::vec3&)>& childWeight)
+{
+    s->nodes.resize(2);
+    s->nodes[0].name = root;
+    s->nodes[0].rest.translation = rootPosition;
+    s->nodes[1].name = child;
+    s->nodes[1].parent = 0;
+    s->nodes[1].rest.translation = childOffset;
+    s->skin.joints = {0, 1};
+    s->skin.inverseBindMatrices = {glm::translate(glm::mat4(1.0f), -rootPosition),
+                                   glm::translate(glm::mat4(1.0f), -(rootPosition + childOffset))};
+    s->weights.influences = 4;
+    s->weights.joints.clear();
+    s->weights.weights.clear();
+    for (const glm::vec3& p : mesh.positions) {
+        const float w = childWeight(p);
+        s->weights.joints.insert(s->weights.joints.end(), {0, 1, 0, 0});
+        s->weights.weights.insert(s->weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
+    }
+}
+
+/// A LINEAR rotation channel on `node` through the given keys.
+inline AnimationChannel rotationKeys(int node, const std::vector<float>& times, const std::vector<glm::quat>& keys)
+{
+    AnimationChannel c;
+    c.node = node;
+    c.path = AnimationPath::Rotation;
+    c.times = times;
+    for (const glm::quat& q : keys)
+        c.values.insert(c.values.end(), {q.x, q.y, q.z, q.w});
+    return c;
 }
 
 }  // namespace test
