@@ -377,15 +377,6 @@ TEST(Plan, RejectsBadControlMeshes)
     EXPECT_FALSE(st.isOk());
     EXPECT_NE(st.message().find("vertex 3"), std::string::npos) << st.message();
 
-    ControlMesh fin = examples::makeSquare();  // three faces on one edge
-    fin.positions.push_back({0.5f, 0.5f, 1.0f});
-    fin.triangles.insert(fin.triangles.end(), {0, 2, 4});
-    fin.uvIndices.clear();
-    fin.uvs.clear();
-    st = Plan::create(&plan, fin, Scheme::Linear, 1);
-    EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("non-manifold"), std::string::npos) << st.message();
-
     ControlMesh repeated = examples::makeSquare();
     repeated.triangles[1] = repeated.triangles[0];
     EXPECT_FALSE(Plan::create(&plan, repeated, Scheme::Linear, 1).isOk());
@@ -394,10 +385,5 @@ TEST(Plan, RejectsBadControlMeshes)
     range.triangles[2] = 99;
     EXPECT_FALSE(Plan::create(&plan, range, Scheme::Smooth, 1).isOk());
 
-    ControlMesh flipped = examples::makeSquare();
-    std::swap(flipped.triangles[4], flipped.triangles[5]);
-    st = Plan::create(&plan, flipped, Scheme::Linear, 1);
-    EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("orientation"), std::string::npos) << st.message();
     EXPECT_FALSE(plan);
 }

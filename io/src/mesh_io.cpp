@@ -97,6 +97,9 @@ Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
         p = eol < endAll ? eol + 1 : endAll;
         if (!line.empty() && line.back() == '\r')
             line.pop_back();
+        const size_t hash = line.find('#');
+        if (hash != std::string::npos)
+            line.resize(hash);  // a trailing comment, as in "f 1 2 3 # comment"
         if (line.find('\0') != std::string::npos)
             return lineError(path, lineNo, "binary data in a text OBJ file");
         const char* s = line.c_str();
@@ -173,6 +176,10 @@ Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
             const size_t n = fv.size();
             for (size_t k = 1; k + 1 < n; ++k) {
                 const size_t a = start, b = (start + k) % n, c = (start + k + 1) % n;
+                if (fv[a] == fv[b] || fv[b] == fv[c] || fv[a] == fv[c]) {
+                    ++stats.degenerate;  // zero area: no surface to refine
+                    continue;
+                }
                 mesh.triangles.insert(mesh.triangles.end(), {fv[a], fv[b], fv[c]});
                 if (faceUV)
                     mesh.uvIndices.insert(mesh.uvIndices.end(), {ft[a], ft[b], ft[c]});

@@ -7,37 +7,6 @@
 #include <string>
 
 namespace strata {
-namespace {
-
-struct DirectedEdge {
-    uint64_t key;   // (min << 32) | max
-    uint32_t face;
-    bool forward;   // true when the face traverses min -> max
-};
-
-std::vector<DirectedEdge> sortedEdges(const uint32_t* triangles, size_t faceCount)
-{
-    std::vector<DirectedEdge> edges;
-    edges.reserve(faceCount * 3);
-    for (size_t f = 0; f < faceCount; ++f) {
-        for (int c = 0; c < 3; ++c) {
-            const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
-            const uint32_t lo = std::min(a, b), hi = std::max(a, b);
-            edges.push_back({(uint64_t(lo) << 32) | hi, uint32_t(f), a == lo});
-        }
-    }
-    std::sort(edges.begin(), edges.end(), [](const DirectedEdge& x, const DirectedEdge& y) {
-        return x.key != y.key ? x.key < y.key : x.face < y.face;
-    });
-    return edges;
-}
-
-std::string edgeName(uint64_t key)
-{
-    return "(" + std::to_string(key >> 32) + ", " + std::to_string(key & 0xffffffffu) + ")";
-}
-
-}  // namespace
 
 MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount)
 {
@@ -114,21 +83,6 @@ Status validateControlMesh(const ControlMesh& mesh)
                 return Status(StatusCode::InvalidData, "control UV " + std::to_string(i) + " is not finite");
     }
 
-    const std::vector<DirectedEdge> edges = sortedEdges(mesh.triangles.data(), nf);
-    for (size_t i = 0; i < edges.size();) {
-        size_t j = i;
-        while (j < edges.size() && edges[j].key == edges[i].key)
-            ++j;
-        if (j - i > 2)
-            return Status(StatusCode::InvalidData, "control mesh edge " + edgeName(edges[i].key) + " is shared by " +
-                                                       std::to_string(j - i) + " faces (non-manifold)");
-        if (j - i == 2 && edges[i].forward == edges[i + 1].forward)
-            return Status(StatusCode::InvalidData, "control faces " + std::to_string(edges[i].face) + " and " +
-                                                       std::to_string(edges[i + 1].face) +
-                                                       " have opposite orientations across edge " +
-                                                       edgeName(edges[i].key));
-        i = j;
-    }
     return Status::ok();
 }
 

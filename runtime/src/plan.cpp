@@ -217,8 +217,16 @@ Status Plan::build(const ControlMesh& mesh)
     samples_.resize(nv);
     linear_.resize(nv);
     for (size_t v = 0; v < nv; ++v) {
-        if (firstFace[v] == std::numeric_limits<uint32_t>::max())
-            return Status(StatusCode::InvalidData, "control mesh has an unreferenced vertex; remove it before refining");
+        if (firstFace[v] == std::numeric_limits<uint32_t>::max()) {
+            // An unreferenced control vertex refines to itself and nothing else.
+            if (linearCsr_.sizes[v] != 1)
+                return Status(StatusCode::InvalidData, "isolated refined vertex " + std::to_string(v) +
+                                                           " has an unexpected stencil");
+            const uint32_t self = uint32_t(linearCsr_.indices[size_t(linearCsr_.offsets[v])]);
+            linear_[v] = {{self, self, self}, {1.0f, 0.0f, 0.0f}};
+            samples_[v] = {kNoControlFace, glm::vec2(0.0f)};
+            continue;
+        }
         const uint32_t face = firstFace[v] >> (2 * level_);
         const uint32_t* corners = &mesh.triangles[3 * size_t(face)];
         float bary[3] = {0.0f, 0.0f, 0.0f};
@@ -285,7 +293,9 @@ Status Plan::build(const ControlMesh& mesh)
         }
         sampleUVs_.resize(nv);
         for (size_t v = 0; v < nv; ++v)
-            sampleUVs_[v] = uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
+            sampleUVs_[v] = samples_[v].face == kNoControlFace
+                                ? glm::vec2(0.0f)
+                                : uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
     }
     displacements_.assign(nv, 0.0f);
 
@@ -299,20 +309,25 @@ Status Plan::build(const ControlMesh& mesh)
 
         // One location array per control face (its ptex face), listing the
         // refined vertices whose canonical face it is.
+        // Isolated vertices (kNoControlFace sorts last) have no ptex face:
+        // they keep their control position through an identity stencil.
         std::vector<uint32_t> order(nv);
         for (size_t v = 0; v < nv; ++v)
             order[v] = uint32_t(v);
         std::stable_sort(order.begin(), order.end(),
                          [&](uint32_t a, uint32_t b) { return samples_[a].face < samples_[b].face; });
+        size_t located = nv;
+        while (located > 0 && samples_[order[located - 1]].face == kNoControlFace)
+            --located;
         std::vector<float> s(nv), t(nv);
         for (size_t k = 0; k < nv; ++k) {
             s[k] = samples_[order[k]].bary.x;
             t[k] = samples_[order[k]].bary.y;
         }
         LimitFactory::LocationArrayVec locations;
-        for (size_t k = 0; k < nv;) {
+        for (size_t k = 0; k < located;) {
             size_t j = k;
-            while (j < nv && samples_[order[j]].face == samples_[order[k]].face)
+            while (j < located && samples_[order[j]].face == samples_[order[k]].face)
                 ++j;
             LimitFactory::LocationArray loc;
             loc.ptexIdx = int(samples_[order[k]].face);
@@ -325,7 +340,7 @@ Status Plan::build(const ControlMesh& mesh)
         LimitFactory::Options lo;
         lo.generate1stDerivatives = true;
         std::unique_ptr<const LimitStencilTable> limit(LimitFactory::Create(*smooth, locations, nullptr, nullptr, lo));
-        if (!limit || size_t(limit->GetNumStencils()) != nv)
+        if (!limit || size_t(limit->GetNumStencils()) != located)
             return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected limit stencil table");
 
         const std::vector<int>& sizes = limit->GetSizes();
@@ -340,10 +355,17 @@ Status Plan::build(const ControlMesh& mesh)
             stencilOf[order[k]] = uint32_t(k);
         limitOffsets_.assign(nv + 1, 0);
         for (size_t v = 0; v < nv; ++v)
-            limitOffsets_[v + 1] = limitOffsets_[v] + uint32_t(sizes[stencilOf[v]]);
+            limitOffsets_[v + 1] = limitOffsets_[v] + (stencilOf[v] < located ? uint32_t(sizes[stencilOf[v]]) : 1u);
         limitIndices_.resize(limitOffsets_[nv]);
         limitWeights_.resize(size_t(limitOffsets_[nv]) * 3);
         for (size_t v = 0; v < nv; ++v) {
+            if (stencilOf[v] >= located) {
+                const size_t dst = limitOffsets_[v];
+                limitIndices_[dst] = linear_[v].index[0];
+                limitWeights_[3 * dst + 0] = 1.0f;
+                limitWeights_[3 * dst + 1] = limitWeights_[3 * dst + 2] = 0.0f;
+                continue;
+            }
             const size_t src = size_t(offsets[stencilOf[v]]);
             for (uint32_t k = 0, n = uint32_t(sizes[stencilOf[v]]); k < n; ++k) {
                 const size_t dst = limitOffsets_[v] + k;
@@ -369,7 +391,7 @@ Status Plan::setDisplacement(const DisplacementMap& map, float scale)
     if (!st)
         return st;
     for (size_t v = 0; v < sampleUVs_.size(); ++v)
-        displacements_[v] = scale * sampleDisplacement(map, sampleUVs_[v]);
+        displacements_[v] = samples_[v].face == kNoControlFace ? 0.0f : scale * sampleDisplacement(map, sampleUVs_[v]);
     return Status::ok();
 }
 

@@ -27,10 +27,12 @@ struct ControlMesh {
 };
 
 /// Checks that a control mesh can be refined: at least one face, indices in
-/// range, no repeated vertex inside a face, finite positions and UVs, UV
-/// indices matching the faces, and every edge shared by at most two faces
-/// with consistent orientation (OpenSubdiv's Loop scheme needs a manifold).
-/// The message names the first offending face, vertex or edge.
+/// range, no repeated vertex inside a face (zero area: loaders drop such
+/// faces), finite positions and UVs, UV indices matching the faces.  Any
+/// topology is accepted beyond that: edges shared by any number of faces,
+/// non-manifold vertices, inconsistent orientation and unreferenced
+/// vertices all refine (OpenSubdiv treats non-manifold features as sharp).
+/// The message names the first offending face, vertex or UV.
 Status validateControlMesh(const ControlMesh& mesh);
 
 /// Counts used by tests and tools: edges, boundary edges, non-manifold edges.

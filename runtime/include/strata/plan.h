@@ -48,9 +48,14 @@ constexpr int kMaxLevel = 6;
 /// barycentric weights (b1, b2) of its 2nd and 3rd corner (b0 = 1 - b1 - b2),
 /// which is also the (s, t) of OpenSubdiv's triangular ptex parameterisation.
 struct SampleLocation {
-    uint32_t face;
+    uint32_t face;  ///< kNoControlFace for a vertex no face uses
     glm::vec2 bary;
 };
+
+/// SampleLocation::face of a refined vertex that descends from a control
+/// vertex no face references: it stays where its control vertex is and is
+/// never displaced.
+constexpr uint32_t kNoControlFace = 0xffffffffu;
 
 class Plan {
 public:

@@ -15,11 +15,13 @@ namespace io {
 struct ObjReadInfo {
     size_t polygons = 0;      ///< faces in the file
     size_t triangulated = 0;  ///< of which had more than 3 corners (fan-triangulated)
+    size_t degenerate = 0;    ///< triangles dropped because they repeat a vertex (zero area)
 };
 
 /// Reads an OBJ as a control mesh: `v` positions, `vt` UVs (flipped to
 /// glTF's v-down convention), `f` faces with optional /vt (negative indices
-/// allowed), polygons fan-triangulated.  Other statements are ignored.
+/// allowed), polygons fan-triangulated; triangles that repeat a vertex are
+/// dropped and counted in info.  Other statements and `#` comments are ignored.
 /// Errors name the file and line.
 Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info = nullptr);
 
