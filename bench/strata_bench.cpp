@@ -216,9 +216,9 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         DisplacementMap q;
         std::vector<baker::LevelError> errs;
         if (io::loadRig(rigPath, &rig) && io::loadRigQuantizedMap(rigPath, rig, &q) &&
-            baker::closedLoopError(&errs, rig.mesh, q, rig.displacement.scheme, high, level, 2) &&
-            size_t(level) < errs.size()) {
-            const baker::LevelError& e = errs[size_t(level)];
+            baker::closedLoopError(&errs, rig.mesh, q, rig.displacement.scheme, high, level, level, 2) &&
+            !errs.empty()) {
+            const baker::LevelError& e = errs.back();
             strata8.acc.toRms = e.forwardRms / diag;
             strata8.acc.fromRms = e.backwardRms / diag;
             strata8.acc.rms = std::max(e.forwardRms, e.backwardRms) / diag;

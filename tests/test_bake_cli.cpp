@@ -47,7 +47,7 @@ TEST(BakeCli, BakesTheBuiltInShapeAndReportsIt)
     const std::string dir = strata::test::tempDir("bake_cli_ok");
     writeInputs(dir);
     const Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --png8 --report " + dir +
-                         "/report.json --error-levels 3 -o " + dir + "/rig.glb");
+                         "/report.json --error-levels 3 --exr --layers -o " + dir + "/rig.glb");
     ASSERT_EQ(r.code, 0) << r.output;
     for (const char* f : {"rig.glb", "rig.exr", "rig_layers.png", "rig.png8.png", "report.json"})
         EXPECT_TRUE(strata::test::fileExists(dir + "/" + f)) << f;
@@ -66,7 +66,6 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
     writeText(dir + "/empty.obj", "");
     writeText(dir + "/nan.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
     writeText(dir + "/garbage.ply", "this is not a ply file\n");
-    // A control mesh with an edge shared by three faces.
     // The control mesh moved far away.
     {
         std::ifstream in(dir + "/control.obj");
@@ -100,7 +99,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "high.obj"},
         {ok + " --uv keep -o " + out, "no UVs"},
         {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj -o " + out, "overlap"},
-        {ok + " -o " + dir + "/no/such/dir/rig.glb", "rig.exr"},
+        {ok + " -o " + dir + "/high.obj/sub/rig.glb", "cannot create the output folder"},
         {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
         {ok + " --size 3 -o " + out, "--size"},
         {ok, "-o are required"},
@@ -113,6 +112,47 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
         EXPECT_EQ(filesIn(dir + "/out"), 0u) << c.args;
     }
+}
+
+TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_selfcontained");
+    writeInputs(dir);
+    const std::string rig = dir + "/new/folder/rig.glb";
+    Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none -o " + rig);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(filesIn(dir + "/new/folder", /*withHidden=*/true), 1u);  // the rig alone: the map is inside
+    // Copied alone elsewhere, it reconstructs bit for bit the same.
+    std::system(("mkdir -p " + dir + "/moved && cp " + rig + " " + dir + "/moved/copy.glb").c_str());
+    const std::string a = dir + "/a.ply", b = dir + "/b.ply";
+    ASSERT_EQ(std::system((std::string(STRATA_RECONSTRUCT_EXE) + " " + rig + " --level 3 -o " + a).c_str()), 0);
+    ASSERT_EQ(std::system((std::string(STRATA_RECONSTRUCT_EXE) + " " + dir + "/moved/copy.glb --level 3 -o " + b).c_str()), 0);
+    EXPECT_EQ(strata::test::readText(a), strata::test::readText(b));
+    strata::Rig loaded;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/moved/copy.glb", &loaded).isOk());
+    EXPECT_GE(loaded.displacement.image, 0);
+    EXPECT_EQ(loaded.displacement.encoding, "png16");
+    // --report - writes the JSON to stdout; --version answers.
+    r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 --report - -o " + rig);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("\"closedLoop\""), std::string::npos) << r.output;
+    r = run("--version");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.output.find("strata-bake 0."), std::string::npos) << r.output;
+}
+
+TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_rebake");
+    writeInputs(dir);
+    const std::string args = "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none";
+    ASSERT_EQ(run(args + " -o " + dir + "/rig.glb").code, 0);
+    const std::string before = strata::test::readText(dir + "/rig.glb");
+    ASSERT_FALSE(before.empty());
+    const Result r = run(args + " --size 256 --report " + dir + "/nodir/r.json -o " + dir + "/rig.glb");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/rig.glb"), before);
+    EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 3u) << "no staging file is left behind";  // high.obj, control.obj, rig.glb
 }
 
 TEST(BakeCli, SkinnedControlRigIsCarriedThrough)

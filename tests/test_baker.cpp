@@ -107,7 +107,7 @@ TEST(Bake, SphereOntoIcosahedronReconstructsTheSphere)
     EXPECT_EQ(report.raster.multiLayerTexels, 0u);  // a convex control mesh has no overfolds
     EXPECT_GT(report.coverage, 0.99);
     std::vector<LevelError> errors;
-    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 6, 2).isOk());
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 0, 6, 2).isOk());
     // Both meshes are chords of the unit sphere: the input (edge 1.05 / 32)
     // sags by edge^2 / 8 = 1.3e-4, level 6 (edge 1.05 / 64) by 3.4e-5, and
     // bilinear sampling adds |d''| h^2 / 2 ~ 4e-5 (h = 1.05 / 120).  Their sum,
@@ -240,7 +240,7 @@ void checkRealPair(const RealPair& pair, const std::string& highPath, const std:
     while (level < kMaxLevel && (control.faceCount() << (2 * level)) <= high.faceCount())
         ++level;
     std::vector<LevelError> errors;
-    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Smooth, high, level, 2).isOk());
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Smooth, high, 0, level, 2).isOk());
     const LevelError& e = errors.back();
     // Issue bar: RMS at most 0.1% of the bounding-box diagonal, both directions.
     EXPECT_LE(e.forwardRms / report.diagonal, 1e-3) << pair.high << " level " << level;

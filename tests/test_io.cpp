@@ -176,14 +176,14 @@ TEST(Rig, RejectsAnotherFormatVersion)
     const std::string dir = test::tempDir("rig_version");
     ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", exampleRig(64)).isOk());
     std::string json = readText(dir + "/rig.gltf");
-    const size_t at = json.find("\"version\": 1");
+    const size_t at = json.find("\"version\": 2");
     ASSERT_NE(at, std::string::npos);
     json.replace(at, 12, "\"version\": 7");
     writeText(dir + "/v7.gltf", json);
     Rig rig;
     const Status st = io::loadRig(dir + "/v7.gltf", &rig);
     EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("version 7, this build reads version 1"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("version 7, this build reads versions 1 and 2"), std::string::npos) << st.message();
 }
 
 TEST(Rig, RejectsBrokenGltf)

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <dirent.h>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -89,13 +90,13 @@ inline std::string readText(const std::string& path)
     return ss.str();
 }
 
-/// Entries of a directory, not counting hidden ones.
-inline size_t filesIn(const std::string& dir)
+/// Entries of a directory, not counting hidden ones unless asked.
+inline size_t filesIn(const std::string& dir, bool withHidden = false)
 {
     size_t n = 0;
     if (DIR* d = opendir(dir.c_str())) {
         while (dirent* e = readdir(d))
-            n += e->d_name[0] != '.';
+            n += withHidden ? std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0 : e->d_name[0] != '.';
         closedir(d);
     }
     return n;

@@ -20,7 +20,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -36,8 +40,10 @@ const char* kUsage =
     "usage: strata-bake --high HIGH.{obj,ply,stl,off,glb,gltf} --control CONTROL.{obj,glb,gltf}|auto\n"
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
-    "                   [--error-levels N] [--skeleton JOINTS.json] -o RIG.{glb,gltf}\n"
-    "                   [--report REPORT.json]\n";
+    "                   [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
+    "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
+    "The rig is one self-contained file: the map is embedded as a 16-bit PNG.  --exr also\n"
+    "writes it as RIG.exr for pipelines; --layers writes RIG_layers.png (surface layers per texel).\n";
 
 double msSince(std::chrono::steady_clock::time_point t0)
 {
@@ -82,14 +88,46 @@ private:
 
 // Files written by this run, removed again if a later step fails, so a
 // failed bake leaves nothing behind.
+// Every output is first written under a staging name beside its target and
+// renamed into place only when the whole bake has succeeded, so a failed
+// command never removes or truncates what an earlier one wrote.
 struct Outputs {
-    std::vector<std::string> written;
+    std::vector<std::string> written;  // final names
     bool committed = false;
+    static std::string staged(const std::string& path)
+    {
+        const std::string dir = io::directoryOf(path);
+        const size_t slash = path.find_last_of('/');
+        const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+        return (dir.empty() ? std::string() : dir + "/") + ".strata-staging-" + name;
+    }
+    // Writes through `write(stagedPath)`; errors name the final path only.
+    template <typename F>
+    void write(const std::string& path, F&& write)
+    {
+        const std::string tmp = staged(path);
+        Status st = write(tmp);
+        if (!st) {
+            std::remove(tmp.c_str());
+            std::string msg = st.message();
+            for (size_t at; (at = msg.find(tmp)) != std::string::npos;)
+                msg.replace(at, tmp.size(), path);
+            throw cli::Error(msg);
+        }
+        written.push_back(path);
+    }
+    void commit()
+    {
+        for (const std::string& p : written)
+            if (std::rename(staged(p).c_str(), p.c_str()) != 0)
+                throw cli::Error(p + ": cannot replace the file (" + std::strerror(errno) + ")");
+        committed = true;
+    }
     ~Outputs()
     {
         if (!committed)
             for (const std::string& p : written)
-                std::remove(p.c_str());
+                std::remove(staged(p).c_str());
     }
 };
 
@@ -120,7 +158,8 @@ int main(int argc, char** argv)
         size_t controlFaces = 0;
         baker::BakeOptions options;
         bool asFloat = false;
-        int pngBits = 0, errorLevels = kMaxLevel;
+        int pngBits = 0, errorFrom = -2, errorTo = -2;  // -2: around the recommended level
+        bool writeExr = false, writeLayers = false;
         options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -128,6 +167,13 @@ int main(int argc, char** argv)
             if (a == "-h" || a == "--help") {
                 std::fputs(kUsage, stdout);
                 return 0;
+            } else if (a == "--version") {
+                std::printf("strata-bake %s\n", cli::kVersion);
+                return 0;
+            } else if (a == "--exr") {
+                writeExr = true;
+            } else if (a == "--layers") {
+                writeLayers = true;
             } else if (a == "--high") {
                 highPath = value();
             } else if (a == "--control") {
@@ -159,7 +205,17 @@ int main(int argc, char** argv)
             } else if (a == "--threads") {
                 options.threads = cli::parseInt(a, value(), 1, 256);
             } else if (a == "--error-levels") {
-                errorLevels = cli::parseInt(a, value(), -1, kMaxLevel);
+                const std::string v = value();
+                const size_t colon = v.find(':');
+                if (v == "none") {
+                    errorFrom = errorTo = -1;
+                } else if (colon == std::string::npos) {
+                    errorFrom = 0;
+                    errorTo = cli::parseInt(a, v, -1, kMaxLevel);
+                } else {
+                    errorFrom = cli::parseInt(a, v.substr(0, colon), 0, kMaxLevel);
+                    errorTo = cli::parseInt(a, v.substr(colon + 1), errorFrom, kMaxLevel);
+                }
             } else if (a == "-o" || a == "--output") {
                 outPath = value();
             } else if (a == "--report") {
@@ -184,6 +240,7 @@ int main(int argc, char** argv)
         if (!st)
             throw cli::Error(st.message());
         ControlMesh control;
+        Rig controlRig;     // a glTF control keeps its whole document for the output
         Skeleton skeleton;  // carried through from a skinned glTF control rig
         if (controlPath == "auto") {
             if (controlFaces == 0)
@@ -195,8 +252,12 @@ int main(int argc, char** argv)
                 throw cli::Error("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
             uvMode = "auto";
         } else {
-            if (!(st = baker::loadControlMesh(controlPath, &control, &skeleton)))
+            if (!(st = baker::loadControlRig(controlPath, &controlRig)))
                 throw cli::Error(st.message());
+            for (const std::string& w : controlRig.warnings)
+                std::fprintf(stderr, "strata-bake: warning: %s: %s\n", controlPath.c_str(), w.c_str());
+            control = controlRig.mesh;
+            skeleton = controlRig.skeleton;
             if (uvMode.empty())
                 uvMode = control.hasUVs() ? "keep" : "auto";
             if (uvMode == "keep" && !control.hasUVs())
@@ -212,6 +273,7 @@ int main(int argc, char** argv)
                 throw cli::Error(st.message());
             if (!(st = bindSkeletonWeights(&skeleton, control)))
                 throw cli::Error(skeletonPath + ": " + st.message());
+            controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
         }
         const double loadMs = msSince(t0);
 
@@ -265,23 +327,26 @@ int main(int argc, char** argv)
 
         // Outputs.
         t0 = std::chrono::steady_clock::now();
+        std::error_code mkdirError;
+        if (!io::directoryOf(outPath).empty())
+            std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
+        if (mkdirError)
+            throw cli::Error(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
         Outputs outputs;
-        Rig rig;
+        Rig rig = std::move(controlRig);
         rig.mesh = control;
         rig.skeleton = std::move(skeleton);
         rig.hasDisplacement = true;
-        rig.displacement.uri = stem + ".exr";
-        rig.displacement.encoding = "exr";
-        rig.displacement.width = rig.displacement.height = map.width;
+        rig.displacement = DisplacementInfo();
         rig.displacement.scheme = options.scheme;
-        // Recommended level: the first whose triangle count exceeds the high-res mesh's.
         int recommended = 0;
         while (recommended < kMaxLevel && (control.faceCount() << (2 * recommended)) <= high.faceCount())
             ++recommended;
         rig.displacement.recommendedLevel = recommended;
-        if (!(st = io::writeDisplacementExr(base + ".exr", map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half)))
-            throw cli::Error(st.message());
-        outputs.written.push_back(base + ".exr");
+        if (writeExr)
+            outputs.write(base + ".exr", [&](const std::string& p) {
+                return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half);
+            });
         if (pngBits) {
             const float range = rep.dmax - rep.dmin;
             const double levels = double((1 << pngBits) - 1);  // eq. 12 with 2^n - 1 so dmax maps to the top level
@@ -291,78 +356,84 @@ int main(int argc, char** argv)
                 q[i] = uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * levels));
             }
             const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
-            if (!(st = io::writePngGray(png, map.width, map.height, pngBits, q)))
-                throw cli::Error(st.message());
-            outputs.written.push_back(png);
+            outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
             rig.displacement.quantized.uri = io::stemOf(png) + ".png";
             rig.displacement.quantized.bits = pngBits;
             rig.displacement.quantized.dmin = rep.dmin;
             rig.displacement.quantized.dmax = rep.dmax;
         }
-        const std::string layersPath = base + "_layers.png";
-        if (!(st = io::writePngRgb(layersPath, map.width, map.height, layerImage(layers))))
-            throw cli::Error(st.message());
-        outputs.written.push_back(layersPath);
-        if (!(st = io::saveRig(outPath, rig)))
-            throw cli::Error(st.message());
-        outputs.written.push_back(outPath);
+        if (writeLayers)
+            outputs.write(base + "_layers.png", [&](const std::string& p) {
+                return io::writePngRgb(p, map.width, map.height, layerImage(layers));
+            });
+        std::vector<std::string> notes;
+        outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes); });
+        for (const std::string& n : notes)
+            std::fprintf(stderr, "strata-bake: warning: %s: %s\n", outPath.c_str(), n.c_str());
         const double writeMs = msSince(t0);
 
-        // Closed loop: reconstruct from the files just written, as the runtime will.
+        // Closed loop: reconstruct from the rig just written, as the runtime
+        // will, at the levels around the recommended one unless asked.
+        if (errorFrom == -2) {
+            errorFrom = std::max(0, recommended - 1);
+            errorTo = std::min(kMaxLevel, recommended + 1);
+        }
         std::vector<baker::LevelError> errors;
         double errorMs = 0.0;
-        if (errorLevels >= 0) {
+        if (errorTo >= 0) {
             Rig written;
             DisplacementMap writtenMap;
-            if (!(st = io::loadRig(outPath, &written)) || !(st = io::loadRigDisplacementMap(outPath, written, &writtenMap)))
-                throw cli::Error(st.message());
+            const std::string staged = Outputs::staged(outPath);
+            if (!(st = io::loadRig(staged, &written)) || !(st = io::loadRigDisplacementMap(staged, written, &writtenMap)))
+                throw cli::Error(outPath + ": the rig just written does not load back: " + st.message());
             t0 = std::chrono::steady_clock::now();
             Progress p("measuring the closed-loop error");
-            if (!(st = baker::closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorLevels,
+            if (!(st = baker::closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
                                               options.threads)))
                 throw cli::Error(st.message());
             errorMs = msSince(t0);
         }
 
+        FILE* summary = reportPath == "-" ? stderr : stdout;  // stdout is the JSON then
         auto fileSize = [](const std::string& p) {
             std::vector<unsigned char> b;
-            return io::readFile(p, &b).isOk() ? double(b.size()) : 0.0;
+            return io::readFile(Outputs::staged(p), &b).isOk() ? double(b.size()) : 0.0;
         };
         const double diag = rep.diagonal;
-        std::printf("strata-bake: %s onto %s (%s scheme)\n", highPath.c_str(), controlPath.c_str(),
+        std::fprintf(summary, "strata-bake: %s onto %s (%s scheme)\n", highPath.c_str(), controlPath.c_str(),
                     schemeName(options.scheme));
-        std::printf("  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
+        std::fprintf(summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
                     rep.highTriangles, rep.typicalEdge);
         if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
             highStats.nonManifoldEdges)
-            std::printf("  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
+            std::fprintf(summary, "  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
                         "triangles, %zu non-manifold edges\n",
                         highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
                         highStats.nonManifoldEdges);
-        std::printf("  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
+        std::fprintf(summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                     control.faceCount(), uvMode == "auto" ? "generated (per-triangle atlas)" : "kept");
-        std::printf("  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
-        std::printf("  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
+        std::fprintf(summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        std::fprintf(summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
                     rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
-        std::printf("  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
+        std::fprintf(summary, "  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
                     rep.raster.borderTriangles, rep.raster.pieces, 100.0 * rep.coverage, 100.0 * rep.overlapFraction);
-        std::printf("  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
+        std::fprintf(summary, "  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
                     rep.lineFilledTexels);
-        std::printf("  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
+        std::fprintf(summary, "  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
                     100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
-        std::printf("  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
+        std::fprintf(summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
                     "closed loop %.0f ms\n",
                     loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
-        std::printf("  outputs      ");
+        std::fprintf(summary, "  outputs      ");
         for (const std::string& p : outputs.written)
-            std::printf(" %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
-        std::printf("\n");
+            std::fprintf(summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
+        std::fprintf(summary, "\n");
         const double bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
         if (!errors.empty()) {
-            std::printf("  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
-            std::printf("    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
+            std::fprintf(summary, "  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
+            std::fprintf(summary, "    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
             for (const baker::LevelError& e : errors)
-                std::printf("    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
+                std::fprintf(summary, "    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
                             100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
                             100.0 * e.backwardMax / diag);
         }
@@ -404,10 +475,12 @@ int main(int argc, char** argv)
                                   {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
             report["closedLoop"] = levels;
             const std::string text = report.dump(2) + "\n";
-            if (!(st = io::writeFileAtomic(reportPath, text.data(), text.size())))
-                throw cli::Error(st.message());
+            if (reportPath == "-")
+                std::fwrite(text.data(), 1, text.size(), stdout);
+            else
+                outputs.write(reportPath, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
         }
-        outputs.committed = true;
+        outputs.commit();
         return 0;
     });
 }

@@ -12,6 +12,12 @@
 namespace strata {
 namespace cli {
 
+/// The project version every tool's --version prints.
+#ifndef STRATA_VERSION
+#error "tools define STRATA_VERSION (the project version) on the compile line"
+#endif
+constexpr const char* kVersion = STRATA_VERSION;
+
 /// Thrown inside a tool for any user-facing failure; main prints it.
 struct Error : std::runtime_error {
     using std::runtime_error::runtime_error;

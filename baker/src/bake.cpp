@@ -268,7 +268,7 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
 }
 
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
-                       Scheme scheme, const TriangleMesh& high, int maxLevel, int threads)
+                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads)
 {
     TriangleIndex highIndex;
     highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
@@ -278,7 +278,7 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
     computeControlNormals(normals.data(), control.positions.data(), normals.size(), control.triangles.data(),
                           control.faceCount());
     out->clear();
-    for (int level = 0; level <= maxLevel; ++level) {
+    for (int level = std::max(0, minLevel); level <= maxLevel; ++level) {
         std::unique_ptr<Plan> plan;
         Status st = Plan::create(&plan, control, scheme, level);
         if (st)

@@ -193,28 +193,39 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     return Status::ok();
 }
 
-Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skeleton)
+Status loadControlRig(const std::string& path, Rig* out)
 {
     const std::string ext = io::extensionOf(path);
     Status st;
-    ControlMesh mesh;
+    Rig rig;
     if (ext == ".obj") {
-        if (!(st = io::readObj(path, &mesh)))
+        io::ObjReadInfo info;
+        if (!(st = io::readObj(path, &rig.mesh, &info)))
             return st;
+        if (info.degenerate)
+            rig.warnings.push_back(std::to_string(info.degenerate) + " triangles repeat a vertex (zero area) and are left out");
     } else if (ext == ".glb" || ext == ".gltf") {
-        Rig rig;
         if (!(st = io::loadRig(path, &rig)))
             return st;
-        mesh = std::move(rig.mesh);
-        if (skeleton)
-            *skeleton = std::move(rig.skeleton);
     } else {
         return Status(StatusCode::InvalidArgument,
                       path + ": unknown control mesh format \"" + ext + "\" (use .obj, .glb or .gltf)");
     }
-    if (!(st = validateControlMesh(mesh)))
+    if (!(st = validateControlMesh(rig.mesh)))
         return Status(st.code(), path + ": not a usable control mesh: " + st.message());
-    *out = std::move(mesh);
+    *out = std::move(rig);
+    return Status::ok();
+}
+
+Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skeleton)
+{
+    Rig rig;
+    Status st = loadControlRig(path, &rig);
+    if (!st)
+        return st;
+    *out = std::move(rig.mesh);
+    if (skeleton)
+        *skeleton = std::move(rig.skeleton);
     return Status::ok();
 }
 

@@ -4,6 +4,7 @@
 
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -95,24 +96,37 @@ Status readFloatAccessor(const tinygltf::Model& model, int index, int components
     Status st = locate(model, index, components, what, &base, &stride, &count, &ctype);
     if (!st)
         return st;
+    // Any component type: floats as they are, normalized integers mapped to
+    // [0, 1] or [-1, 1], plain integers as their values (KHR_mesh_quantization).
     const bool normalized = model.accessors[size_t(index)].normalized;
-    if (ctype != TINYGLTF_COMPONENT_TYPE_FLOAT &&
-        !(normalized && (ctype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || ctype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)))
-        return Status(StatusCode::Unsupported, what + ": component type " + std::to_string(ctype) +
-                                                   " is not float or normalized unsigned");
     out->resize(count * size_t(components));
     for (size_t i = 0; i < count; ++i) {
         const unsigned char* e = base + i * stride;
         for (int c = 0; c < components; ++c) {
-            float v;
-            if (ctype == TINYGLTF_COMPONENT_TYPE_FLOAT) {
-                std::memcpy(&v, e + 4 * c, 4);
-            } else if (ctype == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) {
-                v = float(e[c]) / 255.0f;
-            } else {
+            float v = 0.0f;
+            switch (ctype) {
+            case TINYGLTF_COMPONENT_TYPE_FLOAT: std::memcpy(&v, e + 4 * c, 4); break;
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = normalized ? float(e[c]) / 255.0f : float(e[c]); break;
+            case TINYGLTF_COMPONENT_TYPE_BYTE: {
+                const float b = float(int8_t(e[c]));
+                v = normalized ? std::max(b / 127.0f, -1.0f) : b;
+                break;
+            }
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
                 uint16_t u;
                 std::memcpy(&u, e + 2 * c, 2);
-                v = float(u) / 65535.0f;
+                v = normalized ? float(u) / 65535.0f : float(u);
+                break;
+            }
+            case TINYGLTF_COMPONENT_TYPE_SHORT: {
+                int16_t u;
+                std::memcpy(&u, e + 2 * c, 2);
+                v = normalized ? std::max(float(u) / 32767.0f, -1.0f) : float(u);
+                break;
+            }
+            default:
+                return Status(StatusCode::Unsupported, what + ": component type " + std::to_string(ctype) +
+                                                           " cannot be read as numbers");
             }
             if (!std::isfinite(v))
                 return Status(StatusCode::InvalidData, what + ": element " + std::to_string(i) + " is not finite");

@@ -18,5 +18,17 @@ namespace io {
 Status writeGltfMesh(const std::string& path, const MeshView& mesh, const char* name,
                      const tinygltf::Value* meshExtras, const Skeleton* skeleton = nullptr);
 
+/// The model writeGltfMesh writes, for callers that add to it first.
+void buildGltfMesh(tinygltf::Model* out, const MeshView& mesh, const char* name, const tinygltf::Value* meshExtras,
+                   const Skeleton* skeleton = nullptr);
+
+/// Serialises a model (.glb or .gltf by extension), atomically.
+Status writeGltfModel(const std::string& path, const tinygltf::Model& model);
+
+/// Appends bytes to buffer 0 (4-byte aligned) as a new bufferView; returns its index.
+int appendBufferView(tinygltf::Model& model, const void* data, size_t bytes, int target);
+/// Appends an accessor over a whole bufferView; returns its index.
+int appendAccessor(tinygltf::Model& model, int view, int componentType, int type, size_t count);
+
 }  // namespace io
 }  // namespace strata

@@ -264,8 +264,12 @@ Status writePly(const std::string& path, const MeshView& m)
     return writeFileAtomic(path, out.data(), out.size());
 }
 
+}  // namespace
+
 int appendBufferView(tinygltf::Model& model, const void* data, size_t bytes, int target)
 {
+    if (model.buffers.empty())
+        model.buffers.resize(1);
     std::vector<unsigned char>& buf = model.buffers[0].data;
     while (buf.size() % 4)
         buf.push_back(0);
@@ -291,10 +295,8 @@ int appendAccessor(tinygltf::Model& model, int view, int componentType, int type
     return int(model.accessors.size() - 1);
 }
 
-}  // namespace
-
-Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras,
-                     const Skeleton* skeleton)
+void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, const tinygltf::Value* meshExtras,
+                   const Skeleton* skeleton)
 {
     const bool hasUV = m.uvs != nullptr;
     // Split vertices where their UVs differ (glTF attributes are per vertex).
@@ -473,7 +475,11 @@ Status writeGltfMesh(const std::string& path, const MeshView& m, const char* nam
     model.scenes.push_back(scene);
     model.defaultScene = 0;
     model.buffers[0].data.resize((model.buffers[0].data.size() + 3) & ~size_t(3), 0);
+    *out = std::move(model);
+}
 
+Status writeGltfModel(const std::string& path, const tinygltf::Model& model)
+{
     tinygltf::TinyGLTF writer;
     std::ostringstream stream;
     const bool binary = extensionOf(path) == ".glb";
@@ -481,6 +487,14 @@ Status writeGltfMesh(const std::string& path, const MeshView& m, const char* nam
         return Status(StatusCode::IoError, path + ": glTF serialisation failed");
     const std::string bytes = stream.str();
     return writeFileAtomic(path, bytes.data(), bytes.size());
+}
+
+Status writeGltfMesh(const std::string& path, const MeshView& m, const char* name, const tinygltf::Value* meshExtras,
+                     const Skeleton* skeleton)
+{
+    tinygltf::Model model;
+    buildGltfMesh(&model, m, name, meshExtras, skeleton);
+    return writeGltfModel(path, model);
 }
 
 Status writeMesh(const std::string& path, const MeshView& mesh)

@@ -7,6 +7,8 @@
 #include <stb/stb_image.h>
 #include <zlib.h>
 
+#include <cstdlib>
+
 namespace strata {
 namespace io {
 namespace {
@@ -27,53 +29,123 @@ void chunk(std::string& out, const char* type, const std::string& data)
     put32(out, uint32_t(crc32(0, reinterpret_cast<const Bytef*>(typed.data()), uInt(typed.size()))));
 }
 
-// colourType 0 = grey, 2 = RGB; rows already laid out big-endian.
-Status writePng(const std::string& path, int width, int height, int bits, int colourType, int channels,
-                const std::vector<uint8_t>& rowBytes)
+// PNG filter of one row (types 0-4, RFC 2083 6.2); bpp bytes per pixel.
+void filterRow(int type, const uint8_t* row, const uint8_t* prev, size_t n, size_t bpp, uint8_t* out)
+{
+    for (size_t i = 0; i < n; ++i) {
+        const int a = i >= bpp ? row[i - bpp] : 0, b = prev ? prev[i] : 0, c = (prev && i >= bpp) ? prev[i - bpp] : 0;
+        int pred = 0;
+        switch (type) {
+        case 1: pred = a; break;
+        case 2: pred = b; break;
+        case 3: pred = (a + b) / 2; break;
+        case 4: {
+            const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+            pred = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
+            break;
+        }
+        default: break;
+        }
+        out[i] = uint8_t(row[i] - pred);
+    }
+}
+
+// colourType 0 = grey, 2 = RGB; rows already laid out big-endian.  Each row
+// takes the filter with the smallest sum of absolute residuals (libpng's
+// heuristic), which suits smooth displacement maps.
+Status encodePng(int width, int height, int bits, int colourType, int channels, const std::vector<uint8_t>& rowBytes,
+                 std::string* out)
 {
     if (width <= 0 || height <= 0)
-        return Status(StatusCode::InvalidArgument, path + ": empty image");
+        return Status(StatusCode::InvalidArgument, "empty image");
     const size_t stride = size_t(width) * size_t(channels) * size_t(bits / 8);
+    const size_t bpp = size_t(channels) * size_t(bits / 8);
     std::string raw;
     raw.reserve((stride + 1) * size_t(height));
+    std::vector<uint8_t> best(stride), trial(stride);
     for (int y = 0; y < height; ++y) {
-        raw += char(0);  // filter: none
-        raw.append(reinterpret_cast<const char*>(rowBytes.data()) + size_t(y) * stride, stride);
+        const uint8_t* row = rowBytes.data() + size_t(y) * stride;
+        const uint8_t* prev = y > 0 ? row - stride : nullptr;
+        long bestCost = -1;
+        int bestType = 0;
+        for (int type = 0; type <= 4; ++type) {
+            filterRow(type, row, prev, stride, bpp, trial.data());
+            long cost = 0;
+            for (uint8_t v : trial)
+                cost += v < 128 ? v : 256 - v;
+            if (bestCost < 0 || cost < bestCost) {
+                bestCost = cost;
+                bestType = type;
+                best.swap(trial);
+            }
+        }
+        raw += char(bestType);
+        raw.append(reinterpret_cast<const char*>(best.data()), stride);
     }
     uLongf zsize = compressBound(uLong(raw.size()));
     std::string z(zsize, '\0');
     if (compress2(reinterpret_cast<Bytef*>(&z[0]), &zsize, reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()),
                   9) != Z_OK)
-        return Status(StatusCode::IoError, path + ": PNG compression failed");
+        return Status(StatusCode::IoError, "PNG compression failed");
     z.resize(zsize);
-    std::string out("\x89PNG\r\n\x1a\n", 8);
+    *out = std::string("\x89PNG\r\n\x1a\n", 8);
     std::string ihdr;
     put32(ihdr, uint32_t(width));
     put32(ihdr, uint32_t(height));
     ihdr += char(bits);
     ihdr += char(colourType);
     ihdr += std::string(3, '\0');  // compression, filter, interlace
-    chunk(out, "IHDR", ihdr);
-    chunk(out, "IDAT", z);
-    chunk(out, "IEND", std::string());
-    return writeFileAtomic(path, out.data(), out.size());
+    chunk(*out, "IHDR", ihdr);
+    chunk(*out, "IDAT", z);
+    chunk(*out, "IEND", std::string());
+    return Status::ok();
+}
+
+Status writePng(const std::string& path, int width, int height, int bits, int colourType, int channels,
+                const std::vector<uint8_t>& rowBytes)
+{
+    std::string bytes;
+    if (Status st = encodePng(width, height, bits, colourType, channels, rowBytes, &bytes); !st)
+        return Status(st.code(), path + ": " + st.message());
+    return writeFileAtomic(path, bytes.data(), bytes.size());
 }
 
 }  // namespace
 
-Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples)
+namespace {
+
+Status grayRows(int width, int height, int bits, const std::vector<uint16_t>& samples, std::vector<uint8_t>* bytes)
 {
     if (bits != 8 && bits != 16)
-        return Status(StatusCode::InvalidArgument, path + ": PNG depth must be 8 or 16 bits");
-    if (samples.size() != size_t(width) * size_t(height))
-        return Status(StatusCode::InvalidArgument, path + ": sample count does not match the image size");
-    std::vector<uint8_t> bytes;
-    bytes.reserve(samples.size() * size_t(bits / 8));
+        return Status(StatusCode::InvalidArgument, "PNG depth must be 8 or 16 bits");
+    if (width <= 0 || height <= 0 || samples.size() != size_t(width) * size_t(height))
+        return Status(StatusCode::InvalidArgument, "sample count does not match the image size");
+    bytes->clear();
+    bytes->reserve(samples.size() * size_t(bits / 8));
     for (uint16_t s : samples) {
         if (bits == 16)
-            bytes.push_back(uint8_t(s >> 8));
-        bytes.push_back(uint8_t(s & 0xff));
+            bytes->push_back(uint8_t(s >> 8));
+        bytes->push_back(uint8_t(s & 0xff));
     }
+    return Status::ok();
+}
+
+}  // namespace
+
+Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t>& samples, std::string* png)
+{
+    std::vector<uint8_t> bytes;
+    Status st = grayRows(width, height, bits, samples, &bytes);
+    if (!st)
+        return st;
+    return encodePng(width, height, bits, 0, 1, bytes, png);
+}
+
+Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples)
+{
+    std::vector<uint8_t> bytes;
+    if (Status st = grayRows(width, height, bits, samples, &bytes); !st)
+        return Status(st.code(), path + ": " + st.message());
     return writePng(path, width, height, bits, 0, 1, bytes);
 }
 
@@ -118,27 +190,29 @@ Status readPngRgb(const std::string& path, int* width, int* height, std::vector<
     return Status::ok();
 }
 
-Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
+Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
+                     std::vector<uint16_t>* samples)
 {
-    std::vector<unsigned char> bytes;
     int w = 0, h = 0, comp = 0;
-    if (Status st = readPngHeader(path, &bytes, &w, &h, &comp); !st)
-        return st;
+    if (size > size_t(1) << 30 || !stbi_info_from_memory(data, int(size), &w, &h, &comp))
+        return Status(StatusCode::InvalidData, what + ": not a readable PNG image");
+    if (w > 16384 || h > 16384)
+        return Status(StatusCode::InvalidData, what + ": image is larger than 16384 per side");
     if (comp != 1)
-        return Status(StatusCode::InvalidData, path + ": expected a greyscale image, found " + std::to_string(comp) +
+        return Status(StatusCode::InvalidData, what + ": expected a greyscale image, found " + std::to_string(comp) +
                                                    " channels");
-    const bool sixteen = stbi_is_16_bit_from_memory(bytes.data(), int(bytes.size())) != 0;
+    const bool sixteen = stbi_is_16_bit_from_memory(data, int(size)) != 0;
     samples->resize(size_t(w) * size_t(h));
     if (sixteen) {
-        stbi_us* px = stbi_load_16_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 1);
+        stbi_us* px = stbi_load_16_from_memory(data, int(size), &w, &h, &comp, 1);
         if (!px)
-            return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
+            return Status(StatusCode::InvalidData, what + ": PNG decoding failed");
         std::copy(px, px + samples->size(), samples->begin());
         stbi_image_free(px);
     } else {
-        stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 1);
+        stbi_uc* px = stbi_load_from_memory(data, int(size), &w, &h, &comp, 1);
         if (!px)
-            return Status(StatusCode::InvalidData, path + ": PNG decoding failed");
+            return Status(StatusCode::InvalidData, what + ": PNG decoding failed");
         std::copy(px, px + samples->size(), samples->begin());
         stbi_image_free(px);
     }
@@ -146,6 +220,15 @@ Status readPngGray(const std::string& path, int* width, int* height, int* bits, 
     *height = h;
     *bits = sixteen ? 16 : 8;
     return Status::ok();
+}
+
+Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
+{
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes, size_t(1) << 30);
+    if (!st)
+        return st;
+    return decodePngGray(bytes.data(), bytes.size(), path, width, height, bits, samples);
 }
 
 }  // namespace io

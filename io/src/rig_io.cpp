@@ -1,30 +1,135 @@
 // glTF 2.0 control rigs (docs/FORMAT.md).  Reading assumes hostile input;
 // writing produces files the Khronos glTF-Validator accepts without warnings.
+//
+// A rig is the whole source scene: every triangle primitive of every mesh
+// becomes part of one welded control mesh (in the scene's space at rest),
+// and the source document is kept so that saving writes back everything the
+// input had (materials, textures, names, extras, points and lines) with the
+// displacement block and the embedded map added.
 #include "strata/io/rig_io.h"
 
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
 #include "strata/io/gltf_accessor.h"
 #include "strata/io/png.h"
+#include "gltf_document.h"
 #include "gltf_mesh_writer.h"
 #include "strata/normals.h"
 
-#include <tiny_gltf.h>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat4x4.hpp>
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <unordered_map>
 
 namespace strata {
 namespace io {
 namespace {
 
-bool skipImage(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*)
+// ---- Confined file access for external buffers and images ----
+
+struct FsContext {
+    std::string base;  // the document's folder ("" for the working directory)
+};
+
+// The part of `full` below the document's folder, or "" when it is not a
+// plain relative path inside it.
+std::string confinedRelative(const std::string& full, const FsContext& ctx)
 {
-    return true;  // the runtime never needs texture pixels
+    std::string rel = full;
+    if (!ctx.base.empty()) {
+        if (full.compare(0, ctx.base.size() + 1, ctx.base + "/") != 0)
+            return std::string();
+        rel = full.substr(ctx.base.size() + 1);
+    }
+    if (rel.empty() || rel[0] == '/' || rel.find(':') != std::string::npos || rel.find('\\') != std::string::npos)
+        return std::string();
+    size_t pos = 0;
+    while (pos <= rel.size()) {
+        const size_t slash = rel.find('/', pos);
+        const std::string part = rel.substr(pos, slash == std::string::npos ? std::string::npos : slash - pos);
+        if (part == ".." || part.empty())
+            return std::string();
+        if (slash == std::string::npos)
+            break;
+        pos = slash + 1;
+    }
+    return rel;
 }
 
-Status loadModel(const std::string& path, tinygltf::Model* model)
+bool isRegularFile(const std::string& path)
+{
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+bool fsExists(const std::string& path, void* user)
+{
+    const FsContext& ctx = *static_cast<FsContext*>(user);
+    return !confinedRelative(path, ctx).empty() && isRegularFile(path);
+}
+
+std::string fsExpand(const std::string& path, void*)
+{
+    return path;  // no ~ or $VAR expansion
+}
+
+bool fsRead(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user)
+{
+    const FsContext& ctx = *static_cast<FsContext*>(user);
+    if (confinedRelative(path, ctx).empty() || !isRegularFile(path)) {
+        if (err)
+            *err += "external files must be regular files inside the rig's folder";
+        return false;
+    }
+    const Status st = readFile(path, out, size_t(1) << 30);
+    if (!st && err)
+        *err += st.message();
+    return bool(st);
+}
+
+bool fsWrite(std::string*, const std::string&, const std::vector<unsigned char>&, void*)
+{
+    return false;  // loading never writes
+}
+
+// Keeps an image's encoded bytes instead of decoding it (the runtime never
+// needs texture pixels; the writer embeds them again).
+bool keepImageBytes(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
+                    const unsigned char* bytes, int size, void* user)
+{
+    auto* doc = static_cast<SourceDocument*>(user);
+    if (index < 0 || size < 0)
+        return true;
+    if (doc->imageBytes.size() <= size_t(index))
+        doc->imageBytes.resize(size_t(index) + 1);
+    if (image->bufferView < 0)
+        doc->imageBytes[size_t(index)].assign(bytes, bytes + size);
+    return true;
+}
+
+// One line, printable: control bytes become '?', long text is cut.
+std::string printable(std::string text, size_t maxLength = 200)
+{
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
+        text.pop_back();
+    for (char& c : text)
+        if ((unsigned char)c < 0x20 || c == 0x7f)
+            c = c == '\n' ? ' ' : '?';
+    if (text.size() > maxLength)
+        text = text.substr(0, maxLength) + "...";
+    return text;
+}
+
+}  // namespace
+
+Status loadGltfDocument(const std::string& path, SourceDocument* doc)
 {
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
@@ -33,27 +138,29 @@ Status loadModel(const std::string& path, tinygltf::Model* model)
     Status st = readFile(path, &bytes);
     if (!st)
         return st;
+    FsContext ctx{directoryOf(path)};
     tinygltf::TinyGLTF loader;
-    loader.SetImageLoader(skipImage, nullptr);
+    loader.SetFsCallbacks(tinygltf::FsCallbacks{fsExists, fsExpand, fsRead, fsWrite, &ctx});
+    loader.SetImageLoader(keepImageBytes, doc);
     std::string err, warn;
     bool ok;
     if (ext == ".glb") {
-        ok = loader.LoadBinaryFromMemory(model, &err, &warn, bytes.data(), unsigned(bytes.size()), directoryOf(path));
+        ok = loader.LoadBinaryFromMemory(&doc->model, &err, &warn, bytes.data(), unsigned(bytes.size()), ctx.base);
     } else {
-        ok = loader.LoadASCIIFromString(model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
-                                        unsigned(bytes.size()), directoryOf(path));
+        ok = loader.LoadASCIIFromString(&doc->model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
+                                        unsigned(bytes.size()), ctx.base);
     }
-    if (!ok) {
-        std::string msg = err.empty() ? std::string("not a valid glTF file") : err;
-        while (!msg.empty() && (msg.back() == '\n' || msg.back() == '\r'))
-            msg.pop_back();
-        for (char& c : msg)
-            if (c == '\n')
-                c = ' ';
-        return Status(StatusCode::InvalidData, path + ": " + msg);
-    }
+    if (!ok)
+        return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
+    doc->imageBytes.resize(doc->model.images.size());
+    for (const std::string& e : doc->model.extensionsRequired)
+        if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")
+            return Status(StatusCode::Unsupported, path + ": compressed meshes (" + e +
+                                                       ") are not read yet; decompress with gltfpack -noq or gltf-transform first");
     return Status::ok();
 }
+
+namespace {
 
 const tinygltf::Value* member(const tinygltf::Value& obj, const char* name)
 {
@@ -82,23 +189,37 @@ Status stringField(const tinygltf::Value& obj, const char* name, const std::stri
     return Status::ok();
 }
 
-Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, DisplacementInfo* info)
+Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, const tinygltf::Model& model,
+                        DisplacementInfo* info)
 {
     double version = 0;
     Status st = numberField(block, "version", path, &version);
     if (!st)
         return st;
-    if (version != double(kRigFormatVersion))
+    if (version != 1 && version != 2)
         return Status(StatusCode::Unsupported, path + ": rig format version " + std::to_string(int(version)) +
-                                                   ", this build reads version " + std::to_string(kRigFormatVersion));
+                                                   ", this build reads versions 1 and " +
+                                                   std::to_string(kRigFormatVersion));
     const tinygltf::Value* tex = member(block, "displacementGeometryTexture");
     if (!tex || !tex->IsObject())
         return Status(StatusCode::InvalidData, path + ": strata metadata has no displacementGeometryTexture object");
     double w = 0, h = 0, texCoord = 0, factor = 0, offset = 0, level = 0;
     std::string scheme, direction, weighting;
-    if (!(st = stringField(*tex, "uri", path, &info->uri)) || !(st = stringField(*tex, "encoding", path, &info->encoding)) ||
-        !(st = numberField(*tex, "width", path, &w)) || !(st = numberField(*tex, "height", path, &h)) ||
-        !(st = numberField(*tex, "texCoord", path, &texCoord)) ||
+    const tinygltf::Value* image = member(*tex, "image");
+    if (version >= 2 && image) {
+        if (!image->IsNumber() || image->GetNumberAsDouble() < 0 ||
+            image->GetNumberAsDouble() >= double(model.images.size()))
+            return Status(StatusCode::InvalidData, path + ": the displacement block names image " +
+                                                       (image->IsNumber() ? std::to_string(int(image->GetNumberAsDouble()))
+                                                                          : std::string("?")) +
+                                                       ", which the file does not have (the map is missing)");
+        info->image = int(image->GetNumberAsDouble());
+        info->uri.clear();
+    } else if (!(st = stringField(*tex, "uri", path, &info->uri))) {
+        return st;
+    }
+    if (!(st = stringField(*tex, "encoding", path, &info->encoding)) || !(st = numberField(*tex, "width", path, &w)) ||
+        !(st = numberField(*tex, "height", path, &h)) || !(st = numberField(*tex, "texCoord", path, &texCoord)) ||
         !(st = numberField(block, "displacementGeometryFactor", path, &factor)) ||
         !(st = numberField(block, "displacementGeometryOffset", path, &offset)) ||
         !(st = stringField(block, "scheme", path, &scheme)) ||
@@ -106,28 +227,35 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, D
         !(st = stringField(block, "direction", path, &direction)) ||
         !(st = stringField(block, "normalWeighting", path, &weighting)))
         return st;
-    if (info->uri.empty() || info->uri.find("..") != std::string::npos || info->uri[0] == '/' ||
-        info->uri.find(':') != std::string::npos)
-        return Status(StatusCode::InvalidData, path + ": displacement map URI \"" + info->uri +
-                                                   "\" must be a relative path beside the rig");
-    if (info->encoding != "exr")
-        return Status(StatusCode::Unsupported, path + ": displacement encoding \"" + info->encoding +
-                                                   "\" is not supported (this build reads \"exr\")");
+    if (info->image < 0) {
+        if (info->uri.empty() || info->uri.find("..") != std::string::npos || info->uri[0] == '/' ||
+            info->uri.find(':') != std::string::npos || info->uri.find('\\') != std::string::npos)
+            return Status(StatusCode::InvalidData, path + ": displacement map URI \"" + printable(info->uri, 80) +
+                                                       "\" must be a relative path beside the rig");
+        if (info->encoding != "exr")
+            return Status(StatusCode::Unsupported, path + ": displacement encoding \"" + printable(info->encoding, 40) +
+                                                       "\" is not supported for an external map (this build reads \"exr\")");
+    } else if (info->encoding != "png16" && info->encoding != "png8") {
+        return Status(StatusCode::Unsupported, path + ": embedded displacement encoding \"" +
+                                                   printable(info->encoding, 40) + "\" is not supported (png8, png16)");
+    }
     if (w < 1 || h < 1 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize || w != std::floor(w) ||
         h != std::floor(h))
         return Status(StatusCode::InvalidData, path + ": displacement map size " + std::to_string(w) + "x" +
                                                    std::to_string(h) + " is invalid");
-    if (texCoord != 0)
-        return Status(StatusCode::Unsupported, path + ": displacement must use TEXCOORD_0");
+    if (texCoord < 0 || texCoord > 7 || texCoord != std::floor(texCoord))
+        return Status(StatusCode::Unsupported, path + ": displacement texCoord must be 0..7");
     if (!parseScheme(scheme, &info->scheme))
-        return Status(StatusCode::Unsupported, path + ": unknown subdivision scheme \"" + scheme + "\"");
+        return Status(StatusCode::Unsupported, path + ": unknown subdivision scheme \"" + printable(scheme, 40) + "\"");
     if (level < 0 || level > kMaxLevel || level != std::floor(level))
         return Status(StatusCode::InvalidData, path + ": recommendedLevel " + std::to_string(level) + " is outside 0.." +
                                                    std::to_string(kMaxLevel));
     if (direction != "interpolated-control-normal")
-        return Status(StatusCode::Unsupported, path + ": displacement direction \"" + direction + "\" is not supported");
+        return Status(StatusCode::Unsupported, path + ": displacement direction \"" + printable(direction, 40) +
+                                                   "\" is not supported");
     if (weighting != "angle")
-        return Status(StatusCode::Unsupported, path + ": normal weighting \"" + weighting + "\" is not supported");
+        return Status(StatusCode::Unsupported, path + ": normal weighting \"" + printable(weighting, 40) +
+                                                   "\" is not supported");
     if (const tinygltf::Value* q = member(block, "quantizedMap")) {
         double bits = 0, dmin = 0, dmax = 0;
         if (!(st = stringField(*q, "uri", path, &info->quantized.uri)) || !(st = numberField(*q, "bits", path, &bits)) ||
@@ -135,12 +263,16 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, D
             return st;
         if ((bits != 8 && bits != 16) || !(dmax >= dmin))
             return Status(StatusCode::InvalidData, path + ": quantizedMap needs bits 8 or 16 and dmin <= dmax");
+        if (info->quantized.uri.find("..") != std::string::npos || info->quantized.uri.find(':') != std::string::npos ||
+            (!info->quantized.uri.empty() && info->quantized.uri[0] == '/'))
+            return Status(StatusCode::InvalidData, path + ": quantizedMap URI must be a relative path beside the rig");
         info->quantized.bits = int(bits);
         info->quantized.dmin = float(dmin);
         info->quantized.dmax = float(dmax);
     }
     info->width = int(w);
     info->height = int(h);
+    info->texCoord = int(texCoord);
     info->factor = float(factor);
     info->offset = float(offset);
     info->recommendedLevel = int(level);
@@ -158,114 +290,282 @@ struct VertexKeyHash {
     }
 };
 
-}  // namespace
 
-namespace {
-
-// The geometry of the chosen triangle primitive, welded by exact position.
-struct LoadedPrimitive {
-    Rig rig;                 // mesh (not yet validated) and sourceVertex
-    int meshIndex = -1;
-};
-
-Status loadPrimitive(const std::string& path, tinygltf::Model* modelOut, LoadedPrimitive* out)
+glm::mat4 localMatrix(const tinygltf::Node& n)
 {
-    tinygltf::Model& model = *modelOut;
-    Status st = loadModel(path, &model);
-    if (!st)
-        return st;
-    int meshIndex = -1;
-    for (size_t m = 0; m < model.meshes.size() && meshIndex < 0; ++m)
-        if (member(model.meshes[m].extras, "strata"))
-            meshIndex = int(m);
-    for (size_t m = 0; m < model.meshes.size() && meshIndex < 0; ++m)
-        for (const tinygltf::Primitive& p : model.meshes[m].primitives)
-            if (p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1)
-                meshIndex = int(m);
-    if (meshIndex < 0)
-        return Status(StatusCode::InvalidData, path + ": no triangle mesh in the file");
-    const tinygltf::Mesh& mesh = model.meshes[size_t(meshIndex)];
-    const tinygltf::Primitive* prim = nullptr;
-    for (const tinygltf::Primitive& p : mesh.primitives)
-        if (!prim && (p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1))
-            prim = &p;
-    if (!prim)
-        return Status(StatusCode::InvalidData, path + ": mesh " + std::to_string(meshIndex) + " has no triangle primitive");
-
-    auto attr = [&](const char* name) {
-        auto it = prim->attributes.find(name);
-        return it == prim->attributes.end() ? -1 : it->second;
-    };
-    if (attr("POSITION") < 0)
-        return Status(StatusCode::InvalidData, path + ": the mesh has no POSITION attribute");
-    std::vector<float> pos, uv;
-    std::vector<uint32_t> idx;
-    if (!(st = readFloatAccessor(model, attr("POSITION"), 3, "POSITION", &pos)))
-        return Status(st.code(), path + ": " + st.message());
-    const size_t nFile = pos.size() / 3;
-    if (nFile == 0)
-        return Status(StatusCode::InvalidData, path + ": the mesh has no vertices");
-    if (attr("TEXCOORD_0") >= 0) {
-        if (!(st = readFloatAccessor(model, attr("TEXCOORD_0"), 2, "TEXCOORD_0", &uv)))
-            return Status(st.code(), path + ": " + st.message());
-        if (uv.size() / 2 != nFile)
-            return Status(StatusCode::InvalidData, path + ": TEXCOORD_0 has " + std::to_string(uv.size() / 2) +
-                                                       " elements for " + std::to_string(nFile) + " vertices");
+    glm::mat4 m(1.0f);
+    if (n.matrix.size() == 16) {
+        for (int k = 0; k < 16; ++k)
+            m[k / 4][k % 4] = float(n.matrix[size_t(k)]);
+        return m;
     }
-    if (prim->indices >= 0) {
-        if (!(st = readUintAccessor(model, prim->indices, 1, "indices", &idx)))
-            return Status(st.code(), path + ": " + st.message());
+    if (n.translation.size() == 3)
+        m = glm::translate(m, glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2])));
+    if (n.rotation.size() == 4)
+        m = m * glm::mat4_cast(glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                                         float(n.rotation[2])));
+    if (n.scale.size() == 3)
+        m = glm::scale(m, glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2])));
+    return m;
+}
+
+// Every node's parent and its world matrix at rest.  A node with two
+// parents, a missing child or a cycle is an error.
+Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, std::vector<int>* parentOut,
+                         std::vector<glm::mat4>* world)
+{
+    const size_t n = model.nodes.size();
+    std::vector<int> parent(n, -1);
+    for (size_t i = 0; i < n; ++i)
+        for (int c : model.nodes[i].children) {
+            if (c < 0 || size_t(c) >= n)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " has a missing child");
+            if (parent[size_t(c)] >= 0 || size_t(c) == i)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(c) + " has two parents");
+            parent[size_t(c)] = int(i);
+        }
+    world->assign(n, glm::mat4(1.0f));
+    std::vector<uint8_t> state(n, 0);  // 0 unvisited, 1 on the current chain, 2 done
+    std::vector<size_t> chain;
+    for (size_t i = 0; i < n; ++i) {
+        chain.clear();
+        int v = int(i);
+        while (v >= 0 && state[size_t(v)] == 0) {
+            state[size_t(v)] = 1;
+            chain.push_back(size_t(v));
+            v = parent[size_t(v)];
+        }
+        if (v >= 0 && state[size_t(v)] == 1)
+            return Status(StatusCode::InvalidData, path + ": the node hierarchy has a cycle through node " +
+                                                       std::to_string(v));
+        for (auto it = chain.rbegin(); it != chain.rend(); ++it) {
+            const int p = parent[*it];
+            (*world)[*it] = (p >= 0 ? (*world)[size_t(p)] : glm::mat4(1.0f)) * localMatrix(model.nodes[*it]);
+            state[*it] = 2;
+        }
+    }
+    for (size_t i = 0; i < n; ++i)
+        for (int k = 0; k < 16; ++k)
+            if (!std::isfinite((*world)[i][k / 4][k % 4]))
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " (" +
+                                                           printable(model.nodes[i].name, 60) +
+                                                           ") has a non-finite transform");
+    *parentOut = std::move(parent);
+    return Status::ok();
+}
+
+int attributeOf(const tinygltf::Primitive& prim, const std::string& name)
+{
+    auto it = prim.attributes.find(name);
+    return it == prim.attributes.end() ? -1 : it->second;
+}
+
+bool isTriangles(int mode)
+{
+    return mode == TINYGLTF_MODE_TRIANGLES || mode == -1 || mode == TINYGLTF_MODE_TRIANGLE_STRIP ||
+           mode == TINYGLTF_MODE_TRIANGLE_FAN;
+}
+
+// Triangle-list indices of a triangle primitive (strips and fans unrolled).
+Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitive& prim, size_t vertexCount,
+                          const std::string& what, std::vector<uint32_t>* out)
+{
+    std::vector<uint32_t> idx;
+    if (prim.indices >= 0) {
+        Status st = readUintAccessor(model, prim.indices, 1, what + " indices", &idx);
+        if (!st)
+            return st;
     } else {
-        idx.resize(nFile);
-        for (size_t i = 0; i < nFile; ++i)
+        idx.resize(vertexCount);
+        for (size_t i = 0; i < vertexCount; ++i)
             idx[i] = uint32_t(i);
     }
-    if (idx.empty() || idx.size() % 3 != 0)
-        return Status(StatusCode::InvalidData, path + ": the triangle primitive has " + std::to_string(idx.size()) +
-                                                   " indices, not a positive multiple of 3");
     for (size_t i = 0; i < idx.size(); ++i)
-        if (idx[i] >= nFile)
-            return Status(StatusCode::InvalidData, path + ": index " + std::to_string(idx[i]) + " at position " +
-                                                       std::to_string(i) + " is beyond the " + std::to_string(nFile) +
-                                                       " vertices");
+        if (idx[i] >= vertexCount)
+            return Status(StatusCode::InvalidData, what + ": index " + std::to_string(idx[i]) + " at position " +
+                                                       std::to_string(i) + " is beyond the " +
+                                                       std::to_string(vertexCount) + " vertices");
+    out->clear();
+    if (prim.mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (size_t i = 2; i < idx.size(); ++i) {
+            if (i % 2 == 0)
+                out->insert(out->end(), {idx[i - 2], idx[i - 1], idx[i]});
+            else
+                out->insert(out->end(), {idx[i - 1], idx[i - 2], idx[i]});
+        }
+    } else if (prim.mode == TINYGLTF_MODE_TRIANGLE_FAN) {
+        for (size_t i = 2; i < idx.size(); ++i)
+            out->insert(out->end(), {idx[0], idx[i - 1], idx[i]});
+    } else {
+        if (idx.size() % 3 != 0)
+            return Status(StatusCode::InvalidData, what + ": " + std::to_string(idx.size()) +
+                                                       " indices, not a multiple of 3");
+        *out = std::move(idx);
+    }
+    return Status::ok();
+}
 
-    Rig rig;
-    // Weld glTF's split vertices into topological vertices (exact position match).
+// The whole scene's triangle geometry, welded, with one part per primitive.
+struct SceneGeometry {
+    Rig rig;                 // mesh (not yet validated), sourceVertex, fileCorners, parts
+    std::vector<const tinygltf::Primitive*> primitives;  // per part
+    int blockMesh = -1;      // a mesh carrying a strata block, or -1
+    size_t passThrough = 0;  // point and line primitives, kept untouched
+    size_t missingUV = 0;    // triangle parts without the displacement UV set
+    std::string firstMissingUV;
+};
+
+Status readSceneGeometry(const std::string& path, const SourceDocument& doc, bool forRig, SceneGeometry* out)
+{
+    const tinygltf::Model& model = doc.model;
+    std::vector<int> parent;
+    std::vector<glm::mat4> world;
+    Status st = restWorldMatrices(path, model, &parent, &world);
+    if (!st)
+        return st;
+    // The block: version 1 rigs carry it on the one mesh they displace.
+    int texCoord = 0;
+    bool legacy = false;
+    for (size_t m = 0; m < model.meshes.size() && out->blockMesh < 0; ++m)
+        if (const tinygltf::Value* block = member(model.meshes[m].extras, "strata")) {
+            out->blockMesh = int(m);
+            const tinygltf::Value* v = member(*block, "version");
+            legacy = v && v->IsNumber() && v->GetNumberAsDouble() == 1.0;
+            const tinygltf::Value* tex = member(*block, "displacementGeometryTexture");
+            const tinygltf::Value* tc = tex ? member(*tex, "texCoord") : nullptr;
+            if (tc && tc->IsNumber() && tc->GetNumberAsDouble() >= 0 && tc->GetNumberAsDouble() <= 7)
+                texCoord = int(tc->GetNumberAsDouble());
+        }
+    std::vector<int> firstNode(model.meshes.size(), -1);
+    for (size_t i = 0; i < model.nodes.size(); ++i) {
+        const int m = model.nodes[i].mesh;
+        if (m >= 0 && size_t(m) < model.meshes.size() && firstNode[size_t(m)] < 0)
+            firstNode[size_t(m)] = int(i);
+        else if (m >= 0 && size_t(m) >= model.meshes.size())
+            return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " references missing mesh " +
+                                                       std::to_string(m));
+    }
+    Rig& rig = out->rig;
+    std::vector<float> pos;  // all file vertices, scene space
+    std::vector<glm::vec2> uv;
+    std::vector<uint32_t> tri;  // file-vertex triangles
+    std::vector<uint32_t> partOfTri;
+    const std::string uvName = "TEXCOORD_" + std::to_string(texCoord);
+    for (size_t m = 0; m < model.meshes.size(); ++m) {
+        if (legacy && int(m) != out->blockMesh)
+            continue;
+        const tinygltf::Mesh& mesh = model.meshes[m];
+        for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+            const tinygltf::Primitive& prim = mesh.primitives[p];
+            if (!isTriangles(prim.mode)) {
+                ++out->passThrough;
+                continue;
+            }
+            RigPart part;
+            part.mesh = int(m);
+            part.primitive = int(p);
+            part.node = firstNode[m];
+            part.material = prim.material;
+            part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
+            part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
+            part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
+                        " primitive " + std::to_string(p);
+            const std::string what = path + ": " + part.name;
+            if (attributeOf(prim, "POSITION") < 0)
+                return Status(StatusCode::InvalidData, what + " has no POSITION attribute");
+            std::vector<float> ppos, puv;
+            if (!(st = readFloatAccessor(model, attributeOf(prim, "POSITION"), 3, "POSITION", &ppos)))
+                return Status(st.code(), what + ": " + st.message());
+            const size_t n = ppos.size() / 3;
+            if (n == 0)
+                continue;
+            if (pos.size() / 3 + n >= 0x7fffffffu)
+                return Status(StatusCode::InvalidData, path + ": the scene has too many vertices");
+            const int uvAcc = attributeOf(prim, uvName);
+            if (uvAcc >= 0) {
+                if (!(st = readFloatAccessor(model, uvAcc, 2, uvName, &puv)))
+                    return Status(st.code(), what + ": " + st.message());
+                if (puv.size() / 2 != n)
+                    return Status(StatusCode::InvalidData, what + ": " + uvName + " has " +
+                                                               std::to_string(puv.size() / 2) + " elements for " +
+                                                               std::to_string(n) + " vertices");
+            } else if (out->missingUV++ == 0) {
+                out->firstMissingUV = part.name;
+            }
+            std::vector<uint32_t> ptri;
+            if (!(st = primitiveTriangles(model, prim, n, what, &ptri)))
+                return st;
+            part.firstVertex = uint32_t(pos.size() / 3);
+            part.vertexCount = uint32_t(n);
+            for (size_t i = 0; i < n; ++i) {
+                const glm::vec4 q = part.toScene * glm::vec4(ppos[3 * i], ppos[3 * i + 1], ppos[3 * i + 2], 1.0f);
+                if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+                    return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(i) +
+                                                               " is not finite in the scene's space");
+                pos.insert(pos.end(), {q.x, q.y, q.z});
+                uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
+            }
+            for (uint32_t i : ptri) {
+                tri.push_back(part.firstVertex + i);
+                if (tri.size() % 3 == 0)
+                    partOfTri.push_back(uint32_t(rig.parts.size()));
+            }
+            out->primitives.push_back(&prim);
+            rig.parts.push_back(std::move(part));
+        }
+    }
+    if (rig.parts.empty())
+        return Status(StatusCode::InvalidData, path + ": no triangle mesh in the file");
+    const size_t nFile = pos.size() / 3;
+    if (nFile == 0)
+        return Status(StatusCode::InvalidData, path + ": the meshes have no vertices");
+    (void)forRig;
+
+    // Weld file vertices into topological vertices (exact position match, over
+    // every primitive: coincident vertices of different primitives join, so the
+    // refined surface is watertight wherever the input is).
     std::unordered_map<VertexKey, uint32_t, VertexKeyHash> welded;
+    welded.reserve(nFile);
     rig.sourceVertex.resize(nFile);
     for (size_t i = 0; i < nFile; ++i) {
         VertexKey key;
         std::memcpy(key.bits, &pos[3 * i], sizeof(key.bits));
         if (pos[3 * i] == 0.0f && pos[3 * i + 1] == 0.0f && pos[3 * i + 2] == 0.0f)
             std::memset(key.bits, 0, sizeof(key.bits));  // -0 and +0 are one point
+        for (int c = 0; c < 3; ++c)
+            if (pos[3 * i + size_t(c)] == 0.0f)
+                key.bits[c] = 0;
         auto it = welded.emplace(key, uint32_t(rig.mesh.positions.size()));
         if (it.second)
             rig.mesh.positions.emplace_back(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]);
         rig.sourceVertex[i] = it.first->second;
     }
-    for (size_t i = 0; i < idx.size(); i += 3) {
-        const uint32_t a = rig.sourceVertex[idx[i]], b = rig.sourceVertex[idx[i + 1]], c = rig.sourceVertex[idx[i + 2]];
+    const bool withUV = out->missingUV == 0;
+    for (size_t t = 0; t < tri.size(); t += 3) {
+        const uint32_t a = rig.sourceVertex[tri[t]], b = rig.sourceVertex[tri[t + 1]], c = rig.sourceVertex[tri[t + 2]];
+        RigPart& part = rig.parts[partOfTri[t / 3]];
+        if (part.faceCount == 0)
+            part.firstFace = uint32_t(rig.mesh.triangles.size() / 3);
         if (a == b || b == c || a == c)
-            continue;  // zero-area after welding: not part of the surface
+            continue;  // zero area after welding: no surface to refine (the file keeps it)
         rig.mesh.triangles.insert(rig.mesh.triangles.end(), {a, b, c});
-        if (!uv.empty())
-            rig.mesh.uvIndices.insert(rig.mesh.uvIndices.end(), {idx[i], idx[i + 1], idx[i + 2]});
+        rig.fileCorners.insert(rig.fileCorners.end(), {tri[t], tri[t + 1], tri[t + 2]});
+        ++part.faceCount;
     }
-    if (!uv.empty()) {
-        rig.mesh.uvs.resize(nFile);
-        for (size_t i = 0; i < nFile; ++i)
-            rig.mesh.uvs[i] = glm::vec2(uv[2 * i], uv[2 * i + 1]);
+    if (withUV) {
+        rig.mesh.uvs = std::move(uv);
+        rig.mesh.uvIndices = rig.fileCorners;
     }
-    out->rig = std::move(rig);
-    out->meshIndex = meshIndex;
     return Status::ok();
 }
 
 }  // namespace
 
-// Nodes, the mesh node's skin, per-vertex influences and animations.
-Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int meshIndex, const tinygltf::Primitive& prim,
-                    Rig* rig)
+namespace {
+
+// Nodes, the skin of the skinned parts (rigid parts ride on their node as an
+// extra joint), per-vertex influences and animations.
+Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const SceneGeometry& scene, Rig* rig)
 {
     Skeleton& sk = rig->skeleton;
     const size_t nn = model.nodes.size();
@@ -276,8 +576,7 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
         out.name = n.name;
         if (n.matrix.size() == 16) {
             out.hasMatrix = true;
-            for (int k = 0; k < 16; ++k)
-                out.matrix[k / 4][k % 4] = float(n.matrix[size_t(k)]);
+            out.matrix = localMatrix(n);
         }
         if (n.translation.size() == 3)
             out.rest.translation = glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2]));
@@ -286,29 +585,35 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
                                           float(n.rotation[2]));
         if (n.scale.size() == 3)
             out.rest.scale = glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2]));
+        for (int c : n.children)
+            sk.nodes[size_t(c)].parent = int(i);  // checked by restWorldMatrices
     }
-    for (size_t i = 0; i < nn; ++i)
-        for (int c : model.nodes[i].children) {
-            if (c < 0 || size_t(c) >= nn)
-                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " has a missing child");
-            if (sk.nodes[size_t(c)].parent >= 0)
-                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(c) + " has two parents");
-            sk.nodes[size_t(c)].parent = int(i);
-        }
     int skinIndex = -1;
-    for (size_t i = 0; i < nn; ++i)
-        if (model.nodes[i].mesh == meshIndex && model.nodes[i].skin >= 0 && skinIndex < 0) {
-            skinIndex = model.nodes[i].skin;
-            sk.meshNode = int(i);
+    for (const RigPart& part : rig->parts)
+        if (part.skinned) {
+            const int s = model.nodes[size_t(part.node)].skin;
+            if (skinIndex < 0) {
+                skinIndex = s;
+                sk.meshNode = part.node;
+            } else if (s != skinIndex) {
+                return Status(StatusCode::Unsupported, path + ": meshes use different skins (" + std::to_string(skinIndex) +
+                                                           " and " + std::to_string(s) +
+                                                           "); a Strata rig has one skin");
+            }
         }
     Status st;
     if (skinIndex >= 0) {
         if (size_t(skinIndex) >= model.skins.size())
-            return Status(StatusCode::InvalidData, path + ": the mesh node references a missing skin");
+            return Status(StatusCode::InvalidData, path + ": a mesh node references missing skin " +
+                                                       std::to_string(skinIndex));
         const tinygltf::Skin& skin = model.skins[size_t(skinIndex)];
         sk.skin.joints = skin.joints;
         if (sk.skin.joints.empty())
-            return Status(StatusCode::InvalidData, path + ": the skin has no joints");
+            return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) + " has no joints");
+        for (int j : sk.skin.joints)
+            if (j < 0 || size_t(j) >= nn)
+                return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) +
+                                                           " names missing node " + std::to_string(j));
         if (skin.inverseBindMatrices >= 0) {
             std::vector<float> m;
             if (!(st = readFloatAccessor(model, skin.inverseBindMatrices, 16, "inverseBindMatrices", &m)))
@@ -321,25 +626,76 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
             for (size_t j = 0; j < sk.skin.joints.size(); ++j)
                 for (int k = 0; k < 16; ++k)
                     sk.skin.inverseBindMatrices[j][k / 4][k % 4] = m[16 * j + size_t(k)];
+        } else {
+            sk.skin.inverseBindMatrices.assign(sk.skin.joints.size(), glm::mat4(1.0f));
         }
         // Influences per file vertex, then per topological vertex (its first copy).
-        auto attr = [&](const char* name) {
-            auto it = prim.attributes.find(name);
-            return it == prim.attributes.end() ? -1 : it->second;
-        };
-        if (attr("JOINTS_0") < 0 || attr("WEIGHTS_0") < 0)
-            return Status(StatusCode::InvalidData, path + ": a skinned mesh needs JOINTS_0 and WEIGHTS_0");
-        const int sets = attr("JOINTS_1") >= 0 && attr("WEIGHTS_1") >= 0 ? 2 : 1;
+        int sets = 1;
+        for (size_t p = 0; p < rig->parts.size(); ++p)
+            if (rig->parts[p].skinned && attributeOf(*scene.primitives[p], "JOINTS_1") >= 0 &&
+                attributeOf(*scene.primitives[p], "WEIGHTS_1") >= 0)
+                sets = 2;
+        const int inf = 4 * sets;
         const size_t nFile = rig->sourceVertex.size();
-        std::vector<uint32_t> joints[2];
-        std::vector<float> weights[2];
-        for (int set = 0; set < sets; ++set) {
-            const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
-            if (!(st = readUintAccessor(model, attr(js.c_str()), 4, js, &joints[set])) ||
-                !(st = readFloatAccessor(model, attr(ws.c_str()), 4, ws, &weights[set])))
-                return Status(st.code(), path + ": " + st.message());
-            if (joints[set].size() != 4 * nFile || weights[set].size() != 4 * nFile)
-                return Status(StatusCode::InvalidData, path + ": " + js + "/" + ws + " do not have one element per vertex");
+        std::vector<uint16_t> fileJoints(nFile * size_t(inf), 0);
+        std::vector<float> fileWeights(nFile * size_t(inf), 0.0f);
+        std::map<int, uint16_t> rigidJoint;  // node -> its extra joint
+        for (size_t p = 0; p < rig->parts.size(); ++p) {
+            const RigPart& part = rig->parts[p];
+            const tinygltf::Primitive& prim = *scene.primitives[p];
+            if (!part.skinned) {
+                // A rigid part follows its node: one extra joint whose inverse
+                // bind matrix undoes the node's rest transform.
+                uint16_t j = 0;
+                if (part.node >= 0) {
+                    auto it = rigidJoint.find(part.node);
+                    if (it == rigidJoint.end()) {
+                        if (sk.skin.joints.size() >= 0xffff)
+                            return Status(StatusCode::InvalidData, path + ": too many joints");
+                        it = rigidJoint.emplace(part.node, uint16_t(sk.skin.joints.size())).first;
+                        sk.skin.joints.push_back(part.node);
+                        sk.skin.inverseBindMatrices.push_back(glm::inverse(part.toScene));
+                    }
+                    j = it->second;
+                }
+                for (uint32_t v = 0; v < part.vertexCount; ++v) {
+                    fileJoints[size_t(part.firstVertex + v) * size_t(inf)] = j;
+                    fileWeights[size_t(part.firstVertex + v) * size_t(inf)] = 1.0f;
+                }
+                continue;
+            }
+            if (attributeOf(prim, "JOINTS_0") < 0 || attributeOf(prim, "WEIGHTS_0") < 0)
+                return Status(StatusCode::InvalidData, path + ": " + part.name + " is skinned but has no JOINTS_0/WEIGHTS_0");
+            for (int set = 0; set < sets; ++set) {
+                const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
+                if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
+                    continue;
+                std::vector<uint32_t> joints;
+                std::vector<float> weights;
+                if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, &joints)) ||
+                    !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, &weights)))
+                    return Status(st.code(), path + ": " + part.name + ": " + st.message());
+                if (joints.size() != 4 * size_t(part.vertexCount) || weights.size() != joints.size())
+                    return Status(StatusCode::InvalidData, path + ": " + part.name + ": " + js + "/" + ws +
+                                                               " do not have one element per vertex");
+                for (uint32_t v = 0; v < part.vertexCount; ++v)
+                    for (int k = 0; k < 4; ++k) {
+                        const uint32_t j = joints[4 * v + uint32_t(k)];
+                        const float w = weights[4 * v + uint32_t(k)];
+                        if (w != 0.0f && j >= skin.joints.size())
+                            return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
+                                                                       std::to_string(v) + " is skinned to joint " +
+                                                                       std::to_string(j) + " of a " +
+                                                                       std::to_string(skin.joints.size()) +
+                                                                       "-joint skin");
+                        if (!(w >= 0.0f))
+                            return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
+                                                                       std::to_string(v) + " has a negative skin weight");
+                        const size_t slot = size_t(part.firstVertex + v) * size_t(inf) + size_t(4 * set + k);
+                        fileJoints[slot] = uint16_t(w != 0.0f ? j : 0);
+                        fileWeights[slot] = w;
+                    }
+            }
         }
         const size_t nv = rig->mesh.positions.size();
         std::vector<uint32_t> firstCopy(nv, uint32_t(-1));
@@ -347,41 +703,32 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
             if (firstCopy[rig->sourceVertex[f]] == uint32_t(-1))
                 firstCopy[rig->sourceVertex[f]] = uint32_t(f);
         VertexWeights& vw = sk.weights;
-        vw.influences = 4 * sets;
-        vw.joints.assign(nv * size_t(vw.influences), 0);
-        vw.weights.assign(nv * size_t(vw.influences), 0.0f);
+        vw.influences = inf;
+        vw.joints.assign(nv * size_t(inf), 0);
+        vw.weights.assign(nv * size_t(inf), 0.0f);
         size_t renormalised = 0;
         for (size_t v = 0; v < nv; ++v) {
             const size_t f = firstCopy[v];
             float sum = 0.0f;
-            for (int set = 0; set < sets; ++set)
-                for (int k = 0; k < 4; ++k) {
-                    const uint32_t j = joints[set][4 * f + size_t(k)];
-                    const float w = weights[set][4 * f + size_t(k)];
-                    if (w != 0.0f && j >= sk.skin.joints.size())
-                        return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) +
-                                                                   " is skinned to joint " + std::to_string(j) +
-                                                                   " of a " + std::to_string(sk.skin.joints.size()) +
-                                                                   "-joint skin");
-                    if (w < 0.0f)
-                        return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) +
-                                                                   " has a negative skin weight");
-                    const size_t slot = v * size_t(vw.influences) + size_t(4 * set + k);
-                    vw.joints[slot] = uint16_t(w != 0.0f ? j : 0);
-                    vw.weights[slot] = w;
-                    sum += w;
-                }
-            if (!(sum > 0.0f))
-                return Status(StatusCode::InvalidData, path + ": vertex " + std::to_string(f) + " has no skin weight");
+            for (int k = 0; k < inf; ++k) {
+                vw.joints[v * size_t(inf) + size_t(k)] = fileJoints[f * size_t(inf) + size_t(k)];
+                sum += vw.weights[v * size_t(inf) + size_t(k)] = fileWeights[f * size_t(inf) + size_t(k)];
+            }
+            if (!(sum > 0.0f) || !std::isfinite(sum))
+                return Status(StatusCode::InvalidData, path + ": file vertex " + std::to_string(f) +
+                                                           " has no usable skin weight");
             if (std::fabs(sum - 1.0f) > 1e-3f) {
                 ++renormalised;
-                for (int k = 0; k < vw.influences; ++k)
-                    vw.weights[v * size_t(vw.influences) + size_t(k)] /= sum;
+                for (int k = 0; k < inf; ++k)
+                    vw.weights[v * size_t(inf) + size_t(k)] /= sum;
             }
         }
         if (renormalised)
             rig->warnings.push_back(std::to_string(renormalised) +
                                     " vertices had skin weights not summing to 1; renormalised");
+        if (!rigidJoint.empty())
+            rig->warnings.push_back(std::to_string(rigidJoint.size()) +
+                                    " unskinned mesh nodes follow their node as rigid parts");
     }
     for (size_t a = 0; a < model.animations.size(); ++a) {
         const tinygltf::Animation& in = model.animations[a];
@@ -392,7 +739,7 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
                                                        ") has no samplers or channels");
         for (const tinygltf::AnimationChannel& ch : in.channels) {
             if (ch.target_path == "weights") {
-                rig->warnings.push_back("animation " + anim.name + ": morph-target weights are not supported, ignored");
+                rig->warnings.push_back("animation " + printable(anim.name, 60) + ": morph-target weights are not supported, ignored");
                 continue;
             }
             if (ch.sampler < 0 || size_t(ch.sampler) >= in.samplers.size())
@@ -408,7 +755,7 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
                 c.path = AnimationPath::Scale;
             else
                 return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown path '" +
-                                                           ch.target_path + "'");
+                                                           printable(ch.target_path, 40) + "'");
             if (sa.interpolation == "LINEAR" || sa.interpolation.empty())
                 c.interpolation = AnimationInterpolation::Linear;
             else if (sa.interpolation == "STEP")
@@ -417,7 +764,7 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
                 c.interpolation = AnimationInterpolation::CubicSpline;
             else
                 return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown interpolation");
-            const std::string what = "animation " + anim.name;
+            const std::string what = "animation " + printable(anim.name, 60);
             if (!(st = readFloatAccessor(model, sa.input, 1, what + " key times", &c.times)) ||
                 !(st = readFloatAccessor(model, sa.output, c.path == AnimationPath::Rotation ? 4 : 3, what + " key values",
                                          &c.values)))
@@ -432,45 +779,73 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, int m
     return Status::ok();
 }
 
+}  // namespace
+
 Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
 {
-    tinygltf::Model model;
-    LoadedPrimitive prim;
-    Status st = loadPrimitive(path, &model, &prim);
+    SourceDocument doc;
+    Status st = loadGltfDocument(path, &doc);
     if (!st)
         return st;
-    if (prim.rig.mesh.triangles.empty())
+    SceneGeometry scene;
+    if (!(st = readSceneGeometry(path, doc, /*forRig=*/false, &scene)))
+        return st;
+    if (scene.rig.mesh.triangles.empty())
         return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
-    *positions = std::move(prim.rig.mesh.positions);
-    *triangles = std::move(prim.rig.mesh.triangles);
+    *positions = std::move(scene.rig.mesh.positions);
+    *triangles = std::move(scene.rig.mesh.triangles);
     return Status::ok();
 }
 
 Status loadRig(const std::string& path, Rig* out)
 {
-    tinygltf::Model model;
-    LoadedPrimitive prim;
-    Status st = loadPrimitive(path, &model, &prim);
+    auto doc = std::make_shared<SourceDocument>();
+    Status st = loadGltfDocument(path, doc.get());
     if (!st)
         return st;
-    Rig rig = std::move(prim.rig);
-    const tinygltf::Mesh& mesh = model.meshes[size_t(prim.meshIndex)];
+    SceneGeometry scene;
+    if (!(st = readSceneGeometry(path, *doc, /*forRig=*/true, &scene)))
+        return st;
+    Rig rig = std::move(scene.rig);
+    if (rig.mesh.triangles.empty())
+        return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
     if (!(st = validateControlMesh(rig.mesh)))
         return Status(st.code(), path + ": " + st.message());
-    const tinygltf::Primitive* triangles = nullptr;
-    for (const tinygltf::Primitive& p : mesh.primitives)
-        if (!triangles && (p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1))
-            triangles = &p;
-    if (!(st = loadSkeleton(path, model, prim.meshIndex, *triangles, &rig)))
+    if (!(st = loadSkeleton(path, doc->model, scene, &rig)))
         return st;
-
-    if (const tinygltf::Value* block = member(mesh.extras, "strata")) {
-        if (!(st = parseStrataBlock(*block, path, &rig.displacement)))
+    if (scene.passThrough)
+        rig.warnings.push_back(std::to_string(scene.passThrough) +
+                               " point or line primitives are kept in the file but not refined");
+    const tinygltf::Model& model = doc->model;
+    if (scene.blockMesh >= 0) {
+        const tinygltf::Value& block = *member(model.meshes[size_t(scene.blockMesh)].extras, "strata");
+        if (!(st = parseStrataBlock(block, path, model, &rig.displacement)))
             return st;
-        if (!rig.mesh.hasUVs())
-            return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but no TEXCOORD_0");
+        if (scene.missingUV)
+            return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but " + scene.firstMissingUV +
+                                                       " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
+                                                       " (stripped by another tool?)");
+        if (rig.displacement.image >= 0) {
+            const tinygltf::Image& img = model.images[size_t(rig.displacement.image)];
+            if (img.bufferView < 0 || size_t(img.bufferView) >= model.bufferViews.size())
+                return Status(StatusCode::InvalidData, path + ": the displacement image " +
+                                                           std::to_string(rig.displacement.image) +
+                                                           " has no bufferView (the map is missing)");
+            const tinygltf::BufferView& view = model.bufferViews[size_t(img.bufferView)];
+            if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size() ||
+                view.byteOffset > model.buffers[size_t(view.buffer)].data.size() ||
+                view.byteLength > model.buffers[size_t(view.buffer)].data.size() - view.byteOffset)
+                return Status(StatusCode::InvalidData, path + ": the displacement image's bufferView is out of range");
+            const unsigned char* b = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
+            rig.displacement.embedded.assign(b, b + view.byteLength);
+        }
         rig.hasDisplacement = true;
+    } else if (model.asset.generator.rfind("Strata", 0) == 0) {
+        rig.warnings.push_back("written by " + printable(model.asset.generator, 40) +
+                               " but has no displacement block (stripped by another tool?): reconstructed without "
+                               "displacement");
     }
+    rig.source = std::move(doc);
     *out = std::move(rig);
     return Status::ok();
 }
@@ -479,19 +854,38 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
 {
     if (!rig.hasDisplacement)
         return Status(StatusCode::InvalidArgument, rigPath + ": the rig has no displacement map");
-    const std::string dir = directoryOf(rigPath);
-    const std::string mapPath = dir.empty() ? rig.displacement.uri : dir + "/" + rig.displacement.uri;
+    const DisplacementInfo& info = rig.displacement;
     DisplacementMap map;
-    Status st = readDisplacementExr(mapPath, &map);
-    if (!st)
-        return st;
-    if (map.width != rig.displacement.width || map.height != rig.displacement.height)
-        return Status(StatusCode::InvalidData, mapPath + ": image is " + std::to_string(map.width) + "x" +
+    std::string mapName;
+    if (info.image >= 0) {
+        mapName = rigPath + " (embedded displacement image)";
+        if (info.embedded.empty())
+            return Status(StatusCode::InvalidData, mapName + ": the image is empty");
+        int bits = 0;
+        std::vector<uint16_t> samples;
+        Status st = decodePngGray(info.embedded.data(), info.embedded.size(), mapName, &map.width, &map.height, &bits,
+                                  &samples);
+        if (!st)
+            return st;
+        if ((info.encoding == "png16") != (bits == 16))
+            return Status(StatusCode::InvalidData, mapName + ": a " + std::to_string(bits) + "-bit image, the rig says " +
+                                                       info.encoding);
+        map.texels.assign(samples.begin(), samples.end());
+    } else {
+        const std::string dir = directoryOf(rigPath);
+        mapName = dir.empty() ? info.uri : dir + "/" + info.uri;
+        if (!isRegularFile(mapName))
+            return Status(StatusCode::InvalidData, mapName + ": the rig's displacement map is missing or not a file");
+        Status st = readDisplacementExr(mapName, &map);
+        if (!st)
+            return st;
+    }
+    if (map.width != info.width || map.height != info.height)
+        return Status(StatusCode::InvalidData, mapName + ": image is " + std::to_string(map.width) + "x" +
                                                    std::to_string(map.height) + " but the rig " + rigPath + " declares " +
-                                                   std::to_string(rig.displacement.width) + "x" +
-                                                   std::to_string(rig.displacement.height));
-    map.factor = rig.displacement.factor;
-    map.offset = rig.displacement.offset;
+                                                   std::to_string(info.width) + "x" + std::to_string(info.height));
+    map.factor = info.factor;
+    map.offset = info.offset;
     *out = std::move(map);
     return Status::ok();
 }
@@ -527,11 +921,14 @@ namespace {
 tinygltf::Value strataBlock(const DisplacementInfo& d)
 {
     tinygltf::Value::Object tex;
-    tex["uri"] = tinygltf::Value(d.uri);
+    if (d.image >= 0)
+        tex["image"] = tinygltf::Value(d.image);
+    else
+        tex["uri"] = tinygltf::Value(d.uri);
     tex["encoding"] = tinygltf::Value(d.encoding);
     tex["width"] = tinygltf::Value(d.width);
     tex["height"] = tinygltf::Value(d.height);
-    tex["texCoord"] = tinygltf::Value(0);
+    tex["texCoord"] = tinygltf::Value(d.texCoord);
     tinygltf::Value::Object subdivision;
     subdivision["rule"] = tinygltf::Value(std::string("loop"));
     subdivision["boundary"] = tinygltf::Value(std::string("edge-and-corner"));
@@ -557,9 +954,335 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     return tinygltf::Value(block);
 }
 
+// Sets (or removes, with a null block) the "strata" member of extras,
+// keeping every other member.
+void setStrataExtras(tinygltf::Value* extras, const tinygltf::Value* block)
+{
+    tinygltf::Value::Object obj;
+    if (extras->IsObject())
+        obj = extras->Get<tinygltf::Value::Object>();
+    if (block)
+        obj["strata"] = *block;
+    else
+        obj.erase("strata");
+    *extras = obj.empty() ? tinygltf::Value() : tinygltf::Value(obj);
+}
+
+// Removes image `index`, renumbering texture sources (textures that used it
+// lose their source).
+void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* bytes, int index)
+{
+    model.images.erase(model.images.begin() + index);
+    if (bytes && size_t(index) < bytes->size())
+        bytes->erase(bytes->begin() + index);
+    for (tinygltf::Texture& t : model.textures)
+        if (t.source == index)
+            t.source = -1;
+        else if (t.source > index)
+            --t.source;
+}
+
+std::string sniffMime(const std::vector<unsigned char>& b)
+{
+    if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G')
+        return "image/png";
+    if (b.size() >= 3 && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff)
+        return "image/jpeg";
+    if (b.size() >= 12 && std::memcmp(b.data(), "RIFF", 4) == 0 && std::memcmp(b.data() + 8, "WEBP", 4) == 0)
+        return "image/webp";
+    if (b.size() >= 4 && std::memcmp(b.data(), "\xabKTX", 4) == 0)
+        return "image/ktx2";
+    return std::string();
+}
+
+// Copies accessor `index` element by element in the order of `src` (source
+// vertex per new vertex) into a new tightly packed, 4-byte aligned accessor.
+Status gatherAccessor(tinygltf::Model& model, int index, const std::vector<uint32_t>& src, const std::string& what,
+                      int* out)
+{
+    if (index < 0 || size_t(index) >= model.accessors.size())
+        return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " does not exist");
+    const tinygltf::Accessor acc = model.accessors[size_t(index)];
+    if (acc.sparse.isSparse)
+        return Status(StatusCode::Unsupported, what + ": sparse vertex attributes cannot be re-indexed yet");
+    const int cbytes = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+    const int comps = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+    if (cbytes <= 0 || comps <= 0)
+        return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " has an unknown type");
+    const size_t elem = size_t(cbytes) * size_t(comps);
+    const size_t packed = (elem + 3) & ~size_t(3);
+    std::vector<unsigned char> bytes(packed * src.size(), 0);
+    if (acc.bufferView >= 0) {
+        if (size_t(acc.bufferView) >= model.bufferViews.size())
+            return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " has no valid bufferView");
+        const tinygltf::BufferView& view = model.bufferViews[size_t(acc.bufferView)];
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            return Status(StatusCode::InvalidData, what + ": a bufferView references a missing buffer");
+        const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+        const size_t stride = view.byteStride ? size_t(view.byteStride) : elem;
+        for (size_t i = 0; i < src.size(); ++i) {
+            if (src[i] >= acc.count)
+                return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(src[i]) + " is beyond accessor " +
+                                                           std::to_string(index));
+            const size_t at = view.byteOffset + acc.byteOffset + size_t(src[i]) * stride;
+            if (at > data.size() || elem > data.size() - at || at + elem > view.byteOffset + view.byteLength)
+                return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) +
+                                                           " reads past the end of its bufferView");
+            std::memcpy(&bytes[i * packed], &data[at], elem);
+        }
+    }
+    const int viewIndex = appendBufferView(model, bytes.data(), bytes.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    if (packed != elem)
+        model.bufferViews[size_t(viewIndex)].byteStride = packed;
+    *out = appendAccessor(model, viewIndex, acc.componentType, acc.type, src.size());
+    tinygltf::Accessor& copy = model.accessors[size_t(*out)];
+    copy.normalized = acc.normalized;
+    copy.minValues = acc.minValues;  // every source vertex is kept, so the bounds hold
+    copy.maxValues = acc.maxValues;
+    copy.name = acc.name;
+    return Status::ok();
+}
+
+// Rewrites a part's primitive with the rig's (new) UVs as TEXCOORD_set:
+// vertices split where the new UVs differ, every original vertex kept in
+// place, every attribute and morph target carried along.
+Status reindexWithUVs(tinygltf::Model& model, const Rig& rig, const RigPart& part, int set, const std::string& path)
+{
+    tinygltf::Primitive& prim = model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+    const std::string what = path + ": " + part.name;
+    std::vector<uint32_t> tri;
+    Status st = primitiveTriangles(model, prim, part.vertexCount, what, &tri);
+    if (!st)
+        return st;
+    const uint32_t none = 0xffffffffu;
+    const size_t n = part.vertexCount;
+    std::vector<uint32_t> primary(n, none), src(n), indices(tri.size());
+    for (size_t i = 0; i < n; ++i)
+        src[i] = uint32_t(i);
+    std::unordered_map<uint64_t, uint32_t> extra;
+    std::vector<uint32_t> uvOf(n, none);  // uv index per new vertex (grown below)
+    size_t face = part.firstFace;
+    for (size_t t = 0; t < tri.size(); t += 3) {
+        const uint32_t* c = &tri[t];
+        const uint32_t a = rig.sourceVertex[part.firstVertex + c[0]], b = rig.sourceVertex[part.firstVertex + c[1]],
+                       d = rig.sourceVertex[part.firstVertex + c[2]];
+        if (a == b || b == d || a == d) {
+            for (int k = 0; k < 3; ++k)
+                indices[t + size_t(k)] = c[k];  // zero area: kept as it was, on the primary copies
+            continue;
+        }
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = c[k], u = rig.mesh.uvIndices[3 * face + size_t(k)];
+            if (primary[v] == none || primary[v] == u) {
+                primary[v] = u;
+                indices[t + size_t(k)] = v;
+                continue;
+            }
+            const uint64_t key = (uint64_t(v) << 32) | u;
+            auto it = extra.emplace(key, uint32_t(src.size()));
+            if (it.second) {
+                src.push_back(v);
+                uvOf.push_back(u);
+            }
+            indices[t + size_t(k)] = it.first->second;
+        }
+        ++face;
+    }
+    std::vector<glm::vec2> uv(src.size(), glm::vec2(0.0f));
+    for (size_t i = 0; i < src.size(); ++i) {
+        const uint32_t u = i < n ? primary[i] : uvOf[i];
+        if (u != none)
+            uv[i] = rig.mesh.uvs[u];
+    }
+    if (src.size() > n) {
+        for (auto& [name, acc] : prim.attributes)
+            if (!(st = gatherAccessor(model, acc, src, what + " " + name, &acc)))
+                return st;
+        for (auto& target : prim.targets)
+            for (auto& [name, acc] : target)
+                if (!(st = gatherAccessor(model, acc, src, what + " morph target " + name, &acc)))
+                    return st;
+    }
+    int view = appendBufferView(model, uv.data(), uv.size() * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
+    prim.attributes["TEXCOORD_" + std::to_string(set)] =
+        appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, uv.size());
+    view = appendBufferView(model, indices.data(), indices.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    prim.indices = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+    prim.mode = TINYGLTF_MODE_TRIANGLES;
+    return Status::ok();
+}
+
+// Extensions known not to reference accessors or bufferViews: with only
+// these in use, unreferenced accessors and views can be dropped safely.
+bool onlyKnownExtensions(const tinygltf::Model& model)
+{
+    for (const std::string& e : model.extensionsUsed)
+        if (e.rfind("KHR_materials_", 0) != 0 && e != "KHR_texture_transform" && e != "KHR_lights_punctual" &&
+            e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp")
+            return false;
+    return true;
+}
+
+// Drops accessors and bufferViews nothing references (when that is known to
+// be safe) and merges every buffer into buffer 0, as a .glb needs.
+Status packBuffers(tinygltf::Model& model)
+{
+    const size_t na = model.accessors.size();
+    const bool collect = onlyKnownExtensions(model);
+    std::vector<int> accessorMap(na, collect ? -1 : 0);
+    auto useAccessor = [&](int a) {
+        if (a >= 0 && size_t(a) < na)
+            accessorMap[size_t(a)] = 0;
+    };
+    if (collect) {
+        for (const tinygltf::Mesh& m : model.meshes)
+            for (const tinygltf::Primitive& p : m.primitives) {
+                for (const auto& [name, a] : p.attributes)
+                    useAccessor(a);
+                useAccessor(p.indices);
+                for (const auto& target : p.targets)
+                    for (const auto& [name, a] : target)
+                        useAccessor(a);
+            }
+        for (const tinygltf::Skin& s : model.skins)
+            useAccessor(s.inverseBindMatrices);
+        for (const tinygltf::Animation& an : model.animations)
+            for (const tinygltf::AnimationSampler& s : an.samplers) {
+                useAccessor(s.input);
+                useAccessor(s.output);
+            }
+    }
+    std::vector<tinygltf::Accessor> accessors;
+    for (size_t a = 0; a < na; ++a)
+        if (accessorMap[a] == 0) {
+            accessorMap[a] = int(accessors.size());
+            accessors.push_back(model.accessors[a]);
+        }
+    auto remap = [&](int& a) {
+        if (a >= 0 && size_t(a) < na)
+            a = accessorMap[size_t(a)];
+    };
+    for (tinygltf::Mesh& m : model.meshes)
+        for (tinygltf::Primitive& p : m.primitives) {
+            for (auto& [name, a] : p.attributes)
+                remap(a);
+            remap(p.indices);
+            for (auto& target : p.targets)
+                for (auto& [name, a] : target)
+                    remap(a);
+        }
+    for (tinygltf::Skin& s : model.skins)
+        remap(s.inverseBindMatrices);
+    for (tinygltf::Animation& an : model.animations)
+        for (tinygltf::AnimationSampler& s : an.samplers) {
+            remap(s.input);
+            remap(s.output);
+        }
+    model.accessors = std::move(accessors);
+
+    const size_t nv = model.bufferViews.size();
+    std::vector<int> viewMap(nv, collect ? -1 : 0);
+    auto useView = [&](int v) {
+        if (v >= 0 && size_t(v) < nv)
+            viewMap[size_t(v)] = 0;
+    };
+    for (const tinygltf::Accessor& a : model.accessors) {
+        useView(a.bufferView);
+        if (a.sparse.isSparse) {
+            useView(a.sparse.indices.bufferView);
+            useView(a.sparse.values.bufferView);
+        }
+    }
+    for (const tinygltf::Image& im : model.images)
+        useView(im.bufferView);
+    std::vector<unsigned char> merged;
+    std::vector<tinygltf::BufferView> views;
+    for (size_t v = 0; v < nv; ++v) {
+        if (viewMap[v] != 0)
+            continue;
+        tinygltf::BufferView view = model.bufferViews[v];
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            return Status(StatusCode::InvalidData, "bufferView " + std::to_string(v) + " references a missing buffer");
+        const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+        if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+            return Status(StatusCode::InvalidData, "bufferView " + std::to_string(v) + " extends past its buffer");
+        while (merged.size() % 4 != view.byteOffset % 4)  // keeps every accessor's alignment
+            merged.push_back(0);
+        const size_t at = merged.size();
+        merged.insert(merged.end(), data.begin() + long(view.byteOffset),
+                      data.begin() + long(view.byteOffset + view.byteLength));
+        view.buffer = 0;
+        view.byteOffset = at;
+        viewMap[v] = int(views.size());
+        views.push_back(view);
+    }
+    while (merged.size() % 4)
+        merged.push_back(0);
+    for (tinygltf::Accessor& a : model.accessors) {
+        if (a.bufferView >= 0 && size_t(a.bufferView) < nv)
+            a.bufferView = viewMap[size_t(a.bufferView)];
+        if (a.sparse.isSparse) {
+            a.sparse.indices.bufferView = viewMap[size_t(a.sparse.indices.bufferView)];
+            a.sparse.values.bufferView = viewMap[size_t(a.sparse.values.bufferView)];
+        }
+    }
+    for (tinygltf::Image& im : model.images)
+        if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
+            im.bufferView = viewMap[size_t(im.bufferView)];
+    model.bufferViews = std::move(views);
+    model.buffers.clear();
+    if (!merged.empty()) {
+        tinygltf::Buffer buffer;
+        buffer.data = std::move(merged);
+        model.buffers.push_back(std::move(buffer));
+    }
+    return Status::ok();
+}
+
+// Quantises a map to 16 bits with paper eq. 12 over its own range and
+// encodes it as a PNG; sets the rig's encoding, factor and offset to match.
+Status embedMap(tinygltf::Model& model, const DisplacementMap& map, DisplacementInfo* info)
+{
+    float dmin = 0.0f, dmax = 0.0f;
+    bool first = true;
+    for (float t : map.texels) {
+        const float d = t * map.factor + map.offset;
+        if (!std::isfinite(d))
+            return Status(StatusCode::InvalidData, "the displacement map has a non-finite texel");
+        dmin = first ? d : std::min(dmin, d);
+        dmax = first ? d : std::max(dmax, d);
+        first = false;
+    }
+    const double range = double(dmax) - double(dmin);
+    std::vector<uint16_t> q(map.texels.size());
+    for (size_t i = 0; i < q.size(); ++i) {
+        const double d = double(map.texels[i]) * map.factor + map.offset;
+        q[i] = uint16_t(range > 0.0 ? std::lround(std::clamp((d - dmin) / range, 0.0, 1.0) * 65535.0) : 0);
+    }
+    std::string png;
+    Status st = encodePngGray(map.width, map.height, 16, q, &png);
+    if (!st)
+        return st;
+    const int view = appendBufferView(model, png.data(), png.size(), -1);
+    model.bufferViews[size_t(view)].target = 0;
+    tinygltf::Image image;
+    image.name = "strata_displacement";
+    image.mimeType = "image/png";
+    image.bufferView = view;
+    model.images.push_back(image);
+    info->image = int(model.images.size() - 1);
+    info->uri.clear();
+    info->encoding = "png16";
+    info->width = map.width;
+    info->height = map.height;
+    info->factor = float(range / 65535.0);
+    info->offset = dmin;
+    return Status::ok();
+}
+
 }  // namespace
 
-Status saveRig(const std::string& path, const Rig& rig)
+Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes)
 {
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
@@ -567,29 +1290,105 @@ Status saveRig(const std::string& path, const Rig& rig)
     Status st = validateControlMesh(rig.mesh);
     if (!st)
         return Status(st.code(), path + ": " + st.message());
+    if (map && !(st = validateDisplacementMap(*map)))
+        return Status(st.code(), path + ": " + st.message());
     const ControlMesh& cm = rig.mesh;
-    std::vector<glm::vec3> normals(cm.positions.size());
-    computeControlNormals(normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
-                          cm.faceCount());
-    MeshView view;
-    view.positions = cm.positions.data();
-    view.normals = normals.data();
-    view.vertexCount = cm.positions.size();
-    view.triangles = cm.triangles.data();
-    view.faceCount = cm.faceCount();
-    if (cm.hasUVs()) {
-        view.uvs = cm.uvs.data();
-        view.uvCount = cm.uvs.size();
-        view.uvIndices = cm.uvIndices.data();
+    DisplacementInfo info = rig.displacement;
+    tinygltf::Model model;
+    std::vector<int> blockMeshes;
+    const bool fromSource = rig.source && !rig.parts.empty() && rig.sourceVertex.size() &&
+                            rig.fileCorners.size() == cm.triangles.size();
+    if (fromSource) {
+        model = rig.source->model;
+        std::vector<std::vector<unsigned char>> imageBytes = rig.source->imageBytes;
+        imageBytes.resize(model.images.size());
+        // The previous bake's block and embedded map go; the new ones replace them.
+        int oldImage = -1;
+        for (tinygltf::Mesh& m : model.meshes)
+            if (const tinygltf::Value* b = member(m.extras, "strata")) {
+                const tinygltf::Value* tex = member(*b, "displacementGeometryTexture");
+                const tinygltf::Value* im = tex ? member(*tex, "image") : nullptr;
+                if (im && im->IsNumber() && im->GetNumberAsDouble() >= 0 &&
+                    im->GetNumberAsDouble() < double(model.images.size()))
+                    oldImage = int(im->GetNumberAsDouble());
+                setStrataExtras(&m.extras, nullptr);
+            }
+        if (oldImage >= 0) {
+            removeImage(model, &imageBytes, oldImage);
+            if (info.image == oldImage)
+                info.image = -1;
+        }
+        // Images from files or data URIs travel inside the rig.
+        for (size_t i = 0; i < model.images.size(); ++i) {
+            tinygltf::Image& im = model.images[i];
+            if (im.bufferView >= 0)
+                continue;
+            if (imageBytes[i].empty()) {
+                if (notes)
+                    notes->push_back("image " + std::to_string(i) + " (" + printable(im.uri, 60) +
+                                     ") could not be read, so the rig still refers to it by URI");
+                continue;
+            }
+            const int view = appendBufferView(model, imageBytes[i].data(), imageBytes[i].size(), -1);
+            model.bufferViews[size_t(view)].target = 0;
+            if (im.mimeType.empty())
+                im.mimeType = sniffMime(imageBytes[i]);
+            im.bufferView = view;
+            im.uri.clear();
+        }
+        // New displacement UVs (an atlas made by the baker) go in a new set.
+        bool sameUVs = cm.hasUVs() && cm.uvIndices == rig.fileCorners && cm.uvs.size() == rig.sourceVertex.size();
+        if (cm.hasUVs() && !sameUVs) {
+            int set = 0;
+            for (const RigPart& part : rig.parts)
+                for (const auto& [name, acc] : model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)].attributes)
+                    if (name.rfind("TEXCOORD_", 0) == 0)
+                        set = std::max(set, std::atoi(name.c_str() + 9) + 1);
+            if (set > 7)
+                return Status(StatusCode::Unsupported, path + ": no free TEXCOORD set for the displacement UVs");
+            for (const RigPart& part : rig.parts)
+                if (!(st = reindexWithUVs(model, rig, part, set, path)))
+                    return st;
+            info.texCoord = set;
+        }
+        for (const RigPart& part : rig.parts)
+            if (std::find(blockMeshes.begin(), blockMeshes.end(), part.mesh) == blockMeshes.end())
+                blockMeshes.push_back(part.mesh);
+    } else {
+        std::vector<glm::vec3> normals(cm.positions.size());
+        computeControlNormals(normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
+                              cm.faceCount());
+        MeshView view;
+        view.positions = cm.positions.data();
+        view.normals = normals.data();
+        view.vertexCount = cm.positions.size();
+        view.triangles = cm.triangles.data();
+        view.faceCount = cm.faceCount();
+        if (cm.hasUVs()) {
+            view.uvs = cm.uvs.data();
+            view.uvCount = cm.uvs.size();
+            view.uvIndices = cm.uvIndices.data();
+        }
+        buildGltfMesh(&model, view, "control_mesh", nullptr, &rig.skeleton);
+        info.texCoord = 0;
+        blockMeshes.push_back(0);
     }
     if (rig.hasDisplacement) {
-        const tinygltf::Value block = strataBlock(rig.displacement);
-        tinygltf::Value::Object extras;
-        extras["strata"] = block;
-        const tinygltf::Value value(extras);
-        return writeGltfMesh(path, view, "control_mesh", &value, &rig.skeleton);
+        if (!cm.hasUVs())
+            return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
+        if (map && !(st = embedMap(model, *map, &info)))
+            return Status(st.code(), path + ": " + st.message());
+        if (info.image < 0 && info.uri.empty())
+            return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");
+        const tinygltf::Value block = strataBlock(info);
+        for (int m : blockMeshes)
+            setStrataExtras(&model.meshes[size_t(m)].extras, &block);
     }
-    return writeGltfMesh(path, view, "control_mesh", nullptr, &rig.skeleton);
+    if (!(st = packBuffers(model)))
+        return Status(st.code(), path + ": " + st.message());
+    model.asset.version = "2.0";
+    model.asset.generator = "Strata " STRATA_VERSION;
+    return writeGltfModel(path, model);
 }
 
 }  // namespace io

@@ -8,17 +8,28 @@
 #include "strata/control_mesh.h"
 #include "strata/plan.h"
 
+#include <glm/mat4x4.hpp>
+
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace strata {
 
-/// Version of the rig's "strata" extras block this build reads and writes.
-constexpr int kRigFormatVersion = 1;
+/// Version of the rig's "strata" extras block this build writes (it reads 1 and 2).
+constexpr int kRigFormatVersion = 2;
+
+/// The glTF document a rig was loaded from, kept whole so that writing the
+/// rig back loses nothing (materials, textures, names, extras, primitives
+/// Strata does not refine).  Opaque here: only strata_io reads it.
+struct SourceDocument;
 
 /// How the rig's displacement map is stored and applied.
 struct DisplacementInfo {
-    std::string uri;            ///< image beside the rig, relative URI (empty: no map)
+    std::string uri;            ///< EXR beside the rig, relative URI (empty: the map is embedded)
+    int image = -1;             ///< glTF image holding the embedded map (format version 2), or -1
+    std::vector<unsigned char> embedded;  ///< the embedded image's encoded bytes, filled by the loader
+    int texCoord = 0;           ///< TEXCOORD_n set the map is sampled through
     std::string encoding;       ///< "exr" (half or float texels), "png8" or "png16"
     int width = 0;              ///< map size the image must have
     int height = 0;
@@ -35,9 +46,25 @@ struct DisplacementInfo {
     } quantized;
 };
 
+/// One triangle primitive of the source scene: a range of the control
+/// mesh's faces and of the file vertices.
+struct RigPart {
+    int mesh = -1, primitive = -1;  ///< glTF mesh and primitive index
+    int node = -1;                  ///< the node that instances it (its first), or -1
+    int material = -1;              ///< glTF material, -1 for the default one
+    bool skinned = false;           ///< the node has a skin (else rigid on its node)
+    glm::mat4 toScene{1.0f};        ///< mesh space -> the control mesh's space at rest
+    uint32_t firstFace = 0, faceCount = 0;      ///< its faces in mesh.triangles
+    uint32_t firstVertex = 0, vertexCount = 0;  ///< its file vertices (sourceVertex)
+    std::string name;               ///< "mesh name/primitive index", for messages
+};
+
 struct Rig {
     ControlMesh mesh;                 ///< welded: one position per topological vertex
     std::vector<uint32_t> sourceVertex;  ///< per file vertex: its topological vertex in mesh
+    std::vector<uint32_t> fileCorners;   ///< per face corner of mesh: the file vertex it came from
+    std::vector<RigPart> parts;       ///< the triangle primitives, in face order (one part for OBJ input)
+    std::shared_ptr<const SourceDocument> source;  ///< null unless loaded from glTF
     bool hasDisplacement = false;     ///< false for a plain glTF without a strata block
     DisplacementInfo displacement;
     Skeleton skeleton;                ///< empty when the mesh is not skinned

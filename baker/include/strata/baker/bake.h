@@ -88,8 +88,10 @@ struct LevelError {
     double forwardRms = 0, forwardMax = 0;    ///< reconstructed -> high-res
     double backwardRms = 0, backwardMax = 0;  ///< high-res -> reconstructed
 };
+/// Levels minLevel..maxLevel; each level's plan and mesh are freed before
+/// the next is built.
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
-                       Scheme scheme, const TriangleMesh& high, int maxLevel, int threads);
+                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads);
 
 }  // namespace baker
 }  // namespace strata

@@ -4,6 +4,7 @@
 #include "strata/baker/bake.h"
 #include "strata/animation.h"
 #include "strata/control_mesh.h"
+#include "strata/rig.h"
 #include "strata/status.h"
 
 #include <string>
@@ -27,6 +28,11 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
 /// any triangle mesh).  A glTF's skin, skeleton and animations go to
 /// `skeleton` (when non-null) so the baked rig carries them.  Errors name the file.
 Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skeleton = nullptr);
+
+/// The control mesh as a whole rig: from glTF with its source document
+/// (so the baked rig keeps everything the file had), parts and skin; from
+/// OBJ the mesh alone.  Warnings say what was tolerated.
+Status loadControlRig(const std::string& path, Rig* out);
 
 /// Derives a control mesh from a high-resolution one by OpenMesh's quadric
 /// Decimater (with normal-flip protection) down to about targetFaces

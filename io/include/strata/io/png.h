@@ -14,6 +14,11 @@ namespace io {
 /// Writes a greyscale PNG, 8 or 16 bits per sample, row-major (row 0 first).
 Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples);
 
+/// Encodes a greyscale PNG in memory (adaptive per-row filters, zlib level 9).
+Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t>& samples, std::string* png);
+/// Decodes a greyscale PNG of 8 or 16 bits from memory; `what` names it in errors.
+Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
+                     std::vector<uint16_t>* samples);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
 Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb);
 

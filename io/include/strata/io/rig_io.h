@@ -6,25 +6,33 @@
 #include "strata/status.h"
 
 #include <string>
+#include <vector>
 
 namespace strata {
 namespace io {
 
-/// Loads a control rig, or any glTF with a triangle mesh (then
-/// rig.hasDisplacement is false).  The first mesh that carries a "strata"
-/// extras block is used, else the first triangle primitive.  Vertices that
-/// glTF splits (UV seams, hard edges) are welded by exact position into one
-/// topological vertex.  Every accessor is bounds-checked; a newer format
-/// version, malformed metadata or bad geometry is a clear error.
+/// Loads a control rig, or any glTF scene with triangles (then
+/// rig.hasDisplacement is false).  Every triangle primitive of every mesh is
+/// read (strips and fans unrolled; points and lines kept in the document
+/// only), in the scene's space at rest: unskinned mesh nodes are placed by
+/// their node's world transform, skinned ones as glTF defines.  Vertices are
+/// welded by exact position across all primitives into one control mesh;
+/// rig.parts records which faces and file vertices came from which
+/// primitive.  Quantized attributes (KHR_mesh_quantization) are read.  The
+/// whole document is kept in rig.source, so saveRig() writes it back
+/// complete.  External files resolve only inside the file's folder.  Every
+/// accessor is bounds-checked; a newer format version, malformed metadata or
+/// bad geometry is a clear error.  Rigs of format versions 1 and 2 load.
 Status loadRig(const std::string& path, Rig* out);
 
-/// Loads the first triangle primitive of any glTF as a triangle soup welded
-/// by exact position, without the control-mesh checks (a captured
+/// Loads every triangle primitive of any glTF scene (as loadRig places them)
+/// as one triangle soup welded by exact position, without the control-mesh checks (a captured
 /// high-resolution mesh may be non-manifold; the baker tolerates that).
 Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles);
 
-/// Loads the displacement map a rig names (the URI is relative to the rig),
-/// checks its size against the rig, and sets factor/offset from the rig.
+/// Loads the rig's displacement map: the embedded image (format version 2)
+/// or the EXR its URI names beside the rig; checks its size against the rig
+/// and sets factor/offset so texels decode to distances.
 Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
 
 /// Loads the rig's optional quantised PNG map (paper eq. 12) with factor and
@@ -32,9 +40,17 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
 Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
 
 /// Writes rig as .glb (binary) or .gltf (JSON with an embedded buffer) by
-/// path extension, atomically.  Vertices are split where UVs differ; the
-/// strata extras block is written when rig.hasDisplacement.
-Status saveRig(const std::string& path, const Rig& rig);
+/// path extension, atomically.  A rig loaded from glTF (rig.source) is
+/// written as its source document plus the displacement block: materials,
+/// textures (external images are embedded), names, extras, skins,
+/// animations and untouched primitives all stay; UVs that differ from the
+/// source's go into a new TEXCOORD set.  Other rigs are written as one mesh,
+/// split where UVs differ.  With `map`, the map is embedded as a 16-bit PNG
+/// (paper eq. 12 over its range) and the block refers to it; without, the
+/// block keeps rig.displacement's URI.  `notes` receives what could not be
+/// carried over, if anything.
+Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map = nullptr,
+               std::vector<std::string>* notes = nullptr);
 
 }  // namespace io
 }  // namespace strata
