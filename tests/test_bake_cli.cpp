@@ -98,7 +98,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "control mesh"},
         {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "high.obj"},
         {ok + " --uv keep -o " + out, "no UVs"},
-        {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj -o " + out, "overlap"},
+        {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj --uv keep -o " + out, "overlap"},
         {ok + " -o " + dir + "/high.obj/sub/rig.glb", "cannot create the output folder"},
         {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
         {ok + " --size 3 -o " + out, "--size"},

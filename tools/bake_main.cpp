@@ -258,8 +258,23 @@ int main(int argc, char** argv)
                 std::fprintf(stderr, "strata-bake: warning: %s: %s\n", controlPath.c_str(), w.c_str());
             control = controlRig.mesh;
             skeleton = controlRig.skeleton;
-            if (uvMode.empty())
+            if (uvMode.empty()) {
+                // Default: keep the control's UVs when they can carry a map
+                // (no overlaps), else lay out an atlas in a new UV set.
                 uvMode = control.hasUVs() ? "keep" : "auto";
+                if (uvMode == "keep") {
+                    ControlMesh probe = control;
+                    std::string note;
+                    baker::fitUVsToUnitSquare(&probe, &note);
+                    if (!(st = baker::checkUVs(probe, 1024))) {
+                        std::fprintf(stderr,
+                                     "strata-bake: warning: %s: its UVs cannot carry the map (%s); generating an atlas "
+                                     "in a new UV set (--uv keep insists)\n",
+                                     controlPath.c_str(), st.message().c_str());
+                        uvMode = "auto";
+                    }
+                }
+            }
             if (uvMode == "keep" && !control.hasUVs())
                 throw cli::Error(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
         }

@@ -1280,6 +1280,35 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, Displacement
     return Status::ok();
 }
 
+// A skinned mesh ignores its parents' transforms, so a childless skinned
+// mesh node under another node draws the same as a root: move it there (the
+// glTF-Validator warns about the other form, NODE_SKINNED_MESH_NON_ROOT).
+void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes)
+{
+    const size_t n = model.nodes.size();
+    std::vector<int> parent(n, -1);
+    for (size_t i = 0; i < n; ++i)
+        for (int c : model.nodes[i].children)
+            if (c >= 0 && size_t(c) < n)
+                parent[size_t(c)] = int(i);
+    for (size_t i = 0; i < n; ++i) {
+        const tinygltf::Node& node = model.nodes[i];
+        if (node.mesh < 0 || node.skin < 0 || parent[i] < 0 || !node.children.empty())
+            continue;
+        int root = parent[i];
+        for (size_t guard = 0; parent[size_t(root)] >= 0 && guard < n; ++guard)
+            root = parent[size_t(root)];
+        std::vector<int>& siblings = model.nodes[size_t(parent[i])].children;
+        siblings.erase(std::remove(siblings.begin(), siblings.end(), int(i)), siblings.end());
+        for (tinygltf::Scene& scene : model.scenes)
+            if (std::find(scene.nodes.begin(), scene.nodes.end(), root) != scene.nodes.end())
+                scene.nodes.push_back(int(i));
+        if (notes)
+            notes->push_back("skinned mesh node " + std::to_string(i) + " (" + printable(node.name, 60) +
+                             ") moved to the scene root, where glTF expects it (it draws the same)");
+    }
+}
+
 }  // namespace
 
 Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes)
@@ -1354,6 +1383,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         for (const RigPart& part : rig.parts)
             if (std::find(blockMeshes.begin(), blockMeshes.end(), part.mesh) == blockMeshes.end())
                 blockMeshes.push_back(part.mesh);
+        rootSkinnedMeshNodes(model, notes);
     } else {
         std::vector<glm::vec3> normals(cm.positions.size());
         computeControlNormals(normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),

@@ -1,0 +1,407 @@
+// Real characters in, complete assets out (issue 10): a bake keeps what the
+// source glTF had, and a multi-primitive, multi-material skinned character
+// with a non-manifold fin and a rigid eye bakes onto itself and
+// reconstructs watertight, posed, matching plain linear blend skinning.
+#include "strata/io/reconstruct.h"
+#include "strata/io/rig_io.h"
+#include "test_util.h"
+
+#include <nlohmann/json.hpp>
+#include <tiny_gltf.h>
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include <cstring>
+#include <fstream>
+
+using namespace strata;
+using nlohmann::json;
+
+namespace {
+
+struct Glb {
+    json doc;
+    std::string bin;
+};
+
+Glb readGlb(const std::string& path)
+{
+    const std::string bytes = test::readText(path);
+    Glb g;
+    if (bytes.size() < 20)
+        return g;
+    uint32_t jsonLength = 0;
+    std::memcpy(&jsonLength, bytes.data() + 12, 4);
+    g.doc = json::parse(bytes.substr(20, jsonLength));
+    const size_t binAt = 20 + jsonLength;
+    if (bytes.size() >= binAt + 8) {
+        uint32_t binLength = 0;
+        std::memcpy(&binLength, bytes.data() + binAt, 4);
+        g.bin = bytes.substr(binAt + 8, binLength);
+    }
+    return g;
+}
+
+std::string imageBytes(const Glb& g, size_t image)
+{
+    const json& im = g.doc["images"][image];
+    if (!im.contains("bufferView"))
+        return std::string();
+    const json& view = g.doc["bufferViews"][im["bufferView"].get<size_t>()];
+    return g.bin.substr(view.value("byteOffset", size_t(0)), view["byteLength"].get<size_t>());
+}
+
+// Removes members equal to glTF's defaults, so that two writers that differ
+// only in spelling defaults out compare equal.
+json withoutDefaults(json j)
+{
+    static const std::vector<std::pair<std::string, json>> defaults = {
+        {"wrapS", 10497}, {"wrapT", 10497}, {"texCoord", 0}, {"emissiveFactor", {0, 0, 0}},
+        {"alphaMode", "OPAQUE"}, {"alphaCutoff", 0.5}, {"doubleSided", false}, {"baseColorFactor", {1, 1, 1, 1}},
+        {"metallicFactor", 1}, {"roughnessFactor", 1}, {"scale", 1}, {"strength", 1}};
+    if (j.is_object()) {
+        for (const auto& [key, value] : defaults)
+            if (j.contains(key) && j[key] == value)
+                j.erase(key);
+        for (auto& [key, value] : j.items())
+            value = withoutDefaults(value);
+    } else if (j.is_array()) {
+        for (auto& v : j)
+            v = withoutDefaults(v);
+    }
+    return j;
+}
+
+json names(const json& array)
+{
+    json out = json::array();
+    for (const json& e : array)
+        out.push_back(e.value("name", ""));
+    return out;
+}
+
+json extrasWithoutStrata(json e)
+{
+    if (e.is_object())
+        e.erase("strata");
+    return e.is_object() && e.empty() ? json() : e;
+}
+
+void checkKeepsEverything(const std::string& source, const std::string& dir, const std::string& stem)
+{
+    const std::string rig = dir + "/" + stem + ".glb";
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + source + " --control " +
+                                                   source + " --error-levels none -o " + rig);
+    ASSERT_EQ(r.code, 0) << r.output;
+    const Glb in = readGlb(source), out = readGlb(rig);
+    ASSERT_FALSE(out.doc.is_null());
+    const json& a = in.doc;
+    const json& b = out.doc;
+    EXPECT_EQ(a["asset"].value("copyright", ""), b["asset"].value("copyright", ""));
+    EXPECT_EQ(withoutDefaults(a.value("materials", json::array())), withoutDefaults(b.value("materials", json::array())));
+    EXPECT_EQ(a.value("textures", json::array()), b.value("textures", json::array()));
+    EXPECT_EQ(withoutDefaults(a.value("samplers", json::array())), withoutDefaults(b.value("samplers", json::array())));
+    EXPECT_EQ(names(a["meshes"]), names(b["meshes"]));
+    EXPECT_EQ(names(a["nodes"]), names(b["nodes"]));
+    EXPECT_EQ(a["skins"], b["skins"]);  // names, joints, skeleton and the inverse bind accessor's place
+    ASSERT_EQ(a["animations"].size(), b["animations"].size());
+    for (size_t i = 0; i < a["animations"].size(); ++i) {
+        EXPECT_EQ(a["animations"][i].value("name", ""), b["animations"][i].value("name", ""));
+        EXPECT_EQ(a["animations"][i]["channels"], b["animations"][i]["channels"]);
+    }
+    for (size_t i = 0; i < a["nodes"].size(); ++i)
+        EXPECT_EQ(a["nodes"][i].value("extras", json()), b["nodes"][i].value("extras", json()));
+    for (size_t i = 0; i < a["meshes"].size(); ++i)
+        EXPECT_EQ(a["meshes"][i].value("extras", json()), extrasWithoutStrata(b["meshes"][i].value("extras", json())));
+    // Every source image, byte for byte, plus the displacement map.
+    ASSERT_EQ(b["images"].size(), a.value("images", json::array()).size() + 1);
+    for (size_t i = 0; i < a.value("images", json::array()).size(); ++i) {
+        EXPECT_EQ(imageBytes(in, i), imageBytes(out, i)) << "image " << i;
+        EXPECT_EQ(a["images"][i].value("mimeType", ""), b["images"][i].value("mimeType", ""));
+    }
+    const json& block = b["meshes"][0]["extras"]["strata"];
+    EXPECT_EQ(block["version"], 2);
+    EXPECT_EQ(block["displacementGeometryTexture"]["image"], b["images"].size() - 1);
+    int code = 0;
+    const std::string report = test::runGltfValidator({rig}, &code);
+    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+}
+
+}  // namespace
+
+TEST(Scene, FoxKeepsEverythingThroughABake)
+{
+    STRATA_REQUIRE_DATA(fox, "Fox.glb");
+    checkKeepsEverything(fox, test::tempDir("scene_fox"), "fox");
+}
+
+TEST(Scene, CesiumManKeepsEverythingThroughABake)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    checkKeepsEverything(man, test::tempDir("scene_cesium"), "man");
+}
+
+namespace {
+
+int addAccessor(tinygltf::Model& m, const void* data, size_t bytes, int componentType, int type, size_t count,
+                int target)
+{
+    tinygltf::Buffer& buf = m.buffers[0];
+    while (buf.data.size() % 4)
+        buf.data.push_back(0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buf.data.size();
+    view.byteLength = bytes;
+    view.target = target;
+    const auto* p = static_cast<const unsigned char*>(data);
+    buf.data.insert(buf.data.end(), p, p + bytes);
+    m.bufferViews.push_back(view);
+    tinygltf::Accessor acc;
+    acc.bufferView = int(m.bufferViews.size() - 1);
+    acc.componentType = componentType;
+    acc.type = type;
+    acc.count = count;
+    m.accessors.push_back(acc);
+    return int(m.accessors.size() - 1);
+}
+
+template <typename T>
+std::vector<T> accessorData(const tinygltf::Model& m, int index, int components)
+{
+    const tinygltf::Accessor& acc = m.accessors[size_t(index)];
+    const tinygltf::BufferView& view = m.bufferViews[size_t(acc.bufferView)];
+    const size_t elem = sizeof(T) * size_t(components);
+    const size_t stride = view.byteStride ? view.byteStride : elem;
+    std::vector<T> out(acc.count * size_t(components));
+    for (size_t i = 0; i < acc.count; ++i)
+        std::memcpy(&out[i * size_t(components)],
+                    m.buffers[size_t(view.buffer)].data.data() + view.byteOffset + acc.byteOffset + i * stride, elem);
+    return out;
+}
+
+std::vector<uint32_t> indicesOf(const tinygltf::Model& m, int index)
+{
+    const tinygltf::Accessor& acc = m.accessors[size_t(index)];
+    std::vector<uint32_t> out;
+    if (acc.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+        for (uint16_t v : accessorData<uint16_t>(m, index, 1))
+            out.push_back(v);
+    else
+        out = accessorData<uint32_t>(m, index, 1);
+    return out;
+}
+
+// CesiumMan as a production character: its primitive split in three with
+// three materials, a fin triangle (own primitive) on an existing edge, and a
+// closed "eye" mesh on a node parented to a joint, not skinned.
+bool makeCharacter(const std::string& source, const std::string& path, size_t* finEdgeFaces)
+{
+    tinygltf::TinyGLTF io;
+    tinygltf::Model m;
+    std::string err, warn;
+    if (!io.LoadBinaryFromFile(&m, &err, &warn, source))
+        return false;
+    tinygltf::Mesh& mesh = m.meshes[0];
+    const tinygltf::Primitive whole = mesh.primitives[0];
+    const std::vector<uint32_t> idx = indicesOf(m, whole.indices);
+    const size_t faces = idx.size() / 3;
+    mesh.primitives.clear();
+    for (int k = 0; k < 3; ++k) {
+        tinygltf::Primitive p = whole;
+        const size_t f0 = faces * size_t(k) / 3, f1 = faces * size_t(k + 1) / 3;
+        std::vector<uint32_t> part(idx.begin() + long(3 * f0), idx.begin() + long(3 * f1));
+        p.indices = addAccessor(m, part.data(), part.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                TINYGLTF_TYPE_SCALAR, part.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        if (k > 0) {
+            tinygltf::Material mat = m.materials[0];
+            mat.name = "part" + std::to_string(k);
+            mat.pbrMetallicRoughness.baseColorFactor = {1.0, 0.5 * k, 0.2, 1.0};
+            m.materials.push_back(mat);
+            p.material = int(m.materials.size() - 1);
+        }
+        mesh.primitives.push_back(p);
+    }
+    // The fin: the first triangle's first edge plus a point off the surface.
+    const std::vector<float> pos = accessorData<float>(m, whole.attributes.at("POSITION"), 3);
+    const std::vector<float> uv = accessorData<float>(m, whole.attributes.at("TEXCOORD_0"), 2);
+    const std::vector<uint16_t> joints = accessorData<uint16_t>(m, whole.attributes.at("JOINTS_0"), 4);
+    const std::vector<float> weights = accessorData<float>(m, whole.attributes.at("WEIGHTS_0"), 4);
+    const uint32_t e0 = idx[0], e1 = idx[1], e2 = idx[2];
+    size_t edgeFaces = 0;
+    for (size_t f = 0; f < faces; ++f)
+        for (int c = 0; c < 3; ++c) {
+            const uint32_t a = idx[3 * f + size_t(c)], b = idx[3 * f + size_t((c + 1) % 3)];
+            auto same = [&](uint32_t x, uint32_t y) {
+                return std::memcmp(&pos[3 * x], &pos[3 * y], 12) == 0;
+            };
+            edgeFaces += (same(a, e0) && same(b, e1)) || (same(a, e1) && same(b, e0));
+        }
+    *finEdgeFaces = edgeFaces + 1;
+    float fin[9];
+    for (int c = 0; c < 3; ++c) {
+        fin[c] = pos[3 * e0 + size_t(c)];
+        fin[3 + c] = pos[3 * e1 + size_t(c)];
+        const float mid = 0.5f * (fin[c] + fin[3 + c]);
+        fin[6 + c] = mid + 0.5f * (mid - pos[3 * e2 + size_t(c)]);
+    }
+    float finUV[6] = {uv[2 * e0], uv[2 * e0 + 1], uv[2 * e1], uv[2 * e1 + 1], uv[2 * e2], uv[2 * e2 + 1]};
+    uint16_t finJoints[12];
+    float finWeights[12];
+    for (int k = 0; k < 4; ++k) {
+        finJoints[k] = joints[4 * e0 + size_t(k)];
+        finJoints[4 + k] = joints[4 * e1 + size_t(k)];
+        finJoints[8 + k] = joints[4 * e0 + size_t(k)];
+        finWeights[k] = weights[4 * e0 + size_t(k)];
+        finWeights[4 + k] = weights[4 * e1 + size_t(k)];
+        finWeights[8 + k] = weights[4 * e0 + size_t(k)];
+    }
+    tinygltf::Primitive finPrim;
+    finPrim.mode = TINYGLTF_MODE_TRIANGLES;
+    finPrim.material = 1;
+    finPrim.attributes["POSITION"] = addAccessor(m, fin, sizeof(fin), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                                                 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+    for (int c = 0; c < 3; ++c) {
+        m.accessors.back().minValues.push_back(std::min({fin[c], fin[3 + c], fin[6 + c]}));
+        m.accessors.back().maxValues.push_back(std::max({fin[c], fin[3 + c], fin[6 + c]}));
+    }
+    finPrim.attributes["TEXCOORD_0"] = addAccessor(m, finUV, sizeof(finUV), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                   TINYGLTF_TYPE_VEC2, 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+    finPrim.attributes["JOINTS_0"] = addAccessor(m, finJoints, sizeof(finJoints), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                                 TINYGLTF_TYPE_VEC4, 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+    finPrim.attributes["WEIGHTS_0"] = addAccessor(m, finWeights, sizeof(finWeights), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                  TINYGLTF_TYPE_VEC4, 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+    mesh.primitives.push_back(finPrim);
+
+    // The eye: a closed tetrahedron on a new node under the last joint.
+    const float s = 0.03f;
+    float eye[12] = {s, s, s, -s, -s, s, -s, s, -s, s, -s, -s};
+    float eyeUV[8] = {0.1f, 0.1f, 0.2f, 0.1f, 0.1f, 0.2f, 0.2f, 0.2f};
+    uint16_t eyeIdx[12] = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
+    tinygltf::Primitive eyePrim;
+    eyePrim.mode = TINYGLTF_MODE_TRIANGLES;
+    eyePrim.material = 2;
+    eyePrim.attributes["POSITION"] = addAccessor(m, eye, sizeof(eye), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                                                 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+    m.accessors.back().minValues = {-s, -s, -s};
+    m.accessors.back().maxValues = {s, s, s};
+    eyePrim.attributes["TEXCOORD_0"] = addAccessor(m, eyeUV, sizeof(eyeUV), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                   TINYGLTF_TYPE_VEC2, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+    eyePrim.indices = addAccessor(m, eyeIdx, sizeof(eyeIdx), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                  TINYGLTF_TYPE_SCALAR, 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    tinygltf::Mesh eyeMesh;
+    eyeMesh.name = "eye";
+    eyeMesh.primitives.push_back(eyePrim);
+    m.meshes.push_back(eyeMesh);
+    tinygltf::Node eyeNode;
+    eyeNode.name = "eye";
+    eyeNode.mesh = int(m.meshes.size() - 1);
+    eyeNode.translation = {0.0, 0.1, 0.0};
+    m.nodes.push_back(eyeNode);
+    m.nodes[size_t(m.skins[0].joints.back())].children.push_back(int(m.nodes.size() - 1));
+    return io.WriteGltfSceneToFile(&m, path, true, true, false, true);
+}
+
+// Plain linear blend skinning of the source file's vertices, computed here
+// from its accessors: the reference an independent glTF client would draw.
+std::vector<glm::vec3> plainLbs(const tinygltf::Model& m, const Rig& rig, const std::vector<glm::mat4>& world)
+{
+    std::vector<glm::vec3> out;
+    const tinygltf::Skin& skin = m.skins[0];
+    const std::vector<float> ibm = accessorData<float>(m, skin.inverseBindMatrices, 16);
+    for (const RigPart& part : rig.parts) {
+        const tinygltf::Primitive& p = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+        const std::vector<float> pos = accessorData<float>(m, p.attributes.at("POSITION"), 3);
+        if (!part.skinned) {
+            for (size_t v = 0; v < pos.size() / 3; ++v)
+                out.push_back(glm::vec3(world[size_t(part.node)] * glm::vec4(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], 1.0f)));
+            continue;
+        }
+        const std::vector<uint16_t> j = accessorData<uint16_t>(m, p.attributes.at("JOINTS_0"), 4);
+        const std::vector<float> w = accessorData<float>(m, p.attributes.at("WEIGHTS_0"), 4);
+        for (size_t v = 0; v < pos.size() / 3; ++v) {
+            glm::mat4 sum(0.0f);
+            for (int k = 0; k < 4; ++k) {
+                const size_t joint = j[4 * v + size_t(k)];
+                sum += w[4 * v + size_t(k)] * (world[size_t(skin.joints[joint])] * glm::make_mat4(&ibm[16 * joint]));
+            }
+            out.push_back(glm::vec3(sum * glm::vec4(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], 1.0f)));
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_character");
+    const std::string input = dir + "/character.glb", rigPath = dir + "/rig.glb";
+    size_t finEdgeFaces = 0;
+    ASSERT_TRUE(makeCharacter(man, input, &finEdgeFaces));
+    ASSERT_GE(finEdgeFaces, 3u) << "the fin must make its edge non-manifold";
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control " +
+                                                   input + " --error-levels none -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    Rig rig;
+    Status st = io::loadRig(rigPath, &rig);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(rig.parts.size(), 5u);  // three body parts, the fin, the eye
+    EXPECT_EQ(rig.parts[3].faceCount, 1u);
+    EXPECT_EQ(rig.parts[4].faceCount, 4u);
+    EXPECT_FALSE(rig.parts[4].skinned);
+    const Glb out = readGlb(rigPath);
+    EXPECT_EQ(out.doc["materials"].size(), 3u);
+    EXPECT_EQ(out.doc["meshes"][0]["primitives"].size(), 4u);
+    EXPECT_EQ(out.doc["meshes"][1]["primitives"].size(), 1u);
+    int code = 0;
+    const std::string report = test::runGltfValidator({rigPath}, &code);
+    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+
+    DisplacementMap map;
+    ASSERT_TRUE(io::loadRigDisplacementMap(rigPath, rig, &map).isOk());
+    const MeshTopologyStats s0 = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());
+    EXPECT_GE(s0.nonManifoldEdges, 1u);
+    tinygltf::TinyGLTF loader;
+    tinygltf::Model source;
+    std::string err, warn;
+    // The rig's own accessors (the input's vertices, split where the new UV
+    // set needs it) are the reference, read here independently of Strata.
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&source, &err, &warn, rigPath)) << err;
+    const Skeleton& sk = rig.skeleton;
+    ASSERT_FALSE(sk.empty());
+    for (int level = 0; level <= 4; ++level) {
+        SCOPED_TRACE("level " + std::to_string(level));
+        io::Reconstruction rec;
+        io::Pose pose;
+        ASSERT_TRUE(io::reconstruct(&rec, rig, &map, Scheme::Linear, level, 1.0f, &pose).isOk());
+        const MeshTopologyStats s = computeTopologyStats(rec.plan->refinedTriangles().data(), rec.plan->refinedFaceCount());
+        EXPECT_EQ(s.boundaryEdges, s0.boundaryEdges << level);
+        EXPECT_EQ(s.nonManifoldEdges, s0.nonManifoldEdges << level);
+        EXPECT_EQ(s.eulerCharacteristic, s0.eulerCharacteristic);
+        Animator animator;
+        ASSERT_TRUE(animator.init(sk, rig.mesh).isOk());
+        for (size_t a = 0; a < sk.animations.size(); ++a)
+            for (int k = 0; k <= 4; ++k) {
+                pose.animation = int(a);
+                pose.time = sk.animations[a].start + (sk.animations[a].end - sk.animations[a].start) * float(k) / 4.0f;
+                ASSERT_TRUE(io::reconstructPose(&rec, &animator, rig, pose).isOk());
+                for (const glm::vec3& p : rec.positions)
+                    ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+                if (level != 0)
+                    continue;
+                // Level 0 of a self-bake is the posed control mesh: plain LBS of the file.
+                std::vector<NodeTransform> local(sk.nodes.size());
+                std::vector<glm::mat4> world(sk.nodes.size());
+                sampleAnimation(local.data(), sk, &sk.animations[a], pose.time);
+                computeWorldMatrices(world.data(), sk, local.data());
+                const std::vector<glm::vec3> lbs = plainLbs(source, rig, world);
+                ASSERT_EQ(lbs.size(), rig.sourceVertex.size());
+                float worst = 0.0f;
+                for (size_t f = 0; f < lbs.size(); ++f)
+                    worst = std::max(worst, glm::length(lbs[f] - rec.positions[rig.sourceVertex[f]]));
+                EXPECT_LT(worst, 1e-4f * test::boundingBoxDiagonal(rig.mesh)) << "animation " << a << " time " << pose.time;
+            }
+    }
+}
