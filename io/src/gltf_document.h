@@ -27,5 +27,29 @@ namespace io {
 /// are kept in doc->imageBytes.
 Status loadGltfDocument(const std::string& path, SourceDocument* doc);
 
+/// One line, printable: control bytes become '?', text past maxLength is cut.
+std::string printable(std::string text, size_t maxLength = 200);
+
+/// Removes image `index`, renumbering texture sources (and imageBytes).
+void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* imageBytes, int index);
+
+/// Moves every image that is not in a bufferView into one, from imageBytes
+/// (external files and data URIs as loaded); notes name any left by URI.
+Status embedImages(tinygltf::Model& model, std::vector<std::vector<unsigned char>>& imageBytes,
+                   std::vector<std::string>* notes);
+
+/// Copies accessor `index` in the order of `src` (source element per new
+/// element) into a new packed accessor with 4-byte aligned elements.
+Status gatherAccessor(tinygltf::Model& model, int index, const std::vector<uint32_t>& src, const std::string& what,
+                      int* out);
+
+/// Drops accessors and bufferViews nothing references (when only extensions
+/// known not to reference them are used) and merges all buffers into one.
+Status packBuffers(tinygltf::Model& model);
+
+/// Moves childless skinned-mesh nodes to the scene root (they draw the same;
+/// the glTF-Validator warns otherwise).
+void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes);
+
 }  // namespace io
 }  // namespace strata

@@ -28,6 +28,9 @@ Status writeFileAtomic(const std::string& path, const void* data, size_t size);
 /// message.
 Status writeViaTempFile(const std::string& path, const std::function<std::string(const std::string& tempPath)>& write);
 
+/// True when path names an existing regular file (not a folder, FIFO or device).
+bool isRegularFile(const std::string& path);
+
 /// Lower-case extension including the dot (".glb"), or "" when none.
 std::string extensionOf(const std::string& path);
 /// The directory part of path ("" when none), without a trailing slash.

@@ -1,0 +1,409 @@
+// The source glTF document: confined loading, and the document-level edits
+// the rig and scene writers share (embedding images, dropping what nothing
+// references, one buffer for .glb).
+#include "gltf_document.h"
+
+#include "strata/io/file.h"
+#include "gltf_mesh_writer.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cstring>
+
+namespace strata {
+namespace io {
+
+// One line, printable: control bytes become '?', long text is cut.
+std::string printable(std::string text, size_t maxLength)
+{
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
+        text.pop_back();
+    for (char& c : text)
+        if ((unsigned char)c < 0x20 || c == 0x7f)
+            c = c == '\n' ? ' ' : '?';
+    if (text.size() > maxLength)
+        text = text.substr(0, maxLength) + "...";
+    return text;
+}
+
+
+namespace {
+
+// ---- Confined file access for external buffers and images ----
+
+struct FsContext {
+    std::string base;  // the document's folder ("" for the working directory)
+};
+
+// The part of `full` below the document's folder, or "" when it is not a
+// plain relative path inside it.
+std::string confinedRelative(const std::string& full, const FsContext& ctx)
+{
+    std::string rel = full;
+    if (!ctx.base.empty()) {
+        if (full.compare(0, ctx.base.size() + 1, ctx.base + "/") != 0)
+            return std::string();
+        rel = full.substr(ctx.base.size() + 1);
+    }
+    if (rel.empty() || rel[0] == '/' || rel.find(':') != std::string::npos || rel.find('\\') != std::string::npos)
+        return std::string();
+    size_t pos = 0;
+    while (pos <= rel.size()) {
+        const size_t slash = rel.find('/', pos);
+        const std::string part = rel.substr(pos, slash == std::string::npos ? std::string::npos : slash - pos);
+        if (part == ".." || part.empty())
+            return std::string();
+        if (slash == std::string::npos)
+            break;
+        pos = slash + 1;
+    }
+    return rel;
+}
+
+
+bool fsExists(const std::string& path, void* user)
+{
+    const FsContext& ctx = *static_cast<FsContext*>(user);
+    return !confinedRelative(path, ctx).empty() && isRegularFile(path);
+}
+
+std::string fsExpand(const std::string& path, void*)
+{
+    return path;  // no ~ or $VAR expansion
+}
+
+bool fsRead(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user)
+{
+    const FsContext& ctx = *static_cast<FsContext*>(user);
+    if (confinedRelative(path, ctx).empty() || !isRegularFile(path)) {
+        if (err)
+            *err += "external files must be regular files inside the rig's folder";
+        return false;
+    }
+    const Status st = readFile(path, out, size_t(1) << 30);
+    if (!st && err)
+        *err += st.message();
+    return bool(st);
+}
+
+bool fsWrite(std::string*, const std::string&, const std::vector<unsigned char>&, void*)
+{
+    return false;  // loading never writes
+}
+
+// Keeps an image's encoded bytes instead of decoding it (the runtime never
+// needs texture pixels; the writer embeds them again).
+bool keepImageBytes(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
+                    const unsigned char* bytes, int size, void* user)
+{
+    auto* doc = static_cast<SourceDocument*>(user);
+    if (index < 0 || size < 0)
+        return true;
+    if (doc->imageBytes.size() <= size_t(index))
+        doc->imageBytes.resize(size_t(index) + 1);
+    if (image->bufferView < 0)
+        doc->imageBytes[size_t(index)].assign(bytes, bytes + size);
+    return true;
+}
+
+}  // namespace
+
+
+
+
+Status loadGltfDocument(const std::string& path, SourceDocument* doc)
+{
+    const std::string ext = extensionOf(path);
+    if (ext != ".glb" && ext != ".gltf")
+        return Status(StatusCode::InvalidArgument, path + ": not a .glb or .gltf file");
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes);
+    if (!st)
+        return st;
+    FsContext ctx{directoryOf(path)};
+    tinygltf::TinyGLTF loader;
+    loader.SetFsCallbacks(tinygltf::FsCallbacks{fsExists, fsExpand, fsRead, fsWrite, &ctx});
+    loader.SetImageLoader(keepImageBytes, doc);
+    std::string err, warn;
+    bool ok;
+    if (ext == ".glb") {
+        ok = loader.LoadBinaryFromMemory(&doc->model, &err, &warn, bytes.data(), unsigned(bytes.size()), ctx.base);
+    } else {
+        ok = loader.LoadASCIIFromString(&doc->model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
+                                        unsigned(bytes.size()), ctx.base);
+    }
+    if (!ok)
+        return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
+    doc->imageBytes.resize(doc->model.images.size());
+    for (const std::string& e : doc->model.extensionsRequired)
+        if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")
+            return Status(StatusCode::Unsupported, path + ": compressed meshes (" + e +
+                                                       ") are not read yet; decompress with gltfpack -noq or gltf-transform first");
+    return Status::ok();
+}
+
+
+
+// Removes image `index`, renumbering texture sources (textures that used it
+// lose their source).
+void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* bytes, int index)
+{
+    model.images.erase(model.images.begin() + index);
+    if (bytes && size_t(index) < bytes->size())
+        bytes->erase(bytes->begin() + index);
+    for (tinygltf::Texture& t : model.textures)
+        if (t.source == index)
+            t.source = -1;
+        else if (t.source > index)
+            --t.source;
+}
+
+static std::string sniffMime(const std::vector<unsigned char>& b)
+{
+    if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G')
+        return "image/png";
+    if (b.size() >= 3 && b[0] == 0xff && b[1] == 0xd8 && b[2] == 0xff)
+        return "image/jpeg";
+    if (b.size() >= 12 && std::memcmp(b.data(), "RIFF", 4) == 0 && std::memcmp(b.data() + 8, "WEBP", 4) == 0)
+        return "image/webp";
+    if (b.size() >= 4 && std::memcmp(b.data(), "\xabKTX", 4) == 0)
+        return "image/ktx2";
+    return std::string();
+}
+
+
+
+Status embedImages(tinygltf::Model& model, std::vector<std::vector<unsigned char>>& imageBytes,
+                   std::vector<std::string>* notes)
+{
+    imageBytes.resize(model.images.size());
+    for (size_t i = 0; i < model.images.size(); ++i) {
+        tinygltf::Image& im = model.images[i];
+        if (im.bufferView >= 0)
+            continue;
+        if (imageBytes[i].empty()) {
+            if (notes)
+                notes->push_back("image " + std::to_string(i) + " (" + printable(im.uri, 60) +
+                                 ") could not be read, so the file still refers to it by URI");
+            continue;
+        }
+        const int view = appendBufferView(model, imageBytes[i].data(), imageBytes[i].size(), -1);
+        model.bufferViews[size_t(view)].target = 0;
+        if (im.mimeType.empty())
+            im.mimeType = sniffMime(imageBytes[i]);
+        im.bufferView = view;
+        im.uri.clear();
+    }
+    return Status::ok();
+}
+
+// Copies accessor `index` element by element in the order of `src` (source
+// vertex per new vertex) into a new tightly packed, 4-byte aligned accessor.
+Status gatherAccessor(tinygltf::Model& model, int index, const std::vector<uint32_t>& src, const std::string& what,
+                      int* out)
+{
+    if (index < 0 || size_t(index) >= model.accessors.size())
+        return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " does not exist");
+    const tinygltf::Accessor acc = model.accessors[size_t(index)];
+    if (acc.sparse.isSparse)
+        return Status(StatusCode::Unsupported, what + ": sparse vertex attributes cannot be re-indexed yet");
+    const int cbytes = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+    const int comps = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+    if (cbytes <= 0 || comps <= 0)
+        return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " has an unknown type");
+    const size_t elem = size_t(cbytes) * size_t(comps);
+    const size_t packed = (elem + 3) & ~size_t(3);
+    std::vector<unsigned char> bytes(packed * src.size(), 0);
+    if (acc.bufferView >= 0) {
+        if (size_t(acc.bufferView) >= model.bufferViews.size())
+            return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) + " has no valid bufferView");
+        const tinygltf::BufferView& view = model.bufferViews[size_t(acc.bufferView)];
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            return Status(StatusCode::InvalidData, what + ": a bufferView references a missing buffer");
+        const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+        const size_t stride = view.byteStride ? size_t(view.byteStride) : elem;
+        for (size_t i = 0; i < src.size(); ++i) {
+            if (src[i] >= acc.count)
+                return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(src[i]) + " is beyond accessor " +
+                                                           std::to_string(index));
+            const size_t at = view.byteOffset + acc.byteOffset + size_t(src[i]) * stride;
+            if (at > data.size() || elem > data.size() - at || at + elem > view.byteOffset + view.byteLength)
+                return Status(StatusCode::InvalidData, what + ": accessor " + std::to_string(index) +
+                                                           " reads past the end of its bufferView");
+            std::memcpy(&bytes[i * packed], &data[at], elem);
+        }
+    }
+    const int viewIndex = appendBufferView(model, bytes.data(), bytes.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    if (packed != elem)
+        model.bufferViews[size_t(viewIndex)].byteStride = packed;
+    *out = appendAccessor(model, viewIndex, acc.componentType, acc.type, src.size());
+    tinygltf::Accessor& copy = model.accessors[size_t(*out)];
+    copy.normalized = acc.normalized;
+    copy.minValues = acc.minValues;  // every source vertex is kept, so the bounds hold
+    copy.maxValues = acc.maxValues;
+    copy.name = acc.name;
+    return Status::ok();
+}
+
+
+// Extensions known not to reference accessors or bufferViews: with only
+// these in use, unreferenced accessors and views can be dropped safely.
+bool onlyKnownExtensions(const tinygltf::Model& model)
+{
+    for (const std::string& e : model.extensionsUsed)
+        if (e.rfind("KHR_materials_", 0) != 0 && e != "KHR_texture_transform" && e != "KHR_lights_punctual" &&
+            e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp")
+            return false;
+    return true;
+}
+
+// Drops accessors and bufferViews nothing references (when that is known to
+// be safe) and merges every buffer into buffer 0, as a .glb needs.
+Status packBuffers(tinygltf::Model& model)
+{
+    const size_t na = model.accessors.size();
+    const bool collect = onlyKnownExtensions(model);
+    std::vector<int> accessorMap(na, collect ? -1 : 0);
+    auto useAccessor = [&](int a) {
+        if (a >= 0 && size_t(a) < na)
+            accessorMap[size_t(a)] = 0;
+    };
+    if (collect) {
+        for (const tinygltf::Mesh& m : model.meshes)
+            for (const tinygltf::Primitive& p : m.primitives) {
+                for (const auto& [name, a] : p.attributes)
+                    useAccessor(a);
+                useAccessor(p.indices);
+                for (const auto& target : p.targets)
+                    for (const auto& [name, a] : target)
+                        useAccessor(a);
+            }
+        for (const tinygltf::Skin& s : model.skins)
+            useAccessor(s.inverseBindMatrices);
+        for (const tinygltf::Animation& an : model.animations)
+            for (const tinygltf::AnimationSampler& s : an.samplers) {
+                useAccessor(s.input);
+                useAccessor(s.output);
+            }
+    }
+    std::vector<tinygltf::Accessor> accessors;
+    for (size_t a = 0; a < na; ++a)
+        if (accessorMap[a] == 0) {
+            accessorMap[a] = int(accessors.size());
+            accessors.push_back(model.accessors[a]);
+        }
+    auto remap = [&](int& a) {
+        if (a >= 0 && size_t(a) < na)
+            a = accessorMap[size_t(a)];
+    };
+    for (tinygltf::Mesh& m : model.meshes)
+        for (tinygltf::Primitive& p : m.primitives) {
+            for (auto& [name, a] : p.attributes)
+                remap(a);
+            remap(p.indices);
+            for (auto& target : p.targets)
+                for (auto& [name, a] : target)
+                    remap(a);
+        }
+    for (tinygltf::Skin& s : model.skins)
+        remap(s.inverseBindMatrices);
+    for (tinygltf::Animation& an : model.animations)
+        for (tinygltf::AnimationSampler& s : an.samplers) {
+            remap(s.input);
+            remap(s.output);
+        }
+    model.accessors = std::move(accessors);
+
+    const size_t nv = model.bufferViews.size();
+    std::vector<int> viewMap(nv, collect ? -1 : 0);
+    auto useView = [&](int v) {
+        if (v >= 0 && size_t(v) < nv)
+            viewMap[size_t(v)] = 0;
+    };
+    for (const tinygltf::Accessor& a : model.accessors) {
+        useView(a.bufferView);
+        if (a.sparse.isSparse) {
+            useView(a.sparse.indices.bufferView);
+            useView(a.sparse.values.bufferView);
+        }
+    }
+    for (const tinygltf::Image& im : model.images)
+        useView(im.bufferView);
+    std::vector<unsigned char> merged;
+    std::vector<tinygltf::BufferView> views;
+    for (size_t v = 0; v < nv; ++v) {
+        if (viewMap[v] != 0)
+            continue;
+        tinygltf::BufferView view = model.bufferViews[v];
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            return Status(StatusCode::InvalidData, "bufferView " + std::to_string(v) + " references a missing buffer");
+        const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+        if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+            return Status(StatusCode::InvalidData, "bufferView " + std::to_string(v) + " extends past its buffer");
+        while (merged.size() % 4 != view.byteOffset % 4)  // keeps every accessor's alignment
+            merged.push_back(0);
+        const size_t at = merged.size();
+        merged.insert(merged.end(), data.begin() + long(view.byteOffset),
+                      data.begin() + long(view.byteOffset + view.byteLength));
+        view.buffer = 0;
+        view.byteOffset = at;
+        viewMap[v] = int(views.size());
+        views.push_back(view);
+    }
+    while (merged.size() % 4)
+        merged.push_back(0);
+    for (tinygltf::Accessor& a : model.accessors) {
+        if (a.bufferView >= 0 && size_t(a.bufferView) < nv)
+            a.bufferView = viewMap[size_t(a.bufferView)];
+        if (a.sparse.isSparse) {
+            a.sparse.indices.bufferView = viewMap[size_t(a.sparse.indices.bufferView)];
+            a.sparse.values.bufferView = viewMap[size_t(a.sparse.values.bufferView)];
+        }
+    }
+    for (tinygltf::Image& im : model.images)
+        if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
+            im.bufferView = viewMap[size_t(im.bufferView)];
+    model.bufferViews = std::move(views);
+    model.buffers.clear();
+    if (!merged.empty()) {
+        tinygltf::Buffer buffer;
+        buffer.data = std::move(merged);
+        model.buffers.push_back(std::move(buffer));
+    }
+    return Status::ok();
+}
+
+
+// A skinned mesh ignores its parents' transforms, so a childless skinned
+// mesh node under another node draws the same as a root: move it there (the
+// glTF-Validator warns about the other form, NODE_SKINNED_MESH_NON_ROOT).
+void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes)
+{
+    const size_t n = model.nodes.size();
+    std::vector<int> parent(n, -1);
+    for (size_t i = 0; i < n; ++i)
+        for (int c : model.nodes[i].children)
+            if (c >= 0 && size_t(c) < n)
+                parent[size_t(c)] = int(i);
+    for (size_t i = 0; i < n; ++i) {
+        const tinygltf::Node& node = model.nodes[i];
+        if (node.mesh < 0 || node.skin < 0 || parent[i] < 0 || !node.children.empty())
+            continue;
+        int root = parent[i];
+        for (size_t guard = 0; parent[size_t(root)] >= 0 && guard < n; ++guard)
+            root = parent[size_t(root)];
+        std::vector<int>& siblings = model.nodes[size_t(parent[i])].children;
+        siblings.erase(std::remove(siblings.begin(), siblings.end(), int(i)), siblings.end());
+        for (tinygltf::Scene& scene : model.scenes)
+            if (std::find(scene.nodes.begin(), scene.nodes.end(), root) != scene.nodes.end())
+                scene.nodes.push_back(int(i));
+        if (notes)
+            notes->push_back("skinned mesh node " + std::to_string(i) + " (" + printable(node.name, 60) +
+                             ") moved to the scene root, where glTF expects it (it draws the same)");
+    }
+}
+
+
+}  // namespace io
+}  // namespace strata
