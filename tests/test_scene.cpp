@@ -13,6 +13,8 @@
 
 #include <cstring>
 #include <fstream>
+#include <map>
+#include <tuple>
 
 using namespace strata;
 using nlohmann::json;
@@ -403,5 +405,97 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
                     worst = std::max(worst, glm::length(lbs[f] - rec.positions[rig.sourceVertex[f]]));
                 EXPECT_LT(worst, 1e-4f * test::boundingBoxDiagonal(rig.mesh)) << "animation " << a << " time " << pose.time;
             }
+    }
+}
+
+TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_reconstructed");
+    const std::string input = dir + "/character.glb", rigPath = dir + "/rig.glb";
+    size_t finEdgeFaces = 0;
+    ASSERT_TRUE(makeCharacter(man, input, &finEdgeFaces));
+    test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control " + input +
+                                             " --error-levels none -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(rigPath, &rig).isOk());
+    const Skeleton& sk = rig.skeleton;
+    ASSERT_FALSE(sk.animations.empty());
+    for (int level : {0, 2}) {
+        SCOPED_TRACE("level " + std::to_string(level));
+        const std::string out = dir + "/level" + std::to_string(level) + ".glb";
+        r = test::runCommand(std::string(STRATA_RECONSTRUCT_EXE) + " " + rigPath + " --level " + std::to_string(level) +
+                             " -o " + out);
+        ASSERT_EQ(r.code, 0) << r.output;
+        int code = 0;
+        const std::string report = test::runGltfValidator({out}, &code);
+        EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+        tinygltf::TinyGLTF loader;
+        tinygltf::Model m;
+        std::string err, warn;
+        ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, out)) << err;
+        EXPECT_EQ(m.materials.size(), 3u);
+        EXPECT_EQ(m.skins.size(), 1u);
+        EXPECT_EQ(m.animations.size(), sk.animations.size());
+        EXPECT_EQ(m.images.size(), 1u) << "the texture stays, the displacement map goes";
+        size_t triangles = 0;
+        for (const tinygltf::Mesh& mesh : m.meshes)
+            for (const tinygltf::Primitive& p : mesh.primitives) {
+                triangles += m.accessors[size_t(p.indices)].count / 3;
+                EXPECT_TRUE(p.attributes.count("TEXCOORD_0")) << mesh.name;
+            }
+        EXPECT_EQ(triangles, rig.mesh.faceCount() << (2 * level));
+        for (const tinygltf::Primitive& p : m.meshes[0].primitives) {
+            ASSERT_TRUE(p.attributes.count("JOINTS_0") && p.attributes.count("WEIGHTS_0"));
+            std::vector<float> w = accessorData<float>(m, p.attributes.at("WEIGHTS_0"), 4);
+            if (p.attributes.count("WEIGHTS_1")) {
+                const std::vector<float> w1 = accessorData<float>(m, p.attributes.at("WEIGHTS_1"), 4);
+                for (size_t i = 0; i < w.size(); ++i)
+                    w[i] += w1[i];
+            }
+            for (size_t v = 0; v < w.size() / 4; ++v)
+                ASSERT_NEAR(w[4 * v] + w[4 * v + 1] + w[4 * v + 2] + w[4 * v + 3], 1.0f, 1e-5f);
+        }
+        if (level != 0)
+            continue;
+        // Played by plain LBS, level 0 is Strata's own posed control mesh.
+        Rig written;
+        ASSERT_TRUE(io::loadRig(out, &written).isOk());
+        const Skeleton& wsk = written.skeleton;
+        std::vector<NodeTransform> local(wsk.nodes.size());
+        std::vector<glm::mat4> world(wsk.nodes.size());
+        const float t = 0.5f * (wsk.animations[0].start + wsk.animations[0].end);
+        sampleAnimation(local.data(), wsk, &wsk.animations[0], t);
+        computeWorldMatrices(world.data(), wsk, local.data());
+        const std::vector<glm::vec3> played = plainLbs(m, written, world);
+        sampleAnimation(local.data(), sk, &sk.animations[0], t);
+        computeWorldMatrices(world.data(), sk, local.data());
+        tinygltf::Model rigModel;
+        ASSERT_TRUE(loader.LoadBinaryFromFile(&rigModel, &err, &warn, rigPath)) << err;
+        const std::vector<glm::vec3> reference = plainLbs(rigModel, rig, world);
+        // Match each played vertex to the reference vertex at the same rest
+        // position (rigid parts went through their node's inverse and back:
+        // equal to rounding).
+        const float diag = test::boundingBoxDiagonal(rig.mesh);
+        std::map<std::tuple<float, float, float>, size_t> at;
+        for (size_t g = 0; g < rig.sourceVertex.size(); ++g) {
+            const glm::vec3 q = rig.mesh.positions[rig.sourceVertex[g]];
+            at.emplace(std::make_tuple(q.x, q.y, q.z), g);
+        }
+        float worst = 0.0f;
+        for (size_t f = 0; f < played.size(); ++f) {
+            const glm::vec3 p = written.mesh.positions[written.sourceVertex[f]];
+            auto it = at.find(std::make_tuple(p.x, p.y, p.z));
+            size_t g = it == at.end() ? 0 : it->second;
+            if (it == at.end())
+                for (size_t k = 0; k < rig.sourceVertex.size(); ++k)
+                    if (glm::length(rig.mesh.positions[rig.sourceVertex[k]] - p) <
+                        glm::length(rig.mesh.positions[rig.sourceVertex[g]] - p))
+                        g = k;
+            EXPECT_LT(glm::length(rig.mesh.positions[rig.sourceVertex[g]] - p), 1e-6f * diag);
+            worst = std::max(worst, glm::length(played[f] - reference[g]));
+        }
+        EXPECT_LT(worst, 1e-4f * diag);
     }
 }

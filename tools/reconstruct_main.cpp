@@ -18,6 +18,7 @@
 #include "strata/segment_deformer.h"
 
 #include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -27,8 +28,11 @@ using namespace strata;
 static const char* kUsage =
     "usage: strata-reconstruct RIG.{glb,gltf}|CONTROL.obj [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
     "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq|segments]\n"
-    "                          [--skeleton JOINTS.json] [--scale S] [--no-displacement]\n"
-    "                          -o OUT.{obj,ply,glb,gltf}\n"
+    "                          [--skeleton JOINTS.json] [--scale S] [--no-displacement] [--static]\n"
+    "                          -o OUT.{obj,ply,glb,gltf} [--version]\n"
+    "  -o OUT.glb of a rig made from glTF writes its whole scene at level N: materials, skin,\n"
+    "     skeleton and animations kept, so the detailed character plays in any glTF viewer;\n"
+    "     --static (or --anim/--time) writes one posed mesh instead\n"
     "  --skinning segments: the paper's point-to-line deformer (eq. 6) from the joints alone\n"
     "  --skeleton: a joint file (JSON) that replaces the rig's skin; implies --skinning segments\n";
 
@@ -38,7 +42,7 @@ int main(int argc, char** argv)
         std::string rigPath, outPath, anim, skeletonPath;
         bool haveMethod = false;
         int level = -1;
-        bool haveScheme = false, displace = true;
+        bool haveScheme = false, displace = true, staticMesh = false;
         Scheme scheme = Scheme::Linear;
         float scale = 1.0f, time = 0.0f;
         bool frames = false, haveTime = false;
@@ -50,6 +54,11 @@ int main(int argc, char** argv)
             if (a == "-h" || a == "--help") {
                 std::fputs(kUsage, stdout);
                 return 0;
+            } else if (a == "--version") {
+                std::printf("strata-reconstruct %s\n", cli::kVersion);
+                return 0;
+            } else if (a == "--static") {
+                staticMesh = true;
             } else if (a == "--level") {
                 level = cli::parseInt(a, value(), 0, kMaxLevel);
             } else if (a == "--scheme") {
@@ -152,9 +161,20 @@ int main(int argc, char** argv)
         if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale, posed ? &pose : nullptr)))
             throw cli::Error(rigPath + ": " + st.message());
         const auto t1 = std::chrono::steady_clock::now();
+        const std::string outExt = io::extensionOf(outPath);
+        const bool scene = !frames && !posed && !staticMesh && rig.source && skeletonPath.empty() &&
+                           (outExt == ".glb" || outExt == ".gltf");
+        std::error_code mkdirError;
+        if (!io::directoryOf(outPath).empty())
+            std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
+        if (mkdirError)
+            throw cli::Error(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
         if (!frames) {
-            if (!(st = io::writeReconstruction(outPath, rec)))
+            std::vector<std::string> notes;
+            if (!(st = scene ? io::writeReconstructedScene(outPath, rig, rec, &notes) : io::writeReconstruction(outPath, rec)))
                 throw cli::Error(st.message());
+            for (const std::string& n : notes)
+                std::fprintf(stderr, "strata-reconstruct: note: %s: %s\n", outPath.c_str(), n.c_str());
             std::fprintf(stderr, "strata-reconstruct: %s level %d (%s): %zu vertices, %zu triangles in %.1f ms -> %s\n",
                          rigPath.c_str(), level, schemeName(scheme), rec.positions.size(), rec.plan->refinedFaceCount(),
                          std::chrono::duration<double, std::milli>(t1 - t0).count(), outPath.c_str());

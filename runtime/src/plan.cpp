@@ -122,6 +122,66 @@ std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, boo
 
 }  // namespace
 
+Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
+                         size_t valueCount, int level)
+{
+    if (!out || !cornerValues)
+        return Status(StatusCode::InvalidArgument, "refineFaceVarying: null argument");
+    if (level < 0 || level > kMaxLevel)
+        return Status(StatusCode::InvalidArgument,
+                      "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel));
+    ControlMesh topo;
+    topo.positions = mesh.positions;
+    topo.triangles = mesh.triangles;
+    topo.uvIndices.assign(cornerValues, cornerValues + mesh.triangles.size());
+    topo.uvs.assign(valueCount, glm::vec2(0.0f));
+    Status st = validateControlMesh(topo);
+    if (!st)
+        return st;
+    TopologyInput input;
+    std::unique_ptr<Far::TopologyRefiner> refiner = createRefiner(topo, /*allSharp=*/true, input);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    if (level > 0) {
+        Far::TopologyRefiner::UniformOptions uniform(level);
+        uniform.fullTopologyInLastLevel = false;
+        refiner->RefineUniform(uniform);
+    }
+    const Far::TopologyLevel& last = refiner->GetLevel(level);
+    const size_t nf = size_t(last.GetNumFaces()), nvals = size_t(last.GetNumFVarValues(0));
+    FaceVaryingRefinement r;
+    r.corners.resize(nf * 3);
+    for (size_t f = 0; f < nf; ++f) {
+        Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(f), 0);
+        for (int c = 0; c < 3; ++c)
+            r.corners[3 * f + size_t(c)] = uint32_t(fvv[c]);
+    }
+    r.offsets.assign(nvals + 1, 0);
+    if (level == 0) {
+        for (size_t i = 0; i < nvals; ++i)
+            r.offsets[i + 1] = uint32_t(i + 1);
+        r.sources.resize(nvals);
+        for (size_t i = 0; i < nvals; ++i)
+            r.sources[i] = uint32_t(i);
+        r.weights.assign(nvals, 1.0f);
+    } else {
+        StencilFactory::Options so;
+        so.interpolationMode = StencilFactory::INTERPOLATE_FACE_VARYING;
+        so.generateIntermediateLevels = false;
+        so.generateOffsets = true;
+        so.fvarChannel = 0;
+        std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
+        if (!table || size_t(table->GetNumStencils()) != nvals)
+            return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
+        for (size_t i = 0; i < nvals; ++i)
+            r.offsets[i + 1] = r.offsets[i] + uint32_t(table->GetSizes()[i]);
+        r.sources.assign(table->GetControlIndices().begin(), table->GetControlIndices().end());
+        r.weights = table->GetWeights();
+    }
+    *out = std::move(r);
+    return Status::ok();
+}
+
 Plan::~Plan() = default;
 
 Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level)

@@ -57,6 +57,22 @@ struct SampleLocation {
 /// never displaced.
 constexpr uint32_t kNoControlFace = 0xffffffffu;
 
+/// Per-corner data refined linearly inside each control face, the way a
+/// plan refines UVs (FVAR_LINEAR_ALL): material UVs of any set, colours, or
+/// the file vertex each corner came from.  Each refined value is a weighted
+/// sum of at most three control values of one face.
+struct FaceVaryingRefinement {
+    std::vector<uint32_t> corners;  ///< 3 per refined face (plan order): refined value index
+    std::vector<uint32_t> offsets;  ///< refined value count + 1: CSR into sources and weights
+    std::vector<uint32_t> sources;  ///< control value index per entry
+    std::vector<float> weights;     ///< weight per entry
+};
+
+/// Refines per-corner values through mesh's topology at `level`.
+/// \param cornerValues  3 per control face, each < valueCount
+Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
+                         size_t valueCount, int level);
+
 class Plan {
 public:
     /// Builds the plan: topology refiner, stencil tables (vertex and, with

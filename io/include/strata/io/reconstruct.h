@@ -39,5 +39,18 @@ Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, 
 /// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
 Status writeReconstruction(const std::string& path, const Reconstruction& rec);
 
+/// Writes a bind-pose reconstruction of a rig loaded from glTF as the rig's
+/// own scene (.glb/.gltf): every control primitive replaced by its refined,
+/// displaced faces, in its mesh's space, with material UVs, colours and
+/// custom attributes refined linearly through the same faces, and skinned
+/// parts carrying JOINTS/WEIGHTS refined from the control vertices' (blended
+/// by each refined vertex's barycentric weights, renormalised, at most 8).
+/// Materials, textures, skin, skeleton, animations, names and extras stay,
+/// so the detailed character plays in any glTF viewer.  The displacement
+/// block and map are left out.  `notes` receives what was not carried
+/// (tangents, morph targets).
+Status writeReconstructedScene(const std::string& path, const Rig& rig, const Reconstruction& rec,
+                               std::vector<std::string>* notes = nullptr);
+
 }  // namespace io
 }  // namespace strata
