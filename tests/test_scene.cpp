@@ -4,6 +4,7 @@
 // reconstructs watertight, posed, matching plain linear blend skinning.
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
+#include "test_rigs.h"
 #include "test_util.h"
 
 #include <nlohmann/json.hpp>
@@ -497,5 +498,103 @@ TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
             worst = std::max(worst, glm::length(played[f] - reference[g]));
         }
         EXPECT_LT(worst, 1e-4f * diag);
+    }
+}
+
+namespace {
+
+// The example rig with its map embedded (format version 2).
+std::string writeEmbeddedExample(const std::string& dir, Rig* rig, DisplacementMap* map)
+{
+    test::makeExampleRig(rig, map);
+    const std::string path = dir + "/example.glb";
+    EXPECT_TRUE(io::saveRig(path, *rig, map).isOk());
+    return path;
+}
+
+}  // namespace
+
+TEST(Scene, EmbeddedMapRoundTripsWithinSixteenBitQuantisation)
+{
+    const std::string dir = test::tempDir("scene_embedded");
+    Rig rig;
+    DisplacementMap map;
+    const std::string path = writeEmbeddedExample(dir, &rig, &map);
+    Rig back;
+    ASSERT_TRUE(io::loadRig(path, &back).isOk());
+    EXPECT_EQ(back.displacement.encoding, "png16");
+    DisplacementMap loaded;
+    ASSERT_TRUE(io::loadRigDisplacementMap(path, back, &loaded).isOk());
+    ASSERT_EQ(loaded.texels.size(), map.texels.size());
+    float lo = map.texels[0], hi = map.texels[0], worst = 0.0f;
+    for (float t : map.texels) {
+        lo = std::min(lo, t);
+        hi = std::max(hi, t);
+    }
+    for (size_t i = 0; i < map.texels.size(); ++i)
+        worst = std::max(worst, std::fabs(loaded.texels[i] * loaded.factor + loaded.offset -
+                                          (map.texels[i] * map.factor + map.offset)));
+    // Half a step of eq. 12 at 16 bits, plus float rounding in the decode.
+    EXPECT_LE(worst, 0.5f * (hi - lo) / 65535.0f + 4.0f * 1.2e-7f * std::max(std::fabs(lo), std::fabs(hi)));
+}
+
+TEST(Scene, StrippedRigsFailLoudlyOrWarn)
+{
+    const std::string dir = test::tempDir("scene_stripped");
+    Rig rig;
+    DisplacementMap map;
+    const std::string path = writeEmbeddedExample(dir, &rig, &map);
+    tinygltf::TinyGLTF io;
+    tinygltf::Model m;
+    std::string err, warn;
+    ASSERT_TRUE(io.LoadBinaryFromFile(&m, &err, &warn, path)) << err;
+    // UVs stripped, block kept: an error naming what is missing.
+    tinygltf::Model noUV = m;
+    noUV.meshes[0].primitives[0].attributes.erase("TEXCOORD_0");
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&noUV, dir + "/nouv.glb", true, true, false, true));
+    Rig out;
+    Status st = io::loadRig(dir + "/nouv.glb", &out);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("TEXCOORD_0"), std::string::npos) << st.message();
+    // The map image gone: an error naming the map.
+    tinygltf::Model noImage = m;
+    noImage.images.clear();
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&noImage, dir + "/noimage.glb", true, true, false, true));
+    st = io::loadRig(dir + "/noimage.glb", &out);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("map is missing"), std::string::npos) << st.message();
+    // The block stripped from a Strata file: loads plain, with a warning.
+    tinygltf::Model noBlock = m;
+    noBlock.meshes[0].extras = tinygltf::Value();
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&noBlock, dir + "/noblock.glb", true, true, false, true));
+    ASSERT_TRUE(io::loadRig(dir + "/noblock.glb", &out).isOk());
+    EXPECT_FALSE(out.hasDisplacement);
+    ASSERT_EQ(out.warnings.size(), 1u);
+    EXPECT_NE(out.warnings[0].find("no displacement block"), std::string::npos) << out.warnings[0];
+}
+
+TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
+{
+    if (std::system("command -v gltfpack >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "gltfpack is not installed (cmake/install-deps.sh installs it)";
+    const std::string dir = test::tempDir("scene_gltfpack");
+    Rig rig;
+    DisplacementMap map;
+    const std::string path = writeEmbeddedExample(dir, &rig, &map);
+    const test::CommandResult r = test::runCommand("gltfpack -i '" + path + "' -o '" + dir + "/packed.glb'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    ASSERT_NE(test::readText(dir + "/packed.glb").find("KHR_mesh_quantization"), std::string::npos);
+    Rig packed;
+    const Status st = io::loadRig(dir + "/packed.glb", &packed);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    // Integer positions with the dequantisation on the node: the same surface
+    // to gltfpack's 14-bit precision.
+    const float diag = test::boundingBoxDiagonal(rig.mesh);
+    ASSERT_EQ(packed.mesh.faceCount(), rig.mesh.faceCount());
+    for (const glm::vec3& p : packed.mesh.positions) {
+        float best = 1e30f;
+        for (const glm::vec3& q : rig.mesh.positions)
+            best = std::min(best, glm::length(p - q));
+        EXPECT_LT(best, 2e-4f * diag);
     }
 }
