@@ -598,3 +598,54 @@ TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
         EXPECT_LT(best, 2e-4f * diag);
     }
 }
+
+TEST(Scene, SkinWith256JointsRoundTripsAndPoses)
+{
+    // A ribbon of 256 quads along x, quad k skinned to joint k of a
+    // 256-joint chain; the root bends over one second.
+    const int joints = 256;
+    Rig rig;
+    for (int k = 0; k <= joints; ++k) {
+        rig.mesh.positions.push_back({float(k), 0.0f, 0.0f});
+        rig.mesh.positions.push_back({float(k), 1.0f, 0.0f});
+    }
+    for (uint32_t k = 0; k < uint32_t(joints); ++k)
+        rig.mesh.triangles.insert(rig.mesh.triangles.end(),
+                                  {2 * k, 2 * k + 2, 2 * k + 3, 2 * k, 2 * k + 3, 2 * k + 1});
+    Skeleton& s = rig.skeleton;
+    s.nodes.resize(size_t(joints));
+    for (int k = 0; k < joints; ++k) {
+        s.nodes[size_t(k)].name = "j" + std::to_string(k);
+        s.nodes[size_t(k)].parent = k - 1;
+        s.nodes[size_t(k)].rest.translation = k == 0 ? glm::vec3(0.0f) : glm::vec3(1.0f, 0.0f, 0.0f);
+        s.skin.joints.push_back(k);
+        s.skin.inverseBindMatrices.push_back(glm::translate(glm::mat4(1.0f), glm::vec3(-float(k), 0.0f, 0.0f)));
+    }
+    s.weights.influences = 4;
+    for (int v = 0; v < 2 * (joints + 1); ++v) {
+        const uint16_t j = uint16_t(std::min(v / 2, joints - 1));
+        s.weights.joints.insert(s.weights.joints.end(), {j, 0, 0, 0});
+        s.weights.weights.insert(s.weights.weights.end(), {1.0f, 0.0f, 0.0f, 0.0f});
+    }
+    Animation bend;
+    bend.name = "bend";
+    bend.channels.push_back(test::rotationKeys(
+        0, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.5f, glm::vec3(0.0f, 0.0f, 1.0f))}));
+    s.animations.push_back(bend);
+    ASSERT_TRUE(finalizeSkeleton(&s, rig.mesh.positions.size()).isOk());
+    const std::string dir = test::tempDir("scene_joints");
+    ASSERT_TRUE(io::saveRig(dir + "/ribbon.glb", rig).isOk());
+    Rig back;
+    const Status st = io::loadRig(dir + "/ribbon.glb", &back);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(back.skeleton.skin.joints.size(), size_t(joints));
+    Animator animator;
+    ASSERT_TRUE(animator.init(back.skeleton, back.mesh).isOk());
+    ASSERT_TRUE(animator.pose(0, 1.0f).isOk());
+    // Every vertex turns rigidly by 0.5 rad about the origin.
+    const glm::mat4 turn = glm::mat4_cast(glm::angleAxis(0.5f, glm::vec3(0.0f, 0.0f, 1.0f)));
+    for (size_t v = 0; v < back.mesh.positions.size(); ++v) {
+        const glm::vec3 expected = glm::vec3(turn * glm::vec4(back.mesh.positions[v], 1.0f));
+        ASSERT_LT(glm::length(animator.positions()[v] - expected), 1e-3f) << v;
+    }
+}
