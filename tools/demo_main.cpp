@@ -100,14 +100,12 @@ int main(int argc, char** argv)
             throw cli::Error(st.message());
         const double bakeMs = msSince(t0);
         rig.hasDisplacement = true;
-        rig.displacement.uri = "head.exr";
-        rig.displacement.encoding = "exr";
-        rig.displacement.width = map.width;
-        rig.displacement.height = map.height;
         rig.displacement.scheme = Scheme::Linear;
         rig.displacement.recommendedLevel = 4;
+        // One self-contained rig (the map embedded as a 16-bit PNG), and the
+        // same map as EXR beside it for pipelines.
         const std::string rigPath = outDir + "/head.glb";
-        if (!(st = io::writeDisplacementExr(outDir + "/head.exr", map)) || !(st = io::saveRig(rigPath, rig)))
+        if (!(st = io::writeDisplacementExr(outDir + "/head.exr", map)) || !(st = io::saveRig(rigPath, rig, &map)))
             throw cli::Error(st.message());
         std::printf("built-in example: a %zu-triangle head-like capture baked onto a %zu-triangle icosahedron control "
                     "mesh, %dx%d map in %.0f ms (%zu border triangles, %zu vertices outside every normal volume)\n",
