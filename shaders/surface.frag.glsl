@@ -5,11 +5,20 @@ in vec3 v_position;
 in vec3 v_normal;
 in float v_displacement;
 in float v_error;
+in vec2 v_materialUV;
 
 uniform int u_colorMode;       // 0 shaded, 1 displacement, 2 error, 3 flat (wireframe)
 uniform vec2 u_colorRange;     // value range mapped onto the colour ramp
 uniform vec3 u_eye;
 uniform vec3 u_baseColor;
+// The primitive's material (shaded view): glTF base colour factor times its
+// texture, alpha mode OPAQUE (0), MASK (1) or BLEND (2).
+uniform int u_material;
+uniform vec4 u_materialColor;
+uniform int u_hasTexture;
+uniform sampler2D u_baseColorTexture;
+uniform int u_alphaMode;
+uniform float u_alphaCutoff;
 
 out vec4 o_color;
 
@@ -31,6 +40,16 @@ void main()
     if (dot(n, view) < 0.0)
         n = -n;  // back faces of open meshes
     vec3 base = u_baseColor;
+    float alpha = 1.0;
+    if (u_colorMode == 0 && u_material != 0) {
+        vec4 c = u_materialColor;
+        if (u_hasTexture != 0)
+            c *= texture(u_baseColorTexture, v_materialUV);
+        if (u_alphaMode == 1 && c.a < u_alphaCutoff)
+            discard;
+        base = c.rgb;
+        alpha = u_alphaMode == 2 ? c.a : 1.0;
+    }
     if (u_colorMode == 1)
         base = ramp((v_displacement - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
     else if (u_colorMode == 2)
@@ -41,5 +60,5 @@ void main()
     float hemi = 0.5 + 0.5 * n.y;
     vec3 ambient = mix(vec3(0.18, 0.16, 0.14), vec3(0.32, 0.36, 0.42), hemi);
     float specular = pow(max(dot(reflect(-key, n), view), 0.0), 40.0) * 0.25;
-    o_color = vec4(base * (ambient + diffuse) + vec3(specular), 1.0);
+    o_color = vec4(base * (ambient + diffuse) + vec3(specular), alpha);
 }

@@ -4,6 +4,12 @@
 // to read the displaced positions back.
 layout(std430, binding = 5) readonly buffer Surface { vec4 surface[]; };
 layout(std430, binding = 11) readonly buffer Normals { vec4 normals[]; };
+// Corner mode (materials): gl_VertexID is a refined face corner.
+layout(std430, binding = 7) readonly buffer SampleUVs { vec2 sampleUVs[]; };
+layout(std430, binding = 8) readonly buffer Triangles { uint triangles[]; };
+layout(std430, binding = 12) readonly buffer Errors { float errors[]; };
+layout(std430, binding = 14) readonly buffer CornerUVs { vec2 cornerUVs[]; };
+uniform int u_corners;
 
 layout(location = 0) in vec2 a_uv;
 layout(location = 1) in float a_error;
@@ -15,16 +21,26 @@ out vec3 v_position;
 out vec3 v_normal;
 out float v_displacement;
 out float v_error;
+out vec2 v_materialUV;
 
 void main()
 {
     uint v = uint(gl_VertexID);
+    vec2 uv = a_uv;
+    float error = a_error;
+    v_materialUV = vec2(0.0);
+    if (u_corners != 0) {
+        v = triangles[gl_VertexID];
+        uv = sampleUVs[v];
+        error = errors[v];
+        v_materialUV = cornerUVs[gl_VertexID];
+    }
     vec3 p = surface[2u * v].xyz;
     vec3 n = surface[2u * v + 1u].xyz;
-    float d = strata_sample_displacement(a_uv);
+    float d = strata_sample_displacement(uv);
     v_position = strata_displace(p, n, d);
     v_normal = u_haveNormals != 0 ? normals[v].xyz : normalize(n);
     v_displacement = d;
-    v_error = a_error;
+    v_error = error;
     gl_Position = u_viewProjection * vec4(v_position, 1.0);
 }

@@ -153,3 +153,49 @@ TEST(ViewerRealData, FoxPlaysAndIsFramed)
     expectInFrame(b, "Fox t 0.4");
     EXPECT_GT(meanDifference(a, b, 0, 0, 320, 240), 0.5);  // it moved
 }
+
+TEST(ViewerRealData, FoxIsDrawnWithItsTexture)
+{
+    STRATA_REQUIRE_DATA(fox, "Fox.glb");
+    const std::string dir = test::tempDir("viewer_fox_texture");
+    const Image textured = shoot(fox, "", dir + "/textured.png");
+    const Image grey = shoot(fox, "--no-materials", dir + "/grey.png");
+    // Fox's texture is orange fur with white and dark patches: count model
+    // pixels whose red clearly exceeds blue.  Flat grey has none.
+    auto orange = [](const Image& img) {
+        size_t n = 0, model = 0;
+        for (int y = 0; y < img.height; ++y)
+            for (int x = 0; x < img.width; ++x) {
+                const uint8_t* p = img.at(x, y);
+                if (isBackground(p))
+                    continue;
+                ++model;
+                n += p[0] > p[2] + 60 && p[0] > p[1] + 20;
+            }
+        return model ? double(n) / double(model) : 0.0;
+    };
+    EXPECT_GT(orange(textured), 0.4);
+    EXPECT_LT(orange(grey), 0.01);
+}
+
+TEST(ViewerRealData, CesiumManIsFramedStandingOnTheGrid)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("viewer_cesium_frame");
+    // --time alone plays animation 0; the posed figure is framed whole at
+    // any aspect ratio.
+    for (const char* size : {"320x240", "240x320"}) {
+        const test::CommandResult r =
+            test::runCommand(std::string(STRATA_VIEW_EXE) + " '" + man + "' --headless --no-grid --time 0.5 --size " +
+                             size + " --screenshot '" + dir + "/man.png'");
+        ASSERT_EQ(r.code, 0) << r.output;
+        Image img;
+        ASSERT_TRUE(io::readPngRgb(dir + "/man.png", &img.width, &img.height, &img.rgb).isOk());
+        const Coverage c = coverage(img);
+        EXPECT_GT(c.fraction, 0.03) << size;
+        EXPECT_GT(c.x0, 0) << size;
+        EXPECT_GT(c.y0, 0) << size << ": the head is cut off";
+        EXPECT_LT(c.x1, img.width - 1) << size;
+        EXPECT_LT(c.y1, img.height - 1) << size;
+    }
+}

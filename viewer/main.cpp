@@ -37,12 +37,14 @@ const char* kUsage =
     "                   [--time T] [--skinning linear|dq|segments] [--high HIGH.{obj,ply,...}]\n"
     "                   [--color shaded|displacement|error] [--no-displacement] [--scale S]\n"
     "                   [--wireframe] [--cage] [--no-grid] [--yaw DEG] [--pitch DEG]\n"
-    "                   [--screenshot OUT.png [--headless]] [--size WxH]\n";
+    "                   [--no-materials] [--screenshot OUT.png [--headless] [--ui]] [--size WxH] [--version]\n"
+    "  --time without --anim plays animation 0; a screenshot frames the posed model and leaves\n"
+    "  the panel out unless --ui (the displacement and error views draw their colour scale)\n";
 
 struct Options {
     std::string file, high, screenshot, anim;
     int width = 1280, height = 800;
-    bool headless = false;
+    bool headless = false, ui = false, haveTime = false;
     float yaw = 30.0f, pitch = 14.0f;
     bool yawGiven = false;
 };
@@ -66,10 +68,16 @@ std::vector<uint8_t> readWindow(int width, int height)
     return out;
 }
 
-void applyAnimation(viewer::Scene& scene, const std::string& anim)
+// --anim NAME|INDEX, or animation 0 when only --time was given.
+void applyAnimation(viewer::Scene& scene, const std::string& anim, bool haveTime)
 {
-    if (anim.empty() || !scene.rig())
+    if (!scene.rig())
         return;
+    if (anim.empty()) {
+        if (haveTime && !scene.rig()->skeleton.animations.empty())
+            scene.settings.animation = 0;
+        return;
+    }
     const int a = findAnimation(scene.rig()->skeleton, anim);
     if (a < 0)
         throw cli::Error(scene.path() + ": no animation \"" + anim + "\"");
@@ -86,7 +94,7 @@ int runHeadless(viewer::Scene& scene, const Options& o)
         throw cli::Error(st.message());
     if (!o.high.empty() && !(st = scene.openHigh(o.high)))
         throw cli::Error(st.message());
-    applyAnimation(scene, o.anim);
+    applyAnimation(scene, o.anim, o.haveTime);
     scene.camera.yaw = glm::radians(o.yaw);
     scene.camera.pitch = glm::radians(o.pitch);
     gl::Framebuffer fb;
@@ -225,12 +233,13 @@ int runWindow(viewer::Scene& scene, const Options& o)
             return;
         viewer::Scene* s = static_cast<Input*>(glfwGetWindowUserPointer(w))->scene;
         s->camera.distance *= std::pow(0.9f, float(dy));
+        s->userCamera_ = true;
     });
 
     if (!o.file.empty() && scene.open(o.file)) {
         if (!o.high.empty())
             scene.openHigh(o.high);
-        applyAnimation(scene, o.anim);
+        applyAnimation(scene, o.anim, o.haveTime);
     }
     scene.camera.yaw = glm::radians(o.yaw);
     scene.camera.pitch = glm::radians(o.pitch);
@@ -249,10 +258,12 @@ int runWindow(viewer::Scene& scene, const Options& o)
         if (!ImGui::GetIO().WantCaptureMouse) {
             const float dx = float(x - input.lastX), dy = float(y - input.lastY);
             if (glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+                scene.userCamera_ = true;
                 scene.camera.yaw -= dx * 0.008f;
                 scene.camera.pitch = glm::clamp(scene.camera.pitch + dy * 0.008f, -1.5f, 1.5f);
             } else if (glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
                        glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS) {
+                scene.userCamera_ = true;
                 const float k = scene.camera.distance * 0.0015f;
                 const glm::vec3 right(std::cos(scene.camera.yaw), 0.0f, -std::sin(scene.camera.yaw));
                 scene.camera.target += -dx * k * right + dy * k * glm::vec3(0, 1, 0);
@@ -272,7 +283,8 @@ int runWindow(viewer::Scene& scene, const Options& o)
         ImGui_ImplOpenGL3_NewFrame();
         ImGui_ImplGlfw_NewFrame();
         ImGui::NewFrame();
-        drawPanel(scene, frameMs);
+        if (o.screenshot.empty() || o.ui)
+            drawPanel(scene, frameMs);
         ImGui::Render();
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
         // A screenshot waits two frames so the panel has its final layout.
@@ -320,6 +332,14 @@ int main(int argc, char** argv)
                 o.anim = value();
             } else if (a == "--time") {
                 s.time = cli::parseFloat(a, value());
+                o.haveTime = true;
+            } else if (a == "--version") {
+                std::printf("strata-view %s\n", cli::kVersion);
+                return 0;
+            } else if (a == "--ui") {
+                o.ui = true;
+            } else if (a == "--no-materials") {
+                s.materials = false;
             } else if (a == "--skinning") {
                 s.skinning = cli::parseChoice<SkinningMethod>(a, value(), {{"linear", SkinningMethod::Linear},
                                                                    {"dq", SkinningMethod::DualQuaternion},

@@ -47,8 +47,19 @@ Status Scene::open(const std::string& path)
         lastError_ = st.message();
         return st;
     }
+    io::SceneMaterials materials;
+    std::vector<std::string> materialWarnings;
+    if (st)
+        st = io::loadSceneMaterials(*rig, &materials, &materialWarnings);
+    if (!st) {
+        lastError_ = st.message();
+        return st;
+    }
+    for (const std::string& w : materialWarnings)
+        rig->warnings.push_back(w);
     // Commit: the new model replaces the old one.
     rig_ = std::move(rig);
+    materials_ = std::move(materials);
     path_ = path;
     map_ = std::move(map);
     haveMap_ = rig_->hasDisplacement;
@@ -85,6 +96,7 @@ Status Scene::open(const std::string& path)
     builtLevel_ = -1;
     lastError_.clear();
     frameModel();
+    framePose_ = animated_;
     if ((st = rebuild()))
         buildLines();
     return st;
@@ -106,8 +118,11 @@ Status Scene::openHigh(const std::string& path)
 
 void Scene::frameModel()
 {
+    // The bounding sphere fits the narrower of the two fields of view.
     camera.target = 0.5f * (lo_ + hi_);
-    camera.distance = radius_ * 0.95f / std::tan(0.5f * camera.fovY);
+    const float halfY = 0.5f * camera.fovY;
+    const float halfX = std::atan(std::tan(halfY) * std::max(aspect_, 1e-3f));
+    camera.distance = radius_ * 1.08f / std::sin(std::min(halfX, halfY));
 }
 
 float Scene::animationLength() const
@@ -147,10 +162,56 @@ Status Scene::rebuild()
     plan_ = std::move(plan);
     surface_ = std::move(surface);
     surface_->setTiming(timing_);
+    builtMaterials_ = settings.materials;
+    if (settings.materials && !(st = uploadMaterials())) {
+        lastError_ = st.message();
+        return st;
+    }
     builtLevel_ = settings.level;
     builtScheme_ = settings.scheme;
     computeErrors();
     return Status::ok();
+}
+
+// Each part's refined faces with its material; the base colour UVs refined
+// through the same faces as face-varying data.
+Status Scene::uploadMaterials()
+{
+    if (rig_->parts.empty() || rig_->fileCorners.size() != rig_->mesh.triangles.size())
+        return Status::ok();  // not from a glTF scene: flat grey
+    FaceVaryingRefinement fv;
+    Status st = refineFaceVarying(&fv, rig_->mesh, rig_->fileCorners.data(), rig_->sourceVertex.size(), settings.level);
+    if (!st)
+        return st;
+    std::vector<glm::vec2> corners(fv.corners.size());
+    for (size_t c = 0; c < corners.size(); ++c) {
+        glm::vec2 uv(0.0f);
+        for (uint32_t k = fv.offsets[fv.corners[c]]; k < fv.offsets[fv.corners[c] + 1]; ++k)
+            uv += fv.weights[k] * materials_.fileUVs[fv.sources[k]];
+        corners[c] = uv;
+    }
+    std::vector<gl::SurfaceMaterial> mats;
+    for (const io::MaterialInfo& m : materials_.materials) {
+        gl::SurfaceMaterial g;
+        g.baseColor = m.baseColor;
+        g.alphaMode = int(m.alphaMode);
+        g.alphaCutoff = m.alphaCutoff;
+        if (m.image >= 0 && !materials_.images[size_t(m.image)].rgba.empty()) {
+            const io::ImageRGBA& im = materials_.images[size_t(m.image)];
+            g.textureWidth = im.width;
+            g.textureHeight = im.height;
+            g.textureRGBA = im.rgba.data();
+        }
+        mats.push_back(g);
+    }
+    const size_t per = size_t(1) << (2 * settings.level);
+    std::vector<gl::MaterialRange> ranges;
+    for (size_t p = 0; p < rig_->parts.size(); ++p) {
+        const RigPart& part = rig_->parts[p];
+        if (part.faceCount)
+            ranges.push_back({size_t(part.firstFace) * per, size_t(part.faceCount) * per, materials_.partMaterial[p]});
+    }
+    return surface_->setMaterials(mats, ranges, corners);
 }
 
 void Scene::computeErrors()
@@ -232,7 +293,7 @@ void Scene::update(float dt)
     if (!rig_)
         return;
     settings.level = std::clamp(settings.level, 0, kMaxLevel);
-    if (settings.level != builtLevel_ || settings.scheme != builtScheme_) {
+    if (settings.level != builtLevel_ || settings.scheme != builtScheme_ || settings.materials != builtMaterials_) {
         if (!rebuild()) {
             // Stay on what works.
             settings.level = builtLevel_;
@@ -260,6 +321,24 @@ void Scene::update(float dt)
         }
     }
     cpuFrameMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (framePose_) {
+        // A skinned mesh's bind space can be far from where its skeleton puts
+        // it (CesiumMan stands up only once posed): frame the posed control
+        // vertices, with the grid under their feet.
+        framePose_ = false;
+        lo_ = glm::vec3(1e30f);
+        hi_ = glm::vec3(-1e30f);
+        for (size_t v = 0; v < rig_->mesh.vertexCount(); ++v) {
+            lo_ = glm::min(lo_, positions[v]);
+            hi_ = glm::max(hi_, positions[v]);
+        }
+        const float pad = std::max(dMax_, -dMin_) * std::max(settings.scale, 0.0f);
+        lo_ -= glm::vec3(pad);
+        hi_ += glm::vec3(pad);
+        radius_ = std::max(0.5f * glm::length(hi_ - lo_), 1e-6f);
+        frameModel();
+        buildLines();
+    }
     surface_->setDisplacementScale(settings.displacement ? settings.scale : 0.0f);
     Status st = surface_->update(positions, normals, rig_->mesh.vertexCount());
     if (!st)
@@ -283,6 +362,11 @@ void Scene::render(int width, int height)
         return;
     glEnable(GL_DEPTH_TEST);
     const float aspect = float(width) / float(std::max(height, 1));
+    if (aspect != aspect_) {
+        aspect_ = aspect;
+        if (!userCamera_)
+            frameModel();
+    }
     const glm::vec3 dir(std::cos(camera.pitch) * std::sin(camera.yaw), std::sin(camera.pitch),
                         std::cos(camera.pitch) * std::cos(camera.yaw));
     const glm::vec3 eye = camera.target + camera.distance * dir;
@@ -317,6 +401,34 @@ void Scene::render(int width, int height)
         glBindVertexArray(0);
         glUseProgram(0);
     }
+    if (settings.colorMode == gl::ColorMode::Displacement ||
+        (settings.colorMode == gl::ColorMode::Error && hasHigh()))
+        drawColorScale(width, height);
+}
+
+// The false-colour ramp as a bar at the right edge, blue (low) at the bottom
+// to red (high) at the top.  The ramp mirrors surface.frag.glsl's ramp().
+void Scene::drawColorScale(int width, int height)
+{
+    auto ramp = [](float t) {
+        auto c = [](float x) { return std::clamp(x, 0.0f, 1.0f); };
+        return glm::vec3(c(1.5f - std::fabs(4.0f * t - 3.0f)), c(1.5f - std::fabs(4.0f * t - 2.0f)),
+                         c(1.5f - std::fabs(4.0f * t - 1.0f)));
+    };
+    const int barW = std::max(6, width / 40), barH = height / 2, x = width - barW - std::max(8, width / 50);
+    const int y0 = (height - barH) / 2, bands = 64;
+    glEnable(GL_SCISSOR_TEST);
+    glScissor(x - 2, y0 - 2, barW + 4, barH + 4);
+    glClearColor(0.9f, 0.9f, 0.9f, 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT);
+    for (int b = 0; b < bands; ++b) {
+        const int ya = y0 + barH * b / bands, yb = y0 + barH * (b + 1) / bands;
+        const glm::vec3 c = ramp((float(b) + 0.5f) / float(bands));
+        glScissor(x, ya, barW, yb - ya);
+        glClearColor(c.r, c.g, c.b, 1.0f);
+        glClear(GL_COLOR_BUFFER_BIT);
+    }
+    glDisable(GL_SCISSOR_TEST);
 }
 
 }  // namespace viewer

@@ -4,6 +4,7 @@
 
 #include "strata/animation.h"
 #include "strata/gl/gpu_surface.h"
+#include "strata/io/materials.h"
 #include "strata/plan.h"
 #include "strata/rig.h"
 
@@ -27,6 +28,7 @@ struct Settings {
     bool playing = false;
     SkinningMethod skinning = SkinningMethod::Linear;
     bool wireframe = false, cage = false, grid = true;
+    bool materials = true;  ///< draw each primitive's material (else flat grey)
     gl::ColorMode colorMode = gl::ColorMode::Shaded;
 };
 
@@ -63,7 +65,11 @@ public:
     void update(float dt);
     /// Draws into the bound framebuffer.
     void render(int width, int height);
+    /// Frames the model's bounds (posed, for skinned models) so that all of
+    /// it is in view at the current aspect ratio.
     void frameModel();
+    /// Set once the user moves the camera: resizes stop re-framing.
+    bool userCamera_ = false;
 
     size_t vertexCount() const { return surface_ ? surface_->vertexCount() : 0; }
     size_t faceCount() const { return surface_ ? surface_->faceCount() : 0; }
@@ -79,12 +85,17 @@ public:
 
 private:
     Status rebuild();
+    Status uploadMaterials();
     void computeErrors();
     void buildLines();
 
     std::unique_ptr<Rig> rig_;
     std::string path_, lastError_, description_;
     DisplacementMap map_;
+    io::SceneMaterials materials_;
+    bool builtMaterials_ = false;
+    bool framePose_ = false;  ///< frame the first posed frame (skinned models)
+    void drawColorScale(int width, int height);
     bool haveMap_ = false;
     std::unique_ptr<Plan> plan_;
     std::unique_ptr<gl::GpuSurface> surface_;
@@ -94,7 +105,7 @@ private:
     int builtLevel_ = -1;
     Scheme builtScheme_ = Scheme::Linear;
     bool timing_ = false;
-    float dMin_ = 0.0f, dMax_ = 0.0f, errorMax_ = 0.0f, radius_ = 1.0f;
+    float dMin_ = 0.0f, dMax_ = 0.0f, errorMax_ = 0.0f, radius_ = 1.0f, aspect_ = 1.6f;
     glm::vec3 lo_{0.0f}, hi_{0.0f};
     double cpuFrameMs_ = 0.0;
     std::vector<glm::vec3> highPositions_;

@@ -128,7 +128,10 @@ GpuSurface::~GpuSurface()
 {
     glDeleteBuffers(BufferCount, buffers_);
     glDeleteVertexArrays(1, &vao_);
+    glDeleteVertexArrays(1, &cornerVao_);
     glDeleteTextures(1, &texture_);
+    for (GpuMaterial& m : materials_)
+        glDeleteTextures(1, &m.texture);
     for (GLuint p : {refine_, displace_, normals_, surface_, feedback_})
         glDeleteProgram(p);
     glDeleteQueries(6, queries_);
@@ -171,6 +174,93 @@ void GpuSurface::setVertexErrors(const float* errors)
         glEnableVertexArrayAttrib(vao_, 1);
     else
         glDisableVertexArrayAttrib(vao_, 1);
+}
+
+Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
+                                const std::vector<glm::vec2>& cornerUVs)
+{
+    if (cornerUVs.size() != 3 * faceCount_)
+        return Status(StatusCode::InvalidArgument, "setMaterials: " + std::to_string(cornerUVs.size()) +
+                                                       " corner UVs for " + std::to_string(faceCount_) + " faces");
+    for (const MaterialRange& r : ranges)
+        if (r.material < 0 || size_t(r.material) >= materials.size() || r.firstFace > faceCount_ ||
+            r.faceCount > faceCount_ - r.firstFace)
+            return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
+    for (GpuMaterial& m : materials_)
+        glDeleteTextures(1, &m.texture);
+    materials_.clear();
+    for (const SurfaceMaterial& in : materials) {
+        GpuMaterial m;
+        m.material = in;
+        if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0) {
+            glCreateTextures(GL_TEXTURE_2D, 1, &m.texture);
+            int levels = 1;
+            while ((std::max(in.textureWidth, in.textureHeight) >> levels) > 0)
+                ++levels;
+            glTextureStorage2D(m.texture, levels, GL_RGBA8, in.textureWidth, in.textureHeight);
+            glTextureSubImage2D(m.texture, 0, 0, 0, in.textureWidth, in.textureHeight, GL_RGBA, GL_UNSIGNED_BYTE,
+                                in.textureRGBA);
+            glGenerateTextureMipmap(m.texture);
+            glTextureParameteri(m.texture, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+            glTextureParameteri(m.texture, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_S, GL_REPEAT);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_T, GL_REPEAT);
+        }
+        m.material.textureRGBA = nullptr;
+        materials_.push_back(m);
+    }
+    ranges_ = ranges;
+    // Blended ranges last.
+    std::stable_sort(ranges_.begin(), ranges_.end(), [&](const MaterialRange& a, const MaterialRange& b) {
+        return (materials_[size_t(a.material)].material.alphaMode == 2) <
+               (materials_[size_t(b.material)].material.alphaMode == 2);
+    });
+    if (buffers_[CornerUVs])
+        glDeleteBuffers(1, &buffers_[CornerUVs]);
+    glCreateBuffers(1, &buffers_[CornerUVs]);
+    glNamedBufferStorage(buffers_[CornerUVs], GLsizeiptr(std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2)),
+                         cornerUVs.empty() ? nullptr : cornerUVs.data(), 0);
+    if (!cornerVao_)
+        glCreateVertexArrays(1, &cornerVao_);  // no attributes: the shader reads buffers by corner
+    return Status::ok();
+}
+
+// The shaded view with materials: corner-ordered draws (gl_VertexID is the
+// refined corner), one per face range.
+void GpuSurface::drawMaterials(GLuint prog)
+{
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, SampleUVs, buffers_[SampleUVs]);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, Triangles, buffers_[Triangles]);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, Errors, buffers_[Errors]);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, CornerUVs, buffers_[CornerUVs]);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 1);
+    glUniform1i(glGetUniformLocation(prog, "u_baseColorTexture"), 1);
+    glBindVertexArray(cornerVao_);
+    bool blending = false;
+    for (const MaterialRange& r : ranges_) {
+        const GpuMaterial& m = materials_[size_t(r.material)];
+        const bool blend = m.material.alphaMode == 2;
+        if (blend && !blending) {
+            glEnable(GL_BLEND);
+            glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+            glDepthMask(GL_FALSE);
+            blending = true;
+        }
+        glUniform1i(glGetUniformLocation(prog, "u_material"), 1);
+        glUniform4fv(glGetUniformLocation(prog, "u_materialColor"), 1, glm::value_ptr(m.material.baseColor));
+        glUniform1i(glGetUniformLocation(prog, "u_hasTexture"), m.texture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
+        glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
+        glBindTextureUnit(1, m.texture);
+        glDrawArrays(GL_TRIANGLES, GLint(3 * r.firstFace), GLsizei(3 * r.faceCount));
+    }
+    if (blending) {
+        glDisable(GL_BLEND);
+        glDepthMask(GL_TRUE);
+    }
+    glBindTextureUnit(1, 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
 }
 
 void GpuSurface::setSampleUniforms(GLuint program)
@@ -257,12 +347,19 @@ void GpuSurface::draw(const DrawParams& p)
     glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(mode));
     if (!haveErrors_)
         glVertexAttrib1f(1, 0.0f);
-    glBindVertexArray(vao_);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     if (p.wireframe) {
         glEnable(GL_POLYGON_OFFSET_FILL);
         glPolygonOffset(1.0f, 1.0f);
     }
-    glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
+    if (mode == ColorMode::Shaded && !materials_.empty()) {
+        drawMaterials(prog);
+    } else {
+        glBindVertexArray(vao_);
+        glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
+    }
+    glBindVertexArray(vao_);
     if (p.wireframe) {
         glDisable(GL_POLYGON_OFFSET_FILL);
         glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);

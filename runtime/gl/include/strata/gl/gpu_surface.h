@@ -44,6 +44,23 @@ struct DrawParams {
     bool wireframe = false;  ///< overlay the refined triangles' edges
 };
 
+/// A material as the draw pass applies it (glTF metallic-roughness reduced
+/// to what a preview needs): base colour factor times an optional RGBA8
+/// texture, and the alpha mode.
+struct SurfaceMaterial {
+    glm::vec4 baseColor{1.0f};
+    int textureWidth = 0, textureHeight = 0;
+    const uint8_t* textureRGBA = nullptr;  ///< null: untextured; copied at setMaterials()
+    int alphaMode = 0;                     ///< 0 opaque, 1 mask, 2 blend
+    float alphaCutoff = 0.5f;
+};
+
+/// A run of refined faces drawn with one material.
+struct MaterialRange {
+    size_t firstFace = 0, faceCount = 0;
+    int material = 0;
+};
+
 /// GPU times of the last update() and draw(), in milliseconds (timer
 /// queries; only filled while timing is enabled, which waits for the GPU).
 struct GpuTimings {
@@ -67,6 +84,14 @@ public:
     void setShadingNormals(bool on) { shadingNormals_ = on; }
     /// Per refined vertex values for ColorMode::Error (null clears them).
     void setVertexErrors(const float* errors);
+
+    /// Materials for the shaded view: ranges of refined faces, each drawn
+    /// with its material, the texture sampled through cornerUVs (3 per
+    /// refined face, refined like the plan's UVs).  Without materials the
+    /// surface is drawn in DrawParams::baseColor.  Blended ranges are drawn
+    /// last, without depth writes.
+    Status setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
+                        const std::vector<glm::vec2>& cornerUVs);
 
     /// Uploads the control positions and normals (count must match the
     /// plan) and runs the compute passes.
@@ -100,8 +125,16 @@ private:
 
     enum Buffer {
         ControlPositions, ControlNormals, StencilOffsets, StencilIndices, StencilWeights, Surface, Displaced,
-        SampleUVs, Triangles, AdjacencyOffsets, AdjacentFaces, Normals, Errors, Feedback, BufferCount
+        SampleUVs, Triangles, AdjacencyOffsets, AdjacentFaces, Normals, Errors, Feedback, CornerUVs, BufferCount
     };
+    struct GpuMaterial {
+        SurfaceMaterial material;
+        GLuint texture = 0;
+    };
+    std::vector<GpuMaterial> materials_;
+    std::vector<MaterialRange> ranges_;
+    GLuint cornerVao_ = 0;
+    void drawMaterials(GLuint program);
     GLuint buffers_[BufferCount] = {};
     GLuint vao_ = 0, texture_ = 0;
     GLuint refine_ = 0, displace_ = 0, normals_ = 0, surface_ = 0, feedback_ = 0;

@@ -1,0 +1,49 @@
+// Strata io: the materials of a rig loaded from glTF, as plain data for a
+// viewer or an engine (base colour factor and texture, alpha mode), with
+// the UVs each primitive's base colour texture is sampled through.
+#pragma once
+
+#include "strata/rig.h"
+#include "strata/status.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec4.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+
+enum class AlphaMode { Opaque = 0, Mask = 1, Blend = 2 };
+
+struct MaterialInfo {
+    std::string name;
+    glm::vec4 baseColor{1.0f};  ///< baseColorFactor
+    int image = -1;             ///< index into SceneMaterials::images of the base colour texture, or -1
+    int texCoord = 0;           ///< the TEXCOORD_n set the texture uses
+    AlphaMode alphaMode = AlphaMode::Opaque;
+    float alphaCutoff = 0.5f;
+    bool doubleSided = false;
+};
+
+struct ImageRGBA {
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgba;  ///< 4 bytes per pixel, row 0 first (glTF's v = 0)
+};
+
+struct SceneMaterials {
+    std::vector<MaterialInfo> materials;  ///< the file's materials, plus glTF's default one last
+    std::vector<ImageRGBA> images;        ///< decoded base colour images (same indices as the file's images)
+    std::vector<int> partMaterial;        ///< per rig.parts entry: index into materials
+    std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour UVs ((0, 0) without)
+};
+
+/// Reads the materials of a rig loaded from glTF (rig.source).  Rigs from
+/// other sources get the default material for every part.  Images that
+/// cannot be decoded become untextured (a warning says which).
+Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings = nullptr);
+
+}  // namespace io
+}  // namespace strata

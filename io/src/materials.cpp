@@ -1,0 +1,118 @@
+// Materials of a rig's source document as plain data (viewer, engines).
+#include "strata/io/materials.h"
+
+#include "strata/io/gltf_accessor.h"
+#include "gltf_document.h"
+
+#include <stb/stb_image.h>
+
+#include <algorithm>
+
+namespace strata {
+namespace io {
+namespace {
+
+// The encoded bytes of image i: its bufferView, or what the loader kept.
+std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
+{
+    const tinygltf::Model& m = doc.model;
+    const tinygltf::Image& im = m.images[i];
+    if (im.bufferView >= 0 && size_t(im.bufferView) < m.bufferViews.size()) {
+        const tinygltf::BufferView& v = m.bufferViews[size_t(im.bufferView)];
+        if (v.buffer >= 0 && size_t(v.buffer) < m.buffers.size()) {
+            const std::vector<unsigned char>& data = m.buffers[size_t(v.buffer)].data;
+            if (v.byteOffset <= data.size() && v.byteLength <= data.size() - v.byteOffset)
+                return std::vector<unsigned char>(data.begin() + long(v.byteOffset),
+                                                  data.begin() + long(v.byteOffset + v.byteLength));
+        }
+        return {};
+    }
+    return i < doc.imageBytes.size() ? doc.imageBytes[i] : std::vector<unsigned char>();
+}
+
+}  // namespace
+
+Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
+{
+    SceneMaterials s;
+    s.fileUVs.assign(rig.sourceVertex.size(), glm::vec2(0.0f));
+    if (!rig.source) {
+        s.materials.resize(1);
+        s.partMaterial.assign(std::max<size_t>(rig.parts.size(), 1), 0);
+        *out = std::move(s);
+        return Status::ok();
+    }
+    const tinygltf::Model& m = rig.source->model;
+    s.images.resize(m.images.size());
+    std::vector<bool> used(m.images.size(), false);
+    for (const tinygltf::Material& in : m.materials) {
+        MaterialInfo mat;
+        mat.name = in.name;
+        const std::vector<double>& f = in.pbrMetallicRoughness.baseColorFactor;
+        if (f.size() == 4)
+            mat.baseColor = glm::vec4(float(f[0]), float(f[1]), float(f[2]), float(f[3]));
+        const int tex = in.pbrMetallicRoughness.baseColorTexture.index;
+        if (tex >= 0 && size_t(tex) < m.textures.size()) {
+            const int src = m.textures[size_t(tex)].source;
+            if (src >= 0 && size_t(src) < m.images.size()) {
+                mat.image = src;
+                used[size_t(src)] = true;
+            }
+            mat.texCoord = std::clamp(in.pbrMetallicRoughness.baseColorTexture.texCoord, 0, 7);
+        }
+        mat.alphaMode = in.alphaMode == "MASK" ? AlphaMode::Mask : in.alphaMode == "BLEND" ? AlphaMode::Blend
+                                                                                           : AlphaMode::Opaque;
+        mat.alphaCutoff = float(in.alphaCutoff);
+        mat.doubleSided = in.doubleSided;
+        s.materials.push_back(mat);
+    }
+    const int defaultMaterial = int(s.materials.size());
+    s.materials.push_back(MaterialInfo());
+    for (size_t i = 0; i < m.images.size(); ++i) {
+        if (!used[i])
+            continue;
+        const std::vector<unsigned char> bytes = encodedImage(*rig.source, i);
+        int w = 0, h = 0, comp = 0;
+        stbi_uc* px = bytes.empty() || bytes.size() > (size_t(1) << 30)
+                          ? nullptr
+                          : stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4);
+        if (!px || w > 16384 || h > 16384) {
+            if (px)
+                stbi_image_free(px);
+            if (warnings)
+                warnings->push_back("image " + std::to_string(i) + " (" + printable(m.images[i].name, 60) +
+                                    ") cannot be decoded; drawn untextured");
+            for (MaterialInfo& mat : s.materials)
+                if (mat.image == int(i))
+                    mat.image = -1;
+            continue;
+        }
+        s.images[i].width = w;
+        s.images[i].height = h;
+        s.images[i].rgba.assign(px, px + size_t(w) * size_t(h) * 4);
+        stbi_image_free(px);
+    }
+    for (const RigPart& part : rig.parts) {
+        const tinygltf::Primitive& prim = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+        const int mi = prim.material >= 0 && prim.material < defaultMaterial ? prim.material : defaultMaterial;
+        s.partMaterial.push_back(mi);
+        const MaterialInfo& mat = s.materials[size_t(mi)];
+        if (mat.image < 0)
+            continue;
+        auto it = prim.attributes.find("TEXCOORD_" + std::to_string(mat.texCoord));
+        std::vector<float> uv;
+        if (it == prim.attributes.end() || !readFloatAccessor(m, it->second, 2, it->first, &uv) ||
+            uv.size() != 2 * size_t(part.vertexCount)) {
+            if (warnings)
+                warnings->push_back(part.name + ": its material's texture has no usable UVs; drawn untextured");
+            continue;
+        }
+        for (uint32_t v = 0; v < part.vertexCount; ++v)
+            s.fileUVs[part.firstVertex + v] = glm::vec2(uv[2 * v], uv[2 * v + 1]);
+    }
+    *out = std::move(s);
+    return Status::ok();
+}
+
+}  // namespace io
+}  // namespace strata
