@@ -92,6 +92,39 @@ TEST(NormalVolume, PointOutsideEveryVolumeIsReported)
     EXPECT_NEAR(hit.b1 + hit.b2, 4.0, 1e-9);
 }
 
+TEST(Bake, ClosedLoopInChunksMeasuresTheWholeSurface)
+{
+    // Streaming the closed loop in chunks of control faces measures the same
+    // surface: the backward distance (each high-res sample to its nearest
+    // chunk) equals the whole surface's; the forward RMS differs only by the
+    // vertices chunk borders sample twice.
+    ControlMesh control = examples::makeIcosphere(1);
+    ASSERT_TRUE(buildTriangleAtlas(&control, {256, 2}).isOk());
+    TriangleMesh high = icosphereMesh(4, 1.0f);
+    for (glm::vec3& p : high.positions)
+        p *= examples::headRadius(p);
+    BakeOptions options;
+    options.size = 256;
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        options.scheme = scheme;
+        DisplacementMap map;
+        ASSERT_TRUE(bake(&map, nullptr, nullptr, control, high, options).isOk());
+        std::vector<LevelError> whole, chunked;
+        ASSERT_TRUE(closedLoopError(&whole, control, map, scheme, high, 2, 3, 2).isOk());
+        ASSERT_TRUE(closedLoopError(&chunked, control, map, scheme, high, 2, 3, 2, /*chunkTriangles=*/200).isOk());
+        ASSERT_EQ(whole.size(), 2u);
+        ASSERT_EQ(chunked.size(), 2u);
+        for (size_t k = 0; k < 2; ++k) {
+            SCOPED_TRACE(std::string(schemeName(scheme)) + " level " + std::to_string(whole[k].level));
+            EXPECT_EQ(chunked[k].triangles, whole[k].triangles);
+            EXPECT_NEAR(chunked[k].backwardRms, whole[k].backwardRms, 1e-6 * whole[k].backwardRms + 1e-9);
+            EXPECT_NEAR(chunked[k].backwardMax, whole[k].backwardMax, 1e-6 * whole[k].backwardMax + 1e-9);
+            EXPECT_NEAR(chunked[k].forwardRms, whole[k].forwardRms, 0.05 * whole[k].forwardRms);
+            EXPECT_NEAR(chunked[k].forwardMax, whole[k].forwardMax, 1e-6 * whole[k].forwardMax + 1e-9);
+        }
+    }
+}
+
 TEST(Bake, SphereOntoIcosahedronReconstructsTheSphere)
 {
     ControlMesh control = examples::makeIcosphere(0);

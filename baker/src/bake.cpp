@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 
@@ -267,8 +268,53 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
     return Status::ok();
 }
 
+namespace {
+
+// Control faces in Morton order of their centroids, so consecutive chunks
+// are compact in space (tight boxes for the backward pass).
+std::vector<uint32_t> spatialFaceOrder(const ControlMesh& control)
+{
+    const size_t nf = control.faceCount();
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : control.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-30f));
+    auto spread = [](uint32_t v) {  // 10 bits -> every third bit
+        v &= 0x3ff;
+        v = (v | (v << 16)) & 0x030000ff;
+        v = (v | (v << 8)) & 0x0300f00f;
+        v = (v | (v << 4)) & 0x030c30c3;
+        v = (v | (v << 2)) & 0x09249249;
+        return v;
+    };
+    std::vector<std::pair<uint32_t, uint32_t>> keyed(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::vec3 c = (control.positions[control.triangles[3 * f]] + control.positions[control.triangles[3 * f + 1]] +
+                             control.positions[control.triangles[3 * f + 2]]) /
+                            3.0f;
+        const glm::vec3 q = glm::clamp((c - lo) / extent, 0.0f, 1.0f) * 1023.0f;
+        keyed[f] = {spread(uint32_t(q.x)) | (spread(uint32_t(q.y)) << 1) | (spread(uint32_t(q.z)) << 2), uint32_t(f)};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<uint32_t> order(nf);
+    for (size_t k = 0; k < nf; ++k)
+        order[k] = keyed[k].second;
+    return order;
+}
+
+double boxDistance(const glm::vec3& p, const glm::vec3& lo, const glm::vec3& hi)
+{
+    const glm::dvec3 d = glm::max(glm::max(glm::dvec3(lo) - glm::dvec3(p), glm::dvec3(p) - glm::dvec3(hi)), glm::dvec3(0.0));
+    return glm::length(d);
+}
+
+}  // namespace
+
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
-                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads)
+                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
+                       size_t chunkTriangles)
 {
     TriangleIndex highIndex;
     highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
@@ -277,32 +323,152 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
     std::vector<glm::vec3> normals(control.positions.size());
     computeControlNormals(normals.data(), control.positions.data(), normals.size(), control.triangles.data(),
                           control.faceCount());
+    const size_t nf = control.faceCount(), nv = control.positions.size();
+    // Vertex -> faces, for the support ring the smooth scheme needs.
+    std::vector<uint32_t> vfOffsets(nv + 1, 0), vfFaces(3 * nf);
+    for (uint32_t v : control.triangles)
+        ++vfOffsets[v + 1];
+    for (size_t v = 0; v < nv; ++v)
+        vfOffsets[v + 1] += vfOffsets[v];
+    {
+        std::vector<uint32_t> fill(vfOffsets.begin(), vfOffsets.end() - 1);
+        for (size_t f = 0; f < nf; ++f)
+            for (int c = 0; c < 3; ++c)
+                vfFaces[fill[control.triangles[3 * f + size_t(c)]]++] = uint32_t(f);
+    }
+    const std::vector<uint32_t> order = spatialFaceOrder(control);
     out->clear();
     for (int level = std::max(0, minLevel); level <= maxLevel; ++level) {
-        std::unique_ptr<Plan> plan;
-        Status st = Plan::create(&plan, control, scheme, level);
-        if (st)
-            st = plan->setDisplacement(map);
-        if (!st)
-            return st;
-        std::vector<glm::vec3> rec(plan->refinedVertexCount());
-        if (!(st = plan->evaluate(rec.data(), nullptr, 0, rec.size(), control.positions.data(), normals.data(),
-                                  normals.size())))
-            return st;
-        const auto& tris = plan->refinedTriangles();
-        TriangleIndex recIndex;
-        recIndex.build(rec.data(), tris.data(), tris.size() / 3);
-        const DistanceStats fwd = sampleDistance(surfaceSamples(rec.data(), rec.size(), tris.data(), tris.size() / 3),
-                                                 highIndex, threads);
-        const DistanceStats bwd = sampleDistance(highSamples, recIndex, threads);
+        // Each chunk of control faces is refined, measured and freed before
+        // the next: memory stays bounded by chunkTriangles whatever the level.
+        const size_t per = size_t(1) << (2 * level);
+        const size_t facesPerChunk = std::max<size_t>(1, chunkTriangles / per);
+        double forwardSq = 0.0, forwardMax = 0.0;
+        size_t forwardSamples = 0, vertices = 0;
+        std::vector<double> best(highSamples.size(), std::numeric_limits<double>::infinity());
+        std::vector<int32_t> subIndex(nv, -1);
+        std::vector<uint8_t> inSub(nf, 0);
+        for (size_t first = 0; first < nf; first += facesPerChunk) {
+            const size_t count = std::min(facesPerChunk, nf - first);
+            const bool whole = count == nf;
+            // The chunk's faces plus support faces: one ring, so every refined
+            // vertex of the chunk has the same first face (and so samples the
+            // map at the same UV) as in the whole mesh; two for the smooth
+            // scheme, whose limit surface depends on the neighbourhood.  In
+            // the original face order, which fixes that first face.
+            std::vector<uint32_t> faces(order.begin() + long(first), order.begin() + long(first + count));
+            if (!whole) {
+                for (uint32_t f : faces)
+                    inSub[f] = 2;  // 2: measured, 1: support
+                const int rings = scheme == Scheme::Smooth ? 2 : 1;
+                for (int ring = 0; ring < rings; ++ring) {
+                    const size_t n = faces.size();
+                    for (size_t k = 0; k < n; ++k)
+                        for (int c = 0; c < 3; ++c) {
+                            const uint32_t v = control.triangles[3 * size_t(faces[k]) + size_t(c)];
+                            for (uint32_t j = vfOffsets[v]; j < vfOffsets[v + 1]; ++j)
+                                if (!inSub[vfFaces[j]]) {
+                                    inSub[vfFaces[j]] = 1;
+                                    faces.push_back(vfFaces[j]);
+                                }
+                        }
+                }
+                std::sort(faces.begin(), faces.end());
+            }
+            ControlMesh sub;
+            std::vector<glm::vec3> subNormals;
+            std::vector<uint32_t> used;
+            if (whole) {
+                sub = control;
+                subNormals = normals;
+            } else {
+                for (uint32_t f : faces)
+                    for (int c = 0; c < 3; ++c) {
+                        const uint32_t v = control.triangles[3 * size_t(f) + size_t(c)];
+                        if (subIndex[v] < 0) {
+                            subIndex[v] = int32_t(sub.positions.size());
+                            sub.positions.push_back(control.positions[v]);
+                            subNormals.push_back(normals[v]);
+                            used.push_back(v);
+                        }
+                        sub.triangles.push_back(uint32_t(subIndex[v]));
+                        if (control.hasUVs())
+                            sub.uvIndices.push_back(control.uvIndices[3 * size_t(f) + size_t(c)]);
+                    }
+                sub.uvs = control.uvs;
+                for (uint32_t v : used)
+                    subIndex[v] = -1;
+            }
+            std::unique_ptr<Plan> plan;
+            Status st = Plan::create(&plan, sub, scheme, level);
+            if (st)
+                st = plan->setDisplacement(map);
+            if (!st)
+                return st;
+            std::vector<glm::vec3> rec(plan->refinedVertexCount());
+            if (!(st = plan->evaluate(rec.data(), nullptr, 0, rec.size(), sub.positions.data(), subNormals.data(),
+                                      subNormals.size())))
+                return st;
+            // Only the chunk's own refined faces.
+            std::vector<uint32_t> measured;
+            if (whole) {
+                measured = plan->refinedTriangles();
+            } else {
+                measured.reserve(3 * count * per);
+                const std::vector<uint32_t>& all = plan->refinedTriangles();
+                for (size_t k = 0; k < faces.size(); ++k)
+                    if (inSub[faces[k]] == 2)
+                        measured.insert(measured.end(), all.begin() + long(3 * k * per), all.begin() + long(3 * (k + 1) * per));
+                for (uint32_t f : faces)
+                    inSub[f] = 0;
+            }
+            const size_t chunkFaces = measured.size() / 3;
+            const uint32_t* tris = measured.data();
+            vertices += whole ? rec.size() : 0;
+            // Forward samples: the measured faces' vertices and centroids.
+            std::vector<glm::vec3> samples;
+            if (whole) {
+                samples = surfaceSamples(rec.data(), rec.size(), tris, chunkFaces);
+            } else {
+                std::vector<uint8_t> seen(rec.size(), 0);
+                for (uint32_t v : measured)
+                    if (!seen[v]) {
+                        seen[v] = 1;
+                        samples.push_back(rec[v]);
+                    }
+                for (size_t f = 0; f < chunkFaces; ++f)
+                    samples.push_back((rec[tris[3 * f]] + rec[tris[3 * f + 1]] + rec[tris[3 * f + 2]]) / 3.0f);
+            }
+            const DistanceStats fwd = sampleDistance(samples, highIndex, threads);
+            forwardSq += fwd.rms * fwd.rms * double(fwd.samples);
+            forwardMax = std::max(forwardMax, fwd.max);
+            forwardSamples += fwd.samples;
+            TriangleIndex recIndex;
+            recIndex.build(rec.data(), tris, chunkFaces);
+            glm::vec3 lo(1e30f), hi(-1e30f);
+            for (size_t i = 0; i < 3 * chunkFaces; ++i) {
+                lo = glm::min(lo, rec[tris[i]]);
+                hi = glm::max(hi, rec[tris[i]]);
+            }
+            parallelFor(highSamples.size(), threads, [&](size_t b, size_t e) {
+                for (size_t i = b; i < e; ++i)
+                    if (boxDistance(highSamples[i], lo, hi) < best[i])
+                        best[i] = std::min(best[i], recIndex.nearest(glm::dvec3(highSamples[i])));
+            });
+        }
+        double backwardSq = 0.0, backwardMax = 0.0;
+        for (double d : best) {
+            backwardSq += d * d;
+            backwardMax = std::max(backwardMax, d);
+        }
         LevelError e;
         e.level = level;
-        e.vertices = rec.size();
-        e.triangles = tris.size() / 3;
-        e.forwardRms = fwd.rms;
-        e.forwardMax = fwd.max;
-        e.backwardRms = bwd.rms;
-        e.backwardMax = bwd.max;
+        e.vertices = vertices;  // 0 when the level was measured in chunks
+        e.triangles = nf * per;
+        e.forwardRms = forwardSamples ? std::sqrt(forwardSq / double(forwardSamples)) : 0.0;
+        e.forwardMax = forwardMax;
+        e.backwardRms = best.empty() ? 0.0 : std::sqrt(backwardSq / double(best.size()));
+        e.backwardMax = backwardMax;
         out->push_back(e);
     }
     return Status::ok();

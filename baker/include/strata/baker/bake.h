@@ -88,10 +88,16 @@ struct LevelError {
     double forwardRms = 0, forwardMax = 0;    ///< reconstructed -> high-res
     double backwardRms = 0, backwardMax = 0;  ///< high-res -> reconstructed
 };
-/// Levels minLevel..maxLevel; each level's plan and mesh are freed before
-/// the next is built.
+/// Levels minLevel..maxLevel, streamed: each level is refined in chunks of
+/// control faces (spatially ordered) of at most chunkTriangles refined
+/// triangles, each measured and freed before the next, so memory is bounded
+/// at any level.  Forward samples are each chunk's vertices and face
+/// centroids; the backward distance keeps, per high-res sample, the nearest
+/// chunk.  The smooth scheme refines each chunk with two rings of support
+/// faces, so its limit surface is the whole mesh's.
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
-                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads);
+                       Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
+                       size_t chunkTriangles = size_t(1) << 20);
 
 }  // namespace baker
 }  // namespace strata
