@@ -110,8 +110,12 @@ int main(int argc, char** argv)
         if (io::extensionOf(rigPath) == ".obj") {
             // A bare control mesh (no displacement): with --skeleton, the
             // paper's deformer animates it directly.
-            if (!(st = io::readObj(rigPath, &rig.mesh)) || !(st = validateControlMesh(rig.mesh)))
+            io::ObjReadInfo info;
+            if (!(st = io::readObj(rigPath, &rig.mesh, &info)) || !(st = validateControlMesh(rig.mesh)))
                 throw cli::Error(st.message().rfind(rigPath, 0) == 0 ? st.message() : rigPath + ": " + st.message());
+            if (info.degenerate)
+                rig.warnings.push_back(std::to_string(info.degenerate) +
+                                       " triangles repeat a vertex (zero area) and are left out");
         } else if (!(st = io::loadRig(rigPath, &rig))) {
             throw cli::Error(st.message());
         }
