@@ -60,6 +60,10 @@ Status writeViaTempFile(const std::string& path, const std::function<std::string
     }
     if (!err.empty()) {
         std::remove(tmp.c_str());
+        // Libraries name the file they were given: the temporary name means
+        // nothing to the user.
+        for (size_t at; (at = err.find(tmp)) != std::string::npos;)
+            err.replace(at, tmp.size(), path);
         return Status(StatusCode::IoError, path + ": " + err);
     }
     if (std::rename(tmp.c_str(), path.c_str()) != 0) {
