@@ -649,3 +649,33 @@ TEST(Scene, SkinWith256JointsRoundTripsAndPoses)
         ASSERT_LT(glm::length(animator.positions()[v] - expected), 1e-3f) << v;
     }
 }
+
+TEST(Scene, OverflowingPoseIsAnErrorNamingTheJoint)
+{
+    // Node scales of 1e20 on two nested joints overflow float when posed.
+    Rig rig;
+    DisplacementMap map;
+    test::makeExampleRig(&rig, &map);
+    test::twoJointSkin(&rig.skeleton, rig.mesh, "hip", "knee", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
+                       [](const glm::vec3& p) { return p.y > 0.0f ? 1.0f : 0.0f; });
+    Animation grow;
+    grow.name = "grow";
+    for (int node : {0, 1}) {
+        AnimationChannel c;
+        c.node = node;
+        c.path = AnimationPath::Scale;
+        c.times = {0.0f, 1.0f};
+        c.values = {1e20f, 1e20f, 1e20f, 1e20f, 1e20f, 1e20f};
+        grow.channels.push_back(c);
+    }
+    rig.skeleton.animations.push_back(grow);
+    ASSERT_TRUE(finalizeSkeleton(&rig.skeleton, rig.mesh.positions.size()).isOk());
+    const std::string dir = test::tempDir("scene_overflow");
+    ASSERT_TRUE(io::saveRig(dir + "/huge.glb", rig, &map).isOk());
+    const test::CommandResult r = test::runCommand(std::string(STRATA_RECONSTRUCT_EXE) + " " + dir +
+                                                   "/huge.glb --level 1 --time 0.5 -o " + dir + "/out.ply");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("not finite"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("knee"), std::string::npos) << r.output;
+    EXPECT_FALSE(test::fileExists(dir + "/out.ply"));
+}

@@ -69,6 +69,17 @@ T parseChoice(const std::string& flag, const std::string& text,
     throw Error(flag + " expects " + expected);
 }
 
+/// One printable line: control characters become '?', long text is cut.
+inline std::string printable(std::string text, size_t maxLength = 600)
+{
+    for (char& c : text)
+        if ((unsigned char)c < 0x20 || c == 0x7f)
+            c = '?';
+    if (text.size() > maxLength)
+        text = text.substr(0, maxLength) + "...";
+    return text;
+}
+
 /// Runs body, turning exceptions into "tool: error: message" and exit 2.
 template <typename F>
 int run(const char* tool, F&& body)
@@ -76,11 +87,14 @@ int run(const char* tool, F&& body)
     try {
         return body();
     } catch (const Error& e) {
-        std::fprintf(stderr, "%s: error: %s\n", tool, e.what());
+        std::fprintf(stderr, "%s: error: %s\n", tool, printable(e.what()).c_str());
     } catch (const std::bad_alloc&) {
         std::fprintf(stderr, "%s: error: out of memory\n", tool);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "%s: error: %s\n", tool, e.what());
+    } catch (const std::exception&) {
+        // A library's own text (std::vector::_M_range_check and the like)
+        // means nothing to the user; a validation is missing if this shows.
+        std::fprintf(stderr, "%s: error: unexpected internal failure on this input (please report it with the file)\n",
+                     tool);
     }
     return 2;
 }

@@ -146,9 +146,9 @@ int main(int argc, char** argv)
             if (pose.animation < 0) {
                 std::string names;
                 for (const Animation& a : rig.skeleton.animations)
-                    names += (names.empty() ? "" : ", ") + a.name;
-                throw cli::Error(rigPath + ": no animation \"" + anim + "\" (it has: " + (names.empty() ? "none" : names) +
-                                 ")");
+                    names += (names.empty() ? "" : ", ") + cli::printable(a.name, 40);
+                throw cli::Error(rigPath + ": no animation \"" + cli::printable(anim, 40) + "\" (it has: " +
+                                 (names.empty() ? "none" : cli::printable(names, 200)) + ")");
             }
         } else if (skinned && (haveTime || frames) && !rig.skeleton.animations.empty()) {
             pose.animation = 0;
@@ -156,7 +156,7 @@ int main(int argc, char** argv)
             std::fprintf(stderr, "strata-reconstruct: note: %s is not skinned; writing its bind pose\n", rigPath.c_str());
         }
         for (const std::string& w : rig.warnings)
-            std::fprintf(stderr, "strata-reconstruct: warning: %s: %s\n", rigPath.c_str(), w.c_str());
+            std::fprintf(stderr, "strata-reconstruct: warning: %s: %s\n", rigPath.c_str(), cli::printable(w).c_str());
 
         const auto t0 = std::chrono::steady_clock::now();
         io::Reconstruction rec;
@@ -173,7 +173,34 @@ int main(int argc, char** argv)
             std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
         if (mkdirError)
             throw cli::Error(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
+        // Never write NaN or Inf: name the joint whose pose produced it.
+        auto checkFinite = [&](const io::Pose* at) {
+            for (const glm::vec3& p : rec.positions)
+                if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+                    std::string culprit = "the control mesh or the map";
+                    Animator probe;
+                    if (skinned && at && probe.init(rig.skeleton, rig.mesh) &&
+                        probe.pose(at->animation, at->time, at->method))
+                        for (size_t j = 0; j < probe.skinMatrices().size(); ++j) {
+                            const glm::mat4& m = probe.skinMatrices()[j];
+                            bool finite = true;
+                            for (int k = 0; k < 16; ++k)
+                                finite = finite && std::isfinite(m[k / 4][k % 4]);
+                            if (!finite) {
+                                const int node = rig.skeleton.skin.joints[j];
+                                culprit = "joint " + std::to_string(j) + " (node " + std::to_string(node) + " \"" +
+                                          cli::printable(rig.skeleton.nodes[size_t(node)].name, 40) +
+                                          "\"), whose posed transform overflows";
+                                break;
+                            }
+                        }
+                    throw cli::Error(rigPath + ": the reconstruction is not finite" +
+                                     (at ? " at time " + std::to_string(at->time) : std::string()) + ": caused by " +
+                                     culprit + "; nothing written");
+                }
+        };
         if (!frames) {
+            checkFinite(posed ? &pose : nullptr);
             std::vector<std::string> notes;
             if (!(st = scene ? io::writeReconstructedScene(outPath, rig, rec, &notes) : io::writeReconstruction(outPath, rec)))
                 throw cli::Error(st.message());
@@ -196,6 +223,7 @@ int main(int argc, char** argv)
             pose.time = frameStart + float(f) / fps;
             if (skinned && !(st = io::reconstructPose(&rec, &animator, rig, pose)))
                 throw cli::Error(rigPath + ": " + st.message());
+            checkFinite(&pose);
             char suffix[16];
             std::snprintf(suffix, sizeof(suffix), "_%04d", f);
             const std::string framePath = base + suffix + ext;
