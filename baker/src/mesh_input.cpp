@@ -1,5 +1,6 @@
 // Mesh input and control-mesh derivation.  The only OpenMesh translation
-// unit (its Decimater templates are heavy to compile).
+// unit (its Decimater templates are heavy to compile); OpenMesh only
+// decimates here, it never parses files.
 #include <OpenMesh/Core/IO/MeshIO.hh>  // before the kernel headers, as OpenMesh requires
 
 #include "strata/baker/mesh_input.h"
@@ -40,89 +41,6 @@ void countTolerated(const TriangleMesh& m, HighMeshStats* s)
     s->nonManifoldEdges = computeTopologyStats(m.triangles.data(), m.faceCount()).nonManifoldEdges;
 }
 
-// Binary little-endian PLY with float x/y/z vertices and a uchar/int face
-// list: what scanners and most tools write.  Read directly (OpenMesh builds
-// a halfedge structure first, ~10x slower on million-triangle scans); any
-// other PLY layout returns false and goes to OpenMesh.
-bool readBinaryPlyFast(const std::vector<unsigned char>& bytes, TriangleMesh* mesh, size_t* polygons, std::string* error)
-{
-    const std::string head(reinterpret_cast<const char*>(bytes.data()), std::min<size_t>(bytes.size(), 4096));
-    const size_t end = head.find("end_header\n");
-    if (head.rfind("ply\n", 0) != 0 || end == std::string::npos ||
-        head.find("format binary_little_endian 1.0") == std::string::npos)
-        return false;
-    size_t nv = 0, nf = 0;
-    std::vector<std::string> vprops;
-    std::string faceList;
-    bool inVertex = false, inFace = false;
-    size_t pos = 0;
-    while (pos < end) {
-        const size_t eol = head.find('\n', pos);
-        const std::string line = head.substr(pos, eol - pos);
-        pos = eol + 1;
-        char name[64] = {0}, type[64] = {0}, t2[64] = {0}, t3[64] = {0};
-        unsigned long count = 0;
-        if (std::sscanf(line.c_str(), "element %63s %lu", name, &count) == 2) {
-            inVertex = std::strcmp(name, "vertex") == 0;
-            inFace = std::strcmp(name, "face") == 0;
-            if (!inVertex && !inFace)
-                return false;
-            (inVertex ? nv : nf) = size_t(count);
-        } else if (std::sscanf(line.c_str(), "property list %63s %63s %63s", t2, t3, name) == 3) {
-            if (!inFace)
-                return false;
-            faceList = std::string(t2) + " " + t3;
-        } else if (std::sscanf(line.c_str(), "property %63s %63s", type, name) == 2) {
-            if (!inVertex)
-                return false;
-            vprops.push_back(std::string(type) + " " + name);
-        }
-    }
-    if (vprops.size() < 3 || vprops[0] != "float x" || vprops[1] != "float y" || vprops[2] != "float z")
-        return false;
-    for (const std::string& p : vprops)
-        if (p.rfind("float ", 0) != 0)
-            return false;
-    const bool intIndex = faceList == "uchar int" || faceList == "uchar uint";
-    if (!intIndex)
-        return false;
-    const size_t stride = vprops.size() * 4;
-    const unsigned char* p = bytes.data() + end + 11;
-    const unsigned char* last = bytes.data() + bytes.size();
-    if (size_t(last - p) / stride < nv) {
-        *error = "vertex data is truncated";
-        return true;
-    }
-    mesh->positions.resize(nv);
-    for (size_t i = 0; i < nv; ++i, p += stride)
-        std::memcpy(&mesh->positions[i], p, 12);
-    mesh->triangles.reserve(nf * 3);
-    for (size_t f = 0; f < nf; ++f) {
-        if (p >= last) {
-            *error = "face data is truncated";
-            return true;
-        }
-        const unsigned n = *p++;
-        if (size_t(last - p) < size_t(n) * 4) {
-            *error = "face data is truncated";
-            return true;
-        }
-        uint32_t idx[256];
-        std::memcpy(idx, p, size_t(n) * 4);
-        p += size_t(n) * 4;
-        for (unsigned k = 0; k < n; ++k)
-            if (idx[k] >= nv) {
-                *error = "face " + std::to_string(f) + " references vertex " + std::to_string(idx[k]) + " of " +
-                         std::to_string(nv);
-                return true;
-            }
-        *polygons += n > 3;
-        for (unsigned k = 1; k + 1 < n; ++k)
-            mesh->triangles.insert(mesh->triangles.end(), {idx[0], idx[k], idx[k + 1]});
-    }
-    return true;
-}
-
 }  // namespace
 
 Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats)
@@ -143,43 +61,13 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
         if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles)))
             return st;
     } else if (ext == ".ply" || ext == ".stl" || ext == ".off") {
-        std::vector<unsigned char> probe;
-        if (!(st = io::readFile(path, &probe)))
+        // Strata's own bounded reader: untrusted bytes never reach OpenMesh.
+        io::PolygonMesh pm;
+        if (!(st = io::readPolygonMesh(path, &pm)))
             return st;
-        std::string error;
-        if (ext == ".ply" && readBinaryPlyFast(probe, &mesh, &s.polygonsTriangulated, &error)) {
-            if (!error.empty())
-                return Status(StatusCode::InvalidData, path + ": " + error);
-            if (!(st = checkHighMesh(mesh)))
-                return Status(st.code(), path + ": " + st.message());
-            countTolerated(mesh, &s);
-            *out = std::move(mesh);
-            if (stats)
-                *stats = s;
-            return Status::ok();
-        }
-        probe = std::vector<unsigned char>();
-        OMesh om;
-        OpenMesh::IO::Options opt;
-        omerr().disable();  // OpenMesh reports through its own streams; errors become Status here
-        omout().disable();
-        const bool ok = OpenMesh::IO::read_mesh(om, path, opt);
-        omerr().enable();
-        omout().enable();
-        if (!ok || om.n_faces() == 0)
-            return Status(StatusCode::InvalidData, path + ": cannot read a triangle mesh from this " + ext + " file");
-        for (auto v : om.vertices()) {
-            const auto p = om.point(v);
-            mesh.positions.emplace_back(p[0], p[1], p[2]);
-        }
-        for (auto f : om.faces()) {
-            std::vector<uint32_t> corners;
-            for (auto v : om.fv_range(f))
-                corners.push_back(uint32_t(v.idx()));
-            s.polygonsTriangulated += corners.size() > 3;
-            for (size_t k = 1; k + 1 < corners.size(); ++k)
-                mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[k], corners[k + 1]});
-        }
+        mesh.positions = std::move(pm.positions);
+        mesh.triangles = std::move(pm.triangles);
+        s.polygonsTriangulated = pm.polygonsTriangulated;
     } else {
         return Status(StatusCode::InvalidArgument,
                       path + ": unknown mesh format \"" + ext + "\" (use .obj, .ply, .stl, .off, .glb or .gltf)");

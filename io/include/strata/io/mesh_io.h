@@ -8,6 +8,7 @@
 #include <glm/vec3.hpp>
 
 #include <string>
+#include <vector>
 
 namespace strata {
 namespace io {
@@ -24,6 +25,21 @@ struct ObjReadInfo {
 /// dropped and counted in info.  Other statements and `#` comments are ignored.
 /// Errors name the file and line.
 Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info = nullptr);
+
+/// A polygon soup read from PLY, OFF or STL, fan-triangulated.
+struct PolygonMesh {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    size_t polygonsTriangulated = 0;  ///< faces with more than 3 corners
+};
+
+/// Reads .ply (ascii, binary little and big endian; any property order and
+/// types, list faces named vertex_indices or vertex_index), .off (plain OFF)
+/// or .stl (binary or ascii; duplicate vertices welded).  Built for
+/// untrusted files: declared counts are checked against the file's size
+/// before anything is reserved, and the work is linear in the file size.
+/// Errors name the file and the problem; nothing is printed.
+Status readPolygonMesh(const std::string& path, PolygonMesh* out);
 
 /// A mesh to write: arrays owned by the caller.
 struct MeshView {

@@ -1,0 +1,475 @@
+// PLY (ascii, binary little and big endian), OFF and STL (ascii and binary)
+// readers for untrusted files.  Every count is checked against the bytes
+// that remain before anything is reserved, every index against the vertex
+// count, and every read against the end of the buffer; work is linear in
+// the file size.  Nothing is printed: problems come back as one Status.
+#include "strata/io/mesh_io.h"
+
+#include "strata/io/file.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <unordered_map>
+
+namespace strata {
+namespace io {
+namespace {
+
+constexpr size_t kMaxPolygonCorners = 1u << 16;
+
+struct Cursor {
+    const unsigned char* p;
+    const unsigned char* end;
+    size_t left() const { return size_t(end - p); }
+};
+
+// ---- text tokens (ascii PLY, OFF, ascii STL) ----
+
+void skipSpace(Cursor& c, bool comments)
+{
+    while (c.p < c.end) {
+        if (*c.p == ' ' || *c.p == '\t' || *c.p == '\r' || *c.p == '\n') {
+            ++c.p;
+        } else if (comments && *c.p == '#') {
+            while (c.p < c.end && *c.p != '\n')
+                ++c.p;
+        } else {
+            break;
+        }
+    }
+}
+
+bool token(Cursor& c, std::string* out, bool comments = false)
+{
+    skipSpace(c, comments);
+    const unsigned char* s = c.p;
+    while (c.p < c.end && !std::isspace(*c.p))
+        ++c.p;
+    if (c.p == s || c.p - s > 64)
+        return false;
+    out->assign(reinterpret_cast<const char*>(s), size_t(c.p - s));
+    return true;
+}
+
+bool number(Cursor& c, double* v, bool comments = false)
+{
+    std::string t;
+    if (!token(c, &t, comments))
+        return false;
+    char* end = nullptr;
+    errno = 0;
+    *v = std::strtod(t.c_str(), &end);
+    return end && *end == 0 && errno != ERANGE && std::isfinite(*v);
+}
+
+bool integer(Cursor& c, long* v, bool comments = false)
+{
+    std::string t;
+    if (!token(c, &t, comments))
+        return false;
+    char* end = nullptr;
+    errno = 0;
+    *v = std::strtol(t.c_str(), &end, 10);
+    return end && *end == 0 && errno != ERANGE;
+}
+
+Status fail(const std::string& path, const std::string& what)
+{
+    return Status(StatusCode::InvalidData, path + ": " + what);
+}
+
+// Appends a polygon's fan triangulation; checks the indices.
+Status addPolygon(const std::string& path, const std::vector<long>& idx, size_t vertexCount, size_t face,
+                  PolygonMesh* out)
+{
+    if (idx.size() < 3)
+        return fail(path, "face " + std::to_string(face) + " has fewer than 3 corners");
+    for (long i : idx)
+        if (i < 0 || size_t(i) >= vertexCount)
+            return fail(path, "face " + std::to_string(face) + " references vertex " + std::to_string(i) + " of " +
+                                  std::to_string(vertexCount));
+    out->polygonsTriangulated += idx.size() > 3;
+    for (size_t k = 1; k + 1 < idx.size(); ++k)
+        out->triangles.insert(out->triangles.end(), {uint32_t(idx[0]), uint32_t(idx[k]), uint32_t(idx[k + 1])});
+    return Status::ok();
+}
+
+// ---- PLY ----
+
+enum class PlyType { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64, None };
+
+PlyType plyType(const std::string& t)
+{
+    if (t == "char" || t == "int8")
+        return PlyType::Int8;
+    if (t == "uchar" || t == "uint8")
+        return PlyType::UInt8;
+    if (t == "short" || t == "int16")
+        return PlyType::Int16;
+    if (t == "ushort" || t == "uint16")
+        return PlyType::UInt16;
+    if (t == "int" || t == "int32")
+        return PlyType::Int32;
+    if (t == "uint" || t == "uint32")
+        return PlyType::UInt32;
+    if (t == "float" || t == "float32")
+        return PlyType::Float32;
+    if (t == "double" || t == "float64")
+        return PlyType::Float64;
+    return PlyType::None;
+}
+
+size_t plySize(PlyType t)
+{
+    switch (t) {
+    case PlyType::Int8:
+    case PlyType::UInt8: return 1;
+    case PlyType::Int16:
+    case PlyType::UInt16: return 2;
+    case PlyType::Int32:
+    case PlyType::UInt32:
+    case PlyType::Float32: return 4;
+    case PlyType::Float64: return 8;
+    default: return 0;
+    }
+}
+
+struct PlyProperty {
+    std::string name;
+    PlyType type = PlyType::None;
+    PlyType countType = PlyType::None;  // lists only
+};
+
+struct PlyElement {
+    std::string name;
+    size_t count = 0;
+    std::vector<PlyProperty> properties;
+};
+
+// One binary value, or false at the end of the data.
+bool binaryValue(Cursor& c, PlyType t, bool bigEndian, double* v)
+{
+    const size_t n = plySize(t);
+    if (c.left() < n)
+        return false;
+    unsigned char b[8];
+    std::memcpy(b, c.p, n);
+    c.p += n;
+    if (bigEndian)
+        for (size_t i = 0; i < n / 2; ++i)
+            std::swap(b[i], b[n - 1 - i]);
+    switch (t) {
+    case PlyType::Int8: *v = double(int8_t(b[0])); break;
+    case PlyType::UInt8: *v = double(b[0]); break;
+    case PlyType::Int16: { int16_t x; std::memcpy(&x, b, 2); *v = x; break; }
+    case PlyType::UInt16: { uint16_t x; std::memcpy(&x, b, 2); *v = x; break; }
+    case PlyType::Int32: { int32_t x; std::memcpy(&x, b, 4); *v = x; break; }
+    case PlyType::UInt32: { uint32_t x; std::memcpy(&x, b, 4); *v = x; break; }
+    case PlyType::Float32: { float x; std::memcpy(&x, b, 4); *v = x; break; }
+    case PlyType::Float64: { double x; std::memcpy(&x, b, 8); *v = x; break; }
+    default: return false;
+    }
+    return true;
+}
+
+Status readPly(const std::string& path, const std::vector<unsigned char>& bytes, PolygonMesh* out)
+{
+    Cursor c{bytes.data(), bytes.data() + bytes.size()};
+    // Header: lines up to end_header, at most 64 KiB.
+    const size_t headerLimit = std::min<size_t>(bytes.size(), 65536);
+    const std::string head(reinterpret_cast<const char*>(bytes.data()), headerLimit);
+    const size_t endHeader = head.find("end_header");
+    if (head.compare(0, 3, "ply") != 0 || endHeader == std::string::npos)
+        return fail(path, "not a PLY file (no \"ply\" ... \"end_header\" header in the first 64 KiB)");
+    size_t dataStart = head.find('\n', endHeader);
+    if (dataStart == std::string::npos)
+        return fail(path, "the PLY header does not end with a newline");
+    ++dataStart;
+    int format = -1;  // 0 ascii, 1 little, 2 big
+    std::vector<PlyElement> elements;
+    size_t pos = head.find('\n') + 1;
+    while (pos < endHeader) {
+        size_t eol = head.find('\n', pos);
+        std::string line = head.substr(pos, eol - pos);
+        pos = eol + 1;
+        if (!line.empty() && line.back() == '\r')
+            line.pop_back();
+        Cursor lc{reinterpret_cast<const unsigned char*>(line.data()),
+                  reinterpret_cast<const unsigned char*>(line.data()) + line.size()};
+        std::string word;
+        if (!token(lc, &word) || word == "comment" || word == "obj_info")
+            continue;
+        if (word == "format") {
+            std::string f, version;
+            token(lc, &f);
+            token(lc, &version);
+            format = f == "ascii" ? 0 : f == "binary_little_endian" ? 1 : f == "binary_big_endian" ? 2 : -1;
+            if (format < 0 || version != "1.0")
+                return fail(path, "unsupported PLY format line");
+        } else if (word == "element") {
+            PlyElement e;
+            long count = 0;
+            if (!token(lc, &e.name) || !integer(lc, &count) || count < 0)
+                return fail(path, "malformed PLY element line");
+            // Every element takes at least one byte: more than the file holds is a lie.
+            if (size_t(count) > bytes.size())
+                return fail(path, "PLY element \"" + e.name + "\" declares " + std::to_string(count) +
+                                      " entries, more than the file's " + std::to_string(bytes.size()) + " bytes");
+            e.count = size_t(count);
+            elements.push_back(e);
+        } else if (word == "property") {
+            if (elements.empty())
+                return fail(path, "PLY property before any element");
+            PlyProperty p;
+            std::string t;
+            if (!token(lc, &t))
+                return fail(path, "malformed PLY property line");
+            if (t == "list") {
+                std::string ct, it;
+                if (!token(lc, &ct) || !token(lc, &it) || !token(lc, &p.name))
+                    return fail(path, "malformed PLY list property");
+                p.countType = plyType(ct);
+                p.type = plyType(it);
+                if (p.countType == PlyType::None || p.type == PlyType::None || p.countType == PlyType::Float32 ||
+                    p.countType == PlyType::Float64)
+                    return fail(path, "unsupported PLY list types");
+            } else {
+                p.type = plyType(t);
+                if (p.type == PlyType::None || !token(lc, &p.name))
+                    return fail(path, "unsupported PLY property type");
+            }
+            elements.back().properties.push_back(p);
+        } else {
+            return fail(path, "unknown PLY header keyword \"" + word.substr(0, 32) + "\"");
+        }
+    }
+    if (format < 0)
+        return fail(path, "the PLY header has no format line");
+    const PlyElement* vertexElement = nullptr;
+    for (const PlyElement& e : elements)
+        if (e.name == "vertex")
+            vertexElement = &e;
+    if (!vertexElement)
+        return fail(path, "the PLY file has no vertex element");
+    int xyz[3] = {-1, -1, -1};
+    for (size_t k = 0; k < vertexElement->properties.size(); ++k)
+        for (int a = 0; a < 3; ++a)
+            if (vertexElement->properties[k].name == std::string(1, char('x' + a)) &&
+                vertexElement->properties[k].countType == PlyType::None)
+                xyz[a] = int(k);
+    if (xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0)
+        return fail(path, "the PLY vertex element has no x, y and z");
+    size_t nv = 0;
+    c.p = bytes.data() + dataStart;
+    const bool big = format == 2;
+    for (const PlyElement& e : elements) {
+        if (format != 0) {
+            // Fixed-size elements can be checked against the file at once.
+            size_t fixed = 0;
+            for (const PlyProperty& p : e.properties)
+                fixed += p.countType == PlyType::None ? plySize(p.type) : plySize(p.countType);
+            if (fixed && e.count > c.left() / fixed)
+                return fail(path, "PLY element \"" + e.name + "\" is truncated");
+        }
+        const bool isVertex = &e == vertexElement, isFace = e.name == "face";
+        if (isVertex)
+            out->positions.reserve(e.count);
+        std::vector<double> values;
+        std::vector<long> idx;
+        for (size_t i = 0; i < e.count; ++i) {
+            glm::dvec3 p(0.0);
+            for (size_t k = 0; k < e.properties.size(); ++k) {
+                const PlyProperty& prop = e.properties[k];
+                if (prop.countType == PlyType::None) {
+                    double v = 0.0;
+                    const bool ok = format == 0 ? number(c, &v) : binaryValue(c, prop.type, big, &v);
+                    if (!ok)
+                        return fail(path, "PLY " + e.name + " " + std::to_string(i) + " is truncated or malformed");
+                    for (int a = 0; a < 3; ++a)
+                        if (isVertex && int(k) == xyz[a])
+                            p[a] = v;
+                    continue;
+                }
+                double n = 0.0;
+                long count = 0;
+                if (format == 0 ? !integer(c, &count) : !binaryValue(c, prop.countType, big, &n))
+                    return fail(path, "PLY " + e.name + " " + std::to_string(i) + " is truncated or malformed");
+                if (format != 0)
+                    count = long(n);
+                if (count < 0 || size_t(count) > kMaxPolygonCorners ||
+                    (format != 0 && size_t(count) > c.left() / plySize(prop.type)))
+                    return fail(path, "PLY " + e.name + " " + std::to_string(i) + " has a list of " +
+                                          std::to_string(count) + " entries");
+                const bool wanted = isFace && (prop.name == "vertex_indices" || prop.name == "vertex_index");
+                if (wanted)
+                    idx.clear();
+                for (long j = 0; j < count; ++j) {
+                    double v = 0.0;
+                    if (format == 0 ? !number(c, &v) : !binaryValue(c, prop.type, big, &v))
+                        return fail(path, "PLY " + e.name + " " + std::to_string(i) + " is truncated or malformed");
+                    if (wanted)
+                        idx.push_back(v >= 0.0 && v < 4294967296.0 && v == std::floor(v) ? long(v) : -1);
+                }
+                if (wanted) {
+                    Status st = addPolygon(path, idx, nv, i, out);
+                    if (!st)
+                        return st;
+                }
+            }
+            if (isVertex) {
+                const glm::vec3 f(p);
+                if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z))
+                    return fail(path, "vertex " + std::to_string(i) + " is not finite");
+                out->positions.push_back(f);
+            }
+        }
+        if (isVertex)
+            nv = out->positions.size();
+    }
+    return Status::ok();
+}
+
+// ---- OFF ----
+
+Status readOff(const std::string& path, const std::vector<unsigned char>& bytes, PolygonMesh* out)
+{
+    Cursor c{bytes.data(), bytes.data() + bytes.size()};
+    std::string magic;
+    if (!token(c, &magic, true) || magic.size() < 3 || magic.compare(magic.size() - 3, 3, "OFF") != 0)
+        return fail(path, "not an OFF file (it must start with OFF)");
+    if (magic != "OFF")
+        return fail(path, "OFF variant \"" + magic.substr(0, 16) + "\" is not supported (plain OFF is)");
+    long nv = 0, nf = 0, ne = 0;
+    if (!integer(c, &nv, true) || !integer(c, &nf, true) || !integer(c, &ne, true) || nv < 0 || nf < 0)
+        return fail(path, "the OFF counts line is malformed");
+    // Each vertex needs at least 6 bytes ("0 0 0\n"), each face 8.
+    if (size_t(nv) > c.left() / 6 || size_t(nf) > c.left() / 8)
+        return fail(path, "the OFF file declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+                              " faces, more than its size allows");
+    out->positions.reserve(size_t(nv));
+    for (long i = 0; i < nv; ++i) {
+        double x, y, z;
+        if (!number(c, &x, true) || !number(c, &y, true) || !number(c, &z, true))
+            return fail(path, "OFF vertex " + std::to_string(i) + " is not three finite numbers");
+        const glm::vec3 p(glm::dvec3(x, y, z));
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            return fail(path, "OFF vertex " + std::to_string(i) + " is not finite");
+        out->positions.push_back(p);
+    }
+    std::vector<long> idx;
+    for (long f = 0; f < nf; ++f) {
+        long n = 0;
+        if (!integer(c, &n, true) || n < 0 || size_t(n) > kMaxPolygonCorners || size_t(n) > c.left() / 2)
+            return fail(path, "OFF face " + std::to_string(f) + " is malformed");
+        idx.resize(size_t(n));
+        for (long k = 0; k < n; ++k)
+            if (!integer(c, &idx[size_t(k)], true))
+                return fail(path, "OFF face " + std::to_string(f) + " is malformed");
+        Status st = addPolygon(path, idx, size_t(nv), size_t(f), out);
+        if (!st)
+            return st;
+        // Anything after the indices on that line (a colour) is skipped.
+        while (c.p < c.end && *c.p != '\n')
+            ++c.p;
+    }
+    return Status::ok();
+}
+
+// ---- STL ----
+
+// STL stores three vertices per facet: weld exact duplicates.
+uint32_t weld(std::unordered_map<uint64_t, std::vector<uint32_t>>& at, PolygonMesh* out, const glm::vec3& p)
+{
+    uint32_t bits[3];
+    std::memcpy(bits, &p, 12);
+    for (uint32_t& b : bits)
+        if (b == 0x80000000u)
+            b = 0;  // -0 is 0
+    const uint64_t key = (uint64_t(bits[0]) * 73856093u) ^ (uint64_t(bits[1]) * 19349663u) ^ (uint64_t(bits[2]) * 83492791u);
+    std::vector<uint32_t>& bucket = at[key];
+    for (uint32_t v : bucket)
+        if (out->positions[v] == p)
+            return v;
+    bucket.push_back(uint32_t(out->positions.size()));
+    out->positions.push_back(p);
+    return bucket.back();
+}
+
+Status readStl(const std::string& path, const std::vector<unsigned char>& bytes, PolygonMesh* out)
+{
+    std::unordered_map<uint64_t, std::vector<uint32_t>> at;
+    if (bytes.size() >= 84) {
+        uint32_t n = 0;
+        std::memcpy(&n, bytes.data() + 80, 4);
+        if (size_t(n) <= (bytes.size() - 84) / 50 && bytes.size() == 84 + size_t(n) * 50) {
+            out->positions.reserve(size_t(n));
+            for (size_t f = 0; f < n; ++f) {
+                const unsigned char* p = bytes.data() + 84 + f * 50 + 12;
+                uint32_t tri[3];
+                for (int k = 0; k < 3; ++k) {
+                    glm::vec3 v;
+                    std::memcpy(&v, p + 12 * k, 12);
+                    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+                        return fail(path, "STL facet " + std::to_string(f) + " has a non-finite vertex");
+                    tri[k] = weld(at, out, v);
+                }
+                out->triangles.insert(out->triangles.end(), {tri[0], tri[1], tri[2]});
+            }
+            return Status::ok();
+        }
+    }
+    Cursor c{bytes.data(), bytes.data() + bytes.size()};
+    std::string word;
+    if (!token(c, &word) || word != "solid")
+        return fail(path, "not an STL file (neither a binary STL of consistent size nor ascii \"solid\")");
+    std::vector<long> corner;
+    size_t facet = 0;
+    while (token(c, &word)) {
+        if (word != "vertex")
+            continue;
+        double x, y, z;
+        if (!number(c, &x) || !number(c, &y) || !number(c, &z))
+            return fail(path, "STL vertex of facet " + std::to_string(facet) + " is not three finite numbers");
+        const glm::vec3 v(glm::dvec3(x, y, z));
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+            return fail(path, "STL facet " + std::to_string(facet) + " has a non-finite vertex");
+        corner.push_back(long(weld(at, out, v)));
+        if (corner.size() == 3) {
+            out->triangles.insert(out->triangles.end(), {uint32_t(corner[0]), uint32_t(corner[1]), uint32_t(corner[2])});
+            corner.clear();
+            ++facet;
+        }
+    }
+    if (!corner.empty())
+        return fail(path, "the last STL facet is incomplete");
+    return Status::ok();
+}
+
+}  // namespace
+
+Status readPolygonMesh(const std::string& path, PolygonMesh* out)
+{
+    const std::string ext = extensionOf(path);
+    if (ext != ".ply" && ext != ".off" && ext != ".stl")
+        return Status(StatusCode::InvalidArgument, path + ": not a .ply, .off or .stl file");
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes);
+    if (!st)
+        return st;
+    PolygonMesh mesh;
+    st = ext == ".ply" ? readPly(path, bytes, &mesh) : ext == ".off" ? readOff(path, bytes, &mesh)
+                                                                      : readStl(path, bytes, &mesh);
+    if (!st)
+        return st;
+    if (mesh.positions.empty())
+        return fail(path, "no vertices");
+    if (mesh.triangles.empty())
+        return fail(path, "no faces");
+    *out = std::move(mesh);
+    return Status::ok();
+}
+
+}  // namespace io
+}  // namespace strata
