@@ -117,8 +117,30 @@ Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skel
     return Status::ok();
 }
 
+namespace {
+
+// OpenMesh reports through its own log streams (omlog, omout, omerr):
+// silenced while it works, so only Strata's one-line messages reach users.
+struct QuietOpenMesh {
+    QuietOpenMesh()
+    {
+        omlog().disable();
+        omout().disable();
+        omerr().disable();
+    }
+    ~QuietOpenMesh()
+    {
+        omlog().enable();
+        omout().enable();
+        omerr().enable();
+    }
+};
+
+}  // namespace
+
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out)
 {
+    QuietOpenMesh quiet;
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
     OMesh om;
@@ -130,10 +152,9 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
     vh.reserve(high.positions.size());
     for (const glm::vec3& p : high.positions)
         vh.push_back(om.add_vertex(OMesh::Point(p.x, p.y, p.z)));
-    omerr().disable();  // complex (non-manifold) faces are refused by OpenMesh and simply not added
+    // Complex (non-manifold) faces are refused by OpenMesh and simply not added.
     for (size_t f = 0; f < high.faceCount(); ++f)
         om.add_face(vh[high.triangles[3 * f]], vh[high.triangles[3 * f + 1]], vh[high.triangles[3 * f + 2]]);
-    omerr().enable();
     om.delete_isolated_vertices();
     om.garbage_collection();
     if (om.n_faces() == 0)
