@@ -15,6 +15,7 @@
 #include <array>
 #include <cstring>
 #include <cmath>
+#include <set>
 #include <fstream>
 #include <random>
 
@@ -337,4 +338,56 @@ TEST(Distance, SphereAgainstScaledSphereIsExact)
     EXPECT_NEAR(inward.max, s - 1.0f, 0.002 * s);
     EXPECT_NEAR(inward.rms, s - 1.0f, 0.002 * s);
     EXPECT_GT(inward.samples, a.positions.size());
+}
+
+TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
+{
+    // A sphere of 1280 triangles: charts within 60 degrees of their mean
+    // normal, projected without flips, packed without overlaps.
+    ControlMesh sphere = examples::makeIcosphere(3);
+    sphere.uvs.clear();
+    sphere.uvIndices.clear();
+    ChartAtlasStats stats;
+    AtlasOptions options;
+    options.mapSize = 1024;
+    options.gutter = 1;
+    ASSERT_TRUE(buildChartAtlas(&sphere, options, &stats).isOk());
+    EXPECT_GT(stats.charts, 4u);
+    EXPECT_LT(stats.charts, sphere.faceCount() / 8);
+    EXPECT_LE(stats.maxStretch, 2.0 + 1e-9);  // 1 / cos 60
+    EXPECT_GT(stats.texelFill, 0.45);  // discs packed on a skyline; flatter meshes pack tighter
+    ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
+    // Every face keeps its orientation in UV space.
+    for (size_t f = 0; f < sphere.faceCount(); ++f) {
+        const glm::vec2 a = sphere.uvs[sphere.uvIndices[3 * f]], b = sphere.uvs[sphere.uvIndices[3 * f + 1]],
+                        c = sphere.uvs[sphere.uvIndices[3 * f + 2]];
+        EXPECT_GT((b - a).x * (c - a).y - (b - a).y * (c - a).x, 0.0f) << f;
+    }
+    // Vertices split only on chart borders: far fewer than a per-triangle atlas's three per face.
+    std::set<std::pair<uint32_t, uint32_t>> fileVertices;
+    for (size_t i = 0; i < sphere.triangles.size(); ++i)
+        fileVertices.insert({sphere.triangles[i], sphere.uvIndices[i]});
+    EXPECT_LE(double(fileVertices.size()), 1.3 * double(sphere.positions.size()));
+}
+
+TEST(Atlas, SphereBakedThroughAChartAtlasIsTheSphere)
+{
+    ControlMesh control = examples::makeIcosphere(1);
+    AtlasOptions options;
+    options.mapSize = 256;
+    options.gutter = 1;
+    ASSERT_TRUE(buildChartAtlas(&control, options).isOk());
+    const TriangleMesh high = icosphereMesh(5, 1.0f);
+    BakeOptions bakeOptions;
+    bakeOptions.size = 256;
+    DisplacementMap map;
+    BakeReport report;
+    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, bakeOptions).isOk());
+    std::vector<LevelError> errors;
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 4, 4, 2).isOk());
+    // The same bound as the per-triangle atlas: chords of the unit sphere plus
+    // bilinear sampling, well under 1e-3 of the diagonal.
+    EXPECT_LT(errors[0].forwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
 }

@@ -295,29 +295,53 @@ int main(int argc, char** argv)
         // UVs and map size.
         std::string sizeReason;
         const double typicalEdge = baker::medianEdgeLength(high);
+        std::string atlasNote;
         if (uvMode == "auto") {
+            // A chart atlas (charts grown over the control mesh, projected on
+            // their planes, packed); the per-triangle atlas only if a chart
+            // would fold.
             int size = options.size;
             baker::AtlasOptions atlas;
-            atlas.gutter = 2;
+            atlas.gutter = 1;
+            baker::ChartAtlasStats chartStats;
+            const ControlMesh bare = control;
+            auto layout = [&](int mapSize) {
+                atlas.mapSize = mapSize;
+                control = bare;
+                Status s = baker::buildChartAtlas(&control, atlas, &chartStats);
+                if (!s) {
+                    control = bare;
+                    baker::AtlasOptions triangles = atlas;
+                    triangles.gutter = 2;
+                    s = baker::buildTriangleAtlas(&control, triangles);
+                    chartStats = baker::ChartAtlasStats();
+                }
+                return s;
+            };
             if (size == 0) {
-                atlas.mapSize = 4096;  // provisional layout to measure the UV area
-                if (!(st = baker::buildTriangleAtlas(&control, atlas)))
+                if (!(st = layout(4096)))  // provisional layout to measure the UV area
                     throw cli::Error(st.message());
                 size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
             } else {
                 sizeReason = "forced by --size";
             }
-            // Grow until every triangle gets a usable chart.
-            for (atlas.mapSize = size; atlas.mapSize <= 8192; atlas.mapSize *= 2) {
-                if ((st = baker::buildTriangleAtlas(&control, atlas)))
+            for (; size <= 8192; size *= 2) {
+                if ((st = layout(size)))
                     break;
                 if (options.size > 0)
                     throw cli::Error(st.message());
-                sizeReason += "; raised to fit " + std::to_string(control.faceCount()) + " charts";
+                sizeReason += "; raised to fit the charts";
             }
             if (!st)
                 throw cli::Error(st.message());
             options.size = atlas.mapSize;
+            char buf[160];
+            if (chartStats.charts)
+                std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
+                              chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
+            else
+                std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
+            atlasNote = buf;
         } else {
             std::string uvNote;
             if (baker::fitUVsToUnitSquare(&control, &uvNote))
@@ -426,7 +450,7 @@ int main(int argc, char** argv)
                         highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
                         highStats.nonManifoldEdges);
         std::fprintf(summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
-                    control.faceCount(), uvMode == "auto" ? "generated (per-triangle atlas)" : "kept");
+                    control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
         std::fprintf(summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
         std::fprintf(summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
                     rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);

@@ -1,7 +1,13 @@
 // Per-triangle UV atlas, paired into square cells.
 #include "strata/baker/atlas.h"
 
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <vector>
 #include <string>
 
 namespace strata {
@@ -47,6 +53,373 @@ Status buildTriangleAtlas(ControlMesh* mesh, const AtlasOptions& options)
             mesh->uvs.emplace_back((x0 + corners[k].x) * inv, (y0 + corners[k].y) * inv);
         }
     }
+    return Status::ok();
+}
+
+}  // namespace baker
+}  // namespace strata
+
+// ---- Chart atlas ----
+
+namespace strata {
+namespace baker {
+namespace {
+
+struct Chart {
+    std::vector<uint32_t> faces;
+    glm::dvec3 normal{0.0};        // the seed face's unit normal: the projection plane
+    std::vector<uint32_t> vertices;  // topological vertices, in first-use order
+    std::vector<glm::dvec2> points;  // projected, per entry of vertices
+    glm::dvec2 lo{0.0}, hi{0.0};
+    double scaleX = 0.0;  // texels per model unit, set by the packer
+    int x = 0, y = 0;     // texel origin of the footprint, set by the packer
+    int rotation = 0;     // quarter turns, set by the packer
+};
+
+// Projects onto the plane orthogonal to n, in an orthonormal frame.
+void frame(const glm::dvec3& n, glm::dvec3* u, glm::dvec3* v)
+{
+    const glm::dvec3 a = std::fabs(n.x) < 0.6 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    *u = glm::normalize(glm::cross(n, a));
+    *v = glm::cross(n, *u);
+}
+
+// A chart's own scale: the common one, raised so that the chart spans at
+// least kMinChartTexels on each side it has (a chart of a texel or two
+// would be sampled from its gutter).
+constexpr double kMinChartTexels = 6.0;
+
+double chartScale(const Chart& c, double scale)
+{
+    const double w = c.hi.x - c.lo.x, h = c.hi.y - c.lo.y;
+    double s = scale;
+    if (w > 0.0)
+        s = std::max(s, kMinChartTexels / w);
+    if (h > 0.0)
+        s = std::max(s, std::min(kMinChartTexels / h, 16.0 * scale));
+    return std::min(s, 64.0 * scale);
+}
+
+// Chart point in texels inside its footprint, for rotation 0 or a quarter turn.
+glm::dvec2 placed(const Chart& c, const glm::dvec2& p, double scale, int rotation, int gutter)
+{
+    const glm::dvec2 q = (p - c.lo) * scale;
+    const double h = (c.hi.y - c.lo.y) * scale;
+    const glm::dvec2 r = rotation == 1 ? glm::dvec2(h - q.y, q.x) : q;
+    return r + glm::dvec2(double(gutter) + 0.5);
+}
+
+// The chart's footprint at a scale and rotation: texels within the gutter
+// (plus half a texel diagonal) of any of its triangles, as column profiles.
+struct Footprint {
+    int width = 0, height = 0;
+    std::vector<int> bottom, top;  // per column: lowest and highest occupied row, -1 when empty
+};
+
+double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b)
+{
+    const glm::dvec2 ab = b - a;
+    const double len2 = glm::dot(ab, ab);
+    const double t = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+    return glm::length(p - (a + t * ab));
+}
+
+Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local, double scale,
+                    int rotation, int gutter)
+{
+    const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale;
+    Footprint fp;
+    fp.width = int(std::ceil(rotation ? h : w)) + 2 * gutter + 1;
+    fp.height = int(std::ceil(rotation ? w : h)) + 2 * gutter + 1;
+    fp.bottom.assign(size_t(fp.width), -1);
+    fp.top.assign(size_t(fp.width), -1);
+    const double reach = double(gutter) + 0.5;
+    for (uint32_t f : c.faces) {
+        glm::dvec2 t[3];
+        for (int k = 0; k < 3; ++k)
+            t[k] = placed(c, c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])], scale, rotation, gutter);
+        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
+        const int x1 = std::min(fp.width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
+        const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
+        const int y1 = std::min(fp.height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
+        for (int x = x0; x <= x1; ++x)
+            for (int y = y0; y <= y1; ++y) {
+                const glm::dvec2 p(x + 0.5, y + 0.5);
+                bool inside = area != 0.0;
+                for (int k = 0; k < 3 && inside; ++k) {
+                    const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
+                    inside = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) * area >= 0.0;
+                }
+                if (!inside && std::min({segmentDistance(p, t[0], t[1]), segmentDistance(p, t[1], t[2]),
+                                         segmentDistance(p, t[2], t[0])}) > reach)
+                    continue;
+                int& lo = fp.bottom[size_t(x)];
+                int& hi = fp.top[size_t(x)];
+                lo = lo < 0 ? y : std::min(lo, y);
+                hi = std::max(hi, y);
+            }
+    }
+    return fp;
+}
+
+// Skyline packing of the charts' footprints (largest first, two rotations
+// each, lowest resulting top wins): irregular charts nest into each other's
+// profiles.  Fills x, y, rotation; false if they do not fit in `size`.
+bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
+          std::vector<int32_t>& local, double scale, int gutter, int size)
+{
+    std::vector<int> sky(size_t(size), 0);
+    for (size_t i : order) {
+        Chart& c = charts[i];
+        c.scaleX = chartScale(c, scale);
+        for (size_t k = 0; k < c.vertices.size(); ++k)
+            local[c.vertices[k]] = int32_t(k);
+        int bestTop = INT32_MAX, bestX = 0, bestY = 0, bestRotation = 0;
+        Footprint best;
+        for (int rotation = 0; rotation < 2; ++rotation) {
+            Footprint fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
+            if (fp.width > size || fp.height > size)
+                continue;
+            bool improved = false;
+            for (int x = 0; x + fp.width <= size; ++x) {
+                int y = 0;
+                for (int col = 0; col < fp.width; ++col)
+                    if (fp.bottom[size_t(col)] >= 0)
+                        y = std::max(y, sky[size_t(x + col)] - fp.bottom[size_t(col)]);
+                const int top = y + fp.height;
+                if (top <= size && top < bestTop) {
+                    bestTop = top;
+                    bestX = x;
+                    bestY = y;
+                    bestRotation = rotation;
+                    improved = true;
+                }
+            }
+            if (improved)
+                best = std::move(fp);
+        }
+        for (uint32_t v : c.vertices)
+            local[v] = -1;
+        if (bestTop == INT32_MAX)
+            return false;
+        for (int col = 0; col < best.width; ++col)
+            if (best.top[size_t(col)] >= 0)
+                sky[size_t(bestX + col)] = std::max(sky[size_t(bestX + col)], bestY + best.top[size_t(col)] + 1);
+        c.x = bestX;
+        c.y = bestY;
+        c.rotation = bestRotation;
+    }
+    return true;
+}
+
+}  // namespace
+
+Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, double maxAngleDegrees)
+{
+    const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
+    if (nf == 0)
+        return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
+    if (options.mapSize < 8 || options.gutter < 1)
+        return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
+    const double cosLimit = std::cos(maxAngleDegrees * 3.14159265358979 / 180.0);
+    std::vector<glm::dvec3> faceNormal(nf);
+    std::vector<double> faceArea(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::dvec3 a(mesh->positions[mesh->triangles[3 * f]]), b(mesh->positions[mesh->triangles[3 * f + 1]]),
+            c(mesh->positions[mesh->triangles[3 * f + 2]]);
+        const glm::dvec3 n = glm::cross(b - a, c - a);
+        faceArea[f] = 0.5 * glm::length(n);
+        faceNormal[f] = faceArea[f] > 0.0 ? n / (2.0 * faceArea[f]) : glm::dvec3(0.0);
+    }
+    // Neighbours across manifold, consistently oriented edges only.
+    std::vector<std::array<uint32_t, 3>> neighbour(nf, {UINT32_MAX, UINT32_MAX, UINT32_MAX});
+    {
+        std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nf);  // (directed key, face * 3 + corner)
+        for (size_t f = 0; f < nf; ++f)
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t a = mesh->triangles[3 * f + size_t(k)], b = mesh->triangles[3 * f + size_t((k + 1) % 3)];
+                edges[3 * f + size_t(k)] = {(uint64_t(std::min(a, b)) << 32) | std::max(a, b), uint32_t(3 * f + size_t(k))};
+            }
+        std::sort(edges.begin(), edges.end());
+        for (size_t i = 0; i < edges.size();) {
+            size_t j = i;
+            while (j < edges.size() && edges[j].first == edges[i].first)
+                ++j;
+            if (j - i == 2) {
+                const uint32_t e0 = edges[i].second, e1 = edges[i + 1].second;
+                const uint32_t f0 = e0 / 3, f1 = e1 / 3;
+                const bool opposite = mesh->triangles[e0] != mesh->triangles[e1];  // start vertices differ
+                if (f0 != f1 && opposite) {
+                    neighbour[f0][e0 % 3] = f1;
+                    neighbour[f1][e1 % 3] = f0;
+                }
+            }
+            i = j;
+        }
+    }
+    // Grow charts: breadth first from the largest unassigned face.
+    std::vector<uint32_t> chartOf(nf, UINT32_MAX);
+    std::vector<uint32_t> seeds(nf);
+    for (uint32_t f = 0; f < nf; ++f)
+        seeds[f] = f;
+    std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
+    std::vector<Chart> charts;
+    for (uint32_t seed : seeds) {
+        if (chartOf[seed] != UINT32_MAX)
+            continue;
+        Chart c;
+        const uint32_t id = uint32_t(charts.size());
+        std::vector<uint32_t> queue = {seed};
+        chartOf[seed] = id;
+        c.normal = faceNormal[seed];
+        for (size_t q = 0; q < queue.size(); ++q) {
+            const uint32_t f = queue[q];
+            c.faces.push_back(f);
+            for (uint32_t g : neighbour[f]) {
+                if (g == UINT32_MAX || chartOf[g] != UINT32_MAX || faceArea[g] <= 0.0)
+                    continue;
+                // Against the seed's normal, the plane the chart is projected
+                // on: the stretch bound holds for every face.
+                if (glm::dot(faceNormal[seed], faceNormal[g]) < cosLimit)
+                    continue;
+                chartOf[g] = id;
+                queue.push_back(g);
+            }
+        }
+        charts.push_back(std::move(c));
+    }
+    // Project each chart onto its seed's plane: every face is within the
+    // angle limit of it, so none flips.
+    double maxStretch = 1.0;
+    std::vector<int32_t> local(nv, -1);
+    for (Chart& c : charts) {
+        glm::dvec3 n = glm::length(c.normal) > 0.0 ? glm::normalize(c.normal) : glm::dvec3(0, 0, 1);
+        for (uint32_t f : c.faces) {
+            const double d = glm::dot(n, faceNormal[f]);
+            if (faceArea[f] > 0.0 && !(d > 0.05))
+                return Status(StatusCode::InvalidData, "a chart folds over itself");
+            if (faceArea[f] > 0.0)
+                maxStretch = std::max(maxStretch, 1.0 / d);
+        }
+        glm::dvec3 u, v;
+        frame(n, &u, &v);
+        for (uint32_t f : c.faces)
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
+                if (local[p] < 0) {
+                    local[p] = int32_t(c.vertices.size());
+                    c.vertices.push_back(p);
+                    const glm::dvec3 x(mesh->positions[p]);
+                    c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
+                }
+            }
+        // The rotation with the smallest bounding box, in 5-degree steps.
+        double bestArea = 1e300, bestAngle = 0.0;
+        for (int step = 0; step < 18; ++step) {
+            const double t = double(step) * 3.14159265358979 / 36.0, cs = std::cos(t), sn = std::sin(t);
+            glm::dvec2 lo(1e300), hi(-1e300);
+            for (const glm::dvec2& p : c.points) {
+                const glm::dvec2 r(cs * p.x - sn * p.y, sn * p.x + cs * p.y);
+                lo = glm::min(lo, r);
+                hi = glm::max(hi, r);
+            }
+            const double a = (hi.x - lo.x) * (hi.y - lo.y);
+            if (a < bestArea) {
+                bestArea = a;
+                bestAngle = t;
+            }
+        }
+        const double cs = std::cos(bestAngle), sn = std::sin(bestAngle);
+        c.lo = glm::dvec2(1e300);
+        c.hi = glm::dvec2(-1e300);
+        for (glm::dvec2& p : c.points) {
+            p = glm::dvec2(cs * p.x - sn * p.y, sn * p.x + cs * p.y);
+            c.lo = glm::min(c.lo, p);
+            c.hi = glm::max(c.hi, p);
+        }
+        if (c.hi.y - c.lo.y > c.hi.x - c.lo.x) {  // tall boxes lie down: shelves pack better
+            for (glm::dvec2& p : c.points)
+                p = glm::dvec2(p.y, -p.x);
+            c.lo = glm::dvec2(c.lo.y, -c.hi.x);
+            c.hi = glm::dvec2(c.hi.y, -c.lo.x);
+            c.lo = glm::dvec2(1e300);
+            c.hi = glm::dvec2(-1e300);
+            for (const glm::dvec2& p : c.points) {
+                c.lo = glm::min(c.lo, p);
+                c.hi = glm::max(c.hi, p);
+            }
+        }
+        for (uint32_t p : c.vertices)
+            local[p] = -1;
+    }
+    // The largest common scale (texels per model unit) that packs: bracket,
+    // then bisect.
+    std::vector<size_t> order(charts.size());
+    for (size_t i = 0; i < order.size(); ++i)
+        order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        const glm::dvec2 ea = charts[a].hi - charts[a].lo, eb = charts[b].hi - charts[b].lo;
+        return std::max(ea.x, ea.y) > std::max(eb.x, eb.y);
+    });
+    double chartArea = 0.0;
+    for (size_t f = 0; f < nf; ++f)
+        chartArea += faceArea[f];
+    const int size = options.mapSize, g = options.gutter;
+    double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
+    while (pack(charts, order, *mesh, local, hi, g, size)) {
+        lo = hi;
+        hi *= 1.25;
+    }
+    if (lo == 0.0) {
+        lo = hi;
+        for (int tries = 0; tries < 40 && !pack(charts, order, *mesh, local, lo, g, size); ++tries)
+            lo *= 0.8;
+        if (!pack(charts, order, *mesh, local, lo, g, size))
+            return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
+                                                           std::to_string(charts.size()) + " charts; use a larger map");
+        hi = lo / 0.8;
+    }
+    for (int step = 0; step < 7; ++step) {
+        const double mid = 0.5 * (lo + hi);
+        (pack(charts, order, *mesh, local, mid, g, size) ? lo : hi) = mid;
+    }
+    pack(charts, order, *mesh, local, lo, g, size);  // the final placement
+    // UVs: one value per (chart, vertex); faces index them.
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> uvIndices(3 * nf);
+    double inside = 0.0;
+    const double inv = 1.0 / double(size);
+    for (Chart& c : charts) {
+        const uint32_t base = uint32_t(uvs.size());
+        for (const glm::dvec2& p : c.points) {
+            const glm::dvec2 t = placed(c, p, c.scaleX, c.rotation, g) + glm::dvec2(double(c.x), double(c.y));
+            uvs.emplace_back(float(t.x * inv), float(t.y * inv));
+        }
+        for (size_t i = 0; i < c.vertices.size(); ++i)
+            local[c.vertices[i]] = int32_t(i);
+        for (uint32_t f : c.faces) {
+            for (int k = 0; k < 3; ++k)
+                uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]]);
+            inside += faceArea[f];
+        }
+        for (uint32_t p : c.vertices)
+            local[p] = -1;
+    }
+    // Area inside charts in texels (projected area <= true area).
+    double projected = 0.0;
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::vec2 a = uvs[uvIndices[3 * f]], b = uvs[uvIndices[3 * f + 1]], c = uvs[uvIndices[3 * f + 2]];
+        projected += 0.5 * std::fabs(double((b - a).x * (c - a).y - (b - a).y * (c - a).x));
+    }
+    mesh->uvs = std::move(uvs);
+    mesh->uvIndices = std::move(uvIndices);
+    if (stats) {
+        stats->charts = charts.size();
+        stats->texelFill = projected;
+        stats->maxStretch = maxStretch;
+    }
+    (void)inside;
     return Status::ok();
 }
 
