@@ -8,6 +8,8 @@
 
 #include <fstream>
 
+#include <nlohmann/json.hpp>
+
 namespace {
 
 using strata::test::filesIn;
@@ -260,4 +262,39 @@ TEST(BakeCli, JointFileBecomesAGltfSkinThatPlaysAnywhere)
     EXPECT_EQ(bad.code, 2) << bad.output;
     EXPECT_NE(bad.output.find("cycle.json"), std::string::npos) << bad.output;
     EXPECT_FALSE(strata::test::fileExists(dir + "/bad.glb"));
+}
+
+TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_tolerance");
+    writeInputs(dir);
+    const std::string args = "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none";
+    auto sizeAndTrials = [&](const std::string& tolerance, int* size, size_t* trials, double* chosenRms) {
+        const Result r = run(args + " --tolerance " + tolerance + " --report " + dir + "/r.json -o " + dir + "/rig.glb");
+        ASSERT_EQ(r.code, 0) << r.output;
+        const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/r.json"));
+        *size = j["map"]["size"].get<int>();
+        *trials = j["tradeOff"].size();
+        *chosenRms = 1.0;
+        for (const auto& t : j["tradeOff"])
+            if (t["size"].get<int>() == *size && t["level"].get<int>() == j["recommendedLevel"].get<int>())
+                *chosenRms = t["rms"].get<double>();
+    };
+    int loose = 0, tight = 0;
+    size_t looseTrials = 0, tightTrials = 0;
+    double looseRms = 0.0, tightRms = 0.0;
+    sizeAndTrials("2%", &loose, &looseTrials, &looseRms);
+    sizeAndTrials("0.000001", &tight, &tightTrials, &tightRms);
+    // A loose tolerance is met at the first size; an unreachable one doubles
+    // the map until that stops paying, and keeps the last size that did.
+    EXPECT_LE(looseRms, 0.02);
+    EXPECT_LE(loose, tight);
+    EXPECT_LT(looseTrials, tightTrials);
+    EXPECT_LE(tightRms, looseRms);
+    // A forced size skips the search.
+    const Result r = run(args + " --size 128 --tolerance 0.000001 --report " + dir + "/r.json -o " + dir + "/rig.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/r.json"));
+    EXPECT_EQ(j["map"]["size"], 128);
+    EXPECT_TRUE(j["tradeOff"].empty());
 }

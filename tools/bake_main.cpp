@@ -40,8 +40,10 @@ const char* kUsage =
     "usage: strata-bake --high HIGH.{obj,ply,stl,off,glb,gltf} --control CONTROL.{obj,glb,gltf}|auto\n"
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
-    "                   [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
+    "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
+    "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
+    "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
     "The rig is one self-contained file: the map is embedded as a 16-bit PNG.  --exr also\n"
     "writes it as RIG.exr for pipelines; --layers writes RIG_layers.png (surface layers per texel).\n";
 
@@ -160,6 +162,8 @@ int main(int argc, char** argv)
         bool asFloat = false;
         int pngBits = 0, errorFrom = -2, errorTo = -2;  // -2: around the recommended level
         bool writeExr = false, writeLayers = false;
+        double tolerance = 1e-4;  // RMS over the diagonal: 0.01%
+        bool schemeGiven = false;
         options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -170,6 +174,14 @@ int main(int argc, char** argv)
             } else if (a == "--version") {
                 std::printf("strata-bake %s\n", cli::kVersion);
                 return 0;
+            } else if (a == "--tolerance") {
+                const std::string v = value();
+                tolerance = double(cli::parseFloat(a, v.size() && v.back() == '%' ? v.substr(0, v.size() - 1) : v));
+                if (v.size() && v.back() == '%')
+                    tolerance /= 100.0;
+                if (!(tolerance >= 0.0 && tolerance < 1.0))
+                    throw cli::Error("--tolerance expects a fraction of the diagonal (or a percentage, 0.01%), got \"" + v +
+                                     "\"");
             } else if (a == "--exr") {
                 writeExr = true;
             } else if (a == "--layers") {
@@ -193,6 +205,7 @@ int main(int argc, char** argv)
             } else if (a == "--scheme") {
                 if (!parseScheme(value(), &options.scheme))
                     throw cli::Error("--scheme expects linear or smooth");
+                schemeGiven = true;
             } else if (a == "--float") {
                 asFloat = true;
             } else if (a == "--png8") {
@@ -292,49 +305,182 @@ int main(int argc, char** argv)
         }
         const double loadMs = msSince(t0);
 
-        // UVs and map size.
+        // UVs, map size and recommended level.  Unless --size forces a size,
+        // the map starts at the paper's texel ~ high-res edge rule and doubles
+        // until the closed loop reaches --tolerance at a level around the
+        // paper's, or stops improving: the smallest pair that reaches it.
         std::string sizeReason;
         const double typicalEdge = baker::medianEdgeLength(high);
         std::string atlasNote;
+        baker::AtlasOptions atlas;
+        atlas.gutter = 1;
+        baker::ChartAtlasStats chartStats;
+        const ControlMesh bare = control;
+        auto layout = [&](int mapSize) {
+            atlas.mapSize = mapSize;
+            control = bare;
+            Status s = baker::buildChartAtlas(&control, atlas, &chartStats);
+            if (!s) {
+                control = bare;
+                baker::AtlasOptions triangles = atlas;
+                triangles.gutter = 2;
+                s = baker::buildTriangleAtlas(&control, triangles);
+                chartStats = baker::ChartAtlasStats();
+            }
+            return s;
+        };
+        const bool forced = options.size > 0;
+        int size = options.size;
         if (uvMode == "auto") {
             // A chart atlas (charts grown over the control mesh, projected on
             // their planes, packed); the per-triangle atlas only if a chart
             // would fold.
-            int size = options.size;
-            baker::AtlasOptions atlas;
-            atlas.gutter = 1;
-            baker::ChartAtlasStats chartStats;
-            const ControlMesh bare = control;
-            auto layout = [&](int mapSize) {
-                atlas.mapSize = mapSize;
-                control = bare;
-                Status s = baker::buildChartAtlas(&control, atlas, &chartStats);
-                if (!s) {
-                    control = bare;
-                    baker::AtlasOptions triangles = atlas;
-                    triangles.gutter = 2;
-                    s = baker::buildTriangleAtlas(&control, triangles);
-                    chartStats = baker::ChartAtlasStats();
-                }
-                return s;
-            };
-            if (size == 0) {
-                if (!(st = layout(4096)))  // provisional layout to measure the UV area
+            if (!forced) {
+                if (!(st = layout(512)))  // provisional layout to measure the UV area (scale-free)
                     throw cli::Error(st.message());
                 size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
-            } else {
-                sizeReason = "forced by --size";
             }
-            for (; size <= 8192; size *= 2) {
-                if ((st = layout(size)))
-                    break;
-                if (options.size > 0)
-                    throw cli::Error(st.message());
-                sizeReason += "; raised to fit the charts";
-            }
-            if (!st)
+        } else {
+            std::string uvNote;
+            if (baker::fitUVsToUnitSquare(&control, &uvNote))
+                std::fprintf(stderr, "strata-bake: warning: %s: %s\n", controlPath.c_str(), uvNote.c_str());
+            if (!forced)
+                size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+            if (!(st = baker::checkUVs(control, std::max(size, 1024))))
+                throw cli::Error(controlPath + ": " + st.message());
+        }
+        if (forced)
+            sizeReason = "forced by --size";
+        int paperLevel = 0;
+        while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
+            ++paperLevel;
+        int recommended = paperLevel;
+        struct Trial {
+            int size, level;
+            double rms;  // the larger of both directions, over the diagonal
+        };
+        std::vector<Trial> trials;
+        DisplacementMap map;
+        std::vector<uint16_t> layers;
+        baker::BakeReport rep;
+        const int sizeCap = forced ? size : std::min(options.maxSize, 4096);
+        // The previous size's result, kept so that stopping when doubling no
+        // longer pays returns the smaller map.
+        struct Snapshot {
+            ControlMesh control;
+            DisplacementMap map;
+            std::vector<uint16_t> layers;
+            baker::BakeReport rep;
+            baker::ChartAtlasStats chartStats;
+            int size = 0, level = 0;
+            double best = 1e300;
+        } previous;
+        std::string schemeReason = schemeGiven ? "--scheme" : "";
+        if (!schemeGiven && !forced && tolerance > 0.0) {
+            // Which surface carries the map better for this pair, measured at
+            // the first size and the paper's level: the paper's linear split
+            // unless the Loop limit is clearly closer (loose cages).
+            if (uvMode == "auto" && !(st = layout(size)))
                 throw cli::Error(st.message());
-            options.size = atlas.mapSize;
+            double rms[2] = {0.0, 0.0};
+            for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
+                baker::BakeOptions probe = options;
+                probe.size = uvMode == "auto" ? atlas.mapSize : size;
+                probe.scheme = candidate;
+                DisplacementMap probeMap;
+                baker::BakeReport probeReport;
+                std::vector<baker::LevelError> errs;
+                Progress p("choosing the subdivision scheme");
+                if (!(st = baker::bake(&probeMap, nullptr, &probeReport, control, high, probe)) ||
+                    !(st = baker::closedLoopError(&errs, control, probeMap, candidate, high, paperLevel, paperLevel,
+                                                  options.threads)))
+                    throw cli::Error(highPath + ": " + st.message());
+                rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
+            }
+            options.scheme = rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
+            char buf[160];
+            std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
+                          100.0 * rms[1], paperLevel);
+            schemeReason = buf;
+        }
+        for (;;) {
+            if (uvMode == "auto") {
+                for (; size <= 8192; size *= 2) {
+                    if ((st = layout(size)))
+                        break;
+                    if (forced)
+                        throw cli::Error(st.message());
+                    sizeReason += "; raised to fit the charts";
+                }
+                if (!st)
+                    throw cli::Error(st.message());
+            }
+            options.size = size;
+            {
+                Progress p("baking");
+                if (!(st = baker::bake(&map, &layers, &rep, control, high, options)))
+                    throw cli::Error(highPath + ": " + st.message());
+            }
+            if (forced || tolerance <= 0.0)
+                break;
+            // The paper's level and the one below it: a finer level than the
+            // paper's rule rarely pays for its four times the triangles.
+            std::vector<baker::LevelError> errs;
+            const int lo = std::max(0, paperLevel - 1), hi = paperLevel;
+            {
+                Progress p("measuring the map size against --tolerance");
+                if (!(st = baker::closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
+                    throw cli::Error(st.message());
+            }
+            double best = 1e300;
+            int met = -1, bestLevel = hi;
+            for (const baker::LevelError& e : errs) {
+                const double rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+                trials.push_back({size, e.level, rms});
+                if (rms < best) {
+                    best = rms;
+                    bestLevel = e.level;
+                }
+                if (met < 0 && rms <= tolerance)
+                    met = e.level;
+            }
+            if (met >= 0) {
+                recommended = met;
+                char buf[96];
+                std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * tolerance, met);
+                sizeReason += buf;
+                break;
+            }
+            if (best > 0.9 * previous.best) {
+                // Doubling no longer pays: resolution is not what limits the
+                // error here.  The previous, smaller map, at its best level.
+                control = std::move(previous.control);
+                map = std::move(previous.map);
+                layers = std::move(previous.layers);
+                rep = previous.rep;
+                chartStats = previous.chartStats;
+                size = previous.size;
+                recommended = previous.level;
+                sizeReason += "; doubling the map no longer improved the error";
+                break;
+            }
+            if (size * 2 > sizeCap) {
+                recommended = bestLevel;
+                sizeReason += "; at the size cap without reaching --tolerance";
+                break;
+            }
+            previous.control = control;
+            previous.map = std::move(map);
+            previous.layers = std::move(layers);
+            previous.rep = rep;
+            previous.chartStats = chartStats;
+            previous.size = size;
+            previous.level = bestLevel;
+            previous.best = best;
+            size *= 2;
+        }
+        rep.sizeReason = sizeReason;
+        if (uvMode == "auto") {
             char buf[160];
             if (chartStats.charts)
                 std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
@@ -342,27 +488,7 @@ int main(int argc, char** argv)
             else
                 std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
             atlasNote = buf;
-        } else {
-            std::string uvNote;
-            if (baker::fitUVsToUnitSquare(&control, &uvNote))
-                std::fprintf(stderr, "strata-bake: warning: %s: %s\n", controlPath.c_str(), uvNote.c_str());
-            if (options.size == 0)
-                options.size = baker::chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
-            else
-                sizeReason = "forced by --size";
-            if (!(st = baker::checkUVs(control, std::max(options.size, 1024))))
-                throw cli::Error(controlPath + ": " + st.message());
         }
-
-        DisplacementMap map;
-        std::vector<uint16_t> layers;
-        baker::BakeReport rep;
-        {
-            Progress p("baking");
-            if (!(st = baker::bake(&map, &layers, &rep, control, high, options)))
-                throw cli::Error(highPath + ": " + st.message());
-        }
-        rep.sizeReason = sizeReason;
 
         // Outputs.
         t0 = std::chrono::steady_clock::now();
@@ -378,9 +504,6 @@ int main(int argc, char** argv)
         rig.hasDisplacement = true;
         rig.displacement = DisplacementInfo();
         rig.displacement.scheme = options.scheme;
-        int recommended = 0;
-        while (recommended < kMaxLevel && (control.faceCount() << (2 * recommended)) <= high.faceCount())
-            ++recommended;
         rig.displacement.recommendedLevel = recommended;
         if (writeExr)
             outputs.write(base + ".exr", [&](const std::string& p) {
@@ -439,8 +562,8 @@ int main(int argc, char** argv)
             return io::readFile(Outputs::staged(p), &b).isOk() ? double(b.size()) : 0.0;
         };
         const double diag = rep.diagonal;
-        std::fprintf(summary, "strata-bake: %s onto %s (%s scheme)\n", highPath.c_str(), controlPath.c_str(),
-                    schemeName(options.scheme));
+        std::fprintf(summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
+                     schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
         std::fprintf(summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
                     rep.highTriangles, rep.typicalEdge);
         if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
@@ -452,6 +575,13 @@ int main(int argc, char** argv)
         std::fprintf(summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                     control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
         std::fprintf(summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        if (!trials.empty()) {
+            std::fprintf(summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
+                         100.0 * tolerance);
+            for (const Trial& t : trials)
+                std::fprintf(summary, "                %5d, %d: %.4f%%%s\n", t.size, t.level, 100.0 * t.rms,
+                             t.size == map.width && t.level == recommended ? "  <- chosen" : "");
+        }
         std::fprintf(summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
                     rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
         std::fprintf(summary, "  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
@@ -498,6 +628,11 @@ int main(int argc, char** argv)
                              {"lineFilledTexels", rep.lineFilledTexels}};
             report["mapping"] = {{"fallbacks", rep.fallbackVertices}, {"searchDistance", rep.searchDistance},
                                  {"borderTriangles", rep.raster.borderTriangles}, {"pieces", rep.raster.pieces}};
+            nlohmann::json tradeOff = nlohmann::json::array();
+            for (const Trial& t : trials)
+                tradeOff.push_back({{"size", t.size}, {"level", t.level}, {"rms", t.rms}});
+            report["tolerance"] = tolerance;
+            report["tradeOff"] = tradeOff;
             report["scheme"] = schemeName(options.scheme);
             report["recommendedLevel"] = recommended;
             report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},

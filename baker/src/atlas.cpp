@@ -380,7 +380,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
                                                            std::to_string(charts.size()) + " charts; use a larger map");
         hi = lo / 0.8;
     }
-    for (int step = 0; step < 7; ++step) {
+    for (int step = 0; step < 6; ++step) {
         const double mid = 0.5 * (lo + hi);
         (pack(charts, order, *mesh, local, mid, g, size) ? lo : hi) = mid;
     }
