@@ -374,6 +374,10 @@ int main(int argc, char** argv)
         const std::string a = argv[i];
         if (a == "paper")
             paper = true;
+        else if (a == "--version") {
+            std::printf("strata-bench %s\n", STRATA_VERSION);
+            return 0;
+        }
         else if (a == "--out" && i + 1 < argc)
             out = argv[++i];
         else {

@@ -2,6 +2,7 @@
 // source glTF had, and a multi-primitive, multi-material skinned character
 // with a non-manifold fin and a rigid eye bakes onto itself and
 // reconstructs watertight, posed, matching plain linear blend skinning.
+#include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 #include "test_rigs.h"
@@ -678,4 +679,38 @@ TEST(Scene, OverflowingPoseIsAnErrorNamingTheJoint)
     EXPECT_NE(r.output.find("not finite"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("knee"), std::string::npos) << r.output;
     EXPECT_FALSE(test::fileExists(dir + "/out.ply"));
+}
+
+TEST(Scene, VersionOneRigsStillLoad)
+{
+    // A version 1 rig: the map in an EXR beside it, the block naming it by URI.
+    const std::string dir = test::tempDir("scene_v1");
+    Rig rig;
+    DisplacementMap map;
+    test::makeExampleRig(&rig, &map);
+    rig.displacement.uri = "v1.exr";
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/v1.exr", map).isOk());
+    ASSERT_TRUE(io::saveRig(dir + "/v2.gltf", rig).isOk());
+    std::string json = test::readText(dir + "/v2.gltf");
+    const size_t at = json.find("\"version\": 2");
+    ASSERT_NE(at, std::string::npos);
+    json.replace(at, 12, "\"version\": 1");
+    test::writeText(dir + "/v1.gltf", json);
+    Rig back;
+    const Status st = io::loadRig(dir + "/v1.gltf", &back);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    DisplacementMap loaded;
+    ASSERT_TRUE(io::loadRigDisplacementMap(dir + "/v1.gltf", back, &loaded).isOk());
+    ASSERT_EQ(loaded.texels.size(), map.texels.size());
+    for (size_t i = 0; i < map.texels.size(); ++i)  // half floats: 11 significant bits
+        ASSERT_NEAR(loaded.texels[i], map.texels[i], 1e-3f * std::fabs(map.texels[i]) + 1e-7f) << i;
+}
+
+TEST(Scene, EveryToolAnswersVersion)
+{
+    for (const char* exe : {STRATA_BAKE_EXE, STRATA_RECONSTRUCT_EXE, STRATA_DEMO_EXE}) {
+        const test::CommandResult r = test::runCommand(std::string(exe) + " --version");
+        EXPECT_EQ(r.code, 0) << exe;
+        EXPECT_NE(r.output.find(" 0."), std::string::npos) << r.output;
+    }
 }

@@ -61,7 +61,10 @@ int main(int argc, char** argv)
             else if (a == "--size")
                 mapSize = cli::parseInt(a, value(), 64, 8192);
             else if (a == "-h" || a == "--help") {
-                std::puts("usage: strata-demo [--out DIR] [--max-level N] [--size MAP_SIZE]");
+                std::puts("usage: strata-demo [--out DIR] [--max-level N] [--size MAP_SIZE] [--version]");
+                return 0;
+            } else if (a == "--version") {
+                std::printf("strata-demo %s\n", cli::kVersion);
                 return 0;
             } else
                 throw cli::Error("unknown option " + a);
