@@ -121,17 +121,28 @@ Status loadGltfDocument(const std::string& path, SourceDocument* doc)
     Status st = readFile(path, &bytes);
     if (!st)
         return st;
-    FsContext ctx{directoryOf(path)};
+    return parseGltfDocument(bytes.data(), bytes.size(), ext == ".glb", directoryOf(path), path, doc);
+}
+
+Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
+                         const std::string& path, SourceDocument* doc)
+{
+    if (size == 0)
+        return Status(StatusCode::InvalidData, path + ": file is empty");
+    if (size > 0xffffffffu)
+        return Status(StatusCode::InvalidData, path + ": file is larger than 4 GiB");
+    const std::string ext = binary ? ".glb" : ".gltf";
+    FsContext ctx{folder};
     tinygltf::TinyGLTF loader;
     loader.SetFsCallbacks(tinygltf::FsCallbacks{fsExists, fsExpand, fsRead, fsWrite, &ctx});
     loader.SetImageLoader(keepImageBytes, doc);
     std::string err, warn;
     bool ok;
     if (ext == ".glb") {
-        ok = loader.LoadBinaryFromMemory(&doc->model, &err, &warn, bytes.data(), unsigned(bytes.size()), ctx.base);
+        ok = loader.LoadBinaryFromMemory(&doc->model, &err, &warn, data, unsigned(size), ctx.base);
     } else {
-        ok = loader.LoadASCIIFromString(&doc->model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
-                                        unsigned(bytes.size()), ctx.base);
+        ok = loader.LoadASCIIFromString(&doc->model, &err, &warn, reinterpret_cast<const char*>(data), unsigned(size),
+                                        ctx.base);
     }
     if (!ok)
         return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));

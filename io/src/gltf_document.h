@@ -27,6 +27,11 @@ namespace io {
 /// are kept in doc->imageBytes.
 Status loadGltfDocument(const std::string& path, SourceDocument* doc);
 
+/// loadGltfDocument from bytes: external files resolve inside `folder`
+/// ("" denies them all when folder names no real directory).
+Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
+                         const std::string& path, SourceDocument* doc);
+
 /// One line, printable: control bytes become '?', text past maxLength is cut.
 std::string printable(std::string text, size_t maxLength = 200);
 

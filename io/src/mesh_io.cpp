@@ -80,6 +80,12 @@ Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
     Status st = readFile(path, &bytes);
     if (!st)
         return st;
+    return parseObj(bytes.data(), bytes.size(), path, out, info);
+}
+
+Status parseObj(const unsigned char* data, size_t size, const std::string& path, ControlMesh* out, ObjReadInfo* info)
+{
+    std::vector<unsigned char> bytes(data, data + size);
     bytes.push_back(0);
     ControlMesh mesh;
     ObjReadInfo stats;

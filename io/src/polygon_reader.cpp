@@ -449,6 +449,27 @@ Status readStl(const std::string& path, const std::vector<unsigned char>& bytes,
 
 }  // namespace
 
+Status parsePolygonMesh(const unsigned char* data, size_t size, const std::string& format, const std::string& name,
+                        PolygonMesh* out)
+{
+    if (format != ".ply" && format != ".off" && format != ".stl")
+        return Status(StatusCode::InvalidArgument, name + ": not a .ply, .off or .stl file");
+    if (size == 0)
+        return fail(name, "file is empty");
+    const std::vector<unsigned char> bytes(data, data + size);
+    PolygonMesh mesh;
+    Status st = format == ".ply" ? readPly(name, bytes, &mesh) : format == ".off" ? readOff(name, bytes, &mesh)
+                                                                                  : readStl(name, bytes, &mesh);
+    if (!st)
+        return st;
+    if (mesh.positions.empty())
+        return fail(name, "no vertices");
+    if (mesh.triangles.empty())
+        return fail(name, "no faces");
+    *out = std::move(mesh);
+    return Status::ok();
+}
+
 Status readPolygonMesh(const std::string& path, PolygonMesh* out)
 {
     const std::string ext = extensionOf(path);
@@ -458,17 +479,7 @@ Status readPolygonMesh(const std::string& path, PolygonMesh* out)
     Status st = readFile(path, &bytes);
     if (!st)
         return st;
-    PolygonMesh mesh;
-    st = ext == ".ply" ? readPly(path, bytes, &mesh) : ext == ".off" ? readOff(path, bytes, &mesh)
-                                                                      : readStl(path, bytes, &mesh);
-    if (!st)
-        return st;
-    if (mesh.positions.empty())
-        return fail(path, "no vertices");
-    if (mesh.triangles.empty())
-        return fail(path, "no faces");
-    *out = std::move(mesh);
-    return Status::ok();
+    return parsePolygonMesh(bytes.data(), bytes.size(), ext, path, out);
 }
 
 }  // namespace io

@@ -667,12 +667,36 @@ Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positi
     return Status::ok();
 }
 
+namespace {
+
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out);
+
+}  // namespace
+
 Status loadRig(const std::string& path, Rig* out)
 {
     auto doc = std::make_shared<SourceDocument>();
     Status st = loadGltfDocument(path, doc.get());
     if (!st)
         return st;
+    return finishRig(path, std::move(doc), out);
+}
+
+Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out)
+{
+    auto doc = std::make_shared<SourceDocument>();
+    // No folder: a rig in memory has no files beside it.
+    Status st = parseGltfDocument(data, size, binary, "/nonexistent-strata-folder", name, doc.get());
+    if (!st)
+        return st;
+    return finishRig(name, std::move(doc), out);
+}
+
+namespace {
+
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out)
+{
+    Status st;
     SceneGeometry scene;
     if (!(st = readSceneGeometry(path, *doc, /*forRig=*/true, &scene)))
         return st;
@@ -719,6 +743,8 @@ Status loadRig(const std::string& path, Rig* out)
     *out = std::move(rig);
     return Status::ok();
 }
+
+}  // namespace
 
 Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out)
 {

@@ -26,6 +26,10 @@ struct ObjReadInfo {
 /// Errors name the file and line.
 Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info = nullptr);
 
+/// readObj from bytes in memory; `name` is used in messages.
+Status parseObj(const unsigned char* data, size_t size, const std::string& name, ControlMesh* out,
+                ObjReadInfo* info = nullptr);
+
 /// A polygon soup read from PLY, OFF or STL, fan-triangulated.
 struct PolygonMesh {
     std::vector<glm::vec3> positions;
@@ -40,6 +44,11 @@ struct PolygonMesh {
 /// before anything is reserved, and the work is linear in the file size.
 /// Errors name the file and the problem; nothing is printed.
 Status readPolygonMesh(const std::string& path, PolygonMesh* out);
+
+/// readPolygonMesh from bytes in memory; `format` is ".ply", ".off" or
+/// ".stl" and `name` is used in messages.
+Status parsePolygonMesh(const unsigned char* data, size_t size, const std::string& format, const std::string& name,
+                        PolygonMesh* out);
 
 /// A mesh to write: arrays owned by the caller.
 struct MeshView {

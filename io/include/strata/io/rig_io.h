@@ -25,6 +25,10 @@ namespace io {
 /// bad geometry is a clear error.  Rigs of format versions 1 and 2 load.
 Status loadRig(const std::string& path, Rig* out);
 
+/// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
+/// external file is read.  `name` is used in messages.
+Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out);
+
 /// Loads every triangle primitive of any glTF scene (as loadRig places them)
 /// as one triangle soup welded by exact position, without the control-mesh checks (a captured
 /// high-resolution mesh may be non-manifold; the baker tolerates that).

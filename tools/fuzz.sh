@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (clang, ASan + UBSan) and runs each for a
+# fixed time on a copy of its seed corpus (fuzz/corpus/TARGET).  CI runs it
+# briefly on every run; run it for hours with a larger SECONDS:
+#   bash tools/fuzz.sh 3600          # each target an hour
+#   bash tools/fuzz.sh 60 fuzz_mesh  # one target
+# A crash, leak or timeout stops with a non-zero exit and leaves the input
+# in build-fuzz/artifacts/; turn it into a regression test.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+shift || true
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_rig fuzz_mesh fuzz_joints fuzz_map)
+bash cmake/install-deps.sh
+if ! command -v clang++ >/dev/null 2>&1 || ! ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  echo "strata: installing clang and its libFuzzer runtime" >&2
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev >/dev/null
+fi
+build=build-fuzz
+CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSTRATA_FUZZ=ON >/dev/null
+cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
+mkdir -p "$build/artifacts"
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+for t in "${targets[@]}"; do
+  corpus="$build/corpus/$t"
+  mkdir -p "$corpus"
+  cp -n fuzz/corpus/"${t#fuzz_}"/* "$corpus"/ 2>/dev/null || true
+  echo "=== $t for ${seconds} s"
+  "$build/fuzz/$t" "$corpus" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=262144 \
+    -artifact_prefix="$build/artifacts/$t-" -print_final_stats=1 2>&1 | grep -E "^#[0-9]+.*DONE|stat::number_of_executed_units|ERROR|SUMMARY" || true
+  if ls "$build/artifacts/$t-"* >/dev/null 2>&1; then
+    echo "strata: $t found a failing input: $(ls "$build/artifacts/$t-"* | head -1)" >&2
+    exit 1
+  fi
+done
+echo "fuzz: every target ran ${seconds} s without a crash, leak or timeout"
