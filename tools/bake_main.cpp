@@ -529,7 +529,11 @@ int main(int argc, char** argv)
                 return io::writePngRgb(p, map.width, map.height, layerImage(layers));
             });
         std::vector<std::string> notes;
-        outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes); });
+        // The map keeps the bits the tolerance needs: a step of half the
+        // tolerance adds at most step / sqrt(12) RMS (a seventh of it).
+        io::RigWriteOptions writeOptions;
+        writeOptions.maxQuantizationStep = tolerance > 0.0 ? 0.5 * tolerance * rep.diagonal : 0.0;
+        outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
         for (const std::string& n : notes)
             std::fprintf(stderr, "strata-bake: warning: %s: %s\n", outPath.c_str(), n.c_str());
         const double writeMs = msSince(t0);

@@ -935,7 +935,7 @@ Status reindexWithUVs(tinygltf::Model& model, const Rig& rig, const RigPart& par
 
 // Quantises a map to 16 bits with paper eq. 12 over its own range and
 // encodes it as a PNG; sets the rig's encoding, factor and offset to match.
-Status embedMap(tinygltf::Model& model, const DisplacementMap& map, DisplacementInfo* info)
+Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxStep, DisplacementInfo* info)
 {
     float dmin = 0.0f, dmax = 0.0f;
     bool first = true;
@@ -948,13 +948,19 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, Displacement
         first = false;
     }
     const double range = double(dmax) - double(dmin);
+    // Paper eq. 12 with as many levels as the step allows (at most 2^16):
+    // q = round((levels - 1) (d - dmin) / (dmax - dmin)).
+    double levels = 65536.0;
+    if (maxStep > 0.0 && range > 0.0)
+        levels = std::clamp(std::ceil(range / maxStep) + 1.0, 2.0, 65536.0);
+    const int bits = levels <= 256.0 ? 8 : 16;
     std::vector<uint16_t> q(map.texels.size());
     for (size_t i = 0; i < q.size(); ++i) {
         const double d = double(map.texels[i]) * map.factor + map.offset;
-        q[i] = uint16_t(range > 0.0 ? std::lround(std::clamp((d - dmin) / range, 0.0, 1.0) * 65535.0) : 0);
+        q[i] = uint16_t(range > 0.0 ? std::lround(std::clamp((d - dmin) / range, 0.0, 1.0) * (levels - 1.0)) : 0);
     }
     std::string png;
-    Status st = encodePngGray(map.width, map.height, 16, q, &png);
+    Status st = encodePngGray(map.width, map.height, bits, q, &png);
     if (!st)
         return st;
     const int view = appendBufferView(model, png.data(), png.size(), -1);
@@ -966,17 +972,18 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, Displacement
     model.images.push_back(image);
     info->image = int(model.images.size() - 1);
     info->uri.clear();
-    info->encoding = "png16";
+    info->encoding = bits == 8 ? "png8" : "png16";
     info->width = map.width;
     info->height = map.height;
-    info->factor = float(range / 65535.0);
+    info->factor = float(range / (levels - 1.0));
     info->offset = dmin;
     return Status::ok();
 }
 
 }  // namespace
 
-Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes)
+Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes,
+               const RigWriteOptions* options)
 {
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
@@ -1055,7 +1062,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
     if (rig.hasDisplacement) {
         if (!cm.hasUVs())
             return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
-        if (map && !(st = embedMap(model, *map, &info)))
+        if (map && !(st = embedMap(model, *map, options ? options->maxQuantizationStep : 0.0, &info)))
             return Status(st.code(), path + ": " + st.message());
         if (info.image < 0 && info.uri.empty())
             return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");

@@ -49,12 +49,21 @@ Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, Displacem
 /// textures (external images are embedded), names, extras, skins,
 /// animations and untouched primitives all stay; UVs that differ from the
 /// source's go into a new TEXCOORD set.  Other rigs are written as one mesh,
-/// split where UVs differ.  With `map`, the map is embedded as a 16-bit PNG
-/// (paper eq. 12 over its range) and the block refers to it; without, the
+/// split where UVs differ.  With `map`, the map is embedded as a grey PNG
+/// (paper eq. 12 over its range, 16 bits or what `options` allow) and the
+/// block refers to it; without, the
 /// block keeps rig.displacement's URI.  `notes` receives what could not be
 /// carried over, if anything.
+struct RigWriteOptions {
+    /// Largest quantisation step of the embedded map, in model units (0:
+    /// 16 bits over the map's range).  The baker passes half its tolerance,
+    /// so the map takes only the bits the tolerance needs (8-bit PNG when
+    /// 256 levels suffice).
+    double maxQuantizationStep = 0.0;
+};
+
 Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map = nullptr,
-               std::vector<std::string>* notes = nullptr);
+               std::vector<std::string>* notes = nullptr, const RigWriteOptions* options = nullptr);
 
 }  // namespace io
 }  // namespace strata
