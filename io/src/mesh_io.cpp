@@ -361,10 +361,18 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
         prim.attributes["TEXCOORD_0"] =
             appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, nv);
     }
-    view = appendBufferView(model, indices.data(), indices.size() * sizeof(uint32_t),
-                            TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    prim.indices =
-        appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+    if (nv <= 65535) {
+        // Half the bytes: 16-bit indices whenever the vertices allow.
+        std::vector<uint16_t> small(indices.begin(), indices.end());
+        view = appendBufferView(model, small.data(), small.size() * sizeof(uint16_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        prim.indices =
+            appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, small.size());
+    } else {
+        view = appendBufferView(model, indices.data(), indices.size() * sizeof(uint32_t),
+                                TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        prim.indices =
+            appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+    }
     prim.material = 0;
 
     tinygltf::Material material;
