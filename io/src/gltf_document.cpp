@@ -416,5 +416,15 @@ void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* note
 }
 
 
+Status packAndWrite(const std::string& path, tinygltf::Model& model)
+{
+    Status st = packBuffers(model);
+    if (!st)
+        return Status(st.code(), path + ": " + st.message());
+    model.asset.version = "2.0";
+    model.asset.generator = "Strata " STRATA_VERSION;
+    return writeGltfModel(path, model);
+}
+
 }  // namespace io
 }  // namespace strata

@@ -56,5 +56,8 @@ Status packBuffers(tinygltf::Model& model);
 /// the glTF-Validator warns otherwise).
 void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes);
 
+/// packBuffers, Strata as the generator, then an atomic write (.glb/.gltf).
+Status packAndWrite(const std::string& path, tinygltf::Model& model);
+
 }  // namespace io
 }  // namespace strata

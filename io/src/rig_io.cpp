@@ -1070,11 +1070,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         for (int m : blockMeshes)
             setStrataExtras(&model.meshes[size_t(m)].extras, &block);
     }
-    if (!(st = packBuffers(model)))
-        return Status(st.code(), path + ": " + st.message());
-    model.asset.version = "2.0";
-    model.asset.generator = "Strata " STRATA_VERSION;
-    return writeGltfModel(path, model);
+    return packAndWrite(path, model);
 }
 
 }  // namespace io

@@ -239,11 +239,7 @@ Status writeReconstructedScene(const std::string& path, const Rig& rig, const Re
     if (notes && droppedTargets)
         notes->push_back(std::to_string(droppedTargets) + " primitives had morph targets, which are not refined yet");
     rootSkinnedMeshNodes(model, notes);
-    if (!(st = packBuffers(model)))
-        return Status(st.code(), path + ": " + st.message());
-    model.asset.version = "2.0";
-    model.asset.generator = "Strata " STRATA_VERSION;
-    return writeGltfModel(path, model);
+    return packAndWrite(path, model);
 }
 
 }  // namespace io

@@ -120,6 +120,20 @@ std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, boo
     return std::unique_ptr<Far::TopologyRefiner>(Factory::Create(desc, options));
 }
 
+// The sharp (linear) refiner of a control mesh, refined uniformly to level;
+// null when OpenSubdiv rejects the topology.
+std::unique_ptr<Far::TopologyRefiner> createUniformRefiner(const ControlMesh& mesh, int level)
+{
+    TopologyInput input;  // read by the factory only
+    std::unique_ptr<Far::TopologyRefiner> refiner = createRefiner(mesh, /*allSharp=*/true, input);
+    if (refiner && level > 0) {
+        Far::TopologyRefiner::UniformOptions uniform(level);
+        uniform.fullTopologyInLastLevel = false;
+        refiner->RefineUniform(uniform);
+    }
+    return refiner;
+}
+
 }  // namespace
 
 Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
@@ -138,15 +152,9 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
     Status st = validateControlMesh(topo);
     if (!st)
         return st;
-    TopologyInput input;
-    std::unique_ptr<Far::TopologyRefiner> refiner = createRefiner(topo, /*allSharp=*/true, input);
+    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(topo, level);
     if (!refiner)
         return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
-    if (level > 0) {
-        Far::TopologyRefiner::UniformOptions uniform(level);
-        uniform.fullTopologyInLastLevel = false;
-        refiner->RefineUniform(uniform);
-    }
     const Far::TopologyLevel& last = refiner->GetLevel(level);
     const size_t nf = size_t(last.GetNumFaces()), nvals = size_t(last.GetNumFVarValues(0));
     FaceVaryingRefinement r;
@@ -210,15 +218,9 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
 Status Plan::build(const ControlMesh& mesh)
 {
     const size_t nf0 = mesh.faceCount();
-    TopologyInput input;
-    std::unique_ptr<Far::TopologyRefiner> refiner = createRefiner(mesh, /*allSharp=*/true, input);
+    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(mesh, level_);
     if (!refiner)
         return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
-    if (level_ > 0) {
-        Far::TopologyRefiner::UniformOptions uniform(level_);
-        uniform.fullTopologyInLastLevel = false;
-        refiner->RefineUniform(uniform);
-    }
     const Far::TopologyLevel& last = refiner->GetLevel(level_);
     const size_t nv = size_t(last.GetNumVertices());
     const size_t nf = size_t(last.GetNumFaces());
