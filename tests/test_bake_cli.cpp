@@ -87,6 +87,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
     writeText(dir + "/overlap.obj", "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\n"
                                     "f 1/1 2/2 3/3\nf 1/1 3/2 4/3\n");
     const std::string ok = " --high " + dir + "/high.obj --control " + dir + "/control.obj";
+    writeText(dir + "/same.glb", "not really a glb");
     struct Case {
         std::string args, needle;
     };
@@ -103,6 +104,8 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj --uv keep -o " + out, "overlap"},
         {ok + " -o " + dir + "/high.obj/sub/rig.glb", "cannot create the output folder"},
         {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
+        {"--high " + dir + "/same.glb --control " + dir + "/control.obj -o " + dir + "/same.glb", "overwrite an input"},
+        {ok + " --tolerance lots -o " + out, "--tolerance"},
         {ok + " --size 3 -o " + out, "--size"},
         {ok, "-o are required"},
     };

@@ -60,3 +60,90 @@ TEST(Tools, ReconstructRejectsBadInputWithExitCode2)
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_TRUE(strata::test::fileExists(dir + "/o.obj"));
 }
+
+namespace {
+
+// A minimal .gltf rig text: one triangle whose POSITION buffer has `uri`.
+std::string gltfWithBuffer(const std::string& uri, size_t bytes)
+{
+    return "{\"asset\":{\"version\":\"2.0\"},\"buffers\":[{\"uri\":\"" + uri + "\",\"byteLength\":" +
+           std::to_string(bytes) +
+           "}],\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],\"accessors\":[{\"bufferView\":0,"
+           "\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"min\":[0,0,0],\"max\":[1,1,0]}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],\"nodes\":[{\"mesh\":0}],"
+           "\"scenes\":[{\"nodes\":[0]}],\"scene\":0}";
+}
+
+}  // namespace
+
+TEST(Tools, HostileRigsAndPathsAreOneLineErrors)
+{
+    const std::string dir = strata::test::tempDir("tools_hostile");
+    ASSERT_EQ(run(demo + " --out '" + dir + "' --max-level 0 --size 256").code, 0);
+    using strata::test::writeText;
+    // Files outside the rig's folder, and a FIFO beside it.
+    writeText(dir + "/secret.bin", std::string(36, 'x'));
+    std::system(("mkdir -p '" + dir + "/sub' && mkfifo '" + dir + "/sub/pipe.bin'").c_str());
+    writeText(dir + "/sub/absolute.gltf", gltfWithBuffer(dir + "/secret.bin", 36));
+    writeText(dir + "/sub/parent.gltf", gltfWithBuffer("../secret.bin", 36));
+    writeText(dir + "/sub/fifo.gltf", gltfWithBuffer("pipe.bin", 36));
+    writeText(dir + "/sub/scheme.gltf", gltfWithBuffer("file:///etc/passwd", 36));
+    // A skin with no joints.
+    std::string noJoints =
+        gltfWithBuffer("data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA", 36);
+    noJoints.replace(noJoints.find("\"nodes\":[{\"mesh\":0}]"), 20, "\"nodes\":[{\"mesh\":0,\"skin\":0}],\"skins\":[{\"joints\":[]}]");
+    writeText(dir + "/nojoints.gltf", noJoints);
+    struct Case {
+        std::string args, needle;
+    };
+    const std::string rig = "'" + dir + "/head.glb'";
+    const Case cases[] = {
+        {"'" + dir + "/sub/absolute.gltf' -o '" + dir + "/o.obj'", "absolute.gltf"},
+        {"'" + dir + "/sub/parent.gltf' -o '" + dir + "/o.obj'", "parent.gltf"},
+        {"'" + dir + "/sub/fifo.gltf' -o '" + dir + "/o.obj'", "fifo.gltf"},
+        {"'" + dir + "/sub/scheme.gltf' -o '" + dir + "/o.obj'", "scheme.gltf"},
+        {"'" + dir + "/nojoints.gltf' -o '" + dir + "/o.obj'", "no joints"},
+        {rig + " --level 12 -o '" + dir + "/o.obj'", "--level"},
+        {rig + " -o " + rig, "overwrite the input"},
+        {rig + " --level 6 --max-memory 16 -o '" + dir + "/o.obj'", "--max-memory"},
+    };
+    for (const Case& c : cases) {
+        const Result r = run(reconstruct + " " + c.args);
+        EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find("strata-reconstruct: error:"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+        EXPECT_EQ(r.output.find("xxxx"), std::string::npos) << "the outside file's bytes leaked: " << r.output;
+        EXPECT_FALSE(strata::test::fileExists(dir + "/o.obj"));
+    }
+    // The input rig is intact after the refused overwrite.
+    EXPECT_EQ(run(reconstruct + " " + rig + " -o '" + dir + "/o.obj'").code, 0);
+    // Paths with spaces and non-ASCII characters are ordinary paths.
+    std::system(("mkdir -p '" + dir + "/dossier é'").c_str());
+    std::system(("cp '" + dir + "/head.glb' '" + dir + "/dossier é/tête rig.glb'").c_str());
+    const Result r = run(reconstruct + " '" + dir + "/dossier é/tête rig.glb' -o '" + dir + "/dossier é/sortie ü.ply'");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(strata::test::fileExists(dir + "/dossier é/sortie ü.ply"));
+}
+
+TEST(Tools, DeepNodeChainsLoad)
+{
+    // A 300-deep chain of nodes above the mesh: loads and places the mesh.
+    const std::string dir = strata::test::tempDir("tools_deep");
+    std::string nodes = "[{\"mesh\":0}";
+    for (int i = 1; i <= 300; ++i)
+        nodes += ",{\"children\":[" + std::to_string(i - 1) + "],\"translation\":[0.001,0,0]}";
+    nodes += "]";
+    const std::string data = "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA";
+    std::string text = gltfWithBuffer(data, 36);
+    text.replace(text.find("\"nodes\":[{\"mesh\":0}]"), 20, "\"nodes\":" + nodes);
+    text.replace(text.find("\"scenes\":[{\"nodes\":[0]}]"), 24, "\"scenes\":[{\"nodes\":[300]}]");
+    strata::test::writeText(dir + "/deep.gltf", text);
+    const Result r = run(reconstruct + " '" + dir + "/deep.gltf' --level 1 -o '" + dir + "/o.obj'");
+    EXPECT_EQ(r.code, 0) << r.output;
+    // 300 translations of 0.001 along x: the first vertex sits at x = 0.3.
+    const std::string obj = strata::test::readText(dir + "/o.obj");
+    const size_t v = obj.find("\nv ");
+    ASSERT_NE(v, std::string::npos);
+    EXPECT_NEAR(std::atof(obj.c_str() + v + 3), 0.3, 1e-5) << obj.substr(0, 80);
+}

@@ -239,6 +239,10 @@ int main(int argc, char** argv)
         }
         if (highPath.empty() || controlPath.empty() || outPath.empty())
             throw cli::Error("--high, --control and -o are required (see --help)");
+        for (const std::string& input : {highPath, controlPath})
+            if (input != "auto" && std::filesystem::exists(outPath) && std::filesystem::exists(input) &&
+                std::filesystem::equivalent(outPath, input))
+                throw cli::Error(outPath + ": the output would overwrite an input");
         const std::string ext = io::extensionOf(outPath);
         if (ext != ".glb" && ext != ".gltf")
             throw cli::Error(outPath + ": the rig must be a .glb or .gltf file");

@@ -29,7 +29,7 @@ static const char* kUsage =
     "usage: strata-reconstruct RIG.{glb,gltf}|CONTROL.obj [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
     "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq|segments]\n"
     "                          [--skeleton JOINTS.json] [--scale S] [--no-displacement] [--static]\n"
-    "                          -o OUT.{obj,ply,glb,gltf} [--version]\n"
+    "                          [--max-memory MB] -o OUT.{obj,ply,glb,gltf} [--version]\n"
     "  -o OUT.glb of a rig made from glTF writes its whole scene at level N: materials, skin,\n"
     "     skeleton and animations kept, so the detailed character plays in any glTF viewer;\n"
     "     --static (or --anim/--time) writes one posed mesh instead\n"
@@ -43,6 +43,7 @@ int main(int argc, char** argv)
         bool haveMethod = false;
         int level = -1;
         bool haveScheme = false, displace = true, staticMesh = false;
+        double maxMemoryMB = 2048.0;
         Scheme scheme = Scheme::Linear;
         float scale = 1.0f, time = 0.0f;
         bool frames = false, haveTime = false;
@@ -57,6 +58,8 @@ int main(int argc, char** argv)
             } else if (a == "--version") {
                 std::printf("strata-reconstruct %s\n", cli::kVersion);
                 return 0;
+            } else if (a == "--max-memory") {
+                maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
             } else if (a == "--static") {
                 staticMesh = true;
             } else if (a == "--level") {
@@ -126,6 +129,23 @@ int main(int argc, char** argv)
                 throw cli::Error(skeletonPath + ": " + st.message());
             if (!haveMethod)
                 method = SkinningMethod::Segments;
+        }
+        if (io::extensionOf(outPath) == io::extensionOf(rigPath) &&
+            std::filesystem::exists(outPath) && std::filesystem::equivalent(outPath, rigPath))
+            throw cli::Error(outPath + ": the output would overwrite the input rig");
+        // Memory before work: the map's texels and the refined mesh (tables,
+        // positions, normals, triangles: about 230 bytes per refined vertex).
+        {
+            const int lvl = level >= 0 ? level : (rig.hasDisplacement ? rig.displacement.recommendedLevel : 0);
+            const double refined = double(rig.mesh.faceCount()) * std::pow(4.0, lvl) * 0.5 + double(rig.mesh.vertexCount());
+            const double mapBytes = rig.hasDisplacement && displace
+                                        ? 8.0 * double(rig.displacement.width) * double(rig.displacement.height)
+                                        : 0.0;
+            const double needMB = (230.0 * refined + mapBytes) / (1024.0 * 1024.0);
+            if (needMB > maxMemoryMB)
+                throw cli::Error(rigPath + ": level " + std::to_string(lvl) + " needs about " +
+                                 std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
+                                 " MB budget (raise it with --max-memory MB)");
         }
         DisplacementMap map;
         const bool useMap = displace && rig.hasDisplacement;

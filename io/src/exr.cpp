@@ -20,7 +20,7 @@
 namespace strata {
 namespace io {
 
-Status readDisplacementExr(const std::string& path, DisplacementMap* out)
+Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth, int expectHeight)
 {
     {
         std::ifstream probe(path, std::ios::binary);
@@ -42,6 +42,10 @@ Status readDisplacementExr(const std::string& path, DisplacementMap* out)
         if (w <= 0 || h <= 0 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize)
             return Status(StatusCode::InvalidData, path + ": image size " + std::to_string(w) + "x" + std::to_string(h) +
                                                        " is outside 1.." + std::to_string(kMaxDisplacementMapSize));
+        if ((expectWidth > 0 && w != expectWidth) || (expectHeight > 0 && h != expectHeight))
+            return Status(StatusCode::InvalidData, path + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+                                                       " but the rig declares " + std::to_string(expectWidth) + "x" +
+                                                       std::to_string(expectHeight));
         const Imf::ChannelList& channels = file.header().channels();
         if (!channels.findChannel(kDisplacementChannel)) {
             std::string names;

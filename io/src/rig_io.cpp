@@ -772,7 +772,7 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
         mapName = dir.empty() ? info.uri : dir + "/" + info.uri;
         if (!isRegularFile(mapName))
             return Status(StatusCode::InvalidData, mapName + ": the rig's displacement map is missing or not a file");
-        Status st = readDisplacementExr(mapName, &map);
+        Status st = readDisplacementExr(mapName, &map, info.width, info.height);
         if (!st)
             return st;
     }

@@ -18,7 +18,9 @@ enum class ExrPixelType { Half, Float };
 /// missing or non-EXR file, a file without the "Y" channel (listing the
 /// channels it has), a size over kMaxDisplacementMapSize, and NaN/inf texels.
 /// The map's factor/offset are left at 1/0; the rig supplies them.
-Status readDisplacementExr(const std::string& path, DisplacementMap* out);
+/// expectWidth/Height (when positive): the size the caller needs; another
+/// size is an error found from the header, before any pixel is decoded.
+Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth = 0, int expectHeight = 0);
 
 /// Writes map's texels (not decoded: factor/offset live in the rig) as one
 /// "Y" channel, ZIP-compressed, atomically.
