@@ -134,8 +134,9 @@ TEST(PolygonReader, OneCubeInEveryEncoding)
         const Status st = io::readPolygonMesh(dir + "/" + name, &m);
         ASSERT_TRUE(st.isOk()) << name << ": " << st.message();
         expectCube(m, name);
-        if (name.find(".stl") == std::string::npos)
+        if (name.find(".stl") == std::string::npos) {
             EXPECT_EQ(m.polygonsTriangulated, 6u) << name;
+        }
     }
 }
 

@@ -691,11 +691,11 @@ TEST(Scene, VersionOneRigsStillLoad)
     rig.displacement.uri = "v1.exr";
     ASSERT_TRUE(io::writeDisplacementExr(dir + "/v1.exr", map).isOk());
     ASSERT_TRUE(io::saveRig(dir + "/v2.gltf", rig).isOk());
-    std::string json = test::readText(dir + "/v2.gltf");
-    const size_t at = json.find("\"version\": 2");
+    std::string text = test::readText(dir + "/v2.gltf");
+    const size_t at = text.find("\"version\": 2");
     ASSERT_NE(at, std::string::npos);
-    json.replace(at, 12, "\"version\": 1");
-    test::writeText(dir + "/v1.gltf", json);
+    text.replace(at, 12, "\"version\": 1");
+    test::writeText(dir + "/v1.gltf", text);
     Rig back;
     const Status st = io::loadRig(dir + "/v1.gltf", &back);
     ASSERT_TRUE(st.isOk()) << st.message();
