@@ -671,6 +671,37 @@ namespace {
 
 Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out);
 
+// An image no texture uses whose bytes are a 16-bit greyscale PNG.
+bool hasOrphanGreyImage(const SourceDocument& doc)
+{
+    const tinygltf::Model& m = doc.model;
+    for (size_t i = 0; i < m.images.size(); ++i) {
+        bool used = false;
+        for (const tinygltf::Texture& t : m.textures)
+            used = used || t.source == int(i);
+        if (used)
+            continue;
+        const tinygltf::Image& im = m.images[i];
+        const unsigned char* b = nullptr;
+        size_t n = 0;
+        if (im.bufferView >= 0 && size_t(im.bufferView) < m.bufferViews.size()) {
+            const tinygltf::BufferView& v = m.bufferViews[size_t(im.bufferView)];
+            if (v.buffer >= 0 && size_t(v.buffer) < m.buffers.size() &&
+                v.byteOffset + 26 <= m.buffers[size_t(v.buffer)].data.size()) {
+                b = m.buffers[size_t(v.buffer)].data.data() + v.byteOffset;
+                n = std::min<size_t>(v.byteLength, 26);
+            }
+        } else if (i < doc.imageBytes.size() && doc.imageBytes[i].size() >= 26) {
+            b = doc.imageBytes[i].data();
+            n = 26;
+        }
+        // PNG signature, IHDR, then bit depth at byte 24 and colour type at 25.
+        if (b && n >= 26 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && b[24] == 16 && b[25] == 0)
+            return true;
+    }
+    return false;
+}
+
 }  // namespace
 
 Status loadRig(const std::string& path, Rig* out)
@@ -738,6 +769,11 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         rig.warnings.push_back("written by " + printable(model.asset.generator, 40) +
                                " but has no displacement block (stripped by another tool?): reconstructed without "
                                "displacement");
+    } else if (hasOrphanGreyImage(*doc)) {
+        // Tools such as gltfpack drop mesh extras and the generator but keep
+        // images: a 16-bit grey PNG no material uses is most likely a map.
+        rig.warnings.push_back("holds a 16-bit grey image no material uses but no displacement block: if it is a "
+                               "Strata rig, another tool stripped the block; reconstructed without displacement");
     }
     rig.source = std::move(doc);
     *out = std::move(rig);
