@@ -41,10 +41,13 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
+    "                   [--no-compress]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
-    "The rig is one self-contained file: the map is embedded as a 16-bit PNG.  --exr also\n"
+    "The rig is one self-contained file: the map is embedded as a PNG with the bits the tolerance\n"
+    "needs, vertex data and indices are meshopt-coded (EXT_meshopt_compression; --no-compress\n"
+    "for tools without it).  --exr also\n"
     "writes it as RIG.exr for pipelines; --layers writes RIG_layers.png (surface layers per texel).\n";
 
 double msSince(std::chrono::steady_clock::time_point t0)
@@ -164,6 +167,7 @@ int main(int argc, char** argv)
         bool writeExr = false, writeLayers = false;
         double tolerance = 1e-4;  // RMS over the diagonal: 0.01%
         bool schemeGiven = false;
+        bool compress = true;
         options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -182,6 +186,8 @@ int main(int argc, char** argv)
                 if (!(tolerance >= 0.0 && tolerance < 1.0))
                     throw cli::Error("--tolerance expects a fraction of the diagonal (or a percentage, 0.01%), got \"" + v +
                                      "\"");
+            } else if (a == "--no-compress") {
+                compress = false;
             } else if (a == "--exr") {
                 writeExr = true;
             } else if (a == "--layers") {
@@ -537,6 +543,7 @@ int main(int argc, char** argv)
         // tolerance adds at most step / sqrt(12) RMS (a seventh of it).
         io::RigWriteOptions writeOptions;
         writeOptions.maxQuantizationStep = tolerance > 0.0 ? 0.5 * tolerance * rep.diagonal : 0.0;
+        writeOptions.compress = compress;
         outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
         for (const std::string& n : notes)
             std::fprintf(stderr, "strata-bake: warning: %s: %s\n", outPath.c_str(), n.c_str());

@@ -132,6 +132,17 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     if (size > 0xffffffffu)
         return Status(StatusCode::InvalidData, path + ": file is larger than 4 GiB");
     const std::string ext = binary ? ".glb" : ".gltf";
+    // EXT_meshopt_compression is decoded first: tinygltf does not know it.
+    std::string plain;
+    if (binary) {
+        Status st = decodeMeshoptGlb(data, size, path, &plain);
+        if (!st)
+            return st;
+        if (!plain.empty()) {
+            data = reinterpret_cast<const unsigned char*>(plain.data());
+            size = plain.size();
+        }
+    }
     FsContext ctx{folder};
     tinygltf::TinyGLTF loader;
     loader.SetFsCallbacks(tinygltf::FsCallbacks{fsExists, fsExpand, fsRead, fsWrite, &ctx});
@@ -148,7 +159,7 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
         return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
     doc->imageBytes.resize(doc->model.images.size());
     for (const std::string& e : doc->model.extensionsRequired)
-        if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")
+        if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")  // meshopt: only .gltf gets here
             return Status(StatusCode::Unsupported, path + ": compressed meshes (" + e +
                                                        ") are not read yet; decompress with gltfpack -noq or gltf-transform first");
     return Status::ok();

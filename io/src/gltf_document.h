@@ -59,5 +59,13 @@ void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* note
 /// packBuffers, Strata as the generator, then an atomic write (.glb/.gltf).
 Status packAndWrite(const std::string& path, tinygltf::Model& model);
 
+/// As packAndWrite, for .glb, with vertex attributes and triangle indices
+/// coded by EXT_meshopt_compression (no uncompressed fallback).
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model);
+
+/// A .glb that uses EXT_meshopt_compression, decoded to a plain .glb in
+/// `plain` (left empty when the input does not use it).  Errors name `path`.
+Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain);
+
 }  // namespace io
 }  // namespace strata

@@ -1106,7 +1106,22 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         for (int m : blockMeshes)
             setStrataExtras(&model.meshes[size_t(m)].extras, &block);
     }
-    return packAndWrite(path, model);
+    // Rigs are compact: meshopt-coded vertex data and indices (.glb).
+    return extensionOf(path) == ".glb" && options && options->compress ? writeCompressedGlb(path, model)
+                                                                        : packAndWrite(path, model);
+}
+
+Status readPlainGlb(const std::string& path, std::string* bytes)
+{
+    std::vector<unsigned char> data;
+    Status st = readFile(path, &data);
+    if (!st)
+        return st;
+    std::string plain;
+    if (!(st = decodeMeshoptGlb(data.data(), data.size(), path, &plain)))
+        return st;
+    *bytes = plain.empty() ? std::string(data.begin(), data.end()) : std::move(plain);
+    return Status::ok();
 }
 
 }  // namespace io

@@ -60,7 +60,15 @@ struct RigWriteOptions {
     /// so the map takes only the bits the tolerance needs (8-bit PNG when
     /// 256 levels suffice).
     double maxQuantizationStep = 0.0;
+    /// .glb only: code vertex attributes and triangle indices with
+    /// EXT_meshopt_compression (three.js, Babylon.js, gltfpack and Strata
+    /// read it; the glTF-Validator accepts it).  strata-bake turns it on.
+    bool compress = false;
 };
+
+/// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain
+/// .glb that tools without meshopt support (tinygltf) read.
+Status readPlainGlb(const std::string& path, std::string* bytes);
 
 Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map = nullptr,
                std::vector<std::string>* notes = nullptr, const RigWriteOptions* options = nullptr);

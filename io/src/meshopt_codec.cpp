@@ -1,0 +1,381 @@
+// EXT_meshopt_compression (libmeshoptimizer): rigs are written with their
+// vertex attributes and triangle indices meshopt-coded, and any .glb that
+// uses the extension (a Strata rig, gltfpack -c/-cc output) is decoded back
+// to a plain document before tinygltf, which does not know it, parses it.
+#include "gltf_document.h"
+
+#include "gltf_mesh_writer.h"
+#include "strata/io/file.h"
+
+#include <meshoptimizer.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <sstream>
+
+namespace strata {
+namespace io {
+namespace {
+
+constexpr const char* kExtension = "EXT_meshopt_compression";
+using Json = nlohmann::json;
+
+uint32_t read32(const unsigned char* p)
+{
+    uint32_t v;
+    std::memcpy(&v, p, 4);
+    return v;
+}
+
+void put32(std::string& s, uint32_t v)
+{
+    s.append(reinterpret_cast<const char*>(&v), 4);
+}
+
+// A .glb from its JSON text and BIN bytes (both padded to 4 bytes).
+std::string assembleGlb(std::string json, const std::vector<unsigned char>& bin)
+{
+    while (json.size() % 4)
+        json.push_back(' ');
+    std::string out = "glTF";
+    put32(out, 2);
+    const size_t binChunk = bin.empty() ? 0 : 8 + ((bin.size() + 3) & ~size_t(3));
+    put32(out, uint32_t(12 + 8 + json.size() + binChunk));
+    put32(out, uint32_t(json.size()));
+    out += "JSON";
+    out += json;
+    if (!bin.empty()) {
+        put32(out, uint32_t((bin.size() + 3) & ~size_t(3)));
+        out += std::string("BIN\0", 4);
+        out.append(reinterpret_cast<const char*>(bin.data()), bin.size());
+        out.append((4 - bin.size() % 4) % 4, '\0');
+    }
+    return out;
+}
+
+// Splits a .glb into its JSON and BIN chunks; false if it is not one.
+bool splitGlb(const unsigned char* data, size_t size, std::string* json, const unsigned char** bin, size_t* binSize)
+{
+    if (size < 20 || std::memcmp(data, "glTF", 4) != 0)
+        return false;
+    const size_t jsonLength = read32(data + 12);
+    if (std::memcmp(data + 16, "JSON", 4) != 0 || jsonLength > size - 20)
+        return false;
+    json->assign(reinterpret_cast<const char*>(data + 20), jsonLength);
+    *bin = nullptr;
+    *binSize = 0;
+    const size_t at = 20 + jsonLength;
+    if (size >= at + 8 && std::memcmp(data + at + 4, "BIN\0", 4) == 0) {
+        const size_t length = read32(data + at);
+        if (length > size - at - 8)
+            return false;
+        *bin = data + at + 8;
+        *binSize = length;
+    }
+    return true;
+}
+
+bool usesExtension(const Json& doc)
+{
+    if (!doc.is_object() || !doc.contains("extensionsUsed") || !doc["extensionsUsed"].is_array())
+        return false;
+    for (const Json& e : doc["extensionsUsed"])
+        if (e.is_string() && e.get<std::string>() == kExtension)
+            return true;
+    return false;
+}
+
+size_t sizeField(const Json& o, const char* name, size_t fallback, bool* ok)
+{
+    if (!o.contains(name))
+        return fallback;
+    const Json& v = o[name];
+    if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<long long>() >= 0)) {
+        *ok = false;
+        return 0;
+    }
+    return v.get<size_t>();
+}
+
+}  // namespace
+
+Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain)
+{
+    plain->clear();
+    std::string jsonText;
+    const unsigned char* bin = nullptr;
+    size_t binSize = 0;
+    if (!splitGlb(data, size, &jsonText, &bin, &binSize))
+        return Status::ok();  // not a glb: tinygltf reports it
+    if (jsonText.find(kExtension) == std::string::npos)
+        return Status::ok();
+    Json doc = Json::parse(jsonText, nullptr, /*allow_exceptions=*/false);
+    if (doc.is_discarded() || !usesExtension(doc))
+        return Status::ok();
+    auto bad = [&](const std::string& what) {
+        return Status(StatusCode::InvalidData, path + ": " + kExtension + ": " + what);
+    };
+    if (!doc.contains("buffers") || !doc["buffers"].is_array() || !doc.contains("bufferViews") ||
+        !doc["bufferViews"].is_array())
+        return bad("no buffers or bufferViews");
+    Json& buffers = doc["buffers"];
+    Json& views = doc["bufferViews"];
+    // Buffer 0 is the BIN chunk; every other buffer must be a fallback (no
+    // data) whose views are all compressed.
+    std::vector<bool> fallback(buffers.size(), false);
+    for (size_t b = 0; b < buffers.size(); ++b) {
+        const Json& buf = buffers[b];
+        if (!buf.is_object())
+            return bad("buffer " + std::to_string(b) + " is not an object");
+        if (b == 0 && !buf.contains("uri"))
+            continue;
+        const bool isFallback = buf.contains("extensions") && buf["extensions"].is_object() &&
+                                buf["extensions"].contains(kExtension);
+        if (!isFallback)
+            return bad("buffer " + std::to_string(b) + " is not the BIN chunk nor a fallback (external buffers are not read here)");
+        fallback[b] = true;
+    }
+    std::vector<unsigned char> out(bin, bin + binSize);
+    std::vector<size_t> fallbackBase(buffers.size(), 0);
+    for (size_t b = 0; b < buffers.size(); ++b)
+        if (fallback[b]) {
+            bool ok = true;
+            const size_t length = sizeField(buffers[b], "byteLength", 0, &ok);
+            if (!ok || length > (size_t(1) << 31))
+                return bad("fallback buffer " + std::to_string(b) + " has an invalid byteLength");
+            while (out.size() % 16)
+                out.push_back(0);
+            fallbackBase[b] = out.size();
+            out.resize(out.size() + length, 0);
+        }
+    for (size_t v = 0; v < views.size(); ++v) {
+        Json& view = views[v];
+        if (!view.is_object())
+            return bad("bufferView " + std::to_string(v) + " is not an object");
+        bool ok = true;
+        const size_t buffer = sizeField(view, "buffer", 0, &ok);
+        if (!ok || buffer >= buffers.size())
+            return bad("bufferView " + std::to_string(v) + " has no valid buffer");
+        const bool compressed = view.contains("extensions") && view["extensions"].is_object() &&
+                                view["extensions"].contains(kExtension);
+        if (!compressed) {
+            if (fallback[buffer])
+                return bad("bufferView " + std::to_string(v) + " reads a fallback buffer without being compressed");
+            continue;
+        }
+        const Json& ext = view["extensions"][kExtension];
+        const size_t src = sizeField(ext, "buffer", 0, &ok), srcOffset = sizeField(ext, "byteOffset", 0, &ok),
+                     srcLength = sizeField(ext, "byteLength", 0, &ok), stride = sizeField(ext, "byteStride", 0, &ok),
+                     count = sizeField(ext, "count", 0, &ok);
+        const std::string mode = ext.contains("mode") && ext["mode"].is_string() ? ext["mode"].get<std::string>() : "";
+        const std::string filter =
+            ext.contains("filter") && ext["filter"].is_string() ? ext["filter"].get<std::string>() : "NONE";
+        const size_t dstOffset = sizeField(view, "byteOffset", 0, &ok), dstLength = sizeField(view, "byteLength", 0, &ok);
+        if (!ok || src != 0 || fallback[src] || srcOffset > binSize || srcLength > binSize - srcOffset || stride == 0 ||
+            stride > 256 || count > (size_t(1) << 28) || count * stride > dstLength)
+            return bad("bufferView " + std::to_string(v) + " has an invalid compressed range");
+        const size_t base = fallback[buffer] ? fallbackBase[buffer] : 0;
+        const size_t bufferLength = fallback[buffer] ? sizeField(buffers[buffer], "byteLength", 0, &ok) : binSize;
+        if (dstOffset > bufferLength || dstLength > bufferLength - dstOffset)
+            return bad("bufferView " + std::to_string(v) + " lies outside its buffer");
+        unsigned char* dst = out.data() + base + dstOffset;
+        const unsigned char* encoded = bin + srcOffset;
+        int rc = -1;
+        if (mode == "ATTRIBUTES" && stride % 4 == 0)
+            rc = meshopt_decodeVertexBuffer(dst, count, stride, encoded, srcLength);
+        else if (mode == "TRIANGLES" && (stride == 2 || stride == 4) && count % 3 == 0)
+            rc = meshopt_decodeIndexBuffer(dst, count, stride, encoded, srcLength);
+        else if (mode == "INDICES" && (stride == 2 || stride == 4))
+            rc = meshopt_decodeIndexSequence(dst, count, stride, encoded, srcLength);
+        if (rc != 0)
+            return bad("bufferView " + std::to_string(v) + " does not decode (mode " + printable(mode, 20) + ")");
+        if (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8))
+            meshopt_decodeFilterOct(dst, count, stride);
+        else if (filter == "QUATERNION" && stride == 8)
+            meshopt_decodeFilterQuat(dst, count, stride);
+        else if (filter == "EXPONENTIAL" && stride % 4 == 0)
+            meshopt_decodeFilterExp(dst, count, stride);
+        else if (filter != "NONE")
+            return bad("bufferView " + std::to_string(v) + " uses filter " + printable(filter, 20));
+        view.erase("extensions");
+        view["buffer"] = 0;
+        view["byteOffset"] = base + dstOffset;
+    }
+    // One buffer: the BIN chunk with the decoded data after it.
+    Json plainBuffer = Json::object();
+    plainBuffer["byteLength"] = out.size();
+    doc["buffers"] = Json::array({plainBuffer});
+    for (const char* list : {"extensionsUsed", "extensionsRequired"})
+        if (doc.contains(list) && doc[list].is_array()) {
+            Json kept = Json::array();
+            for (const Json& e : doc[list])
+                if (!(e.is_string() && e.get<std::string>() == kExtension))
+                    kept.push_back(e);
+            if (kept.empty())
+                doc.erase(list);
+            else
+                doc[list] = kept;
+        }
+    *plain = assembleGlb(doc.dump(), out);
+    return Status::ok();
+}
+
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
+{
+    Status st = packBuffers(model);
+    if (!st)
+        return Status(st.code(), path + ": " + st.message());
+    model.asset.version = "2.0";
+    model.asset.generator = "Strata " STRATA_VERSION;
+    if (model.buffers.empty())
+        return writeGltfModel(path, model);
+    // Which views to code: vertex attributes with 4-byte-multiple strides and
+    // triangle-list indices; each view must serve one kind of accessor only.
+    const size_t nv = model.bufferViews.size();
+    std::vector<int> kind(nv, 0);  // 0 keep, 1 attributes, 2 triangles, -1 mixed/other use
+    std::vector<size_t> count(nv, 0), stride(nv, 0);
+    auto mark = [&](int accessor, int as) {
+        if (accessor < 0 || size_t(accessor) >= model.accessors.size())
+            return;
+        const tinygltf::Accessor& a = model.accessors[size_t(accessor)];
+        if (a.bufferView < 0 || a.sparse.isSparse)
+            return;
+        const size_t v = size_t(a.bufferView);
+        const tinygltf::BufferView& view = model.bufferViews[v];
+        const size_t elem = size_t(tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType)) *
+                                   tinygltf::GetNumComponentsInType(uint32_t(a.type)));
+        const size_t s = as == 2 ? elem : (view.byteStride ? view.byteStride : elem);
+        const bool fits = a.byteOffset == 0 && s > 0 && view.byteLength % s == 0 &&
+                          (as == 1 ? s % 4 == 0 && s <= 256 : (s == 2 || s == 4) && a.count % 3 == 0) &&
+                          view.byteLength / s == a.count;
+        if (!fits || (kind[v] != 0 && kind[v] != as))
+            kind[v] = -1;
+        else if (kind[v] == 0) {
+            kind[v] = as;
+            count[v] = a.count;
+            stride[v] = s;
+        }
+    };
+    for (const tinygltf::Mesh& m : model.meshes)
+        for (const tinygltf::Primitive& p : m.primitives) {
+            for (const auto& [name, a] : p.attributes)
+                mark(a, 1);
+            for (const auto& target : p.targets)
+                for (const auto& [name, a] : target)
+                    mark(a, 1);
+            mark(p.indices, p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1 ? 2 : -1);
+        }
+    // Any other use of a view (skins, animations, images) keeps it plain.
+    auto keep = [&](int accessor) {
+        if (accessor >= 0 && size_t(accessor) < model.accessors.size() && model.accessors[size_t(accessor)].bufferView >= 0)
+            kind[size_t(model.accessors[size_t(accessor)].bufferView)] = -1;
+    };
+    for (const tinygltf::Skin& s : model.skins)
+        keep(s.inverseBindMatrices);
+    for (const tinygltf::Animation& an : model.animations)
+        for (const tinygltf::AnimationSampler& s : an.samplers) {
+            keep(s.input);
+            keep(s.output);
+        }
+    for (const tinygltf::Image& im : model.images)
+        if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
+            kind[size_t(im.bufferView)] = -1;
+
+    const std::vector<unsigned char>& data = model.buffers[0].data;
+    std::vector<unsigned char> bin;
+    struct Coded {
+        size_t view, fallbackOffset, offset, length;
+    };
+    std::vector<Coded> coded;
+    size_t fallbackSize = 0;
+    meshopt_encodeIndexVersion(1);
+    for (size_t v = 0; v < nv; ++v) {
+        tinygltf::BufferView& view = model.bufferViews[v];
+        const unsigned char* src = data.data() + view.byteOffset;
+        if (kind[v] == 1 || kind[v] == 2) {
+            std::vector<unsigned char> enc;
+            if (kind[v] == 1) {
+                enc.resize(meshopt_encodeVertexBufferBound(count[v], stride[v]));
+                enc.resize(meshopt_encodeVertexBuffer(enc.data(), enc.size(), src, count[v], stride[v]));
+            } else {
+                std::vector<unsigned int> idx(count[v]);
+                for (size_t i = 0; i < count[v]; ++i) {
+                    if (stride[v] == 2) {
+                        uint16_t x;
+                        std::memcpy(&x, src + 2 * i, 2);
+                        idx[i] = x;
+                    } else {
+                        std::memcpy(&idx[i], src + 4 * i, 4);
+                    }
+                }
+                const size_t vertices = idx.empty() ? 0 : size_t(*std::max_element(idx.begin(), idx.end())) + 1;
+                enc.resize(meshopt_encodeIndexBufferBound(count[v], vertices));
+                enc.resize(meshopt_encodeIndexBuffer(enc.data(), enc.size(), idx.data(), count[v]));
+            }
+            if (!enc.empty() && enc.size() < view.byteLength) {
+                while (bin.size() % 4)
+                    bin.push_back(0);
+                while (fallbackSize % 4)
+                    ++fallbackSize;
+                coded.push_back({v, fallbackSize, bin.size(), enc.size()});
+                bin.insert(bin.end(), enc.begin(), enc.end());
+                fallbackSize += view.byteLength;
+                continue;
+            }
+        }
+        while (bin.size() % 4 != view.byteOffset % 4)
+            bin.push_back(0);
+        const size_t at = bin.size();
+        bin.insert(bin.end(), src, src + view.byteLength);
+        view.byteOffset = at;
+    }
+    if (coded.empty())
+        return writeGltfModel(path, model);
+    model.buffers[0].data = bin;
+    for (const char* e : {kExtension})
+        if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), e) == model.extensionsUsed.end()) {
+            model.extensionsUsed.push_back(e);
+            model.extensionsRequired.push_back(e);
+        }
+    // tinygltf cannot write a buffer without data: serialise, then set the
+    // compressed views and the fallback buffer in the JSON.
+    tinygltf::TinyGLTF writer;
+    std::ostringstream stream;
+    if (!writer.WriteGltfSceneToStream(&model, stream, false, true))
+        return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+    const std::string glb = stream.str();
+    std::string jsonText;
+    const unsigned char* binPtr = nullptr;
+    size_t binSize = 0;
+    if (!splitGlb(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), &jsonText, &binPtr, &binSize))
+        return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+    Json doc = Json::parse(jsonText);
+    Json fallbackBuffer = Json::object();
+    fallbackBuffer["byteLength"] = fallbackSize;
+    fallbackBuffer["extensions"][kExtension]["fallback"] = true;
+    doc["buffers"].push_back(fallbackBuffer);
+    const size_t fallbackIndex = doc["buffers"].size() - 1;
+    for (const Coded& c : coded) {
+        Json& view = doc["bufferViews"][c.view];
+        const size_t length = view["byteLength"].get<size_t>();
+        Json ext = Json::object();
+        ext["buffer"] = 0;
+        ext["byteOffset"] = c.offset;
+        ext["byteLength"] = c.length;
+        ext["byteStride"] = stride[c.view];
+        ext["count"] = count[c.view];
+        ext["mode"] = kind[c.view] == 1 ? "ATTRIBUTES" : "TRIANGLES";
+        view["buffer"] = fallbackIndex;
+        view["byteOffset"] = c.fallbackOffset;
+        view["byteLength"] = length;
+        view["extensions"][kExtension] = ext;
+    }
+    const std::vector<unsigned char> binBytes(binPtr, binPtr + binSize);
+    const std::string out = assembleGlb(doc.dump(), binBytes);
+    return writeFileAtomic(path, out.data(), out.size());
+}
+
+}  // namespace io
+}  // namespace strata
