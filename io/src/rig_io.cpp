@@ -971,7 +971,47 @@ Status reindexWithUVs(tinygltf::Model& model, const Rig& rig, const RigPart& par
 
 // Quantises a map to 16 bits with paper eq. 12 over its own range and
 // encodes it as a PNG; sets the rig's encoding, factor and offset to match.
-Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxStep, DisplacementInfo* info)
+// Texels the runtime can read: within 2.5 texels of a UV triangle (bilinear
+// samples inside a triangle touch texels up to one texel away).
+std::vector<uint8_t> usedTexels(const ControlMesh& mesh, int width, int height)
+{
+    std::vector<uint8_t> used(size_t(width) * size_t(height), 0);
+    const double reach = 2.5;
+    for (size_t f = 0; f < mesh.faceCount(); ++f) {
+        glm::dvec2 t[3];
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec2 uv = mesh.uvs[mesh.uvIndices[3 * f + size_t(k)]];
+            t[k] = glm::dvec2(double(uv.x) * width, double(uv.y) * height);
+        }
+        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
+        const int x1 = std::min(width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
+        const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
+        const int y1 = std::min(height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                uint8_t& u = used[size_t(y) * size_t(width) + size_t(x)];
+                if (u)
+                    continue;
+                const glm::dvec2 p(x + 0.5, y + 0.5);
+                bool inside = area != 0.0;
+                double nearest = 1e300;
+                for (int k = 0; k < 3; ++k) {
+                    const glm::dvec2 a = t[k], b = t[(k + 1) % 3], ab = b - a;
+                    const double cross = ab.x * (p.y - a.y) - ab.y * (p.x - a.x);
+                    inside = inside && cross * area >= 0.0;
+                    const double len2 = glm::dot(ab, ab);
+                    const double s = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+                    nearest = std::min(nearest, glm::length(p - (a + s * ab)));
+                }
+                u = inside || nearest <= reach;
+            }
+    }
+    return used;
+}
+
+Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxStep, const ControlMesh* mesh,
+                DisplacementInfo* info)
 {
     float dmin = 0.0f, dmax = 0.0f;
     bool first = true;
@@ -994,6 +1034,17 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
     for (size_t i = 0; i < q.size(); ++i) {
         const double d = double(map.texels[i]) * map.factor + map.offset;
         q[i] = uint16_t(range > 0.0 ? std::lround(std::clamp((d - dmin) / range, 0.0, 1.0) * (levels - 1.0)) : 0);
+    }
+    if (mesh && mesh->hasUVs()) {
+        // Texels nothing samples repeat their left neighbour (the one above at
+        // a row start): PNG's filters turn them into runs of zeros.
+        const std::vector<uint8_t> used = usedTexels(*mesh, map.width, map.height);
+        for (int y = 0; y < map.height; ++y)
+            for (int x = 0; x < map.width; ++x) {
+                const size_t i = size_t(y) * size_t(map.width) + size_t(x);
+                if (!used[i])
+                    q[i] = x > 0 ? q[i - 1] : (y > 0 ? q[i - size_t(map.width)] : q[i]);
+            }
     }
     std::string png;
     Status st = encodePngGray(map.width, map.height, bits, q, &png);
@@ -1098,7 +1149,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
     if (rig.hasDisplacement) {
         if (!cm.hasUVs())
             return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
-        if (map && !(st = embedMap(model, *map, options ? options->maxQuantizationStep : 0.0, &info)))
+        if (map && !(st = embedMap(model, *map, options ? options->maxQuantizationStep : 0.0, &cm, &info)))
             return Status(st.code(), path + ": " + st.message());
         if (info.image < 0 && info.uri.empty())
             return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");
