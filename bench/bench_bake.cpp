@@ -16,6 +16,7 @@
 #include <glm/geometric.hpp>
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <cmath>
@@ -212,7 +213,9 @@ int main(int argc, char** argv)
     }
     std::printf("\nscan: %zu triangles; remesh: %zu triangles\n", scan.faceCount(), remesh.faceCount());
     runDefaultCliBake(scanPath, remeshPath);
-    std::remove(scanPath.c_str());
-    std::remove(remeshPath.c_str());
+    if (!std::getenv("STRATA_BENCH_KEEP")) {
+        std::remove(scanPath.c_str());
+        std::remove(remeshPath.c_str());
+    }
     return 0;
 }

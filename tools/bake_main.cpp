@@ -392,8 +392,12 @@ int main(int argc, char** argv)
             // unless the Loop limit is clearly closer (loose cages).
             if (uvMode == "auto" && !(st = layout(size)))
                 throw cli::Error(st.message());
-            double rms[2] = {0.0, 0.0};
+            // The linear scheme first: when it already meets the tolerance
+            // the smooth one is not tried (its bake costs several times more).
+            double rms[2] = {0.0, -1.0};
             for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
+                if (candidate == Scheme::Smooth && rms[0] <= tolerance)
+                    break;
                 baker::BakeOptions probe = options;
                 probe.size = uvMode == "auto" ? atlas.mapSize : size;
                 probe.scheme = candidate;
@@ -407,10 +411,14 @@ int main(int argc, char** argv)
                     throw cli::Error(highPath + ": " + st.message());
                 rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
             }
-            options.scheme = rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
+            options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
             char buf[160];
-            std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
-                          100.0 * rms[1], paperLevel);
+            if (rms[1] < 0.0)
+                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%% RMS at level %d meets the tolerance",
+                              100.0 * rms[0], paperLevel);
+            else
+                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
+                              100.0 * rms[1], paperLevel);
             schemeReason = buf;
         }
         for (;;) {
