@@ -6,12 +6,12 @@
 #include "strata/io/mesh_io.h"
 
 #include "strata/io/file.h"
+#include "weld.h"
 
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <unordered_map>
 
 namespace strata {
 namespace io {
@@ -379,71 +379,52 @@ Status readOff(const std::string& path, const std::vector<unsigned char>& bytes,
 
 // ---- STL ----
 
-// STL stores three vertices per facet: weld exact duplicates.
-uint32_t weld(std::unordered_map<uint64_t, std::vector<uint32_t>>& at, PolygonMesh* out, const glm::vec3& p)
-{
-    uint32_t bits[3];
-    std::memcpy(bits, &p, 12);
-    for (uint32_t& b : bits)
-        if (b == 0x80000000u)
-            b = 0;  // -0 is 0
-    const uint64_t key = (uint64_t(bits[0]) * 73856093u) ^ (uint64_t(bits[1]) * 19349663u) ^ (uint64_t(bits[2]) * 83492791u);
-    std::vector<uint32_t>& bucket = at[key];
-    for (uint32_t v : bucket)
-        if (out->positions[v] == p)
-            return v;
-    bucket.push_back(uint32_t(out->positions.size()));
-    out->positions.push_back(p);
-    return bucket.back();
-}
-
+// STL stores three vertices per facet: exact duplicates are welded.
 Status readStl(const std::string& path, const std::vector<unsigned char>& bytes, PolygonMesh* out)
 {
-    std::unordered_map<uint64_t, std::vector<uint32_t>> at;
+    std::vector<glm::vec3> corners;
+    bool binary = false;
     if (bytes.size() >= 84) {
         uint32_t n = 0;
         std::memcpy(&n, bytes.data() + 80, 4);
         if (size_t(n) <= (bytes.size() - 84) / 50 && bytes.size() == 84 + size_t(n) * 50) {
-            out->positions.reserve(size_t(n));
+            binary = true;
+            corners.reserve(3 * size_t(n));
             for (size_t f = 0; f < n; ++f) {
                 const unsigned char* p = bytes.data() + 84 + f * 50 + 12;
-                uint32_t tri[3];
                 for (int k = 0; k < 3; ++k) {
                     glm::vec3 v;
                     std::memcpy(&v, p + 12 * k, 12);
                     if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
                         return fail(path, "STL facet " + std::to_string(f) + " has a non-finite vertex");
-                    tri[k] = weld(at, out, v);
+                    corners.push_back(v);
                 }
-                out->triangles.insert(out->triangles.end(), {tri[0], tri[1], tri[2]});
             }
-            return Status::ok();
         }
     }
-    Cursor c{bytes.data(), bytes.data() + bytes.size()};
-    std::string word;
-    if (!token(c, &word) || word != "solid")
-        return fail(path, "not an STL file (neither a binary STL of consistent size nor ascii \"solid\")");
-    std::vector<long> corner;
-    size_t facet = 0;
-    while (token(c, &word)) {
-        if (word != "vertex")
-            continue;
-        double x, y, z;
-        if (!number(c, &x) || !number(c, &y) || !number(c, &z))
-            return fail(path, "STL vertex of facet " + std::to_string(facet) + " is not three finite numbers");
-        const glm::vec3 v(glm::dvec3(x, y, z));
-        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-            return fail(path, "STL facet " + std::to_string(facet) + " has a non-finite vertex");
-        corner.push_back(long(weld(at, out, v)));
-        if (corner.size() == 3) {
-            out->triangles.insert(out->triangles.end(), {uint32_t(corner[0]), uint32_t(corner[1]), uint32_t(corner[2])});
-            corner.clear();
-            ++facet;
+    if (!binary) {
+        Cursor c{bytes.data(), bytes.data() + bytes.size()};
+        std::string word;
+        if (!token(c, &word) || word != "solid")
+            return fail(path, "not an STL file (neither a binary STL of consistent size nor ascii \"solid\")");
+        while (token(c, &word)) {
+            if (word != "vertex")
+                continue;
+            double x, y, z;
+            if (!number(c, &x) || !number(c, &y) || !number(c, &z))
+                return fail(path, "STL vertex of facet " + std::to_string(corners.size() / 3) +
+                                      " is not three finite numbers");
+            const glm::vec3 v(glm::dvec3(x, y, z));
+            if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+                return fail(path, "STL facet " + std::to_string(corners.size() / 3) + " has a non-finite vertex");
+            corners.push_back(v);
         }
+        if (corners.size() % 3 != 0)
+            return fail(path, "the last STL facet is incomplete");
     }
-    if (!corner.empty())
-        return fail(path, "the last STL facet is incomplete");
+    std::vector<uint32_t> ids;
+    weldByPosition(corners.data(), corners.size(), &ids, &out->positions);
+    out->triangles = std::move(ids);
     return Status::ok();
 }
 

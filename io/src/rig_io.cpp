@@ -14,6 +14,7 @@
 #include "strata/io/png.h"
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
+#include "weld.h"
 #include "strata/normals.h"
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -149,16 +150,6 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     return Status::ok();
 }
 
-struct VertexKey {
-    uint32_t bits[3];
-    bool operator==(const VertexKey& o) const { return std::memcmp(bits, o.bits, sizeof(bits)) == 0; }
-};
-struct VertexKeyHash {
-    size_t operator()(const VertexKey& k) const
-    {
-        return (size_t(k.bits[0]) * 73856093u) ^ (size_t(k.bits[1]) * 19349663u) ^ (size_t(k.bits[2]) * 83492791u);
-    }
-};
 
 
 glm::mat4 localMatrix(const tinygltf::Node& n)
@@ -394,22 +385,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, boo
     // Weld file vertices into topological vertices (exact position match, over
     // every primitive: coincident vertices of different primitives join, so the
     // refined surface is watertight wherever the input is).
-    std::unordered_map<VertexKey, uint32_t, VertexKeyHash> welded;
-    welded.reserve(nFile);
-    rig.sourceVertex.resize(nFile);
-    for (size_t i = 0; i < nFile; ++i) {
-        VertexKey key;
-        std::memcpy(key.bits, &pos[3 * i], sizeof(key.bits));
-        if (pos[3 * i] == 0.0f && pos[3 * i + 1] == 0.0f && pos[3 * i + 2] == 0.0f)
-            std::memset(key.bits, 0, sizeof(key.bits));  // -0 and +0 are one point
-        for (int c = 0; c < 3; ++c)
-            if (pos[3 * i + size_t(c)] == 0.0f)
-                key.bits[c] = 0;
-        auto it = welded.emplace(key, uint32_t(rig.mesh.positions.size()));
-        if (it.second)
-            rig.mesh.positions.emplace_back(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]);
-        rig.sourceVertex[i] = it.first->second;
-    }
+    weldByPosition(reinterpret_cast<const glm::vec3*>(pos.data()), nFile, &rig.sourceVertex, &rig.mesh.positions);
     const bool withUV = out->missingUV == 0;
     for (size_t t = 0; t < tri.size(); t += 3) {
         const uint32_t a = rig.sourceVertex[tri[t]], b = rig.sourceVertex[tri[t + 1]], c = rig.sourceVertex[tri[t + 2]];
