@@ -106,6 +106,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
         {"--high " + dir + "/same.glb --control " + dir + "/control.obj -o " + dir + "/same.glb", "overwrite an input"},
         {ok + " --tolerance lots -o " + out, "--tolerance"},
+        {ok + " --size 8192 --max-memory 64 -o " + out, "--max-memory"},
         {ok + " --size 3 -o " + out, "--size"},
         {ok, "-o are required"},
     };

@@ -41,7 +41,7 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
-    "                   [--no-compress]\n"
+    "                   [--no-compress] [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
@@ -168,6 +168,7 @@ int main(int argc, char** argv)
         double tolerance = 1e-4;  // RMS over the diagonal: 0.01%
         bool schemeGiven = false;
         bool compress = true;
+        double maxMemoryMB = 2048.0;
         options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -186,6 +187,8 @@ int main(int argc, char** argv)
                 if (!(tolerance >= 0.0 && tolerance < 1.0))
                     throw cli::Error("--tolerance expects a fraction of the diagonal (or a percentage, 0.01%), got \"" + v +
                                      "\"");
+            } else if (a == "--max-memory") {
+                maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
             } else if (a == "--no-compress") {
                 compress = false;
             } else if (a == "--exr") {
@@ -339,6 +342,18 @@ int main(int argc, char** argv)
             }
             return s;
         };
+        // Memory before work: the baker holds about 32 bytes per texel (map,
+        // layers, owners, dilation) and 200 per high-res triangle (mesh,
+        // mapping, index); the closed loop is chunked.
+        auto checkMemory = [&](int mapSize) {
+            const double needMB = (32.0 * double(mapSize) * double(mapSize) + 200.0 * double(high.faceCount())) /
+                                  (1024.0 * 1024.0);
+            if (needMB > maxMemoryMB)
+                throw cli::Error(outPath + ": a " + std::to_string(mapSize) + "^2 map over " +
+                                 std::to_string(high.faceCount()) + " triangles needs about " +
+                                 std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
+                                 " MB budget (raise it with --max-memory MB)");
+        };
         const bool forced = options.size > 0;
         int size = options.size;
         if (uvMode == "auto") {
@@ -434,6 +449,7 @@ int main(int argc, char** argv)
                     throw cli::Error(st.message());
             }
             options.size = size;
+            checkMemory(size);
             {
                 Progress p("baking");
                 if (!(st = baker::bake(&map, &layers, &rep, control, high, options)))
