@@ -97,7 +97,15 @@ TEST(Tools, HostileRigsAndPathsAreOneLineErrors)
         std::string args, needle;
     };
     const std::string rig = "'" + dir + "/head.glb'";
+    std::string secretBefore = strata::test::readText(dir + "/secret.bin");
+    std::system(("ln -sf '" + dir + "/secret.bin' '" + dir + "/link.obj'").c_str());
+    // An accessor claiming 2^31 elements over a 36-byte buffer.
+    std::string huge = gltfWithBuffer("data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA", 36);
+    huge.replace(huge.find("\"count\":3"), 9, "\"count\":2147483648");
+    writeText(dir + "/huge.gltf", huge);
     const Case cases[] = {
+        {rig + " -o '" + dir + "/link.obj'", "symbolic link"},
+        {"'" + dir + "/huge.gltf' -o '" + dir + "/o.obj'", "huge.gltf"},
         {"'" + dir + "/sub/absolute.gltf' -o '" + dir + "/o.obj'", "absolute.gltf"},
         {"'" + dir + "/sub/parent.gltf' -o '" + dir + "/o.obj'", "parent.gltf"},
         {"'" + dir + "/sub/fifo.gltf' -o '" + dir + "/o.obj'", "fifo.gltf"},
@@ -116,6 +124,7 @@ TEST(Tools, HostileRigsAndPathsAreOneLineErrors)
         EXPECT_EQ(r.output.find("xxxx"), std::string::npos) << "the outside file's bytes leaked: " << r.output;
         EXPECT_FALSE(strata::test::fileExists(dir + "/o.obj"));
     }
+    EXPECT_EQ(strata::test::readText(dir + "/secret.bin"), secretBefore) << "written through the symbolic link";
     // The input rig is intact after the refused overwrite.
     EXPECT_EQ(run(reconstruct + " " + rig + " -o '" + dir + "/o.obj'").code, 0);
     // Paths with spaces and non-ASCII characters are ordinary paths.

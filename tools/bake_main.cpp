@@ -248,6 +248,8 @@ int main(int argc, char** argv)
         }
         if (highPath.empty() || controlPath.empty() || outPath.empty())
             throw cli::Error("--high, --control and -o are required (see --help)");
+        if (std::filesystem::is_symlink(outPath))
+            throw cli::Error(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
         for (const std::string& input : {highPath, controlPath})
             if (input != "auto" && std::filesystem::exists(outPath) && std::filesystem::exists(input) &&
                 std::filesystem::equivalent(outPath, input))

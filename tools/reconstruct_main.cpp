@@ -130,6 +130,8 @@ int main(int argc, char** argv)
             if (!haveMethod)
                 method = SkinningMethod::Segments;
         }
+        if (std::filesystem::is_symlink(outPath))
+            throw cli::Error(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
         if (io::extensionOf(outPath) == io::extensionOf(rigPath) &&
             std::filesystem::exists(outPath) && std::filesystem::equivalent(outPath, rigPath))
             throw cli::Error(outPath + ": the output would overwrite the input rig");

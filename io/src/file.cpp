@@ -49,6 +49,9 @@ std::string temporaryNameFor(const std::string& path)
 
 Status writeViaTempFile(const std::string& path, const std::function<std::string(const std::string&)>& write)
 {
+    struct stat link;
+    if (::lstat(path.c_str(), &link) == 0 && S_ISLNK(link.st_mode))
+        return Status(StatusCode::InvalidArgument, path + ": is a symbolic link; refusing to replace it (write to its target)");
     const std::string tmp = temporaryNameFor(path);
     std::string err;
     try {
