@@ -7,7 +7,9 @@
 // non-manifold edges multiplied by 2^level (watertight where the input is),
 // and separate components staying separate.
 #include "procedural.h"
+#ifdef STRATA_HAVE_IO
 #include "strata/io/mesh_io.h"
+#endif
 #include "strata/normals.h"
 #include "strata/plan.h"
 #include "test_util.h"
@@ -171,6 +173,7 @@ TEST(Topology, UnreferencedVertexHasNoDisplacement)
     EXPECT_EQ(isolated, 1u);
 }
 
+#ifdef STRATA_HAVE_IO
 TEST(Topology, ObjFaceRepeatingAVertexIsDroppedAndCounted)
 {
     const std::string path = std::string(STRATA_TEST_TMP) + "/repeat.obj";
@@ -186,3 +189,4 @@ TEST(Topology, ObjFaceRepeatingAVertexIsDroppedAndCounted)
     EXPECT_EQ(info.degenerate, 2u);
     checkRefines(m, "repeated vertex");
 }
+#endif  // STRATA_HAVE_IO
