@@ -11,6 +11,7 @@
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
 #include "strata/baker/mesh_input.h"
+#include "strata/displacement_math.h"
 #include "strata/segment_deformer.h"
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
@@ -546,13 +547,9 @@ int main(int argc, char** argv)
                 return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half);
             });
         if (pngBits) {
-            const float range = rep.dmax - rep.dmin;
-            const double levels = double((1 << pngBits) - 1);  // eq. 12 with 2^n - 1 so dmax maps to the top level
-            std::vector<uint16_t> q(map.texels.size());
-            for (size_t i = 0; i < q.size(); ++i) {
-                const double t = range > 0.0f ? (double(map.texels[i]) - rep.dmin) / double(range) : 0.0;
-                q[i] = uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * levels));
-            }
+            std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
+            for (size_t i = 0; i < q.size(); ++i)
+                q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << pngBits)));
             const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
             outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
             rig.displacement.quantized.uri = io::stemOf(png) + ".png";

@@ -15,6 +15,7 @@
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
 #include "weld.h"
+#include "strata/displacement_math.h"
 #include "strata/normals.h"
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -817,9 +818,10 @@ Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, Displacem
     if (map.width != rig.displacement.width || map.height != rig.displacement.height)
         return Status(StatusCode::InvalidData, mapPath + ": image size differs from the rig's");
     map.texels.assign(samples.begin(), samples.end());
-    // Paper eq. 12 inverted: 2^n levels span [dmin, dmax] with the factor 2^n - 1.
-    map.factor = (q.dmax - q.dmin) / float((1 << bits) - 1);
-    map.offset = q.dmin;
+    // Paper eq. 12 inverted: 2^n levels span [dmin, dmax].
+    const glm::vec2 decode = shared::strata_dequantize_factor_offset(q.dmin, q.dmax, float(1 << bits));
+    map.factor = decode.x;
+    map.offset = decode.y;
     *out = std::move(map);
     return Status::ok();
 }
@@ -1007,10 +1009,9 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
         levels = std::clamp(std::ceil(range / maxStep) + 1.0, 2.0, 65536.0);
     const int bits = levels <= 256.0 ? 8 : 16;
     std::vector<uint16_t> q(map.texels.size());
-    for (size_t i = 0; i < q.size(); ++i) {
-        const double d = double(map.texels[i]) * map.factor + map.offset;
-        q[i] = uint16_t(range > 0.0 ? std::lround(std::clamp((d - dmin) / range, 0.0, 1.0) * (levels - 1.0)) : 0);
-    }
+    for (size_t i = 0; i < q.size(); ++i)
+        q[i] = uint16_t(shared::strata_quantize(shared::strata_decode_distance(map.texels[i], map.factor, map.offset),
+                                                dmin, dmax, float(levels)));
     if (mesh && mesh->hasUVs()) {
         // Texels nothing samples repeat their left neighbour (the one above at
         // a row start): PNG's filters turn them into runs of zeros.
@@ -1038,8 +1039,9 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
     info->encoding = bits == 8 ? "png8" : "png16";
     info->width = map.width;
     info->height = map.height;
-    info->factor = float(range / (levels - 1.0));
-    info->offset = dmin;
+    const glm::vec2 decode = shared::strata_dequantize_factor_offset(dmin, dmax, float(levels));
+    info->factor = decode.x;
+    info->offset = decode.y;
     return Status::ok();
 }
 

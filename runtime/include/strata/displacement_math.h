@@ -78,6 +78,23 @@ STRATA_FN float strata_decode_distance(float texel, float factor, float offset)
     return texel * factor + offset;
 }
 
+/// Paper eq. 12: a distance d in [dmin, dmax] quantised to one of `levels`
+/// steps (levels - 1 = 2^n - 1 for an n-bit image, so dmax maps to the top
+/// level): q = round((levels - 1) (d - dmin) / (dmax - dmin)), clamped.
+STRATA_FN float strata_quantize(float d, float dmin, float dmax, float levels)
+{
+    float range = dmax - dmin;
+    float t = range > float(0.0) ? clamp((d - dmin) / range, float(0.0), float(1.0)) : float(0.0);
+    return floor(t * (levels - float(1.0)) + float(0.5));
+}
+
+/// Eq. 12 inverted as a decode: the factor and offset that turn a quantised
+/// level back into a distance (d = q * factor + offset, strata_decode_distance).
+STRATA_FN vec2 strata_dequantize_factor_offset(float dmin, float dmax, float levels)
+{
+    return vec2((dmax - dmin) / (levels - float(1.0)), dmin);
+}
+
 /// Paper equation 2: displaced point = surface point + d * direction.
 STRATA_FN vec3 strata_displace(vec3 surface, vec3 direction, float d)
 {
