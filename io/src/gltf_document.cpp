@@ -427,14 +427,20 @@ void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* note
 }
 
 
-Status packAndWrite(const std::string& path, tinygltf::Model& model)
+Status prepareForWriting(const std::string& path, tinygltf::Model& model)
 {
     Status st = packBuffers(model);
     if (!st)
         return Status(st.code(), path + ": " + st.message());
     model.asset.version = "2.0";
     model.asset.generator = "Strata " STRATA_VERSION;
-    return writeGltfModel(path, model);
+    return Status::ok();
+}
+
+Status packAndWrite(const std::string& path, tinygltf::Model& model)
+{
+    Status st = prepareForWriting(path, model);
+    return st ? writeGltfModel(path, model) : st;
 }
 
 }  // namespace io

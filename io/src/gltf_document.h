@@ -56,7 +56,10 @@ Status packBuffers(tinygltf::Model& model);
 /// the glTF-Validator warns otherwise).
 void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes);
 
-/// packBuffers, Strata as the generator, then an atomic write (.glb/.gltf).
+/// packBuffers and Strata as the generator: what every writer does first.
+Status prepareForWriting(const std::string& path, tinygltf::Model& model);
+
+/// prepareForWriting, then an atomic write (.glb/.gltf).
 Status packAndWrite(const std::string& path, tinygltf::Model& model);
 
 /// As packAndWrite, for .glb, with vertex attributes and triangle indices

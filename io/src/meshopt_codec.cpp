@@ -224,11 +224,9 @@ Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::strin
 
 Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
 {
-    Status st = packBuffers(model);
+    Status st = prepareForWriting(path, model);
     if (!st)
-        return Status(st.code(), path + ": " + st.message());
-    model.asset.version = "2.0";
-    model.asset.generator = "Strata " STRATA_VERSION;
+        return st;
     if (model.buffers.empty())
         return writeGltfModel(path, model);
     // Which views to code: vertex attributes with 4-byte-multiple strides and

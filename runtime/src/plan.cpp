@@ -134,6 +134,17 @@ std::unique_ptr<Far::TopologyRefiner> createUniformRefiner(const ControlMesh& me
     return refiner;
 }
 
+// Face-varying stencils of channel 0 at the refiner's last level, or null.
+std::unique_ptr<const StencilTable> createFaceVaryingTable(const Far::TopologyRefiner& refiner)
+{
+    StencilFactory::Options so;
+    so.interpolationMode = StencilFactory::INTERPOLATE_FACE_VARYING;
+    so.generateIntermediateLevels = false;
+    so.generateOffsets = true;
+    so.fvarChannel = 0;
+    return std::unique_ptr<const StencilTable>(StencilFactory::Create(refiner, so));
+}
+
 }  // namespace
 
 Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
@@ -173,12 +184,7 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
             r.sources[i] = uint32_t(i);
         r.weights.assign(nvals, 1.0f);
     } else {
-        StencilFactory::Options so;
-        so.interpolationMode = StencilFactory::INTERPOLATE_FACE_VARYING;
-        so.generateIntermediateLevels = false;
-        so.generateOffsets = true;
-        so.fvarChannel = 0;
-        std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
+        std::unique_ptr<const StencilTable> table = createFaceVaryingTable(*refiner);
         if (!table || size_t(table->GetNumStencils()) != nvals)
             return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
         for (size_t i = 0; i < nvals; ++i)
@@ -328,12 +334,7 @@ Status Plan::build(const ControlMesh& mesh)
         if (level_ == 0) {
             uvs_ = mesh.uvs;
         } else {
-            StencilFactory::Options so;
-            so.interpolationMode = StencilFactory::INTERPOLATE_FACE_VARYING;
-            so.generateIntermediateLevels = false;
-            so.generateOffsets = true;
-            so.fvarChannel = 0;
-            std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
+            std::unique_ptr<const StencilTable> table = createFaceVaryingTable(*refiner);
             if (!table || size_t(table->GetNumStencils()) != nuv)
                 return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
             const std::vector<int>& sizes = table->GetSizes();
