@@ -388,7 +388,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     // UVs: one value per (chart, vertex); faces index them.
     std::vector<glm::vec2> uvs;
     std::vector<uint32_t> uvIndices(3 * nf);
-    double inside = 0.0;
     const double inv = 1.0 / double(size);
     for (Chart& c : charts) {
         const uint32_t base = uint32_t(uvs.size());
@@ -401,7 +400,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         for (uint32_t f : c.faces) {
             for (int k = 0; k < 3; ++k)
                 uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]]);
-            inside += faceArea[f];
         }
         for (uint32_t p : c.vertices)
             local[p] = -1;
@@ -419,7 +417,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         stats->texelFill = projected;
         stats->maxStretch = maxStretch;
     }
-    (void)inside;
     return Status::ok();
 }
 

@@ -277,7 +277,7 @@ struct SceneGeometry {
     std::string firstMissingUV;
 };
 
-Status readSceneGeometry(const std::string& path, const SourceDocument& doc, bool forRig, SceneGeometry* out)
+Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
 {
     const tinygltf::Model& model = doc.model;
     std::vector<int> parent;
@@ -381,7 +381,6 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, boo
     const size_t nFile = pos.size() / 3;
     if (nFile == 0)
         return Status(StatusCode::InvalidData, path + ": the meshes have no vertices");
-    (void)forRig;
 
     // Weld file vertices into topological vertices (exact position match, over
     // every primitive: coincident vertices of different primitives join, so the
@@ -635,7 +634,7 @@ Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positi
     if (!st)
         return st;
     SceneGeometry scene;
-    if (!(st = readSceneGeometry(path, doc, /*forRig=*/false, &scene)))
+    if (!(st = readSceneGeometry(path, doc, &scene)))
         return st;
     if (scene.rig.mesh.triangles.empty())
         return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
@@ -706,7 +705,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
 {
     Status st;
     SceneGeometry scene;
-    if (!(st = readSceneGeometry(path, *doc, /*forRig=*/true, &scene)))
+    if (!(st = readSceneGeometry(path, *doc, &scene)))
         return st;
     Rig rig = std::move(scene.rig);
     if (rig.mesh.triangles.empty())
