@@ -337,19 +337,46 @@ std::vector<glm::vec3> plainLbs(const tinygltf::Model& m, const Rig& rig, const 
     return out;
 }
 
+// A glb read by tinygltf after its meshopt-coded views are decoded, as a
+// glTF client with meshopt support would.
+::testing::AssertionResult loadPlainModel(const std::string& path, tinygltf::Model* model)
+{
+    std::string plain, err, warn;
+    if (!io::readPlainGlb(path, &plain))
+        return ::testing::AssertionFailure() << path << ": cannot read";
+    tinygltf::TinyGLTF loader;
+    if (!loader.LoadBinaryFromMemory(model, &err, &warn, reinterpret_cast<const unsigned char*>(plain.data()),
+                                     unsigned(plain.size())))
+        return ::testing::AssertionFailure() << path << ": " << err;
+    return ::testing::AssertionSuccess();
+}
+
+// The test character (makeCharacter) written to dir and baked onto itself
+// with default settings; returns the rig's path.
+::testing::AssertionResult bakeCharacter(const std::string& man, const std::string& dir, std::string* input,
+                                         std::string* rigPath, size_t* finEdgeFaces)
+{
+    *input = dir + "/character.glb";
+    *rigPath = dir + "/rig.glb";
+    if (!makeCharacter(man, *input, finEdgeFaces))
+        return ::testing::AssertionFailure() << "cannot write " << *input;
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + *input + " --control " +
+                                                   *input + " --error-levels none -o " + *rigPath);
+    if (r.code != 0)
+        return ::testing::AssertionFailure() << r.output;
+    return ::testing::AssertionSuccess();
+}
+
 }  // namespace
 
 TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_character");
-    const std::string input = dir + "/character.glb", rigPath = dir + "/rig.glb";
+    std::string input, rigPath;
     size_t finEdgeFaces = 0;
-    ASSERT_TRUE(makeCharacter(man, input, &finEdgeFaces));
+    ASSERT_TRUE(bakeCharacter(man, dir, &input, &rigPath, &finEdgeFaces));
     ASSERT_GE(finEdgeFaces, 3u) << "the fin must make its edge non-manifold";
-    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control " +
-                                                   input + " --error-levels none -o " + rigPath);
-    ASSERT_EQ(r.code, 0) << r.output;
     Rig rig;
     Status st = io::loadRig(rigPath, &rig);
     ASSERT_TRUE(st.isOk()) << st.message();
@@ -369,17 +396,10 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
     ASSERT_TRUE(io::loadRigDisplacementMap(rigPath, rig, &map).isOk());
     const MeshTopologyStats s0 = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());
     EXPECT_GE(s0.nonManifoldEdges, 1u);
-    tinygltf::TinyGLTF loader;
     tinygltf::Model source;
-    std::string err, warn;
     // The rig's own accessors (the input's vertices, split where the new UV
-    // set needs it) are the reference, read here by tinygltf after the
-    // meshopt-coded views are decoded.
-    std::string plain;
-    ASSERT_TRUE(io::readPlainGlb(rigPath, &plain).isOk());
-    ASSERT_TRUE(loader.LoadBinaryFromMemory(&source, &err, &warn, reinterpret_cast<const unsigned char*>(plain.data()),
-                                            unsigned(plain.size())))
-        << err;
+    // set needs it) are the reference, read here by tinygltf.
+    ASSERT_TRUE(loadPlainModel(rigPath, &source));
     const Skeleton& sk = rig.skeleton;
     ASSERT_FALSE(sk.empty());
     for (int level = 0; level <= 4; ++level) {
@@ -421,12 +441,10 @@ TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_reconstructed");
-    const std::string input = dir + "/character.glb", rigPath = dir + "/rig.glb";
+    std::string input, rigPath;
     size_t finEdgeFaces = 0;
-    ASSERT_TRUE(makeCharacter(man, input, &finEdgeFaces));
-    test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control " + input +
-                                             " --error-levels none -o " + rigPath);
-    ASSERT_EQ(r.code, 0) << r.output;
+    ASSERT_TRUE(bakeCharacter(man, dir, &input, &rigPath, &finEdgeFaces));
+    test::CommandResult r;
     Rig rig;
     ASSERT_TRUE(io::loadRig(rigPath, &rig).isOk());
     const Skeleton& sk = rig.skeleton;
@@ -481,11 +499,7 @@ TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
         sampleAnimation(local.data(), sk, &sk.animations[0], t);
         computeWorldMatrices(world.data(), sk, local.data());
         tinygltf::Model rigModel;
-        std::string plain;
-        ASSERT_TRUE(io::readPlainGlb(rigPath, &plain).isOk());
-        ASSERT_TRUE(loader.LoadBinaryFromMemory(&rigModel, &err, &warn, reinterpret_cast<const unsigned char*>(plain.data()),
-                                                unsigned(plain.size())))
-            << err;
+        ASSERT_TRUE(loadPlainModel(rigPath, &rigModel));
         const std::vector<glm::vec3> reference = plainLbs(rigModel, rig, world);
         // Match each played vertex to the reference vertex at the same rest
         // position (rigid parts went through their node's inverse and back:
