@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <functional>
 #include <cstring>
 
 namespace strata {
@@ -282,59 +283,47 @@ bool onlyKnownExtensions(const tinygltf::Model& model)
 
 // Drops accessors and bufferViews nothing references (when that is known to
 // be safe) and merges every buffer into buffer 0, as a .glb needs.
+void forEachAccessorReference(tinygltf::Model& model,
+                              const std::function<void(int&, AccessorUse, const tinygltf::Primitive*)>& visit)
+{
+    for (tinygltf::Mesh& m : model.meshes)
+        for (tinygltf::Primitive& p : m.primitives) {
+            for (auto& [name, a] : p.attributes)
+                visit(a, AccessorUse::Attribute, &p);
+            visit(p.indices, AccessorUse::Indices, &p);
+            for (auto& target : p.targets)
+                for (auto& [name, a] : target)
+                    visit(a, AccessorUse::MorphTarget, &p);
+        }
+    for (tinygltf::Skin& sk : model.skins)
+        visit(sk.inverseBindMatrices, AccessorUse::Other, nullptr);
+    for (tinygltf::Animation& an : model.animations)
+        for (tinygltf::AnimationSampler& sa : an.samplers) {
+            visit(sa.input, AccessorUse::Other, nullptr);
+            visit(sa.output, AccessorUse::Other, nullptr);
+        }
+}
+
 Status packBuffers(tinygltf::Model& model)
 {
     const size_t na = model.accessors.size();
     const bool collect = onlyKnownExtensions(model);
     std::vector<int> accessorMap(na, collect ? -1 : 0);
-    auto useAccessor = [&](int a) {
-        if (a >= 0 && size_t(a) < na)
-            accessorMap[size_t(a)] = 0;
-    };
-    if (collect) {
-        for (const tinygltf::Mesh& m : model.meshes)
-            for (const tinygltf::Primitive& p : m.primitives) {
-                for (const auto& [name, a] : p.attributes)
-                    useAccessor(a);
-                useAccessor(p.indices);
-                for (const auto& target : p.targets)
-                    for (const auto& [name, a] : target)
-                        useAccessor(a);
-            }
-        for (const tinygltf::Skin& s : model.skins)
-            useAccessor(s.inverseBindMatrices);
-        for (const tinygltf::Animation& an : model.animations)
-            for (const tinygltf::AnimationSampler& s : an.samplers) {
-                useAccessor(s.input);
-                useAccessor(s.output);
-            }
-    }
+    if (collect)
+        forEachAccessorReference(model, [&](int& a, AccessorUse, const tinygltf::Primitive*) {
+            if (a >= 0 && size_t(a) < na)
+                accessorMap[size_t(a)] = 0;
+        });
     std::vector<tinygltf::Accessor> accessors;
     for (size_t a = 0; a < na; ++a)
         if (accessorMap[a] == 0) {
             accessorMap[a] = int(accessors.size());
             accessors.push_back(model.accessors[a]);
         }
-    auto remap = [&](int& a) {
+    forEachAccessorReference(model, [&](int& a, AccessorUse, const tinygltf::Primitive*) {
         if (a >= 0 && size_t(a) < na)
             a = accessorMap[size_t(a)];
-    };
-    for (tinygltf::Mesh& m : model.meshes)
-        for (tinygltf::Primitive& p : m.primitives) {
-            for (auto& [name, a] : p.attributes)
-                remap(a);
-            remap(p.indices);
-            for (auto& target : p.targets)
-                for (auto& [name, a] : target)
-                    remap(a);
-        }
-    for (tinygltf::Skin& s : model.skins)
-        remap(s.inverseBindMatrices);
-    for (tinygltf::Animation& an : model.animations)
-        for (tinygltf::AnimationSampler& s : an.samplers) {
-            remap(s.input);
-            remap(s.output);
-        }
+    });
     model.accessors = std::move(accessors);
 
     const size_t nv = model.bufferViews.size();

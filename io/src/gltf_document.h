@@ -7,6 +7,7 @@
 
 #include <tiny_gltf.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,15 @@ Status embedImages(tinygltf::Model& model, std::vector<std::vector<unsigned char
 /// element) into a new packed accessor with 4-byte aligned elements.
 Status gatherAccessor(tinygltf::Model& model, int index, const std::vector<uint32_t>& src, const std::string& what,
                       int* out);
+
+/// Where an accessor index is referenced: vertex attributes, indices and
+/// morph targets of primitives, and skins and animation samplers (Other).
+enum class AccessorUse { Attribute, Indices, MorphTarget, Other };
+
+/// Calls visit on every accessor reference in the model (by reference, so it
+/// may renumber), with the primitive for Attribute, Indices and MorphTarget.
+void forEachAccessorReference(tinygltf::Model& model,
+                              const std::function<void(int&, AccessorUse, const tinygltf::Primitive*)>& visit);
 
 /// Drops accessors and bufferViews nothing references (when only extensions
 /// known not to reference them are used) and merges all buffers into one.

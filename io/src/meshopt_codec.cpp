@@ -256,27 +256,15 @@ Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
             stride[v] = s;
         }
     };
-    for (const tinygltf::Mesh& m : model.meshes)
-        for (const tinygltf::Primitive& p : m.primitives) {
-            for (const auto& [name, a] : p.attributes)
-                mark(a, 1);
-            for (const auto& target : p.targets)
-                for (const auto& [name, a] : target)
-                    mark(a, 1);
-            mark(p.indices, p.mode == TINYGLTF_MODE_TRIANGLES || p.mode == -1 ? 2 : -1);
-        }
     // Any other use of a view (skins, animations, images) keeps it plain.
-    auto keep = [&](int accessor) {
-        if (accessor >= 0 && size_t(accessor) < model.accessors.size() && model.accessors[size_t(accessor)].bufferView >= 0)
-            kind[size_t(model.accessors[size_t(accessor)].bufferView)] = -1;
-    };
-    for (const tinygltf::Skin& s : model.skins)
-        keep(s.inverseBindMatrices);
-    for (const tinygltf::Animation& an : model.animations)
-        for (const tinygltf::AnimationSampler& s : an.samplers) {
-            keep(s.input);
-            keep(s.output);
-        }
+    forEachAccessorReference(model, [&](int& a, AccessorUse use, const tinygltf::Primitive* p) {
+        if (use == AccessorUse::Attribute || use == AccessorUse::MorphTarget)
+            mark(a, 1);
+        else if (use == AccessorUse::Indices)
+            mark(a, p->mode == TINYGLTF_MODE_TRIANGLES || p->mode == -1 ? 2 : -1);
+        else if (a >= 0 && size_t(a) < model.accessors.size() && model.accessors[size_t(a)].bufferView >= 0)
+            kind[size_t(model.accessors[size_t(a)].bufferView)] = -1;
+    });
     for (const tinygltf::Image& im : model.images)
         if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
             kind[size_t(im.bufferView)] = -1;
