@@ -8,6 +8,8 @@
 #include "strata/io/rig_io.h"
 #include "test_util.h"
 
+#include <cstring>
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -118,6 +120,57 @@ TEST(Exr, RejectsBadFiles)
     st = io::writeDisplacementExr(dir + "/big.exr", big, io::ExrPixelType::Half);
     EXPECT_FALSE(st.isOk());
     EXPECT_FALSE(test::fileExists(dir + "/big.exr"));
+}
+
+// Hostile EXR headers, from bytes: the sizes are refused from the header
+// before OpenEXR sizes its tables or any texel is allocated.
+TEST(Exr, RefusesHostileHeadersFromBytes)
+{
+    const std::string dir = test::tempDir("exr_hostile");
+    writeRawExr(dir + "/small.exr", "Y", 8, 8, 0.25f);
+    const std::string text = readText(dir + "/small.exr");
+    const std::vector<unsigned char> good(text.begin(), text.end());
+    DisplacementMap map;
+    ASSERT_TRUE(io::decodeDisplacementExr(good.data(), good.size(), "small.exr", &map).isOk());
+    EXPECT_EQ(map.width, 8);
+    EXPECT_EQ(map.texels[3], 0.25f);
+
+    // Finds the dataWindow value (4 int32: xmin ymin xmax ymax).
+    const std::string key = std::string("dataWindow") + '\0' + "box2i" + '\0';
+    const size_t at = text.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const size_t value = at + key.size() + 4;
+    auto withWindow = [&](int32_t xmax, int32_t ymax) {
+        std::vector<unsigned char> b = good;
+        std::memcpy(&b[value + 8], &xmax, 4);
+        std::memcpy(&b[value + 12], &ymax, 4);
+        return b;
+    };
+    // 65536^2 declared in a file of a few hundred bytes.
+    std::vector<unsigned char> huge = withWindow(65535, 65535);
+    Status st = io::decodeDisplacementExr(huge.data(), huge.size(), "huge.exr", &map);
+    EXPECT_EQ(st.code(), StatusCode::InvalidData);
+    EXPECT_NE(st.message().find("huge.exr: image size 65536x65536 is outside"), std::string::npos) << st.message();
+    // 16384^2 is a legal size, but not in this many bytes.
+    std::vector<unsigned char> dense = withWindow(16383, 16383);
+    st = io::decodeDisplacementExr(dense.data(), dense.size(), "dense.exr", &map);
+    EXPECT_NE(st.message().find("declares 16384x16384 texels but holds only"), std::string::npos) << st.message();
+    // An inverted window.
+    std::vector<unsigned char> inverted = withWindow(-5, 7);
+    st = io::decodeDisplacementExr(inverted.data(), inverted.size(), "inv.exr", &map);
+    EXPECT_NE(st.message().find("is outside"), std::string::npos) << st.message();
+    // A caller's texel budget.
+    st = io::decodeDisplacementExr(good.data(), good.size(), "small.exr", &map, 0, 0, 16);
+    EXPECT_NE(st.message().find("exceed the budget of 16"), std::string::npos) << st.message();
+    // An attribute whose declared size runs past the end of the file.
+    std::vector<unsigned char> longAttr = good;
+    const int32_t twoGiB = 0x7fffffff;
+    std::memcpy(&longAttr[at + key.size()], &twoGiB, 4);
+    st = io::decodeDisplacementExr(longAttr.data(), longAttr.size(), "attr.exr", &map);
+    EXPECT_NE(st.message().find("attr.exr: not a readable OpenEXR file"), std::string::npos) << st.message();
+    // Every prefix of a good file fails cleanly (no throw, no crash).
+    for (size_t n = 0; n < good.size(); n += 7)
+        EXPECT_FALSE(io::decodeDisplacementExr(good.data(), n, "cut.exr", &map).isOk()) << n;
 }
 
 TEST(Rig, RoundTripsThroughGlbAndGltf)

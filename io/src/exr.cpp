@@ -4,6 +4,8 @@
 
 #include "strata/io/file.h"
 
+#include "text.h"
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -15,49 +17,151 @@
 
 #include <cmath>
 #include <vector>
-#include <fstream>
+#include <cstring>
+#include <stdexcept>
 
 namespace strata {
 namespace io {
 
-Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth, int expectHeight)
-{
+namespace {
+
+// OpenEXR reads through an IStream; this one reads a caller's bytes, so the
+// same decoder serves files, embedded bytes and the fuzzer.
+class MemoryStream : public Imf::IStream {
+public:
+    MemoryStream(const unsigned char* data, size_t size, const char* name)
+        : Imf::IStream(name), data_(reinterpret_cast<const char*>(data)), size_(size)
     {
-        std::ifstream probe(path, std::ios::binary);
-        if (!probe)
-            return Status(StatusCode::IoError, path + ": cannot open displacement map");
-        probe.seekg(0, std::ios::end);
-        if (probe.tellg() <= 0)
-            return Status(StatusCode::InvalidData, path + ": displacement map file is empty");
     }
-    bool tiled = false, deep = false, multipart = false;
-    if (!Imf::isOpenExrFile(path.c_str(), tiled, deep, multipart))
-        return Status(StatusCode::InvalidData, path + ": not an OpenEXR file");
-    if (deep)
-        return Status(StatusCode::InvalidData, path + ": deep OpenEXR images are not displacement maps");
+    bool read(char c[], int n) override
+    {
+        if (n < 0 || uint64_t(n) > size_ - pos_)
+            throw std::runtime_error("the file ends early");
+        std::memcpy(c, data_ + pos_, size_t(n));
+        pos_ += uint64_t(n);
+        return pos_ < size_;
+    }
+    uint64_t tellg() override { return pos_; }
+    void seekg(uint64_t pos) override
+    {
+        if (pos > size_)
+            throw std::runtime_error("a seek goes past the end of the file");
+        pos_ = pos;
+    }
+
+private:
+    const char* data_;
+    uint64_t size_;
+    uint64_t pos_ = 0;
+};
+
+}  // namespace
+
+namespace {
+
+// The data window from the first header, read by hand: OpenEXR sizes its
+// chunk tables from it while opening the file, and allocates each
+// attribute at its declared size, so a hostile window or attribute size
+// must be refused before Imf::InputFile sees the bytes.  False when an
+// attribute runs past the end of the file or there is no dataWindow.
+bool peekDataWindow(const unsigned char* data, size_t size, long* w, long* h)
+{
+    size_t pos = 8;  // magic + version
+    auto readName = [&](std::string* name) {
+        size_t end = pos;
+        while (end < size && data[end] != 0 && end - pos < 256)
+            ++end;
+        if (end >= size || data[end] != 0)
+            return false;
+        name->assign(reinterpret_cast<const char*>(data + pos), end - pos);
+        pos = end + 1;
+        return true;
+    };
+    auto readInt = [&](size_t at) {
+        uint32_t v = uint32_t(data[at]) | uint32_t(data[at + 1]) << 8 | uint32_t(data[at + 2]) << 16 |
+                     uint32_t(data[at + 3]) << 24;
+        return int32_t(v);
+    };
+    bool found = false;
+    for (;;) {
+        std::string name, type;
+        if (!readName(&name))
+            return false;
+        if (name.empty())
+            return found;  // every attribute fits in the file
+        if (!readName(&type) || pos + 4 > size)
+            return false;
+        const int32_t attrSize = readInt(pos);
+        pos += 4;
+        if (attrSize < 0 || size_t(attrSize) > size - pos)
+            return false;
+        if (name == "dataWindow") {
+            if (type != "box2i" || attrSize != 16)
+                return false;
+            const long x0 = readInt(pos), y0 = readInt(pos + 4), x1 = readInt(pos + 8), y1 = readInt(pos + 12);
+            *w = x1 - x0 + 1;
+            *h = y1 - y0 + 1;
+            found = true;
+        }
+        pos += size_t(attrSize);
+    }
+}
+
+}  // namespace
+
+Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::string& what, DisplacementMap* out,
+                             int expectWidth, int expectHeight, size_t maxTexels)
+{
+    const std::string name = printable(what);
+    if (size == 0)
+        return Status(StatusCode::InvalidData, name + ": displacement map file is empty");
     try {
-        Imf::InputFile file(path.c_str());
-        const Imath::Box2i dw = file.header().dataWindow();
-        const long w = long(dw.max.x) - long(dw.min.x) + 1, h = long(dw.max.y) - long(dw.min.y) + 1;
+        bool tiled = false, deep = false, multipart = false;
+        {
+            MemoryStream probe(data, size, "exr");
+            if (!Imf::isOpenExrFile(probe, tiled, deep, multipart))
+                return Status(StatusCode::InvalidData, name + ": not an OpenEXR file");
+        }
+        if (deep)
+            return Status(StatusCode::InvalidData, name + ": deep OpenEXR images are not displacement maps");
+        if (multipart)
+            return Status(StatusCode::InvalidData, name + ": multi-part OpenEXR files are not displacement maps");
+        long w = 0, h = 0;
+        if (!peekDataWindow(data, size, &w, &h))
+            return Status(StatusCode::InvalidData, name + ": not a readable OpenEXR file (no valid dataWindow)");
         if (w <= 0 || h <= 0 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize)
-            return Status(StatusCode::InvalidData, path + ": image size " + std::to_string(w) + "x" + std::to_string(h) +
+            return Status(StatusCode::InvalidData, name + ": image size " + std::to_string(w) + "x" + std::to_string(h) +
                                                        " is outside 1.." + std::to_string(kMaxDisplacementMapSize));
         if ((expectWidth > 0 && w != expectWidth) || (expectHeight > 0 && h != expectHeight))
-            return Status(StatusCode::InvalidData, path + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+            return Status(StatusCode::InvalidData, name + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
                                                        " but the rig declares " + std::to_string(expectWidth) + "x" +
                                                        std::to_string(expectHeight));
+        // No OpenEXR compression packs half texels much past deflate's
+        // 1032:1, so a header that declares more than its bytes can hold is
+        // refused before the texels are allocated.
+        if (double(w) * double(h) * 2.0 > double(size) * 1100.0 + 65536.0)
+            return Status(StatusCode::InvalidData, name + ": declares " + std::to_string(w) + "x" + std::to_string(h) +
+                                                       " texels but holds only " + std::to_string(size) + " bytes");
+        if (maxTexels > 0 && double(w) * double(h) > double(maxTexels))
+            return Status(StatusCode::InvalidData, name + ": " + std::to_string(w) + "x" + std::to_string(h) +
+                                                       " texels exceed the budget of " + std::to_string(maxTexels));
+        MemoryStream stream(data, size, "exr");
+        Imf::InputFile file(stream, 0);  // decode on the calling thread
+        const Imath::Box2i dw = file.header().dataWindow();
+        if (long(dw.max.x) - long(dw.min.x) + 1 != w || long(dw.max.y) - long(dw.min.y) + 1 != h)
+            return Status(StatusCode::InvalidData, name + ": not a readable OpenEXR file (inconsistent dataWindow)");
         const Imf::ChannelList& channels = file.header().channels();
         if (!channels.findChannel(kDisplacementChannel)) {
             std::string names;
             for (auto it = channels.begin(); it != channels.end(); ++it)
                 names += (names.empty() ? "" : ", ") + std::string(it.name());
-            return Status(StatusCode::InvalidData, path + ": no \"" + kDisplacementChannel +
-                                                       "\" channel (the file has: " + (names.empty() ? "none" : names) +
-                                                       ")");
+            return Status(StatusCode::InvalidData, name + ": no \"" + kDisplacementChannel +
+                                                       "\" channel (the file has: " +
+                                                       (names.empty() ? "none" : printable(names)) + ")");
         }
         const Imf::Channel* ch = channels.findChannel(kDisplacementChannel);
         if (ch->xSampling != 1 || ch->ySampling != 1)
-            return Status(StatusCode::InvalidData, path + ": the Y channel is subsampled");
+            return Status(StatusCode::InvalidData, name + ": the Y channel is subsampled");
         DisplacementMap map;
         map.width = int(w);
         map.height = int(h);
@@ -72,13 +176,24 @@ Status readDisplacementExr(const std::string& path, DisplacementMap* out, int ex
         file.readPixels(dw.min.y, dw.max.y);
         for (size_t i = 0; i < map.texels.size(); ++i)
             if (!std::isfinite(map.texels[i]))
-                return Status(StatusCode::InvalidData, path + ": texel (" + std::to_string(i % size_t(w)) + ", " +
+                return Status(StatusCode::InvalidData, name + ": texel (" + std::to_string(i % size_t(w)) + ", " +
                                                            std::to_string(i / size_t(w)) + ") is not finite");
         *out = std::move(map);
         return Status::ok();
     } catch (const std::exception& e) {
-        return Status(StatusCode::InvalidData, path + ": " + e.what());
+        // OpenEXR's messages are its own wording about its own structures;
+        // keep them, on one printable line, after the file's name.
+        return Status(StatusCode::InvalidData, name + ": not a readable OpenEXR file (" + printable(e.what()) + ")");
     }
+}
+
+Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth, int expectHeight)
+{
+    std::vector<unsigned char> bytes;
+    Status st = readFile(path, &bytes, size_t(1) << 31);
+    if (!st)
+        return st;
+    return decodeDisplacementExr(bytes.data(), bytes.size(), path, out, expectWidth, expectHeight);
 }
 
 Status writeDisplacementExr(const std::string& path, const DisplacementMap& map, ExrPixelType type)

@@ -1,5 +1,7 @@
 #include "strata/io/file.h"
 
+#include "text.h"
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -122,6 +124,19 @@ bool isRegularFile(const std::string& path)
 {
     struct stat st;
     return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+// One line, printable: control bytes become '?', long text is cut.
+std::string printable(std::string text, size_t maxLength)
+{
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
+        text.pop_back();
+    for (char& c : text)
+        if ((unsigned char)c < 0x20 || c == 0x7f)
+            c = c == '\n' ? ' ' : '?';
+    if (text.size() > maxLength)
+        text = text.substr(0, maxLength) + "...";
+    return text;
 }
 
 }  // namespace io

@@ -15,20 +15,6 @@
 namespace strata {
 namespace io {
 
-// One line, printable: control bytes become '?', long text is cut.
-std::string printable(std::string text, size_t maxLength)
-{
-    while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
-        text.pop_back();
-    for (char& c : text)
-        if ((unsigned char)c < 0x20 || c == 0x7f)
-            c = c == '\n' ? ' ' : '?';
-    if (text.size() > maxLength)
-        text = text.substr(0, maxLength) + "...";
-    return text;
-}
-
-
 namespace {
 
 // ---- Confined file access for external buffers and images ----

@@ -4,6 +4,7 @@
 
 #include "strata/rig.h"
 #include "strata/status.h"
+#include "text.h"
 
 #include <tiny_gltf.h>
 
@@ -33,8 +34,6 @@ Status loadGltfDocument(const std::string& path, SourceDocument* doc);
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
                          const std::string& path, SourceDocument* doc);
 
-/// One line, printable: control bytes become '?', text past maxLength is cut.
-std::string printable(std::string text, size_t maxLength = 200);
 
 /// Removes image `index`, renumbering texture sources (and imageBytes).
 void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* imageBytes, int index);

@@ -202,17 +202,24 @@ Status decodePngGray(const unsigned char* data, size_t size, const std::string& 
         return Status(StatusCode::InvalidData, what + ": expected a greyscale image, found " + std::to_string(comp) +
                                                    " channels");
     const bool sixteen = stbi_is_16_bit_from_memory(data, int(size)) != 0;
-    samples->resize(size_t(w) * size_t(h));
+    // Deflate expands at most 1032:1, so a header that declares more pixels
+    // than its bytes can hold is refused before anything is allocated.
+    const double declared = double(w) * double(h) * (sixteen ? 2.0 : 1.0);
+    if (declared > double(size) * 1032.0 + 4096.0)
+        return Status(StatusCode::InvalidData, what + ": declares " + std::to_string(w) + "x" + std::to_string(h) +
+                                                   " pixels but holds only " + std::to_string(size) + " bytes");
     if (sixteen) {
         stbi_us* px = stbi_load_16_from_memory(data, int(size), &w, &h, &comp, 1);
         if (!px)
             return Status(StatusCode::InvalidData, what + ": PNG decoding failed");
+        samples->resize(size_t(w) * size_t(h));
         std::copy(px, px + samples->size(), samples->begin());
         stbi_image_free(px);
     } else {
         stbi_uc* px = stbi_load_from_memory(data, int(size), &w, &h, &comp, 1);
         if (!px)
             return Status(StatusCode::InvalidData, what + ": PNG decoding failed");
+        samples->resize(size_t(w) * size_t(h));
         std::copy(px, px + samples->size(), samples->begin());
         stbi_image_free(px);
     }

@@ -4,6 +4,7 @@
 #include "strata/displacement_map.h"
 #include "strata/status.h"
 
+#include <cstddef>
 #include <string>
 
 namespace strata {
@@ -21,6 +22,13 @@ enum class ExrPixelType { Half, Float };
 /// expectWidth/Height (when positive): the size the caller needs; another
 /// size is an error found from the header, before any pixel is decoded.
 Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth = 0, int expectHeight = 0);
+
+/// readDisplacementExr from bytes in memory; `what` names them in messages.
+/// The size checks run on the header, before any texel is allocated: a
+/// header that declares more texels than its bytes could hold, or more than
+/// maxTexels (when positive: a caller's memory budget), is refused.
+Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::string& what, DisplacementMap* out,
+                             int expectWidth = 0, int expectHeight = 0, size_t maxTexels = 0);
 
 /// Writes map's texels (not decoded: factor/offset live in the rig) as one
 /// "Y" channel, ZIP-compressed, atomically.
