@@ -289,7 +289,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
     for (int n = 0; n <= kMaxLevel; ++n) {
         const double t0 = bench::nowMs();
         std::unique_ptr<Plan> plan;
-        if (!Plan::create(&plan, rig.mesh, Scheme::Linear, n) || !plan->setDisplacement(map))
+        if (!Plan::create(&plan, rig.mesh, Scheme::Linear, n) || !applyRigDisplacement(plan.get(), rig, &map))
             break;
         const double setup = bench::nowMs() - t0;
         std::vector<glm::vec3> pos(plan->refinedVertexCount()), sn(pos.size());

@@ -136,8 +136,20 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     EXPECT_EQ(strata::test::readText(a), strata::test::readText(b));
     strata::Rig loaded;
     ASSERT_TRUE(strata::io::loadRig(dir + "/moved/copy.glb", &loaded).isOk());
-    EXPECT_GE(loaded.displacement.image, 0);
-    EXPECT_EQ(loaded.displacement.encoding, "png16");
+    EXPECT_EQ(loaded.displacement.encoding, "vertex");
+    EXPECT_EQ(loaded.displacement.vertexLevel, loaded.displacement.recommendedLevel);
+    EXPECT_FALSE(loaded.displacement.vertexValues.empty());
+    // --map-coding png embeds the map as an image instead, and reconstructs
+    // the same surface up to the map's own sampling.
+    const std::string pngRig = dir + "/png/rig.glb";
+    r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none --map-coding png -o " +
+            pngRig);
+    ASSERT_EQ(r.code, 0) << r.output;
+    strata::Rig png;
+    ASSERT_TRUE(strata::io::loadRig(pngRig, &png).isOk());
+    EXPECT_GE(png.displacement.image, 0);
+    EXPECT_TRUE(png.displacement.encoding == "png16" || png.displacement.encoding == "png8") << png.displacement.encoding;
+    EXPECT_LT(strata::test::readText(rig).size(), strata::test::readText(pngRig).size());
     // --report - writes the JSON to stdout; --version answers.
     r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 --report - -o " + rig);
     ASSERT_EQ(r.code, 0) << r.output;

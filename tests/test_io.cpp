@@ -6,6 +6,7 @@
 #include "strata/io/file.h"
 #include "strata/io/mesh_io.h"
 #include "strata/io/rig_io.h"
+#include "strata/plan.h"
 #include "test_util.h"
 
 #include <cstring>
@@ -197,6 +198,105 @@ TEST(Rig, RoundTripsThroughGlbAndGltf)
     }
 }
 
+// The "vertex" encoding: the map's samples at the recommended level's
+// refined vertices, quantised, predicted and zstd-coded inside the rig.
+TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
+{
+    const std::string dir = test::tempDir("rig_vertex");
+    Rig rig = exampleRig(128);
+    rig.mesh = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {128, 2}).isOk());
+    rig.displacement.recommendedLevel = 3;
+    DisplacementMap map;
+    map.width = map.height = 128;
+    for (int y = 0; y < 128; ++y)
+        for (int x = 0; x < 128; ++x)
+            map.texels.push_back(0.05f * std::sin(0.3f * float(x)) * std::cos(0.2f * float(y)));
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, rig.mesh, Scheme::Linear, 3).isOk());
+    ASSERT_TRUE(plan->setDisplacement(map).isOk());
+    const double step = 1e-3;
+    io::RigWriteOptions options;
+    options.vertexDisplacements = true;
+    options.maxQuantizationStep = step;
+    for (const char* name : {"/rig.glb", "/rig.gltf"}) {
+        ASSERT_TRUE(io::saveRig(dir + name, rig, &map, nullptr, &options).isOk());
+        Rig back;
+        const Status st = io::loadRig(dir + name, &back);
+        ASSERT_TRUE(st.isOk()) << st.message();
+        EXPECT_EQ(back.displacement.encoding, "vertex");
+        EXPECT_EQ(back.displacement.vertexLevel, 3);
+        ASSERT_EQ(back.displacement.vertexValues.size(), plan->refinedVertexCount());
+        for (size_t v = 0; v < plan->refinedVertexCount(); ++v)
+            ASSERT_NEAR(back.displacement.vertexValues[v], plan->displacements()[v], 0.5 * step + 1e-6) << v;
+        // Texture consumers get a map of the declared size.
+        DisplacementMap raster;
+        ASSERT_TRUE(io::loadRigDisplacementMap(dir + name, back, &raster).isOk());
+        EXPECT_EQ(raster.width, 128);
+        // Written back unchanged, the rig keeps its coded values.
+        ASSERT_TRUE(io::saveRig(dir + "/again.glb", back).isOk());
+        Rig again;
+        ASSERT_TRUE(io::loadRig(dir + "/again.glb", &again).isOk());
+        EXPECT_EQ(again.displacement.vertexValues, back.displacement.vertexValues);
+    }
+    // Fewer bytes than the same map as a PNG at the same step.
+    io::RigWriteOptions png = options;
+    png.vertexDisplacements = false;
+    ASSERT_TRUE(io::saveRig(dir + "/png.glb", rig, &map, nullptr, &png).isOk());
+    EXPECT_LT(test::readText(dir + "/rig.glb").size(), test::readText(dir + "/png.glb").size());
+}
+
+TEST(Rig, CorruptPerVertexDisplacementsAreRefused)
+{
+    const std::string dir = test::tempDir("rig_vertex_bad");
+    Rig rig = exampleRig(64);
+    rig.displacement.recommendedLevel = 2;
+    DisplacementMap map;
+    map.width = map.height = 64;
+    for (int i = 0; i < 64 * 64; ++i)
+        map.texels.push_back(0.01f * float(i % 17));
+    io::RigWriteOptions options;
+    options.vertexDisplacements = true;
+    ASSERT_TRUE(io::saveRig(dir + "/rig.glb", rig, &map, nullptr, &options).isOk());
+    const std::string glb = readText(dir + "/rig.glb");
+    uint32_t jsonLength = 0;
+    std::memcpy(&jsonLength, glb.data() + 12, 4);
+    const std::string json = glb.substr(20, jsonLength);
+    // The coded view: the last bufferView (the block's), found by its offset.
+    const size_t key = json.find("\"displacementVertices\"");
+    ASSERT_NE(key, std::string::npos);
+    const size_t bin = 20 + jsonLength + 8;
+    Rig back;
+    ASSERT_TRUE(io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), true, "ok.glb",
+                                      &back).isOk());
+    const std::vector<unsigned char> coded = back.displacement.embedded;
+    const size_t at = glb.find(std::string(coded.begin(), coded.end()), bin);
+    ASSERT_NE(at, std::string::npos);
+    // Every byte of the coded data flipped in turn, and every frame length
+    // made huge: a clean error or a valid decode, never a crash or a hang.
+    size_t refused = 0;
+    for (size_t i = 0; i < coded.size(); ++i) {
+        std::string bad = glb;
+        bad[at + i] = char(bad[at + i] ^ 0x5a);
+        Rig r;
+        const Status st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(bad.data()), bad.size(), true,
+                                                "bad.glb", &r);
+        if (!st.isOk()) {
+            ++refused;
+            EXPECT_NE(st.message().find("bad.glb"), std::string::npos) << st.message();
+            EXPECT_EQ(st.message().find('\n'), std::string::npos);
+        }
+    }
+    EXPECT_GT(refused, coded.size() / 2);
+    std::string huge = glb;
+    huge[at + 3] = char(0x7f);
+    Rig r;
+    const Status st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(huge.data()), huge.size(), true,
+                                            "huge.glb", &r);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("per-vertex displacements end early"), std::string::npos) << st.message();
+}
+
 TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
 {
     const std::string dir = test::tempDir("rig_map");
@@ -229,14 +329,14 @@ TEST(Rig, RejectsAnotherFormatVersion)
     const std::string dir = test::tempDir("rig_version");
     ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", exampleRig(64)).isOk());
     std::string json = readText(dir + "/rig.gltf");
-    const size_t at = json.find("\"version\": 2");
+    const size_t at = json.find("\"version\": 3");
     ASSERT_NE(at, std::string::npos);
     json.replace(at, 12, "\"version\": 7");
     writeText(dir + "/v7.gltf", json);
     Rig rig;
     const Status st = io::loadRig(dir + "/v7.gltf", &rig);
     EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("version 7, this build reads versions 1 and 2"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("version 7, this build reads versions 1 to 3"), std::string::npos) << st.message();
 }
 
 TEST(Rig, RejectsBrokenGltf)

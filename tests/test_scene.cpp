@@ -119,15 +119,24 @@ void checkKeepsEverything(const std::string& source, const std::string& dir, con
         EXPECT_EQ(a["nodes"][i].value("extras", json()), b["nodes"][i].value("extras", json()));
     for (size_t i = 0; i < a["meshes"].size(); ++i)
         EXPECT_EQ(a["meshes"][i].value("extras", json()), extrasWithoutStrata(b["meshes"][i].value("extras", json())));
-    // Every source image, byte for byte, plus the displacement map.
-    ASSERT_EQ(b["images"].size(), a.value("images", json::array()).size() + 1);
+    // Every source image, byte for byte (the displacements are per vertex,
+    // not an image).
+    ASSERT_EQ(b.value("images", json::array()).size(), a.value("images", json::array()).size());
     for (size_t i = 0; i < a.value("images", json::array()).size(); ++i) {
         EXPECT_EQ(imageBytes(in, i), imageBytes(out, i)) << "image " << i;
         EXPECT_EQ(a["images"][i].value("mimeType", ""), b["images"][i].value("mimeType", ""));
     }
     const json& block = b["meshes"][0]["extras"]["strata"];
-    EXPECT_EQ(block["version"], 2);
-    EXPECT_EQ(block["displacementGeometryTexture"]["image"], b["images"].size() - 1);
+    EXPECT_EQ(block["version"], 3);
+    EXPECT_EQ(block["displacementGeometryTexture"]["encoding"], "vertex");
+    EXPECT_FALSE(block["displacementGeometryTexture"].contains("image"));
+    ASSERT_TRUE(block["displacementVertices"].is_object());
+    EXPECT_EQ(block["displacementVertices"]["level"], block["recommendedLevel"]);
+    EXPECT_LT(block["displacementVertices"]["bufferView"].get<size_t>(), b["bufferViews"].size());
+    Rig loaded;
+    const Status st = io::loadRig(rig, &loaded);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(int(loaded.displacement.vertexValues.size()), block["displacementVertices"]["count"].get<int>());
     int code = 0;
     const std::string report = test::runGltfValidator({rig}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
@@ -743,7 +752,7 @@ TEST(Scene, VersionOneRigsStillLoad)
     ASSERT_TRUE(io::writeDisplacementExr(dir + "/v1.exr", map).isOk());
     ASSERT_TRUE(io::saveRig(dir + "/v2.gltf", rig).isOk());
     std::string text = test::readText(dir + "/v2.gltf");
-    const size_t at = text.find("\"version\": 2");
+    const size_t at = text.find("\"version\": 3");
     ASSERT_NE(at, std::string::npos);
     text.replace(at, 12, "\"version\": 1");
     test::writeText(dir + "/v1.gltf", text);
@@ -787,8 +796,11 @@ TEST(Scene, MeshoptCodedRigsAreSmallerAndLoadTheSame)
     ASSERT_TRUE(st.isOk()) << st.message();
     EXPECT_EQ(a.mesh.positions, b.mesh.positions);  // lossless
     EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
-    EXPECT_EQ(a.mesh.uvs, b.mesh.uvs);
     EXPECT_EQ(a.mesh.uvIndices, b.mesh.uvIndices);
+    ASSERT_EQ(a.mesh.uvs.size(), b.mesh.uvs.size());
+    for (size_t i = 0; i < a.mesh.uvs.size(); ++i)  // compact rigs store UVs in [0, 1] as 16-bit
+        for (int c = 0; c < 2; ++c)
+            ASSERT_NEAR(a.mesh.uvs[i][c], b.mesh.uvs[i][c], 0.5f / 65535.0f + 1e-7f) << i;
     int code = 0;
     const std::string report = test::runGltfValidator({dir + "/coded.glb"}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;

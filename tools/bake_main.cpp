@@ -42,12 +42,14 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
-    "                   [--no-compress] [--max-memory MB]\n"
+    "                   [--map-coding vertex|png] [--no-compress] [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
-    "The rig is one self-contained file: the map is embedded as a PNG with the bits the tolerance\n"
-    "needs, vertex data and indices are meshopt-coded (EXT_meshopt_compression; --no-compress\n"
+    "The rig is one self-contained file: the map is stored as its samples at the recommended\n"
+    "level's refined vertices, quantised to the bits the tolerance needs, predicted in\n"
+    "subdivision order and zstd-coded (--map-coding png embeds it as a grey PNG instead);\n"
+    "vertex data and indices are meshopt-coded (EXT_meshopt_compression; --no-compress\n"
     "for tools without it).  --exr also\n"
     "writes it as RIG.exr for pipelines; --layers writes RIG_layers.png (surface layers per texel).\n";
 
@@ -169,6 +171,7 @@ int main(int argc, char** argv)
         double tolerance = 1e-4;  // RMS over the diagonal: 0.01%
         bool schemeGiven = false;
         bool compress = true;
+        std::string mapCoding = "vertex";
         double maxMemoryMB = 2048.0;
         options.threads = int(std::max(1u, std::thread::hardware_concurrency()));
         for (int i = 1; i < argc; ++i) {
@@ -192,6 +195,10 @@ int main(int argc, char** argv)
                 maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
             } else if (a == "--no-compress") {
                 compress = false;
+            } else if (a == "--map-coding") {
+                mapCoding = value();
+                if (mapCoding != "vertex" && mapCoding != "png")
+                    throw cli::Error("--map-coding expects vertex or png");
             } else if (a == "--exr") {
                 writeExr = true;
             } else if (a == "--layers") {
@@ -562,11 +569,18 @@ int main(int argc, char** argv)
                 return io::writePngRgb(p, map.width, map.height, layerImage(layers));
             });
         std::vector<std::string> notes;
-        // The map keeps the bits the tolerance needs: a step of half the
-        // tolerance adds at most step / sqrt(12) RMS (a seventh of it).
+        // The map keeps the bits the error needs: a step q adds q / sqrt(12)
+        // RMS, in quadrature with the rest, so q = E (the tolerance, or the
+        // error the chosen size and level reach when that is larger) grows
+        // the total by 4%.
+        double achieved = tolerance;
+        for (const Trial& t : trials)
+            if (t.size == map.width && t.level == recommended)
+                achieved = std::max(achieved, t.rms);
         io::RigWriteOptions writeOptions;
-        writeOptions.maxQuantizationStep = tolerance > 0.0 ? 0.5 * tolerance * rep.diagonal : 0.0;
+        writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         writeOptions.compress = compress;
+        writeOptions.vertexDisplacements = mapCoding == "vertex";
         outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
         for (const std::string& n : notes)
             std::fprintf(stderr, "strata-bake: warning: %s: %s\n", outPath.c_str(), n.c_str());
@@ -584,12 +598,17 @@ int main(int argc, char** argv)
             Rig written;
             DisplacementMap writtenMap;
             const std::string staged = Outputs::staged(outPath);
-            if (!(st = io::loadRig(staged, &written)) || !(st = io::loadRigDisplacementMap(staged, written, &writtenMap)))
+            DisplacementField field;
+            if (!(st = io::loadRig(staged, &written)) || !(st = io::loadRigDisplacementMap(staged, written, &writtenMap)) ||
+                (written.displacement.vertexLevel >= 0 &&
+                 !(st = DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
+                                                  written.displacement.vertexValues))))
                 throw cli::Error(outPath + ": the rig just written does not load back: " + st.message());
             t0 = std::chrono::steady_clock::now();
             Progress p("measuring the closed-loop error");
             if (!(st = baker::closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
-                                              options.threads)))
+                                              options.threads, size_t(1) << 20,
+                                              written.displacement.vertexLevel >= 0 ? &field : nullptr)))
                 throw cli::Error(st.message());
             errorMs = msSince(t0);
         }

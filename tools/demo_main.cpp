@@ -104,11 +104,16 @@ int main(int argc, char** argv)
         const double bakeMs = msSince(t0);
         rig.hasDisplacement = true;
         rig.displacement.scheme = Scheme::Linear;
-        rig.displacement.recommendedLevel = 4;
-        // One self-contained rig (the map embedded as a 16-bit PNG), and the
+        rig.displacement.recommendedLevel = std::min(maxLevel, 5);  // the per-vertex samples are stored at this level
+        // One self-contained, compact rig (the map stored as 16-bit samples
+        // at the refined vertices of that level, the mesh meshopt-coded), and the
         // same map as EXR beside it for pipelines.
         const std::string rigPath = outDir + "/head.glb";
-        if (!(st = io::writeDisplacementExr(outDir + "/head.exr", map)) || !(st = io::saveRig(rigPath, rig, &map)))
+        io::RigWriteOptions writeOptions;
+        writeOptions.compress = true;
+        writeOptions.vertexDisplacements = true;
+        if (!(st = io::writeDisplacementExr(outDir + "/head.exr", map)) ||
+            !(st = io::saveRig(rigPath, rig, &map, nullptr, &writeOptions)))
             throw cli::Error(st.message());
         std::printf("built-in example: a %zu-triangle head-like capture baked onto a %zu-triangle icosahedron control "
                     "mesh, %dx%d map in %.0f ms (%zu border triangles, %zu vertices outside every normal volume)\n",

@@ -221,7 +221,7 @@ void Scene::computeErrors()
     // Distance of the bind-pose reconstruction to the high-res mesh, on the
     // CPU with the plan the GPU surface was built from (the map is sampled
     // into it only here: without a high-res mesh the CPU never needs it).
-    if (haveMap_ && !plan_->setDisplacement(map_))
+    if (haveMap_ && !applyRigDisplacement(plan_.get(), *rig_, &map_))
         return;
     std::vector<glm::vec3> positions(plan_->refinedVertexCount());
     if (!plan_->evaluate(positions.data(), nullptr, 0, positions.size(), rig_->mesh.positions.data(),

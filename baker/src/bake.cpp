@@ -314,7 +314,7 @@ double boxDistance(const glm::vec3& p, const glm::vec3& lo, const glm::vec3& hi)
 
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
                        Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
-                       size_t chunkTriangles)
+                       size_t chunkTriangles, const DisplacementField* field)
 {
     TriangleIndex highIndex;
     highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
@@ -401,8 +401,17 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
             }
             std::unique_ptr<Plan> plan;
             Status st = Plan::create(&plan, sub, scheme, level);
-            if (st)
+            if (st && field) {
+                // The field is indexed by the whole mesh's faces.
+                std::vector<float> d(plan->refinedVertexCount(), 0.0f);
+                const std::vector<SampleLocation>& at = plan->sampleLocations();
+                for (size_t v = 0; v < d.size(); ++v)
+                    if (at[v].face != kNoControlFace)
+                        d[v] = field->evaluate(whole ? at[v].face : faces[at[v].face], at[v].bary.x, at[v].bary.y);
+                st = plan->setDisplacements(d.data(), d.size());
+            } else if (st) {
                 st = plan->setDisplacement(map);
+            }
             if (!st)
                 return st;
             std::vector<glm::vec3> rec(plan->refinedVertexCount());

@@ -290,6 +290,31 @@ void forEachAccessorReference(tinygltf::Model& model,
         }
 }
 
+int strataVertexView(const tinygltf::Value& extras)
+{
+    if (!extras.IsObject() || !extras.Has("strata"))
+        return -1;
+    const tinygltf::Value& block = extras.Get("strata");
+    if (!block.IsObject() || !block.Has("displacementVertices"))
+        return -1;
+    const tinygltf::Value& vertices = block.Get("displacementVertices");
+    if (!vertices.IsObject() || !vertices.Has("bufferView") || !vertices.Get("bufferView").IsNumber())
+        return -1;
+    const double v = vertices.Get("bufferView").GetNumberAsDouble();
+    return v >= 0 && v < 2147483647.0 ? int(v) : -1;
+}
+
+void setStrataVertexView(tinygltf::Value* extras, int view)
+{
+    tinygltf::Value::Object top = extras->Get<tinygltf::Value::Object>();
+    tinygltf::Value::Object block = top["strata"].Get<tinygltf::Value::Object>();
+    tinygltf::Value::Object vertices = block["displacementVertices"].Get<tinygltf::Value::Object>();
+    vertices["bufferView"] = tinygltf::Value(view);
+    block["displacementVertices"] = tinygltf::Value(vertices);
+    top["strata"] = tinygltf::Value(block);
+    *extras = tinygltf::Value(top);
+}
+
 Status packBuffers(tinygltf::Model& model)
 {
     const size_t na = model.accessors.size();
@@ -327,6 +352,8 @@ Status packBuffers(tinygltf::Model& model)
     }
     for (const tinygltf::Image& im : model.images)
         useView(im.bufferView);
+    for (tinygltf::Mesh& m : model.meshes)
+        useView(strataVertexView(m.extras));
     std::vector<unsigned char> merged;
     std::vector<tinygltf::BufferView> views;
     for (size_t v = 0; v < nv; ++v) {
@@ -361,6 +388,11 @@ Status packBuffers(tinygltf::Model& model)
     for (tinygltf::Image& im : model.images)
         if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
             im.bufferView = viewMap[size_t(im.bufferView)];
+    for (tinygltf::Mesh& m : model.meshes) {
+        const int v = strataVertexView(m.extras);
+        if (v >= 0 && size_t(v) < nv)
+            setStrataVertexView(&m.extras, viewMap[size_t(v)]);
+    }
     model.bufferViews = std::move(views);
     model.buffers.clear();
     if (!merged.empty()) {

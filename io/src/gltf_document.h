@@ -35,6 +35,11 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
                          const std::string& path, SourceDocument* doc);
 
 
+/// The bufferView a mesh's strata block stores per-vertex displacements in
+/// (-1: none), and its renumbering when buffers are packed.
+int strataVertexView(const tinygltf::Value& extras);
+void setStrataVertexView(tinygltf::Value* extras, int view);
+
 /// Removes image `index`, renumbering texture sources (and imageBytes).
 void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* imageBytes, int index);
 

@@ -356,7 +356,19 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
         view = appendBufferView(model, nrm.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
         prim.attributes["NORMAL"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
     }
-    if (hasUV) {
+    bool unitUVs = hasUV && m.compactUVs;
+    for (size_t i = 0; unitUVs && i < fileUV.size(); ++i)
+        unitUVs = fileUV[i].x >= 0.0f && fileUV[i].x <= 1.0f && fileUV[i].y >= 0.0f && fileUV[i].y <= 1.0f;
+    if (unitUVs) {
+        std::vector<uint16_t> q(2 * nv);
+        for (size_t i = 0; i < nv; ++i)
+            for (int c = 0; c < 2; ++c)
+                q[2 * i + size_t(c)] = uint16_t(std::lround(double(fileUV[i][c]) * 65535.0));
+        view = appendBufferView(model, q.data(), q.size() * sizeof(uint16_t), TINYGLTF_TARGET_ARRAY_BUFFER);
+        prim.attributes["TEXCOORD_0"] =
+            appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC2, nv);
+        model.accessors.back().normalized = true;
+    } else if (hasUV) {
         view = appendBufferView(model, fileUV.data(), nv * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
         prim.attributes["TEXCOORD_0"] =
             appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, nv);

@@ -40,7 +40,7 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     Status st = Plan::create(&rec.plan, rig.mesh, scheme, level);
     if (!st)
         return st;
-    if (map && !(st = rec.plan->setDisplacement(*map, scale)))
+    if (map && !(st = applyRigDisplacement(rec.plan.get(), rig, map, scale)))
         return st;
     const ControlMesh& cm = rig.mesh;
     if (pose && !rig.skeleton.empty()) {

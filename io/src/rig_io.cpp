@@ -13,6 +13,7 @@
 #include "strata/io/gltf_accessor.h"
 #include "strata/io/png.h"
 #include "gltf_document.h"
+#include "vertex_codec.h"
 #include "gltf_mesh_writer.h"
 #include "weld.h"
 #include "strata/displacement_math.h"
@@ -28,6 +29,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <sstream>
 #include <unordered_map>
 
 namespace strata {
@@ -68,9 +70,9 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     Status st = numberField(block, "version", path, &version);
     if (!st)
         return st;
-    if (version != 1 && version != 2)
+    if (version != 1 && version != 2 && version != 3)
         return Status(StatusCode::Unsupported, path + ": rig format version " + std::to_string(int(version)) +
-                                                   ", this build reads versions 1 and " +
+                                                   ", this build reads versions 1 to " +
                                                    std::to_string(kRigFormatVersion));
     const tinygltf::Value* tex = member(block, "displacementGeometryTexture");
     if (!tex || !tex->IsObject())
@@ -87,6 +89,20 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
                                                        ", which the file does not have (the map is missing)");
         info->image = int(image->GetNumberAsDouble());
         info->uri.clear();
+    } else if (const tinygltf::Value* vertices = version >= 3 ? member(block, "displacementVertices") : nullptr) {
+        double view = -1, vlevel = -1;
+        if (!vertices->IsObject() || !(st = numberField(*vertices, "bufferView", path, &view)) ||
+            !(st = numberField(*vertices, "level", path, &vlevel)))
+            return st ? Status(StatusCode::InvalidData, path + ": displacementVertices is not an object") : st;
+        if (view < 0 || view >= double(model.bufferViews.size()) || view != std::floor(view))
+            return Status(StatusCode::InvalidData, path + ": displacementVertices names a bufferView the file does not "
+                                                       "have (the displacements are missing)");
+        if (vlevel < 0 || vlevel > kMaxLevel || vlevel != std::floor(vlevel))
+            return Status(StatusCode::InvalidData, path + ": displacementVertices level " + std::to_string(vlevel) +
+                                                       " is outside 0.." + std::to_string(kMaxLevel));
+        info->vertexView = int(view);
+        info->vertexLevel = int(vlevel);
+        info->uri.clear();
     } else if (!(st = stringField(*tex, "uri", path, &info->uri))) {
         return st;
     }
@@ -99,7 +115,11 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
         !(st = stringField(block, "direction", path, &direction)) ||
         !(st = stringField(block, "normalWeighting", path, &weighting)))
         return st;
-    if (info->image < 0) {
+    if (info->vertexLevel >= 0) {
+        if (info->encoding != "vertex")
+            return Status(StatusCode::InvalidData, path + ": displacementVertices with encoding \"" +
+                                                       printable(info->encoding, 40) + "\" (expected \"vertex\")");
+    } else if (info->image < 0) {
         if (info->uri.empty() || info->uri.find("..") != std::string::npos || info->uri[0] == '/' ||
             info->uri.find(':') != std::string::npos || info->uri.find('\\') != std::string::npos)
             return Status(StatusCode::InvalidData, path + ": displacement map URI \"" + printable(info->uri, 80) +
@@ -726,7 +746,22 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
             return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but " + scene.firstMissingUV +
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
                                                        " (stripped by another tool?)");
-        if (rig.displacement.image >= 0) {
+        if (rig.displacement.vertexView >= 0) {
+            DisplacementInfo& info = rig.displacement;
+            const tinygltf::BufferView& view = model.bufferViews[size_t(info.vertexView)];
+            if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size() ||
+                view.byteOffset > model.buffers[size_t(view.buffer)].data.size() ||
+                view.byteLength > model.buffers[size_t(view.buffer)].data.size() - view.byteOffset)
+                return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
+            const unsigned char* b = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
+            info.embedded.assign(b, b + view.byteLength);
+            SubdivisionParents hierarchy;
+            if (!(st = buildSubdivisionParents(&hierarchy, rig.mesh, info.vertexLevel)))
+                return Status(st.code(), path + ": " + st.message());
+            if (!(st = decodeVertexDisplacements(hierarchy, info.embedded.data(), info.embedded.size(), info.factor,
+                                                 info.offset, path, &info.vertexValues)))
+                return st;
+        } else if (rig.displacement.image >= 0) {
             const tinygltf::Image& img = model.images[size_t(rig.displacement.image)];
             if (img.bufferView < 0 || size_t(img.bufferView) >= model.bufferViews.size())
                 return Status(StatusCode::InvalidData, path + ": the displacement image " +
@@ -765,6 +800,19 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
     const DisplacementInfo& info = rig.displacement;
     DisplacementMap map;
     std::string mapName;
+    if (info.vertexLevel >= 0) {
+        // Texture consumers get the map the per-vertex values stand for.
+        std::unique_ptr<Plan> plan;  // UVs and topology only: the linear plan is the cheaper one
+        Status st = Plan::create(&plan, rig.mesh, Scheme::Linear, info.vertexLevel);
+        if (!st)
+            return Status(st.code(), rigPath + ": " + st.message());
+        map.width = info.width;
+        map.height = info.height;
+        if (!(st = rasterizeVertexDisplacements(&map, *plan, info.vertexValues)))
+            return Status(st.code(), rigPath + ": " + st.message());
+        *out = std::move(map);
+        return Status::ok();
+    }
     if (info.image >= 0) {
         mapName = rigPath + " (embedded displacement image)";
         if (info.embedded.empty())
@@ -832,7 +880,7 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     tinygltf::Value::Object tex;
     if (d.image >= 0)
         tex["image"] = tinygltf::Value(d.image);
-    else
+    else if (d.vertexLevel < 0)
         tex["uri"] = tinygltf::Value(d.uri);
     tex["encoding"] = tinygltf::Value(d.encoding);
     tex["width"] = tinygltf::Value(d.width);
@@ -852,6 +900,14 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     block["direction"] = tinygltf::Value(std::string("interpolated-control-normal"));
     block["normalWeighting"] = tinygltf::Value(std::string("angle"));
     block["subdivision"] = tinygltf::Value(subdivision);
+    if (d.vertexLevel >= 0) {
+        tinygltf::Value::Object vertices;
+        vertices["bufferView"] = tinygltf::Value(d.vertexView);
+        vertices["level"] = tinygltf::Value(d.vertexLevel);
+        vertices["count"] = tinygltf::Value(int(d.vertexValues.size()));
+        vertices["coding"] = tinygltf::Value(std::string("subdivision-midpoint-zstd"));
+        block["displacementVertices"] = tinygltf::Value(vertices);
+    }
     if (!d.quantized.uri.empty()) {
         tinygltf::Value::Object q;
         q["uri"] = tinygltf::Value(d.quantized.uri);
@@ -1044,6 +1100,62 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
     return Status::ok();
 }
 
+// Embeds the map as its samples at the refined vertices of the recommended
+// level (encoding "vertex").  The decoder numbers vertices as the loader
+// rebuilds the control mesh from the file, which may differ from rig.mesh
+// (welding, re-indexing), so the file is loaded back in memory first and
+// the map sampled on that topology, with rig.mesh's UVs (faces keep their
+// order through a write and a load; checked).
+Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
+                                const std::string& path, DisplacementInfo* info)
+{
+    tinygltf::Model probe = model;
+    Status st = prepareForWriting(path, probe);
+    if (!st)
+        return st;
+    tinygltf::TinyGLTF writer;
+    std::ostringstream stream;
+    if (!writer.WriteGltfSceneToStream(&probe, stream, false, true))
+        return Status(StatusCode::IoError, "glTF serialisation failed");
+    const std::string glb = stream.str();
+    Rig loaded;
+    if (!(st = loadRigFromMemory(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), true, path, &loaded)))
+        return st;
+    ControlMesh mesh = loaded.mesh;
+    bool sameFaces = mesh.faceCount() == rig.mesh.faceCount();
+    for (size_t c = 0; sameFaces && c < mesh.triangles.size(); ++c)
+        sameFaces = mesh.positions[mesh.triangles[c]] == rig.mesh.positions[rig.mesh.triangles[c]];
+    if (!sameFaces)
+        return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map as "
+                                               "an image instead");
+    mesh.uvs = rig.mesh.uvs;
+    mesh.uvIndices = rig.mesh.uvIndices;
+    const int level = info->recommendedLevel;
+    std::unique_ptr<Plan> plan;
+    if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
+        return st;
+    SubdivisionParents hierarchy;
+    if (!(st = buildSubdivisionParents(&hierarchy, mesh, level)))
+        return st;
+    std::string bytes;
+    float factor = 1.0f, offset = 0.0f;
+    if (!(st = encodeVertexDisplacements(hierarchy, plan->displacements(), maxStep, &bytes, &factor, &offset)))
+        return st;
+    const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
+    model.bufferViews[size_t(view)].target = 0;
+    info->vertexView = view;
+    info->vertexLevel = level;
+    info->vertexValues = plan->displacements();
+    info->image = -1;
+    info->uri.clear();
+    info->encoding = "vertex";
+    info->width = map.width;
+    info->height = map.height;
+    info->factor = factor;
+    info->offset = offset;
+    return Status::ok();
+}
+
 }  // namespace
 
 Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes,
@@ -1105,12 +1217,11 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
                 blockMeshes.push_back(part.mesh);
         rootSkinnedMeshNodes(model, notes);
     } else {
-        std::vector<glm::vec3> normals(cm.positions.size());
-        computeControlNormals(normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
-                              cm.faceCount());
+        // No normals: the runtime computes its own (angle-weighted, eq. 6
+        // of the paper), and glTF viewers shade a cage flat without them.
         MeshView view;
         view.positions = cm.positions.data();
-        view.normals = normals.data();
+        view.compactUVs = options && options->compress;
         view.vertexCount = cm.positions.size();
         view.triangles = cm.triangles.data();
         view.faceCount = cm.faceCount();
@@ -1126,9 +1237,21 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
     if (rig.hasDisplacement) {
         if (!cm.hasUVs())
             return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
-        if (map && !(st = embedMap(model, *map, options ? options->maxQuantizationStep : 0.0, &cm, &info)))
+        const double step = options ? options->maxQuantizationStep : 0.0;
+        if (map && options && options->vertexDisplacements) {
+            if (!(st = embedVertexDisplacements(model, rig, *map, step, path, &info)))
+                return Status(st.code(), path + ": " + st.message());
+        } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());
-        if (info.image < 0 && info.uri.empty())
+        }
+        if (!map && info.vertexLevel >= 0) {
+            // A loaded rig written back unchanged keeps its coded displacements.
+            if (info.embedded.empty())
+                return Status(StatusCode::InvalidArgument, path + ": the rig's per-vertex displacements have no data");
+            info.vertexView = appendBufferView(model, info.embedded.data(), info.embedded.size(), -1);
+            model.bufferViews[size_t(info.vertexView)].target = 0;
+        }
+        if (info.image < 0 && info.uri.empty() && info.vertexLevel < 0)
             return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");
         const tinygltf::Value block = strataBlock(info);
         for (int m : blockMeshes)

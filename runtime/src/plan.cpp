@@ -9,7 +9,9 @@
 #include "strata/plan.h"
 
 #include "strata/displacement_math.h"
+#include "strata/vertex_displacements.h"
 
+#include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/stencilTable.h>
 #include <opensubdiv/far/stencilTableFactory.h>
 #include <opensubdiv/far/topologyDescriptor.h>
@@ -194,6 +196,177 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
     }
     *out = std::move(r);
     return Status::ok();
+}
+
+namespace {
+
+// A primvar that records the two heaviest parent vertices a child is made
+// from.  In the sharp refiner a vertex child weighs itself most (1, 3/4 on
+// a crease, 1 - n beta in a face) and an edge child its edge's two ends
+// most (1/2 each on a crease, 3/8 each inside a face), so those are the
+// topological parents whatever rule OpenSubdiv applies.
+struct ParentRecord {
+    uint32_t self = 0;
+    uint32_t parent[2] = {0, 0};
+    float weight[2] = {0.0f, 0.0f};
+    void Clear(void* = nullptr)
+    {
+        weight[0] = weight[1] = 0.0f;
+    }
+    void AddWithWeight(const ParentRecord& src, float w)
+    {
+        if (w > weight[0]) {
+            parent[1] = parent[0];
+            weight[1] = weight[0];
+            parent[0] = src.self;
+            weight[0] = w;
+        } else if (w > weight[1]) {
+            parent[1] = src.self;
+            weight[1] = w;
+        }
+    }
+};
+
+}  // namespace
+
+Status buildSubdivisionParents(SubdivisionParents* out, const ControlMesh& mesh, int level)
+{
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "buildSubdivisionParents: null argument");
+    if (level < 0 || level > kMaxLevel)
+        return Status(StatusCode::InvalidArgument,
+                      "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel));
+    ControlMesh topo;
+    topo.positions = mesh.positions;
+    topo.triangles = mesh.triangles;
+    Status st = validateControlMesh(topo);
+    if (!st)
+        return st;
+    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(topo, level);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    SubdivisionParents h;
+    h.levelCounts.push_back(uint32_t(refiner->GetLevel(0).GetNumVertices()));
+    Far::PrimvarRefiner primvars(*refiner);
+    std::vector<ParentRecord> src(h.levelCounts[0]), dst;
+    for (size_t i = 0; i < src.size(); ++i)
+        src[i].self = uint32_t(i);
+    for (int l = 1; l <= level; ++l) {
+        const size_t parentCount = src.size(), childCount = size_t(refiner->GetLevel(l).GetNumVertices());
+        dst.assign(childCount, ParentRecord());
+        ParentRecord* from = src.data();
+        ParentRecord* to = dst.data();
+        primvars.Interpolate(l, from, to);
+        for (size_t c = 0; c < childCount; ++c) {
+            const ParentRecord& r = dst[c];
+            const bool ok = c < parentCount ? r.parent[0] == c && r.weight[0] > r.weight[1]
+                                            : r.weight[1] > 0.0f && r.parent[0] < parentCount &&
+                                                  r.parent[1] < parentCount && r.parent[0] != r.parent[1];
+            if (!ok)
+                return Status(StatusCode::InvalidData, "OpenSubdiv numbered level " + std::to_string(l) +
+                                                           " in an unexpected order (vertex " + std::to_string(c) + ")");
+            if (c >= parentCount) {
+                h.parents.push_back(r.parent[0]);
+                h.parents.push_back(r.parent[1]);
+            }
+        }
+        h.levelCounts.push_back(uint32_t(childCount));
+        src.swap(dst);
+        for (size_t i = 0; i < src.size(); ++i)
+            src[i].self = uint32_t(i);
+    }
+    *out = std::move(h);
+    return Status::ok();
+}
+
+Status DisplacementField::create(DisplacementField* out, const ControlMesh& mesh, int level,
+                                 const std::vector<float>& values)
+{
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "DisplacementField::create: null argument");
+    const size_t nf = mesh.faceCount();
+    std::vector<uint32_t> cornerIds(3 * nf);
+    for (size_t c = 0; c < cornerIds.size(); ++c)
+        cornerIds[c] = uint32_t(c);
+    // Face-varying refinement of distinct corner ids: each refined corner's
+    // weights are its barycentrics in its control face.
+    FaceVaryingRefinement fv;
+    Status st = refineFaceVarying(&fv, mesh, cornerIds.data(), cornerIds.size(), level);
+    if (!st)
+        return st;
+    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(mesh, level);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    const Far::TopologyLevel& last = refiner->GetLevel(level);
+    if (size_t(last.GetNumVertices()) != values.size())
+        return Status(StatusCode::InvalidArgument, std::to_string(values.size()) + " displacements for " +
+                                                       std::to_string(last.GetNumVertices()) + " vertices at level " +
+                                                       std::to_string(level));
+    DisplacementField field;
+    field.level_ = level;
+    field.side_ = 1u << level;
+    field.perFace_ = size_t(field.side_ + 1) * size_t(field.side_ + 2) / 2;
+    field.grid_.assign(field.perFace_ * nf, 0.0f);
+    const float n = float(field.side_);
+    for (int rf = 0; rf < last.GetNumFaces(); ++rf) {
+        Far::ConstIndexArray fverts = last.GetFaceVertices(rf);
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t value = fv.corners[3 * size_t(rf) + size_t(k)];
+            float b[3] = {0.0f, 0.0f, 0.0f};
+            uint32_t face = 0;
+            for (uint32_t e = fv.offsets[value]; e < fv.offsets[value + 1]; ++e) {
+                face = fv.sources[e] / 3;
+                b[fv.sources[e] % 3] += fv.weights[e];
+            }
+            const uint32_t i = uint32_t(std::lround(b[1] * n)), j = uint32_t(std::lround(b[2] * n));
+            if (i + j > field.side_ || face >= nf)
+                return Status(StatusCode::InvalidData, "unexpected face-varying weights at level " +
+                                                           std::to_string(level));
+            const size_t row = size_t(j) * (field.side_ + 1) - size_t(j) * (j - 1) / 2;
+            field.grid_[face * field.perFace_ + row + i] = values[size_t(fverts[k])];
+        }
+    }
+    *out = std::move(field);
+    return Status::ok();
+}
+
+float DisplacementField::evaluate(uint32_t face, float b1, float b2) const
+{
+    const float* g = grid_.data() + size_t(face) * perFace_;
+    const uint32_t n = side_;
+    auto at = [&](uint32_t i, uint32_t j) { return g[size_t(j) * (n + 1) - size_t(j) * (j - 1) / 2 + i]; };
+    const float u = std::clamp(b1, 0.0f, 1.0f) * float(n), v = std::clamp(b2, 0.0f, 1.0f) * float(n);
+    uint32_t i = std::min(uint32_t(u), n), j = std::min(uint32_t(v), n);
+    if (i + j >= n) {  // on the far edge (a grid point, up to rounding)
+        j = std::min(j, n);
+        return at(n - j, j);
+    }
+    const float fu = u - float(i), fv = v - float(j);
+    if (fu + fv <= 1.0f)
+        return at(i, j) * (1.0f - fu - fv) + at(i + 1, j) * fu + at(i, j + 1) * fv;
+    return at(i + 1, j) * (1.0f - fv) + at(i, j + 1) * (1.0f - fu) + at(i + 1, j + 1) * (fu + fv - 1.0f);
+}
+
+void predictSubdivisionResiduals(const SubdivisionParents& h, const int32_t* q, int32_t* residuals)
+{
+    const size_t base = h.levelCounts.front(), n = h.levelCounts.back();
+    for (size_t v = 0; v < base; ++v)
+        residuals[v] = int32_t(int64_t(q[v]) - (v > 0 ? int64_t(q[v - 1]) : 0));
+    for (size_t v = base; v < n; ++v) {
+        const int64_t a = q[h.parents[2 * (v - base)]], b = q[h.parents[2 * (v - base) + 1]];
+        residuals[v] = int32_t(int64_t(q[v]) - ((a + b) >> 1));
+    }
+}
+
+void reconstructSubdivisionValues(const SubdivisionParents& h, const int32_t* residuals, int32_t* q)
+{
+    const size_t base = h.levelCounts.front(), n = h.levelCounts.back();
+    for (size_t v = 0; v < base; ++v)
+        q[v] = int32_t(int64_t(residuals[v]) + (v > 0 ? int64_t(q[v - 1]) : 0));
+    for (size_t v = base; v < n; ++v) {
+        const int64_t a = q[h.parents[2 * (v - base)]], b = q[h.parents[2 * (v - base) + 1]];
+        q[v] = int32_t(int64_t(residuals[v]) + ((a + b) >> 1));
+    }
 }
 
 Plan::~Plan() = default;
@@ -455,6 +628,32 @@ Status Plan::setDisplacement(const DisplacementMap& map, float scale)
         return st;
     for (size_t v = 0; v < sampleUVs_.size(); ++v)
         displacements_[v] = samples_[v].face == kNoControlFace ? 0.0f : scale * sampleDisplacement(map, sampleUVs_[v]);
+    return Status::ok();
+}
+
+Status Plan::setDisplacement(const DisplacementField& field, float scale)
+{
+    if (!std::isfinite(scale))
+        return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
+    for (size_t v = 0; v < samples_.size(); ++v)
+        displacements_[v] = samples_[v].face == kNoControlFace
+                                ? 0.0f
+                                : scale * field.evaluate(samples_[v].face, samples_[v].bary.x, samples_[v].bary.y);
+    return Status::ok();
+}
+
+Status Plan::setDisplacements(const float* values, size_t count, float scale)
+{
+    if (count != displacements_.size())
+        return Status(StatusCode::InvalidArgument, std::to_string(count) + " displacements given for " +
+                                                       std::to_string(displacements_.size()) + " refined vertices");
+    if (!std::isfinite(scale))
+        return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
+    for (size_t v = 0; v < count; ++v) {
+        if (!std::isfinite(values[v]))
+            return Status(StatusCode::InvalidArgument, "displacement " + std::to_string(v) + " is not finite");
+        displacements_[v] = samples_[v].face == kNoControlFace ? 0.0f : scale * values[v];
+    }
     return Status::ok();
 }
 

@@ -25,6 +25,8 @@
 
 namespace strata {
 
+class DisplacementField;
+
 /// How the refined surface is placed before displacement.
 enum class Scheme {
     /// The paper's 1-to-4 midpoint split: refined vertices lie on the flat
@@ -112,6 +114,14 @@ public:
     /// barycentric samples never change under animation, paper 2.4), scaled by
     /// `scale`.  Needs a control mesh with UVs.
     Status setDisplacement(const DisplacementMap& map, float scale = 1.0f);
+    /// Sets the displacements from per-vertex values stored at some level
+    /// (a rig's "vertex" encoding): exact at that level and below.  field
+    /// must have been made from the same control topology.
+    Status setDisplacement(const DisplacementField& field, float scale = 1.0f);
+    /// Sets the displacements directly, one per refined vertex (a rig that
+    /// stores them per vertex: vertex_displacements.h), scaled by `scale`.
+    /// Vertices no control face uses stay at zero.
+    Status setDisplacements(const float* values, size_t count, float scale = 1.0f);
     /// Sets every displacement to zero (the bare refined surface).
     void clearDisplacement();
     /// refinedVertexCount() distances, in model units.

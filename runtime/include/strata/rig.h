@@ -16,8 +16,8 @@
 
 namespace strata {
 
-/// Version of the rig's "strata" extras block this build writes (it reads 1 and 2).
-constexpr int kRigFormatVersion = 2;
+/// Version of the rig's "strata" extras block this build writes (it reads 1, 2 and 3).
+constexpr int kRigFormatVersion = 3;
 
 /// The glTF document a rig was loaded from, kept whole so that writing the
 /// rig back loses nothing (materials, textures, names, extras, primitives
@@ -28,15 +28,22 @@ struct SourceDocument;
 struct DisplacementInfo {
     std::string uri;            ///< EXR beside the rig, relative URI (empty: the map is embedded)
     int image = -1;             ///< glTF image holding the embedded map (format version 2), or -1
-    std::vector<unsigned char> embedded;  ///< the embedded image's encoded bytes, filled by the loader
+    std::vector<unsigned char> embedded;  ///< the embedded image's (or vertex data's) encoded bytes, filled by the loader
     int texCoord = 0;           ///< TEXCOORD_n set the map is sampled through
-    std::string encoding;       ///< "exr" (half or float texels), "png8" or "png16"
+    std::string encoding;       ///< "exr" (half or float texels), "png8", "png16" or "vertex"
     int width = 0;              ///< map size the image must have
     int height = 0;
     float factor = 1.0f;        ///< displacementGeometryFactor: d = texel * factor + offset
     float offset = 0.0f;        ///< displacementGeometryOffset
     Scheme scheme = Scheme::Linear;
     int recommendedLevel = 3;
+    /// Encoding "vertex" (format version 3): the map's samples at the refined
+    /// vertices of `vertexLevel`, decoded by the loader (d, in model units;
+    /// vertex_displacements.h).  width/height then give the size of the map
+    /// rasterised from them for texture consumers.
+    int vertexLevel = -1;
+    int vertexView = -1;  ///< the glTF bufferView holding them coded (loader), or -1
+    std::vector<float> vertexValues;
     /// Optional second copy of the map as an 8- or 16-bit PNG quantised with
     /// paper eq. 12: q = round((2^bits - 1) (d - dmin) / (dmax - dmin)).
     struct Quantized {
@@ -70,5 +77,18 @@ struct Rig {
     Skeleton skeleton;                ///< empty when the mesh is not skinned
     std::vector<std::string> warnings;  ///< tolerated problems found while loading
 };
+
+/// Sets plan's displacements from the rig: from its per-vertex values when
+/// it stores them (exact at levels up to vertexLevel, interpolated past it),
+/// else by sampling `map` (which must then be given).  plan must have been
+/// built from rig.mesh.
+Status applyRigDisplacement(Plan* plan, const Rig& rig, const DisplacementMap* map, float scale = 1.0f);
+
+/// The map a vertex-coded rig stands for, for consumers that sample a
+/// texture (the GLSL path): the values at vertexLevel interpolated linearly
+/// over the refined triangles in UV space, texel centres inside a triangle
+/// exact, two texels of gutter around every chart.  map->width/height must
+/// be set; plan is the rig's plan at vertexLevel.
+Status rasterizeVertexDisplacements(DisplacementMap* map, const Plan& plan, const std::vector<float>& values);
 
 }  // namespace strata

@@ -6,6 +6,7 @@
 #include "strata/control_mesh.h"
 #include "strata/displacement_map.h"
 #include "strata/plan.h"
+#include "strata/vertex_displacements.h"
 #include "strata/status.h"
 
 #include <string>
@@ -95,9 +96,11 @@ struct LevelError {
 /// centroids; the backward distance keeps, per high-res sample, the nearest
 /// chunk.  The smooth scheme refines each chunk with two rings of support
 /// faces, so its limit surface is the whole mesh's.
+/// With `field`, the displacements come from it (a rig that stores them per
+/// vertex) instead of from sampling `map`.
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
                        Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
-                       size_t chunkTriangles = size_t(1) << 20);
+                       size_t chunkTriangles = size_t(1) << 20, const DisplacementField* field = nullptr);
 
 }  // namespace baker
 }  // namespace strata

@@ -60,6 +60,9 @@ struct MeshView {
     const glm::vec2* uvs = nullptr;        ///< face-varying values (glTF convention), or nullptr
     size_t uvCount = 0;
     const uint32_t* uvIndices = nullptr;   ///< 3 * faceCount, with uvs
+    /// glTF only: UVs that all lie in [0, 1] are written as normalised
+    /// 16-bit integers (core glTF 2.0), half the bytes of floats.
+    bool compactUVs = false;
 };
 
 /// Writes the mesh by extension: .obj (v/vt/vn), .ply (binary, per-vertex

@@ -64,6 +64,12 @@ struct RigWriteOptions {
     /// EXT_meshopt_compression (three.js, Babylon.js, gltfpack and Strata
     /// read it; the glTF-Validator accepts it).  strata-bake turns it on.
     bool compress = false;
+    /// Store the map as its samples at the refined vertices of
+    /// rig.displacement.recommendedLevel, predicted in subdivision order and
+    /// zstd-coded (encoding "vertex", format version 3), instead of as an
+    /// image: a fraction of the bytes, exact at levels up to that one,
+    /// interpolated past it.  strata-bake turns it on.
+    bool vertexDisplacements = false;
 };
 
 /// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain

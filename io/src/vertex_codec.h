@@ -1,0 +1,27 @@
+// Strata io (private): per-refined-vertex displacements, entropy-coded
+// (docs/FORMAT.md, encoding "vertex").
+#pragma once
+
+#include "strata/status.h"
+#include "strata/vertex_displacements.h"
+
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+
+/// Quantises `values` (one per vertex of h's last level) to multiples of
+/// `step` above their minimum, predicts them in subdivision order and codes
+/// the residuals with zstd.  factor/offset receive the dequantisation
+/// d = q * factor + offset.
+Status encodeVertexDisplacements(const SubdivisionParents& h, const std::vector<float>& values, double step,
+                                 std::string* bytes, float* factor, float* offset);
+
+/// The inverse; every length is checked against h before anything is
+/// allocated past the input's size.  `what` names the data in messages.
+Status decodeVertexDisplacements(const SubdivisionParents& h, const unsigned char* data, size_t size, float factor,
+                                 float offset, const std::string& what, std::vector<float>* values);
+
+}  // namespace io
+}  // namespace strata
