@@ -163,12 +163,27 @@ TEST(Exr, RefusesHostileHeadersFromBytes)
     // A caller's texel budget.
     st = io::decodeDisplacementExr(good.data(), good.size(), "small.exr", &map, 0, 0, 16);
     EXPECT_NE(st.message().find("exceed the budget of 16"), std::string::npos) << st.message();
-    // An attribute whose declared size runs past the end of the file.
+    // An attribute of a type OpenEXR does not know, whose declared size runs
+    // past the end of the file (OpenEXR would allocate it).
+    const std::string orderKey = std::string("lineOrder") + '\0' + "lineOrder" + '\0';
+    const size_t order = text.find(orderKey);
+    ASSERT_NE(order, std::string::npos);
     std::vector<unsigned char> longAttr = good;
+    longAttr[order + 10 + 8] = 'X';  // type "lineOrdeX"
     const int32_t twoGiB = 0x7fffffff;
-    std::memcpy(&longAttr[at + key.size()], &twoGiB, 4);
+    std::memcpy(&longAttr[order + orderKey.size()], &twoGiB, 4);
     st = io::decodeDisplacementExr(longAttr.data(), longAttr.size(), "attr.exr", &map);
     EXPECT_NE(st.message().find("attr.exr: not a readable OpenEXR file"), std::string::npos) << st.message();
+    // Fuzzer finds: a channel list whose declared size differs from its
+    // content put OpenEXR's header walk out of step with ours and it then
+    // allocated a 1.6 GB attribute; both are refused from the header now.
+    for (const char* name : {"exr_opaque_attribute_1600mb.exr", "exr_slow_header.exr"}) {
+        const std::string found = readText(std::string(STRATA_SOURCE_DIR) + "/tests/data/hostile/" + name);
+        ASSERT_FALSE(found.empty()) << name;
+        st = io::decodeDisplacementExr(reinterpret_cast<const unsigned char*>(found.data()), found.size(), name, &map);
+        EXPECT_FALSE(st.isOk()) << name;
+        EXPECT_EQ(st.message().rfind(name, 0), 0u) << st.message();
+    }
     // Every prefix of a good file fails cleanly (no throw, no crash).
     for (size_t n = 0; n < good.size(); n += 7)
         EXPECT_FALSE(io::decodeDisplacementExr(good.data(), n, "cut.exr", &map).isOk()) << n;

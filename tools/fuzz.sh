@@ -30,7 +30,7 @@ for t in "${targets[@]}"; do
   mkdir -p "$corpus"
   cp -n fuzz/corpus/"${t#fuzz_}"/* "$corpus"/ 2>/dev/null || true
   echo "=== $t for ${seconds} s"
-  "$build/fuzz/$t" "$corpus" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=262144 \
+  "$build/fuzz/$t" "$corpus" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=512 -max_len=262144 \
     -artifact_prefix="$build/artifacts/$t-" -print_final_stats=1 2>&1 | grep -E "^#[0-9]+.*DONE|stat::number_of_executed_units|ERROR|SUMMARY" || true
   if ls "$build/artifacts/$t-"* >/dev/null 2>&1; then
     echo "strata: $t found a failing input: $(ls "$build/artifacts/$t-"* | head -1)" >&2

@@ -19,6 +19,7 @@
 #include <vector>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 namespace strata {
 namespace io {
@@ -59,11 +60,14 @@ private:
 
 namespace {
 
-// The data window from the first header, read by hand: OpenEXR sizes its
-// chunk tables from it while opening the file, and allocates each
-// attribute at its declared size, so a hostile window or attribute size
-// must be refused before Imf::InputFile sees the bytes.  False when an
-// attribute runs past the end of the file or there is no dataWindow.
+// The first header, walked the way Imf::Header::readFrom walks it, before
+// Imf::InputFile sees the bytes: OpenEXR sizes its chunk tables from the
+// data window and allocates attribute values at sizes it reads from the
+// file (an unknown type at its declared size, a preview at width x height),
+// so hostile values must be refused first.  Types OpenEXR reads at a fixed
+// size, or (chlist) by content, advance by what it reads, whatever size the
+// file declares, so both walks stay in step.  False when anything would read
+// past the end of the file or there is no dataWindow.
 bool peekDataWindow(const unsigned char* data, size_t size, long* w, long* h)
 {
     size_t pos = 8;  // magic + version
@@ -82,28 +86,62 @@ bool peekDataWindow(const unsigned char* data, size_t size, long* w, long* h)
                      uint32_t(data[at + 3]) << 24;
         return int32_t(v);
     };
+    static const std::pair<const char*, size_t> kFixed[] = {
+        {"box2i", 16}, {"box2f", 16}, {"compression", 1}, {"lineOrder", 1}, {"envmap", 1}, {"deepImageState", 1},
+        {"int", 4}, {"float", 4}, {"double", 8}, {"v2i", 8}, {"v2f", 8}, {"v2d", 16}, {"v3i", 12}, {"v3f", 12},
+        {"v3d", 24}, {"m33f", 36}, {"m33d", 72}, {"m44f", 64}, {"m44d", 128}, {"chromaticities", 32}, {"keycode", 28},
+        {"timecode", 8}, {"rational", 8}, {"tiledesc", 9}};
     bool found = false;
     for (;;) {
         std::string name, type;
         if (!readName(&name))
             return false;
         if (name.empty())
-            return found;  // every attribute fits in the file
-        if (!readName(&type) || pos + 4 > size)
+            return found;
+        if (!readName(&type) || size - pos < 4)
             return false;
         const int32_t attrSize = readInt(pos);
         pos += 4;
-        if (attrSize < 0 || size_t(attrSize) > size - pos)
+        if (attrSize < 0)
+            return false;
+        size_t advance = size_t(attrSize);
+        for (const auto& [fixedType, bytes] : kFixed)
+            if (type == fixedType)
+                advance = bytes;
+        if (type == "chlist") {
+            // name, then type, pLinear, 3 reserved bytes, xSampling, ySampling
+            const size_t start = pos;
+            for (;;) {
+                std::string channel;
+                if (!readName(&channel))
+                    return false;
+                if (channel.empty())
+                    break;
+                if (size - pos < 16)
+                    return false;
+                pos += 16;
+            }
+            advance = pos - start;
+            pos = start;
+        } else if (type == "preview") {
+            if (size - pos < 8)
+                return false;
+            const uint64_t pixels = uint64_t(uint32_t(readInt(pos))) * uint64_t(uint32_t(readInt(pos + 4)));
+            if (pixels > (size - pos - 8) / 4)
+                return false;
+            advance = 8 + size_t(pixels) * 4;
+        }
+        if (advance > size - pos)
             return false;
         if (name == "dataWindow") {
-            if (type != "box2i" || attrSize != 16)
+            if (type != "box2i")
                 return false;
             const long x0 = readInt(pos), y0 = readInt(pos + 4), x1 = readInt(pos + 8), y1 = readInt(pos + 12);
             *w = x1 - x0 + 1;
             *h = y1 - y0 + 1;
             found = true;
         }
-        pos += size_t(attrSize);
+        pos += advance;
     }
 }
 

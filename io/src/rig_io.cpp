@@ -755,6 +755,16 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                 return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
             const unsigned char* b = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
             info.embedded.assign(b, b + view.byteLength);
+            // Refining costs per refined triangle, and zstd packs a field of
+            // zeros into almost nothing: a level that declares far more
+            // triangles than its bytes could plausibly describe is refused
+            // before any refinement (a hostile file cannot buy gigabytes).
+            const double refined = double(rig.mesh.faceCount()) * std::pow(4.0, info.vertexLevel);
+            if (refined > double(1 << 22) && refined > 1024.0 * double(view.byteLength))
+                return Status(StatusCode::InvalidData, path + ": the per-vertex displacements declare level " +
+                                                           std::to_string(info.vertexLevel) + " (" +
+                                                           std::to_string(size_t(refined)) + " triangles) in only " +
+                                                           std::to_string(view.byteLength) + " bytes");
             SubdivisionParents hierarchy;
             if (!(st = buildSubdivisionParents(&hierarchy, rig.mesh, info.vertexLevel)))
                 return Status(st.code(), path + ": " + st.message());
