@@ -2,6 +2,7 @@
 // bad input giving one line naming the file, exit code 2 and no output.
 #include "procedural.h"
 #include "strata/io/mesh_io.h"
+#include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 #include "strata/segment_deformer.h"
 #include "test_util.h"
@@ -150,6 +151,20 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     EXPECT_GE(png.displacement.image, 0);
     EXPECT_TRUE(png.displacement.encoding == "png16" || png.displacement.encoding == "png8") << png.displacement.encoding;
     EXPECT_LT(strata::test::readText(rig).size(), strata::test::readText(pngRig).size());
+    // Both surfaces agree at the stored level, within the two quantisation
+    // steps (the coded values are the map's samples at those very vertices,
+    // numbered as the loader rebuilds the meshopt-coded mesh).
+    strata::DisplacementMap vertexMap, pngMap;
+    ASSERT_TRUE(strata::io::loadRigDisplacementMap(rig, loaded, &vertexMap).isOk());
+    ASSERT_TRUE(strata::io::loadRigDisplacementMap(pngRig, png, &pngMap).isOk());
+    const int level = loaded.displacement.vertexLevel;
+    strata::io::Reconstruction ra, rb;
+    ASSERT_TRUE(strata::io::reconstruct(&ra, loaded, &vertexMap, strata::Scheme::Linear, level).isOk());
+    ASSERT_TRUE(strata::io::reconstruct(&rb, png, &pngMap, strata::Scheme::Linear, level).isOk());
+    ASSERT_EQ(ra.positions.size(), rb.positions.size());
+    const float bound = loaded.displacement.factor + png.displacement.factor;
+    for (size_t v = 0; v < ra.positions.size(); ++v)
+        ASSERT_LT(glm::length(ra.positions[v] - rb.positions[v]), bound) << v;
     // --report - writes the JSON to stdout; --version answers.
     r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 --report - -o " + rig);
     ASSERT_EQ(r.code, 0) << r.output;

@@ -222,13 +222,34 @@ Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::strin
     return Status::ok();
 }
 
+namespace {
+
+Status plainGlb(const std::string& path, const tinygltf::Model& model, std::string* out)
+{
+    tinygltf::TinyGLTF writer;
+    std::ostringstream stream;
+    if (!writer.WriteGltfSceneToStream(&model, stream, false, true))
+        return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+    *out = stream.str();
+    return Status::ok();
+}
+
+}  // namespace
+
 Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
+{
+    std::string bytes;
+    Status st = encodeCompressedGlb(path, model, &bytes);
+    return st ? writeFileAtomic(path, bytes.data(), bytes.size()) : st;
+}
+
+Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out)
 {
     Status st = prepareForWriting(path, model);
     if (!st)
         return st;
     if (model.buffers.empty())
-        return writeGltfModel(path, model);
+        return plainGlb(path, model, out);
     // Which views to code: vertex attributes with 4-byte-multiple strides and
     // triangle-list indices; each view must serve one kind of accessor only.
     const size_t nv = model.bufferViews.size();
@@ -318,7 +339,7 @@ Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
         view.byteOffset = at;
     }
     if (coded.empty())
-        return writeGltfModel(path, model);
+        return plainGlb(path, model, out);
     model.buffers[0].data = bin;
     for (const char* e : {kExtension})
         if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), e) == model.extensionsUsed.end()) {
@@ -359,8 +380,8 @@ Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
         view["extensions"][kExtension] = ext;
     }
     const std::vector<unsigned char> binBytes(binPtr, binPtr + binSize);
-    const std::string out = assembleGlb(doc.dump(), binBytes);
-    return writeFileAtomic(path, out.data(), out.size());
+    *out = assembleGlb(doc.dump(), binBytes);
+    return Status::ok();
 }
 
 }  // namespace io

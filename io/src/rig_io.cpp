@@ -1113,33 +1113,55 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
 // Embeds the map as its samples at the refined vertices of the recommended
 // level (encoding "vertex").  The decoder numbers vertices as the loader
 // rebuilds the control mesh from the file, which may differ from rig.mesh
-// (welding, re-indexing), so the file is loaded back in memory first and
-// the map sampled on that topology, with rig.mesh's UVs (faces keep their
-// order through a write and a load; checked).
+// (welding, re-indexing, corners rotated by the index codec), so the file
+// is written and loaded back in memory first and the map sampled on that
+// topology, with rig.mesh's UVs (faces keep their order; checked).
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
-                                const std::string& path, DisplacementInfo* info)
+                                bool compressed, const std::string& path, DisplacementInfo* info)
 {
+    // Through the same writer as the final file (the meshopt index codec
+    // rotates triangles, which renumbers refined vertices).
     tinygltf::Model probe = model;
-    Status st = prepareForWriting(path, probe);
+    std::string glb;
+    Status st;
+    if (compressed) {
+        st = encodeCompressedGlb(path, probe, &glb);
+    } else if ((st = prepareForWriting(path, probe))) {
+        tinygltf::TinyGLTF writer;
+        std::ostringstream stream;
+        if (!writer.WriteGltfSceneToStream(&probe, stream, false, true))
+            return Status(StatusCode::IoError, "glTF serialisation failed");
+        glb = stream.str();
+    }
     if (!st)
         return st;
-    tinygltf::TinyGLTF writer;
-    std::ostringstream stream;
-    if (!writer.WriteGltfSceneToStream(&probe, stream, false, true))
-        return Status(StatusCode::IoError, "glTF serialisation failed");
-    const std::string glb = stream.str();
     Rig loaded;
     if (!(st = loadRigFromMemory(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), true, path, &loaded)))
         return st;
+    // Faces keep their order; a codec may rotate each one's corners.  Each
+    // loaded corner takes the UV of the rig corner at the same position.
     ControlMesh mesh = loaded.mesh;
-    bool sameFaces = mesh.faceCount() == rig.mesh.faceCount();
-    for (size_t c = 0; sameFaces && c < mesh.triangles.size(); ++c)
-        sameFaces = mesh.positions[mesh.triangles[c]] == rig.mesh.positions[rig.mesh.triangles[c]];
-    if (!sameFaces)
+    if (mesh.faceCount() != rig.mesh.faceCount())
         return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map as "
                                                "an image instead");
     mesh.uvs = rig.mesh.uvs;
-    mesh.uvIndices = rig.mesh.uvIndices;
+    mesh.uvIndices.resize(mesh.triangles.size());
+    for (size_t f = 0; f < mesh.faceCount(); ++f) {
+        int rotation = -1;
+        for (int r = 0; r < 3 && rotation < 0; ++r) {
+            bool same = true;
+            for (int k = 0; k < 3; ++k)
+                same = same && mesh.positions[mesh.triangles[3 * f + size_t(k)]] ==
+                                   rig.mesh.positions[rig.mesh.triangles[3 * f + size_t((k + r) % 3)]];
+            if (same)
+                rotation = r;
+        }
+        if (rotation < 0)
+            return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map "
+                                                   "as an image instead");
+        for (int k = 0; k < 3; ++k)
+            mesh.uvIndices[3 * f + size_t(k)] = rig.mesh.uvIndices[3 * f + size_t((k + rotation) % 3)];
+    }
     const int level = info->recommendedLevel;
     std::unique_ptr<Plan> plan;
     if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
@@ -1249,7 +1271,8 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
             return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
         const double step = options ? options->maxQuantizationStep : 0.0;
         if (map && options && options->vertexDisplacements) {
-            if (!(st = embedVertexDisplacements(model, rig, *map, step, path, &info)))
+            const bool compressed = extensionOf(path) == ".glb" && options->compress;
+            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, path, &info)))
                 return Status(st.code(), path + ": " + st.message());
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());
