@@ -10,7 +10,10 @@
 //   * a quadric-decimated mesh (OpenMesh) given the Strata rig's byte
 //     budget, plain and Draco-compressed;
 //   * the Strata rig: one glb with the map embedded, default settings;
-// plus bake time by stage and regeneration time at N = 0..6 on one core.
+// plus bake time by stage and regeneration time at N = 0..6 on one core,
+// and the size/error trade-off (Strata at tolerances 0.005%..0.2%, Draco at
+// qp 8..14, decimate-then-Draco at 1..50%, gltfpack) as a table and an SVG
+// plot per pair (DIR/tradeoff_NAME.svg).
 // Writes DIR/RESULTS.md and DIR/results.json.
 #include "bench_common.h"
 #include "procedural.h"
@@ -29,6 +32,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -144,6 +148,87 @@ Status draco(const std::string& dir, const std::string& stem, const std::vector<
     *dp = std::move(decoded.positions);
     *dt = std::move(decoded.triangles);
     return Status::ok();
+}
+
+Status dracoAt(const std::string& dir, const std::string& stem, const std::vector<glm::vec3>& p,
+               const std::vector<uint32_t>& t, int qp, double* bytes, std::vector<glm::vec3>* dp,
+               std::vector<uint32_t>* dt)
+{
+    const std::string ply = dir + "/" + stem + ".ply", drc = dir + "/" + stem + ".drc",
+                      back = dir + "/" + stem + "_decoded.ply";
+    io::MeshView v;
+    v.positions = p.data();
+    v.vertexCount = p.size();
+    v.triangles = t.data();
+    v.faceCount = t.size() / 3;
+    if (Status st = io::writeMesh(ply, v); !st)
+        return st;
+    if (shell("draco_encoder -qp " + std::to_string(qp) + " -i '" + ply + "' -o '" + drc + "'") != 0 ||
+        shell("draco_decoder -i '" + drc + "' -o '" + back + "'") != 0)
+        return Status(StatusCode::IoError, "draco_encoder/decoder failed on " + ply);
+    *bytes = fileBytes(drc);
+    baker::TriangleMesh decoded;
+    if (Status st = baker::loadHighMesh(back, &decoded, nullptr); !st)
+        return st;
+    *dp = std::move(decoded.positions);
+    *dt = std::move(decoded.triangles);
+    return Status::ok();
+}
+
+// One curve of the size/error plot: (RMS over the diagonal, bytes) points.
+struct Curve {
+    std::string name, color;
+    std::vector<std::pair<double, double>> points;  // rms, bytes
+};
+
+// Bytes against RMS error, both on log axes, as a small standalone SVG.
+std::string tradeoffSvg(const std::string& title, const std::vector<Curve>& curves)
+{
+    const double W = 640, H = 420, left = 70, right = 170, top = 40, bottom = 50;
+    double x0 = 1e-5, x1 = 1e-2, y0 = 1e3, y1 = 1e6;  // 0.001%..1%, 1 KB..1 MB
+    auto X = [&](double rms) {
+        return left + (std::log10(std::clamp(rms, x0, x1)) - std::log10(x0)) / (std::log10(x1) - std::log10(x0)) *
+                          (W - left - right);
+    };
+    auto Y = [&](double bytes) {
+        return H - bottom - (std::log10(std::clamp(bytes, y0, y1)) - std::log10(y0)) /
+                                (std::log10(y1) - std::log10(y0)) * (H - top - bottom);
+    };
+    std::ostringstream o;
+    o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << W << "\" height=\"" << H
+      << "\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+    o << "<text x=\"" << left << "\" y=\"22\" font-size=\"14\">" << title << "</text>\n";
+    for (double e = -5; e <= -2; e += 1) {  // x grid: decades of RMS
+        const double x = X(std::pow(10.0, e));
+        o << "<line x1=\"" << x << "\" y1=\"" << top << "\" x2=\"" << x << "\" y2=\"" << H - bottom
+          << "\" stroke=\"#ddd\"/>\n<text x=\"" << x - 18 << "\" y=\"" << H - bottom + 16 << "\">"
+          << std::pow(10.0, e + 2) << "%</text>\n";
+    }
+    for (double e = 3; e <= 6; e += 1) {  // y grid: decades of bytes
+        const double y = Y(std::pow(10.0, e));
+        o << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << W - right << "\" y2=\"" << y
+          << "\" stroke=\"#ddd\"/>\n<text x=\"" << 8 << "\" y=\"" << y + 4 << "\">"
+          << (e == 3 ? "1 KB" : e == 4 ? "10 KB" : e == 5 ? "100 KB" : "1 MB") << "</text>\n";
+    }
+    o << "<text x=\"" << left + 120 << "\" y=\"" << H - 12 << "\">RMS distance to the original / diagonal</text>\n";
+    int row = 0;
+    for (const Curve& c : curves) {
+        if (c.points.empty())
+            continue;
+        std::vector<std::pair<double, double>> pts = c.points;
+        std::sort(pts.begin(), pts.end());
+        o << "<polyline fill=\"none\" stroke=\"" << c.color << "\" stroke-width=\"2\" points=\"";
+        for (const auto& [r, b] : pts)
+            o << X(r) << "," << Y(b) << " ";
+        o << "\"/>\n";
+        for (const auto& [r, b] : pts)
+            o << "<circle cx=\"" << X(r) << "\" cy=\"" << Y(b) << "\" r=\"3\" fill=\"" << c.color << "\"/>\n";
+        const double ly = top + 14 + 18 * row++;
+        o << "<rect x=\"" << W - right + 12 << "\" y=\"" << ly - 8 << "\" width=\"12\" height=\"4\" fill=\"" << c.color
+          << "\"/><text x=\"" << W - right + 30 << "\" y=\"" << ly - 2 << "\">" << c.name << "</text>\n";
+    }
+    o << "</svg>\n";
+    return o.str();
 }
 
 #ifdef STRATA_HAVE_GL
@@ -319,6 +404,86 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         regenMd += line;
     }
 
+    // The size/error trade-off: Strata at several tolerances, Draco of the
+    // original at qp 8..14, decimate-then-Draco at 1..50% of the faces, and
+    // gltfpack (measured, decoded by Strata's own loader).
+    std::vector<Curve> curves = {{"Strata", "#d62728", {}},
+                                 {"Draco qp 8-14", "#1f77b4", {}},
+                                 {"decimate + Draco", "#2ca02c", {}},
+                                 {"gltfpack -cc", "#9467bd", {}}};
+    Json sweep = Json::array();
+    for (double tol : {0.002, 0.001, 0.0005, 0.0002, 0.0001, 0.00005}) {
+        const std::string sweepRig = dir + "/sweep.glb";
+        char tolText[32];
+        std::snprintf(tolText, sizeof(tolText), "%g", tol);
+        if (shell(bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags +
+                  " --threads 2 --tolerance " + tolText + " -o '" + sweepRig + "' --report '" + dir +
+                  "/sweep.json'") != 0)
+            continue;
+        Json sr;
+        std::ifstream(dir + "/sweep.json") >> sr;
+        const int l = sr["recommendedLevel"].get<int>();
+        for (const Json& e : sr["closedLoop"])
+            if (e["level"].get<int>() == l) {
+                const double rms = std::max(e["forwardRms"].get<double>(), e["backwardRms"].get<double>());
+                curves[0].points.push_back({rms, fileBytes(sweepRig)});
+                sweep.push_back({{"curve", "strata"}, {"tolerance", tol}, {"level", l}, {"bytes", fileBytes(sweepRig)},
+                                 {"rms", rms}});
+            }
+    }
+    if (haveDraco) {
+        for (int qp = 8; qp <= 14; ++qp) {
+            double bytes = 0;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (dracoAt(dir, "sweep_draco", high.positions, high.triangles, qp, &bytes, &p, &t)) {
+                const double rms = accuracy(p, t, high, highIndex, diag).rms;
+                curves[1].points.push_back({rms, bytes});
+                sweep.push_back({{"curve", "draco"}, {"qp", qp}, {"bytes", bytes}, {"rms", rms}});
+            }
+        }
+        for (double fraction : {0.01, 0.02, 0.05, 0.1, 0.2, 0.5}) {
+            ControlMesh dec;
+            const size_t faces = std::max<size_t>(8, size_t(fraction * double(high.faceCount())));
+            if (!baker::decimateToControlMesh(high, faces, &dec))
+                continue;
+            double bytes = 0;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (dracoAt(dir, "sweep_decimated", dec.positions, dec.triangles, 11, &bytes, &p, &t)) {
+                const double rms = accuracy(p, t, high, highIndex, diag).rms;
+                curves[2].points.push_back({rms, bytes});
+                sweep.push_back({{"curve", "decimate+draco"}, {"fraction", fraction}, {"bytes", bytes}, {"rms", rms}});
+            }
+        }
+    }
+    if (have("gltfpack")) {
+        for (const char* q : {"-cc", "-cc -vp 10", "-cc -vp 12"}) {
+            if (shell("gltfpack -i '" + dir + "/original.glb' -o '" + dir + "/sweep_gltfpack.glb' " + q) != 0)
+                continue;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (!io::loadGltfTriangles(dir + "/sweep_gltfpack.glb", &p, &t))
+                continue;
+            const double bytes = fileBytes(dir + "/sweep_gltfpack.glb");
+            const double rms = accuracy(p, t, high, highIndex, diag).rms;
+            curves[3].points.push_back({rms, bytes});
+            sweep.push_back({{"curve", "gltfpack"}, {"flags", q}, {"bytes", bytes}, {"rms", rms}});
+        }
+    }
+    std::ofstream(out + "/tradeoff_" + pair.name + ".svg") << tradeoffSvg(pair.name + ": bytes against RMS error", curves);
+    std::string sweepMd = "\nSize against error (plot: `tradeoff_" + pair.name + ".svg`):\n\n| curve | setting | bytes | RMS |\n|---|---|---|---|\n";
+    for (const Json& e : sweep) {
+        std::string setting = e.contains("tolerance")  ? "tolerance " + pct(e["tolerance"].get<double>()) +
+                                                              ", level " + std::to_string(e["level"].get<int>())
+                              : e.contains("qp")       ? "qp " + std::to_string(e["qp"].get<int>())
+                              : e.contains("fraction") ? std::to_string(int(100.0 * e["fraction"].get<double>() + 0.5)) +
+                                                             "% of the faces, qp 11"
+                                                       : e["flags"].get<std::string>();
+        sweepMd += "| " + e["curve"].get<std::string>() + " | " + setting + " | " + kb(e["bytes"].get<double>()) +
+                   " | " + pct(e["rms"].get<double>()) + " |\n";
+    }
+
     // Markdown and JSON.
     const Json& tm = report["timeMs"];
     char head[512];
@@ -345,7 +510,9 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
                   tm["dilate"].get<double>(), tm["write"].get<double>());
     *md += bake;
     *md += regenMd;
+    *md += sweepMd;
     j["rows"] = jr;
+    j["tradeoff"] = sweep;
     j["bakeMs"] = tm;
     j["regeneration"] = regen;
     j["diagonal"] = diag;

@@ -467,10 +467,12 @@ int main(int argc, char** argv)
             }
             if (forced || tolerance <= 0.0)
                 break;
-            // The paper's level and the one below it: a finer level than the
-            // paper's rule rarely pays for its four times the triangles.
+            // The paper's level and the three below it (a loose tolerance is
+            // met with fewer refined vertices, hence fewer stored values); a
+            // finer level than the paper's rule rarely pays for its four
+            // times the triangles.
             std::vector<baker::LevelError> errs;
-            const int lo = std::max(0, paperLevel - 1), hi = paperLevel;
+            const int lo = std::max(0, paperLevel - 3), hi = paperLevel;
             {
                 Progress p("measuring the map size against --tolerance");
                 if (!(st = baker::closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))

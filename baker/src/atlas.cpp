@@ -84,6 +84,149 @@ void frame(const glm::dvec3& n, glm::dvec3* u, glm::dvec3* v)
     *v = glm::cross(n, *u);
 }
 
+// Least-squares conformal map (Levy et al. 2002) of one disk-shaped chart,
+// started from its projection `points` and solved by conjugate gradients on
+// the normal equations with the two farthest-apart vertices pinned where the
+// projection put them.  Returns false (points untouched) when the result
+// folds: the caller keeps the projection, which cannot fold.
+bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
+                      std::vector<glm::dvec2>* points)
+{
+    const size_t n = c.vertices.size(), m = c.faces.size();
+    if (n < 4)
+        return false;
+    // Per face: local vertex ids and the complex weights W_j = a_j + i b_j.
+    struct Row {
+        uint32_t v[3];
+        double a[3], b[3];
+    };
+    std::vector<Row> rows;
+    rows.reserve(m);
+    for (uint32_t f : c.faces) {
+        glm::dvec3 p[3];
+        Row r;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t g = mesh.triangles[3 * size_t(f) + size_t(k)];
+            r.v[k] = uint32_t(local[g]);
+            p[k] = glm::dvec3(mesh.positions[g]);
+        }
+        const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+        const double l1 = glm::length(e1);
+        const glm::dvec3 nrm = glm::cross(e1, e2);
+        const double area2 = glm::length(nrm);
+        if (!(l1 > 0.0) || !(area2 > 0.0))
+            continue;
+        const glm::dvec3 ex = e1 / l1, ey = glm::normalize(glm::cross(nrm, e1));
+        const glm::dvec2 q[3] = {glm::dvec2(0.0), glm::dvec2(l1, 0.0), glm::dvec2(glm::dot(e2, ex), glm::dot(e2, ey))};
+        const double w = 1.0 / std::sqrt(area2);
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec2 d = q[(k + 2) % 3] - q[(k + 1) % 3];
+            r.a[k] = d.x * w;
+            r.b[k] = d.y * w;
+        }
+        rows.push_back(r);
+    }
+    // Pins: the two vertices farthest apart in the projection.
+    size_t p0 = 0, p1 = 0;
+    {
+        double best = -1.0;
+        for (size_t i = 0; i < n; ++i)
+            if (glm::length((*points)[i] - (*points)[0]) > best) {
+                best = glm::length((*points)[i] - (*points)[0]);
+                p0 = i;
+            }
+        best = -1.0;
+        for (size_t i = 0; i < n; ++i)
+            if (glm::length((*points)[i] - (*points)[p0]) > best) {
+                best = glm::length((*points)[i] - (*points)[p0]);
+                p1 = i;
+            }
+    }
+    if (p0 == p1)
+        return false;
+    std::vector<double> x(2 * n);  // u then v
+    for (size_t i = 0; i < n; ++i) {
+        x[i] = (*points)[i].x;
+        x[n + i] = (*points)[i].y;
+    }
+    auto pinned = [&](size_t i) { return i == p0 || i == p1; };
+    // y = A x over all variables; z = A^T y restricted to free ones.
+    std::vector<double> res(2 * rows.size());
+    auto applyA = [&](const std::vector<double>& in, std::vector<double>& out) {
+        for (size_t r = 0; r < rows.size(); ++r) {
+            double re = 0.0, im = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                const double u = in[rows[r].v[k]], v = in[n + rows[r].v[k]];
+                re += rows[r].a[k] * u - rows[r].b[k] * v;
+                im += rows[r].b[k] * u + rows[r].a[k] * v;
+            }
+            out[2 * r] = re;
+            out[2 * r + 1] = im;
+        }
+    };
+    auto applyAt = [&](const std::vector<double>& in, std::vector<double>& out) {
+        std::fill(out.begin(), out.end(), 0.0);
+        for (size_t r = 0; r < rows.size(); ++r)
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t i = rows[r].v[k];
+                out[i] += rows[r].a[k] * in[2 * r] + rows[r].b[k] * in[2 * r + 1];
+                out[n + i] += -rows[r].b[k] * in[2 * r] + rows[r].a[k] * in[2 * r + 1];
+            }
+        for (size_t i : {p0, p1}) {
+            out[i] = 0.0;
+            out[n + i] = 0.0;
+        }
+    };
+    // Conjugate gradients on A^T A x = 0 with the pins fixed: the residual
+    // is -A^T A x, and the search never moves the pins.
+    std::vector<double> r(2 * n), d(2 * n), q(2 * n), t(2 * rows.size());
+    applyA(x, t);
+    applyAt(t, r);
+    for (double& e : r)
+        e = -e;
+    d = r;
+    double rr = 0.0;
+    for (double e : r)
+        rr += e * e;
+    const double stop = rr * 1e-14;
+    for (int iter = 0; iter < 4 * int(n) + 200 && rr > stop && rr > 0.0; ++iter) {
+        applyA(d, t);
+        applyAt(t, q);
+        double dq = 0.0;
+        for (size_t i = 0; i < 2 * n; ++i)
+            dq += d[i] * q[i];
+        if (!(dq > 0.0))
+            break;
+        const double alpha = rr / dq;
+        double rr2 = 0.0;
+        for (size_t i = 0; i < 2 * n; ++i) {
+            x[i] += alpha * d[i];
+            r[i] -= alpha * q[i];
+            rr2 += r[i] * r[i];
+        }
+        const double beta = rr2 / rr;
+        rr = rr2;
+        for (size_t i = 0; i < 2 * n; ++i)
+            d[i] = pinned(i % n) ? 0.0 : r[i] + beta * d[i];
+    }
+    (void)res;
+    // Reject a fold: every face must keep the orientation it has in the
+    // projection (counter-clockwise there).
+    for (uint32_t f : c.faces) {
+        glm::dvec2 u[3];
+        for (int k = 0; k < 3; ++k) {
+            const size_t i = size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+            u[k] = glm::dvec2(x[i], x[n + i]);
+        }
+        const double area = (u[1].x - u[0].x) * (u[2].y - u[0].y) - (u[1].y - u[0].y) * (u[2].x - u[0].x);
+        if (!(area > 0.0) || !std::isfinite(area))
+            return false;
+    }
+    for (size_t i = 0; i < n; ++i)
+        (*points)[i] = glm::dvec2(x[i], x[n + i]);
+    return true;
+}
+
 // A chart's own scale: the common one, raised so that the chart spans at
 // least kMinChartTexels on each side it has (a chart of a texel or two
 // would be sampled from its gutter).
@@ -265,6 +408,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         seeds[f] = f;
     std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
     std::vector<Chart> charts;
+    std::vector<uint32_t> vertexChart(nv, UINT32_MAX);  // the chart a vertex was last added to
     for (uint32_t seed : seeds) {
         if (chartOf[seed] != UINT32_MAX)
             continue;
@@ -272,6 +416,8 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         const uint32_t id = uint32_t(charts.size());
         std::vector<uint32_t> queue = {seed};
         chartOf[seed] = id;
+        for (int k = 0; k < 3; ++k)
+            vertexChart[mesh->triangles[3 * size_t(seed) + size_t(k)]] = id;
         c.normal = faceNormal[seed];
         for (size_t q = 0; q < queue.size(); ++q) {
             const uint32_t f = queue[q];
@@ -280,10 +426,23 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
                 if (g == UINT32_MAX || chartOf[g] != UINT32_MAX || faceArea[g] <= 0.0)
                     continue;
                 // Against the seed's normal, the plane the chart is projected
-                // on: the stretch bound holds for every face.
+                // on when the conformal map folds: no face flips there.
                 if (glm::dot(faceNormal[seed], faceNormal[g]) < cosLimit)
                     continue;
+                // The chart stays a disk (Euler characteristic 1): the face
+                // adds as many vertices as edges less one, so it neither
+                // pinches the border at a vertex nor closes a loop.
+                int newVertices = 0, newEdges = 0;
+                for (int k = 0; k < 3; ++k) {
+                    newVertices += vertexChart[mesh->triangles[3 * size_t(g) + size_t(k)]] != id;
+                    const uint32_t across = neighbour[g][size_t(k)];
+                    newEdges += across == UINT32_MAX || chartOf[across] != id;
+                }
+                if (newVertices - newEdges + 1 != 0)
+                    continue;
                 chartOf[g] = id;
+                for (int k = 0; k < 3; ++k)
+                    vertexChart[mesh->triangles[3 * size_t(g) + size_t(k)]] = id;
                 queue.push_back(g);
             }
         }
@@ -292,6 +451,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     // Project each chart onto its seed's plane: every face is within the
     // angle limit of it, so none flips.
     double maxStretch = 1.0;
+    size_t conformalCharts = 0;
     std::vector<int32_t> local(nv, -1);
     for (Chart& c : charts) {
         glm::dvec3 n = glm::length(c.normal) > 0.0 ? glm::normalize(c.normal) : glm::dvec3(0, 0, 1);
@@ -299,8 +459,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
             const double d = glm::dot(n, faceNormal[f]);
             if (faceArea[f] > 0.0 && !(d > 0.05))
                 return Status(StatusCode::InvalidData, "a chart folds over itself");
-            if (faceArea[f] > 0.0)
-                maxStretch = std::max(maxStretch, 1.0 / d);
         }
         glm::dvec3 u, v;
         frame(n, &u, &v);
@@ -314,6 +472,31 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
                     c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
                 }
             }
+        // Conformal where it does not fold (far less stretch on curved
+        // charts), the projection otherwise.
+        if (flattenConformal(c, *mesh, local, &c.points)) {
+            ++conformalCharts;
+            // Stretch: each face's linear scale against the chart's.
+            double area3 = 0.0, area2 = 0.0;
+            std::vector<double> ratio;
+            for (uint32_t f : c.faces) {
+                glm::dvec2 w[3];
+                for (int k = 0; k < 3; ++k)
+                    w[k] = c.points[size_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]])];
+                const double a2 = 0.5 * std::fabs((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
+                area3 += faceArea[f];
+                area2 += a2;
+                ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : 1.0);
+            }
+            for (double r : ratio) {
+                const double sc = std::sqrt(r / (area3 / area2));
+                maxStretch = std::max(maxStretch, std::max(sc, 1.0 / sc));
+            }
+        } else {
+            for (uint32_t f : c.faces)
+                if (faceArea[f] > 0.0)
+                    maxStretch = std::max(maxStretch, 1.0 / glm::dot(n, faceNormal[f]));
+        }
         // The rotation with the smallest bounding box, in 5-degree steps.
         double bestArea = 1e300, bestAngle = 0.0;
         for (int step = 0; step < 18; ++step) {
@@ -416,6 +599,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         stats->charts = charts.size();
         stats->texelFill = projected;
         stats->maxStretch = maxStretch;
+        stats->conformalCharts = conformalCharts;
     }
     return Status::ok();
 }

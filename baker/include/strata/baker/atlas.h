@@ -25,19 +25,24 @@ Status buildTriangleAtlas(ControlMesh* mesh, const AtlasOptions& options);
 struct ChartAtlasStats {
     size_t charts = 0;
     double texelFill = 0.0;     ///< fraction of the map's area inside charts
-    double maxStretch = 0.0;    ///< largest 1 / cos(angle between a face and its chart's plane)
+    /// Largest linear scale of a face against its chart's (or its inverse):
+    /// 1 / cos(angle to the plane) for a projected chart.
+    double maxStretch = 0.0;
+    size_t conformalCharts = 0;  ///< charts flattened conformally (the rest projected)
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a chart atlas: faces are grown
 /// from the largest remaining face across manifold edges while their normals
-/// stay within `maxAngleDegrees` of the seed's, each chart is projected onto
-/// the seed's plane (so no face flips and the stretch is at most
-/// 1 / cos(maxAngle)), turned to its smallest bounding box, and the charts'
-/// footprints (`options.gutter` texels around them) are packed on a skyline,
-/// two rotations each, at the largest common scale that fits
-/// `options.mapSize` (small charts get at least 6 texels a side).  Vertices are split only on chart
-/// borders.  Fails (and leaves the mesh as it was) if a chart would fold
-/// over itself; callers fall back to buildTriangleAtlas.
+/// stay within `maxAngleDegrees` of the seed's and the chart stays a disk
+/// (Euler characteristic 1); each chart is flattened by a least-squares
+/// conformal map (Levy et al. 2002), or, where that would fold, projected
+/// onto the seed's plane (which cannot fold); turned to its smallest bounding
+/// box, and the charts' footprints (`options.gutter` texels around them) are
+/// packed on a skyline, two rotations each, at the largest common scale that
+/// fits `options.mapSize` (small charts get at least 6 texels a side).
+/// Vertices are split only on chart borders.  Fails (and leaves the mesh as
+/// it was) if a chart would fold over itself; callers fall back to
+/// buildTriangleAtlas.
 Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats = nullptr,
                        double maxAngleDegrees = 60.0);
 
