@@ -1,0 +1,660 @@
+// The whole bake as one call (paper 2.1-2.3, 3.2): load, control mesh,
+// atlas, map size and level from the tolerance, bake, rig, closed loop.
+// strata-bake and the Python module parse their arguments into a
+// BakeRequest and call bakeRig; nothing here prints.
+#include "strata/baker/bake_rig.h"
+
+#include "strata/baker/atlas.h"
+#include "strata/baker/bake.h"
+#include "strata/baker/mesh_input.h"
+#include "strata/displacement_math.h"
+#include "strata/segment_deformer.h"
+#include "strata/io/exr.h"
+#include "strata/io/file.h"
+#include "strata/io/joint_file.h"
+#include "strata/io/png.h"
+#include "strata/io/rig_io.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <new>
+#include <stdexcept>
+#include <thread>
+
+namespace strata {
+namespace baker {
+
+namespace {
+
+// Any user-facing failure inside the bake; bakeRig turns it into a Status.
+struct BakeError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+void appendf(std::string* out, const char* format, ...)
+{
+    char buffer[1024];
+    va_list args;
+    va_start(args, format);
+    const int n = std::vsnprintf(buffer, sizeof(buffer), format, args);
+    va_end(args);
+    if (n > 0)
+        out->append(buffer, size_t(std::min(n, int(sizeof(buffer)) - 1)));
+}
+
+double msSince(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Reports a stage (seconds < 0) only if it runs longer than a second, then
+// its duration when it ends.
+class Progress {
+public:
+    Progress(const BakeProgress* report, const char* stage)
+        : report_(report), stage_(stage), t0_(std::chrono::steady_clock::now())
+    {
+        if (!report_ || !*report_)
+            return;
+        watcher_ = std::thread([this] {
+            std::unique_lock<std::mutex> lock(m_);
+            if (!cv_.wait_for(lock, std::chrono::seconds(1), [this] { return done_; })) {
+                (*report_)(stage_, -1.0);
+                announced_ = true;
+            }
+        });
+    }
+    ~Progress()
+    {
+        {
+            std::lock_guard<std::mutex> lock(m_);
+            done_ = true;
+        }
+        cv_.notify_all();
+        if (watcher_.joinable())
+            watcher_.join();
+        if (announced_)
+            (*report_)(stage_, msSince(t0_) / 1000.0);
+    }
+
+private:
+    const BakeProgress* report_;
+    const char* stage_;
+    std::chrono::steady_clock::time_point t0_;
+    std::mutex m_;
+    std::condition_variable cv_;
+    bool done_ = false;
+    bool announced_ = false;
+    std::thread watcher_;
+};
+
+// Files written by this run, removed again if a later step fails, so a
+// failed bake leaves nothing behind.
+// Every output is first written under a staging name beside its target and
+// renamed into place only when the whole bake has succeeded, so a failed
+// command never removes or truncates what an earlier one wrote.
+struct Outputs {
+    std::vector<std::string> written;  // final names
+    bool committed = false;
+    static std::string staged(const std::string& path)
+    {
+        const std::string dir = io::directoryOf(path);
+        const size_t slash = path.find_last_of('/');
+        const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+        return (dir.empty() ? std::string() : dir + "/") + ".strata-staging-" + name;
+    }
+    // Writes through `write(stagedPath)`; errors name the final path only.
+    template <typename F>
+    void write(const std::string& path, F&& write)
+    {
+        const std::string tmp = staged(path);
+        Status st = write(tmp);
+        if (!st) {
+            std::remove(tmp.c_str());
+            std::string msg = st.message();
+            for (size_t at; (at = msg.find(tmp)) != std::string::npos;)
+                msg.replace(at, tmp.size(), path);
+            throw BakeError(msg);
+        }
+        written.push_back(path);
+    }
+    void commit()
+    {
+        for (const std::string& p : written)
+            if (std::rename(staged(p).c_str(), p.c_str()) != 0)
+                throw BakeError(p + ": cannot replace the file (" + std::strerror(errno) + ")");
+        committed = true;
+    }
+    ~Outputs()
+    {
+        if (!committed)
+            for (const std::string& p : written)
+                std::remove(staged(p).c_str());
+    }
+};
+
+std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
+{
+    // Paper Figure 6f: one layer blue, two green, three or more red.
+    std::vector<uint8_t> rgb(layers.size() * 3, 0);
+    for (size_t i = 0; i < layers.size(); ++i) {
+        const uint16_t l = layers[i];
+        uint8_t* p = &rgb[3 * i];
+        if (l == 1) {
+            p[2] = 160;
+        } else if (l == 2) {
+            p[1] = 200;
+        } else if (l >= 3) {
+            p[0] = 230;
+        }
+    }
+    return rgb;
+}
+
+}  // namespace
+
+Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
+{
+    if (!result)
+        return Status(StatusCode::InvalidArgument, "bakeRig: no result");
+    *result = BakeResult();
+    // The request's fields under the names the pipeline below uses.
+    std::string highPath = request.high, controlPath = request.control, outPath = request.output,
+                reportPath = request.report, uvMode = request.uv, skeletonPath = request.skeleton;
+    size_t controlFaces = request.controlFaces;
+    BakeOptions options = request.options;
+    const bool asFloat = request.floatExr, writeExr = request.exr, writeLayers = request.layers;
+    const int pngBits = request.pngBits;
+    int errorFrom = request.errorFrom, errorTo = request.errorTo;
+    const double tolerance = request.tolerance, maxMemoryMB = request.maxMemoryMB;
+    const bool schemeGiven = request.schemeGiven, compress = request.compress;
+    const std::string mapCoding = request.mapCoding;
+    auto warn = [&](const char* format, auto... args) {
+        std::string w;
+        appendf(&w, format, args...);
+        result->warnings.push_back(w);
+    };
+    try {
+        if (highPath.empty() || controlPath.empty() || outPath.empty())
+            throw BakeError("--high, --control and -o are required (see --help)");
+        if (std::filesystem::is_symlink(outPath))
+            throw BakeError(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
+        for (const std::string& input : {highPath, controlPath})
+            if (input != "auto" && std::filesystem::exists(outPath) && std::filesystem::exists(input) &&
+                std::filesystem::equivalent(outPath, input))
+                throw BakeError(outPath + ": the output would overwrite an input");
+        const std::string ext = io::extensionOf(outPath);
+        if (ext != ".glb" && ext != ".gltf")
+            throw BakeError(outPath + ": the rig must be a .glb or .gltf file");
+        const std::string base = outPath.substr(0, outPath.size() - ext.size());
+        const std::string stem = io::stemOf(outPath);
+
+        nlohmann::json report;
+        auto t0 = std::chrono::steady_clock::now();
+        TriangleMesh high;
+        HighMeshStats highStats;
+        Status st = loadHighMesh(highPath, &high, &highStats);
+        if (!st)
+            throw BakeError(st.message());
+        ControlMesh control;
+        Rig controlRig;     // a glTF control keeps its whole document for the output
+        Skeleton skeleton;  // carried through from a skinned glTF control rig
+        if (controlPath == "auto") {
+            if (controlFaces == 0)
+                controlFaces = std::max<size_t>(200, high.faceCount() / 50);
+            Progress p(progress, "simplifying the high-resolution mesh");
+            if (!(st = decimateToControlMesh(high, controlFaces, &control)))
+                throw BakeError(highPath + ": " + st.message());
+            if (uvMode == "keep")
+                throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
+            uvMode = "auto";
+        } else {
+            if (!(st = loadControlRig(controlPath, &controlRig)))
+                throw BakeError(st.message());
+            for (const std::string& w : controlRig.warnings)
+                warn("%s: %s", controlPath.c_str(), w.c_str());
+            control = controlRig.mesh;
+            skeleton = controlRig.skeleton;
+            if (uvMode.empty()) {
+                // Default: keep the control's UVs when they can carry a map
+                // (no overlaps), else lay out an atlas in a new UV set.
+                uvMode = control.hasUVs() ? "keep" : "auto";
+                if (uvMode == "keep") {
+                    ControlMesh probe = control;
+                    std::string note;
+                    fitUVsToUnitSquare(&probe, &note);
+                    if (!(st = checkUVs(probe, 1024))) {
+                        warn("%s: its UVs cannot carry the map (%s); generating an atlas in a new UV set (--uv keep "
+                             "insists)",
+                             controlPath.c_str(), st.message().c_str());
+                        uvMode = "auto";
+                    }
+                }
+            }
+            if (uvMode == "keep" && !control.hasUVs())
+                throw BakeError(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+        }
+        if (!skeletonPath.empty()) {
+            // The paper's joint file: its point-to-line binding becomes
+            // standard skin weights, so the rig plays in any glTF viewer.
+            if (!skeleton.empty())
+                warn("%s: its skin is replaced by %s", controlPath.c_str(), skeletonPath.c_str());
+            if (!(st = io::loadJointFile(skeletonPath, &skeleton)))
+                throw BakeError(st.message());
+            if (!(st = bindSkeletonWeights(&skeleton, control)))
+                throw BakeError(skeletonPath + ": " + st.message());
+            controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
+        }
+        const double loadMs = msSince(t0);
+
+        // UVs, map size and recommended level.  Unless --size forces a size,
+        // the map starts at the paper's texel ~ high-res edge rule and doubles
+        // until the closed loop reaches --tolerance at a level around the
+        // paper's, or stops improving: the smallest pair that reaches it.
+        std::string sizeReason;
+        const double typicalEdge = medianEdgeLength(high);
+        std::string atlasNote;
+        AtlasOptions atlas;
+        atlas.gutter = 1;
+        ChartAtlasStats chartStats;
+        const ControlMesh bare = control;
+        auto layout = [&](int mapSize) {
+            atlas.mapSize = mapSize;
+            control = bare;
+            Status s = buildChartAtlas(&control, atlas, &chartStats);
+            if (!s) {
+                control = bare;
+                AtlasOptions triangles = atlas;
+                triangles.gutter = 2;
+                s = buildTriangleAtlas(&control, triangles);
+                chartStats = ChartAtlasStats();
+            }
+            return s;
+        };
+        // Memory before work: the baker holds about 32 bytes per texel (map,
+        // layers, owners, dilation) and 200 per high-res triangle (mesh,
+        // mapping, index); the closed loop is chunked.
+        auto checkMemory = [&](int mapSize) {
+            const double needMB = (32.0 * double(mapSize) * double(mapSize) + 200.0 * double(high.faceCount())) /
+                                  (1024.0 * 1024.0);
+            if (needMB > maxMemoryMB)
+                throw BakeError(outPath + ": a " + std::to_string(mapSize) + "^2 map over " +
+                                 std::to_string(high.faceCount()) + " triangles needs about " +
+                                 std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
+                                 " MB budget (raise it with --max-memory MB)");
+        };
+        const bool forced = options.size > 0;
+        int size = options.size;
+        if (uvMode == "auto") {
+            // A chart atlas (charts grown over the control mesh, projected on
+            // their planes, packed); the per-triangle atlas only if a chart
+            // would fold.
+            if (!forced) {
+                if (!(st = layout(512)))  // provisional layout to measure the UV area (scale-free)
+                    throw BakeError(st.message());
+                size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+            }
+        } else {
+            std::string uvNote;
+            if (fitUVsToUnitSquare(&control, &uvNote))
+                warn("%s: %s", controlPath.c_str(), uvNote.c_str());
+            if (!forced)
+                size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+            if (!(st = checkUVs(control, std::max(size, 1024))))
+                throw BakeError(controlPath + ": " + st.message());
+        }
+        if (forced)
+            sizeReason = "forced by --size";
+        int paperLevel = 0;
+        while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
+            ++paperLevel;
+        int recommended = paperLevel;
+        struct Trial {
+            int size, level;
+            double rms;  // the larger of both directions, over the diagonal
+        };
+        std::vector<Trial> trials;
+        DisplacementMap map;
+        std::vector<uint16_t> layers;
+        BakeReport rep;
+        const int sizeCap = forced ? size : std::min(options.maxSize, 4096);
+        // The previous size's result, kept so that stopping when doubling no
+        // longer pays returns the smaller map.
+        struct Snapshot {
+            ControlMesh control;
+            DisplacementMap map;
+            std::vector<uint16_t> layers;
+            BakeReport rep;
+            ChartAtlasStats chartStats;
+            int size = 0, level = 0;
+            double best = 1e300;
+        } previous;
+        std::string schemeReason = schemeGiven ? "--scheme" : "";
+        if (!schemeGiven && !forced && tolerance > 0.0) {
+            // Which surface carries the map better for this pair, measured at
+            // the first size and the paper's level: the paper's linear split
+            // unless the Loop limit is clearly closer (loose cages).
+            if (uvMode == "auto" && !(st = layout(size)))
+                throw BakeError(st.message());
+            // The linear scheme first: when it already meets the tolerance
+            // the smooth one is not tried (its bake costs several times more).
+            double rms[2] = {0.0, -1.0};
+            for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
+                if (candidate == Scheme::Smooth && rms[0] <= tolerance)
+                    break;
+                BakeOptions probe = options;
+                probe.size = uvMode == "auto" ? atlas.mapSize : size;
+                probe.scheme = candidate;
+                DisplacementMap probeMap;
+                BakeReport probeReport;
+                std::vector<LevelError> errs;
+                Progress p(progress, "choosing the subdivision scheme");
+                if (!(st = bake(&probeMap, nullptr, &probeReport, control, high, probe)) ||
+                    !(st = closedLoopError(&errs, control, probeMap, candidate, high, paperLevel, paperLevel,
+                                                  options.threads)))
+                    throw BakeError(highPath + ": " + st.message());
+                rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
+            }
+            options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
+            char buf[160];
+            if (rms[1] < 0.0)
+                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%% RMS at level %d meets the tolerance",
+                              100.0 * rms[0], paperLevel);
+            else
+                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
+                              100.0 * rms[1], paperLevel);
+            schemeReason = buf;
+        }
+        for (;;) {
+            if (uvMode == "auto") {
+                for (; size <= 8192; size *= 2) {
+                    if ((st = layout(size)))
+                        break;
+                    if (forced)
+                        throw BakeError(st.message());
+                    sizeReason += "; raised to fit the charts";
+                }
+                if (!st)
+                    throw BakeError(st.message());
+            }
+            options.size = size;
+            checkMemory(size);
+            {
+                Progress p(progress, "baking");
+                if (!(st = bake(&map, &layers, &rep, control, high, options)))
+                    throw BakeError(highPath + ": " + st.message());
+            }
+            if (forced || tolerance <= 0.0)
+                break;
+            // The paper's level and the three below it (a loose tolerance is
+            // met with fewer refined vertices, hence fewer stored values); a
+            // finer level than the paper's rule rarely pays for its four
+            // times the triangles.
+            std::vector<LevelError> errs;
+            const int lo = std::max(0, paperLevel - 3), hi = paperLevel;
+            {
+                Progress p(progress, "measuring the map size against --tolerance");
+                if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
+                    throw BakeError(st.message());
+            }
+            double best = 1e300;
+            int met = -1, bestLevel = hi;
+            for (const LevelError& e : errs) {
+                const double rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+                trials.push_back({size, e.level, rms});
+                if (rms < best) {
+                    best = rms;
+                    bestLevel = e.level;
+                }
+                if (met < 0 && rms <= tolerance)
+                    met = e.level;
+            }
+            if (met >= 0) {
+                recommended = met;
+                char buf[96];
+                std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * tolerance, met);
+                sizeReason += buf;
+                break;
+            }
+            if (best > 0.9 * previous.best) {
+                // Doubling no longer pays: resolution is not what limits the
+                // error here.  The previous, smaller map, at its best level.
+                control = std::move(previous.control);
+                map = std::move(previous.map);
+                layers = std::move(previous.layers);
+                rep = previous.rep;
+                chartStats = previous.chartStats;
+                size = previous.size;
+                recommended = previous.level;
+                sizeReason += "; doubling the map no longer improved the error";
+                break;
+            }
+            if (size * 2 > sizeCap) {
+                recommended = bestLevel;
+                sizeReason += "; at the size cap without reaching --tolerance";
+                break;
+            }
+            previous.control = control;
+            previous.map = std::move(map);
+            previous.layers = std::move(layers);
+            previous.rep = rep;
+            previous.chartStats = chartStats;
+            previous.size = size;
+            previous.level = bestLevel;
+            previous.best = best;
+            size *= 2;
+        }
+        rep.sizeReason = sizeReason;
+        if (uvMode == "auto") {
+            char buf[160];
+            if (chartStats.charts)
+                std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
+                              chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
+            else
+                std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
+            atlasNote = buf;
+        }
+
+        // Outputs.
+        t0 = std::chrono::steady_clock::now();
+        std::error_code mkdirError;
+        if (!io::directoryOf(outPath).empty())
+            std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
+        if (mkdirError)
+            throw BakeError(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
+        Outputs outputs;
+        Rig rig = std::move(controlRig);
+        rig.mesh = control;
+        rig.skeleton = std::move(skeleton);
+        rig.hasDisplacement = true;
+        rig.displacement = DisplacementInfo();
+        rig.displacement.scheme = options.scheme;
+        rig.displacement.recommendedLevel = recommended;
+        if (writeExr)
+            outputs.write(base + ".exr", [&](const std::string& p) {
+                return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half);
+            });
+        if (pngBits) {
+            std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
+            for (size_t i = 0; i < q.size(); ++i)
+                q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << pngBits)));
+            const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
+            outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
+            rig.displacement.quantized.uri = io::stemOf(png) + ".png";
+            rig.displacement.quantized.bits = pngBits;
+            rig.displacement.quantized.dmin = rep.dmin;
+            rig.displacement.quantized.dmax = rep.dmax;
+        }
+        if (writeLayers)
+            outputs.write(base + "_layers.png", [&](const std::string& p) {
+                return io::writePngRgb(p, map.width, map.height, layerImage(layers));
+            });
+        std::vector<std::string> notes;
+        // The map keeps the bits the error needs: a step q adds q / sqrt(12)
+        // RMS, in quadrature with the rest, so q = E (the tolerance, or the
+        // error the chosen size and level reach when that is larger) grows
+        // the total by 4%.
+        double achieved = tolerance;
+        for (const Trial& t : trials)
+            if (t.size == map.width && t.level == recommended)
+                achieved = std::max(achieved, t.rms);
+        io::RigWriteOptions writeOptions;
+        writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
+        writeOptions.compress = compress;
+        writeOptions.vertexDisplacements = mapCoding == "vertex";
+        outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
+        for (const std::string& n : notes)
+            warn("%s: %s", outPath.c_str(), n.c_str());
+        const double writeMs = msSince(t0);
+
+        // Closed loop: reconstruct from the rig just written, as the runtime
+        // will, at the levels around the recommended one unless asked.
+        if (errorFrom == -2) {
+            errorFrom = std::max(0, recommended - 1);
+            errorTo = std::min(kMaxLevel, recommended + 1);
+        }
+        std::vector<LevelError> errors;
+        double errorMs = 0.0;
+        if (errorTo >= 0) {
+            Rig written;
+            DisplacementMap writtenMap;
+            const std::string staged = Outputs::staged(outPath);
+            DisplacementField field;
+            if (!(st = io::loadRig(staged, &written)) || !(st = io::loadRigDisplacementMap(staged, written, &writtenMap)) ||
+                (written.displacement.vertexLevel >= 0 &&
+                 !(st = DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
+                                                  written.displacement.vertexValues))))
+                throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
+            t0 = std::chrono::steady_clock::now();
+            Progress p(progress, "measuring the closed-loop error");
+            if (!(st = closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
+                                              options.threads, size_t(1) << 20,
+                                              written.displacement.vertexLevel >= 0 ? &field : nullptr)))
+                throw BakeError(st.message());
+            errorMs = msSince(t0);
+        }
+
+                auto fileSize = [](const std::string& p) {
+            std::vector<unsigned char> b;
+            return io::readFile(Outputs::staged(p), &b).isOk() ? double(b.size()) : 0.0;
+        };
+        const double diag = rep.diagonal;
+        appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
+                     schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
+        appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
+                    rep.highTriangles, rep.typicalEdge);
+        if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
+            highStats.nonManifoldEdges)
+            appendf(&result->summary, "  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
+                        "triangles, %zu non-manifold edges\n",
+                        highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
+                        highStats.nonManifoldEdges);
+        appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
+                    control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
+        appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        if (!trials.empty()) {
+            appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
+                         100.0 * tolerance);
+            for (const Trial& t : trials)
+                appendf(&result->summary, "                %5d, %d: %.4f%%%s\n", t.size, t.level, 100.0 * t.rms,
+                             t.size == map.width && t.level == recommended ? "  <- chosen" : "");
+        }
+        appendf(&result->summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
+                    rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
+        appendf(&result->summary, "  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
+                    rep.raster.borderTriangles, rep.raster.pieces, 100.0 * rep.coverage, 100.0 * rep.overlapFraction);
+        appendf(&result->summary, "  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
+                    rep.lineFilledTexels);
+        appendf(&result->summary, "  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
+                    100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
+        appendf(&result->summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
+                    "closed loop %.0f ms\n",
+                    loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
+        appendf(&result->summary, "  outputs      ");
+        for (const std::string& p : outputs.written)
+            appendf(&result->summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
+        appendf(&result->summary, "\n");
+        const double bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
+        if (!errors.empty()) {
+            appendf(&result->summary, "  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
+            appendf(&result->summary, "    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
+            for (const LevelError& e : errors)
+                appendf(&result->summary, "    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
+                            100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
+                            100.0 * e.backwardMax / diag);
+        }
+
+        {
+            report["high"] = {{"path", highPath},
+                              {"vertices", rep.highVertices},
+                              {"triangles", rep.highTriangles},
+                              {"medianEdge", rep.typicalEdge},
+                              {"diagonal", diag},
+                              {"polygonsTriangulated", highStats.polygonsTriangulated},
+                              {"duplicateVertices", highStats.duplicateVertices},
+                              {"degenerateTriangles", highStats.degenerateTriangles},
+                              {"nonManifoldEdges", highStats.nonManifoldEdges}};
+            report["control"] = {{"path", controlPath},
+                                 {"vertices", control.positions.size()},
+                                 {"triangles", control.faceCount()},
+                                 {"uv", uvMode}};
+            report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
+                             {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
+                             {"multiLayerTexels", rep.raster.multiLayerTexels},
+                             {"coveredTexels", rep.raster.coveredTexels},
+                             {"lineFilledTexels", rep.lineFilledTexels}};
+            report["mapping"] = {{"fallbacks", rep.fallbackVertices}, {"searchDistance", rep.searchDistance},
+                                 {"borderTriangles", rep.raster.borderTriangles}, {"pieces", rep.raster.pieces}};
+            nlohmann::json tradeOff = nlohmann::json::array();
+            for (const Trial& t : trials)
+                tradeOff.push_back({{"size", t.size}, {"level", t.level}, {"rms", t.rms}});
+            report["tolerance"] = tolerance;
+            report["tradeOff"] = tradeOff;
+            report["scheme"] = schemeName(options.scheme);
+            report["recommendedLevel"] = recommended;
+            report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
+                                {"dilate", rep.times.dilate}, {"write", writeMs}, {"closedLoop", errorMs}};
+            nlohmann::json files = nlohmann::json::object();
+            for (const std::string& p : outputs.written)
+                files[p] = fileSize(p);
+            report["outputBytes"] = files;
+            report["paperBound"] = {{"maxError", bound}, {"relative", bound / diag}};
+            nlohmann::json levels = nlohmann::json::array();
+            for (const LevelError& e : errors)
+                levels.push_back({{"level", e.level}, {"vertices", e.vertices}, {"triangles", e.triangles},
+                                  {"forwardRms", e.forwardRms / diag}, {"forwardMax", e.forwardMax / diag},
+                                  {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
+            report["closedLoop"] = levels;
+            const std::string text = report.dump(2) + "\n";
+            result->report = text;
+            if (!reportPath.empty() && reportPath != "-")
+                outputs.write(reportPath, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
+        }
+        outputs.commit();
+        result->written = outputs.written;
+        result->recommendedLevel = recommended;
+        result->scheme = options.scheme;
+        for (const LevelError& e : errors)
+            if (e.level == recommended)
+                result->rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+        return Status::ok();
+    } catch (const BakeError& e) {
+        return Status(StatusCode::InvalidArgument, e.what());
+    } catch (const std::bad_alloc&) {
+        return Status(StatusCode::InvalidData, "out of memory");
+    }
+}
+
+}  // namespace baker
+}  // namespace strata
