@@ -1,0 +1,132 @@
+"""The Python module against the tools and closed forms.
+
+Run by ctest (PYTHONPATH=build/python); the data test skips cleanly when
+../shared/data is absent.
+"""
+import math
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import strata
+
+SHARED = os.environ.get("STRATA_SHARED_DATA", "")
+RECONSTRUCT = os.environ.get("STRATA_RECONSTRUCT_EXE", "")
+
+
+def write_obj(path, vertices, faces):
+    with open(path, "w") as f:
+        for v in vertices:
+            f.write("v %.9g %.9g %.9g\n" % tuple(v))
+        for t in faces:
+            f.write("f %d %d %d\n" % (t[0] + 1, t[1] + 1, t[2] + 1))
+
+
+def icosphere(levels):
+    """Unit icosphere: the 12-vertex icosahedron split `levels` times."""
+    p = (1 + 5 ** 0.5) / 2
+    v = [(-1, p, 0), (1, p, 0), (-1, -p, 0), (1, -p, 0), (0, -1, p), (0, 1, p),
+         (0, -1, -p), (0, 1, -p), (p, 0, -1), (p, 0, 1), (-p, 0, -1), (-p, 0, 1)]
+    v = [np.array(x, float) / np.linalg.norm(x) for x in v]
+    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+         (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+         (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    for _ in range(levels):
+        mid = {}
+
+        def m(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in mid:
+                x = v[a] + v[b]
+                v.append(x / np.linalg.norm(x))
+                mid[key] = len(v) - 1
+            return mid[key]
+
+        nf = []
+        for a, b, c in f:
+            ab, bc, ca = m(a, b), m(b, c), m(c, a)
+            nf += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        f = nf
+    return np.array(v), np.array(f)
+
+
+def bumpy(v):
+    """A sphere with smooth bumps: radius 1 + 0.05 sin(3x) sin(3y) sin(3z)."""
+    r = 1.0 + 0.05 * np.sin(3 * v[:, 0]) * np.sin(3 * v[:, 1]) * np.sin(3 * v[:, 2])
+    return v * r[:, None]
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bake")
+    hv, hf = icosphere(5)
+    cv, cf = icosphere(1)
+    write_obj(d / "high.obj", bumpy(hv), hf)
+    write_obj(d / "control.obj", cv, cf)
+    report = strata.bake(str(d / "high.obj"), str(d / "control.obj"), str(d / "rig.glb"), threads=2)
+    return d, report
+
+
+def test_version():
+    assert strata.__version__.count(".") == 2
+
+
+def test_bake_returns_the_report(baked):
+    d, report = baked
+    assert report["written"] == [str(d / "rig.glb")]
+    assert report["recommendedLevel"] >= 0
+    rms = [max(e["forwardRms"], e["backwardRms"]) for e in report["closedLoop"]
+           if e["level"] == report["recommendedLevel"]]
+    assert rms and rms[0] < 1e-3
+
+
+def test_reconstruction_is_the_bumpy_sphere(baked):
+    d, report = baked
+    rig = strata.load_rig(str(d / "rig.glb"))
+    assert rig.recommended_level == report["recommendedLevel"]
+    assert rig.joint_names == [] and rig.animations == []
+    v, t = rig.reconstruct(level=4)
+    assert v.dtype == np.float32 and v.shape[1] == 3
+    assert t.dtype == np.uint32 and t.shape == (80 * 4 ** 4, 3)
+    assert t.max() < len(v)
+    # Closed form: every reconstructed vertex lies on the bumpy sphere.
+    n = v / np.linalg.norm(v, axis=1)[:, None]
+    expected = 1.0 + 0.05 * np.sin(3 * n[:, 0]) * np.sin(3 * n[:, 1]) * np.sin(3 * n[:, 2])
+    radial = np.linalg.norm(v, axis=1) - expected
+    assert math.sqrt(np.mean(radial ** 2)) < 2e-3
+
+
+def test_same_numbers_as_strata_reconstruct(baked, tmp_path):
+    if not RECONSTRUCT:
+        pytest.skip("STRATA_RECONSTRUCT_EXE not set")
+    d, _ = baked
+    out = tmp_path / "level3.obj"
+    subprocess.run([RECONSTRUCT, str(d / "rig.glb"), "--level", "3", "-o", str(out)], check=True,
+                   capture_output=True)
+    tool = np.array([[float(x) for x in line.split()[1:4]] for line in open(out) if line.startswith("v ")])
+    v, _ = strata.load_rig(str(d / "rig.glb")).reconstruct(level=3)
+    assert tool.shape == v.shape
+    assert np.max(np.abs(tool - v)) < 1e-5
+
+
+def test_errors_are_exceptions_with_the_message(tmp_path):
+    with pytest.raises(strata.Error, match="missing.glb"):
+        strata.load_rig(str(tmp_path / "missing.glb"))
+    with pytest.raises(strata.Error, match="unknown option"):
+        strata.bake("a.obj", "b.obj", str(tmp_path / "r.glb"), colour="red")
+    with pytest.raises(strata.Error, match="nothere.obj"):
+        strata.bake(str(tmp_path / "nothere.obj"), "auto", str(tmp_path / "r.glb"))
+    assert not (tmp_path / "r.glb").exists()
+
+
+def test_penguin_in_a_few_lines(tmp_path):
+    high = os.path.join(SHARED, "penguin_hr.obj")
+    if not os.path.exists(high):
+        pytest.skip("../shared/data is absent")
+    control = os.path.join(SHARED, "penguin_control_mesh.obj")
+    report = strata.bake(high, control, str(tmp_path / "penguin.glb"))
+    vertices, triangles = strata.load_rig(str(tmp_path / "penguin.glb")).reconstruct(level=3)
+    assert report["recommendedLevel"] == 3
+    assert vertices.shape == (12738, 3) and triangles.shape == (25472, 3)
