@@ -5,6 +5,7 @@
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
 #include "strata/io/mesh_io.h"
+#include "strata/io/png.h"
 #include "strata/io/rig_io.h"
 #include "strata/plan.h"
 #include "test_util.h"
@@ -187,6 +188,41 @@ TEST(Exr, RefusesHostileHeadersFromBytes)
     // Every prefix of a good file fails cleanly (no throw, no crash).
     for (size_t n = 0; n < good.size(); n += 7)
         EXPECT_FALSE(io::decodeDisplacementExr(good.data(), n, "cut.exr", &map).isOk()) << n;
+}
+
+// Fuzzer find: a rig whose embedded PNG declares a 1.8 GB chunk; stb_image
+// grew its buffer to it before reading.  Chunks are now checked to lie
+// inside the file first, and the image's size against the rig's.
+TEST(Png, RefusesChunksLongerThanTheFile)
+{
+    const std::string found = readText(std::string(STRATA_SOURCE_DIR) + "/tests/data/hostile/rig_png_1800mb.glb");
+    ASSERT_FALSE(found.empty());
+    Rig rig;
+    Status st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(found.data()), found.size(), true,
+                                      "found.glb", &rig);
+    if (st.isOk()) {
+        DisplacementMap map;
+        st = io::loadRigDisplacementMap("found.glb", rig, &map);
+    }
+    EXPECT_FALSE(st.isOk());
+    EXPECT_EQ(st.message().rfind("found.glb", 0), 0u) << st.message();
+    // A valid PNG with one chunk length raised past the end.
+    std::string png;
+    ASSERT_TRUE(io::encodePngGray(4, 4, 16, std::vector<uint16_t>(16, 7), &png).isOk());
+    int w = 0, h = 0, bits = 0;
+    std::vector<uint16_t> samples;
+    ASSERT_TRUE(io::decodePngGray(reinterpret_cast<const unsigned char*>(png.data()), png.size(), "ok.png", &w, &h,
+                                  &bits, &samples).isOk());
+    EXPECT_EQ(samples, std::vector<uint16_t>(16, 7));
+    std::string bad = png;
+    bad[8] = char(0x7f);  // the IHDR chunk's length, high byte
+    st = io::decodePngGray(reinterpret_cast<const unsigned char*>(bad.data()), bad.size(), "bad.png", &w, &h, &bits,
+                           &samples);
+    EXPECT_NE(st.message().find("bad.png: not a readable PNG image"), std::string::npos) << st.message();
+    // The rig's size is checked from the header, before decoding.
+    st = io::decodePngGray(reinterpret_cast<const unsigned char*>(png.data()), png.size(), "ok.png", &w, &h, &bits,
+                           &samples, 8, 8);
+    EXPECT_NE(st.message().find("image is 4x4 but the rig declares 8x8"), std::string::npos) << st.message();
 }
 
 TEST(Rig, RoundTripsThroughGlbAndGltf)

@@ -2,6 +2,8 @@
 // with stb_image (Debian's libstb holds the implementation).
 #include "strata/io/png.h"
 
+#include <cstring>
+
 #include "strata/io/file.h"
 
 #include <stb/stb_image.h>
@@ -190,11 +192,37 @@ Status readPngRgb(const std::string& path, int* width, int* height, std::vector<
     return Status::ok();
 }
 
+namespace {
+
+// True when every chunk after the signature lies inside the file and the
+// last is IEND.  stb_image grows its buffer to a chunk's declared length
+// before it reads the data, so a hostile length would buy gigabytes.
+bool chunksFit(const unsigned char* data, size_t size)
+{
+    static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    if (size < 8 || std::memcmp(data, kSignature, 8) != 0)
+        return false;
+    size_t pos = 8;
+    while (size - pos >= 12) {
+        const size_t length = size_t(data[pos]) << 24 | size_t(data[pos + 1]) << 16 | size_t(data[pos + 2]) << 8 |
+                              size_t(data[pos + 3]);
+        if (length > size - pos - 12)
+            return false;
+        const bool end = std::memcmp(data + pos + 4, "IEND", 4) == 0;
+        pos += 12 + length;
+        if (end)
+            return true;
+    }
+    return false;
+}
+
+}  // namespace
+
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
-                     std::vector<uint16_t>* samples)
+                     std::vector<uint16_t>* samples, int expectWidth, int expectHeight)
 {
     int w = 0, h = 0, comp = 0;
-    if (size > size_t(1) << 30 || !stbi_info_from_memory(data, int(size), &w, &h, &comp))
+    if (size > size_t(1) << 30 || !chunksFit(data, size) || !stbi_info_from_memory(data, int(size), &w, &h, &comp))
         return Status(StatusCode::InvalidData, what + ": not a readable PNG image");
     if (w > 16384 || h > 16384)
         return Status(StatusCode::InvalidData, what + ": image is larger than 16384 per side");
@@ -202,10 +230,14 @@ Status decodePngGray(const unsigned char* data, size_t size, const std::string& 
         return Status(StatusCode::InvalidData, what + ": expected a greyscale image, found " + std::to_string(comp) +
                                                    " channels");
     const bool sixteen = stbi_is_16_bit_from_memory(data, int(size)) != 0;
-    // Deflate expands at most 1032:1, so a header that declares more pixels
-    // than its bytes can hold is refused before anything is allocated.
+    if ((expectWidth > 0 && w != expectWidth) || (expectHeight > 0 && h != expectHeight))
+        return Status(StatusCode::InvalidData, what + ": image is " + std::to_string(w) + "x" + std::to_string(h) +
+                                                   " but the rig declares " + std::to_string(expectWidth) + "x" +
+                                                   std::to_string(expectHeight));
+    // Refused before anything is allocated: more pixels than 256 per byte of
+    // file (deflate's own limit is 1032:1; the decoder holds several copies).
     const double declared = double(w) * double(h) * (sixteen ? 2.0 : 1.0);
-    if (declared > double(size) * 1032.0 + 4096.0)
+    if (declared > double(size) * 256.0 + 65536.0)
         return Status(StatusCode::InvalidData, what + ": declares " + std::to_string(w) + "x" + std::to_string(h) +
                                                    " pixels but holds only " + std::to_string(size) + " bytes");
     if (sixteen) {

@@ -830,7 +830,7 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
         int bits = 0;
         std::vector<uint16_t> samples;
         Status st = decodePngGray(info.embedded.data(), info.embedded.size(), mapName, &map.width, &map.height, &bits,
-                                  &samples);
+                                  &samples, info.width, info.height);
         if (!st)
             return st;
         if ((info.encoding == "png16") != (bits == 16))

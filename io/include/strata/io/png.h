@@ -16,9 +16,14 @@ Status writePngGray(const std::string& path, int width, int height, int bits, co
 
 /// Encodes a greyscale PNG in memory (adaptive per-row filters, zlib level 9).
 Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t>& samples, std::string* png);
-/// Decodes a greyscale PNG of 8 or 16 bits from memory; `what` names it in errors.
+/// Decodes a greyscale PNG of 8 or 16 bits from memory; `what` names it in
+/// errors.  Sizes are checked from the header before anything is decoded:
+/// against expectWidth/Height when positive (the rig's), and against the
+/// bytes (at most 256 bytes of pixels per byte of file: a map that
+/// compresses further is all but constant, and hostile headers could
+/// otherwise buy gigabytes of decoder memory).
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
-                     std::vector<uint16_t>* samples);
+                     std::vector<uint16_t>* samples, int expectWidth = 0, int expectHeight = 0);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
 Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb);
 
