@@ -1,6 +1,6 @@
 // Accessor reading for untrusted glTF: nothing is read before its extent has
 // been checked against the bufferView and the buffer.
-#include "strata/io/gltf_accessor.h"
+#include "gltf_accessor.h"
 
 #include <tiny_gltf.h>
 

@@ -1,7 +1,7 @@
 // Materials of a rig's source document as plain data (viewer, engines).
 #include "strata/io/materials.h"
 
-#include "strata/io/gltf_accessor.h"
+#include "gltf_accessor.h"
 #include "gltf_document.h"
 
 #include <stb/stb_image.h>

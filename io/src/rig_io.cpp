@@ -10,7 +10,7 @@
 
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
-#include "strata/io/gltf_accessor.h"
+#include "gltf_accessor.h"
 #include "strata/io/png.h"
 #include "gltf_document.h"
 #include "vertex_codec.h"

@@ -5,7 +5,7 @@
 #include "strata/io/reconstruct.h"
 
 #include "strata/io/file.h"
-#include "strata/io/gltf_accessor.h"
+#include "gltf_accessor.h"
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
 

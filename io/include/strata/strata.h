@@ -1,0 +1,105 @@
+/* Strata C API (C99): load a rig, refine it, pose it, evaluate displaced
+ * positions and normals into buffers the caller owns.  For engines that are
+ * not C++ (P/Invoke, Rust, Zig, C).  Link Strata::io.
+ *
+ *   StrataRig* rig;  StrataSurface* surface;
+ *   if (strata_rig_load("hero.glb", &rig) != STRATA_OK) puts(strata_last_error());
+ *   strata_surface_create(rig, -1, &surface);            // the rig's recommended level
+ *   float* xyz = malloc(12 * strata_surface_vertex_count(surface));
+ *   strata_surface_set_animation_time(surface, 0, 0.5f);  // or set_joint_matrices
+ *   strata_surface_evaluate(surface, xyz, NULL);
+ *   strata_surface_destroy(surface);  strata_rig_destroy(rig);
+ *
+ * Every function returns a status; on failure strata_last_error() (per
+ * thread) holds the one-line message the tools print.  Handles are opaque;
+ * a surface keeps no pointer into its rig (destroy them in any order).
+ * Nothing here throws, aborts or prints.
+ */
+#ifndef STRATA_STRATA_H
+#define STRATA_STRATA_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum StrataStatus {
+    STRATA_OK = 0,
+    STRATA_INVALID_ARGUMENT = 1,
+    STRATA_INVALID_DATA = 2,
+    STRATA_IO_ERROR = 3,
+    STRATA_UNSUPPORTED = 4,
+    STRATA_OUT_OF_MEMORY = 5
+} StrataStatus;
+
+typedef enum StrataScheme { STRATA_SCHEME_LINEAR = 0, STRATA_SCHEME_SMOOTH = 1 } StrataScheme;
+
+typedef struct StrataRig StrataRig;
+typedef struct StrataSurface StrataSurface;
+
+/** The library version, "major.minor.patch". */
+const char* strata_version(void);
+/** The message of this thread's last failure ("" when none). */
+const char* strata_last_error(void);
+
+/* ---- Rigs ---- */
+
+/** Loads a rig (.glb or .gltf; external files resolve inside its folder). */
+StrataStatus strata_rig_load(const char* path, StrataRig** out);
+/** Loads a rig from bytes (binary: nonzero for .glb); no file is read. */
+StrataStatus strata_rig_load_memory(const void* data, size_t size, int binary, StrataRig** out);
+void strata_rig_destroy(StrataRig* rig);
+
+int strata_rig_recommended_level(const StrataRig* rig);
+StrataScheme strata_rig_scheme(const StrataRig* rig);
+size_t strata_rig_control_vertex_count(const StrataRig* rig);
+/** Skin joints (0 for an unskinned rig); their matrices' order. */
+size_t strata_rig_joint_count(const StrataRig* rig);
+size_t strata_rig_animation_count(const StrataRig* rig);
+/** Name of animation `index` (valid while the rig lives), or NULL. */
+const char* strata_rig_animation_name(const StrataRig* rig, size_t index);
+
+/* ---- Surfaces: one refinement of a control mesh, evaluated per frame ---- */
+
+/** A surface at `level` (0..6; negative: the rig's recommended level), in
+ *  the rig's scheme, with its displacement, in the bind pose. */
+StrataStatus strata_surface_create(const StrataRig* rig, int level, StrataSurface** out);
+
+/** A surface from caller arrays, for engines with their own loaders:
+ *  positions (3 floats per vertex), triangles (3 per face, counter-clockwise),
+ *  uvs (2 floats per value) with uv_indices (3 per face), and a map of
+ *  map_width * map_height texels, row 0 at v = 0, decoding to
+ *  texel * map_factor + map_offset.  uvs, uv_indices and map_texels may all
+ *  be NULL for no displacement.  Everything is copied. */
+StrataStatus strata_surface_create_from_arrays(const float* positions, size_t vertex_count, const uint32_t* triangles,
+                                               size_t triangle_count, const float* uvs, size_t uv_count,
+                                               const uint32_t* uv_indices, const float* map_texels, int map_width,
+                                               int map_height, float map_factor, float map_offset,
+                                               StrataScheme scheme, int level, StrataSurface** out);
+void strata_surface_destroy(StrataSurface* surface);
+
+size_t strata_surface_vertex_count(const StrataSurface* surface);
+size_t strata_surface_triangle_count(const StrataSurface* surface);
+/** Copies the refined triangles: 3 * triangle_count indices. */
+StrataStatus strata_surface_triangles(const StrataSurface* surface, uint32_t* dst);
+
+/** Poses a rig's surface from its own animation (index) at `time` seconds
+ *  (linear blend skinning).  animation -1: the skeleton's rest pose. */
+StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int animation, float time);
+/** Poses from skin matrices the engine computed (world * inverse bind), 16
+ *  floats each, column-major, one per joint in the rig's order. */
+StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const float* matrices, size_t joint_count);
+/** Poses from control positions the engine deformed itself (3 floats each). */
+StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const float* positions, size_t count);
+
+/** Displaced refined positions (3 floats per vertex) and, unless NULL,
+ *  shading normals (3 floats per vertex) of the current pose. */
+StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* STRATA_STRATA_H */

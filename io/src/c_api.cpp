@@ -1,0 +1,334 @@
+// The C API (strata/strata.h) over the C++ runtime and io: the same calls
+// io::reconstruct makes, in the same order, so a C program's numbers equal
+// the C++ path's bit for bit.  No exception crosses the boundary.
+#include "strata/strata.h"
+
+#include "strata/animation.h"
+#include "strata/io/rig_io.h"
+#include "strata/normals.h"
+#include "strata/plan.h"
+#include "strata/rig.h"
+
+#include <glm/mat4x4.hpp>
+
+#include <cstring>
+#include <memory>
+#include <new>
+#include <string>
+#include <vector>
+
+using namespace strata;
+
+struct StrataRig {
+    Rig rig;
+    DisplacementMap map;
+};
+
+struct StrataSurface {
+    std::unique_ptr<Rig> rig;  // its own copy: the animator and plan refer into it
+    std::unique_ptr<Plan> plan;
+    std::unique_ptr<Animator> animator;
+    std::vector<glm::vec3> positions, normals;  // current control pose
+};
+
+namespace {
+
+thread_local std::string lastError;
+
+StrataStatus fail(StrataStatus code, const std::string& message)
+{
+    lastError = message;
+    return code;
+}
+
+StrataStatus fromStatus(const Status& st)
+{
+    if (st)
+        return STRATA_OK;
+    switch (st.code()) {
+    case StatusCode::InvalidArgument:
+        return fail(STRATA_INVALID_ARGUMENT, st.message());
+    case StatusCode::Unsupported:
+        return fail(STRATA_UNSUPPORTED, st.message());
+    case StatusCode::IoError:
+        return fail(STRATA_IO_ERROR, st.message());
+    default:
+        return fail(STRATA_INVALID_DATA, st.message());
+    }
+}
+
+// Runs body, turning any exception into a status and a message.
+template <typename F>
+StrataStatus guarded(F&& body)
+{
+    try {
+        return body();
+    } catch (const std::bad_alloc&) {
+        return fail(STRATA_OUT_OF_MEMORY, "out of memory");
+    } catch (const std::exception&) {
+        return fail(STRATA_INVALID_DATA, "unexpected internal failure on this input");
+    }
+}
+
+// The bind pose: control positions as loaded, normals as the baker computed them.
+void restPose(StrataSurface* s)
+{
+    const ControlMesh& cm = s->rig->mesh;
+    s->positions = cm.positions;
+    s->normals.assign(cm.positions.size(), glm::vec3(0.0f));
+    computeControlNormals(s->normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
+                          cm.faceCount());
+}
+
+StrataStatus finishSurface(std::unique_ptr<StrataSurface> s, const DisplacementMap* map, Scheme scheme, int level,
+                           StrataSurface** out)
+{
+    Status st = Plan::create(&s->plan, s->rig->mesh, scheme, level);
+    if (st && (map || s->rig->displacement.vertexLevel >= 0))
+        st = applyRigDisplacement(s->plan.get(), *s->rig, map);
+    if (!st)
+        return fromStatus(st);
+    if (!s->rig->skeleton.empty()) {
+        s->animator = std::make_unique<Animator>();
+        if (!(st = s->animator->init(s->rig->skeleton, s->rig->mesh)))
+            return fromStatus(st);
+    }
+    restPose(s.get());
+    *out = s.release();
+    return STRATA_OK;
+}
+
+}  // namespace
+
+extern "C" {
+
+const char* strata_version(void)
+{
+    return STRATA_VERSION;
+}
+
+const char* strata_last_error(void)
+{
+    return lastError.c_str();
+}
+
+StrataStatus strata_rig_load(const char* path, StrataRig** out)
+{
+    if (!path || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_rig_load: null argument");
+    *out = nullptr;
+    return guarded([&] {
+        auto r = std::make_unique<StrataRig>();
+        Status st = io::loadRig(path, &r->rig);
+        if (st && r->rig.hasDisplacement)
+            st = io::loadRigDisplacementMap(path, r->rig, &r->map);
+        if (!st)
+            return fromStatus(st);
+        *out = r.release();
+        return STRATA_OK;
+    });
+}
+
+StrataStatus strata_rig_load_memory(const void* data, size_t size, int binary, StrataRig** out)
+{
+    if (!data || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_rig_load_memory: null argument");
+    *out = nullptr;
+    return guarded([&] {
+        auto r = std::make_unique<StrataRig>();
+        const std::string name = binary ? "rig.glb (memory)" : "rig.gltf (memory)";
+        Status st = io::loadRigFromMemory(static_cast<const unsigned char*>(data), size, binary != 0, name, &r->rig);
+        if (st && r->rig.hasDisplacement)
+            st = io::loadRigDisplacementMap(name, r->rig, &r->map);
+        if (!st)
+            return fromStatus(st);
+        *out = r.release();
+        return STRATA_OK;
+    });
+}
+
+void strata_rig_destroy(StrataRig* rig)
+{
+    delete rig;
+}
+
+int strata_rig_recommended_level(const StrataRig* rig)
+{
+    return rig && rig->rig.hasDisplacement ? rig->rig.displacement.recommendedLevel : 0;
+}
+
+StrataScheme strata_rig_scheme(const StrataRig* rig)
+{
+    return rig && rig->rig.displacement.scheme == Scheme::Smooth ? STRATA_SCHEME_SMOOTH : STRATA_SCHEME_LINEAR;
+}
+
+size_t strata_rig_control_vertex_count(const StrataRig* rig)
+{
+    return rig ? rig->rig.mesh.positions.size() : 0;
+}
+
+size_t strata_rig_joint_count(const StrataRig* rig)
+{
+    return rig ? rig->rig.skeleton.skin.joints.size() : 0;
+}
+
+size_t strata_rig_animation_count(const StrataRig* rig)
+{
+    return rig ? rig->rig.skeleton.animations.size() : 0;
+}
+
+const char* strata_rig_animation_name(const StrataRig* rig, size_t index)
+{
+    return rig && index < rig->rig.skeleton.animations.size() ? rig->rig.skeleton.animations[index].name.c_str()
+                                                              : nullptr;
+}
+
+StrataStatus strata_surface_create(const StrataRig* rig, int level, StrataSurface** out)
+{
+    if (!rig || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_create: null argument");
+    *out = nullptr;
+    return guarded([&] {
+        auto s = std::make_unique<StrataSurface>();
+        s->rig = std::make_unique<Rig>(rig->rig);
+        const int lvl = level < 0 ? strata_rig_recommended_level(rig) : level;
+        return finishSurface(std::move(s), rig->rig.hasDisplacement ? &rig->map : nullptr,
+                             rig->rig.hasDisplacement ? rig->rig.displacement.scheme : Scheme::Linear, lvl, out);
+    });
+}
+
+StrataStatus strata_surface_create_from_arrays(const float* positions, size_t vertex_count, const uint32_t* triangles,
+                                               size_t triangle_count, const float* uvs, size_t uv_count,
+                                               const uint32_t* uv_indices, const float* map_texels, int map_width,
+                                               int map_height, float map_factor, float map_offset,
+                                               StrataScheme scheme, int level, StrataSurface** out)
+{
+    if (!positions || !triangles || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_create_from_arrays: null argument");
+    *out = nullptr;
+    const bool displaced = map_texels != nullptr;
+    if (displaced && (!uvs || !uv_indices || map_width < 1 || map_height < 1 || map_width > kMaxDisplacementMapSize ||
+                      map_height > kMaxDisplacementMapSize))
+        return fail(STRATA_INVALID_ARGUMENT,
+                    "strata_surface_create_from_arrays: a map needs UVs, UV indices and a size in 1..16384");
+    if (vertex_count > (size_t(1) << 28) || triangle_count > (size_t(1) << 28) || uv_count > (size_t(1) << 28))
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_create_from_arrays: counts are out of range");
+    return guarded([&] {
+        auto s = std::make_unique<StrataSurface>();
+        s->rig = std::make_unique<Rig>();
+        ControlMesh& m = s->rig->mesh;
+        m.positions.resize(vertex_count);
+        std::memcpy(m.positions.data(), positions, vertex_count * sizeof(glm::vec3));
+        m.triangles.assign(triangles, triangles + 3 * triangle_count);
+        if (uvs && uv_indices) {
+            m.uvs.resize(uv_count);
+            std::memcpy(m.uvs.data(), uvs, uv_count * sizeof(glm::vec2));
+            m.uvIndices.assign(uv_indices, uv_indices + 3 * triangle_count);
+        }
+        Status st = validateControlMesh(m);
+        if (!st)
+            return fromStatus(st);
+        DisplacementMap map;
+        if (displaced) {
+            map.width = map_width;
+            map.height = map_height;
+            map.texels.assign(map_texels, map_texels + size_t(map_width) * size_t(map_height));
+            map.factor = map_factor;
+            map.offset = map_offset;
+            s->rig->hasDisplacement = true;
+        }
+        return finishSurface(std::move(s), displaced ? &map : nullptr,
+                             scheme == STRATA_SCHEME_SMOOTH ? Scheme::Smooth : Scheme::Linear, level, out);
+    });
+}
+
+void strata_surface_destroy(StrataSurface* surface)
+{
+    delete surface;
+}
+
+size_t strata_surface_vertex_count(const StrataSurface* surface)
+{
+    return surface ? surface->plan->refinedVertexCount() : 0;
+}
+
+size_t strata_surface_triangle_count(const StrataSurface* surface)
+{
+    return surface ? surface->plan->refinedFaceCount() : 0;
+}
+
+StrataStatus strata_surface_triangles(const StrataSurface* surface, uint32_t* dst)
+{
+    if (!surface || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_triangles: null argument");
+    const std::vector<uint32_t>& t = surface->plan->refinedTriangles();
+    std::memcpy(dst, t.data(), t.size() * sizeof(uint32_t));
+    return STRATA_OK;
+}
+
+StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int animation, float time)
+{
+    if (!surface)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_animation_time: null argument");
+    if (!surface->animator)
+        return fail(STRATA_INVALID_ARGUMENT, "the rig has no skin to animate");
+    return guarded([&] {
+        Status st = surface->animator->pose(animation, time, SkinningMethod::Linear);
+        if (!st)
+            return fromStatus(st);
+        surface->positions = surface->animator->positions();
+        surface->normals = surface->animator->normals();
+        return STRATA_OK;
+    });
+}
+
+StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const float* matrices, size_t joint_count)
+{
+    if (!surface || !matrices)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_joint_matrices: null argument");
+    const Skeleton& skeleton = surface->rig->skeleton;
+    if (skeleton.empty() || joint_count != skeleton.skin.joints.size())
+        return fail(STRATA_INVALID_ARGUMENT, std::to_string(joint_count) + " joint matrices for a skin of " +
+                                                 std::to_string(skeleton.skin.joints.size()) + " joints");
+    return guarded([&] {
+        std::vector<glm::mat4> skin(joint_count);
+        std::memcpy(&skin[0][0][0], matrices, joint_count * 16 * sizeof(float));
+        const ControlMesh& cm = surface->rig->mesh;
+        surface->positions.resize(cm.positions.size());
+        skinLinear(surface->positions.data(), cm.positions.data(), cm.positions.size(), skeleton.weights, skin.data());
+        computeControlNormals(surface->normals.data(), surface->positions.data(), surface->positions.size(),
+                              cm.triangles.data(), cm.faceCount());
+        return STRATA_OK;
+    });
+}
+
+StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const float* positions, size_t count)
+{
+    if (!surface || !positions)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_control_positions: null argument");
+    const ControlMesh& cm = surface->rig->mesh;
+    if (count != cm.positions.size())
+        return fail(STRATA_INVALID_ARGUMENT, std::to_string(count) + " control positions for " +
+                                                 std::to_string(cm.positions.size()) + " control vertices");
+    std::memcpy(surface->positions.data(), positions, count * sizeof(glm::vec3));
+    computeControlNormals(surface->normals.data(), surface->positions.data(), count, cm.triangles.data(),
+                          cm.faceCount());
+    return STRATA_OK;
+}
+
+StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals)
+{
+    if (!surface || !positions)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_evaluate: null argument");
+    const size_t n = surface->plan->refinedVertexCount();
+    glm::vec3* dst = reinterpret_cast<glm::vec3*>(positions);
+    Status st = surface->plan->evaluate(dst, nullptr, 0, n, surface->positions.data(), surface->normals.data(),
+                                        surface->positions.size());
+    if (!st)
+        return fromStatus(st);
+    if (normals)
+        surface->plan->computeShadingNormals(reinterpret_cast<glm::vec3*>(normals), dst);
+    return STRATA_OK;
+}
+
+}  // extern "C"

@@ -1,0 +1,145 @@
+/* The C API from a C99 program.  With a rig and the C++ path's numbers
+ * (written by CApi.MatchesTheCppPathBitForBit), checks them bit for bit;
+ * alone, checks what needs no file: a closed-form surface from arrays and
+ * the error path.  Exit 0 when everything holds. */
+#include "strata/strata.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int failures = 0;
+#define CHECK(cond)                                                          \
+    do {                                                                     \
+        if (!(cond)) {                                                       \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond); \
+            ++failures;                                                      \
+        }                                                                    \
+    } while (0)
+
+/* A unit square displaced by a constant map: every refined vertex moves by
+ * exactly 0.25 along +z (the square's normal), whatever the level. */
+static void closedForm(void)
+{
+    const float positions[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const uint32_t triangles[] = {0, 1, 2, 0, 2, 3};
+    const float uvs[] = {0, 0, 1, 0, 1, 1, 0, 1};
+    const float texels[] = {0.5f, 0.5f, 0.5f, 0.5f};
+    StrataSurface* s = NULL;
+    CHECK(strata_surface_create_from_arrays(positions, 4, triangles, 2, uvs, 4, triangles, texels, 2, 2, 0.5f, 0.0f,
+                                            STRATA_SCHEME_LINEAR, 3, &s) == STRATA_OK);
+    if (!s)
+        return;
+    const size_t n = strata_surface_vertex_count(s);
+    CHECK(strata_surface_triangle_count(s) == 2 * 64);
+    float* p = (float*)malloc(n * 3 * sizeof(float));
+    float* nrm = (float*)malloc(n * 3 * sizeof(float));
+    uint32_t* t = (uint32_t*)malloc(strata_surface_triangle_count(s) * 3 * sizeof(uint32_t));
+    CHECK(strata_surface_evaluate(s, p, nrm) == STRATA_OK);
+    CHECK(strata_surface_triangles(s, t) == STRATA_OK);
+    for (size_t i = 0; i < n; ++i) {
+        CHECK(fabsf(p[3 * i + 2] - 0.25f) < 1e-6f);
+        CHECK(p[3 * i] >= -1e-6f && p[3 * i] <= 1.0f + 1e-6f);
+        CHECK(fabsf(nrm[3 * i + 2] - 1.0f) < 1e-5f);
+    }
+    for (size_t i = 0; i < 3 * strata_surface_triangle_count(s); ++i)
+        CHECK(t[i] < n);
+    /* The engine deforms the control mesh itself: lifted by 1, the surface follows. */
+    const float lifted[] = {0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+    CHECK(strata_surface_set_control_positions(s, lifted, 4) == STRATA_OK);
+    CHECK(strata_surface_evaluate(s, p, NULL) == STRATA_OK);
+    CHECK(fabsf(p[2] - 1.25f) < 1e-6f);
+    /* Wrong counts are refused with a message. */
+    CHECK(strata_surface_set_control_positions(s, lifted, 3) == STRATA_INVALID_ARGUMENT);
+    CHECK(strstr(strata_last_error(), "3 control positions") != NULL);
+    CHECK(strata_surface_set_animation_time(s, 0, 0.0f) == STRATA_INVALID_ARGUMENT);
+    free(p);
+    free(nrm);
+    free(t);
+    strata_surface_destroy(s);
+}
+
+static void errors(void)
+{
+    StrataRig* rig = (StrataRig*)1;
+    CHECK(strata_rig_load("no/such/rig.glb", &rig) != STRATA_OK);
+    CHECK(rig == NULL);
+    CHECK(strstr(strata_last_error(), "no/such/rig.glb") != NULL);
+    CHECK(strata_rig_load_memory("not a glb", 9, 1, &rig) == STRATA_INVALID_DATA);
+    CHECK(strata_surface_create(NULL, 0, NULL) == STRATA_INVALID_ARGUMENT);
+    CHECK(strlen(strata_version()) >= 5);
+}
+
+/* Compares n floats from the C API with the next n of the expected file, bit for bit. */
+static int sameBits(const float* got, FILE* expected, size_t n)
+{
+    float* want = (float*)malloc(n * sizeof(float));
+    const int ok = fread(want, sizeof(float), n, expected) == n && memcmp(got, want, n * sizeof(float)) == 0;
+    free(want);
+    return ok;
+}
+
+static void againstCpp(const char* rigPath, const char* expectedPath)
+{
+    FILE* expected = fopen(expectedPath, "rb");
+    CHECK(expected != NULL);
+    if (!expected)
+        return;
+    uint32_t level = 0, count = 0;
+    CHECK(fread(&level, 4, 1, expected) == 1 && fread(&count, 4, 1, expected) == 1);
+    /* From the file, and from its bytes. */
+    StrataRig* rig = NULL;
+    CHECK(strata_rig_load(rigPath, &rig) == STRATA_OK);
+    if (!rig) {
+        fprintf(stderr, "%s\n", strata_last_error());
+        fclose(expected);
+        return;
+    }
+    CHECK(strata_rig_joint_count(rig) == 2);
+    CHECK(strata_rig_animation_count(rig) == 1);
+    StrataSurface* s = NULL;
+    CHECK(strata_surface_create(rig, (int)level, &s) == STRATA_OK);
+    CHECK(s && strata_surface_vertex_count(s) == count);
+    if (s) {
+        float* p = (float*)malloc(count * 3 * sizeof(float));
+        float* nrm = (float*)malloc(count * 3 * sizeof(float));
+        CHECK(strata_surface_evaluate(s, p, nrm) == STRATA_OK); /* bind pose */
+        CHECK(sameBits(p, expected, 3 * count));
+        CHECK(sameBits(nrm, expected, 3 * count));
+        CHECK(strata_surface_set_animation_time(s, 0, 0.5f) == STRATA_OK); /* posed */
+        CHECK(strata_surface_evaluate(s, p, nrm) == STRATA_OK);
+        CHECK(sameBits(p, expected, 3 * count));
+        CHECK(sameBits(nrm, expected, 3 * count));
+        free(p);
+        free(nrm);
+        strata_surface_destroy(s);
+    }
+    FILE* f = fopen(rigPath, "rb");
+    if (f) {
+        fseek(f, 0, SEEK_END);
+        const long size = ftell(f);
+        fseek(f, 0, SEEK_SET);
+        char* bytes = (char*)malloc((size_t)size);
+        CHECK(fread(bytes, 1, (size_t)size, f) == (size_t)size);
+        StrataRig* fromBytes = NULL;
+        CHECK(strata_rig_load_memory(bytes, (size_t)size, 1, &fromBytes) == STRATA_OK);
+        CHECK(strata_rig_control_vertex_count(fromBytes) == strata_rig_control_vertex_count(rig));
+        strata_rig_destroy(fromBytes);
+        free(bytes);
+        fclose(f);
+    }
+    strata_rig_destroy(rig);
+    fclose(expected);
+}
+
+int main(int argc, char** argv)
+{
+    closedForm();
+    errors();
+    if (argc == 3)
+        againstCpp(argv[1], argv[2]);
+    if (failures)
+        fprintf(stderr, "%d checks failed\n", failures);
+    return failures ? 1 : 0;
+}
