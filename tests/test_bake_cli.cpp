@@ -152,9 +152,11 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     EXPECT_GE(png.displacement.image, 0);
     EXPECT_TRUE(png.displacement.encoding == "png16" || png.displacement.encoding == "png8") << png.displacement.encoding;
     EXPECT_LT(strata::test::readText(rig).size(), strata::test::readText(pngRig).size());
-    // Both surfaces agree at the stored level, within the two quantisation
-    // steps (the coded values are the map's samples at those very vertices,
-    // numbered as the loader rebuilds the meshopt-coded mesh).
+    // Both lie on the captured head at the stored level: the per-vertex
+    // values (the map's samples, measured again on the capture) are numbered
+    // as the loader rebuilds the meshopt-coded mesh; numbered as the
+    // uncoded mesh instead, the radial error is 1.5 times the image-coded
+    // rig's, numbered right, the same.
     strata::DisplacementMap vertexMap, pngMap;
     ASSERT_TRUE(strata::io::loadRigDisplacementMap(rig, loaded, &vertexMap).isOk());
     ASSERT_TRUE(strata::io::loadRigDisplacementMap(pngRig, png, &pngMap).isOk());
@@ -163,9 +165,16 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     ASSERT_TRUE(strata::io::reconstruct(&ra, loaded, &vertexMap, strata::Scheme::Linear, level).isOk());
     ASSERT_TRUE(strata::io::reconstruct(&rb, png, &pngMap, strata::Scheme::Linear, level).isOk());
     ASSERT_EQ(ra.positions.size(), rb.positions.size());
-    const float bound = loaded.displacement.factor + png.displacement.factor;
-    for (size_t v = 0; v < ra.positions.size(); ++v)
-        ASSERT_LT(glm::length(ra.positions[v] - rb.positions[v]), bound) << v;
+    auto radialRms = [](const std::vector<glm::vec3>& p) {
+        double sum = 0.0;
+        for (const glm::vec3& x : p) {
+            const double e = double(glm::length(x)) - double(strata::examples::headRadius(glm::normalize(x)));
+            sum += e * e;
+        }
+        return std::sqrt(sum / double(p.size()));
+    };
+    EXPECT_LT(radialRms(ra.positions), 1.1 * radialRms(rb.positions) + 1e-5)
+        << radialRms(ra.positions) << " vs " << radialRms(rb.positions);
     // --report - writes the JSON to stdout; --version answers.
     r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 --report - -o " + rig);
     ASSERT_EQ(r.code, 0) << r.output;

@@ -394,3 +394,40 @@ TEST(Atlas, SphereBakedThroughAChartAtlasIsTheSphere)
     EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
     EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
 }
+
+// Per-vertex values measured on the capture: an icosahedral cage inside a
+// finely tessellated sphere of radius 1.1; every refined vertex, moved by
+// its measured value along its direction, lands on that sphere (up to the
+// capture's own chord error), whatever the map said within the window.
+TEST(Measure, VertexDisplacementsLandOnTheCapture)
+{
+    const ControlMesh cage = examples::makeIcosphere(1);
+    ControlMesh sphere = examples::makeIcosphere(5);
+    for (glm::vec3& p : sphere.positions)
+        p *= 1.1f;
+    TriangleIndex index;
+    index.build(sphere.positions.data(), sphere.triangles.data(), sphere.faceCount());
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        std::unique_ptr<Plan> plan;
+        ASSERT_TRUE(Plan::create(&plan, cage, scheme, 3).isOk());
+        std::vector<float> values(plan->refinedVertexCount(), 0.05f);  // a poor first guess, inside the window
+        size_t replaced = 0;
+        ASSERT_TRUE(measureVertexDisplacements(&values, cage, scheme, 3, index, 0.5, 2, &replaced).isOk());
+        EXPECT_EQ(replaced, values.size());
+        ASSERT_TRUE(plan->setDisplacements(values.data(), values.size()).isOk());
+        std::vector<glm::vec3> normals(cage.positions.size()), out(values.size());
+        computeControlNormals(normals.data(), cage.positions.data(), normals.size(), cage.triangles.data(),
+                              cage.faceCount());
+        ASSERT_TRUE(plan->evaluate(out.data(), nullptr, 0, out.size(), cage.positions.data(), normals.data(),
+                                   normals.size())
+                        .isOk());
+        for (size_t v = 0; v < out.size(); ++v)
+            ASSERT_NEAR(glm::length(out[v]), 1.1f, 2e-3f) << schemeName(scheme) << " vertex " << v;
+    }
+    // A window that excludes the capture keeps the given values.
+    std::vector<float> values(642, 0.0f);
+    size_t replaced = 1;
+    ASSERT_TRUE(measureVertexDisplacements(&values, cage, Scheme::Linear, 2, index, 0.01, 2, &replaced).isOk());
+    EXPECT_EQ(replaced, 0u);
+    EXPECT_EQ(values, std::vector<float>(642, 0.0f));
+}

@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <limits>
 #include <chrono>
 #include <cmath>
@@ -480,6 +481,49 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
         e.backwardMax = backwardMax;
         out->push_back(e);
     }
+    return Status::ok();
+}
+
+Status measureVertexDisplacements(std::vector<float>* values, const ControlMesh& mesh, Scheme scheme, int level,
+                                  const TriangleIndex& high, double window, int threads, size_t* replaced)
+{
+    std::unique_ptr<Plan> plan;
+    Status st = Plan::create(&plan, mesh, scheme, level);
+    if (!st)
+        return st;
+    const size_t n = plan->refinedVertexCount();
+    if (values->size() != n)
+        return Status(StatusCode::InvalidArgument, "measureVertexDisplacements: " + std::to_string(values->size()) +
+                                                       " values for " + std::to_string(n) + " vertices");
+    std::vector<glm::vec3> normals(mesh.positions.size()), surface(n), direction(n);
+    computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
+                          mesh.faceCount());
+    plan->clearDisplacement();
+    if (!(st = plan->evaluate(surface.data(), direction.data(), 0, n, mesh.positions.data(), normals.data(),
+                              normals.size())))
+        return st;
+    const std::vector<SampleLocation>& at = plan->sampleLocations();
+    std::atomic<size_t> changed{0};
+    parallelFor(n, threads, [&](size_t b, size_t e) {
+        size_t local = 0;
+        for (size_t v = b; v < e; ++v) {
+            const glm::dvec3 dir(direction[v]);
+            const double len = glm::length(dir);
+            if (at[v].face == kNoControlFace || !(len > 0.0))
+                continue;
+            // The line's parameter t is the displacement d itself (x = s + d n,
+            // n unnormalised in the linear scheme), so the window is window / |n|.
+            const double d = (*values)[v], w = window / len;
+            double t = 0.0;
+            if (high.intersectLine(glm::dvec3(surface[v]), dir, std::fabs(d) + w, &t) && std::fabs(t - d) <= w) {
+                (*values)[v] = float(t);
+                ++local;
+            }
+        }
+        changed += local;
+    });
+    if (replaced)
+        *replaced = changed;
     return Status::ok();
 }
 

@@ -513,6 +513,18 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         writeOptions.compress = compress;
         writeOptions.vertexDisplacements = mapCoding == "vertex";
+        // Stored per vertex, each value is measured against the capture along
+        // its own direction where that agrees with the map (within 2% of the
+        // diagonal: farther is another layer of a fold).
+        TriangleIndex highIndex;
+        size_t measured = 0;
+        if (writeOptions.vertexDisplacements) {
+            highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
+            writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
+                return measureVertexDisplacements(values, mesh, options.scheme, level, highIndex, 0.02 * rep.diagonal,
+                                                  options.threads, &measured);
+            };
+        }
         outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
         for (const std::string& n : notes)
             warn("%s: %s", outPath.c_str(), n.c_str());
@@ -563,6 +575,11 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                     control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
         appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        if (writeOptions.vertexDisplacements)
+            appendf(&result->summary,
+                    "  stored        per refined vertex at level %d, %zu of them measured along their direction on the "
+                    "capture (the rest from the map)\n",
+                    recommended, measured);
         if (!trials.empty()) {
             appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
                          100.0 * tolerance);

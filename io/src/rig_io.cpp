@@ -1117,7 +1117,8 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
 // is written and loaded back in memory first and the map sampled on that
 // topology, with rig.mesh's UVs (faces keep their order; checked).
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
-                                bool compressed, const std::string& path, DisplacementInfo* info)
+                                bool compressed, const RigWriteOptions& options, const std::string& path,
+                                DisplacementInfo* info)
 {
     // Through the same writer as the final file (the meshopt index codec
     // rotates triangles, which renumbers refined vertices).
@@ -1166,18 +1167,21 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     std::unique_ptr<Plan> plan;
     if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
         return st;
+    std::vector<float> values = plan->displacements();
+    if (options.refineVertexDisplacements && !(st = options.refineVertexDisplacements(mesh, level, &values)))
+        return st;
     SubdivisionParents hierarchy;
     if (!(st = buildSubdivisionParents(&hierarchy, mesh, level)))
         return st;
     std::string bytes;
     float factor = 1.0f, offset = 0.0f;
-    if (!(st = encodeVertexDisplacements(hierarchy, plan->displacements(), maxStep, &bytes, &factor, &offset)))
+    if (!(st = encodeVertexDisplacements(hierarchy, values, maxStep, &bytes, &factor, &offset)))
         return st;
     const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
     model.bufferViews[size_t(view)].target = 0;
     info->vertexView = view;
     info->vertexLevel = level;
-    info->vertexValues = plan->displacements();
+    info->vertexValues = std::move(values);
     info->image = -1;
     info->uri.clear();
     info->encoding = "vertex";
@@ -1272,7 +1276,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         const double step = options ? options->maxQuantizationStep : 0.0;
         if (map && options && options->vertexDisplacements) {
             const bool compressed = extensionOf(path) == ".glb" && options->compress;
-            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, path, &info)))
+            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, *options, path, &info)))
                 return Status(st.code(), path + ": " + st.message());
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());

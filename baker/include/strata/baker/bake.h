@@ -2,6 +2,7 @@
 // high-resolution mesh and a control mesh with UVs to a displacement map.
 #pragma once
 
+#include "strata/baker/distance.h"
 #include "strata/baker/rasterize.h"
 #include "strata/control_mesh.h"
 #include "strata/displacement_map.h"
@@ -101,6 +102,17 @@ struct LevelError {
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
                        Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
                        size_t chunkTriangles = size_t(1) << 20, const DisplacementField* field = nullptr);
+
+/// Per-vertex displacements measured against the capture (Displaced
+/// Subdivision Surfaces' sampling): for each refined vertex of `mesh` at
+/// `level` in `scheme`, the signed distance along its displacement
+/// direction to the nearest intersection with the capture, replacing the
+/// map's sample in `values` when the two agree within `window` (a larger
+/// gap means another layer of a fold: the map's forward-mapped value
+/// stays).  Vertices no ray reaches keep the map's value.  Returns how many
+/// values changed through `replaced` when it is not null.
+Status measureVertexDisplacements(std::vector<float>* values, const ControlMesh& mesh, Scheme scheme, int level,
+                                  const TriangleIndex& high, double window, int threads, size_t* replaced = nullptr);
 
 }  // namespace baker
 }  // namespace strata

@@ -5,6 +5,7 @@
 #include "strata/rig.h"
 #include "strata/status.h"
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -70,6 +71,11 @@ struct RigWriteOptions {
     /// image: a fraction of the bytes, exact at levels up to that one,
     /// interpolated past it.  strata-bake turns it on.
     bool vertexDisplacements = false;
+    /// With vertexDisplacements: called with the map's samples at the
+    /// refined vertices of `mesh` (the control mesh as a loader rebuilds it
+    /// from this file, in its numbering) before they are coded, to refine
+    /// them; the baker measures each against the capture.
+    std::function<Status(const ControlMesh& mesh, int level, std::vector<float>* values)> refineVertexDisplacements;
 };
 
 /// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain
