@@ -32,9 +32,7 @@ void main()
         du += stencilWeights[3u * k + 1u] * c;
         dv += stencilWeights[3u * k + 2u] * c;
     }
-    vec3 n = cross(du, dv);
-    float len = length(n);
-    n = len > 0.0 ? n / len : vec3(0.0);
+    vec3 n = strata_limit_normal(du, dv);
 #else
     // Paper eq. 2: barycentric blend of positions and of unit control normals.
     vec3 p = vec3(0.0), n = vec3(0.0);

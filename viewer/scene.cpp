@@ -1,5 +1,7 @@
 #include "scene.h"
 
+#include "strata/displacement_math.h"
+
 #include "strata/baker/distance.h"
 #include "strata/baker/mesh_input.h"
 #include "strata/gl/shaders.h"
@@ -86,8 +88,10 @@ Status Scene::open(const std::string& path)
     dMin_ = dMax_ = 0.0f;
     if (haveMap_ && !map_.texels.empty()) {
         const auto mm = std::minmax_element(map_.texels.begin(), map_.texels.end());
-        dMin_ = *mm.first * map_.factor + map_.offset;
-        dMax_ = *mm.second * map_.factor + map_.offset;
+        dMin_ = shared::strata_decode_distance(*mm.first, map_.factor, map_.offset);
+        dMax_ = shared::strata_decode_distance(*mm.second, map_.factor, map_.offset);
+        if (dMin_ > dMax_)  // a negative factor
+            std::swap(dMin_, dMax_);
     }
     description_ = io::stemOf(path) + ": " + std::to_string(rig_->mesh.vertexCount()) + " control vertices, " +
                    std::to_string(rig_->mesh.faceCount()) + " triangles" +

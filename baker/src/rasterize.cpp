@@ -12,6 +12,15 @@ namespace strata {
 namespace baker {
 namespace {
 
+// Paper eq. 5: the distance at a texel centre inside a UV triangle, the
+// linear interpolation of its three vertices' distances, from the texel's
+// unnormalised barycentric weights (sub-triangle areas) and the triangle's
+// area.
+double interpolateDistance(const double weights[3], const float distances[3], double area)
+{
+    return (weights[0] * distances[0] + weights[1] * distances[1] + weights[2] * distances[2]) / area;
+}
+
 // One high-res triangle as seen by one bake-surface triangle: texel-space
 // corners and the eq. 2 distances of its vertices.
 struct Piece {
@@ -254,7 +263,7 @@ void rasterize(RasterResult* out, const SurfaceIndex& index, const glm::vec3* hi
                         double w[3], wc[3];
                         if (!inside(piece, c, w) || !inside(control, c, wc))
                             continue;
-                        const double d = (w[0] * p.d[0] + w[1] * p.d[1] + w[2] * p.d[2]) / piece.area;  // eq. 5
+                        const double d = interpolateDistance(w, p.d, piece.area);
                         const size_t i = size_t(y) * size_t(size) + size_t(x);
                         float& dst = r.distance[i];
                         uint16_t& layers = r.layers[i];

@@ -1253,7 +1253,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
                 blockMeshes.push_back(part.mesh);
         rootSkinnedMeshNodes(model, notes);
     } else {
-        // No normals: the runtime computes its own (angle-weighted, eq. 6
+        // No normals: the runtime computes its own (angle-weighted, eq. 1's n_k
         // of the paper), and glTF viewers shade a cage flat without them.
         MeshView view;
         view.positions = cm.positions.data();

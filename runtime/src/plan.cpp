@@ -701,9 +701,7 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
             du += limitWeights_[3 * k + 1] * c;
             dv += limitWeights_[3 * k + 2] * c;
         }
-        glm::vec3 n = glm::cross(du, dv);
-        const float len = glm::length(n);
-        n = len > 0.0f ? n / len : glm::vec3(0.0f);
+        const glm::vec3 n = shared::strata_limit_normal(du, dv);
         dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
         if (dstDirections)
             dstDirections[v - begin] = n;

@@ -21,6 +21,7 @@
 
 #ifdef __cplusplus
 #include <glm/common.hpp>
+#include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #define STRATA_FN inline
@@ -28,7 +29,9 @@
 namespace strata {
 namespace shared {
 using glm::clamp;
+using glm::cross;
 using glm::floor;
+using glm::length;
 using glm::max;
 using glm::min;
 using glm::ivec2;
@@ -95,10 +98,20 @@ STRATA_FN vec2 strata_dequantize_factor_offset(float dmin, float dmax, float lev
     return vec2((dmax - dmin) / (levels - float(1.0)), dmin);
 }
 
-/// Paper equation 2: displaced point = surface point + d * direction.
+/// Paper eq. 2: displaced point = surface point + d * direction.
 STRATA_FN vec3 strata_displace(vec3 surface, vec3 direction, float d)
 {
     return surface + direction * d;
+}
+
+/// The smooth scheme's direction: the unit normal of the Loop limit surface
+/// from its two tangents (d/ds and d/dt of the limit stencils), or zero
+/// where the tangents are parallel (Displaced Subdivision Surfaces).
+STRATA_FN vec3 strata_limit_normal(vec3 du, vec3 dv)
+{
+    vec3 n = cross(du, dv);
+    float len = length(n);
+    return len > 0.0 ? n / len : vec3(0.0, 0.0, 0.0);
 }
 
 #ifdef __cplusplus
