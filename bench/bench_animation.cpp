@@ -4,7 +4,8 @@
 // For Fox and CesiumMan (../shared/data), per level 0..5, on one core:
 // animation sampling (+ world and skin matrices), control-vertex skinning,
 // control normals, refinement + displacement (Plan::evaluate), the total,
-// and refined vertices per second.  Beside it, in the same run, linear blend
+// and refined vertices per second, and the frame with shading normals of
+// the displaced mesh (what a renderer draws).  Beside it, in the same run, linear blend
 // skinning of a mesh with as many vertices as the refined level and 4
 // influences per vertex (positions, and positions + normals), which is what
 // an engine would do with the captured mesh.  Stored size: the layered rig
@@ -28,6 +29,8 @@
 using namespace strata;
 
 namespace {
+
+bench::JsonRows jsonRows;
 
 void run(const std::string& name, const std::string& path)
 {
@@ -57,7 +60,8 @@ void run(const std::string& name, const std::string& path)
                 name.c_str(), rig.mesh.positions.size(), rig.mesh.faceCount(), rig.skeleton.skin.joints.size(),
                 rig.skeleton.animations[0].name.c_str());
     std::printf("level | refined verts | sample ms | skin ms | eq.6 ms | normals ms | evaluate ms | frame ms | M verts/s |"
-                " LBS pos ms | LBS pos+nrm ms | frame/LBS pos | layered KB | high-res KB | size ratio\n");
+                " LBS pos ms | LBS pos+nrm ms | frame/LBS pos | layered KB | high-res KB | size ratio | frame+shading ms |"
+                " frame+shading/LBS pos+nrm\n");
     std::printf("------+---------------+-----------+---------+---------+------------+-------------+----------+-----------+"
                 "------------+----------------+---------------+------------+-------------+-----------\n");
     for (int level = 0; level <= 5; ++level) {
@@ -81,6 +85,15 @@ void run(const std::string& name, const std::string& path)
             animator.pose(0, nextTime());
             plan->evaluate(out.data(), nullptr, 0, n, animator.positions().data(), animator.normals().data(),
                            animator.positions().size());
+        });
+        // What a renderer draws: the same frame plus shading normals of the
+        // displaced mesh (the comparison an engine developer makes).
+        std::vector<glm::vec3> shading(n);
+        const double frameShaded = bench::medianMs([&] {
+            animator.pose(0, nextTime());
+            plan->evaluate(out.data(), nullptr, 0, n, animator.positions().data(), animator.normals().data(),
+                           animator.positions().size());
+            plan->computeShadingNormals(shading.data(), out.data());
         });
 
         // The engine's alternative: an n-vertex mesh, 4 influences each.
@@ -122,17 +135,34 @@ void run(const std::string& name, const std::string& path)
         const double layeredKB = (rigBytes + 2.0 * double(n)) / 1024.0;
         const double highKB = (geometryBytes(double(n), double(plan->refinedFaceCount())) + shared) / 1024.0;
         std::printf("%5d | %13zu | %9.4f | %7.4f | %7.4f | %10.4f | %11.4f | %8.4f | %9.1f | %10.4f | %14.4f | %13.2f | "
-                    "%10.1f | %11.1f | %9.1fx\n",
+                    "%10.1f | %11.1f | %9.1fx | %16.4f | %25.2f\n",
                     level, n, sample, skin, segments, normals, eval, frame, double(n) / frame / 1000.0, lbs, lbsN, frame / lbs,
-                    layeredKB, highKB, highKB / layeredKB);
+                    layeredKB, highKB, highKB / layeredKB, frameShaded, frameShaded / lbsN);
+        jsonRows.field("rig", name)
+            .field("level", level)
+            .field("vertices", double(n))
+            .field("frame_ms", frameShaded)
+            .field("frame_positions_ms", frame)
+            .field("lbs_pos_ms", lbs)
+            .field("lbs_pos_nrm_ms", lbsN)
+            .endRow();
         std::fflush(stdout);
     }
 }
 
 }  // namespace
 
-int main()
+int main(int argc, char** argv)
 {
+    std::string jsonPath;
+    for (int i = 1; i < argc; ++i) {
+        if (std::string(argv[i]) == "--json" && i + 1 < argc) {
+            jsonPath = argv[++i];
+        } else {
+            std::fprintf(stderr, "usage: bench_animation [--json FILE]\n");
+            return 2;
+        }
+    }
     const std::string data = STRATA_SHARED_DATA;
     struct stat sb;
     bool any = false;
@@ -145,5 +175,9 @@ int main()
     }
     if (!any)
         std::printf("bench_animation: %s holds neither Fox.glb nor CesiumMan.glb; nothing to measure\n", data.c_str());
+    if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
+        std::fprintf(stderr, "bench_animation: cannot write %s\n", jsonPath.c_str());
+        return 1;
+    }
     return 0;
 }

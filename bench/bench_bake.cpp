@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <cmath>
 #include <fcntl.h>
 #include <sys/resource.h>
@@ -29,6 +30,14 @@
 using namespace strata;
 
 namespace {
+
+// Where a child bake leaves its total for the parent's --json row.
+std::string totalFile(pid_t pid)
+{
+    return "/tmp/strata_bench_bake_total_" + std::to_string(pid) + ".txt";
+}
+
+bench::JsonRows jsonRows;
 
 struct Case {
     std::string name, high, control;  // empty paths: generated
@@ -74,6 +83,10 @@ int runCase(const Case& c, int threads, int size)
     const double writeMs = bench::nowMs() - w0;
     std::remove(tmp.c_str());
     const double total = loadMs + report.times.mapping + report.times.rasterize + report.times.dilate + writeMs;
+    if (FILE* f = std::fopen(totalFile(getpid()).c_str(), "w")) {  // for the parent's --json row
+        std::fprintf(f, "%.3f\n", total);
+        std::fclose(f);
+    }
     std::printf("%-22s | %9zu | %7zu | %5d | %7d | %8.0f | %8.0f | %8.0f | %8.0f | %7.0f | %8.0f |", c.name.c_str(),
                 report.highTriangles, report.controlTriangles, map.width, threads, loadMs, report.times.mapping,
                 report.times.rasterize, report.times.dilate, writeMs, total);
@@ -135,6 +148,12 @@ void runDefaultCliBake(const std::string& high, const std::string& control)
     std::printf("case                         | total ms | peak MB | rig KB | target\n");
     std::printf("scan 100k / remesh 10k       | %8.0f | %7.0f | %6.0f | < 10000 ms, < 1024 MB\n", ms,
                 double(usage.ru_maxrss) / 1024.0, kb);
+    jsonRows.field("case", "default CLI bake, scan 100k / remesh 10k")
+        .field("threads", double(std::thread::hardware_concurrency()))
+        .field("total_ms", ms)
+        .field("peak_mb", double(usage.ru_maxrss) / 1024.0)
+        .field("rig_kb", kb)
+        .endRow();
 }
 
 }  // namespace
@@ -142,7 +161,18 @@ void runDefaultCliBake(const std::string& high, const std::string& control)
 int main(int argc, char** argv)
 {
     const std::string data = STRATA_SHARED_DATA;
-    bool onlyGenerated = argc > 1 && std::strcmp(argv[1], "--generated-only") == 0;
+    bool onlyGenerated = false;
+    std::string jsonPath;
+    for (int i = 1; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--generated-only")) {
+            onlyGenerated = true;
+        } else if (!std::strcmp(argv[i], "--json") && i + 1 < argc) {
+            jsonPath = argv[++i];
+        } else {
+            std::fprintf(stderr, "usage: bench_bake [--generated-only] [--json FILE]\n");
+            return 2;
+        }
+    }
     std::vector<Case> cases;
     struct stat st;
     if (!onlyGenerated && ::stat((data + "/spot_triangulated.obj").c_str(), &st) == 0) {
@@ -183,9 +213,21 @@ int main(int argc, char** argv)
             int status = 0;
             struct rusage usage;
             wait4(pid, &status, 0, &usage);
-            if (WIFEXITED(status) && WEXITSTATUS(status) == 0)
+            if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
                 std::printf(" %6.0f\n", double(usage.ru_maxrss) / 1024.0);
-            else
+                double total = std::nan("");
+                if (FILE* f = std::fopen(totalFile(pid).c_str(), "r")) {
+                    if (std::fscanf(f, "%lf", &total) != 1)
+                        total = std::nan("");
+                    std::fclose(f);
+                }
+                std::remove(totalFile(pid).c_str());
+                jsonRows.field("case", c.name)
+                    .field("threads", threads)
+                    .field("total_ms", total)
+                    .field("peak_mb", double(usage.ru_maxrss) / 1024.0)
+                    .endRow();
+            } else
                 std::printf(" %s failed\n", c.name.c_str());
             std::fflush(stdout);
         }
@@ -216,6 +258,10 @@ int main(int argc, char** argv)
     if (!std::getenv("STRATA_BENCH_KEEP")) {
         std::remove(scanPath.c_str());
         std::remove(remeshPath.c_str());
+    }
+    if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
+        std::fprintf(stderr, "bench_bake: cannot write %s\n", jsonPath.c_str());
+        return 1;
     }
     return 0;
 }

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
 #include <vector>
 
 namespace strata {
@@ -35,6 +38,59 @@ double medianMs(F&& f, int runs = 7, double minRunMs = 30.0)
     std::sort(per.begin(), per.end());
     return per[per.size() / 2];
 }
+
+/// Machine-readable rows for --json FILE: one object per table row, stable
+/// field names (docs/RESULTS.md is made from them).
+class JsonRows {
+public:
+    JsonRows& field(const char* name, double value)
+    {
+        char b[64];
+        if (std::isfinite(value))
+            std::snprintf(b, sizeof(b), "%.6g", value);
+        else
+            std::snprintf(b, sizeof(b), "null");
+        return append(name, b);
+    }
+    JsonRows& field(const char* name, const std::string& value)
+    {
+        std::string quoted = "\"";
+        for (char c : value)
+            if (c == '"' || c == '\\')
+                quoted += std::string("\\") + c;
+            else if ((unsigned char)c >= 0x20)
+                quoted += c;
+        return append(name, quoted + "\"");
+    }
+    JsonRows& field(const char* name, const char* value) { return field(name, std::string(value)); }
+    /// Closes the current row.
+    void endRow()
+    {
+        rows_.push_back("{" + current_ + "}");
+        current_.clear();
+    }
+    /// Writes the rows as a JSON array; false when the file cannot be written.
+    bool write(const std::string& path) const
+    {
+        FILE* f = std::fopen(path.c_str(), "w");
+        if (!f)
+            return false;
+        std::fputs("[\n", f);
+        for (size_t i = 0; i < rows_.size(); ++i)
+            std::fprintf(f, "  %s%s\n", rows_[i].c_str(), i + 1 < rows_.size() ? "," : "");
+        std::fputs("]\n", f);
+        return std::fclose(f) == 0;
+    }
+
+private:
+    JsonRows& append(const char* name, const std::string& value)
+    {
+        current_ += (current_.empty() ? "\"" : ", \"") + std::string(name) + "\": " + value;
+        return *this;
+    }
+    std::vector<std::string> rows_;
+    std::string current_;
+};
 
 }  // namespace bench
 }  // namespace strata

@@ -61,6 +61,8 @@ ControlMesh makeCube(int n)
     return m;
 }
 
+bench::JsonRows jsonRows;
+
 void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
 {
     if (!mesh.hasUVs() && !baker::buildTriangleAtlas(&mesh, {2048, 2}).isOk()) {
@@ -99,8 +101,24 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
         });
         const double shade = bench::medianMs([&] { plan->computeShadingNormals(shading.data(), out.data()); });
         std::string osd = "-", ratio = "-";
+        double osdMs = std::nan("");
         if (scheme == Scheme::Linear) {
-            const Plan::CsrStencils& s = plan->linearStencils();
+            // OpenSubdiv's own CSR evaluator on the same stencils, zero weights dropped.
+            Plan::FlatStencils flat;
+            plan->flattenStencils(&flat);
+            struct {
+                std::vector<int> sizes, offsets, indices;
+                std::vector<float> weights;
+            } s;
+            for (size_t v = 0; v < n; ++v) {
+                s.offsets.push_back(int(s.indices.size()));
+                for (uint32_t k = flat.offsets[v]; k < flat.offsets[v + 1]; ++k)
+                    if (flat.weights[k] != 0.0f) {
+                        s.indices.push_back(int(flat.indices[k]));
+                        s.weights.push_back(flat.weights[k]);
+                    }
+                s.sizes.push_back(int(s.indices.size()) - s.offsets.back());
+            }
             using OpenSubdiv::Osd::BufferDescriptor;
             const BufferDescriptor desc(0, 3, 3);
             const double t = bench::medianMs([&] {
@@ -111,12 +129,24 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
             char buf[64];
             std::snprintf(buf, sizeof(buf), "%.3f", t);
             osd = buf;
+            osdMs = t;
             std::snprintf(buf, sizeof(buf), "%.2fx", eval / t);
             ratio = buf;
         }
         std::printf("%5d | %13zu | %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s\n", level, n, setup, eval,
                     double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0, osd.c_str(),
                     ratio.c_str());
+        jsonRows.field("scheme", schemeName(scheme))
+            .field("mesh", name)
+            .field("level", level)
+            .field("vertices", double(n))
+            .field("evaluate_ms", eval)
+            .field("normals_ms", shade)
+            .field("frame_mverts_per_s", double(n) / (eval + shade) / 1000.0)
+            .field("setup_ms", setup)
+            .field("table_bytes_per_vertex", double(plan->memoryBytes()) / double(n))
+            .field("osd_ms", osdMs)
+            .endRow();
         std::fflush(stdout);
     }
 }
@@ -126,13 +156,16 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
 int main(int argc, char** argv)
 {
     int maxLevel = kMaxLevel, maxSmooth = 5;
+    std::string jsonPath;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--max-level") && i + 1 < argc)
             maxLevel = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--max-smooth-level") && i + 1 < argc)
             maxSmooth = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--json") && i + 1 < argc)
+            jsonPath = argv[++i];
         else {
-            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N]\n");
+            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N] [--json FILE]\n");
             return 2;
         }
     }
@@ -150,5 +183,9 @@ int main(int argc, char** argv)
     runTable("cube 13x13 per side", cube, std::min(maxLevel, maxSmooth), Scheme::Smooth);
     if (haveSpot)
         runTable("spot", spot, std::min(maxLevel, maxSmooth), Scheme::Smooth);
+    if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
+        std::fprintf(stderr, "bench_runtime: cannot write %s\n", jsonPath.c_str());
+        return 1;
+    }
     return 0;
 }

@@ -133,13 +133,16 @@ TEST(Plan, LinearStencilsAreBarycentric)
     const ControlMesh m = examples::makeIcosphere(0);
     for (int level = 0; level <= 3; ++level) {
         auto plan = makePlan(m, Scheme::Linear, level);
-        const auto& s = plan->linearStencils();
+        Plan::FlatStencils s;
+        plan->flattenStencils(&s);
+        ASSERT_EQ(s.weightsPerEntry, 1);
         for (size_t v = 0; v < plan->refinedVertexCount(); ++v) {
-            ASSERT_GE(s.sizes[v], 1);
-            ASSERT_LE(s.sizes[v], 3);
+            ASSERT_EQ(s.offsets[v + 1] - s.offsets[v], 3u);
             float sum = 0.0f;
-            for (int k = 0; k < s.sizes[v]; ++k)
-                sum += s.weights[size_t(s.offsets[v] + k)];
+            for (uint32_t k = s.offsets[v]; k < s.offsets[v + 1]; ++k) {
+                EXPECT_GE(s.weights[k], 0.0f);
+                sum += s.weights[k];
+            }
             EXPECT_NEAR(sum, 1.0f, 1e-6f);
             const SampleLocation loc = plan->sampleLocations()[v];
             EXPECT_GE(loc.bary.x, -1e-7f);

@@ -418,7 +418,11 @@ Status Plan::build(const ControlMesh& mesh)
 
     // Vertex stencils of the sharp (linear) refinement, factorised down to
     // the control vertices: for each refined vertex, its barycentric weights.
-    linearCsr_ = CsrStencils();
+    // (a local copy: the hot loop keeps only the padded three-entry form)
+    struct {
+        std::vector<int> sizes, offsets, indices;
+        std::vector<float> weights;
+    } linearCsr_;
     if (level_ == 0) {
         linearCsr_.sizes.assign(nv, 1);
         linearCsr_.offsets.resize(nv);
@@ -612,7 +616,6 @@ Status Plan::build(const ControlMesh& mesh)
             }
         }
         linear_ = std::vector<Stencil3>();
-        linearCsr_ = CsrStencils();
     }
     return Status::ok();
 }
@@ -759,13 +762,17 @@ size_t Plan::memoryBytes() const
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     return bytes(triangles_) + bytes(uvs_) + bytes(uvIndices_) + bytes(samples_) + bytes(sampleUVs_) +
            bytes(displacements_) + bytes(linear_) + bytes(limitOffsets_) + bytes(limitIndices_) +
-           bytes(limitWeights_) + bytes(linearCsr_.sizes) + bytes(linearCsr_.offsets) + bytes(linearCsr_.indices) +
-           bytes(linearCsr_.weights);
+           bytes(limitWeights_);
 }
 
 size_t Plan::stencilWeightCount() const
 {
-    return scheme_ == Scheme::Linear ? linearCsr_.weights.size() : limitIndices_.size();
+    if (scheme_ != Scheme::Linear)
+        return limitIndices_.size();
+    size_t n = 0;
+    for (const Stencil3& s : linear_)
+        n += size_t(s.weight[0] != 0.0f) + size_t(s.weight[1] != 0.0f) + size_t(s.weight[2] != 0.0f);
+    return n;
 }
 
 }  // namespace strata

@@ -150,15 +150,6 @@ public:
     /// Number of stencil weights per refined vertex, summed (for reports).
     size_t stencilWeightCount() const;
 
-    /// The raw refined-level stencil table in CSR form, for benchmarking
-    /// against OpenSubdiv's own evaluators: sizes/offsets per refined vertex,
-    /// control indices and weights.  Linear scheme only (empty otherwise).
-    struct CsrStencils {
-        std::vector<int> sizes, offsets, indices;
-        std::vector<float> weights;
-    };
-    const CsrStencils& linearStencils() const { return linearCsr_; }
-
     /// The stencils evaluate() applies, as flat arrays for a GPU: refined
     /// vertex v reads entries [offsets[v], offsets[v + 1]) of indices, with
     /// weightsPerEntry floats per entry (linear: 1, the weight of position
@@ -194,7 +185,6 @@ private:
         float weight[3];
     };
     std::vector<Stencil3> linear_;
-    CsrStencils linearCsr_;
 
     // Smooth scheme: limit stencils (position, d/ds, d/dt), CSR per refined vertex.
     std::vector<uint32_t> limitOffsets_;  // refinedVertexCount() + 1
