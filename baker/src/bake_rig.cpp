@@ -347,11 +347,14 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             // unless the Loop limit is clearly closer (loose cages).
             if (uvMode == "auto" && !(st = layout(size)))
                 throw BakeError(st.message());
-            // The linear scheme first: when it already meets the tolerance
-            // the smooth one is not tried (its bake costs several times more).
+            // The linear scheme first: when it meets the tolerance four times
+            // over (a level lower would too) the smooth one is not tried (its
+            // bake costs several times more); otherwise the closer surface
+            // may reach the tolerance a level earlier, with a quarter of the
+            // stored values.
             double rms[2] = {0.0, -1.0};
             for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
-                if (candidate == Scheme::Smooth && rms[0] <= tolerance)
+                if (candidate == Scheme::Smooth && rms[0] <= 0.25 * tolerance)
                     break;
                 BakeOptions probe = options;
                 probe.size = uvMode == "auto" ? atlas.mapSize : size;
