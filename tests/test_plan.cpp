@@ -390,3 +390,39 @@ TEST(Plan, RejectsBadControlMeshes)
 
     EXPECT_FALSE(plan);
 }
+
+// One plan shared by two characters with the same control topology: each
+// keeps only its own displacements, and evaluating through the shared,
+// untouched plan gives what a plan of its own gives.
+TEST(Plan, OneSharedPlanServesTwoCharacters)
+{
+    ControlMesh m = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&m, {256, 2}).isOk());
+    DisplacementMap a, b;
+    a.width = a.height = b.width = b.height = 64;
+    for (int i = 0; i < 64 * 64; ++i) {
+        a.texels.push_back(0.05f * std::sin(0.1f * float(i)));
+        b.texels.push_back(-0.02f * std::cos(0.07f * float(i)));
+    }
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        const auto shared = makePlan(m, scheme, 3);
+        const size_t n = shared->refinedVertexCount();
+        std::vector<float> da(n), db(n);
+        ASSERT_TRUE(sampleDisplacements(da.data(), *shared, a).isOk());
+        ASSERT_TRUE(sampleDisplacements(db.data(), *shared, b, 2.0f).isOk());
+        const std::vector<glm::vec3> normals = normalsOf(m);
+        for (int which = 0; which < 2; ++which) {
+            auto own = makePlan(m, scheme, 3);
+            ASSERT_TRUE(own->setDisplacement(which ? b : a, which ? 2.0f : 1.0f).isOk());
+            std::vector<glm::vec3> viaShared(n), viaOwn(n);
+            ASSERT_TRUE(shared->evaluate(viaShared.data(), nullptr, 0, n, which ? db.data() : da.data(),
+                                         m.positions.data(), normals.data(), normals.size())
+                            .isOk());
+            ASSERT_TRUE(own->evaluate(viaOwn.data(), nullptr, 0, n, m.positions.data(), normals.data(), normals.size())
+                            .isOk());
+            EXPECT_EQ(viaShared, viaOwn) << schemeName(scheme) << " character " << which;
+        }
+        // The shared plan's own displacements were never touched.
+        EXPECT_EQ(shared->displacements(), std::vector<float>(n, 0.0f));
+    }
+}

@@ -620,29 +620,44 @@ Status Plan::build(const ControlMesh& mesh)
     return Status::ok();
 }
 
-Status Plan::setDisplacement(const DisplacementMap& map, float scale)
+Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& map, float scale)
 {
-    if (sampleUVs_.empty())
+    if (!dst)
+        return Status(StatusCode::InvalidArgument, "sampleDisplacements: null buffer");
+    const std::vector<glm::vec2>& uvs = plan.sampleUVs();
+    const std::vector<SampleLocation>& at = plan.sampleLocations();
+    if (uvs.empty())
         return Status(StatusCode::InvalidArgument, "the control mesh has no UVs, so no displacement map can be applied");
     if (!std::isfinite(scale))
         return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
     Status st = validateDisplacementMap(map);
     if (!st)
         return st;
-    for (size_t v = 0; v < sampleUVs_.size(); ++v)
-        displacements_[v] = samples_[v].face == kNoControlFace ? 0.0f : scale * sampleDisplacement(map, sampleUVs_[v]);
+    for (size_t v = 0; v < uvs.size(); ++v)
+        dst[v] = at[v].face == kNoControlFace ? 0.0f : scale * sampleDisplacement(map, uvs[v]);
     return Status::ok();
+}
+
+Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementField& field, float scale)
+{
+    if (!dst)
+        return Status(StatusCode::InvalidArgument, "sampleDisplacements: null buffer");
+    if (!std::isfinite(scale))
+        return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
+    const std::vector<SampleLocation>& at = plan.sampleLocations();
+    for (size_t v = 0; v < at.size(); ++v)
+        dst[v] = at[v].face == kNoControlFace ? 0.0f : scale * field.evaluate(at[v].face, at[v].bary.x, at[v].bary.y);
+    return Status::ok();
+}
+
+Status Plan::setDisplacement(const DisplacementMap& map, float scale)
+{
+    return sampleDisplacements(displacements_.data(), *this, map, scale);
 }
 
 Status Plan::setDisplacement(const DisplacementField& field, float scale)
 {
-    if (!std::isfinite(scale))
-        return Status(StatusCode::InvalidArgument, "displacement scale is not finite");
-    for (size_t v = 0; v < samples_.size(); ++v)
-        displacements_[v] = samples_[v].face == kNoControlFace
-                                ? 0.0f
-                                : scale * field.evaluate(samples_[v].face, samples_[v].bary.x, samples_[v].bary.y);
-    return Status::ok();
+    return sampleDisplacements(displacements_.data(), *this, field, scale);
 }
 
 Status Plan::setDisplacements(const float* values, size_t count, float scale)
@@ -668,6 +683,14 @@ void Plan::clearDisplacement()
 Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
                       const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount) const
 {
+    return evaluate(dstPositions, dstDirections, begin, end, displacements_.data(), controlPositions, controlNormals,
+                    controlCount);
+}
+
+Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
+                      const float* displacements, const glm::vec3* controlPositions, const glm::vec3* controlNormals,
+                      size_t controlCount) const
+{
     if (begin > end || end > samples_.size())
         return Status(StatusCode::InvalidArgument, "evaluate: range [" + std::to_string(begin) + ", " +
                                                        std::to_string(end) + ") exceeds the " +
@@ -676,10 +699,10 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
         return Status(StatusCode::InvalidArgument, "evaluate: got " + std::to_string(controlCount) +
                                                        " control vertices, the plan was built for " +
                                                        std::to_string(controlVertexCount_));
-    if (!dstPositions || !controlPositions || (scheme_ == Scheme::Linear && !controlNormals))
+    if (!dstPositions || !controlPositions || !displacements || (scheme_ == Scheme::Linear && !controlNormals))
         return Status(StatusCode::InvalidArgument, "evaluate: null buffer");
 
-    const float* d = displacements_.data();
+    const float* d = displacements;
     if (scheme_ == Scheme::Linear) {
         const Stencil3* st = linear_.data();
         for (size_t v = begin; v < end; ++v) {

@@ -112,7 +112,9 @@ public:
 
     /// Samples the map once per refined vertex at its canonical UV (the
     /// barycentric samples never change under animation, paper 2.4), scaled by
-    /// `scale`.  Needs a control mesh with UVs.
+    /// `scale`, into the plan's own displacements (a convenience for one
+    /// character per plan; sampleDisplacements() + the evaluate() that takes
+    /// displacements share one plan).  Needs a control mesh with UVs.
     Status setDisplacement(const DisplacementMap& map, float scale = 1.0f);
     /// Sets the displacements from per-vertex values stored at some level
     /// (a rig's "vertex" encoding): exact at that level and below.  field
@@ -126,6 +128,14 @@ public:
     void clearDisplacement();
     /// refinedVertexCount() distances, in model units.
     const std::vector<float>& displacements() const { return displacements_; }
+
+    /// evaluate() with the caller's displacements (refinedVertexCount()
+    /// values, from sampleDisplacements()) instead of the plan's own: one
+    /// plan, shared and never modified, serves every character that shares
+    /// its control topology.
+    Status evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
+                    const float* displacements, const glm::vec3* controlPositions, const glm::vec3* controlNormals,
+                    size_t controlCount) const;
 
     /// Per-frame reconstruction of refined vertices [begin, end):
     ///   dstPositions[i - begin] = surface(i) + d_i * direction(i)   (eq. 2)
@@ -191,5 +201,13 @@ private:
     std::vector<uint32_t> limitIndices_;
     std::vector<float> limitWeights_;     // 3 per entry: position, du, dv
 };
+
+/// The displacement of every refined vertex of `plan`, sampled once from a
+/// map at its canonical UV (needs a control mesh with UVs) or taken from a
+/// per-vertex field, scaled by `scale`: the per-character state that goes
+/// with a shared plan.  Vertices no face uses get 0.
+/// \param dst  plan.refinedVertexCount() values (caller-owned)
+Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& map, float scale = 1.0f);
+Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementField& field, float scale = 1.0f);
 
 }  // namespace strata
