@@ -431,3 +431,35 @@ TEST(Measure, VertexDisplacementsLandOnTheCapture)
     EXPECT_EQ(replaced, 0u);
     EXPECT_EQ(values, std::vector<float>(642, 0.0f));
 }
+
+// Holes of a control mesh closed where the capture is closed: an icosphere
+// with one vertex's fan removed gets a five-triangle cap, consistently
+// oriented, and is closed again (Euler characteristic 2).
+TEST(ControlMeshHoles, BoundaryLoopsCloseWithConsistentFans)
+{
+    ControlMesh m = examples::makeIcosphere(1);
+    const size_t faces = m.faceCount();
+    std::vector<uint32_t> kept;
+    for (size_t f = 0; f < faces; ++f) {
+        const uint32_t* t = &m.triangles[3 * f];
+        if (t[0] != 0 && t[1] != 0 && t[2] != 0)
+            kept.insert(kept.end(), t, t + 3);
+    }
+    m.triangles = kept;
+    EXPECT_EQ(countBoundaryEdges(m.triangles.data(), m.faceCount()), 5u);
+    EXPECT_EQ(closeBoundaryLoops(&m), 1u);
+    EXPECT_EQ(m.faceCount(), faces);  // five removed, five added
+    EXPECT_EQ(countBoundaryEdges(m.triangles.data(), m.faceCount()), 0u);
+    // Every directed edge once: the cap is oriented like its neighbours.
+    std::vector<std::pair<uint32_t, uint32_t>> directed;
+    for (size_t f = 0; f < m.faceCount(); ++f)
+        for (int k = 0; k < 3; ++k)
+            directed.push_back({m.triangles[3 * f + size_t(k)], m.triangles[3 * f + size_t((k + 1) % 3)]});
+    std::sort(directed.begin(), directed.end());
+    EXPECT_EQ(std::adjacent_find(directed.begin(), directed.end()), directed.end());
+    // The new vertex sits at the hole's centroid, inside the sphere.
+    EXPECT_LT(glm::length(m.positions.back()), 1.0f);
+    // A closed mesh has nothing to close.
+    ControlMesh closed = examples::makeIcosphere(1);
+    EXPECT_EQ(closeBoundaryLoops(&closed), 0u);
+}

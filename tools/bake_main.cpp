@@ -20,7 +20,7 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
-    "                   [--map-coding vertex|png] [--no-compress] [--max-memory MB]\n"
+    "                   [--map-coding vertex|png] [--no-compress] [--keep-holes] [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
@@ -58,6 +58,8 @@ bool parseArgs(int argc, char** argv, baker::BakeRequest* r)
             r->maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
         } else if (a == "--no-compress") {
             r->compress = false;
+        } else if (a == "--keep-holes") {
+            r->closeHoles = false;
         } else if (a == "--map-coding") {
             r->mapCoding = value();
             if (r->mapCoding != "vertex" && r->mapCoding != "png")

@@ -515,7 +515,8 @@ Status measureVertexDisplacements(std::vector<float>* values, const ControlMesh&
             // n unnormalised in the linear scheme), so the window is window / |n|.
             const double d = (*values)[v], w = window / len;
             double t = 0.0;
-            if (high.intersectLine(glm::dvec3(surface[v]), dir, std::fabs(d) + w, &t) && std::fabs(t - d) <= w) {
+            if (high.intersectLine(glm::dvec3(surface[v]), dir, std::fabs(d) + w, &t, /*alongOnly=*/true) &&
+                std::fabs(t - d) <= w) {
                 (*values)[v] = float(t);
                 ++local;
             }

@@ -244,6 +244,19 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             }
             if (uvMode == "keep" && !control.hasUVs())
                 throw BakeError(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+            // A closed capture over a control mesh left open (a wrist, a
+            // neck): the capture's cap has nothing to be displaced from, so
+            // the holes are closed with fans (a plain, unskinned mesh whose
+            // UVs are laid out anew only; --keep-holes keeps them open).
+            if (request.closeHoles && uvMode == "auto" && skeleton.empty() && skeletonPath.empty() &&
+                !controlRig.source && countBoundaryEdges(control.triangles.data(), control.faceCount()) > 0 &&
+                countBoundaryEdges(high.triangles.data(), high.faceCount()) == 0) {
+                const size_t before = control.faceCount();
+                if (const size_t loops = closeBoundaryLoops(&control))
+                    warn("%s: the capture is closed where the control mesh is open: %zu boundary loop%s closed with "
+                         "%zu triangles (--keep-holes keeps them open)",
+                         controlPath.c_str(), loops, loops == 1 ? "" : "s", control.faceCount() - before);
+            }
         }
         if (!skeletonPath.empty()) {
             // The paper's joint file: its point-to-line binding becomes
@@ -524,8 +537,28 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (writeOptions.vertexDisplacements) {
             highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
             writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
-                return measureVertexDisplacements(values, mesh, options.scheme, level, highIndex, 0.02 * rep.diagonal,
-                                                  options.threads, &measured);
+                std::vector<float> onCapture = *values;
+                Status s = measureVertexDisplacements(&onCapture, mesh, options.scheme, level, highIndex,
+                                                      0.02 * rep.diagonal, options.threads, &measured);
+                // Kept only where the closed loop says so (a capture with
+                // parts close together can mislead the rays).
+                double rms[2] = {0.0, 0.0};
+                for (int k = 0; k < 2 && s; ++k) {
+                    DisplacementField field;
+                    std::vector<LevelError> e;
+                    if ((s = DisplacementField::create(&field, mesh, level, k ? onCapture : *values)))
+                        s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
+                                            size_t(1) << 20, &field);
+                    if (s)
+                        rms[k] = std::max(e[0].forwardRms, e[0].backwardRms);
+                }
+                if (!s)
+                    return s;
+                if (rms[1] < rms[0])
+                    *values = std::move(onCapture);
+                else
+                    measured = 0;
+                return Status::ok();
             };
         }
         outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
@@ -581,7 +614,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (writeOptions.vertexDisplacements)
             appendf(&result->summary,
                     "  stored        per refined vertex at level %d, %zu of them measured along their direction on the "
-                    "capture (the rest from the map)\n",
+                    "capture (the rest from the map; the closed loop chose)\n",
                     recommended, measured);
         if (!trials.empty()) {
             appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",

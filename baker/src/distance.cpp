@@ -44,7 +44,8 @@ double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, d
     return glm::length(c - x);
 }
 
-bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut) const
+bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut,
+                                  bool alongOnly) const
 {
     bool found = false;
     double best = maxT;
@@ -53,8 +54,8 @@ bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& di
             c(positions_[triangles_[3 * size_t(f) + 2]]);
         const glm::dvec3 e1 = b - a, e2 = c - a;
         const glm::dvec3 pv = glm::cross(dir, e2);
-        const double det = glm::dot(e1, pv);
-        if (std::fabs(det) < 1e-300)
+        const double det = glm::dot(e1, pv);  // = -dot(dir, the face's normal) * 2 area
+        if (std::fabs(det) < 1e-300 || (alongOnly && det > 0.0))
             return;
         const double inv = 1.0 / det;
         const glm::dvec3 tv = origin - a;

@@ -186,5 +186,99 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
     return Status::ok();
 }
 
+size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount)
+{
+    std::vector<uint64_t> edges;
+    edges.reserve(3 * faceCount);
+    for (size_t f = 0; f < faceCount; ++f)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t a = triangles[3 * f + size_t(k)], b = triangles[3 * f + size_t((k + 1) % 3)];
+            edges.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
+        }
+    std::sort(edges.begin(), edges.end());
+    size_t boundary = 0;
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j] == edges[i])
+            ++j;
+        boundary += j - i == 1;
+        i = j;
+    }
+    return boundary;
+}
+
+size_t closeBoundaryLoops(ControlMesh* mesh)
+{
+    const size_t nf = mesh->faceCount();
+    // Directed boundary edges a -> b, as their one face has them.
+    std::vector<std::pair<uint64_t, uint32_t>> edges;  // (undirected key, face * 3 + corner)
+    edges.reserve(3 * nf);
+    for (size_t f = 0; f < nf; ++f)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t a = mesh->triangles[3 * f + size_t(k)], b = mesh->triangles[3 * f + size_t((k + 1) % 3)];
+            edges.push_back({uint64_t(std::min(a, b)) << 32 | std::max(a, b), uint32_t(3 * f + size_t(k))});
+        }
+    std::sort(edges.begin(), edges.end());
+    std::vector<std::pair<uint32_t, uint32_t>> boundary;  // (a, b)
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j].first == edges[i].first)
+            ++j;
+        if (j - i == 1) {
+            const uint32_t c = edges[i].second;
+            boundary.push_back({mesh->triangles[c], mesh->triangles[c / 3 * 3 + (c % 3 + 1) % 3]});
+        }
+        i = j;
+    }
+    if (boundary.empty())
+        return 0;
+    std::sort(boundary.begin(), boundary.end());
+    for (size_t i = 1; i < boundary.size(); ++i)
+        if (boundary[i].first == boundary[i - 1].first)
+            return 0;  // two boundary edges leave one vertex: ambiguous loops
+    auto next = [&](uint32_t a) -> int64_t {
+        const auto it = std::lower_bound(boundary.begin(), boundary.end(), std::make_pair(a, 0u));
+        return it != boundary.end() && it->first == a ? int64_t(it->second) : -1;
+    };
+    std::vector<uint8_t> used(boundary.size(), 0);
+    std::vector<std::vector<uint32_t>> loops;
+    for (size_t i = 0; i < boundary.size(); ++i) {
+        if (used[i])
+            continue;
+        std::vector<uint32_t> loop;
+        uint32_t a = boundary[i].first;
+        for (size_t guard = 0; guard <= boundary.size(); ++guard) {
+            const auto it = std::lower_bound(boundary.begin(), boundary.end(), std::make_pair(a, 0u));
+            const size_t k = size_t(it - boundary.begin());
+            if (used[k])
+                break;
+            used[k] = 1;
+            loop.push_back(a);
+            const int64_t b = next(a);
+            if (b < 0)
+                return 0;
+            a = uint32_t(b);
+        }
+        if (a != boundary[i].first || loop.size() < 3)
+            return 0;  // not a closed loop
+        loops.push_back(std::move(loop));
+    }
+    for (const std::vector<uint32_t>& loop : loops) {
+        glm::dvec3 centre(0.0);
+        for (uint32_t v : loop)
+            centre += glm::dvec3(mesh->positions[v]);
+        const uint32_t c = uint32_t(mesh->positions.size());
+        mesh->positions.push_back(glm::vec3(centre / double(loop.size())));
+        // The loop runs as its faces have it; the cap runs the other way.
+        for (size_t i = 0; i < loop.size(); ++i) {
+            const uint32_t a = loop[i], b = loop[(i + 1) % loop.size()];
+            mesh->triangles.insert(mesh->triangles.end(), {b, a, c});
+        }
+    }
+    mesh->uvs.clear();
+    mesh->uvIndices.clear();
+    return loops.size();
+}
+
 }  // namespace baker
 }  // namespace strata

@@ -40,6 +40,7 @@ struct BakeRequest {
     int pngBits = 0;         ///< 8 or 16: also write the eq. 12 quantised PNG beside the rig
     bool layers = false;     ///< also write RIG_layers.png (surface layers per texel)
     double maxMemoryMB = 2048.0;  ///< refuse work estimated past this
+    bool closeHoles = true;  ///< close a plain control mesh's holes where the capture is closed
     std::string report;      ///< also write the JSON report here ("" none, "-" only into BakeResult::report)
 };
 

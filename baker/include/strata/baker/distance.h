@@ -25,7 +25,11 @@ public:
 
     /// The intersection of the line origin + t * dir with the mesh that has
     /// the smallest |t| within |t| <= maxT (Moller-Trumbore); false if none.
-    bool intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* t) const;
+    /// alongOnly: only triangles whose normal points along dir (the line
+    /// leaves the surface's inside there), so a neighbouring part seen
+    /// across a gap is not taken for the surface itself.
+    bool intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* t,
+                       bool alongOnly = false) const;
 
 private:
     const glm::vec3* positions_ = nullptr;

@@ -39,5 +39,17 @@ Status loadControlRig(const std::string& path, Rig* out);
 /// triangles, as the paper suggests (section 2).  No UVs.
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out);
 
+/// Number of edges used by exactly one triangle (0 for a closed mesh).
+size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount);
+
+/// Closes every boundary loop of `mesh` with a fan of triangles around a new
+/// vertex at the loop's centroid, oriented like the faces beside it: a
+/// control mesh left open (a neck, a wrist) where the capture is closed can
+/// then carry the capture's cap.  UVs are dropped (the caller lays out new
+/// ones).  Does nothing and returns 0 when a boundary vertex has more than
+/// one boundary edge leaving it (the loops are ambiguous); else the number
+/// of loops closed.
+size_t closeBoundaryLoops(ControlMesh* mesh);
+
 }  // namespace baker
 }  // namespace strata
