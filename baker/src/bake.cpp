@@ -1,5 +1,6 @@
 // The bake pipeline (paper 2.1-2.3, 3.2): map vertices, rasterise, dilate.
 #include "strata/baker/bake.h"
+#include "parallel.h"
 
 #include "strata/baker/dilate.h"
 #include "strata/baker/distance.h"

@@ -1,5 +1,6 @@
 // Nearest-point distances between meshes (closed-loop error, paper 2.3's bound).
 #include "strata/baker/distance.h"
+#include "parallel.h"
 
 #include "strata/baker/mapping.h"
 

@@ -1,5 +1,6 @@
 // Backward evaluation for texels the forward mapping missed (see fill.h).
 #include "strata/baker/fill.h"
+#include "parallel.h"
 
 #include "strata/baker/mapping.h"
 

@@ -1,6 +1,7 @@
 // Forward mapping (paper 3.2): each high-resolution triangle is drawn into
 // the texture plane through the normal-volume mapping of its vertices.
 #include "strata/baker/rasterize.h"
+#include "parallel.h"
 
 #include <glm/geometric.hpp>
 
@@ -203,27 +204,19 @@ void rasterize(RasterResult* out, const SurfaceIndex& index, const glm::vec3* hi
     //    concatenated in triangle order.
     std::vector<std::vector<Piece>> chunkPieces(static_cast<size_t>(threads));
     std::vector<RasterStats> chunkStats(static_cast<size_t>(threads));
-    {
-        std::vector<std::thread> pool;
-        const size_t chunk = (highFaceCount + size_t(threads) - 1) / size_t(threads);
-        for (int t = 0; t < threads; ++t)
-            pool.emplace_back([&, t] {
-                const size_t b = std::min(highFaceCount, chunk * size_t(t)), e = std::min(highFaceCount, b + chunk);
-                for (size_t f = b; f < e; ++f) {
-                    const uint32_t* tri = &highTriangles[3 * f];
-                    const glm::vec3 n = glm::cross(highPositions[tri[1]] - highPositions[tri[0]],
-                                                   highPositions[tri[2]] - highPositions[tri[0]]);
-                    if (!(glm::dot(n, n) > 0.0f)) {
-                        ++chunkStats[size_t(t)].degenerateTriangles;
-                        continue;
-                    }
-                    triangulatePieces(index, highPositions, tri, mapping, double(size), &chunkPieces[size_t(t)],
-                                      &chunkStats[size_t(t)]);
-                }
-            });
-        for (std::thread& th : pool)
-            th.join();
-    }
+    parallelChunks(highFaceCount, threads, [&](int t, size_t b, size_t e) {
+        for (size_t f = b; f < e; ++f) {
+            const uint32_t* tri = &highTriangles[3 * f];
+            const glm::vec3 n = glm::cross(highPositions[tri[1]] - highPositions[tri[0]],
+                                           highPositions[tri[2]] - highPositions[tri[0]]);
+            if (!(glm::dot(n, n) > 0.0f)) {
+                ++chunkStats[size_t(t)].degenerateTriangles;
+                continue;
+            }
+            triangulatePieces(index, highPositions, tri, mapping, double(size), &chunkPieces[size_t(t)],
+                              &chunkStats[size_t(t)]);
+        }
+    });
     std::vector<Piece> pieces;
     for (int t = 0; t < threads; ++t) {
         pieces.insert(pieces.end(), chunkPieces[size_t(t)].begin(), chunkPieces[size_t(t)].end());
@@ -235,52 +228,47 @@ void rasterize(RasterResult* out, const SurfaceIndex& index, const glm::vec3* hi
 
     // 2. Raster, rows split into bands: every band sees every piece, writes
     //    only its rows; per-texel updates are order-independent.
-    const int band = (size + threads - 1) / threads;
-    std::vector<std::thread> pool;
-    for (int t = 0; t < threads; ++t)
-        pool.emplace_back([&, t] {
-            const int y0 = t * band, y1 = std::min(size, y0 + band);
-            for (const Piece& p : pieces) {
-                glm::vec2 ct[3];
-                for (int k = 0; k < 3; ++k)
-                    ct[k] = s.uvs[s.uvIndices[3 * size_t(p.face) + k]] * float(size);
-                // Texels inside both the piece and its control UV triangle.
-                const float minY = std::max(std::min({p.t[0].y, p.t[1].y, p.t[2].y}), std::min({ct[0].y, ct[1].y, ct[2].y}));
-                const float maxY = std::min(std::max({p.t[0].y, p.t[1].y, p.t[2].y}), std::max({ct[0].y, ct[1].y, ct[2].y}));
-                const float minX = std::max(std::min({p.t[0].x, p.t[1].x, p.t[2].x}), std::min({ct[0].x, ct[1].x, ct[2].x}));
-                const float maxX = std::min(std::max({p.t[0].x, p.t[1].x, p.t[2].x}), std::max({ct[0].x, ct[1].x, ct[2].x}));
-                const int ya = std::max(y0, int(std::floor(minY - 0.5f))), yb = std::min(y1 - 1, int(std::ceil(maxY - 0.5f)));
-                const int xa = std::max(0, int(std::floor(minX - 0.5f))), xb = std::min(size - 1, int(std::ceil(maxX - 0.5f)));
-                if (ya > yb || xa > xb)
-                    continue;
-                const Triangle2 piece = makeTriangle(p.t);
-                if (!(piece.area > 0.0))
-                    continue;
-                const Triangle2 control = makeTriangle(ct);
-                for (int y = ya; y <= yb; ++y)
-                    for (int x = xa; x <= xb; ++x) {
-                        const glm::dvec2 c(x + 0.5, y + 0.5);
-                        double w[3], wc[3];
-                        if (!inside(piece, c, w) || !inside(control, c, wc))
-                            continue;
-                        const double d = interpolateDistance(w, p.d, piece.area);
-                        const size_t i = size_t(y) * size_t(size) + size_t(x);
-                        float& dst = r.distance[i];
-                        uint16_t& layers = r.layers[i];
-                        const float v = float(d);
-                        if (layers == 0)
-                            dst = v;
-                        else if (policy == OverlapPolicy::Max)
-                            dst = std::max(dst, v);
-                        else if (std::fabs(v) < std::fabs(dst) || (std::fabs(v) == std::fabs(dst) && v > dst))
-                            dst = v;
-                        if (layers < 0xffff)
-                            ++layers;
-                    }
-            }
-        });
-    for (std::thread& th : pool)
-        th.join();
+    parallelChunks(size_t(size), threads, [&](int, size_t rowBegin, size_t rowEnd) {
+        const int y0 = int(rowBegin), y1 = int(rowEnd);
+        for (const Piece& p : pieces) {
+            glm::vec2 ct[3];
+            for (int k = 0; k < 3; ++k)
+                ct[k] = s.uvs[s.uvIndices[3 * size_t(p.face) + k]] * float(size);
+            // Texels inside both the piece and its control UV triangle.
+            const float minY = std::max(std::min({p.t[0].y, p.t[1].y, p.t[2].y}), std::min({ct[0].y, ct[1].y, ct[2].y}));
+            const float maxY = std::min(std::max({p.t[0].y, p.t[1].y, p.t[2].y}), std::max({ct[0].y, ct[1].y, ct[2].y}));
+            const float minX = std::max(std::min({p.t[0].x, p.t[1].x, p.t[2].x}), std::min({ct[0].x, ct[1].x, ct[2].x}));
+            const float maxX = std::min(std::max({p.t[0].x, p.t[1].x, p.t[2].x}), std::max({ct[0].x, ct[1].x, ct[2].x}));
+            const int ya = std::max(y0, int(std::floor(minY - 0.5f))), yb = std::min(y1 - 1, int(std::ceil(maxY - 0.5f)));
+            const int xa = std::max(0, int(std::floor(minX - 0.5f))), xb = std::min(size - 1, int(std::ceil(maxX - 0.5f)));
+            if (ya > yb || xa > xb)
+                continue;
+            const Triangle2 piece = makeTriangle(p.t);
+            if (!(piece.area > 0.0))
+                continue;
+            const Triangle2 control = makeTriangle(ct);
+            for (int y = ya; y <= yb; ++y)
+                for (int x = xa; x <= xb; ++x) {
+                    const glm::dvec2 c(x + 0.5, y + 0.5);
+                    double w[3], wc[3];
+                    if (!inside(piece, c, w) || !inside(control, c, wc))
+                        continue;
+                    const double d = interpolateDistance(w, p.d, piece.area);
+                    const size_t i = size_t(y) * size_t(size) + size_t(x);
+                    float& dst = r.distance[i];
+                    uint16_t& layers = r.layers[i];
+                    const float v = float(d);
+                    if (layers == 0)
+                        dst = v;
+                    else if (policy == OverlapPolicy::Max)
+                        dst = std::max(dst, v);
+                    else if (std::fabs(v) < std::fabs(dst) || (std::fabs(v) == std::fabs(dst) && v > dst))
+                        dst = v;
+                    if (layers < 0xffff)
+                        ++layers;
+                }
+        }
+    });
     for (uint16_t l : r.layers) {
         r.stats.coveredTexels += l > 0;
         r.stats.multiLayerTexels += l > 1;

@@ -67,33 +67,6 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
                    const glm::vec3* points, size_t n, int threads, MappingStats* stats,
                    double maxSearchFraction = 0.25);
 
-/// Runs f(begin, end) over [0, n) split into `threads` contiguous chunks.
-template <typename F>
-void parallelFor(size_t n, int threads, F&& f);
-
 }  // namespace baker
 }  // namespace strata
 
-#include <thread>
-
-namespace strata {
-namespace baker {
-template <typename F>
-void parallelFor(size_t n, int threads, F&& f)
-{
-    if (threads <= 1 || n < 1024) {
-        f(size_t(0), n);
-        return;
-    }
-    std::vector<std::thread> pool;
-    const size_t chunk = (n + size_t(threads) - 1) / size_t(threads);
-    for (int t = 0; t < threads; ++t) {
-        const size_t b = std::min(n, chunk * size_t(t)), e = std::min(n, b + chunk);
-        if (b < e)
-            pool.emplace_back([&f, b, e] { f(b, e); });
-    }
-    for (std::thread& th : pool)
-        th.join();
-}
-}  // namespace baker
-}  // namespace strata
