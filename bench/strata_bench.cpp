@@ -126,8 +126,11 @@ struct Row {
     std::string note;
 };
 
+// The mesh through draco_encoder (at `qp` position bits; 0: its defaults,
+// which are 11) and back through draco_decoder.
 Status draco(const std::string& dir, const std::string& stem, const std::vector<glm::vec3>& p,
-             const std::vector<uint32_t>& t, double* bytes, std::vector<glm::vec3>* dp, std::vector<uint32_t>* dt)
+             const std::vector<uint32_t>& t, int qp, double* bytes, std::vector<glm::vec3>* dp,
+             std::vector<uint32_t>* dt)
 {
     const std::string ply = dir + "/" + stem + ".ply", drc = dir + "/" + stem + ".drc",
                       back = dir + "/" + stem + "_decoded.ply";
@@ -138,32 +141,8 @@ Status draco(const std::string& dir, const std::string& stem, const std::vector<
     v.faceCount = t.size() / 3;
     if (Status st = io::writeMesh(ply, v); !st)
         return st;
-    if (shell("draco_encoder -i '" + ply + "' -o '" + drc + "'") != 0 ||
-        shell("draco_decoder -i '" + drc + "' -o '" + back + "'") != 0)
-        return Status(StatusCode::IoError, "draco_encoder/decoder failed on " + ply);
-    *bytes = fileBytes(drc);
-    baker::TriangleMesh decoded;
-    if (Status st = baker::loadHighMesh(back, &decoded, nullptr); !st)
-        return st;
-    *dp = std::move(decoded.positions);
-    *dt = std::move(decoded.triangles);
-    return Status::ok();
-}
-
-Status dracoAt(const std::string& dir, const std::string& stem, const std::vector<glm::vec3>& p,
-               const std::vector<uint32_t>& t, int qp, double* bytes, std::vector<glm::vec3>* dp,
-               std::vector<uint32_t>* dt)
-{
-    const std::string ply = dir + "/" + stem + ".ply", drc = dir + "/" + stem + ".drc",
-                      back = dir + "/" + stem + "_decoded.ply";
-    io::MeshView v;
-    v.positions = p.data();
-    v.vertexCount = p.size();
-    v.triangles = t.data();
-    v.faceCount = t.size() / 3;
-    if (Status st = io::writeMesh(ply, v); !st)
-        return st;
-    if (shell("draco_encoder -qp " + std::to_string(qp) + " -i '" + ply + "' -o '" + drc + "'") != 0 ||
+    const std::string bits = qp > 0 ? "-qp " + std::to_string(qp) + " " : "";
+    if (shell("draco_encoder " + bits + "-i '" + ply + "' -o '" + drc + "'") != 0 ||
         shell("draco_decoder -i '" + drc + "' -o '" + back + "'") != 0)
         return Status(StatusCode::IoError, "draco_encoder/decoder failed on " + ply);
     *bytes = fileBytes(drc);
@@ -308,7 +287,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         Row r{"original, Draco (default settings)", 0, {}, "draco_encoder 1.5, 11-bit positions"};
         std::vector<glm::vec3> p;
         std::vector<uint32_t> t;
-        if (draco(dir, "original", high.positions, high.triangles, &r.bytes, &p, &t)) {
+        if (draco(dir, "original", high.positions, high.triangles, 0, &r.bytes, &p, &t)) {
             r.acc = accuracy(p, t, high, highIndex, diag);
             dracoRatio = r.bytes / plain.bytes;
             rows.push_back(r);
@@ -347,7 +326,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         if (withDraco) {
             std::vector<glm::vec3> p;
             std::vector<uint32_t> t;
-            if (!draco(dir, "decimated", dec.positions, dec.triangles, &r.bytes, &p, &t))
+            if (!draco(dir, "decimated", dec.positions, dec.triangles, 0, &r.bytes, &p, &t))
                 continue;
             r.acc = accuracy(p, t, high, highIndex, diag);
         } else {
@@ -436,7 +415,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
             double bytes = 0;
             std::vector<glm::vec3> p;
             std::vector<uint32_t> t;
-            if (dracoAt(dir, "sweep_draco", high.positions, high.triangles, qp, &bytes, &p, &t)) {
+            if (draco(dir, "sweep_draco", high.positions, high.triangles, qp, &bytes, &p, &t)) {
                 const double rms = accuracy(p, t, high, highIndex, diag).rms;
                 curves[1].points.push_back({rms, bytes});
                 sweep.push_back({{"curve", "draco"}, {"qp", qp}, {"bytes", bytes}, {"rms", rms}});
@@ -450,7 +429,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
             double bytes = 0;
             std::vector<glm::vec3> p;
             std::vector<uint32_t> t;
-            if (dracoAt(dir, "sweep_decimated", dec.positions, dec.triangles, 11, &bytes, &p, &t)) {
+            if (draco(dir, "sweep_decimated", dec.positions, dec.triangles, 11, &bytes, &p, &t)) {
                 const double rms = accuracy(p, t, high, highIndex, diag).rms;
                 curves[2].points.push_back({rms, bytes});
                 sweep.push_back({{"curve", "decimate+draco"}, {"fraction", fraction}, {"bytes", bytes}, {"rms", rms}});

@@ -147,6 +147,15 @@ std::unique_ptr<const StencilTable> createFaceVaryingTable(const Far::TopologyRe
     return std::unique_ptr<const StencilTable>(StencilFactory::Create(refiner, so));
 }
 
+// Levels a plan and the helpers accept, with the one message for the rest.
+Status checkLevel(int level)
+{
+    return level < 0 || level > kMaxLevel
+               ? Status(StatusCode::InvalidArgument,
+                        "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel))
+               : Status::ok();
+}
+
 }  // namespace
 
 Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
@@ -154,9 +163,8 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
 {
     if (!out || !cornerValues)
         return Status(StatusCode::InvalidArgument, "refineFaceVarying: null argument");
-    if (level < 0 || level > kMaxLevel)
-        return Status(StatusCode::InvalidArgument,
-                      "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel));
+    if (Status range = checkLevel(level); !range)
+        return range;
     ControlMesh topo;
     topo.positions = mesh.positions;
     topo.triangles = mesh.triangles;
@@ -233,13 +241,13 @@ Status buildSubdivisionParents(SubdivisionParents* out, const ControlMesh& mesh,
 {
     if (!out)
         return Status(StatusCode::InvalidArgument, "buildSubdivisionParents: null argument");
-    if (level < 0 || level > kMaxLevel)
-        return Status(StatusCode::InvalidArgument,
-                      "subdivision level " + std::to_string(level) + " is outside 0.." + std::to_string(kMaxLevel));
-    ControlMesh topo;
+    Status st = checkLevel(level);
+    if (!st)
+        return st;
+    ControlMesh topo;  // topology only: no UVs to validate or refine
     topo.positions = mesh.positions;
     topo.triangles = mesh.triangles;
-    Status st = validateControlMesh(topo);
+    st = validateControlMesh(topo);
     if (!st)
         return st;
     std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(topo, level);
