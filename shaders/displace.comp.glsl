@@ -13,6 +13,6 @@ void main()
     uint v = gl_GlobalInvocationID.x;
     if (v >= u_vertexCount)
         return;
-    float d = strata_sample_displacement(sampleUVs[v]);
+    float d = strata_vertex_displacement(v, sampleUVs[v]);
     displaced[v] = vec4(strata_displace(surface[2u * v].xyz, surface[2u * v + 1u].xyz, d), 1.0);
 }

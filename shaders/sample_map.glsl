@@ -14,6 +14,8 @@ uniform float u_factor;
 uniform float u_offset;
 uniform float u_scale;   // user scale; 0 disables displacement
 uniform int u_filter;
+uniform int u_perVertex;  // 1: the rig stores its displacements per refined vertex (already decoded)
+layout(std430, binding = 15) readonly buffer VertexDisplacements { float vertexDisplacements[]; };
 
 float strata_sample_displacement(vec2 uv)
 {
@@ -31,4 +33,15 @@ float strata_sample_displacement(vec2 uv)
                             texelFetch(u_map, ivec2(t0.x, t1.y), 0).r, texelFetch(u_map, t1, 0).r, frac);
     }
     return u_scale * strata_decode_distance(t, u_factor, u_offset);
+}
+
+// The displacement of refined vertex v: its own stored value (a rig with
+// per-vertex displacements: the CPU's very numbers), else the map at uv.
+float strata_vertex_displacement(uint v, vec2 uv)
+{
+    if (u_scale == 0.0)
+        return 0.0;
+    if (u_perVertex != 0)
+        return u_scale * vertexDisplacements[v];
+    return strata_sample_displacement(uv);
 }

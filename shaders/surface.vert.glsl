@@ -37,7 +37,7 @@ void main()
     }
     vec3 p = surface[2u * v].xyz;
     vec3 n = surface[2u * v + 1u].xyz;
-    float d = strata_sample_displacement(uv);
+    float d = strata_vertex_displacement(v, uv);
     v_position = strata_displace(p, n, d);
     v_normal = u_haveNormals != 0 ? normals[v].xyz : normalize(n);
     v_displacement = d;

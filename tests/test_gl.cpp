@@ -148,3 +148,45 @@ TEST(Gpu, HardwareFilteringStaysCloseAndScaleZeroIsTheBareSurface)
     // Wrong control count: an error, not a crash.
     EXPECT_FALSE(gpu->update(rig.mesh.positions.data(), normals.data(), 3).isOk());
 }
+
+// A rig that stores its displacements per refined vertex: the GPU uses the
+// CPU's very values (no map in between), in both schemes, and returns to
+// the map when told to.
+TEST(Gpu, PerVertexDisplacementsMatchTheCpu)
+{
+    ASSERT_NE(context(), nullptr);
+    const ExampleRig rig = makeExampleRig();
+    std::vector<glm::vec3> normals(rig.mesh.vertexCount());
+    computeControlNormals(normals.data(), rig.mesh.positions.data(), normals.size(), rig.mesh.triangles.data(),
+                          rig.mesh.faceCount());
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        std::unique_ptr<Plan> plan;
+        ASSERT_TRUE(Plan::create(&plan, rig.mesh, scheme, 3).isOk());
+        // Per-vertex values unlike anything the map holds.
+        std::vector<float> values(plan->refinedVertexCount());
+        for (size_t v = 0; v < values.size(); ++v)
+            values[v] = 0.02f * std::sin(0.37f * float(v));
+        ASSERT_TRUE(plan->setDisplacements(values.data(), values.size()).isOk());
+        std::unique_ptr<gl::GpuSurface> gpu;
+        ASSERT_TRUE(gl::GpuSurface::create(&gpu, *plan).isOk());
+        ASSERT_TRUE(gpu->setDisplacementMap(rig.map).isOk());
+        ASSERT_TRUE(gpu->setDisplacements(plan->displacements().data(), plan->displacements().size()).isOk());
+        std::vector<glm::vec3> cpu(plan->refinedVertexCount()), fromGpu;
+        ASSERT_TRUE(gpu->update(rig.mesh.positions.data(), normals.data(), normals.size()).isOk());
+        ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, cpu.size(), rig.mesh.positions.data(), normals.data(),
+                                   normals.size())
+                        .isOk());
+        ASSERT_TRUE(gpu->readPositions(&fromGpu).isOk());
+        EXPECT_LE(maxDistance(cpu, fromGpu) / rig.diagonal, 1e-6f) << schemeName(scheme);
+        // Back to the map: the map's surface again.
+        ASSERT_TRUE(gpu->setDisplacements(nullptr, 0).isOk());
+        ASSERT_TRUE(plan->setDisplacement(rig.map).isOk());
+        ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, cpu.size(), rig.mesh.positions.data(), normals.data(),
+                                   normals.size())
+                        .isOk());
+        ASSERT_TRUE(gpu->update(rig.mesh.positions.data(), normals.data(), normals.size()).isOk());
+        ASSERT_TRUE(gpu->readPositions(&fromGpu).isOk());
+        EXPECT_LE(maxDistance(cpu, fromGpu) / rig.diagonal, 1e-5f) << schemeName(scheme);
+        EXPECT_FALSE(gpu->setDisplacements(values.data(), 3).isOk());
+    }
+}

@@ -159,6 +159,9 @@ Status Scene::rebuild()
         st = gl::GpuSurface::create(&surface, *plan);
     if (st && haveMap_)
         st = surface->setDisplacementMap(map_);
+    // A rig with per-vertex displacements: the GPU gets the CPU's own values.
+    if (st && haveMap_ && rig_->displacement.vertexLevel >= 0 && (st = applyRigDisplacement(plan.get(), *rig_, &map_)))
+        st = surface->setDisplacements(plan->displacements().data(), plan->displacements().size());
     if (!st) {
         lastError_ = st.message();
         return st;

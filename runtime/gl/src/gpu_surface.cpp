@@ -98,6 +98,7 @@ Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bo
     b[Normals] = makeBuffer(nullptr, nv * 16, false, &bytes);
     b[Errors] = makeBuffer(nullptr, nv * 4, true, &bytes);
     b[Feedback] = makeBuffer(nullptr, nv * 12, false, &bytes);
+    b[VertexDisplacements] = makeBuffer(nullptr, std::max<size_t>(nv, 1) * 4, true, &bytes);
 
     glCreateVertexArrays(1, &s->vao_);
     glVertexArrayVertexBuffer(s->vao_, 0, b[SampleUVs], 0, 8);
@@ -162,6 +163,20 @@ Status GpuSurface::setDisplacementMap(const DisplacementMap& map)
     factor_ = map.factor;
     offset_ = map.offset;
     haveMap_ = true;
+    return Status::ok();
+}
+
+Status GpuSurface::setDisplacements(const float* values, size_t count)
+{
+    if (!values) {
+        perVertex_ = false;
+        return Status::ok();
+    }
+    if (count != vertexCount_)
+        return Status(StatusCode::InvalidArgument, std::to_string(count) + " displacements for " +
+                                                       std::to_string(vertexCount_) + " refined vertices");
+    glNamedBufferSubData(buffers_[VertexDisplacements], 0, GLsizeiptr(count * 4), values);
+    perVertex_ = true;
     return Status::ok();
 }
 
@@ -270,8 +285,10 @@ void GpuSurface::setSampleUniforms(GLuint program)
     glProgramUniform2i(program, glGetUniformLocation(program, "u_mapSize"), mapSize_.x, mapSize_.y);
     glProgramUniform1f(program, glGetUniformLocation(program, "u_factor"), factor_);
     glProgramUniform1f(program, glGetUniformLocation(program, "u_offset"), offset_);
-    glProgramUniform1f(program, glGetUniformLocation(program, "u_scale"), haveMap_ ? scale_ : 0.0f);
+    glProgramUniform1f(program, glGetUniformLocation(program, "u_scale"), haveMap_ || perVertex_ ? scale_ : 0.0f);
     glProgramUniform1i(program, glGetUniformLocation(program, "u_filter"), int(filter_));
+    glProgramUniform1i(program, glGetUniformLocation(program, "u_perVertex"), perVertex_ ? 1 : 0);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, VertexDisplacements, buffers_[VertexDisplacements]);
 }
 
 double GpuSurface::elapsedMs(GLuint begin, GLuint end)

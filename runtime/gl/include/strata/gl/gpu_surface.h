@@ -78,6 +78,10 @@ public:
 
     /// Uploads the map (R32F texels; factor and offset decode them).
     Status setDisplacementMap(const DisplacementMap& map);
+    /// Displacements per refined vertex instead of a map (a rig that stores
+    /// them so: Plan::displacements() after applyRigDisplacement), used as
+    /// they are, so the GPU draws the CPU's surface.  nullptr returns to the map.
+    Status setDisplacements(const float* values, size_t count);
     /// Scales the decoded displacement (0: none), like Plan::setDisplacement's scale.
     void setDisplacementScale(float scale) { scale_ = scale; }
     void setSampleFilter(SampleFilter filter) { filter_ = filter; }
@@ -122,10 +126,12 @@ private:
     glm::ivec2 mapSize_{1, 1};
     float factor_ = 1.0f, offset_ = 0.0f;
     bool haveMap_ = false;
+    bool perVertex_ = false;
 
     enum Buffer {
         ControlPositions, ControlNormals, StencilOffsets, StencilIndices, StencilWeights, Surface, Displaced,
-        SampleUVs, Triangles, AdjacencyOffsets, AdjacentFaces, Normals, Errors, Feedback, CornerUVs, BufferCount
+        SampleUVs, Triangles, AdjacencyOffsets, AdjacentFaces, Normals, Errors, Feedback, CornerUVs,
+        VertexDisplacements, BufferCount
     };
     struct GpuMaterial {
         SurfaceMaterial material;
