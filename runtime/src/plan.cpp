@@ -158,8 +158,13 @@ Status checkLevel(int level)
 
 }  // namespace
 
-Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
-                         size_t valueCount, int level)
+namespace {
+
+// refineFaceVarying, also handing back what the same refinement knows of
+// the refined vertices (when the pointers are not null): each refined
+// face's three vertices and the level's vertex count.
+Status refineCorners(FaceVaryingRefinement* out, std::vector<uint32_t>* faceVertices, size_t* vertexCount,
+                     const ControlMesh& mesh, const uint32_t* cornerValues, size_t valueCount, int level)
 {
     if (!out || !cornerValues)
         return Status(StatusCode::InvalidArgument, "refineFaceVarying: null argument");
@@ -185,6 +190,16 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
         for (int c = 0; c < 3; ++c)
             r.corners[3 * f + size_t(c)] = uint32_t(fvv[c]);
     }
+    if (faceVertices) {
+        faceVertices->resize(nf * 3);
+        for (size_t f = 0; f < nf; ++f) {
+            Far::ConstIndexArray fv = last.GetFaceVertices(Far::Index(f));
+            for (int c = 0; c < 3; ++c)
+                (*faceVertices)[3 * f + size_t(c)] = uint32_t(fv[c]);
+        }
+    }
+    if (vertexCount)
+        *vertexCount = size_t(last.GetNumVertices());
     r.offsets.assign(nvals + 1, 0);
     if (level == 0) {
         for (size_t i = 0; i < nvals; ++i)
@@ -204,6 +219,14 @@ Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, co
     }
     *out = std::move(r);
     return Status::ok();
+}
+
+}  // namespace
+
+Status refineFaceVarying(FaceVaryingRefinement* out, const ControlMesh& mesh, const uint32_t* cornerValues,
+                         size_t valueCount, int level)
+{
+    return refineCorners(out, nullptr, nullptr, mesh, cornerValues, valueCount, level);
 }
 
 namespace {
@@ -298,17 +321,16 @@ Status DisplacementField::create(DisplacementField* out, const ControlMesh& mesh
         cornerIds[c] = uint32_t(c);
     // Face-varying refinement of distinct corner ids: each refined corner's
     // weights are its barycentrics in its control face.
+    // The same refinement numbers the refined vertices, as a plan does.
     FaceVaryingRefinement fv;
-    Status st = refineFaceVarying(&fv, mesh, cornerIds.data(), cornerIds.size(), level);
+    std::vector<uint32_t> faceVertices;
+    size_t vertexCount = 0;
+    Status st = refineCorners(&fv, &faceVertices, &vertexCount, mesh, cornerIds.data(), cornerIds.size(), level);
     if (!st)
         return st;
-    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(mesh, level);
-    if (!refiner)
-        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
-    const Far::TopologyLevel& last = refiner->GetLevel(level);
-    if (size_t(last.GetNumVertices()) != values.size())
+    if (vertexCount != values.size())
         return Status(StatusCode::InvalidArgument, std::to_string(values.size()) + " displacements for " +
-                                                       std::to_string(last.GetNumVertices()) + " vertices at level " +
+                                                       std::to_string(vertexCount) + " vertices at level " +
                                                        std::to_string(level));
     DisplacementField field;
     field.level_ = level;
@@ -316,10 +338,9 @@ Status DisplacementField::create(DisplacementField* out, const ControlMesh& mesh
     field.perFace_ = size_t(field.side_ + 1) * size_t(field.side_ + 2) / 2;
     field.grid_.assign(field.perFace_ * nf, 0.0f);
     const float n = float(field.side_);
-    for (int rf = 0; rf < last.GetNumFaces(); ++rf) {
-        Far::ConstIndexArray fverts = last.GetFaceVertices(rf);
+    for (size_t rf = 0; rf < faceVertices.size() / 3; ++rf) {
         for (int k = 0; k < 3; ++k) {
-            const uint32_t value = fv.corners[3 * size_t(rf) + size_t(k)];
+            const uint32_t value = fv.corners[3 * rf + size_t(k)];
             float b[3] = {0.0f, 0.0f, 0.0f};
             uint32_t face = 0;
             for (uint32_t e = fv.offsets[value]; e < fv.offsets[value + 1]; ++e) {
@@ -331,7 +352,7 @@ Status DisplacementField::create(DisplacementField* out, const ControlMesh& mesh
                 return Status(StatusCode::InvalidData, "unexpected face-varying weights at level " +
                                                            std::to_string(level));
             const size_t row = size_t(j) * (field.side_ + 1) - size_t(j) * (j - 1) / 2;
-            field.grid_[face * field.perFace_ + row + i] = values[size_t(fverts[k])];
+            field.grid_[face * field.perFace_ + row + i] = values[faceVertices[3 * rf + size_t(k)]];
         }
     }
     *out = std::move(field);
