@@ -721,6 +721,17 @@ Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, co
 
 namespace {
 
+// The bytes of bufferView `index`, or nullptr when it lies outside its buffer.
+const unsigned char* viewBytes(const tinygltf::Model& model, int index)
+{
+    const tinygltf::BufferView& view = model.bufferViews[size_t(index)];
+    if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size() ||
+        view.byteOffset > model.buffers[size_t(view.buffer)].data.size() ||
+        view.byteLength > model.buffers[size_t(view.buffer)].data.size() - view.byteOffset)
+        return nullptr;
+    return model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
+}
+
 Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out)
 {
     Status st;
@@ -749,11 +760,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         if (rig.displacement.vertexView >= 0) {
             DisplacementInfo& info = rig.displacement;
             const tinygltf::BufferView& view = model.bufferViews[size_t(info.vertexView)];
-            if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size() ||
-                view.byteOffset > model.buffers[size_t(view.buffer)].data.size() ||
-                view.byteLength > model.buffers[size_t(view.buffer)].data.size() - view.byteOffset)
+            const unsigned char* b = viewBytes(model, info.vertexView);
+            if (!b)
                 return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
-            const unsigned char* b = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
             info.embedded.assign(b, b + view.byteLength);
             // Refining costs per refined triangle, and zstd packs a field of
             // zeros into almost nothing: a level that declares far more
@@ -778,11 +787,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                                            std::to_string(rig.displacement.image) +
                                                            " has no bufferView (the map is missing)");
             const tinygltf::BufferView& view = model.bufferViews[size_t(img.bufferView)];
-            if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size() ||
-                view.byteOffset > model.buffers[size_t(view.buffer)].data.size() ||
-                view.byteLength > model.buffers[size_t(view.buffer)].data.size() - view.byteOffset)
+            const unsigned char* b = viewBytes(model, img.bufferView);
+            if (!b)
                 return Status(StatusCode::InvalidData, path + ": the displacement image's bufferView is out of range");
-            const unsigned char* b = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
             rig.displacement.embedded.assign(b, b + view.byteLength);
         }
         rig.hasDisplacement = true;

@@ -85,7 +85,9 @@ struct Rig {
 Status applyRigDisplacement(Plan* plan, const Rig& rig, const DisplacementMap* map, float scale = 1.0f);
 
 /// The map a vertex-coded rig stands for, for consumers that sample a
-/// texture (the GLSL path): the values at vertexLevel interpolated linearly
+/// texture (Strata's own CPU and GPU paths take the values directly:
+/// applyRigDisplacement, GpuSurface::setDisplacements): the values at
+/// vertexLevel interpolated linearly
 /// over the refined triangles in UV space, texel centres inside a triangle
 /// exact, two texels of gutter around every chart.  map->width/height must
 /// be set; plan is the rig's plan at vertexLevel.
