@@ -23,10 +23,16 @@ int32_t unzigzag(uint32_t u) { return int32_t(u >> 1) ^ -int32_t(u & 1); }
 
 constexpr int kZstdLevel = 19;
 
+// The 32-bit little-endian words of the format: frame lengths and escaped residuals.
 void putLength(std::string* out, uint32_t n)
 {
     for (int k = 0; k < 4; ++k)
         out->push_back(char((n >> (8 * k)) & 0xff));
+}
+
+uint32_t getLength(const unsigned char* p)
+{
+    return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
 }
 
 }  // namespace
@@ -102,8 +108,7 @@ Status decodeVertexDisplacements(const SubdivisionParents& h, const unsigned cha
         const size_t end = h.levelCounts[l], count = end - begin;
         if (size - pos < 4)
             return bad("end early (level " + std::to_string(l) + ")");
-        const size_t frameSize = size_t(data[pos]) | size_t(data[pos + 1]) << 8 | size_t(data[pos + 2]) << 16 |
-                                 size_t(data[pos + 3]) << 24;
+        const size_t frameSize = getLength(data + pos);
         pos += 4;
         if (frameSize > size - pos)
             return bad("end early (level " + std::to_string(l) + ")");
@@ -129,8 +134,7 @@ Status decodeVertexDisplacements(const SubdivisionParents& h, const unsigned cha
             if (u == 255) {
                 if (raw.size() - r < 4)
                     return bad("are corrupt (level " + std::to_string(l) + " ends early)");
-                u = uint32_t(raw[r]) | uint32_t(raw[r + 1]) << 8 | uint32_t(raw[r + 2]) << 16 |
-                    uint32_t(raw[r + 3]) << 24;
+                u = getLength(raw.data() + r);
                 r += 4;
             }
             residuals[i] = unzigzag(u);
