@@ -103,7 +103,7 @@ std::unique_ptr<PyRig> loadRig(const std::string& path)
     auto r = std::make_unique<PyRig>();
     r->path = path;
     check(io::loadRig(path, &r->rig));
-    if (r->rig.hasDisplacement)
+    if (rigNeedsMap(r->rig))
         check(io::loadRigDisplacementMap(path, r->rig, &r->map));
     return r;
 }

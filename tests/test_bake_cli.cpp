@@ -61,6 +61,13 @@ TEST(BakeCli, BakesTheBuiltInShapeAndReportsIt)
     for (const char* key : {"\"closedLoop\"", "\"fallbacks\"", "\"overlapFraction\"", "\"coverage\"", "\"timeMs\"",
                             "\"outputBytes\"", "\"dmin\""})
         EXPECT_NE(json.find(key), std::string::npos) << key;
+    // Outputs that are the map (--exr, --png8, --layers) keep the atlas in
+    // the rig too, so the map stays usable through it.
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+    EXPECT_TRUE(rig.mesh.hasUVs());
+    strata::DisplacementMap map;
+    EXPECT_TRUE(strata::io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map).isOk());
 }
 
 TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
@@ -157,8 +164,14 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     // as the loader rebuilds the meshopt-coded mesh; numbered as the
     // uncoded mesh instead, the radial error is 1.5 times the image-coded
     // rig's, numbered right, the same.
+    // The default rig keeps no UVs (its atlas only served the bake), so it
+    // has no map to rasterise, and says so; the PNG-coded one keeps them.
     strata::DisplacementMap vertexMap, pngMap;
-    ASSERT_TRUE(strata::io::loadRigDisplacementMap(rig, loaded, &vertexMap).isOk());
+    EXPECT_FALSE(loaded.mesh.hasUVs());
+    EXPECT_TRUE(png.mesh.hasUVs());
+    const strata::Status noMap = strata::io::loadRigDisplacementMap(rig, loaded, &vertexMap);
+    EXPECT_FALSE(noMap.isOk());
+    EXPECT_NE(noMap.message().find("no UVs"), std::string::npos) << noMap.message();
     ASSERT_TRUE(strata::io::loadRigDisplacementMap(pngRig, png, &pngMap).isOk());
     const int level = loaded.displacement.vertexLevel;
     strata::io::Reconstruction ra, rb;

@@ -401,8 +401,12 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
     const std::string report = test::runGltfValidator({rigPath}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
 
-    DisplacementMap map;
-    ASSERT_TRUE(io::loadRigDisplacementMap(rigPath, rig, &map).isOk());
+    // The atlas only served the bake: the rig stores its displacements per
+    // vertex and adds no UV set (the character's own TEXCOORD_0 stays).
+    EXPECT_FALSE(rigNeedsMap(rig));
+    EXPECT_EQ(rig.displacement.texCoord, -1);
+    DisplacementMap map;  // none needed
+    EXPECT_FALSE(io::loadRigDisplacementMap(rigPath, rig, &map).isOk());
     const MeshTopologyStats s0 = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());
     EXPECT_GE(s0.nonManifoldEdges, 1u);
     tinygltf::Model source;
@@ -794,16 +798,62 @@ TEST(Scene, MeshoptCodedRigsAreSmallerAndLoadTheSame)
     ASSERT_TRUE(io::loadRig(dir + "/plain.glb", &a).isOk());
     const Status st = io::loadRig(dir + "/coded.glb", &b);
     ASSERT_TRUE(st.isOk()) << st.message();
-    EXPECT_EQ(a.mesh.positions, b.mesh.positions);  // lossless
-    EXPECT_EQ(a.mesh.triangles, b.mesh.triangles);
-    EXPECT_EQ(a.mesh.uvIndices, b.mesh.uvIndices);
-    ASSERT_EQ(a.mesh.uvs.size(), b.mesh.uvs.size());
-    for (size_t i = 0; i < a.mesh.uvs.size(); ++i)  // compact rigs store UVs in [0, 1] as 16-bit
-        for (int c = 0; c < 2; ++c)
-            ASSERT_NEAR(a.mesh.uvs[i][c], b.mesh.uvs[i][c], 0.5f / 65535.0f + 1e-7f) << i;
+    // The same faces (positions lossless, UVs within a 16-bit step), in the
+    // order that codes best: each face as its corners' positions and UVs,
+    // from its smallest position on (the index codec may rotate corners).
+    auto faces = [](const ControlMesh& m) {
+        std::vector<std::array<float, 15>> out(m.faceCount());
+        for (size_t f = 0; f < m.faceCount(); ++f) {
+            int first = 0;
+            for (int k = 1; k < 3; ++k) {
+                const glm::vec3 p = m.positions[m.triangles[3 * f + size_t(k)]];
+                const glm::vec3 q = m.positions[m.triangles[3 * f + size_t(first)]];
+                if (std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z))
+                    first = k;
+            }
+            for (int k = 0; k < 3; ++k) {
+                const size_t c = 3 * f + size_t((first + k) % 3);
+                const glm::vec3 p = m.positions[m.triangles[c]];
+                // Compact rigs store UVs in [0, 1] as 16-bit: compared in steps.
+                const glm::vec2 uv = m.uvs[m.uvIndices[c]] * 65535.0f;
+                const float corner[5] = {p.x, p.y, p.z, uv.x, uv.y};
+                std::copy_n(corner, 5, &out[f][size_t(5 * k)]);
+            }
+        }
+        // Sorted by the positions (no two faces share all three here).
+        std::sort(out.begin(), out.end(), [](const std::array<float, 15>& x, const std::array<float, 15>& y) {
+            const float px[9] = {x[0], x[1], x[2], x[5], x[6], x[7], x[10], x[11], x[12]};
+            const float py[9] = {y[0], y[1], y[2], y[5], y[6], y[7], y[10], y[11], y[12]};
+            return std::lexicographical_compare(px, px + 9, py, py + 9);
+        });
+        return out;
+    };
+    ASSERT_TRUE(a.mesh.hasUVs() && b.mesh.hasUVs());
+    EXPECT_EQ(a.mesh.positions.size(), b.mesh.positions.size());
+    const auto fa = faces(a.mesh), fb = faces(b.mesh);
+    ASSERT_EQ(fa.size(), fb.size());
+    for (size_t f = 0; f < fa.size(); ++f)
+        for (size_t i = 0; i < 15; ++i)
+            ASSERT_NEAR(fa[f][i], fb[f][i], i % 5 < 3 ? 0.0f : 1.0f) << f;
+    // Positions stored to a given error (meshopt's EXPONENTIAL filter): each
+    // coordinate within it, fewer bytes, the same faces in the same order.
+    io::RigWriteOptions lossy = coded;
+    lossy.maxPositionError = 1e-4;
+    ASSERT_TRUE(io::saveRig(dir + "/lossy.glb", rig, &map, nullptr, &lossy).isOk());
+    const std::string lossyBytes = test::readText(dir + "/lossy.glb");
+    EXPECT_LT(lossyBytes.size(), codedBytes);
+    EXPECT_NE(lossyBytes.find("\"EXPONENTIAL\""), std::string::npos);
+    Rig d;
+    ASSERT_TRUE(io::loadRig(dir + "/lossy.glb", &d).isOk());
+    ASSERT_EQ(d.mesh.positions.size(), b.mesh.positions.size());
+    EXPECT_EQ(d.mesh.triangles, b.mesh.triangles);
+    for (size_t v = 0; v < d.mesh.positions.size(); ++v)
+        for (int k = 0; k < 3; ++k)
+            ASSERT_NEAR(d.mesh.positions[v][k], b.mesh.positions[v][k], 1e-4f) << v;
     int code = 0;
-    const std::string report = test::runGltfValidator({dir + "/coded.glb"}, &code);
-    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+    const std::string report = test::runGltfValidator({dir + "/coded.glb", dir + "/lossy.glb"}, &code);
+    for (const char* f : {"coded.glb", "lossy.glb"})
+        EXPECT_NE(report.find(std::string(f) + ": 0 errors, 0 warnings"), std::string::npos) << report;
     // gltfpack's own meshopt output (with its filters) loads too.
     if (std::system("command -v gltfpack >/dev/null 2>&1") == 0) {
         ASSERT_EQ(test::runCommand("gltfpack -i '" + dir + "/plain.glb' -o '" + dir + "/packed.glb' -cc").code, 0);

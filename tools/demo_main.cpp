@@ -123,7 +123,8 @@ int main(int argc, char** argv)
         // Reload through the public loaders, exactly as an engine would.
         Rig loaded;
         DisplacementMap loadedMap;
-        if (!(st = io::loadRig(rigPath, &loaded)) || !(st = io::loadRigDisplacementMap(rigPath, loaded, &loadedMap)))
+        if (!(st = io::loadRig(rigPath, &loaded)) ||
+            (rigNeedsMap(loaded) && !(st = io::loadRigDisplacementMap(rigPath, loaded, &loadedMap))))
             throw cli::Error(st.message());
 
         std::printf("\n level | vertices | triangles | reconstruct ms | radial RMS / diag | radial max / diag\n");

@@ -151,7 +151,7 @@ int main(int argc, char** argv)
         }
         DisplacementMap map;
         const bool useMap = displace && rig.hasDisplacement;
-        if (useMap && !(st = io::loadRigDisplacementMap(rigPath, rig, &map)))
+        if (useMap && rigNeedsMap(rig) && !(st = io::loadRigDisplacementMap(rigPath, rig, &map)))
             throw cli::Error(st.message());
         if (!haveScheme)
             scheme = rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;

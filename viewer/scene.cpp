@@ -43,7 +43,7 @@ Status Scene::open(const std::string& path)
         st = io::loadRig(path, rig.get());
     }
     DisplacementMap map;
-    if (st && rig->hasDisplacement)
+    if (st && rigNeedsMap(*rig))
         st = io::loadRigDisplacementMap(path, *rig, &map);
     if (!st) {
         lastError_ = st.message();
@@ -92,6 +92,11 @@ Status Scene::open(const std::string& path)
         dMax_ = shared::strata_decode_distance(*mm.second, map_.factor, map_.offset);
         if (dMin_ > dMax_)  // a negative factor
             std::swap(dMin_, dMax_);
+    } else if (haveMap_ && !rig_->displacement.vertexValues.empty()) {
+        const std::vector<float>& d = rig_->displacement.vertexValues;
+        const auto mm = std::minmax_element(d.begin(), d.end());
+        dMin_ = *mm.first;
+        dMax_ = *mm.second;
     }
     description_ = io::stemOf(path) + ": " + std::to_string(rig_->mesh.vertexCount()) + " control vertices, " +
                    std::to_string(rig_->mesh.faceCount()) + " triangles" +
@@ -157,7 +162,7 @@ Status Scene::rebuild()
     std::unique_ptr<gl::GpuSurface> surface;
     if (st)
         st = gl::GpuSurface::create(&surface, *plan);
-    if (st && haveMap_)
+    if (st && haveMap_ && !map_.texels.empty())
         st = surface->setDisplacementMap(map_);
     // A rig with per-vertex displacements: the GPU gets the CPU's own values.
     if (st && haveMap_ && rig_->displacement.vertexLevel >= 0 && (st = applyRigDisplacement(plan.get(), *rig_, &map_)))

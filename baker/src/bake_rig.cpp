@@ -528,7 +528,11 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         io::RigWriteOptions writeOptions;
         writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         writeOptions.compress = compress;
+        writeOptions.maxPositionError = tolerance > 0.0 ? 0.25 * tolerance * rep.diagonal : 0.0;
         writeOptions.vertexDisplacements = mapCoding == "vertex";
+        // An atlas made only to bake through is left out of a vertex-coded
+        // rig (nothing reads it there); outputs that are the map keep it.
+        writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
         // Stored per vertex, each value is measured against the capture along
         // its own direction where that agrees with the map (within 2% of the
         // diagonal: farther is another layer of a fold).
@@ -579,10 +583,12 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             DisplacementMap writtenMap;
             const std::string staged = Outputs::staged(outPath);
             DisplacementField field;
-            if (!(st = io::loadRig(staged, &written)) || !(st = io::loadRigDisplacementMap(staged, written, &writtenMap)) ||
-                (written.displacement.vertexLevel >= 0 &&
-                 !(st = DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
-                                                  written.displacement.vertexValues))))
+            if ((st = io::loadRig(staged, &written)))
+                st = written.displacement.vertexLevel >= 0
+                         ? DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
+                                                     written.displacement.vertexValues)
+                         : io::loadRigDisplacementMap(staged, written, &writtenMap);
+            if (!st)
                 throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
             t0 = std::chrono::steady_clock::now();
             Progress p(progress, "measuring the closed-loop error");
@@ -614,8 +620,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (writeOptions.vertexDisplacements)
             appendf(&result->summary,
                     "  stored        per refined vertex at level %d, %zu of them measured along their direction on the "
-                    "capture (the rest from the map; the closed loop chose)\n",
-                    recommended, measured);
+                    "capture (the rest from the map; the closed loop chose)%s\n",
+                    recommended, measured,
+                    writeOptions.omitDisplacementUVs ? "; the atlas only served the bake and is not in the rig "
+                                                       "(--exr keeps it)" : "");
         if (!trials.empty()) {
             appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
                          100.0 * tolerance);

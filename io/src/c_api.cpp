@@ -120,7 +120,7 @@ StrataStatus strata_rig_load(const char* path, StrataRig** out)
     return guarded([&] {
         auto r = std::make_unique<StrataRig>();
         Status st = io::loadRig(path, &r->rig);
-        if (st && r->rig.hasDisplacement)
+        if (st && rigNeedsMap(r->rig))
             st = io::loadRigDisplacementMap(path, r->rig, &r->map);
         if (!st)
             return fromStatus(st);
@@ -138,7 +138,7 @@ StrataStatus strata_rig_load_memory(const void* data, size_t size, int binary, S
         auto r = std::make_unique<StrataRig>();
         const std::string name = binary ? "rig.glb (memory)" : "rig.gltf (memory)";
         Status st = io::loadRigFromMemory(static_cast<const unsigned char*>(data), size, binary != 0, name, &r->rig);
-        if (st && r->rig.hasDisplacement)
+        if (st && rigNeedsMap(r->rig))
             st = io::loadRigDisplacementMap(name, r->rig, &r->map);
         if (!st)
             return fromStatus(st);

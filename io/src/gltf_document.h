@@ -78,11 +78,16 @@ Status packAndWrite(const std::string& path, tinygltf::Model& model);
 
 /// As packAndWrite, for .glb, with vertex attributes and triangle indices
 /// coded by EXT_meshopt_compression (no uncompressed fallback).
-Status writeCompressedGlb(const std::string& path, tinygltf::Model& model);
+/// positionError > 0 (model units) stores float POSITIONs with meshopt's
+/// EXPONENTIAL filter at the fewest mantissa bits that keep every
+/// coordinate within it (the accessors' bounds follow the decoded values);
+/// 0 keeps them exact.
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError = 0.0);
 /// writeCompressedGlb into memory.  The index codec may rotate each
 /// triangle's corners, which renumbers the refined vertices of the mesh a
 /// loader rebuilds, so whoever must know that numbering reads these bytes.
-Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out);
+Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out,
+                           double positionError = 0.0);
 
 /// A .glb that uses EXT_meshopt_compression, decoded to a plain .glb in
 /// `plain` (left empty when the input does not use it).  Errors name `path`.

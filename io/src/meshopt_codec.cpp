@@ -236,14 +236,14 @@ Status plainGlb(const std::string& path, const tinygltf::Model& model, std::stri
 
 }  // namespace
 
-Status writeCompressedGlb(const std::string& path, tinygltf::Model& model)
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError)
 {
     std::string bytes;
-    Status st = encodeCompressedGlb(path, model, &bytes);
+    Status st = encodeCompressedGlb(path, model, &bytes, positionError);
     return st ? writeFileAtomic(path, bytes.data(), bytes.size()) : st;
 }
 
-Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out)
+Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out, double positionError)
 {
     Status st = prepareForWriting(path, model);
     if (!st)
@@ -290,6 +290,60 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
         if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
             kind[size_t(im.bufferView)] = -1;
 
+    // Positions that may be lossy go through the EXPONENTIAL filter: a
+    // mantissa shared by each vertex's three coordinates, which the vertex
+    // codec then compresses far better than raw floats.
+    std::vector<std::vector<unsigned char>> filtered(nv);
+    std::vector<int> filterBits(nv, 0);
+    if (positionError > 0.0 && std::isfinite(positionError)) {
+        std::vector<uint8_t> isPosition(nv, 0);
+        for (const tinygltf::Mesh& mesh : model.meshes)
+            for (const tinygltf::Primitive& prim : mesh.primitives) {
+                const auto it = prim.attributes.find("POSITION");
+                if (it == prim.attributes.end() || it->second < 0 || size_t(it->second) >= model.accessors.size())
+                    continue;
+                const tinygltf::Accessor& a = model.accessors[size_t(it->second)];
+                if (a.bufferView >= 0 && a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT &&
+                    a.type == TINYGLTF_TYPE_VEC3 && !a.normalized)
+                    isPosition[size_t(a.bufferView)] = 1;
+            }
+        for (size_t v = 0; v < nv; ++v) {
+            if (!isPosition[v] || kind[v] != 1 || stride[v] != 12)
+                continue;
+            std::vector<float> xyz(3 * count[v]);
+            std::memcpy(xyz.data(), model.buffers[0].data.data() + model.bufferViews[v].byteOffset, xyz.size() * 4);
+            float largest = 0.0f;
+            for (float x : xyz)
+                largest = std::max(largest, std::fabs(x));
+            if (!std::isfinite(largest) || !(largest > 0.0f))
+                continue;
+            // The shared exponent makes the step 2^-(bits-1) of the vertex's
+            // largest coordinate (rounded up to a power of two); the error
+            // is half a step.
+            const int bits = int(std::ceil(std::log2(2.0 * double(largest) / positionError))) + 1;
+            if (bits >= 24)
+                continue;
+            filterBits[v] = std::max(bits, 2);
+            std::vector<unsigned char> coded(xyz.size() * 4);
+            meshopt_encodeFilterExp(coded.data(), count[v], 12, filterBits[v], xyz.data());
+            // The file holds what decoding gives: store that, and bound it.
+            std::vector<unsigned char> decoded = coded;
+            meshopt_decodeFilterExp(decoded.data(), count[v], 12);
+            std::memcpy(model.buffers[0].data.data() + model.bufferViews[v].byteOffset, decoded.data(), decoded.size());
+            std::memcpy(xyz.data(), decoded.data(), decoded.size());
+            for (tinygltf::Accessor& a : model.accessors)
+                if (a.bufferView == int(v) && !a.minValues.empty()) {
+                    a.minValues.assign(3, 1e300);
+                    a.maxValues.assign(3, -1e300);
+                    for (size_t i = 0; i < xyz.size(); ++i) {
+                        a.minValues[i % 3] = std::min(a.minValues[i % 3], double(xyz[i]));
+                        a.maxValues[i % 3] = std::max(a.maxValues[i % 3], double(xyz[i]));
+                    }
+                }
+            filtered[v] = std::move(coded);
+        }
+    }
+
     const std::vector<unsigned char>& data = model.buffers[0].data;
     std::vector<unsigned char> bin;
     struct Coded {
@@ -305,7 +359,8 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
             std::vector<unsigned char> enc;
             if (kind[v] == 1) {
                 enc.resize(meshopt_encodeVertexBufferBound(count[v], stride[v]));
-                enc.resize(meshopt_encodeVertexBuffer(enc.data(), enc.size(), src, count[v], stride[v]));
+                enc.resize(meshopt_encodeVertexBuffer(enc.data(), enc.size(),
+                                                      filterBits[v] ? filtered[v].data() : src, count[v], stride[v]));
             } else {
                 std::vector<unsigned int> idx(count[v]);
                 for (size_t i = 0; i < count[v]; ++i) {
@@ -374,6 +429,8 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
         ext["byteStride"] = stride[c.view];
         ext["count"] = count[c.view];
         ext["mode"] = kind[c.view] == 1 ? "ATTRIBUTES" : "TRIANGLES";
+        if (filterBits[c.view])
+            ext["filter"] = "EXPONENTIAL";
         view["buffer"] = fallbackIndex;
         view["byteOffset"] = c.fallbackOffset;
         view["byteLength"] = length;

@@ -16,9 +16,11 @@
 #include "vertex_codec.h"
 #include "gltf_mesh_writer.h"
 #include "weld.h"
+#include <meshoptimizer.h>
 #include "strata/displacement_math.h"
 #include "strata/normals.h"
 
+#include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
@@ -28,6 +30,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <unordered_map>
@@ -106,8 +109,12 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     } else if (!(st = stringField(*tex, "uri", path, &info->uri))) {
         return st;
     }
+    // A vertex-coded rig may have no UVs at all (texCoord absent): the
+    // values are then its only form of the map.
+    const bool uvless = info->vertexLevel >= 0 && !member(*tex, "texCoord");
     if (!(st = stringField(*tex, "encoding", path, &info->encoding)) || !(st = numberField(*tex, "width", path, &w)) ||
-        !(st = numberField(*tex, "height", path, &h)) || !(st = numberField(*tex, "texCoord", path, &texCoord)) ||
+        !(st = numberField(*tex, "height", path, &h)) ||
+        (!uvless && !(st = numberField(*tex, "texCoord", path, &texCoord))) ||
         !(st = numberField(block, "displacementGeometryFactor", path, &factor)) ||
         !(st = numberField(block, "displacementGeometryOffset", path, &offset)) ||
         !(st = stringField(block, "scheme", path, &scheme)) ||
@@ -164,7 +171,7 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     }
     info->width = int(w);
     info->height = int(h);
-    info->texCoord = int(texCoord);
+    info->texCoord = uvless ? -1 : int(texCoord);
     info->factor = float(factor);
     info->offset = float(offset);
     info->recommendedLevel = int(level);
@@ -317,6 +324,8 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             const tinygltf::Value* tc = tex ? member(*tex, "texCoord") : nullptr;
             if (tc && tc->IsNumber() && tc->GetNumberAsDouble() >= 0 && tc->GetNumberAsDouble() <= 7)
                 texCoord = int(tc->GetNumberAsDouble());
+            else if (!tc && member(*block, "displacementVertices"))
+                texCoord = -1;  // per-vertex values without UVs
         }
     std::vector<int> firstNode(model.meshes.size(), -1);
     for (size_t i = 0; i < model.nodes.size(); ++i) {
@@ -363,7 +372,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 continue;
             if (pos.size() / 3 + n >= 0x7fffffffu)
                 return Status(StatusCode::InvalidData, path + ": the scene has too many vertices");
-            const int uvAcc = attributeOf(prim, uvName);
+            const int uvAcc = texCoord >= 0 ? attributeOf(prim, uvName) : -1;
             if (uvAcc >= 0) {
                 if (!(st = readFloatAccessor(model, uvAcc, 2, uvName, &puv)))
                     return Status(st.code(), what + ": " + st.message());
@@ -753,7 +762,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         const tinygltf::Value& block = *member(model.meshes[size_t(scene.blockMesh)].extras, "strata");
         if (!(st = parseStrataBlock(block, path, model, &rig.displacement)))
             return st;
-        if (scene.missingUV)
+        if (scene.missingUV && rig.displacement.texCoord >= 0)
             return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but " + scene.firstMissingUV +
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
                                                        " (stripped by another tool?)");
@@ -817,6 +826,10 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
     const DisplacementInfo& info = rig.displacement;
     DisplacementMap map;
     std::string mapName;
+    if (info.vertexLevel >= 0 && !rig.mesh.hasUVs())
+        return Status(StatusCode::InvalidArgument, rigPath + ": the rig stores its displacements per vertex and has no "
+                                                             "UVs, so there is no map to rasterise (bake with --exr or "
+                                                             "--map-coding png to keep one)");
     if (info.vertexLevel >= 0) {
         // Texture consumers get the map the per-vertex values stand for.
         std::unique_ptr<Plan> plan;  // UVs and topology only: the linear plan is the cheaper one
@@ -902,7 +915,8 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     tex["encoding"] = tinygltf::Value(d.encoding);
     tex["width"] = tinygltf::Value(d.width);
     tex["height"] = tinygltf::Value(d.height);
-    tex["texCoord"] = tinygltf::Value(d.texCoord);
+    if (d.texCoord >= 0)
+        tex["texCoord"] = tinygltf::Value(d.texCoord);
     tinygltf::Value::Object subdivision;
     subdivision["rule"] = tinygltf::Value(std::string("loop"));
     subdivision["boundary"] = tinygltf::Value(std::string("edge-and-corner"));
@@ -1124,8 +1138,8 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
 // is written and loaded back in memory first and the map sampled on that
 // topology, with rig.mesh's UVs (faces keep their order; checked).
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
-                                bool compressed, const RigWriteOptions& options, const std::string& path,
-                                DisplacementInfo* info)
+                                bool compressed, double positionError, const RigWriteOptions& options,
+                                const std::string& path, DisplacementInfo* info)
 {
     // Through the same writer as the final file (the meshopt index codec
     // rotates triangles, which renumbers refined vertices).
@@ -1133,7 +1147,7 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     std::string glb;
     Status st;
     if (compressed) {
-        st = encodeCompressedGlb(path, probe, &glb);
+        st = encodeCompressedGlb(path, probe, &glb, positionError);
     } else if ((st = prepareForWriting(path, probe))) {
         tinygltf::TinyGLTF writer;
         std::ostringstream stream;
@@ -1154,15 +1168,25 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
                                                "an image instead");
     mesh.uvs = rig.mesh.uvs;
     mesh.uvIndices.resize(mesh.triangles.size());
+    // Positions may be stored lossily (maxPositionError): the rotation that
+    // moves the corners least, and no corner farther than that error allows.
+    const double slack = 4.0 * positionError * positionError;
     for (size_t f = 0; f < mesh.faceCount(); ++f) {
         int rotation = -1;
-        for (int r = 0; r < 3 && rotation < 0; ++r) {
-            bool same = true;
-            for (int k = 0; k < 3; ++k)
-                same = same && mesh.positions[mesh.triangles[3 * f + size_t(k)]] ==
-                                   rig.mesh.positions[rig.mesh.triangles[3 * f + size_t((k + r) % 3)]];
-            if (same)
+        double best = std::numeric_limits<double>::infinity();
+        for (int r = 0; r < 3; ++r) {
+            double sum = 0.0, worst = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                const glm::dvec3 a(mesh.positions[mesh.triangles[3 * f + size_t(k)]]);
+                const glm::dvec3 b(rig.mesh.positions[rig.mesh.triangles[3 * f + size_t((k + r) % 3)]]);
+                const double d2 = glm::dot(a - b, a - b);
+                sum += d2;
+                worst = std::max(worst, d2);
+            }
+            if (worst <= 3.0 * slack && sum < best) {
+                best = sum;
                 rotation = r;
+            }
         }
         if (rotation < 0)
             return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map "
@@ -1175,6 +1199,36 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
         return st;
     std::vector<float> values = plan->displacements();
+    {
+        // A vertex on a UV seam has one sample per chart around it: the
+        // median, so that no single badly covered chart corner decides.
+        const std::vector<uint32_t>& tri = plan->refinedTriangles();
+        const std::vector<uint32_t>& uvi = plan->refinedUVIndices();
+        const std::vector<glm::vec2>& uvs = plan->refinedUVs();
+        std::vector<uint32_t> firstUV(values.size(), ~0u);
+        std::vector<uint8_t> seam(values.size(), 0);
+        for (size_t c = 0; c < tri.size(); ++c) {
+            uint32_t& u = firstUV[tri[c]];
+            seam[tri[c]] |= u != ~0u && u != uvi[c];
+            u = u == ~0u ? uvi[c] : u;
+        }
+        std::vector<uint64_t> pairs;  // (vertex, UV) of seam corners
+        for (size_t c = 0; c < tri.size(); ++c)
+            if (seam[tri[c]])
+                pairs.push_back(uint64_t(tri[c]) << 32 | uvi[c]);
+        std::sort(pairs.begin(), pairs.end());
+        pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+        std::vector<float> samples;
+        for (size_t i = 0; i < pairs.size();) {
+            const uint32_t v = uint32_t(pairs[i] >> 32);
+            samples.clear();
+            for (; i < pairs.size() && uint32_t(pairs[i] >> 32) == v; ++i)
+                samples.push_back(sampleDisplacement(map, uvs[uint32_t(pairs[i])]));
+            std::sort(samples.begin(), samples.end());
+            const size_t k = samples.size();
+            values[v] = k % 2 ? samples[k / 2] : 0.5f * (samples[k / 2 - 1] + samples[k / 2]);
+        }
+    }
     if (options.refineVertexDisplacements && !(st = options.refineVertexDisplacements(mesh, level, &values)))
         return st;
     SubdivisionParents hierarchy;
@@ -1199,11 +1253,94 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     return Status::ok();
 }
 
+// Faces in vertex-cache order, vertices in first-use order (unreferenced
+// ones last, in their order): the order meshopt's codecs compress best, about
+// half the index bytes of an arbitrary order.  UV corners and skin weights
+// move with their faces and vertices; the map is in UV space, so it stays.
+void orderForCoding(Rig* rig)
+{
+    ControlMesh& m = rig->mesh;
+    const size_t nv = m.positions.size(), nf = m.faceCount();
+    std::vector<uint32_t> tri(m.triangles.size());
+    meshopt_optimizeVertexCache(tri.data(), m.triangles.data(), m.triangles.size(), nv);
+    // The optimiser emits whole triangles, corners unrotated: find each one's
+    // source face (repeated faces are taken in turn).
+    std::unordered_map<uint64_t, std::vector<uint32_t>> facesOf;
+    auto key = [](const uint32_t* t) {
+        return (uint64_t(t[0]) * 2654435761u) ^ (uint64_t(t[1]) << 21) ^ (uint64_t(t[2]) << 42);
+    };
+    for (size_t f = nf; f-- > 0;)
+        facesOf[key(&m.triangles[3 * f])].push_back(uint32_t(f));
+    std::vector<uint32_t> sourceFace(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        std::vector<uint32_t>& list = facesOf[key(&tri[3 * f])];
+        for (size_t i = list.size(); i-- > 0;)
+            if (std::equal(&tri[3 * f], &tri[3 * f] + 3, &m.triangles[3 * size_t(list[i])])) {
+                sourceFace[f] = list[i];
+                list.erase(list.begin() + long(i));
+                break;
+            }
+    }
+    std::vector<uint32_t> remap(nv);
+    meshopt_optimizeVertexFetchRemap(remap.data(), tri.data(), tri.size(), nv);
+    uint32_t next = 0;
+    for (uint32_t r : remap)
+        if (r != ~0u)
+            next = std::max(next, r + 1);
+    for (uint32_t& r : remap)
+        if (r == ~0u)
+            r = next++;
+    std::vector<glm::vec3> positions(nv);
+    for (size_t v = 0; v < nv; ++v)
+        positions[remap[v]] = m.positions[v];
+    std::vector<uint32_t> uvIndices(m.uvIndices.size());
+    for (size_t f = 0; f < nf; ++f) {
+        for (int k = 0; k < 3; ++k)
+            tri[3 * f + size_t(k)] = remap[tri[3 * f + size_t(k)]];
+        if (m.hasUVs())
+            std::copy_n(&m.uvIndices[3 * size_t(sourceFace[f])], 3, &uvIndices[3 * f]);
+    }
+    m.positions = std::move(positions);
+    m.triangles = std::move(tri);
+    m.uvIndices = std::move(uvIndices);
+    VertexWeights& w = rig->skeleton.weights;
+    if (w.influences > 0 && w.joints.size() == nv * size_t(w.influences)) {
+        const size_t k = size_t(w.influences);
+        std::vector<uint16_t> joints(w.joints.size());
+        std::vector<float> weights(w.weights.size());
+        for (size_t v = 0; v < nv; ++v) {
+            std::copy_n(&w.joints[k * v], k, &joints[k * remap[v]]);
+            std::copy_n(&w.weights[k * v], k, &weights[k * remap[v]]);
+        }
+        w.joints = std::move(joints);
+        w.weights = std::move(weights);
+    }
+}
+
 }  // namespace
 
-Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map, std::vector<std::string>* notes,
+Status saveRig(const std::string& path, const Rig& input, const DisplacementMap* map, std::vector<std::string>* notes,
                const RigWriteOptions* options)
 {
+    // A bare control mesh is written in the order that codes best (its
+    // per-vertex values, when it has them, are computed on the file's order
+    // below; those of a loaded rig written back keep its order).
+    const bool fromSource = input.source && !input.parts.empty() && input.sourceVertex.size() &&
+                            input.fileCorners.size() == input.mesh.triangles.size();
+    const bool keepsValues = input.hasDisplacement && input.displacement.vertexLevel >= 0 && !map;
+    Rig ordered;
+    const bool reorder = !fromSource && !keepsValues && options && options->compress && extensionOf(path) == ".glb" &&
+                         validateControlMesh(input.mesh).isOk();
+    if (reorder) {
+        ordered = input;
+        orderForCoding(&ordered);
+    }
+    const Rig& rig = reorder ? ordered : input;
+    // A character's own vertex data is kept exact; a bare cage's positions
+    // may be stored to the error allowed.
+    const double positionError = options && !fromSource ? options->maxPositionError : 0.0;
+    const bool omitUVs = options && options->vertexDisplacements && options->omitDisplacementUVs && map &&
+                         rig.hasDisplacement;
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
         return Status(StatusCode::InvalidArgument, path + ": a rig must be written as .glb or .gltf");
@@ -1216,8 +1353,6 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
     DisplacementInfo info = rig.displacement;
     tinygltf::Model model;
     std::vector<int> blockMeshes;
-    const bool fromSource = rig.source && !rig.parts.empty() && rig.sourceVertex.size() &&
-                            rig.fileCorners.size() == cm.triangles.size();
     if (fromSource) {
         model = rig.source->model;
         std::vector<std::vector<unsigned char>> imageBytes = rig.source->imageBytes;
@@ -1242,7 +1377,9 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         embedImages(model, imageBytes, notes);
         // New displacement UVs (an atlas made by the baker) go in a new set.
         bool sameUVs = cm.hasUVs() && cm.uvIndices == rig.fileCorners && cm.uvs.size() == rig.sourceVertex.size();
-        if (cm.hasUVs() && !sameUVs) {
+        if (omitUVs && !sameUVs) {
+            info.texCoord = -1;
+        } else if (cm.hasUVs() && !sameUVs) {
             int set = 0;
             for (const RigPart& part : rig.parts)
                 for (const auto& [name, acc] : model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)].attributes)
@@ -1268,13 +1405,13 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         view.vertexCount = cm.positions.size();
         view.triangles = cm.triangles.data();
         view.faceCount = cm.faceCount();
-        if (cm.hasUVs()) {
+        if (cm.hasUVs() && !omitUVs) {
             view.uvs = cm.uvs.data();
             view.uvCount = cm.uvs.size();
             view.uvIndices = cm.uvIndices.data();
         }
         buildGltfMesh(&model, view, "control_mesh", nullptr, &rig.skeleton);
-        info.texCoord = 0;
+        info.texCoord = omitUVs ? -1 : 0;
         blockMeshes.push_back(0);
     }
     if (rig.hasDisplacement) {
@@ -1283,7 +1420,7 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
         const double step = options ? options->maxQuantizationStep : 0.0;
         if (map && options && options->vertexDisplacements) {
             const bool compressed = extensionOf(path) == ".glb" && options->compress;
-            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, *options, path, &info)))
+            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, positionError, *options, path, &info)))
                 return Status(st.code(), path + ": " + st.message());
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());
@@ -1302,7 +1439,8 @@ Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* m
             setStrataExtras(&model.meshes[size_t(m)].extras, &block);
     }
     // Rigs are compact: meshopt-coded vertex data and indices (.glb).
-    return extensionOf(path) == ".glb" && options && options->compress ? writeCompressedGlb(path, model)
+    return extensionOf(path) == ".glb" && options && options->compress
+               ? writeCompressedGlb(path, model, positionError)
                                                                         : packAndWrite(path, model);
 }
 

@@ -22,7 +22,7 @@ Status applyRigDisplacement(Plan* plan, const Rig& rig, const DisplacementMap* m
             return st;
         return plan->setDisplacement(field, scale);
     }
-    if (!map)
+    if (!map || map->texels.empty())
         return Status(StatusCode::InvalidArgument, "the rig stores a displacement map and none was given");
     return plan->setDisplacement(*map, scale);
 }

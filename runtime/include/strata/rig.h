@@ -78,6 +78,15 @@ struct Rig {
     std::vector<std::string> warnings;  ///< tolerated problems found while loading
 };
 
+/// True when the rig's displacement is sampled from a map that must be
+/// loaded first (io::loadRigDisplacementMap); false when it has none or
+/// stores its values per vertex (which applyRigDisplacement reads alone; such
+/// a rig may have no UVs, and then no map at all).
+inline bool rigNeedsMap(const Rig& rig)
+{
+    return rig.hasDisplacement && rig.displacement.vertexLevel < 0;
+}
+
 /// Sets plan's displacements from the rig: from its per-vertex values when
 /// it stores them (exact at levels up to vertexLevel, interpolated past it),
 /// else by sampling `map` (which must then be given).  plan must have been

@@ -65,6 +65,15 @@ struct RigWriteOptions {
     /// EXT_meshopt_compression (three.js, Babylon.js, gltfpack and Strata
     /// read it; the glTF-Validator accepts it).  strata-bake turns it on.
     bool compress = false;
+    /// With compress: the largest error allowed in each vertex position
+    /// coordinate, in model units (0: exact).  Positions are then stored with
+    /// meshopt's EXPONENTIAL filter at the bits that error allows (a float
+    /// that decodes as a float, so skinning and node transforms are
+    /// untouched); per-vertex displacements are measured on the positions
+    /// as stored.  Only a bare control mesh: a rig written from a glTF
+    /// document keeps its vertex data exact.  strata-bake passes a quarter of
+    /// its tolerance.
+    double maxPositionError = 0.0;
     /// Store the map as its samples at the refined vertices of
     /// rig.displacement.recommendedLevel, predicted in subdivision order and
     /// zstd-coded (encoding "vertex", format version 3), instead of as an
@@ -76,6 +85,12 @@ struct RigWriteOptions {
     /// from this file, in its numbering) before they are coded, to refine
     /// them; the baker measures each against the capture.
     std::function<Status(const ControlMesh& mesh, int level, std::vector<float>* values)> refineVertexDisplacements;
+    /// With vertexDisplacements: leave out the UVs the map was baked
+    /// through when nothing else uses them (an atlas the baker made).  The
+    /// per-vertex values are then the map's only form: seams no longer split
+    /// vertices (fewer, better-coded vertices), and loadRigDisplacementMap
+    /// refuses the rig.  A character's own texture UVs are always kept.
+    bool omitDisplacementUVs = false;
 };
 
 /// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain
