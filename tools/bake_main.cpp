@@ -28,8 +28,10 @@ const char* kUsage =
     "level's refined vertices, quantised to the bits the tolerance needs, predicted in\n"
     "subdivision order and zstd-coded (--map-coding png embeds it as a grey PNG instead);\n"
     "vertex data and indices are meshopt-coded (EXT_meshopt_compression; --no-compress\n"
-    "for tools without it).  --exr also\n"
-    "writes it as RIG.exr for pipelines; --layers writes RIG_layers.png (surface layers per texel).\n";
+    "for tools without it), a bare cage's positions to a quarter of the tolerance.  An atlas\n"
+    "the baker lays out only serves the bake and stays out of the rig unless an output that is\n"
+    "the map asks for it: --exr also writes it as RIG.exr for pipelines, --png8/--png16 as a\n"
+    "PNG, --layers writes RIG_layers.png (surface layers per texel).\n";
 
 // Fills the request from the command line; false when the run is done
 // (--help, --version).  Bad flags throw cli::Error.
