@@ -133,6 +133,8 @@ py::dict bake(const std::string& high, const std::string& control, const std::st
             req.options.threads = v.cast<int>();
         else if (key == "map_coding")
             req.mapCoding = v.cast<std::string>();
+        else if (key == "mesh_coding")
+            req.meshCoding = v.cast<std::string>();
         else if (key == "compress")
             req.compress = v.cast<bool>();
         else if (key == "exr")
@@ -175,7 +177,7 @@ PYBIND11_MODULE(strata, m)
     py::register_exception<StrataError>(m, "Error", PyExc_RuntimeError);
     m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"),
           "Bakes HIGH onto CONTROL (a mesh, a rig, or \"auto\") into the rig OUT; options mirror strata-bake's flags "
-          "(tolerance, control_faces, uv, size, scheme, threads, map_coding, compress, exr, skeleton, close_holes, max_memory, "
+          "(tolerance, control_faces, uv, size, scheme, threads, map_coding, mesh_coding, compress, exr, skeleton, close_holes, max_memory, "
           "report, error_levels=(from, to)).  Returns the bake report as a dict.");
     py::class_<PyRig>(m, "Rig")
         .def_readonly("path", &PyRig::path)

@@ -864,6 +864,108 @@ TEST(Scene, MeshoptCodedRigsAreSmallerAndLoadTheSame)
     }
 }
 
+// A bare cage coded with KHR_draco_mesh_compression: fewer bytes than
+// meshopt, every position within the error asked, the same displaced
+// surface (the example head, radially), and valid glTF.
+TEST(Scene, DracoCodedCageIsSmallerAndReconstructsTheSameSurface)
+{
+    const std::string dir = test::tempDir("scene_draco");
+    Rig rig;
+    DisplacementMap map;
+    test::makeExampleRig(&rig, &map);
+    rig.displacement.recommendedLevel = 3;
+    io::RigWriteOptions meshopt;
+    meshopt.compress = true;
+    meshopt.vertexDisplacements = true;
+    meshopt.maxQuantizationStep = 1e-4;
+    meshopt.maxPositionError = 2e-4;
+    io::RigWriteOptions draco = meshopt;
+    draco.draco = true;
+    ASSERT_TRUE(io::saveRig(dir + "/meshopt.glb", rig, &map, nullptr, &meshopt).isOk());
+    ASSERT_TRUE(io::saveRig(dir + "/draco.glb", rig, &map, nullptr, &draco).isOk());
+    const std::string a = test::readText(dir + "/meshopt.glb"), b = test::readText(dir + "/draco.glb");
+    EXPECT_EQ(a.find("KHR_draco_mesh_compression"), std::string::npos);
+    EXPECT_NE(b.find("KHR_draco_mesh_compression"), std::string::npos);
+    EXPECT_LT(b.size(), a.size());
+    Rig ra, rb;
+    ASSERT_TRUE(io::loadRig(dir + "/meshopt.glb", &ra).isOk());
+    const Status st = io::loadRig(dir + "/draco.glb", &rb);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(rb.mesh.faceCount(), rig.mesh.faceCount());
+    ASSERT_EQ(rb.mesh.vertexCount(), rig.mesh.vertexCount());
+    ASSERT_TRUE(rb.mesh.hasUVs());
+    for (const glm::vec3& p : rb.mesh.positions) {
+        float nearest = 1e30f;
+        for (const glm::vec3& q : rig.mesh.positions)
+            nearest = std::min(nearest, std::max({std::fabs(p.x - q.x), std::fabs(p.y - q.y), std::fabs(p.z - q.z)}));
+        EXPECT_LE(nearest, 2.001e-4f);
+    }
+    auto radialRms = [](const std::vector<glm::vec3>& p) {
+        double sum = 0.0;
+        for (const glm::vec3& x : p) {
+            const double e = double(glm::length(x)) - double(examples::headRadius(glm::normalize(x)));
+            sum += e * e;
+        }
+        return std::sqrt(sum / double(p.size()));
+    };
+    const DisplacementMap none;  // per-vertex rigs need no map
+    io::Reconstruction ca, cb;
+    ASSERT_TRUE(io::reconstruct(&ca, ra, &none, Scheme::Linear, 3).isOk());
+    ASSERT_TRUE(io::reconstruct(&cb, rb, &none, Scheme::Linear, 3).isOk());
+    // The map's samples are not measured again here (the baker does that),
+    // so a moved cage moves the surface by up to the position error.
+    EXPECT_LT(radialRms(cb.positions), radialRms(ca.positions) + 2e-4)
+        << radialRms(cb.positions) << " vs " << radialRms(ca.positions);
+    int code = 0;
+    const std::string report = test::runGltfValidator({dir + "/draco.glb"}, &code);
+    EXPECT_NE(report.find("draco.glb: 0 errors, 0 warnings"), std::string::npos) << report;
+}
+
+// A Draco-compressed character (draco_transcoder, as glTF pipelines make
+// them) loads like the plain file: the same faces, skin and UVs, positions
+// within Draco's quantisation, and it bakes.
+TEST(Scene, DracoCompressedCharacterLoadsLikeThePlainFile)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_draco_input");
+    const test::CommandResult t = test::runCommand("draco_transcoder -i '" + man + "' -o '" + dir + "/man.glb'");
+    ASSERT_EQ(t.code, 0) << "draco_transcoder (Debian package draco) is needed: " << t.output;
+    ASSERT_NE(test::readText(dir + "/man.glb").find("KHR_draco_mesh_compression"), std::string::npos);
+    Rig plain, packed;
+    ASSERT_TRUE(io::loadRig(man, &plain).isOk());
+    const Status st = io::loadRig(dir + "/man.glb", &packed);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(packed.mesh.faceCount(), plain.mesh.faceCount());
+    EXPECT_EQ(packed.parts.size(), plain.parts.size());
+    EXPECT_EQ(packed.skeleton.skin.joints.size(), plain.skeleton.skin.joints.size());
+    EXPECT_EQ(packed.mesh.hasUVs(), plain.mesh.hasUVs());
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : plain.mesh.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    // draco_transcoder's default: 11-bit positions over the largest extent.
+    const float step = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}) / 2047.0f;
+    // Every sampled face of the Draco file lies where a face of the plain one
+    // does (the transcoder reorders faces), within the quantisation.
+    auto centroid = [](const ControlMesh& m, size_t f) {
+        return (m.positions[m.triangles[3 * f]] + m.positions[m.triangles[3 * f + 1]] +
+                m.positions[m.triangles[3 * f + 2]]) / 3.0f;
+    };
+    double worst = 0.0;
+    for (size_t f = 0; f < packed.mesh.faceCount(); f += 97) {
+        const glm::vec3 c = centroid(packed.mesh, f);
+        float nearest = 1e30f;
+        for (size_t g = 0; g < plain.mesh.faceCount(); ++g)
+            nearest = std::min(nearest, glm::length(c - centroid(plain.mesh, g)));
+        worst = std::max(worst, double(nearest));
+    }
+    EXPECT_LE(worst, double(step));
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir + "/man.glb' --control '" +
+                                                   dir + "/man.glb' --error-levels none -o '" + dir + "/rig.glb'");
+    EXPECT_EQ(r.code, 0) << r.output;
+}
+
 // The C API (strata/strata.h) from a C99 program equals the C++ path bit for
 // bit: a skinned, animated, vertex-coded compact rig reconstructed by
 // io::reconstruct in the bind pose and posed, against the C program's

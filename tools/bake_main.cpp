@@ -20,15 +20,17 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
-    "                   [--map-coding vertex|png] [--no-compress] [--keep-holes] [--max-memory MB]\n"
+    "                   [--map-coding vertex|png] [--mesh-coding draco|meshopt] [--no-compress] [--keep-holes]\n"
+    "                   [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop; --size forces a size.\n"
     "The rig is one self-contained file: the map is stored as its samples at the recommended\n"
     "level's refined vertices, quantised to the bits the tolerance needs, predicted in\n"
     "subdivision order and zstd-coded (--map-coding png embeds it as a grey PNG instead);\n"
-    "vertex data and indices are meshopt-coded (EXT_meshopt_compression; --no-compress\n"
-    "for tools without it), a bare cage's positions to a quarter of the tolerance.  An atlas\n"
+    "a bare cage is Draco-coded (KHR_draco_mesh_compression, positions to a quarter of the\n"
+    "tolerance; --mesh-coding meshopt codes it with EXT_meshopt_compression instead), other\n"
+    "vertex data and indices meshopt-coded (--no-compress for tools without either).  An atlas\n"
     "the baker lays out only serves the bake and stays out of the rig unless an output that is\n"
     "the map asks for it: --exr also writes it as RIG.exr for pipelines, --png8/--png16 as a\n"
     "PNG, --layers writes RIG_layers.png (surface layers per texel).\n";
@@ -58,6 +60,10 @@ bool parseArgs(int argc, char** argv, baker::BakeRequest* r)
                                  "\"");
         } else if (a == "--max-memory") {
             r->maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
+        } else if (a == "--mesh-coding") {
+            r->meshCoding = value();
+            if (r->meshCoding != "draco" && r->meshCoding != "meshopt")
+                throw cli::Error("--mesh-coding takes draco or meshopt, not " + r->meshCoding);
         } else if (a == "--no-compress") {
             r->compress = false;
         } else if (a == "--keep-holes") {

@@ -188,6 +188,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     try {
         if (highPath.empty() || controlPath.empty() || outPath.empty())
             throw BakeError("--high, --control and -o are required (see --help)");
+        if (mapCoding != "vertex" && mapCoding != "png")
+            throw BakeError("map coding must be vertex or png, not " + mapCoding);
+        if (request.meshCoding != "draco" && request.meshCoding != "meshopt")
+            throw BakeError("mesh coding must be draco or meshopt, not " + request.meshCoding);
         if (std::filesystem::is_symlink(outPath))
             throw BakeError(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
         for (const std::string& input : {highPath, controlPath})
@@ -528,6 +532,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         io::RigWriteOptions writeOptions;
         writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         writeOptions.compress = compress;
+        writeOptions.draco = request.meshCoding == "draco";
         writeOptions.maxPositionError = tolerance > 0.0 ? 0.25 * tolerance * rep.diagonal : 0.0;
         writeOptions.vertexDisplacements = mapCoding == "vertex";
         // An atlas made only to bake through is left out of a vertex-coded

@@ -119,10 +119,15 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     if (size > 0xffffffffu)
         return Status(StatusCode::InvalidData, path + ": file is larger than 4 GiB");
     const std::string ext = binary ? ".glb" : ".gltf";
-    // EXT_meshopt_compression is decoded first: tinygltf does not know it.
+    // EXT_meshopt_compression and KHR_draco_mesh_compression are decoded
+    // first: tinygltf knows neither.
     std::string plain;
+    if (!binary && std::string(reinterpret_cast<const char*>(data), size).find("KHR_draco_mesh_compression") !=
+                       std::string::npos)
+        return Status(StatusCode::Unsupported, path + ": Draco-compressed meshes are read from .glb only; "
+                                                   "convert with gltf-transform or gltfpack first");
     if (binary) {
-        Status st = decodeMeshoptGlb(data, size, path, &plain);
+        Status st = decodeCompressedGlb(data, size, path, &plain);
         if (!st)
             return st;
         if (!plain.empty()) {
@@ -146,9 +151,10 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
         return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
     doc->imageBytes.resize(doc->model.images.size());
     for (const std::string& e : doc->model.extensionsRequired)
-        if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")  // meshopt: only .gltf gets here
-            return Status(StatusCode::Unsupported, path + ": compressed meshes (" + e +
-                                                       ") are not read yet; decompress with gltfpack -noq or gltf-transform first");
+        if (e == "EXT_meshopt_compression")  // only .gltf gets here
+            return Status(StatusCode::Unsupported, path + ": meshopt-compressed meshes are read from .glb only; "
+                                                       "decompress with gltfpack -noq or gltf-transform first");
+
     return Status::ok();
 }
 
@@ -262,7 +268,8 @@ bool onlyKnownExtensions(const tinygltf::Model& model)
 {
     for (const std::string& e : model.extensionsUsed)
         if (e.rfind("KHR_materials_", 0) != 0 && e != "KHR_texture_transform" && e != "KHR_lights_punctual" &&
-            e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp")
+            e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp" &&
+            e != "KHR_draco_mesh_compression")
             return false;
     return true;
 }
@@ -352,8 +359,11 @@ Status packBuffers(tinygltf::Model& model)
     }
     for (const tinygltf::Image& im : model.images)
         useView(im.bufferView);
-    for (tinygltf::Mesh& m : model.meshes)
+    for (tinygltf::Mesh& m : model.meshes) {
         useView(strataVertexView(m.extras));
+        for (const tinygltf::Primitive& p : m.primitives)
+            useView(dracoView(p));
+    }
     std::vector<unsigned char> merged;
     std::vector<tinygltf::BufferView> views;
     for (size_t v = 0; v < nv; ++v) {
@@ -392,6 +402,11 @@ Status packBuffers(tinygltf::Model& model)
         const int v = strataVertexView(m.extras);
         if (v >= 0 && size_t(v) < nv)
             setStrataVertexView(&m.extras, viewMap[size_t(v)]);
+        for (tinygltf::Primitive& p : m.primitives) {
+            const int d = dracoView(p);
+            if (d >= 0 && size_t(d) < nv)
+                setDracoView(&p, viewMap[size_t(d)]);
+        }
     }
     model.bufferViews = std::move(views);
     model.buffers.clear();

@@ -6,6 +6,7 @@
 #include "strata/status.h"
 #include "text.h"
 
+#include <nlohmann/json_fwd.hpp>
 #include <tiny_gltf.h>
 
 #include <functional>
@@ -34,6 +35,22 @@ Status loadGltfDocument(const std::string& path, SourceDocument* doc);
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
                          const std::string& path, SourceDocument* doc);
 
+
+/// The bufferView of a primitive's KHR_draco_mesh_compression data (-1:
+/// none), and its renumbering when buffers are packed.
+int dracoView(const tinygltf::Primitive& p);
+void setDracoView(tinygltf::Primitive* p, int view);
+/// Decodes every KHR_draco_mesh_compression primitive of a .glb's JSON into
+/// plain accessors (of the types they declare) whose data it appends to
+/// `bin` (the BIN chunk, buffer 0), and drops the extension.  Counts are
+/// checked against the accessors; errors name `path`.
+Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, const std::string& path);
+/// Codes with KHR_draco_mesh_compression (Edgebreaker) every triangle
+/// primitive that has only a float POSITION and TEXCOORD_n sets, no morph
+/// targets and accessors no one else uses: positions quantised so that no
+/// coordinate moves more than positionError (> 0), UVs to 16 bits (decoded
+/// as floats).  The old bufferViews are left for packBuffers to drop.
+Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_t* coded);
 
 /// The bufferView a mesh's strata block stores per-vertex displacements in
 /// (-1: none), and its renumbering when buffers are packed.
@@ -82,16 +99,20 @@ Status packAndWrite(const std::string& path, tinygltf::Model& model);
 /// EXPONENTIAL filter at the fewest mantissa bits that keep every
 /// coordinate within it (the accessors' bounds follow the decoded values);
 /// 0 keeps them exact.
-Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError = 0.0);
+/// draco: code eligible primitives with KHR_draco_mesh_compression instead
+/// (encodeDracoPrimitives; needs positionError > 0).
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError = 0.0,
+                          bool draco = false);
 /// writeCompressedGlb into memory.  The index codec may rotate each
 /// triangle's corners, which renumbers the refined vertices of the mesh a
 /// loader rebuilds, so whoever must know that numbering reads these bytes.
 Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out,
-                           double positionError = 0.0);
+                           double positionError = 0.0, bool draco = false);
 
-/// A .glb that uses EXT_meshopt_compression, decoded to a plain .glb in
-/// `plain` (left empty when the input does not use it).  Errors name `path`.
-Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain);
+/// A .glb that uses EXT_meshopt_compression or KHR_draco_mesh_compression,
+/// decoded to a plain .glb in `plain` (left empty when the input uses
+/// neither).  Errors name `path`.
+Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain);
 
 }  // namespace io
 }  // namespace strata

@@ -1,7 +1,8 @@
 // EXT_meshopt_compression (libmeshoptimizer): rigs are written with their
 // vertex attributes and triangle indices meshopt-coded, and any .glb that
-// uses the extension (a Strata rig, gltfpack -c/-cc output) is decoded back
-// to a plain document before tinygltf, which does not know it, parses it.
+// uses the extension (a Strata rig, gltfpack -c/-cc output) or
+// KHR_draco_mesh_compression (draco_codec.cpp) is decoded back to a plain
+// document before tinygltf, which knows neither, parses it.
 #include "gltf_document.h"
 
 #include "gltf_mesh_writer.h"
@@ -20,6 +21,7 @@ namespace io {
 namespace {
 
 constexpr const char* kExtension = "EXT_meshopt_compression";
+constexpr const char* kDraco = "KHR_draco_mesh_compression";
 using Json = nlohmann::json;
 
 uint32_t read32(const unsigned char* p)
@@ -77,12 +79,12 @@ bool splitGlb(const unsigned char* data, size_t size, std::string* json, const u
     return true;
 }
 
-bool usesExtension(const Json& doc)
+bool usesExtension(const Json& doc, const char* name = kExtension)
 {
     if (!doc.is_object() || !doc.contains("extensionsUsed") || !doc["extensionsUsed"].is_array())
         return false;
     for (const Json& e : doc["extensionsUsed"])
-        if (e.is_string() && e.get<std::string>() == kExtension)
+        if (e.is_string() && e.get<std::string>() == name)
             return true;
     return false;
 }
@@ -101,7 +103,7 @@ size_t sizeField(const Json& o, const char* name, size_t fallback, bool* ok)
 
 }  // namespace
 
-Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain)
+Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain)
 {
     plain->clear();
     std::string jsonText;
@@ -109,11 +111,22 @@ Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::strin
     size_t binSize = 0;
     if (!splitGlb(data, size, &jsonText, &bin, &binSize))
         return Status::ok();  // not a glb: tinygltf reports it
-    if (jsonText.find(kExtension) == std::string::npos)
+    if (jsonText.find(kExtension) == std::string::npos && jsonText.find(kDraco) == std::string::npos)
         return Status::ok();
     Json doc = Json::parse(jsonText, nullptr, /*allow_exceptions=*/false);
-    if (doc.is_discarded() || !usesExtension(doc))
+    if (doc.is_discarded())
         return Status::ok();
+    const bool meshopt = usesExtension(doc), draco = usesExtension(doc, kDraco);
+    if (!meshopt && !draco)
+        return Status::ok();
+    if (!meshopt) {
+        std::vector<unsigned char> out(bin, bin + binSize);
+        Status st = decodeDracoJson(doc, &out, path);
+        if (!st)
+            return st;
+        *plain = assembleGlb(doc.dump(), out);
+        return Status::ok();
+    }
     auto bad = [&](const std::string& what) {
         return Status(StatusCode::InvalidData, path + ": " + kExtension + ": " + what);
     };
@@ -207,6 +220,11 @@ Status decodeMeshoptGlb(const unsigned char* data, size_t size, const std::strin
     Json plainBuffer = Json::object();
     plainBuffer["byteLength"] = out.size();
     doc["buffers"] = Json::array({plainBuffer});
+    if (draco) {
+        Status st = decodeDracoJson(doc, &out, path);
+        if (!st)
+            return st;
+    }
     for (const char* list : {"extensionsUsed", "extensionsRequired"})
         if (doc.contains(list) && doc[list].is_array()) {
             Json kept = Json::array();
@@ -236,18 +254,26 @@ Status plainGlb(const std::string& path, const tinygltf::Model& model, std::stri
 
 }  // namespace
 
-Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError)
+Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, double positionError, bool draco)
 {
     std::string bytes;
-    Status st = encodeCompressedGlb(path, model, &bytes, positionError);
+    Status st = encodeCompressedGlb(path, model, &bytes, positionError, draco);
     return st ? writeFileAtomic(path, bytes.data(), bytes.size()) : st;
 }
 
-Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out, double positionError)
+Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out, double positionError,
+                           bool draco)
 {
     Status st = prepareForWriting(path, model);
     if (!st)
         return st;
+    size_t dracoCoded = 0;
+    if (draco && positionError > 0.0) {
+        if (!(st = encodeDracoPrimitives(model, positionError, &dracoCoded)))
+            return Status(st.code(), path + ": " + st.message());
+        if (dracoCoded && !(st = packBuffers(model)))  // drops the views Draco replaced
+            return Status(st.code(), path + ": " + st.message());
+    }
     if (model.buffers.empty())
         return plainGlb(path, model, out);
     // Which views to code: vertex attributes with 4-byte-multiple strides and

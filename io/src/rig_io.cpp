@@ -1131,6 +1131,95 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
     return Status::ok();
 }
 
+// Finds, for every face of `loaded`, the face of `rig` it was written from
+// and the rotation of its corners: each corner within `error` of the rig
+// corner in every coordinate (the positions' storage error), the rotation
+// that moves them least.  The same face index first; else any face, through
+// a grid of the rig faces' centroids.  False when some face has no match.
+bool matchFaces(const ControlMesh& loaded, const ControlMesh& rig, double error, std::vector<uint32_t>* sourceFace,
+                std::vector<int>* rotation)
+{
+    const size_t nf = loaded.faceCount();
+    if (nf != rig.faceCount())
+        return false;
+    const double slack = 12.0 * error * error + 1e-30;  // twice the error per coordinate: rounding
+    auto corner = [](const ControlMesh& m, size_t f, int k) { return glm::dvec3(m.positions[m.triangles[3 * f + size_t(k)]]); };
+    // The rotation of rig face r that fits loaded face f best; -1 if none fits.
+    auto fit = [&](size_t f, size_t r, double* cost) {
+        int best = -1;
+        for (int rot = 0; rot < 3; ++rot) {
+            double sum = 0.0, worst = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                const glm::dvec3 d = corner(loaded, f, k) - corner(rig, r, (k + rot) % 3);
+                const double d2 = glm::dot(d, d);
+                sum += d2;
+                worst = std::max(worst, d2);
+            }
+            if (worst <= slack && (best < 0 || sum < *cost)) {
+                best = rot;
+                *cost = sum;
+            }
+        }
+        return best;
+    };
+    sourceFace->assign(nf, 0);
+    rotation->assign(nf, 0);
+    bool inOrder = true;
+    for (size_t f = 0; f < nf && inOrder; ++f) {
+        double cost = 0.0;
+        const int rot = fit(f, f, &cost);
+        (*sourceFace)[f] = uint32_t(f);
+        (*rotation)[f] = rot;
+        inOrder = rot >= 0;
+    }
+    if (inOrder)
+        return true;
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    for (const glm::vec3& p : rig.positions) {
+        lo = glm::min(lo, glm::dvec3(p));
+        hi = glm::max(hi, glm::dvec3(p));
+    }
+    const double cell = std::max(4.0 * error, 1e-6 * std::max(glm::length(hi - lo), 1e-30));
+    auto key = [&](const glm::dvec3& c, int dx, int dy, int dz) {
+        const int64_t x = int64_t(std::floor((c.x - lo.x) / cell)) + dx, y = int64_t(std::floor((c.y - lo.y) / cell)) + dy,
+                      z = int64_t(std::floor((c.z - lo.z) / cell)) + dz;
+        return uint64_t(x) * 73856093u ^ uint64_t(y) * 19349663u ^ uint64_t(z) * 83492791u;
+    };
+    auto centroid = [&](const ControlMesh& m, size_t f) { return (corner(m, f, 0) + corner(m, f, 1) + corner(m, f, 2)) / 3.0; };
+    std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+    for (size_t r = 0; r < nf; ++r)
+        grid[key(centroid(rig, r), 0, 0, 0)].push_back(uint32_t(r));
+    std::vector<uint8_t> used(nf, 0);
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::dvec3 c = centroid(loaded, f);
+        int bestRot = -1;
+        uint32_t bestFace = 0;
+        double bestCost = 0.0;
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const auto it = grid.find(key(c, dx, dy, dz));
+                    if (it == grid.end())
+                        continue;
+                    for (uint32_t r : it->second) {
+                        double cost = 0.0;
+                        const int rot = used[r] ? -1 : fit(f, r, &cost);
+                        if (rot >= 0 && (bestRot < 0 || cost < bestCost)) {
+                            bestRot = rot;
+                            bestFace = r;
+                            bestCost = cost;
+                        }
+                    }
+                }
+        if (bestRot < 0)
+            return false;
+        used[bestFace] = 1;
+        (*sourceFace)[f] = bestFace;
+        (*rotation)[f] = bestRot;
+    }
+    return true;
+}
+
 // Embeds the map as its samples at the refined vertices of the recommended
 // level (encoding "vertex").  The decoder numbers vertices as the loader
 // rebuilds the control mesh from the file, which may differ from rig.mesh
@@ -1138,7 +1227,7 @@ Status embedMap(tinygltf::Model& model, const DisplacementMap& map, double maxSt
 // is written and loaded back in memory first and the map sampled on that
 // topology, with rig.mesh's UVs (faces keep their order; checked).
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
-                                bool compressed, double positionError, const RigWriteOptions& options,
+                                bool compressed, double positionError, bool draco, const RigWriteOptions& options,
                                 const std::string& path, DisplacementInfo* info)
 {
     // Through the same writer as the final file (the meshopt index codec
@@ -1147,7 +1236,7 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     std::string glb;
     Status st;
     if (compressed) {
-        st = encodeCompressedGlb(path, probe, &glb, positionError);
+        st = encodeCompressedGlb(path, probe, &glb, positionError, draco);
     } else if ((st = prepareForWriting(path, probe))) {
         tinygltf::TinyGLTF writer;
         std::ostringstream stream;
@@ -1160,40 +1249,20 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     Rig loaded;
     if (!(st = loadRigFromMemory(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), true, path, &loaded)))
         return st;
-    // Faces keep their order; a codec may rotate each one's corners.  Each
-    // loaded corner takes the UV of the rig corner at the same position.
+    // Each loaded face is a rig face, its corners perhaps rotated (meshopt's
+    // index codec) and the faces perhaps reordered (Draco's Edgebreaker);
+    // each loaded corner takes the UV of the rig corner at its position.
     ControlMesh mesh = loaded.mesh;
-    if (mesh.faceCount() != rig.mesh.faceCount())
+    std::vector<uint32_t> sourceFace;
+    std::vector<int> rotation;
+    if (!matchFaces(mesh, rig.mesh, positionError, &sourceFace, &rotation))
         return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map as "
                                                "an image instead");
     mesh.uvs = rig.mesh.uvs;
     mesh.uvIndices.resize(mesh.triangles.size());
-    // Positions may be stored lossily (maxPositionError): the rotation that
-    // moves the corners least, and no corner farther than that error allows.
-    const double slack = 4.0 * positionError * positionError;
-    for (size_t f = 0; f < mesh.faceCount(); ++f) {
-        int rotation = -1;
-        double best = std::numeric_limits<double>::infinity();
-        for (int r = 0; r < 3; ++r) {
-            double sum = 0.0, worst = 0.0;
-            for (int k = 0; k < 3; ++k) {
-                const glm::dvec3 a(mesh.positions[mesh.triangles[3 * f + size_t(k)]]);
-                const glm::dvec3 b(rig.mesh.positions[rig.mesh.triangles[3 * f + size_t((k + r) % 3)]]);
-                const double d2 = glm::dot(a - b, a - b);
-                sum += d2;
-                worst = std::max(worst, d2);
-            }
-            if (worst <= 3.0 * slack && sum < best) {
-                best = sum;
-                rotation = r;
-            }
-        }
-        if (rotation < 0)
-            return Status(StatusCode::InvalidData, "the control mesh does not read back face for face; write the map "
-                                                   "as an image instead");
+    for (size_t f = 0; f < mesh.faceCount(); ++f)
         for (int k = 0; k < 3; ++k)
-            mesh.uvIndices[3 * f + size_t(k)] = rig.mesh.uvIndices[3 * f + size_t((k + rotation) % 3)];
-    }
+            mesh.uvIndices[3 * f + size_t(k)] = rig.mesh.uvIndices[3 * size_t(sourceFace[f]) + size_t((k + rotation[f]) % 3)];
     const int level = info->recommendedLevel;
     std::unique_ptr<Plan> plan;
     if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
@@ -1339,6 +1408,10 @@ Status saveRig(const std::string& path, const Rig& input, const DisplacementMap*
     // A character's own vertex data is kept exact; a bare cage's positions
     // may be stored to the error allowed.
     const double positionError = options && !fromSource ? options->maxPositionError : 0.0;
+    // Draco only where the per-vertex values' probe proves the cage reads
+    // back face for face (below).
+    bool draco = options && options->draco && options->vertexDisplacements && map && rig.hasDisplacement &&
+                 !fromSource && positionError > 0.0 && rig.skeleton.empty();
     const bool omitUVs = options && options->vertexDisplacements && options->omitDisplacementUVs && map &&
                          rig.hasDisplacement;
     const std::string ext = extensionOf(path);
@@ -1420,7 +1493,16 @@ Status saveRig(const std::string& path, const Rig& input, const DisplacementMap*
         const double step = options ? options->maxQuantizationStep : 0.0;
         if (map && options && options->vertexDisplacements) {
             const bool compressed = extensionOf(path) == ".glb" && options->compress;
-            if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, positionError, *options, path, &info)))
+            // Draco where it reads back face for face (it may weld or drop
+            // faces the cage has), meshopt otherwise.
+            DisplacementInfo tried = info;
+            if (draco && !embedVertexDisplacements(model, rig, *map, step, compressed, positionError, true, *options,
+                                                   path, &tried))
+                draco = false;
+            if (draco)
+                info = std::move(tried);
+            else if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, positionError, false,
+                                                     *options, path, &info)))
                 return Status(st.code(), path + ": " + st.message());
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());
@@ -1438,10 +1520,10 @@ Status saveRig(const std::string& path, const Rig& input, const DisplacementMap*
         for (int m : blockMeshes)
             setStrataExtras(&model.meshes[size_t(m)].extras, &block);
     }
-    // Rigs are compact: meshopt-coded vertex data and indices (.glb).
+    // Rigs are compact: Draco- or meshopt-coded vertex data and indices (.glb).
     return extensionOf(path) == ".glb" && options && options->compress
-               ? writeCompressedGlb(path, model, positionError)
-                                                                        : packAndWrite(path, model);
+               ? writeCompressedGlb(path, model, positionError, draco)
+               : packAndWrite(path, model);
 }
 
 Status readPlainGlb(const std::string& path, std::string* bytes)
@@ -1451,7 +1533,7 @@ Status readPlainGlb(const std::string& path, std::string* bytes)
     if (!st)
         return st;
     std::string plain;
-    if (!(st = decodeMeshoptGlb(data.data(), data.size(), path, &plain)))
+    if (!(st = decodeCompressedGlb(data.data(), data.size(), path, &plain)))
         return st;
     *bytes = plain.empty() ? std::string(data.begin(), data.end()) : std::move(plain);
     return Status::ok();

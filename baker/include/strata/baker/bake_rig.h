@@ -35,6 +35,7 @@ struct BakeRequest {
     std::string skeleton;    ///< optional joint file (paper 2.4) that becomes the rig's skin
     std::string mapCoding = "vertex";  ///< "vertex" (per refined vertex) or "png"
     bool compress = true;    ///< EXT_meshopt_compression for .glb
+    std::string meshCoding = "draco";  ///< a bare cage's coding with compress: "draco" or "meshopt"
     bool exr = false;        ///< also write RIG.exr (half, or float with floatExr)
     bool floatExr = false;
     int pngBits = 0;         ///< 8 or 16: also write the eq. 12 quantised PNG beside the rig

@@ -74,6 +74,14 @@ struct RigWriteOptions {
     /// document keeps its vertex data exact.  strata-bake passes a quarter of
     /// its tolerance.
     double maxPositionError = 0.0;
+    /// With compress and maxPositionError: code a bare, unskinned control
+    /// mesh with KHR_draco_mesh_compression (Edgebreaker connectivity,
+    /// positions quantised to that error) instead of meshopt: about half the
+    /// bytes.  Viewers with a Draco decoder (three.js, Babylon.js, Blender,
+    /// Strata) read it.  When the cage does not read back face for face
+    /// (Draco may weld or drop faces), meshopt is used.  strata-bake turns
+    /// it on.
+    bool draco = false;
     /// Store the map as its samples at the refined vertices of
     /// rig.displacement.recommendedLevel, predicted in subdivision order and
     /// zstd-coded (encoding "vertex", format version 3), instead of as an

@@ -1,0 +1,384 @@
+// KHR_draco_mesh_compression (libdraco): decoded from every .glb before
+// tinygltf parses it (tinygltf needs every index accessor to have data), so
+// Draco-compressed characters load like any other; written for a compact
+// rig's bare control mesh, whose quantised, predicted positions and
+// Edgebreaker connectivity take about half the bytes of meshopt's codecs.
+#include "gltf_accessor.h"
+#include "gltf_document.h"
+
+#include <nlohmann/json.hpp>
+
+#include <draco/compression/decode.h>
+#include <draco/compression/expert_encode.h>
+#include <draco/mesh/mesh.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+namespace strata {
+namespace io {
+
+namespace {
+
+constexpr const char* kDraco = "KHR_draco_mesh_compression";
+
+const tinygltf::Value* dracoBlock(const tinygltf::Primitive& p)
+{
+    const auto it = p.extensions.find(kDraco);
+    return it == p.extensions.end() ? nullptr : &it->second;
+}
+
+bool hasAttributesOnly(const tinygltf::Primitive& p)
+{
+    for (const auto& [name, a] : p.attributes)
+        if (name != "POSITION" && name.rfind("TEXCOORD_", 0) != 0)
+            return false;
+    return p.attributes.count("POSITION") == 1;
+}
+
+template <typename T>
+bool putAll(const draco::PointAttribute& att, size_t points, int components, bool normalized, unsigned char* out)
+{
+    // Normalised integers come back from float data scaled to the type's range.
+    const bool scale = normalized && std::is_integral<T>::value && att.data_type() == draco::DT_FLOAT32;
+    std::vector<float> f(static_cast<size_t>(components));
+    std::vector<T> v(static_cast<size_t>(components));
+    for (size_t i = 0; i < points; ++i) {
+        const draco::AttributeValueIndex at = att.mapped_index(draco::PointIndex(uint32_t(i)));
+        if (scale) {
+            if (!att.ConvertValue<float>(at, int8_t(components), f.data()))
+                return false;
+            for (int c = 0; c < components; ++c) {
+                const double x = std::min(1.0, std::max(0.0, double(f[size_t(c)])));  // NaN -> 0
+                v[size_t(c)] = T(std::lround(x * double(std::numeric_limits<T>::max())));
+            }
+        } else if (!att.ConvertValue<T>(at, int8_t(components), v.data())) {
+            return false;
+        }
+        std::memcpy(out + i * sizeof(T) * size_t(components), v.data(), sizeof(T) * size_t(components));
+    }
+    return true;
+}
+
+int appendData(tinygltf::Model& model, const std::vector<unsigned char>& bytes)
+{
+    if (model.buffers.empty())
+        model.buffers.emplace_back();
+    std::vector<unsigned char>& data = model.buffers[0].data;
+    while (data.size() % 4)
+        data.push_back(0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = data.size();
+    view.byteLength = bytes.size();
+    data.insert(data.end(), bytes.begin(), bytes.end());
+    model.bufferViews.push_back(view);
+    return int(model.bufferViews.size() - 1);
+}
+
+}  // namespace
+
+int dracoView(const tinygltf::Primitive& p)
+{
+    const tinygltf::Value* block = dracoBlock(p);
+    if (!block || !block->IsObject() || !block->Has("bufferView") || !block->Get("bufferView").IsNumber())
+        return -1;
+    const double v = block->Get("bufferView").GetNumberAsDouble();
+    return v >= 0 && v < 2147483647.0 ? int(v) : -1;
+}
+
+void setDracoView(tinygltf::Primitive* p, int view)
+{
+    tinygltf::Value::Object block = p->extensions[kDraco].Get<tinygltf::Value::Object>();
+    block["bufferView"] = tinygltf::Value(view);
+    p->extensions[kDraco] = tinygltf::Value(block);
+}
+
+Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, const std::string& path)
+{
+    using Json = nlohmann::json;
+    auto bad = [&](const std::string& what) { return Status(StatusCode::InvalidData, path + ": " + kDraco + ": " + what); };
+    auto index = [](const Json& o, const char* name, size_t limit, size_t* out) {
+        if (!o.is_object() || !o.contains(name) || !o[name].is_number_unsigned())
+            return false;
+        *out = o[name].get<size_t>();
+        return *out < limit;
+    };
+    if (!doc.contains("meshes") || !doc["meshes"].is_array())
+        return Status::ok();
+    if (!doc.contains("accessors") || !doc["accessors"].is_array() || !doc.contains("bufferViews") ||
+        !doc["bufferViews"].is_array() || !doc.contains("buffers") || !doc["buffers"].is_array() ||
+        doc["buffers"].empty() || !doc["buffers"][0].is_object() || doc["buffers"][0].contains("uri"))
+        return bad("needs accessors, bufferViews and the BIN chunk as buffer 0");
+    Json& accessors = doc["accessors"];
+    Json& views = doc["bufferViews"];
+    bool any = false;
+    // Appends bytes as a new view of buffer 0; returns its index.
+    auto append = [&](const std::vector<unsigned char>& bytes) {
+        while (bin->size() % 4)
+            bin->push_back(0);
+        Json view = Json::object();
+        view["buffer"] = 0;
+        view["byteOffset"] = bin->size();
+        view["byteLength"] = bytes.size();
+        bin->insert(bin->end(), bytes.begin(), bytes.end());
+        views.push_back(view);
+        return views.size() - 1;
+    };
+    for (size_t m = 0; m < doc["meshes"].size(); ++m) {
+        Json& mesh = doc["meshes"][m];
+        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array())
+            continue;
+        for (size_t pi = 0; pi < mesh["primitives"].size(); ++pi) {
+            Json& prim = mesh["primitives"][pi];
+            if (!prim.is_object() || !prim.contains("extensions") || !prim["extensions"].is_object() ||
+                !prim["extensions"].contains(kDraco))
+                continue;
+            any = true;
+            const std::string where = "mesh " + std::to_string(m) + " primitive " + std::to_string(pi);
+            const Json block = prim["extensions"][kDraco];
+            size_t v = 0;
+            if (!index(block, "bufferView", views.size(), &v) || !block.contains("attributes") ||
+                !block["attributes"].is_object() || !prim.contains("attributes") || !prim["attributes"].is_object())
+                return bad(where + " needs a bufferView and attributes");
+            const Json& view = views[v];
+            size_t buffer = 0, offset = 0, length = 0;
+            if (!view.is_object() || (view.contains("buffer") && !index(view, "buffer", 1, &buffer)) ||
+                !view.contains("byteLength") || !view["byteLength"].is_number_unsigned())
+                return bad(where + ": its bufferView is not in the BIN chunk");
+            if (view.contains("byteOffset") && !index(view, "byteOffset", bin->size() + 1, &offset))
+                return bad(where + ": its bufferView lies outside the BIN chunk");
+            length = view["byteLength"].get<size_t>();
+            if (offset > bin->size() || length > bin->size() - offset)
+                return bad(where + ": its bufferView lies outside the BIN chunk");
+            const std::vector<unsigned char> encoded(bin->begin() + long(offset), bin->begin() + long(offset + length));
+            draco::DecoderBuffer buf;
+            buf.Init(reinterpret_cast<const char*>(encoded.data()), encoded.size());
+            const auto type = draco::Decoder::GetEncodedGeometryType(&buf);
+            if (!type.ok() || type.value() != draco::TRIANGULAR_MESH)
+                return bad(where + " is not a Draco triangle mesh");
+            draco::Decoder decoder;
+            auto decoded = decoder.DecodeMeshFromBuffer(&buf);
+            if (!decoded.ok())
+                return bad(where + ": " + printable(decoded.status().error_msg_string(), 80));
+            const std::unique_ptr<draco::Mesh> dm = std::move(decoded).value();
+            const size_t points = dm->num_points(), faces = dm->num_faces();
+            if (prim.contains("mode") && !(prim["mode"].is_number_unsigned() && prim["mode"].get<size_t>() == 4))
+                return bad(where + " is not a triangle list");
+            for (const auto& [name, id] : block["attributes"].items()) {
+                size_t a = 0;
+                if (!prim["attributes"].contains(name) || !index(prim["attributes"], name.c_str(), accessors.size(), &a) ||
+                    !id.is_number_unsigned() || id.get<size_t>() > 0xffffffffu)
+                    return bad(where + ": attribute " + printable(name, 40) + " has no accessor or no Draco id");
+                Json& acc = accessors[a];
+                const draco::PointAttribute* att = dm->GetAttributeByUniqueId(uint32_t(id.get<size_t>()));
+                const std::string typeName = acc.is_object() && acc.contains("type") && acc["type"].is_string()
+                                                 ? acc["type"].get<std::string>()
+                                                 : "";
+                const int comps = typeName == "SCALAR" ? 1 : typeName == "VEC2" ? 2 : typeName == "VEC3" ? 3 : typeName == "VEC4" ? 4 : 0;
+                size_t count = 0;
+                if (!att || comps == 0 || att->num_components() < comps || !acc.contains("count") ||
+                    !acc["count"].is_number_unsigned() || !acc.contains("componentType") ||
+                    !acc["componentType"].is_number_unsigned())
+                    return bad(where + ": the Draco data has no " + printable(name, 40) + " its accessor can hold");
+                count = acc["count"].get<size_t>();
+                if (count != points)
+                    return bad(where + ": " + printable(name, 40) + " declares " + std::to_string(count) +
+                               " elements, Draco holds " + std::to_string(points));
+                if (acc.contains("bufferView"))
+                    continue;  // an uncompressed fallback is kept as it is
+                const int componentType = acc["componentType"].get<int>();
+                const bool n = acc.contains("normalized") && acc["normalized"].is_boolean() && acc["normalized"].get<bool>();
+                int size = 0;
+                bool converted = false;
+                std::vector<unsigned char> out;
+                auto put = [&](auto zero) {
+                    using T = decltype(zero);
+                    size = int(sizeof(T));
+                    out.resize(points * size_t(comps) * sizeof(T));
+                    converted = putAll<T>(*att, points, comps, n, out.data());
+                };
+                switch (componentType) {
+                    case TINYGLTF_COMPONENT_TYPE_FLOAT: put(0.0f); break;
+                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: put(uint16_t(0)); break;
+                    case TINYGLTF_COMPONENT_TYPE_SHORT: put(int16_t(0)); break;
+                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: put(uint8_t(0)); break;
+                    case TINYGLTF_COMPONENT_TYPE_BYTE: put(int8_t(0)); break;
+                    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: put(uint32_t(0)); break;
+                    default: break;
+                }
+                if (!converted || size == 0)
+                    return bad(where + ": " + printable(name, 40) + " cannot be read as its accessor's type");
+                acc["bufferView"] = append(out);
+                acc.erase("byteOffset");
+            }
+            size_t ia = 0;
+            if (prim.contains("indices")) {
+                if (!index(prim, "indices", accessors.size(), &ia))
+                    return bad(where + ": its indices accessor does not exist");
+                Json& acc = accessors[ia];
+                if (!acc.is_object() || !acc.contains("count") || !acc["count"].is_number_unsigned() ||
+                    acc["count"].get<size_t>() != 3 * faces)
+                    return bad(where + ": its indices do not count the Draco mesh's " + std::to_string(3 * faces));
+                if (!acc.contains("bufferView")) {
+                    const int componentType =
+                        acc.contains("componentType") && acc["componentType"].is_number_unsigned() ? acc["componentType"].get<int>() : 0;
+                    const size_t size = componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
+                                        : componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
+                                        : componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT   ? 4
+                                                                                                  : 0;
+                    if (size == 0 || (size < 4 && points > (size_t(1) << (8 * size))))
+                        return bad(where + ": its indices cannot hold the Draco mesh's");
+                    std::vector<unsigned char> out(3 * faces * size);
+                    for (size_t f = 0; f < faces; ++f)
+                        for (int k = 0; k < 3; ++k) {
+                            const uint32_t x = dm->face(draco::FaceIndex(uint32_t(f)))[k].value();
+                            std::memcpy(out.data() + (3 * f + size_t(k)) * size, &x, size);  // little-endian
+                        }
+                    acc["bufferView"] = append(out);
+                    acc.erase("byteOffset");
+                }
+            }
+            prim["extensions"].erase(kDraco);
+            if (prim["extensions"].empty())
+                prim.erase("extensions");
+        }
+    }
+    if (!any)
+        return Status::ok();
+    doc["buffers"][0]["byteLength"] = bin->size();
+    for (const char* list : {"extensionsUsed", "extensionsRequired"})
+        if (doc.contains(list) && doc[list].is_array()) {
+            Json kept = Json::array();
+            for (const Json& e : doc[list])
+                if (!(e.is_string() && e.get<std::string>() == kDraco))
+                    kept.push_back(e);
+            if (kept.empty())
+                doc.erase(list);
+            else
+                doc[list] = kept;
+        }
+    return Status::ok();
+}
+
+Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_t* codedCount)
+{
+    size_t coded = 0;
+    if (!(positionError > 0.0) || !std::isfinite(positionError)) {
+        if (codedCount)
+            *codedCount = 0;
+        return Status::ok();
+    }
+    // Accessors used by more than one primitive (or by anything else) stay.
+    std::vector<int> uses(model.accessors.size(), 0);
+    forEachAccessorReference(model, [&](int& a, AccessorUse, const tinygltf::Primitive*) {
+        if (a >= 0 && size_t(a) < uses.size())
+            ++uses[size_t(a)];
+    });
+    for (tinygltf::Mesh& mesh : model.meshes)
+        for (tinygltf::Primitive& prim : mesh.primitives) {
+            if ((prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) || prim.indices < 0 || !prim.targets.empty() ||
+                dracoBlock(prim) || !hasAttributesOnly(prim))
+                continue;
+            bool alone = uses[size_t(prim.indices)] == 1;
+            for (const auto& [name, a] : prim.attributes)
+                alone = alone && a >= 0 && size_t(a) < uses.size() && uses[size_t(a)] == 1;
+            const tinygltf::Accessor& pa = model.accessors[size_t(prim.attributes.at("POSITION"))];
+            if (!alone || pa.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || pa.type != TINYGLTF_TYPE_VEC3)
+                continue;
+            std::vector<float> positions;
+            std::vector<uint32_t> indices;
+            Status st = readFloatAccessor(model, prim.attributes.at("POSITION"), 3, "POSITION", &positions);
+            if (st)
+                st = readUintAccessor(model, prim.indices, 1, "indices", &indices);
+            if (!st)
+                return st;
+            const size_t nv = positions.size() / 3, nf = indices.size() / 3;
+            if (nv == 0 || nf == 0 || indices.size() % 3)
+                continue;
+            draco::Mesh dm;
+            dm.set_num_points(uint32_t(nv));
+            std::vector<std::pair<std::string, int>> ids;
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            for (size_t i = 0; i < positions.size(); ++i) {
+                lo[i % 3] = std::min(lo[i % 3], positions[i]);
+                hi[i % 3] = std::max(hi[i % 3], positions[i]);
+            }
+            {
+                draco::GeometryAttribute ga;
+                ga.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, 12, 0);
+                const int id = dm.AddAttribute(ga, true, uint32_t(nv));
+                for (size_t i = 0; i < nv; ++i)
+                    dm.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(uint32_t(i)), &positions[3 * i]);
+                ids.emplace_back("POSITION", id);
+            }
+            bool ok = true;
+            for (const auto& [name, a] : prim.attributes) {
+                if (name == "POSITION")
+                    continue;
+                std::vector<float> uv;
+                if (!readFloatAccessor(model, a, 2, name, &uv) || uv.size() != 2 * nv) {
+                    ok = false;
+                    break;
+                }
+                draco::GeometryAttribute ga;
+                ga.Init(draco::GeometryAttribute::TEX_COORD, nullptr, 2, draco::DT_FLOAT32, false, 8, 0);
+                const int id = dm.AddAttribute(ga, true, uint32_t(nv));
+                for (size_t i = 0; i < nv; ++i)
+                    dm.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(uint32_t(i)), &uv[2 * i]);
+                ids.emplace_back(name, id);
+            }
+            if (!ok)
+                continue;
+            for (size_t f = 0; f < nf; ++f) {
+                draco::Mesh::Face face;
+                for (int k = 0; k < 3; ++k)
+                    face[k] = draco::PointIndex(indices[3 * f + size_t(k)]);
+                dm.AddFace(face);
+            }
+            // Draco quantises over the largest extent: a step of range / (2^q - 1),
+            // half of which is the error.
+            const double range = std::max({double(hi[0] - lo[0]), double(hi[1] - lo[1]), double(hi[2] - lo[2])});
+            const int bits = std::min(30, std::max(8, int(std::ceil(std::log2(range / (2.0 * positionError) + 1.0)))));
+            draco::ExpertEncoder encoder(dm);
+            encoder.SetEncodingMethod(draco::MESH_EDGEBREAKER_ENCODING);
+            encoder.SetSpeedOptions(0, 0);
+            for (const auto& [name, id] : ids)
+                encoder.SetAttributeQuantization(id, name == "POSITION" ? bits : 16);
+            draco::EncoderBuffer out;
+            if (!encoder.EncodeToBuffer(&out).ok())
+                continue;  // stays meshopt-coded
+            const std::vector<unsigned char> bytes(out.data(), out.data() + out.size());
+            tinygltf::Value::Object attributes;
+            for (const auto& [name, id] : ids) {
+                attributes[name] = tinygltf::Value(int(dm.attribute(id)->unique_id()));
+                tinygltf::Accessor& acc = model.accessors[size_t(prim.attributes.at(name))];
+                acc.bufferView = -1;
+                acc.byteOffset = 0;
+                if (name != "POSITION") {  // decoded as floats
+                    acc.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+                    acc.normalized = false;
+                }
+            }
+            tinygltf::Accessor& ia = model.accessors[size_t(prim.indices)];
+            ia.bufferView = -1;
+            ia.byteOffset = 0;
+            tinygltf::Value::Object block;
+            block["bufferView"] = tinygltf::Value(appendData(model, bytes));
+            block["attributes"] = tinygltf::Value(attributes);
+            prim.extensions[kDraco] = tinygltf::Value(block);
+            ++coded;
+        }
+    if (coded)
+        for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
+            if (std::find(list->begin(), list->end(), kDraco) == list->end())
+                list->push_back(kDraco);
+    if (codedCount)
+        *codedCount = coded;
+    return Status::ok();
+}
+
+}  // namespace io
+}  // namespace strata
