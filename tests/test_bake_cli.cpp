@@ -197,6 +197,38 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     EXPECT_NE(r.output.find("strata-bake 0."), std::string::npos) << r.output;
 }
 
+// --control auto without --control-faces: the cage's face count follows
+// from the tolerance, the fewest faces that reach it (a loose one keeps the
+// first, 200-face try), else the most accurate tried (a tolerance no cage
+// up to a fifth of the capture's faces reaches).
+TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_auto_faces");
+    writeInputs(dir);
+    strata::baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = "auto";
+    request.output = dir + "/loose.glb";
+    request.tolerance = 0.01;
+    strata::baker::BakeResult loose, tight;
+    strata::Status st = strata::baker::bakeRig(request, &loose);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_NE(loose.summary.find("200: "), std::string::npos) << loose.summary;
+    EXPECT_NE(loose.summary.find("<- chosen"), std::string::npos) << loose.summary;
+    EXPECT_EQ(loose.summary.find("400: "), std::string::npos) << loose.summary;
+    EXPECT_LE(loose.rms, 0.01);
+    EXPECT_NE(loose.summary.find("control       102 vertices, 200 triangles"), std::string::npos) << loose.summary;
+    request.output = dir + "/tight.glb";
+    request.tolerance = 1e-6;
+    st = strata::baker::bakeRig(request, &tight);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    for (const char* tried : {"200: ", "400: ", "800: "})
+        EXPECT_NE(tight.summary.find(tried), std::string::npos) << tried << tight.summary;
+    EXPECT_EQ(tight.summary.find("1600: "), std::string::npos) << "at most a fifth of the capture's 5120 faces";
+    EXPECT_LT(tight.rms, loose.rms);
+    EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "only the inputs and the two rigs";  // high, control, 2 rigs
+}
+
 TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
 {
     const std::string dir = strata::test::tempDir("bake_cli_rebake");

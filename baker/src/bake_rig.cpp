@@ -32,6 +32,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include <unistd.h>
+
 namespace strata {
 namespace baker {
 
@@ -162,9 +164,105 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
     return rgb;
 }
 
+Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress);
+
 }  // namespace
 
+// An automatic control mesh's face count follows from the tolerance: the
+// fewest faces (in steps of 2x from a fiftieth of the capture's, at least
+// 200, at most a fifth) whose bake reaches it in the closed loop, or the
+// most accurate tried when none does.  Each try is a whole bake into a
+// scratch folder; the chosen count is then baked to the real outputs.
 Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
+{
+    if (!result)
+        return Status(StatusCode::InvalidArgument, "bakeRig: no result");
+    if (request.control != "auto" || request.controlFaces != 0 || !(request.tolerance > 0.0) ||
+        request.high.empty() || request.output.empty())
+        return bakeOnce(request, result, progress);
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const fs::path scratch = fs::temp_directory_path(ec) / ("strata-faces-" + std::to_string(::getpid()) + "-" +
+                                                           std::to_string(std::hash<std::string>()(request.output)));
+    if (ec || !fs::create_directories(scratch, ec) || ec)
+        return bakeOnce(request, result, progress);
+    struct Try {
+        size_t faces;
+        double rms, bytes;
+    };
+    std::vector<Try> tries;
+    Status st;
+    auto attempt = [&](size_t faces) {
+        BakeRequest r = request;
+        r.controlFaces = faces;
+        r.output = (scratch / "trial.glb").string();
+        r.report.clear();
+        r.exr = r.layers = false;
+        r.pngBits = 0;
+        r.errorFrom = r.errorTo = -2;
+        BakeResult out;
+        const std::string stage = "baking onto an automatic cage of " + std::to_string(faces) + " faces";
+        const auto t0 = std::chrono::steady_clock::now();
+        if (progress && *progress)
+            (*progress)(stage.c_str(), -1.0);
+        st = bakeOnce(r, &out, nullptr);
+        if (progress && *progress)
+            (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        std::error_code size;
+        const double bytes = double(fs::file_size(r.output, size));
+        tries.push_back({faces, st ? out.rms : -1.0, size ? 0.0 : bytes});
+        return st && out.rms >= 0.0 && out.rms <= request.tolerance;
+    };
+    // The capture's face count, from a first try at the usual count.
+    size_t first = 0;
+    {
+        TriangleMesh probe;
+        HighMeshStats stats;
+        if (!loadHighMesh(request.high, &probe, &stats))
+            return bakeOnce(request, result, progress);  // it reports the problem
+        first = std::max<size_t>(200, probe.faceCount() / 50);
+        const size_t most = std::max(first, probe.faceCount() / 5);
+        if (attempt(first)) {
+            for (size_t n = first / 2; n >= 200 && attempt(n); n /= 2) {
+            }
+        } else if (st) {
+            for (size_t n = 2 * first; n <= most && st && !attempt(n); n *= 2) {
+            }
+        }
+    }
+    fs::remove_all(scratch, ec);
+    if (!st && tries.size() == 1)
+        return st;  // the first try failed: its message is the bake's
+    // The fewest faces that met the tolerance, else the smallest error.
+    const Try* chosen = nullptr;
+    for (const Try& t : tries)
+        if (t.rms >= 0.0 && t.rms <= request.tolerance && (!chosen || t.faces < chosen->faces))
+            chosen = &t;
+    if (!chosen)
+        for (const Try& t : tries)
+            if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
+                chosen = &t;
+    BakeRequest r = request;
+    r.controlFaces = chosen ? chosen->faces : first;
+    if (!(st = bakeOnce(r, result, progress)))
+        return st;
+    std::string line = "  cage faces    from the tolerance (closed-loop RMS / diagonal, rig bytes):";
+    for (const Try& t : tries) {
+        appendf(&line, "\n                  %zu: ", t.faces);
+        if (t.rms >= 0.0)
+            appendf(&line, "%.4f%%, %.1f KB%s", 100.0 * t.rms, t.bytes / 1024.0, &t == chosen ? "  <- chosen" : "");
+        else
+            line += "failed";
+    }
+    // After the summary's first lines (what was baked onto what).
+    const size_t at = result->summary.find("  control ");
+    result->summary.insert(at == std::string::npos ? result->summary.size() : at, line + "\n");
+    return Status::ok();
+}
+
+namespace {
+
+Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
 {
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
@@ -721,6 +819,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         return Status(StatusCode::InvalidData, "out of memory");
     }
 }
+
+}  // namespace
 
 }  // namespace baker
 }  // namespace strata
