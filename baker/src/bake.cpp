@@ -5,7 +5,8 @@
 #include "strata/baker/dilate.h"
 #include "strata/baker/distance.h"
 #include "strata/baker/fill.h"
-#include "strata/baker/mapping.h"
+#include "mapping.h"
+#include "rasterize.h"
 #include "strata/baker/surface.h"
 #include "strata/normals.h"
 

@@ -1,5 +1,5 @@
 // Median-split BVH (spatial index for normal volumes and nearest-point queries).
-#include "strata/baker/bvh.h"
+#include "bvh.h"
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>

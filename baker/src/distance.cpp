@@ -2,7 +2,7 @@
 #include "strata/baker/distance.h"
 #include "parallel.h"
 
-#include "strata/baker/mapping.h"
+#include "bvh.h"
 
 #include <glm/geometric.hpp>
 
@@ -10,6 +10,11 @@
 
 namespace strata {
 namespace baker {
+
+TriangleIndex::TriangleIndex() : bvh_(std::make_unique<Bvh>()) {}
+TriangleIndex::~TriangleIndex() = default;
+TriangleIndex::TriangleIndex(TriangleIndex&&) noexcept = default;
+TriangleIndex& TriangleIndex::operator=(TriangleIndex&&) noexcept = default;
 
 void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount)
 {
@@ -19,14 +24,14 @@ void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles,
     for (size_t f = 0; f < faceCount; ++f)
         for (int k = 0; k < 3; ++k)
             boxes[f].extend(positions[triangles[3 * f + k]]);
-    bvh_.build(boxes);
+    bvh_->build(boxes);
 }
 
 double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
 {
     float best2 = 0.0f;
     auto corner = [&](uint32_t f, int k) { return glm::dvec3(positions_[triangles_[3 * size_t(f) + k]]); };
-    const int64_t f = bvh_.nearest(glm::vec3(x), 3.0e38f, [&](uint32_t t) {
+    const int64_t f = bvh_->nearest(glm::vec3(x), 3.0e38f, [&](uint32_t t) {
         double u, v;
         const glm::dvec3 c = closestPointOnTriangle(x, corner(t, 0), corner(t, 1), corner(t, 2), &u, &v);
         return float(glm::dot(c - x, c - x));
@@ -50,7 +55,7 @@ bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& di
 {
     bool found = false;
     double best = maxT;
-    bvh_.forEachOnSegment(glm::vec3(origin), glm::vec3(dir), float(-maxT), float(maxT), [&](uint32_t f) {
+    bvh_->forEachOnSegment(glm::vec3(origin), glm::vec3(dir), float(-maxT), float(maxT), [&](uint32_t f) {
         const glm::dvec3 a(positions_[triangles_[3 * size_t(f)]]), b(positions_[triangles_[3 * size_t(f) + 1]]),
             c(positions_[triangles_[3 * size_t(f) + 2]]);
         const glm::dvec3 e1 = b - a, e2 = c - a;

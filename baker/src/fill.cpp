@@ -2,7 +2,7 @@
 #include "strata/baker/fill.h"
 #include "parallel.h"
 
-#include "strata/baker/mapping.h"
+#include "mapping.h"
 
 #include <glm/geometric.hpp>
 

@@ -1,6 +1,6 @@
 // Normal-volume mapping of the high-resolution vertices (paper 2.1), through
 // a BVH over the normal-volume prisms rather than a scan of all triangles.
-#include "strata/baker/mapping.h"
+#include "mapping.h"
 #include "parallel.h"
 
 #include <glm/geometric.hpp>

@@ -1,13 +1,12 @@
 // Forward mapping (paper 3.2): each high-resolution triangle is drawn into
 // the texture plane through the normal-volume mapping of its vertices.
-#include "strata/baker/rasterize.h"
+#include "rasterize.h"
 #include "parallel.h"
 
 #include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <cmath>
-#include <thread>
 
 namespace strata {
 namespace baker {

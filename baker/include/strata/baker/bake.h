@@ -3,7 +3,6 @@
 #pragma once
 
 #include "strata/baker/distance.h"
-#include "strata/baker/rasterize.h"
 #include "strata/control_mesh.h"
 #include "strata/displacement_map.h"
 #include "strata/plan.h"
@@ -15,6 +14,22 @@
 
 namespace strata {
 namespace baker {
+
+/// What a texel keeps when several layers of the high-resolution surface
+/// map onto it (overfolds, paper 3.2.3).
+enum class OverlapPolicy {
+    Max,      ///< the paper's rule: the largest distance (the outer envelope)
+    Nearest,  ///< the smallest |d|: the layer closest to the control surface
+};
+
+struct RasterStats {
+    size_t triangles = 0;
+    size_t degenerateTriangles = 0;  ///< zero-area high-res triangles, skipped
+    size_t borderTriangles = 0;      ///< vertices mapped to different control triangles
+    size_t pieces = 0;               ///< (high-res triangle, control triangle) pairs rasterised
+    size_t coveredTexels = 0;
+    size_t multiLayerTexels = 0;     ///< texels hit by more than one layer
+};
 
 /// A high-resolution mesh: positions and triangles only.
 struct TriangleMesh {

@@ -2,19 +2,26 @@
 // distance metric used by the closed-loop error and the evidence report.
 #pragma once
 
-#include "strata/baker/bvh.h"
 
 #include <glm/vec3.hpp>
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace strata {
 namespace baker {
 
+class Bvh;
+
 class TriangleIndex {
 public:
+    TriangleIndex();
+    ~TriangleIndex();
+    TriangleIndex(TriangleIndex&&) noexcept;
+    TriangleIndex& operator=(TriangleIndex&&) noexcept;
+
     /// Indexes faceCount triangles; the arrays must outlive the index.
     void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount);
     /// Distance from x to the nearest triangle; face and barycentrics of the
@@ -34,7 +41,7 @@ public:
 private:
     const glm::vec3* positions_ = nullptr;
     const uint32_t* triangles_ = nullptr;
-    Bvh bvh_;
+    std::unique_ptr<Bvh> bvh_;  // private (bvh.h)
 };
 
 struct DistanceStats {

@@ -1,8 +1,9 @@
-// Strata baker: forward mapping of the high-resolution triangles into the
+// Internal: forward mapping of the high-resolution triangles into the
 // displacement map (paper 2.2 eq. 3-5 and 3.2.2), border triangles included.
 #pragma once
 
-#include "strata/baker/mapping.h"
+#include "mapping.h"
+#include "strata/baker/bake.h"
 #include "strata/baker/surface.h"
 
 #include <cstdint>
@@ -10,22 +11,6 @@
 
 namespace strata {
 namespace baker {
-
-/// What a texel keeps when several layers of the high-resolution surface
-/// map onto it (overfolds, paper 3.2.3).
-enum class OverlapPolicy {
-    Max,      ///< the paper's rule: the largest distance (the outer envelope)
-    Nearest,  ///< the smallest |d|: the layer closest to the control surface
-};
-
-struct RasterStats {
-    size_t triangles = 0;
-    size_t degenerateTriangles = 0;  ///< zero-area high-res triangles, skipped
-    size_t borderTriangles = 0;      ///< vertices mapped to different control triangles
-    size_t pieces = 0;               ///< (high-res triangle, control triangle) pairs rasterised
-    size_t coveredTexels = 0;
-    size_t multiLayerTexels = 0;     ///< texels hit by more than one layer
-};
 
 struct RasterResult {
     int size = 0;

@@ -2,7 +2,7 @@
 // (paper 2.1: the parameters (r_i, alpha_i, beta_i, d_i) of each vertex).
 #pragma once
 
-#include "strata/baker/bvh.h"
+#include "bvh.h"
 #include "strata/baker/distance.h"
 #include "strata/baker/normal_volume.h"
 #include "strata/baker/surface.h"
