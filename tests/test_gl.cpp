@@ -4,7 +4,9 @@
 // pose and in animated frames.  Headless through EGL (llvmpipe in CI).
 #include "strata/animation.h"
 #include "strata/gl/context.h"
+#include "strata/gl/evaluator.h"
 #include "strata/gl/gpu_surface.h"
+#include "strata/gl/shaders.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
 #include "test_rigs.h"
@@ -189,4 +191,69 @@ TEST(Gpu, PerVertexDisplacementsMatchTheCpu)
         EXPECT_LE(maxDistance(cpu, fromGpu) / rig.diagonal, 1e-5f) << schemeName(scheme);
         EXPECT_FALSE(gpu->setDisplacements(values.data(), 3).isOk());
     }
+}
+
+// The embeddable evaluator alone (no drawing): its displaced positions and
+// normals equal the CPU's, and an engine's own shader that starts with
+// samplingPrelude() reads the rig's displacement exactly as the CPU
+// sampled it, after bindSampling().
+TEST(Gpu, EvaluatorBuffersAndAnEngineShaderMatchTheCpu)
+{
+    ASSERT_NE(context(), nullptr);
+    const ExampleRig rig = makeExampleRig();
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, rig.mesh, Scheme::Linear, 3).isOk());
+    ASSERT_TRUE(plan->setDisplacement(rig.map).isOk());
+    std::unique_ptr<gl::Evaluator> eval;
+    const Status st = gl::Evaluator::create(&eval, *plan);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_TRUE(eval->setDisplacementMap(rig.map).isOk());
+    const size_t n = plan->refinedVertexCount();
+    std::vector<glm::vec3> normals(rig.mesh.vertexCount()), cpu(n), cpuNormals(n), gpu, gpuNormals;
+    computeControlNormals(normals.data(), rig.mesh.positions.data(), normals.size(), rig.mesh.triangles.data(),
+                          rig.mesh.faceCount());
+    ASSERT_TRUE(plan->evaluate(cpu.data(), nullptr, 0, n, rig.mesh.positions.data(), normals.data(), normals.size())
+                    .isOk());
+    plan->computeShadingNormals(cpuNormals.data(), cpu.data());
+    ASSERT_TRUE(eval->update(rig.mesh.positions.data(), normals.data(), normals.size()).isOk());
+    ASSERT_TRUE(eval->readPositions(&gpu).isOk());
+    ASSERT_TRUE(eval->readNormals(&gpuNormals).isOk());
+    EXPECT_LE(maxDistance(cpu, gpu) / rig.diagonal, 1e-5f);
+    EXPECT_LE(maxDistance(cpuNormals, gpuNormals), 1e-4f);
+
+    // An engine's compute shader: d for every refined vertex at its sample UV.
+    const std::string source = gl::samplingPrelude() + R"(
+layout(local_size_x = 64) in;
+layout(std430, binding = 7) readonly buffer SampleUVs { vec2 sampleUVs[]; };
+layout(std430, binding = 3) writeonly buffer Out { float outD[]; };
+uniform uint u_count;
+void main()
+{
+    uint v = gl_GlobalInvocationID.x;
+    if (v < u_count)
+        outD[v] = strata_vertex_displacement(v, sampleUVs[v]);
+}
+)";
+    GLuint program = 0;
+    const Status built = gl::buildProgram(&program, "engine shader", {{GL_COMPUTE_SHADER, source}});
+    ASSERT_TRUE(built.isOk()) << built.message();
+    GLuint out = 0;
+    glCreateBuffers(1, &out);
+    glNamedBufferStorage(out, GLsizeiptr(n * 4), nullptr, 0);
+    eval->bindSampling(program);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, gl::kSampleUVs, eval->buffer(gl::kSampleUVs));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, out);
+    glUseProgram(program);
+    glUniform1ui(glGetUniformLocation(program, "u_count"), GLuint(n));
+    glDispatchCompute(GLuint((n + 63) / 64), 1, 1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+    std::vector<float> d(n);
+    glGetNamedBufferSubData(out, 0, GLsizeiptr(n * 4), d.data());
+    glUseProgram(0);
+    glDeleteBuffers(1, &out);
+    glDeleteProgram(program);
+    float worst = 0.0f;
+    for (size_t v = 0; v < n; ++v)
+        worst = std::max(worst, std::fabs(d[v] - plan->displacements()[v]));
+    EXPECT_LE(worst, 1e-6f * rig.diagonal);
 }

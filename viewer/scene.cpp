@@ -254,8 +254,8 @@ void Scene::buildLines()
 {
     if (!lineProgram_) {
         if (!gl::buildProgram(&lineProgram_, "lines",
-                              {{GL_VERTEX_SHADER, gl::shaderSource(gl::ShaderId::LinesVertex)},
-                               {GL_FRAGMENT_SHADER, gl::shaderSource(gl::ShaderId::LinesFragment)}}))
+                              {{GL_VERTEX_SHADER, gl::linesShaderSource(GL_VERTEX_SHADER)},
+                               {GL_FRAGMENT_SHADER, gl::linesShaderSource(GL_FRAGMENT_SHADER)}}))
             return;
         glCreateVertexArrays(1, &lineVao_);
     }

@@ -20,4 +20,7 @@ run(${CMAKE_COMMAND} -S "${CONSUMER_SOURCE_DIR}" -B "${WORK_DIR}/build" -G "${GE
 run(${CMAKE_COMMAND} --build "${WORK_DIR}/build")
 run("${WORK_DIR}/build/consumer")
 run("${WORK_DIR}/build/consumer_io" "${WORK_DIR}")
+if(EXISTS "${WORK_DIR}/build/consumer_gl")
+  run("${WORK_DIR}/build/consumer_gl")
+endif()
 message(STATUS "consumer built and ran against the installed package")

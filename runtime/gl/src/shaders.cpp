@@ -9,34 +9,22 @@ extern const char* const sampleMap;
 extern const char* const refineComp;
 extern const char* const displaceComp;
 extern const char* const normalsComp;
-extern const char* const surfaceVert;
-extern const char* const surfaceFrag;
-extern const char* const linesVert;
-extern const char* const linesFrag;
 }  // namespace embedded
+
+std::string samplingPrelude(const std::string& defines)
+{
+    return "#version 450 core\n" + defines + "\n" + embedded::displacementMath + "\n" + embedded::sampleMap + "\n";
+}
 
 std::string shaderSource(ShaderId id, const std::string& defines)
 {
-    std::string s = "#version 450 core\n" + defines + "\n";
-    const bool sampler = id == ShaderId::Displace || id == ShaderId::SurfaceVertex;
-    if (id == ShaderId::Refine || sampler) {
-        s += embedded::displacementMath;
-        s += "\n";
-    }
-    if (sampler) {
-        s += embedded::sampleMap;
-        s += "\n";
-    }
     switch (id) {
-    case ShaderId::Refine: s += embedded::refineComp; break;
-    case ShaderId::Displace: s += embedded::displaceComp; break;
-    case ShaderId::Normals: s += embedded::normalsComp; break;
-    case ShaderId::SurfaceVertex: s += embedded::surfaceVert; break;
-    case ShaderId::SurfaceFragment: s += embedded::surfaceFrag; break;
-    case ShaderId::LinesVertex: s += embedded::linesVert; break;
-    case ShaderId::LinesFragment: s += embedded::linesFrag; break;
+    case ShaderId::Refine:
+        return "#version 450 core\n" + defines + "\n" + embedded::displacementMath + "\n" + embedded::refineComp;
+    case ShaderId::Displace: return samplingPrelude(defines) + embedded::displaceComp;
+    case ShaderId::Normals: return "#version 450 core\n" + defines + "\n" + embedded::normalsComp;
     }
-    return s;
+    return std::string();
 }
 
 namespace {

@@ -1,8 +1,10 @@
-// Strata GL: the embedded shaders (shaders/*.glsl) and program building.
+// Strata GL: the evaluator's embedded shaders (shaders/*.glsl) and program
+// building.
 //
 // Every program is "#version 450 core", the caller's defines, the shared
 // displacement_math.h (the very header the CPU runtime compiles), the map
-// sampler (sample_map.glsl), then the stage's own source.
+// sampler (sample_map.glsl), then the stage's own source.  samplingPrelude()
+// gives the same start to an engine's own shaders.
 #pragma once
 
 #include "strata/gl/gl.h"
@@ -14,10 +16,16 @@
 namespace strata {
 namespace gl {
 
-enum class ShaderId { Refine, Displace, Normals, SurfaceVertex, SurfaceFragment, LinesVertex, LinesFragment };
+enum class ShaderId { Refine, Displace, Normals };
 
-/// Full source of one stage, ready for glShaderSource.
+/// Full source of one of the evaluator's stages, ready for glShaderSource.
 std::string shaderSource(ShaderId id, const std::string& defines = std::string());
+
+/// "#version 450 core", `defines`, the shared displacement math and the
+/// map sampler: the start of any shader that samples a rig's displacement
+/// itself (strata_sample_displacement(uv, vertex); Evaluator::bindSampling
+/// sets what it reads).
+std::string samplingPrelude(const std::string& defines = std::string());
 
 struct StageSource {
     GLenum stage;

@@ -1,20 +1,14 @@
-// Strata GL: the runtime's reconstruction on the GPU (issue: GPU path).
-//
-// Built once from a Plan: the stencil tables, refined triangles, canonical
-// sample UVs and the vertex adjacency are uploaded; the displacement map is
-// an R32F texture with linear filtering and no mipmaps.  Per frame only the
-// control positions and normals go up (the CPU Animator skins the few
-// control vertices), then:
-//   1. refine.comp   stencils -> surface point and direction per vertex
-//   2. displace.comp + normals.comp   (optional) shading normals of the
-//      displaced mesh, gathered per vertex in face order
-//   3. surface.vert   samples the map at the vertex's UV and displaces along
-//      the direction: the same formula as the CPU (displacement_math.h).
-// readPositions() runs the same vertex shader with transform feedback, so
-// what is drawn is what is compared with the CPU.
+// The viewer's drawing of a rig on the GPU, on top of the embeddable
+// evaluator (strata/gl/evaluator.h), which refines, displaces and computes
+// shading normals: surface.vert samples the map at the vertex's UV and
+// displaces along the direction with the same formula as the CPU
+// (displacement_math.h), surface.frag shades (colour modes, materials,
+// lighting, wireframe).  readPositions() runs the same vertex shader with
+// transform feedback, so what is drawn is what is compared with the CPU.
 #pragma once
 
 #include "strata/displacement_map.h"
+#include "strata/gl/evaluator.h"
 #include "strata/gl/gl.h"
 #include "strata/plan.h"
 #include "strata/status.h"
@@ -24,14 +18,11 @@
 #include <glm/vec3.hpp>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace strata {
 namespace gl {
-
-/// How the vertex shader samples the map: the CPU's formula over four
-/// texelFetch reads (bit-compatible), or the texture unit's bilinear filter.
-enum class SampleFilter { Shared = 0, Hardware = 1 };
 
 enum class ColorMode { Shaded = 0, Displacement = 1, Error = 2, Flat = 3 };
 
@@ -67,6 +58,10 @@ struct GpuTimings {
     double uploadMs = 0.0, stencilMs = 0.0, normalsMs = 0.0, drawMs = 0.0;
 };
 
+/// The viewer's line shaders (grid, axes): the source of one stage
+/// (GL_VERTEX_SHADER or GL_FRAGMENT_SHADER), ready for buildProgram.
+std::string linesShaderSource(GLenum stage);
+
 class GpuSurface {
 public:
     /// Needs a current GL 4.5 context.  shadingNormals: run the normal pass
@@ -76,16 +71,15 @@ public:
     GpuSurface(const GpuSurface&) = delete;
     GpuSurface& operator=(const GpuSurface&) = delete;
 
-    /// Uploads the map (R32F texels; factor and offset decode them).
-    Status setDisplacementMap(const DisplacementMap& map);
-    /// Displacements per refined vertex instead of a map (a rig that stores
-    /// them so: Plan::displacements() after applyRigDisplacement), used as
-    /// they are, so the GPU draws the CPU's surface.  nullptr returns to the map.
-    Status setDisplacements(const float* values, size_t count);
-    /// Scales the decoded displacement (0: none), like Plan::setDisplacement's scale.
-    void setDisplacementScale(float scale) { scale_ = scale; }
-    void setSampleFilter(SampleFilter filter) { filter_ = filter; }
-    void setShadingNormals(bool on) { shadingNormals_ = on; }
+    /// The evaluator that refines and displaces what is drawn.
+    Evaluator& evaluator() { return *evaluator_; }
+
+    /// Forwarded to the evaluator (evaluator.h).
+    Status setDisplacementMap(const DisplacementMap& map) { return evaluator_->setDisplacementMap(map); }
+    Status setDisplacements(const float* values, size_t count) { return evaluator_->setDisplacements(values, count); }
+    void setDisplacementScale(float scale) { evaluator_->setDisplacementScale(scale); }
+    void setSampleFilter(SampleFilter filter) { evaluator_->setSampleFilter(filter); }
+    void setShadingNormals(bool on) { evaluator_->setShadingNormals(on); }
     /// Per refined vertex values for ColorMode::Error (null clears them).
     void setVertexErrors(const float* errors);
 
@@ -98,53 +92,39 @@ public:
                         const std::vector<glm::vec2>& cornerUVs);
 
     /// Uploads the control positions and normals (count must match the
-    /// plan) and runs the compute passes.
+    /// plan) and runs the evaluator's passes.
     Status update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
     void draw(const DrawParams& params);
 
     /// Displaced positions as the vertex shader computes them.
     Status readPositions(std::vector<glm::vec3>* out);
     /// Shading normals from the normal pass.
-    Status readNormals(std::vector<glm::vec3>* out);
+    Status readNormals(std::vector<glm::vec3>* out) { return evaluator_->readNormals(out); }
 
-    void setTiming(bool on) { timing_ = on; }
+    void setTiming(bool on);
     const GpuTimings& timings() const { return timings_; }
 
-    size_t vertexCount() const { return vertexCount_; }
-    size_t faceCount() const { return faceCount_; }
-    size_t gpuBytes() const { return gpuBytes_; }
+    size_t vertexCount() const { return evaluator_->vertexCount(); }
+    size_t faceCount() const { return evaluator_->faceCount(); }
+    size_t gpuBytes() const { return evaluator_->gpuBytes() + ownBytes_; }
 
 private:
     GpuSurface() = default;
-    void setSampleUniforms(GLuint program);
-    double elapsedMs(GLuint begin, GLuint end);
+    void drawMaterials(GLuint program);
 
-    size_t vertexCount_ = 0, faceCount_ = 0, controlCount_ = 0, gpuBytes_ = 0;
-    bool smooth_ = false, shadingNormals_ = true, timing_ = false, haveErrors_ = false;
-    float scale_ = 1.0f;
-    SampleFilter filter_ = SampleFilter::Shared;
-    glm::ivec2 mapSize_{1, 1};
-    float factor_ = 1.0f, offset_ = 0.0f;
-    bool haveMap_ = false;
-    bool perVertex_ = false;
-
-    enum Buffer {
-        ControlPositions, ControlNormals, StencilOffsets, StencilIndices, StencilWeights, Surface, Displaced,
-        SampleUVs, Triangles, AdjacencyOffsets, AdjacentFaces, Normals, Errors, Feedback, CornerUVs,
-        VertexDisplacements, BufferCount
-    };
+    std::unique_ptr<Evaluator> evaluator_;
+    bool timing_ = false, haveErrors_ = false;
+    size_t ownBytes_ = 0;
     struct GpuMaterial {
         SurfaceMaterial material;
         GLuint texture = 0;
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
-    GLuint cornerVao_ = 0;
-    void drawMaterials(GLuint program);
-    GLuint buffers_[BufferCount] = {};
-    GLuint vao_ = 0, texture_ = 0;
-    GLuint refine_ = 0, displace_ = 0, normals_ = 0, surface_ = 0, feedback_ = 0;
-    GLuint queries_[6] = {};
+    GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0;  // buffers of the draw pass only
+    GLuint vao_ = 0, cornerVao_ = 0;
+    GLuint surface_ = 0, feedbackProgram_ = 0;
+    GLuint queries_[2] = {};
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };

@@ -1,0 +1,255 @@
+#include "strata/gl/evaluator.h"
+
+#include "strata/gl/shaders.h"
+
+#include <glm/vec4.hpp>
+
+#include <algorithm>
+#include <string>
+
+namespace strata {
+namespace gl {
+
+namespace {
+
+constexpr GLuint kGroupSize = 128;
+
+GLuint groups(size_t n)
+{
+    return GLuint((n + kGroupSize - 1) / kGroupSize);
+}
+
+// Immutable storage; `dynamic` allows per-frame glNamedBufferSubData.
+GLuint makeBuffer(const void* data, size_t bytes, bool dynamic, size_t* total)
+{
+    GLuint b = 0;
+    glCreateBuffers(1, &b);
+    glNamedBufferStorage(b, GLsizeiptr(std::max<size_t>(bytes, 16)), data,
+                         dynamic ? GL_DYNAMIC_STORAGE_BIT : GLbitfield(0));
+    *total += std::max<size_t>(bytes, 16);
+    return b;
+}
+
+}  // namespace
+
+Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool shadingNormals)
+{
+    if (!glCreateBuffers)
+        return Status(StatusCode::InvalidArgument, "the GPU evaluator needs a current OpenGL 4.5 context");
+    std::unique_ptr<Evaluator> e(new Evaluator());
+    e->vertexCount_ = plan.refinedVertexCount();
+    e->faceCount_ = plan.refinedFaceCount();
+    e->controlCount_ = plan.controlVertexCount();
+    e->smooth_ = plan.scheme() == Scheme::Smooth;
+    e->shadingNormals_ = shadingNormals;
+    if (e->vertexCount_ >= (size_t(1) << 31) / 32)
+        return Status(StatusCode::InvalidArgument, "too many refined vertices for one GPU surface");
+
+    const std::string defines = e->smooth_ ? "#define STRATA_SMOOTH 1\n" : "";
+    Status st = buildProgram(&e->refine_, "refine.comp", {{GL_COMPUTE_SHADER, shaderSource(ShaderId::Refine, defines)}});
+    if (st.isOk())
+        st = buildProgram(&e->displace_, "displace.comp", {{GL_COMPUTE_SHADER, shaderSource(ShaderId::Displace)}});
+    if (st.isOk())
+        st = buildProgram(&e->normals_, "normals.comp", {{GL_COMPUTE_SHADER, shaderSource(ShaderId::Normals)}});
+    if (!st.isOk())
+        return st;
+
+    // Static tables, uploaded once.
+    Plan::FlatStencils stencils;
+    plan.flattenStencils(&stencils);
+    const size_t nv = e->vertexCount_, nf = e->faceCount_;
+    const std::vector<uint32_t>& tris = plan.refinedTriangles();
+    std::vector<uint32_t> adjacencyOffsets(nv + 1, 0), adjacentFaces(3 * nf);
+    for (uint32_t i : tris)
+        ++adjacencyOffsets[i + 1];
+    for (size_t v = 0; v < nv; ++v)
+        adjacencyOffsets[v + 1] += adjacencyOffsets[v];
+    {
+        std::vector<uint32_t> fill(adjacencyOffsets.begin(), adjacencyOffsets.end() - 1);
+        for (size_t f = 0; f < nf; ++f)
+            for (int k = 0; k < 3; ++k)
+                adjacentFaces[fill[tris[3 * f + size_t(k)]]++] = uint32_t(f);
+    }
+    std::vector<glm::vec2> uvs = plan.sampleUVs();
+    if (uvs.empty())
+        uvs.assign(nv, glm::vec2(0.0f));
+    size_t& bytes = e->gpuBytes_;
+    GLuint* b = e->buffers_;
+    b[kControlPositions] = makeBuffer(nullptr, e->controlCount_ * 12, true, &bytes);
+    b[kControlNormals] = makeBuffer(nullptr, e->controlCount_ * 12, true, &bytes);
+    b[kStencilOffsets] = makeBuffer(stencils.offsets.data(), stencils.offsets.size() * 4, false, &bytes);
+    b[kStencilIndices] = makeBuffer(stencils.indices.data(), stencils.indices.size() * 4, false, &bytes);
+    b[kStencilWeights] = makeBuffer(stencils.weights.data(), stencils.weights.size() * 4, false, &bytes);
+    b[kSurface] = makeBuffer(nullptr, nv * 32, false, &bytes);
+    b[kDisplaced] = makeBuffer(nullptr, nv * 16, false, &bytes);
+    b[kSampleUVs] = makeBuffer(uvs.data(), nv * 8, false, &bytes);
+    b[kTriangles] = makeBuffer(tris.data(), tris.size() * 4, false, &bytes);
+    b[kAdjacencyOffsets] = makeBuffer(adjacencyOffsets.data(), adjacencyOffsets.size() * 4, false, &bytes);
+    b[kAdjacentFaces] = makeBuffer(adjacentFaces.data(), adjacentFaces.size() * 4, false, &bytes);
+    b[kNormals] = makeBuffer(nullptr, nv * 16, false, &bytes);
+    b[kVertexDisplacements] = makeBuffer(nullptr, std::max<size_t>(nv, 1) * 4, true, &bytes);
+
+    // A 1x1 zero map until one is set.
+    glCreateTextures(GL_TEXTURE_2D, 1, &e->texture_);
+    DisplacementMap zero;
+    zero.width = zero.height = 1;
+    zero.texels = {0.0f};
+    if (!(st = e->setDisplacementMap(zero)))
+        return st;
+    e->haveMap_ = false;
+    glCreateQueries(GL_TIMESTAMP, 4, e->queries_);
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error while uploading the plan");
+    *out = std::move(e);
+    return Status::ok();
+}
+
+Evaluator::~Evaluator()
+{
+    for (GLuint& b : buffers_)
+        if (b)
+            glDeleteBuffers(1, &b);
+    glDeleteTextures(1, &texture_);
+    for (GLuint p : {refine_, displace_, normals_})
+        glDeleteProgram(p);
+    glDeleteQueries(4, queries_);
+}
+
+Status Evaluator::setDisplacementMap(const DisplacementMap& map)
+{
+    if (Status st = validateDisplacementMap(map); !st.isOk())
+        return st;
+    GLint maxSize = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
+    if (map.width > maxSize || map.height > maxSize)
+        return Status(StatusCode::Unsupported, "the displacement map is larger than this GPU's " +
+                                                   std::to_string(maxSize) + " texels per side");
+    // Immutable storage cannot be resized: a new texture per map.
+    glDeleteTextures(1, &texture_);
+    glCreateTextures(GL_TEXTURE_2D, 1, &texture_);
+    glTextureStorage2D(texture_, 1, GL_R32F, map.width, map.height);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTextureSubImage2D(texture_, 0, 0, 0, map.width, map.height, GL_RED, GL_FLOAT, map.texels.data());
+    glTextureParameteri(texture_, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(texture_, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(texture_, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(texture_, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    mapSize_ = glm::ivec2(map.width, map.height);
+    factor_ = map.factor;
+    offset_ = map.offset;
+    haveMap_ = true;
+    return Status::ok();
+}
+
+Status Evaluator::setDisplacements(const float* values, size_t count)
+{
+    if (!values) {
+        perVertex_ = false;
+        return Status::ok();
+    }
+    if (count != vertexCount_)
+        return Status(StatusCode::InvalidArgument, std::to_string(count) + " displacements for " +
+                                                       std::to_string(vertexCount_) + " refined vertices");
+    glNamedBufferSubData(buffers_[kVertexDisplacements], 0, GLsizeiptr(count * 4), values);
+    perVertex_ = true;
+    return Status::ok();
+}
+
+void Evaluator::bindBuffers() const
+{
+    for (GLuint i = 0; i < 16; ++i)
+        if (buffers_[i])
+            glBindBufferBase(GL_SHADER_STORAGE_BUFFER, i, buffers_[i]);
+}
+
+void Evaluator::bindSampling(GLuint program) const
+{
+    glBindTextureUnit(0, texture_);
+    glProgramUniform1i(program, glGetUniformLocation(program, "u_map"), 0);
+    glProgramUniform2i(program, glGetUniformLocation(program, "u_mapSize"), mapSize_.x, mapSize_.y);
+    glProgramUniform1f(program, glGetUniformLocation(program, "u_factor"), factor_);
+    glProgramUniform1f(program, glGetUniformLocation(program, "u_offset"), offset_);
+    glProgramUniform1f(program, glGetUniformLocation(program, "u_scale"), haveMap_ || perVertex_ ? scale_ : 0.0f);
+    glProgramUniform1i(program, glGetUniformLocation(program, "u_filter"), int(filter_));
+    glProgramUniform1i(program, glGetUniformLocation(program, "u_perVertex"), perVertex_ ? 1 : 0);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kVertexDisplacements, buffers_[kVertexDisplacements]);
+}
+
+double Evaluator::elapsedMs(GLuint begin, GLuint end) const
+{
+    GLuint64 a = 0, b = 0;
+    glGetQueryObjectui64v(begin, GL_QUERY_RESULT, &a);
+    glGetQueryObjectui64v(end, GL_QUERY_RESULT, &b);
+    return double(b - a) * 1e-6;
+}
+
+Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
+{
+    if (count != controlCount_)
+        return Status(StatusCode::InvalidArgument, "GPU evaluator: got " + std::to_string(count) +
+                                                       " control vertices, the plan has " +
+                                                       std::to_string(controlCount_));
+    if (!controlPositions || (!smooth_ && !controlNormals))
+        return Status(StatusCode::InvalidArgument, "GPU evaluator: null control data");
+    if (timing_)
+        glQueryCounter(queries_[0], GL_TIMESTAMP);
+    glNamedBufferSubData(buffers_[kControlPositions], 0, GLsizeiptr(count * 12), controlPositions);
+    if (controlNormals)
+        glNamedBufferSubData(buffers_[kControlNormals], 0, GLsizeiptr(count * 12), controlNormals);
+    if (timing_)
+        glQueryCounter(queries_[1], GL_TIMESTAMP);
+    bindBuffers();
+    const GLuint n = GLuint(vertexCount_);
+    glUseProgram(refine_);
+    glUniform1ui(glGetUniformLocation(refine_, "u_vertexCount"), n);
+    glDispatchCompute(groups(vertexCount_), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    bindSampling(displace_);
+    glUseProgram(displace_);
+    glUniform1ui(glGetUniformLocation(displace_, "u_vertexCount"), n);
+    glDispatchCompute(groups(vertexCount_), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    if (timing_)
+        glQueryCounter(queries_[2], GL_TIMESTAMP);
+    if (shadingNormals_) {
+        glUseProgram(normals_);
+        glUniform1ui(glGetUniformLocation(normals_, "u_vertexCount"), n);
+        glDispatchCompute(groups(vertexCount_), 1, 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT);
+    }
+    if (timing_) {
+        glQueryCounter(queries_[3], GL_TIMESTAMP);
+        timings_.uploadMs = elapsedMs(queries_[0], queries_[1]);
+        timings_.stencilMs = elapsedMs(queries_[1], queries_[2]);
+        timings_.normalsMs = elapsedMs(queries_[2], queries_[3]);
+    }
+    glUseProgram(0);
+    return Status::ok();
+}
+
+Status Evaluator::readPositions(std::vector<glm::vec3>* out) const
+{
+    std::vector<glm::vec4> p(vertexCount_);
+    glGetNamedBufferSubData(buffers_[kDisplaced], 0, GLsizeiptr(vertexCount_ * 16), p.data());
+    out->resize(vertexCount_);
+    for (size_t v = 0; v < vertexCount_; ++v)
+        (*out)[v] = glm::vec3(p[v]);
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error reading the positions back");
+    return Status::ok();
+}
+
+Status Evaluator::readNormals(std::vector<glm::vec3>* out) const
+{
+    std::vector<glm::vec4> n(vertexCount_);
+    glGetNamedBufferSubData(buffers_[kNormals], 0, GLsizeiptr(vertexCount_ * 16), n.data());
+    out->resize(vertexCount_);
+    for (size_t v = 0; v < vertexCount_; ++v)
+        (*out)[v] = glm::vec3(n[v]);
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error reading the normals back");
+    return Status::ok();
+}
+
+}  // namespace gl
+}  // namespace strata

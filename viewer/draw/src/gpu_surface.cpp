@@ -1,0 +1,296 @@
+#include "strata/gl/gpu_surface.h"
+
+#include "strata/gl/shaders.h"
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include <algorithm>
+#include <string>
+
+namespace strata {
+namespace gl {
+
+namespace embedded {
+extern const char* const surfaceVert;
+extern const char* const surfaceFrag;
+extern const char* const linesVert;
+extern const char* const linesFrag;
+}  // namespace embedded
+
+std::string linesShaderSource(GLenum stage)
+{
+    return std::string("#version 450 core\n") + (stage == GL_VERTEX_SHADER ? embedded::linesVert : embedded::linesFrag);
+}
+
+namespace {
+
+// Binding points of the draw pass's own buffers (surface.vert.glsl).
+constexpr GLuint kErrors = 12, kCornerUVs = 14;
+
+}  // namespace
+
+Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bool shadingNormals)
+{
+    std::unique_ptr<GpuSurface> s(new GpuSurface());
+    Status st = Evaluator::create(&s->evaluator_, plan, shadingNormals);
+    if (!st)
+        return st;
+    const std::string vertex = samplingPrelude() + embedded::surfaceVert;
+    const std::string fragment = std::string("#version 450 core\n") + embedded::surfaceFrag;
+    if (!(st = buildProgram(&s->surface_, "surface", {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}})) ||
+        !(st = buildProgram(&s->feedbackProgram_, "surface.vert (transform feedback)", {{GL_VERTEX_SHADER, vertex}},
+                            {"v_position"})))
+        return st;
+    const size_t nv = plan.refinedVertexCount();
+    glCreateBuffers(1, &s->errors_);
+    glNamedBufferStorage(s->errors_, GLsizeiptr(std::max<size_t>(nv, 4) * 4), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    glCreateBuffers(1, &s->feedback_);
+    glNamedBufferStorage(s->feedback_, GLsizeiptr(std::max<size_t>(nv, 1) * 12), nullptr, 0);
+    s->ownBytes_ = std::max<size_t>(nv, 4) * 4 + std::max<size_t>(nv, 1) * 12;
+    const Evaluator& e = *s->evaluator_;
+    glCreateVertexArrays(1, &s->vao_);
+    glVertexArrayVertexBuffer(s->vao_, 0, e.buffer(kSampleUVs), 0, 8);
+    glVertexArrayAttribFormat(s->vao_, 0, 2, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(s->vao_, 0, 0);
+    glEnableVertexArrayAttrib(s->vao_, 0);
+    glVertexArrayVertexBuffer(s->vao_, 1, s->errors_, 0, 4);
+    glVertexArrayAttribFormat(s->vao_, 1, 1, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(s->vao_, 1, 1);
+    glVertexArrayElementBuffer(s->vao_, e.buffer(kTriangles));
+    glCreateQueries(GL_TIMESTAMP, 2, s->queries_);
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error while setting up the draw pass");
+    *out = std::move(s);
+    return Status::ok();
+}
+
+GpuSurface::~GpuSurface()
+{
+    for (GLuint b : {errors_, feedback_, cornerUVs_})
+        if (b)
+            glDeleteBuffers(1, &b);
+    glDeleteVertexArrays(1, &vao_);
+    glDeleteVertexArrays(1, &cornerVao_);
+    for (GpuMaterial& m : materials_)
+        glDeleteTextures(1, &m.texture);
+    for (GLuint p : {surface_, feedbackProgram_})
+        glDeleteProgram(p);
+    glDeleteQueries(2, queries_);
+    glDeleteFramebuffers(1, &feedbackTarget_);
+    glDeleteRenderbuffers(1, &feedbackColor_);
+}
+
+void GpuSurface::setTiming(bool on)
+{
+    timing_ = on;
+    evaluator_->setTiming(on);
+}
+
+void GpuSurface::setVertexErrors(const float* errors)
+{
+    haveErrors_ = errors != nullptr;
+    if (errors)
+        glNamedBufferSubData(errors_, 0, GLsizeiptr(vertexCount() * 4), errors);
+    if (haveErrors_)
+        glEnableVertexArrayAttrib(vao_, 1);
+    else
+        glDisableVertexArrayAttrib(vao_, 1);
+}
+
+Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
+                                const std::vector<glm::vec2>& cornerUVs)
+{
+    const size_t faceCount_ = faceCount();
+    if (cornerUVs.size() != 3 * faceCount_)
+        return Status(StatusCode::InvalidArgument, "setMaterials: " + std::to_string(cornerUVs.size()) +
+                                                       " corner UVs for " + std::to_string(faceCount_) + " faces");
+    for (const MaterialRange& r : ranges)
+        if (r.material < 0 || size_t(r.material) >= materials.size() || r.firstFace > faceCount_ ||
+            r.faceCount > faceCount_ - r.firstFace)
+            return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
+    for (GpuMaterial& m : materials_)
+        glDeleteTextures(1, &m.texture);
+    materials_.clear();
+    for (const SurfaceMaterial& in : materials) {
+        GpuMaterial m;
+        m.material = in;
+        if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0) {
+            glCreateTextures(GL_TEXTURE_2D, 1, &m.texture);
+            int levels = 1;
+            while ((std::max(in.textureWidth, in.textureHeight) >> levels) > 0)
+                ++levels;
+            glTextureStorage2D(m.texture, levels, GL_RGBA8, in.textureWidth, in.textureHeight);
+            glTextureSubImage2D(m.texture, 0, 0, 0, in.textureWidth, in.textureHeight, GL_RGBA, GL_UNSIGNED_BYTE,
+                                in.textureRGBA);
+            glGenerateTextureMipmap(m.texture);
+            glTextureParameteri(m.texture, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+            glTextureParameteri(m.texture, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_S, GL_REPEAT);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_T, GL_REPEAT);
+        }
+        m.material.textureRGBA = nullptr;
+        materials_.push_back(m);
+    }
+    ranges_ = ranges;
+    // Blended ranges last.
+    std::stable_sort(ranges_.begin(), ranges_.end(), [&](const MaterialRange& a, const MaterialRange& b) {
+        return (materials_[size_t(a.material)].material.alphaMode == 2) <
+               (materials_[size_t(b.material)].material.alphaMode == 2);
+    });
+    if (cornerUVs_)
+        glDeleteBuffers(1, &cornerUVs_);
+    glCreateBuffers(1, &cornerUVs_);
+    glNamedBufferStorage(cornerUVs_, GLsizeiptr(std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2)),
+                         cornerUVs.empty() ? nullptr : cornerUVs.data(), 0);
+    if (!cornerVao_)
+        glCreateVertexArrays(1, &cornerVao_);  // no attributes: the shader reads buffers by corner
+    return Status::ok();
+}
+
+// The shaded view with materials: corner-ordered draws (gl_VertexID is the
+// refined corner), one per face range.
+void GpuSurface::drawMaterials(GLuint prog)
+{
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, evaluator_->buffer(kSampleUVs));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kTriangles, evaluator_->buffer(kTriangles));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, errors_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerUVs, cornerUVs_);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 1);
+    glUniform1i(glGetUniformLocation(prog, "u_baseColorTexture"), 1);
+    glBindVertexArray(cornerVao_);
+    bool blending = false;
+    for (const MaterialRange& r : ranges_) {
+        const GpuMaterial& m = materials_[size_t(r.material)];
+        const bool blend = m.material.alphaMode == 2;
+        if (blend && !blending) {
+            glEnable(GL_BLEND);
+            glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+            glDepthMask(GL_FALSE);
+            blending = true;
+        }
+        glUniform1i(glGetUniformLocation(prog, "u_material"), 1);
+        glUniform4fv(glGetUniformLocation(prog, "u_materialColor"), 1, glm::value_ptr(m.material.baseColor));
+        glUniform1i(glGetUniformLocation(prog, "u_hasTexture"), m.texture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
+        glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
+        glBindTextureUnit(1, m.texture);
+        glDrawArrays(GL_TRIANGLES, GLint(3 * r.firstFace), GLsizei(3 * r.faceCount));
+    }
+    if (blending) {
+        glDisable(GL_BLEND);
+        glDepthMask(GL_TRUE);
+    }
+    glBindTextureUnit(1, 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+}
+
+Status GpuSurface::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
+{
+    Status st = evaluator_->update(controlPositions, controlNormals, count);
+    if (st && timing_) {
+        const EvaluatorTimings& t = evaluator_->timings();
+        timings_.uploadMs = t.uploadMs;
+        timings_.stencilMs = t.stencilMs;
+        timings_.normalsMs = t.normalsMs;
+    }
+    return st;
+}
+
+void GpuSurface::draw(const DrawParams& p)
+{
+    if (timing_)
+        glQueryCounter(queries_[0], GL_TIMESTAMP);
+    evaluator_->bindSampling(surface_);
+    const GLuint prog = surface_;
+    const size_t faceCount_ = faceCount();
+    glUseProgram(prog);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSurface, evaluator_->buffer(kSurface));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kNormals, evaluator_->buffer(kNormals));
+    glUniformMatrix4fv(glGetUniformLocation(prog, "u_viewProjection"), 1, GL_FALSE, glm::value_ptr(p.viewProjection));
+    glUniform1i(glGetUniformLocation(prog, "u_haveNormals"), evaluator_->shadingNormals() ? 1 : 0);
+    glUniform3fv(glGetUniformLocation(prog, "u_eye"), 1, glm::value_ptr(p.eye));
+    glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
+    glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
+    const ColorMode mode = p.colorMode == ColorMode::Error && !haveErrors_ ? ColorMode::Shaded : p.colorMode;
+    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(mode));
+    if (!haveErrors_)
+        glVertexAttrib1f(1, 0.0f);
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+    if (p.wireframe) {
+        glEnable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(1.0f, 1.0f);
+    }
+    if (mode == ColorMode::Shaded && !materials_.empty()) {
+        drawMaterials(prog);
+    } else {
+        glBindVertexArray(vao_);
+        glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
+    }
+    glBindVertexArray(vao_);
+    if (p.wireframe) {
+        glDisable(GL_POLYGON_OFFSET_FILL);
+        glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+        glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(ColorMode::Flat));
+        glUniform3f(glGetUniformLocation(prog, "u_baseColor"), 0.12f, 0.12f, 0.14f);
+        glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
+        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    }
+    glBindVertexArray(0);
+    glUseProgram(0);
+    if (timing_) {
+        glQueryCounter(queries_[1], GL_TIMESTAMP);
+        GLuint64 a = 0, b = 0;
+        glGetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &a);
+        glGetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &b);
+        timings_.drawMs = double(b - a) * 1e-6;
+    }
+}
+
+Status GpuSurface::readPositions(std::vector<glm::vec3>* out)
+{
+    while (glGetError() != GL_NO_ERROR) {
+    }
+    // A draw needs a complete framebuffer even with rasterisation discarded;
+    // a surfaceless context has no default one.
+    GLint previous = 0;
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &previous);
+    if (!feedbackTarget_) {
+        glCreateRenderbuffers(1, &feedbackColor_);
+        glNamedRenderbufferStorage(feedbackColor_, GL_RGBA8, 1, 1);
+        glCreateFramebuffers(1, &feedbackTarget_);
+        glNamedFramebufferRenderbuffer(feedbackTarget_, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, feedbackColor_);
+    }
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, feedbackTarget_);
+    const size_t vertexCount_ = vertexCount();
+    evaluator_->bindSampling(feedbackProgram_);
+    glUseProgram(feedbackProgram_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSurface, evaluator_->buffer(kSurface));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kNormals, evaluator_->buffer(kNormals));
+    glUniform1i(glGetUniformLocation(feedbackProgram_, "u_haveNormals"), 0);
+    glUniformMatrix4fv(glGetUniformLocation(feedbackProgram_, "u_viewProjection"), 1, GL_FALSE,
+                       glm::value_ptr(glm::mat4(1.0f)));
+    glBindVertexArray(vao_);
+    if (!haveErrors_)
+        glVertexAttrib1f(1, 0.0f);
+    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, feedback_);
+    glEnable(GL_RASTERIZER_DISCARD);
+    glBeginTransformFeedback(GL_POINTS);
+    glDrawArrays(GL_POINTS, 0, GLsizei(vertexCount_));
+    glEndTransformFeedback();
+    glDisable(GL_RASTERIZER_DISCARD);
+    glBindBufferBase(GL_TRANSFORM_FEEDBACK_BUFFER, 0, 0);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, GLuint(previous));
+    glBindVertexArray(0);
+    glUseProgram(0);
+    out->resize(vertexCount_);
+    glGetNamedBufferSubData(feedback_, 0, GLsizeiptr(vertexCount_ * 12), out->data());
+    if (const GLenum e = glGetError(); e != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL error " + std::to_string(e) +
+                                                   " while reading the displaced positions back");
+    return Status::ok();
+}
+
+}  // namespace gl
+}  // namespace strata
