@@ -67,13 +67,19 @@ struct TopologyInput {
     std::vector<int> vertsPerFace;
     std::vector<int> faceVerts;
     std::vector<int> uvIndices;
+    std::vector<int> cornerIndices;
     std::vector<int> creasePairs;
     std::vector<float> creaseWeights;
     std::vector<int> corners;
     std::vector<float> cornerWeights;
 };
 
-std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in)
+// Face-varying channels of a refiner made with the corner channel: the
+// corner channel first (three values per control face), then the UVs.
+constexpr int kCornerChannel = 0, kUvChannel = 1;
+
+std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in,
+                                                    bool cornerChannel = false)
 {
     const size_t nf = mesh.faceCount();
     in.vertsPerFace.assign(nf, 3);
@@ -108,13 +114,21 @@ std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, boo
         desc.cornerWeights = in.cornerWeights.data();
     }
 
-    Far::TopologyDescriptor::FVarChannel uvChannel;
-    if (!in.uvIndices.empty()) {
-        uvChannel.numValues = int(mesh.uvs.size());
-        uvChannel.valueIndices = in.uvIndices.data();
-        desc.numFVarChannels = 1;
-        desc.fvarChannels = &uvChannel;
+    Far::TopologyDescriptor::FVarChannel channels[2];
+    int count = 0;
+    if (cornerChannel) {
+        in.cornerIndices.resize(3 * nf);
+        for (size_t i = 0; i < in.cornerIndices.size(); ++i)
+            in.cornerIndices[i] = int(i);
+        channels[count].numValues = int(3 * nf);
+        channels[count++].valueIndices = in.cornerIndices.data();
     }
+    if (!in.uvIndices.empty()) {
+        channels[count].numValues = int(mesh.uvs.size());
+        channels[count++].valueIndices = in.uvIndices.data();
+    }
+    desc.numFVarChannels = count;
+    desc.fvarChannels = count ? channels : nullptr;
 
     using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
     Factory::Options options(Sdc::SCHEME_LOOP, subdivisionOptions());
@@ -423,19 +437,66 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
     return Status::ok();
 }
 
-Status Plan::build(const ControlMesh& mesh)
-{
-    const size_t nf0 = mesh.faceCount();
-    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(mesh, level_);
-    if (!refiner)
-        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
-    const Far::TopologyLevel& last = refiner->GetLevel(level_);
-    const size_t nv = size_t(last.GetNumVertices());
-    const size_t nf = size_t(last.GetNumFaces());
-    if (nf != nf0 << (2 * level_))
-        return Status(StatusCode::InvalidData, "refinement produced " + std::to_string(nf) + " faces, expected " +
-                                                   std::to_string(nf0 << (2 * level_)));
+namespace {
 
+// Face-varying values interpolated level by level with OpenSubdiv's own
+// rules (Far::PrimvarRefiner): barycentrics in the parent control face, and
+// UVs.  Linear in the refined values, where a factorised stencil table
+// costs many entries per value.
+struct Bary {
+    float b[3];
+    void Clear(void* = nullptr) { b[0] = b[1] = b[2] = 0.0f; }
+    void AddWithWeight(const Bary& src, float w)
+    {
+        b[0] += w * src.b[0];
+        b[1] += w * src.b[1];
+        b[2] += w * src.b[2];
+    }
+};
+
+struct Uv {
+    glm::vec2 uv;
+    void Clear(void* = nullptr) { uv = glm::vec2(0.0f); }
+    void AddWithWeight(const Uv& src, float w) { uv += w * src.uv; }
+};
+
+template <typename T>
+std::vector<T> refineFaceVaryingValues(const Far::TopologyRefiner& refiner, int channel, std::vector<T> values)
+{
+    Far::PrimvarRefiner primvar(refiner);
+    for (int level = 1; level <= refiner.GetMaxLevel(); ++level) {
+        std::vector<T> next(size_t(refiner.GetLevel(level).GetNumFVarValues(channel)));
+        const T* src = values.data();
+        T* dst = next.data();
+        primvar.InterpolateFaceVarying(level, src, dst, channel);
+        values.swap(next);
+    }
+    return values;
+}
+
+}  // namespace
+
+struct Plan::Build {
+    const Far::TopologyRefiner& refiner;
+    const ControlMesh& mesh;
+    std::vector<uint32_t> firstFace;  // per refined vertex: its first refined face (kNoControlFace: none)
+    std::vector<uint8_t> firstCorner; // and its corner there
+};
+
+// The refined topology: triangles, and each refined vertex's first face and
+// corner (its canonical location).  Uniform refinement numbers child faces
+// by parent face, so a refined face's control face is f >> 2 level;
+// buildLinear checks the barycentrics against that.
+Status Plan::buildTopology(Build& b)
+{
+    const size_t controlFaces = b.mesh.faceCount();
+    std::vector<uint32_t>* firstFace = &b.firstFace;
+    std::vector<uint8_t>* firstCorner = &b.firstCorner;
+    const Far::TopologyLevel& last = b.refiner.GetLevel(level_);
+    const size_t nv = size_t(last.GetNumVertices()), nf = size_t(last.GetNumFaces());
+    if (nf != controlFaces << (2 * level_))
+        return Status(StatusCode::InvalidData, "refinement produced " + std::to_string(nf) + " faces, expected " +
+                                                   std::to_string(controlFaces << (2 * level_)));
     triangles_.resize(nf * 3);
     for (size_t f = 0; f < nf; ++f) {
         Far::ConstIndexArray fv = last.GetFaceVertices(Far::Index(f));
@@ -444,209 +505,211 @@ Status Plan::build(const ControlMesh& mesh)
         for (int c = 0; c < 3; ++c)
             triangles_[3 * f + c] = uint32_t(fv[c]);
     }
-
-    // Vertex stencils of the sharp (linear) refinement, factorised down to
-    // the control vertices: for each refined vertex, its barycentric weights.
-    // (a local copy: the hot loop keeps only the padded three-entry form)
-    struct {
-        std::vector<int> sizes, offsets, indices;
-        std::vector<float> weights;
-    } linearCsr_;
-    if (level_ == 0) {
-        linearCsr_.sizes.assign(nv, 1);
-        linearCsr_.offsets.resize(nv);
-        linearCsr_.indices.resize(nv);
-        linearCsr_.weights.assign(nv, 1.0f);
-        for (size_t v = 0; v < nv; ++v)
-            linearCsr_.offsets[v] = linearCsr_.indices[v] = int(v);
-    } else {
-        StencilFactory::Options so;
-        so.interpolationMode = StencilFactory::INTERPOLATE_VERTEX;
-        so.generateIntermediateLevels = false;
-        so.generateOffsets = true;
-        std::unique_ptr<const StencilTable> table(StencilFactory::Create(*refiner, so));
-        if (!table || size_t(table->GetNumStencils()) != nv)
-            return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected vertex stencil table");
-        linearCsr_.sizes = table->GetSizes();
-        linearCsr_.offsets.assign(table->GetOffsets().begin(), table->GetOffsets().end());
-        linearCsr_.indices = table->GetControlIndices();
-        linearCsr_.weights = table->GetWeights();
-    }
-
-    // Canonical face of every refined vertex: the first refined face that
-    // uses it.  Uniform refinement numbers child faces by parent face, so the
-    // control face is f >> 2*level; the barycentric check below rejects the
-    // plan if that ever stopped holding.
-    std::vector<uint32_t> firstFace(nv, std::numeric_limits<uint32_t>::max());
-    std::vector<uint8_t> firstCorner(nv, 0);
+    firstFace->assign(nv, kNoControlFace);
+    firstCorner->assign(nv, 0);
     for (size_t f = 0; f < nf; ++f)
         for (int c = 0; c < 3; ++c) {
             const uint32_t v = triangles_[3 * f + c];
-            if (firstFace[v] == std::numeric_limits<uint32_t>::max()) {
-                firstFace[v] = uint32_t(f);
-                firstCorner[v] = uint8_t(c);
+            if ((*firstFace)[v] == kNoControlFace) {
+                (*firstFace)[v] = uint32_t(f);
+                (*firstCorner)[v] = uint8_t(c);
             }
         }
+    return Status::ok();
+}
 
+// The linear scheme's stencils: every refined vertex is a barycentric
+// combination of its control face's corners, so the plan keeps the control
+// triangles and one (face, b1, b2) per refined vertex (b0 = 1 - b1 - b2,
+// exact: the weights are dyadic).  The barycentrics come from OpenSubdiv,
+// refining face-varying corner values (channel `cornerChannel`, three per
+// control face, the unit vectors) with the sharp rules.
+Status Plan::buildLinear(Build& build)
+{
+    const Far::TopologyRefiner& refiner = build.refiner;
+    const ControlMesh& mesh = build.mesh;
+    const int cornerChannel = kCornerChannel;
+    const std::vector<uint32_t>& firstFace = build.firstFace;
+    const std::vector<uint8_t>& firstCorner = build.firstCorner;
+    const size_t nv = firstFace.size(), nf0 = mesh.faceCount();
+    controlTriangles_ = mesh.triangles;
+    std::vector<Bary> corners(3 * nf0);
+    for (size_t i = 0; i < corners.size(); ++i) {
+        corners[i].Clear();
+        corners[i].b[i % 3] = 1.0f;
+    }
+    const std::vector<Bary> refined = refineFaceVaryingValues(refiner, cornerChannel, std::move(corners));
+    const Far::TopologyLevel& last = refiner.GetLevel(level_);
     samples_.resize(nv);
-    linear_.resize(nv);
+    isolated_.clear();
     for (size_t v = 0; v < nv; ++v) {
-        if (firstFace[v] == std::numeric_limits<uint32_t>::max()) {
-            // An unreferenced control vertex refines to itself and nothing else.
-            if (linearCsr_.sizes[v] != 1)
+        if (firstFace[v] == kNoControlFace) {
+            // An unreferenced control vertex refines to itself and nothing
+            // else; the first levels' vertices keep their numbers.
+            if (v >= controlVertexCount_)
                 return Status(StatusCode::InvalidData, "isolated refined vertex " + std::to_string(v) +
-                                                           " has an unexpected stencil");
-            const uint32_t self = uint32_t(linearCsr_.indices[size_t(linearCsr_.offsets[v])]);
-            linear_[v] = {{self, self, self}, {1.0f, 0.0f, 0.0f}};
+                                                           " does not descend from a control vertex");
             samples_[v] = {kNoControlFace, glm::vec2(0.0f)};
+            isolated_.push_back(uint32_t(v));
             continue;
         }
         const uint32_t face = firstFace[v] >> (2 * level_);
-        const uint32_t* corners = &mesh.triangles[3 * size_t(face)];
-        float bary[3] = {0.0f, 0.0f, 0.0f};
-        Stencil3 s3 = {{corners[0], corners[1], corners[2]}, {0.0f, 0.0f, 0.0f}};
-        const int size = linearCsr_.sizes[v], offset = linearCsr_.offsets[v];
-        if (size < 1 || size > 3)
-            return Status(StatusCode::InvalidData, "linear stencil of refined vertex " + std::to_string(v) + " has " +
-                                                       std::to_string(size) + " weights (expected 1..3)");
-        for (int k = 0; k < size; ++k) {
-            const uint32_t idx = uint32_t(linearCsr_.indices[size_t(offset + k)]);
-            const float w = linearCsr_.weights[size_t(offset + k)];
-            int corner = -1;
-            for (int c = 0; c < 3; ++c)
-                if (corners[c] == idx)
-                    corner = c;
-            if (corner < 0)
-                return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
-                                                           " is not inside its parent control face " +
-                                                           std::to_string(face));
-            bary[corner] += w;
-        }
-        s3.weight[0] = bary[0];
-        s3.weight[1] = bary[1];
-        s3.weight[2] = bary[2];
-        linear_[v] = s3;
-        samples_[v] = {face, glm::vec2(bary[1], bary[2])};
+        const Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(firstFace[v]), cornerChannel);
+        const Bary& b = refined[size_t(fvv[firstCorner[v]])];
+        const bool inside = b.b[0] >= 0.0f && b.b[1] >= 0.0f && b.b[2] >= 0.0f && b.b[0] + b.b[1] + b.b[2] == 1.0f &&
+                            b.b[0] == 1.0f - b.b[1] - b.b[2];
+        if (!inside)
+            return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
+                                                       " is not inside its parent control face " + std::to_string(face));
+        samples_[v] = {face, glm::vec2(b.b[1], b.b[2])};
     }
+    return Status::ok();
+}
 
-    // Face-varying UVs, interpolated linearly (FVAR_LINEAR_ALL), and each
-    // vertex's canonical UV: the value of its first corner.
+// Face-varying UVs, interpolated linearly (FVAR_LINEAR_ALL), and each
+// vertex's canonical UV: the value of its first corner.
+Status Plan::buildUVs(Build& build)
+{
+    const Far::TopologyRefiner& refiner = build.refiner;
+    const ControlMesh& mesh = build.mesh;
+    const int uvChannel = kUvChannel;
+    const std::vector<uint32_t>& firstFace = build.firstFace;
+    const std::vector<uint8_t>& firstCorner = build.firstCorner;
     uvs_.clear();
     uvIndices_.clear();
     sampleUVs_.clear();
-    if (mesh.hasUVs()) {
-        const size_t nuv = size_t(last.GetNumFVarValues(0));
-        uvs_.resize(nuv);
-        if (level_ == 0) {
-            uvs_ = mesh.uvs;
-        } else {
-            std::unique_ptr<const StencilTable> table = createFaceVaryingTable(*refiner);
-            if (!table || size_t(table->GetNumStencils()) != nuv)
-                return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected face-varying stencil table");
-            const std::vector<int>& sizes = table->GetSizes();
-            const std::vector<Far::Index>& offsets = table->GetOffsets();
-            const std::vector<Far::Index>& idx = table->GetControlIndices();
-            const std::vector<float>& w = table->GetWeights();
-            for (size_t i = 0; i < nuv; ++i) {
-                glm::vec2 uv(0.0f);
-                for (int k = 0; k < sizes[i]; ++k)
-                    uv += w[size_t(offsets[i] + k)] * mesh.uvs[size_t(idx[size_t(offsets[i] + k)])];
-                uvs_[i] = uv;
-            }
-        }
-        uvIndices_.resize(nf * 3);
-        for (size_t f = 0; f < nf; ++f) {
-            Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(f), 0);
-            for (int c = 0; c < 3; ++c)
-                uvIndices_[3 * f + c] = uint32_t(fvv[c]);
-        }
-        sampleUVs_.resize(nv);
-        for (size_t v = 0; v < nv; ++v)
-            sampleUVs_[v] = samples_[v].face == kNoControlFace
-                                ? glm::vec2(0.0f)
-                                : uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
+    if (!mesh.hasUVs())
+        return Status::ok();
+    const Far::TopologyLevel& last = refiner.GetLevel(level_);
+    std::vector<Uv> values(mesh.uvs.size());
+    for (size_t i = 0; i < values.size(); ++i)
+        values[i].uv = mesh.uvs[i];
+    values = refineFaceVaryingValues(refiner, uvChannel, std::move(values));
+    if (values.size() != size_t(last.GetNumFVarValues(uvChannel)))
+        return Status(StatusCode::InvalidData, "OpenSubdiv refined an unexpected number of UVs");
+    uvs_.resize(values.size());
+    for (size_t i = 0; i < values.size(); ++i)
+        uvs_[i] = values[i].uv;
+    const size_t nf = triangles_.size() / 3, nv = firstFace.size();
+    uvIndices_.resize(nf * 3);
+    for (size_t f = 0; f < nf; ++f) {
+        Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(f), uvChannel);
+        for (int c = 0; c < 3; ++c)
+            uvIndices_[3 * f + c] = uint32_t(fvv[c]);
     }
-    displacements_.assign(nv, 0.0f);
+    sampleUVs_.resize(nv);
+    for (size_t v = 0; v < nv; ++v)
+        sampleUVs_[v] = firstFace[v] == kNoControlFace ? glm::vec2(0.0f)
+                                                       : uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
+    return Status::ok();
+}
 
-    if (scheme_ == Scheme::Smooth) {
-        // Limit stencils need an adaptively refined, crease-free refiner.
-        TopologyInput smoothInput;
-        std::unique_ptr<Far::TopologyRefiner> smooth = createRefiner(mesh, /*allSharp=*/false, smoothInput);
-        if (!smooth)
-            return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
-        smooth->RefineAdaptive(Far::TopologyRefiner::AdaptiveOptions(4));
+// The smooth scheme: Loop limit stencils (position, d/ds, d/dt) at every
+// refined vertex's (face, s, t), from an adaptively refined, crease-free
+// refiner, re-ordered into refined-vertex order so evaluate() streams.
+Status Plan::buildLimit(const ControlMesh& mesh)
+{
+    const size_t nv = samples_.size();
+    TopologyInput smoothInput;
+    std::unique_ptr<Far::TopologyRefiner> smooth = createRefiner(mesh, /*allSharp=*/false, smoothInput);
+    if (!smooth)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    smooth->RefineAdaptive(Far::TopologyRefiner::AdaptiveOptions(4));
 
-        // One location array per control face (its ptex face), listing the
-        // refined vertices whose canonical face it is.
-        // Isolated vertices (kNoControlFace sorts last) have no ptex face:
-        // they keep their control position through an identity stencil.
-        std::vector<uint32_t> order(nv);
-        for (size_t v = 0; v < nv; ++v)
-            order[v] = uint32_t(v);
-        std::stable_sort(order.begin(), order.end(),
-                         [&](uint32_t a, uint32_t b) { return samples_[a].face < samples_[b].face; });
-        size_t located = nv;
-        while (located > 0 && samples_[order[located - 1]].face == kNoControlFace)
-            --located;
-        std::vector<float> s(nv), t(nv);
-        for (size_t k = 0; k < nv; ++k) {
-            s[k] = samples_[order[k]].bary.x;
-            t[k] = samples_[order[k]].bary.y;
-        }
-        LimitFactory::LocationArrayVec locations;
-        for (size_t k = 0; k < located;) {
-            size_t j = k;
-            while (j < located && samples_[order[j]].face == samples_[order[k]].face)
-                ++j;
-            LimitFactory::LocationArray loc;
-            loc.ptexIdx = int(samples_[order[k]].face);
-            loc.numLocations = int(j - k);
-            loc.s = &s[k];
-            loc.t = &t[k];
-            locations.push_back(loc);
-            k = j;
-        }
-        LimitFactory::Options lo;
-        lo.generate1stDerivatives = true;
-        std::unique_ptr<const LimitStencilTable> limit(LimitFactory::Create(*smooth, locations, nullptr, nullptr, lo));
-        if (!limit || size_t(limit->GetNumStencils()) != located)
-            return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected limit stencil table");
+    // One location array per control face (its ptex face), listing the
+    // refined vertices whose canonical face it is.  Isolated vertices
+    // (kNoControlFace sorts last) have no ptex face: they keep their control
+    // position through an identity stencil.
+    std::vector<uint32_t> order(nv);
+    for (size_t v = 0; v < nv; ++v)
+        order[v] = uint32_t(v);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return samples_[a].face < samples_[b].face; });
+    size_t located = nv;
+    while (located > 0 && samples_[order[located - 1]].face == kNoControlFace)
+        --located;
+    std::vector<float> s(nv), t(nv);
+    for (size_t k = 0; k < nv; ++k) {
+        s[k] = samples_[order[k]].bary.x;
+        t[k] = samples_[order[k]].bary.y;
+    }
+    LimitFactory::LocationArrayVec locations;
+    for (size_t k = 0; k < located;) {
+        size_t j = k;
+        while (j < located && samples_[order[j]].face == samples_[order[k]].face)
+            ++j;
+        LimitFactory::LocationArray loc;
+        loc.ptexIdx = int(samples_[order[k]].face);
+        loc.numLocations = int(j - k);
+        loc.s = &s[k];
+        loc.t = &t[k];
+        locations.push_back(loc);
+        k = j;
+    }
+    LimitFactory::Options lo;
+    lo.generate1stDerivatives = true;
+    std::unique_ptr<const LimitStencilTable> limit(LimitFactory::Create(*smooth, locations, nullptr, nullptr, lo));
+    if (!limit || size_t(limit->GetNumStencils()) != located)
+        return Status(StatusCode::InvalidData, "OpenSubdiv produced an unexpected limit stencil table");
 
-        const std::vector<int>& sizes = limit->GetSizes();
-        const std::vector<Far::Index>& offsets = limit->GetOffsets();
-        const std::vector<Far::Index>& idx = limit->GetControlIndices();
-        const std::vector<float>& w = limit->GetWeights();
-        const std::vector<float>& du = limit->GetDuWeights();
-        const std::vector<float>& dv = limit->GetDvWeights();
-        // Re-order into refined-vertex order so evaluate() streams linearly.
-        std::vector<uint32_t> stencilOf(nv);
-        for (size_t k = 0; k < nv; ++k)
-            stencilOf[order[k]] = uint32_t(k);
-        limitOffsets_.assign(nv + 1, 0);
-        for (size_t v = 0; v < nv; ++v)
-            limitOffsets_[v + 1] = limitOffsets_[v] + (stencilOf[v] < located ? uint32_t(sizes[stencilOf[v]]) : 1u);
-        limitIndices_.resize(limitOffsets_[nv]);
-        limitWeights_.resize(size_t(limitOffsets_[nv]) * 3);
-        for (size_t v = 0; v < nv; ++v) {
-            if (stencilOf[v] >= located) {
-                const size_t dst = limitOffsets_[v];
-                limitIndices_[dst] = linear_[v].index[0];
-                limitWeights_[3 * dst + 0] = 1.0f;
-                limitWeights_[3 * dst + 1] = limitWeights_[3 * dst + 2] = 0.0f;
-                continue;
-            }
-            const size_t src = size_t(offsets[stencilOf[v]]);
-            for (uint32_t k = 0, n = uint32_t(sizes[stencilOf[v]]); k < n; ++k) {
-                const size_t dst = limitOffsets_[v] + k;
-                limitIndices_[dst] = uint32_t(idx[src + k]);
-                limitWeights_[3 * dst + 0] = w[src + k];
-                limitWeights_[3 * dst + 1] = du[src + k];
-                limitWeights_[3 * dst + 2] = dv[src + k];
-            }
+    const std::vector<int>& sizes = limit->GetSizes();
+    const std::vector<Far::Index>& offsets = limit->GetOffsets();
+    const std::vector<Far::Index>& idx = limit->GetControlIndices();
+    const std::vector<float>& w = limit->GetWeights();
+    const std::vector<float>& du = limit->GetDuWeights();
+    const std::vector<float>& dv = limit->GetDvWeights();
+    std::vector<uint32_t> stencilOf(nv);
+    for (size_t k = 0; k < nv; ++k)
+        stencilOf[order[k]] = uint32_t(k);
+    limitOffsets_.assign(nv + 1, 0);
+    for (size_t v = 0; v < nv; ++v)
+        limitOffsets_[v + 1] = limitOffsets_[v] + (stencilOf[v] < located ? uint32_t(sizes[stencilOf[v]]) : 1u);
+    limitIndices_.resize(limitOffsets_[nv]);
+    limitWeights_.resize(size_t(limitOffsets_[nv]) * 3);
+    for (size_t v = 0; v < nv; ++v) {
+        if (stencilOf[v] >= located) {
+            const size_t dst = limitOffsets_[v];
+            limitIndices_[dst] = uint32_t(v);  // an isolated vertex keeps its control vertex's number
+            limitWeights_[3 * dst + 0] = 1.0f;
+            limitWeights_[3 * dst + 1] = limitWeights_[3 * dst + 2] = 0.0f;
+            continue;
         }
-        linear_ = std::vector<Stencil3>();
+        const size_t src = size_t(offsets[stencilOf[v]]);
+        for (uint32_t k = 0, n = uint32_t(sizes[stencilOf[v]]); k < n; ++k) {
+            const size_t dst = limitOffsets_[v] + k;
+            limitIndices_[dst] = uint32_t(idx[src + k]);
+            limitWeights_[3 * dst + 0] = w[src + k];
+            limitWeights_[3 * dst + 1] = du[src + k];
+            limitWeights_[3 * dst + 2] = dv[src + k];
+        }
     }
     return Status::ok();
+}
+
+Status Plan::build(const ControlMesh& mesh)
+{
+    // One sharp refiner for the topology, with the corner channel (and the
+    // UVs) as face-varying data.
+    TopologyInput input;
+    std::unique_ptr<Far::TopologyRefiner> refiner =
+        createRefiner(mesh, /*allSharp=*/true, input, /*cornerChannel=*/true);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
+    if (level_ > 0) {
+        Far::TopologyRefiner::UniformOptions uniform(level_);
+        uniform.fullTopologyInLastLevel = false;
+        refiner->RefineUniform(uniform);
+    }
+    Build b{*refiner, mesh, {}, {}};
+    Status st = buildTopology(b);
+    if (st)
+        st = buildLinear(b);
+    if (st)
+        st = buildUVs(b);
+    if (!st)
+        return st;
+    displacements_.assign(b.firstFace.size(), 0.0f);
+    return scheme_ == Scheme::Smooth ? buildLimit(mesh) : Status::ok();
 }
 
 Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& map, float scale)
@@ -733,14 +796,20 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
 
     const float* d = displacements;
     if (scheme_ == Scheme::Linear) {
-        const Stencil3* st = linear_.data();
+        const SampleLocation* at = samples_.data();
+        const uint32_t* tri = controlTriangles_.data();
         for (size_t v = begin; v < end; ++v) {
-            const Stencil3& s = st[v];
-            const glm::vec3 p = s.weight[0] * controlPositions[s.index[0]] +
-                                s.weight[1] * controlPositions[s.index[1]] +
-                                s.weight[2] * controlPositions[s.index[2]];
-            const glm::vec3 n = s.weight[0] * controlNormals[s.index[0]] + s.weight[1] * controlNormals[s.index[1]] +
-                                s.weight[2] * controlNormals[s.index[2]];
+            const SampleLocation& s = at[v];
+            glm::vec3 p, n;
+            if (s.face != kNoControlFace) {
+                const uint32_t* c = tri + 3 * size_t(s.face);
+                const float w1 = s.bary.x, w2 = s.bary.y, w0 = 1.0f - w1 - w2;
+                p = w0 * controlPositions[c[0]] + w1 * controlPositions[c[1]] + w2 * controlPositions[c[2]];
+                n = w0 * controlNormals[c[0]] + w1 * controlNormals[c[1]] + w2 * controlNormals[c[2]];
+            } else {  // an isolated vertex keeps its control vertex's number
+                p = controlPositions[v];
+                n = controlNormals[v];
+            }
             dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
             if (dstDirections)
                 dstDirections[v - begin] = n;
@@ -774,9 +843,12 @@ void Plan::flattenStencils(FlatStencils* out) const
         out->weights.resize(3 * nv);
         for (size_t v = 0; v < nv; ++v) {
             out->offsets[v] = uint32_t(3 * v);
+            const SampleLocation& s = samples_[v];
+            const float w[3] = {1.0f - s.bary.x - s.bary.y, s.bary.x, s.bary.y};
             for (int k = 0; k < 3; ++k) {
-                out->indices[3 * v + size_t(k)] = linear_[v].index[k];
-                out->weights[3 * v + size_t(k)] = linear_[v].weight[k];
+                const bool isolated = s.face == kNoControlFace;
+                out->indices[3 * v + size_t(k)] = isolated ? uint32_t(v) : controlTriangles_[3 * size_t(s.face) + size_t(k)];
+                out->weights[3 * v + size_t(k)] = isolated ? (k == 0 ? 1.0f : 0.0f) : w[k];
             }
         }
         out->offsets[nv] = uint32_t(3 * nv);
@@ -813,7 +885,8 @@ size_t Plan::memoryBytes() const
 {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     return bytes(triangles_) + bytes(uvs_) + bytes(uvIndices_) + bytes(samples_) + bytes(sampleUVs_) +
-           bytes(displacements_) + bytes(linear_) + bytes(limitOffsets_) + bytes(limitIndices_) +
+           bytes(displacements_) + bytes(controlTriangles_) + bytes(isolated_) + bytes(limitOffsets_) +
+           bytes(limitIndices_) +
            bytes(limitWeights_);
 }
 
@@ -822,8 +895,10 @@ size_t Plan::stencilWeightCount() const
     if (scheme_ != Scheme::Linear)
         return limitIndices_.size();
     size_t n = 0;
-    for (const Stencil3& s : linear_)
-        n += size_t(s.weight[0] != 0.0f) + size_t(s.weight[1] != 0.0f) + size_t(s.weight[2] != 0.0f);
+    for (const SampleLocation& s : samples_)
+        n += s.face == kNoControlFace ? 1
+                                      : size_t(1.0f - s.bary.x - s.bary.y != 0.0f) + size_t(s.bary.x != 0.0f) +
+                                            size_t(s.bary.y != 0.0f);
     return n;
 }
 

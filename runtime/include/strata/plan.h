@@ -176,6 +176,13 @@ public:
 private:
     Plan() = default;
     Status build(const ControlMesh& mesh);
+    // The parts of build(), sharing one sharp refiner and each refined
+    // vertex's first face and corner (Build, in plan.cpp).
+    struct Build;
+    Status buildTopology(Build& b);
+    Status buildLinear(Build& b);
+    Status buildUVs(Build& b);
+    Status buildLimit(const ControlMesh& mesh);
 
     Scheme scheme_ = Scheme::Linear;
     int level_ = 0;
@@ -188,13 +195,11 @@ private:
     std::vector<glm::vec2> sampleUVs_;
     std::vector<float> displacements_;
 
-    // Linear scheme: exactly three (index, weight) pairs per refined vertex,
-    // padded with zero weights; the hot loop is branch-free.
-    struct Stencil3 {
-        uint32_t index[3];
-        float weight[3];
-    };
-    std::vector<Stencil3> linear_;
+    // Linear scheme: samples_ are the stencils (barycentrics in their control
+    // face); isolated_ lists the vertices no face uses (they keep their
+    // control vertex's number).
+    std::vector<uint32_t> controlTriangles_;
+    std::vector<uint32_t> isolated_;
 
     // Smooth scheme: limit stencils (position, d/ds, d/dt), CSR per refined vertex.
     std::vector<uint32_t> limitOffsets_;  // refinedVertexCount() + 1
