@@ -11,6 +11,7 @@
 #include "procedural.h"
 #include "strata/baker/atlas.h"
 #include "strata/io/mesh_io.h"
+#include "strata/frame.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
 
@@ -21,6 +22,8 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <thread>
+#include <algorithm>
 #include <sys/stat.h>
 
 using namespace strata;
@@ -63,7 +66,7 @@ ControlMesh makeCube(int n)
 
 bench::JsonRows jsonRows;
 
-void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
+void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, int threads)
 {
     if (!mesh.hasUVs() && !baker::buildTriangleAtlas(&mesh, {2048, 2}).isOk()) {
         std::printf("%s: atlas failed\n", name);
@@ -80,9 +83,9 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
                           mesh.faceCount());
     std::printf("\n%s, %zu control triangles, scheme %s, one core\n", name, mesh.faceCount(), schemeName(scheme));
     std::printf("level | refined verts | setup ms | evaluate ms | M verts/s | shading normals ms | tables MB |"
-                " Osd EvalStencils ms (xyz) | evaluate / Osd\n");
+                " Osd EvalStencils ms (xyz) | evaluate / Osd | frame ms, 1 / %d threads | speed-up\n", threads);
     std::printf("------+---------------+----------+-------------+-----------+--------------------+-----------+"
-                "---------------------------+---------------\n");
+                "---------------------------+----------------+-------------------------+---------\n");
     for (int level = 0; level <= maxLevel; ++level) {
         const double t0 = bench::nowMs();
         std::unique_ptr<Plan> plan;
@@ -100,6 +103,17 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
             plan->evaluate(out.data(), dir.data(), 0, n, mesh.positions.data(), normals.data(), mesh.positions.size());
         });
         const double shade = bench::medianMs([&] { plan->computeShadingNormals(shading.data(), out.data()); });
+        // The render-ready frame (positions + shading normals) through
+        // FrameEvaluator on one thread and on `threads`.
+        FrameEvaluator frame(*plan);
+        const double frame1 = bench::medianMs([&] {
+            frame.evaluate(out.data(), shading.data(), nullptr, mesh.positions.data(), normals.data(),
+                           mesh.positions.size(), 1);
+        });
+        const double frameN = bench::medianMs([&] {
+            frame.evaluate(out.data(), shading.data(), nullptr, mesh.positions.data(), normals.data(),
+                           mesh.positions.size(), threads);
+        });
         std::string osd = "-", ratio = "-";
         double osdMs = std::nan("");
         if (scheme == Scheme::Linear) {
@@ -133,9 +147,9 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
             std::snprintf(buf, sizeof(buf), "%.2fx", eval / t);
             ratio = buf;
         }
-        std::printf("%5d | %13zu | %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s\n", level, n, setup, eval,
-                    double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0, osd.c_str(),
-                    ratio.c_str());
+        std::printf("%5d | %13zu | %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s | %11.3f / %9.3f | %7.2fx\n",
+                    level, n, setup, eval, double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0,
+                    osd.c_str(), ratio.c_str(), frame1, frameN, frame1 / frameN);
         jsonRows.field("scheme", schemeName(scheme))
             .field("mesh", name)
             .field("level", level)
@@ -146,6 +160,10 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
             .field("setup_ms", setup)
             .field("table_bytes_per_vertex", double(plan->memoryBytes()) / double(n))
             .field("osd_ms", osdMs)
+            .field("threads", threads)
+            .field("frame_ms_1_thread", frame1)
+            .field("frame_ms_threads", frameN)
+            .field("thread_speedup", frame1 / frameN)
             .endRow();
         std::fflush(stdout);
     }
@@ -156,6 +174,7 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme)
 int main(int argc, char** argv)
 {
     int maxLevel = kMaxLevel, maxSmooth = 5;
+    int threads = int(std::max(2u, std::thread::hardware_concurrency()));
     std::string jsonPath;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--max-level") && i + 1 < argc)
@@ -164,25 +183,27 @@ int main(int argc, char** argv)
             maxSmooth = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--json") && i + 1 < argc)
             jsonPath = argv[++i];
+        else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc)
+            threads = std::max(1, std::atoi(argv[++i]));
         else {
-            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N] [--json FILE]\n");
+            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N] [--threads N] [--json FILE]\n");
             return 2;
         }
     }
     std::printf("bench_runtime: median of 7 runs per cell; evaluate = positions + directions + displacement\n");
     const ControlMesh cube = makeCube(13);
-    runTable("cube 13x13 per side", cube, maxLevel, Scheme::Linear);
+    runTable("cube 13x13 per side", cube, maxLevel, Scheme::Linear, threads);
     ControlMesh spot;
     const std::string spotPath = std::string(STRATA_SHARED_DATA) + "/spot_control_mesh.obj";
     struct stat st;
     const bool haveSpot = ::stat(spotPath.c_str(), &st) == 0 && io::readObj(spotPath, &spot).isOk();
     if (haveSpot)
-        runTable("spot", spot, maxLevel, Scheme::Linear);
+        runTable("spot", spot, maxLevel, Scheme::Linear, threads);
     else
         std::printf("\nspot: %s not found, skipped\n", spotPath.c_str());
-    runTable("cube 13x13 per side", cube, std::min(maxLevel, maxSmooth), Scheme::Smooth);
+    runTable("cube 13x13 per side", cube, std::min(maxLevel, maxSmooth), Scheme::Smooth, threads);
     if (haveSpot)
-        runTable("spot", spot, std::min(maxLevel, maxSmooth), Scheme::Smooth);
+        runTable("spot", spot, std::min(maxLevel, maxSmooth), Scheme::Smooth, threads);
     if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
         std::fprintf(stderr, "bench_runtime: cannot write %s\n", jsonPath.c_str());
         return 1;

@@ -1,7 +1,12 @@
 // Control vertex normals (paper eq. 1's n_j): closed-form cases.
 #include "procedural.h"
+#include "strata/frame.h"
 #include "strata/normals.h"
+#include "strata/plan.h"
 #include "test_util.h"
+
+#include <cstring>
+#include <memory>
 
 using namespace strata;
 
@@ -51,4 +56,47 @@ TEST(ControlNormals, DegenerateTrianglesContributeNothing)
     // Vertex 3 only touches the degenerate face; vertex 4 is isolated.
     EXPECT_EQ(n[3], glm::vec3(0.0f));
     EXPECT_EQ(n[4], glm::vec3(0.0f));
+}
+
+// A render-ready frame on several threads: the same positions as
+// Plan::evaluate and the same shading normals as the scatter of
+// Plan::computeShadingNormals, bit for bit, for 1, 2 and 3 threads; on a
+// sphere the normals of the bare refined (flat, linear) mesh point outwards
+// to within the facets' angle.
+TEST(ShadingNormals, FrameEvaluatorIsBitIdenticalForAnyThreadCount)
+{
+    ControlMesh mesh = examples::makeIcosphere(2);
+    mesh.positions.push_back(glm::vec3(5.0f));  // an unreferenced control vertex refines to itself
+    std::vector<glm::vec3> control(mesh.positions.size());
+    computeControlNormals(control.data(), mesh.positions.data(), control.size(), mesh.triangles.data(),
+                          mesh.faceCount());
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, mesh, Scheme::Linear, 4).isOk());
+    const size_t n = plan->refinedVertexCount();
+    std::vector<float> d(n);
+    for (size_t v = 0; v < n; ++v)
+        d[v] = 0.01f * std::sin(float(v));
+    std::vector<glm::vec3> p(n), ref(n), refNormals(n);
+    ASSERT_TRUE(plan->evaluate(ref.data(), nullptr, 0, n, d.data(), mesh.positions.data(), control.data(),
+                               control.size()).isOk());
+    plan->computeShadingNormals(refNormals.data(), ref.data());
+    FrameEvaluator frame(*plan);
+    for (int threads : {1, 2, 3}) {
+        std::vector<glm::vec3> q(n), nq(n);
+        ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), d.data(), mesh.positions.data(), control.data(),
+                                   control.size(), threads).isOk());
+        EXPECT_EQ(0, std::memcmp(q.data(), ref.data(), n * sizeof(glm::vec3))) << threads;
+        EXPECT_EQ(0, std::memcmp(nq.data(), refNormals.data(), n * sizeof(glm::vec3))) << threads;
+    }
+    std::vector<float> zero(n, 0.0f);
+    std::vector<glm::vec3> q(n), nq(n);
+    ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), zero.data(), mesh.positions.data(), control.data(),
+                               control.size(), 2).isOk());
+    for (size_t v = 0; v + 1 < n; ++v) {
+        if (glm::length(q[v]) < 2.0f) {
+            ASSERT_GT(glm::dot(nq[v], glm::normalize(q[v])), 0.98f) << v;  // the flat cage: within its facets' angle
+        }
+    }
+    EXPECT_FALSE(frame.evaluate(q.data(), nq.data(), zero.data(), mesh.positions.data(), control.data(),
+                                control.size() - 1, 2).isOk());
 }
