@@ -300,17 +300,25 @@ Status Animator::init(const Skeleton& skeleton, const ControlMesh& mesh)
     positions_ = mesh.positions;
     normals_.assign(mesh.positions.size(), glm::vec3(0.0f));
     updateNormals();
-    // The paper's deformer is bound once here, from the bind pose, when the
-    // skin's joints form at least one segment.
-    std::vector<glm::vec3> joints;
-    std::vector<int> parents;
-    skinJointHierarchy(&joints, &parents, skeleton);
-    segments_ = std::make_unique<Segments>();
-    segmentStatus_ = bindSegments(&segments_->binding, joints.data(), parents.data(), joints.size(),
-                                  mesh.positions.data(), mesh.vertexCount());
-    if (segmentStatus_.isOk())
-        segments_->pose.joints.reserve(joints.size());
+    segments_.reset();  // bound from the bind pose on first use
     return Status::ok();
+}
+
+const Status& Animator::segmentStatus() const
+{
+    if (!segments_ && skeleton_) {
+        // The paper's deformer, bound once from the bind pose, when the
+        // skin's joints form at least one segment.
+        std::vector<glm::vec3> joints;
+        std::vector<int> parents;
+        skinJointHierarchy(&joints, &parents, *skeleton_);
+        segments_ = std::make_unique<Segments>();
+        segmentStatus_ = bindSegments(&segments_->binding, joints.data(), parents.data(), joints.size(),
+                                      mesh_->positions.data(), mesh_->vertexCount());
+        if (segmentStatus_.isOk())
+            segments_->pose.joints.reserve(joints.size());
+    }
+    return segmentStatus_;
 }
 
 void Animator::sample(int animation, float time)
@@ -335,7 +343,7 @@ void Animator::skin(SkinningMethod method)
         std::copy(mesh_->positions.begin(), mesh_->positions.end(), positions_.begin());
         return;
     }
-    if (method == SkinningMethod::Segments && segmentStatus_.isOk())
+    if (method == SkinningMethod::Segments && segmentStatus().isOk())
         deformSegments(positions_.data(), segments_->binding, skinMatrices_.data(), &segments_->pose);
     else if (method == SkinningMethod::DualQuaternion)
         skinDualQuaternion(positions_.data(), mesh_->positions.data(), positions_.size(), skeleton_->weights,
@@ -359,8 +367,8 @@ Status Animator::pose(int animation, float time, SkinningMethod method)
         return Status(StatusCode::InvalidArgument, "animation " + std::to_string(animation) + " does not exist");
     if (!std::isfinite(time))
         return Status(StatusCode::InvalidArgument, "animation time is not finite");
-    if (method == SkinningMethod::Segments && !segmentStatus_.isOk())
-        return segmentStatus_;
+    if (method == SkinningMethod::Segments && !segmentStatus().isOk())
+        return segmentStatus();
     sample(animation, time);
     skin(method);
     updateNormals();

@@ -130,8 +130,9 @@ public:
     const std::vector<glm::mat4>& skinMatrices() const { return skinMatrices_; }
 
     /// Why SkinningMethod::Segments is unavailable (ok when it is): it needs
-    /// a skin with at least one joint whose parent is a joint.
-    const Status& segmentStatus() const { return segmentStatus_; }
+    /// a skin with at least one joint whose parent is a joint.  The paper's
+    /// deformer is bound on first use (this, or a pose with it), not by init.
+    const Status& segmentStatus() const;
 
     /// The stages of pose(), for benchmarks: sample + world + skin matrices,
     /// vertex skinning, control normals.
@@ -147,8 +148,8 @@ private:
     std::vector<float> dualQuaternions_;
     std::vector<glm::vec3> positions_, normals_;
     struct Segments;
-    std::unique_ptr<Segments> segments_;
-    Status segmentStatus_;
+    mutable std::unique_ptr<Segments> segments_;  // bound on first use
+    mutable Status segmentStatus_;
 };
 
 }  // namespace strata
