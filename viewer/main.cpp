@@ -9,7 +9,7 @@
 // --screenshot it renders one frame and exits: in a hidden GLFW window
 // (under xvfb-run without a display) or, with --headless or when no display
 // is available, through EGL with no window system at all.
-#include "../tools/cli.h"
+#include "cli.h"
 #include "scene.h"
 #include "strata/gl/context.h"
 #include "strata/gl/framebuffer.h"

@@ -8,52 +8,33 @@
 
 namespace strata {
 
-namespace {
+FrameEvaluator::FrameEvaluator(const Plan& plan) : plan_(plan) {}
 
-// Runs body(begin, end) over [0, n) split into `threads` contiguous ranges,
-// the last on the calling thread.
-template <typename Body>
-void splitRange(size_t n, int threads, const Body& body)
+void FrameEvaluator::buildFaceTable()
 {
-    const size_t t = size_t(std::max(1, std::min(threads, 64)));
-    if (t == 1 || n < 4096) {
-        body(size_t(0), n);
+    if (!offsets_.empty())
         return;
-    }
-    std::vector<std::thread> pool;
-    pool.reserve(t - 1);
-    for (size_t i = 0; i + 1 < t; ++i)
-        pool.emplace_back([&body, i, n, t] { body(n * i / t, n * (i + 1) / t); });
-    body(n * (t - 1) / t, n);
-    for (std::thread& th : pool)
-        th.join();
-}
-
-}  // namespace
-
-FrameEvaluator::FrameEvaluator(const Plan& plan) : plan_(plan)
-{
-    const std::vector<uint32_t>& tri = plan.refinedTriangles();
-    const size_t nv = plan.refinedVertexCount(), nf = plan.refinedFaceCount();
+    const std::vector<uint32_t>& tri = plan_.refinedTriangles();
+    const size_t nv = plan_.refinedVertexCount(), nf = plan_.refinedFaceCount();
     offsets_.assign(nv + 1, 0);
     for (uint32_t v : tri)
         ++offsets_[v + 1];
     for (size_t v = 0; v < nv; ++v)
         offsets_[v + 1] += offsets_[v];
     faces_.resize(tri.size());
+    faceNormals_.resize(nf);
     std::vector<uint32_t> fill(offsets_.begin(), offsets_.end() - 1);
-    for (size_t f = 0; f < nf; ++f)  // ascending faces per vertex: the scatter's order
+    for (size_t f = 0; f < nf; ++f)  // ascending per vertex: the scatter's order
         for (int k = 0; k < 3; ++k)
             faces_[fill[tri[3 * f + size_t(k)]]++] = uint32_t(f);
-    faceNormals_.resize(nf);
 }
 
 void FrameEvaluator::faceNormals(const glm::vec3* p, size_t begin, size_t end)
 {
     const uint32_t* tri = plan_.refinedTriangles().data();
     for (size_t f = begin; f < end; ++f) {
-        const uint32_t a = tri[3 * f], b = tri[3 * f + 1], c = tri[3 * f + 2];
-        faceNormals_[f] = glm::cross(p[b] - p[a], p[c] - p[a]);  // |cross| is twice the area
+        const uint32_t* c = tri + 3 * f;
+        faceNormals_[f] = glm::cross(p[c[1]] - p[c[0]], p[c[2]] - p[c[0]]);  // |cross| is twice the area
     }
 }
 
@@ -74,16 +55,38 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
 {
     const size_t nv = plan_.refinedVertexCount();
     const float* d = displacements ? displacements : plan_.displacements().data();
-    Status first = plan_.evaluate(positions, nullptr, 0, 0, d, controlPositions, controlNormals, controlCount);
-    if (!first || !positions)
-        return first ? Status(StatusCode::InvalidArgument, "FrameEvaluator: null positions") : first;
-    splitRange(nv, threads, [&](size_t b, size_t e) {
+    Status st = plan_.evaluate(positions, nullptr, 0, 0, d, controlPositions, controlNormals, controlCount);
+    if (!st)
+        return st;
+    if (!positions)
+        return Status(StatusCode::InvalidArgument, "FrameEvaluator: null positions");
+    threads = std::max(1, std::min(threads, 64));
+    if (threads == 1 || nv < 4096) {
+        st = plan_.evaluate(positions, nullptr, 0, nv, d, controlPositions, controlNormals, controlCount);
+        if (st && normals)
+            plan_.computeShadingNormals(normals, positions);
+        return st;
+    }
+    if (normals)
+        buildFaceTable();
+    auto run = [threads](size_t n, const auto& body) {
+        std::vector<std::thread> pool;
+        pool.reserve(size_t(threads) - 1);
+        for (int t = 1; t < threads; ++t)
+            pool.emplace_back([&body, t, n, threads] {
+                body(n * size_t(t) / size_t(threads), n * size_t(t + 1) / size_t(threads));
+            });
+        body(size_t(0), n / size_t(threads));
+        for (std::thread& th : pool)
+            th.join();
+    };
+    run(nv, [&](size_t b, size_t e) {
         plan_.evaluate(positions + b, nullptr, b, e, d, controlPositions, controlNormals, controlCount);
     });
-    if (!normals)
-        return Status::ok();
-    splitRange(faceNormals_.size(), threads, [&](size_t b, size_t e) { faceNormals(positions, b, e); });
-    splitRange(nv, threads, [&](size_t b, size_t e) { vertexNormals(normals, b, e); });
+    if (normals) {
+        run(faceNormals_.size(), [&](size_t b, size_t e) { faceNormals(positions, b, e); });
+        run(nv, [&](size_t b, size_t e) { vertexNormals(normals, b, e); });
+    }
     return Status::ok();
 }
 
