@@ -10,6 +10,7 @@
 #include "strata/plan.h"
 #include "test_util.h"
 
+#include <filesystem>
 #include <cstring>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -312,6 +313,26 @@ TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
     png.vertexDisplacements = false;
     ASSERT_TRUE(io::saveRig(dir + "/png.glb", rig, &map, nullptr, &png).isOk());
     EXPECT_LT(test::readText(dir + "/rig.glb").size(), test::readText(dir + "/png.glb").size());
+}
+
+// The io API takes std::filesystem::path: a rig written to and read from a
+// folder and file name with spaces and non-ASCII letters (UTF-8).
+TEST(Rig, PathsAreFilesystemPaths)
+{
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::path(test::tempDir("rig_paths")) / fs::u8path("t\xc3\xaate de cire");
+    fs::create_directories(dir);
+    Rig rig = exampleRig(64);
+    const fs::path file = dir / fs::u8path("r\xc3\xa9sum\xc3\xa9 rig.glb");
+    ASSERT_TRUE(io::saveRig(file, rig).isOk());
+    EXPECT_TRUE(fs::is_regular_file(file));
+    Rig back;
+    const Status st = io::loadRig(file, &back);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(back.mesh.faceCount(), rig.mesh.faceCount());
+    const Status missing = io::loadRig(dir / "absent.glb", &back);
+    EXPECT_FALSE(missing.isOk());
+    EXPECT_NE(missing.message().find("absent.glb"), std::string::npos) << missing.message();
 }
 
 TEST(Rig, CorruptPerVertexDisplacementsAreRefused)

@@ -6,6 +6,7 @@
 
 #include "text.h"
 
+#include <filesystem>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -225,8 +226,9 @@ Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::
     }
 }
 
-Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth, int expectHeight)
+Status readDisplacementExr(const std::filesystem::path& pathFile, DisplacementMap* out, int expectWidth, int expectHeight)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> bytes;
     Status st = readFile(path, &bytes, size_t(1) << 31);
     if (!st)
@@ -234,8 +236,9 @@ Status readDisplacementExr(const std::string& path, DisplacementMap* out, int ex
     return decodeDisplacementExr(bytes.data(), bytes.size(), path, out, expectWidth, expectHeight);
 }
 
-Status writeDisplacementExr(const std::string& path, const DisplacementMap& map, ExrPixelType type)
+Status writeDisplacementExr(const std::filesystem::path& pathFile, const DisplacementMap& map, ExrPixelType type)
 {
+    const std::string path = pathFile.string();
     Status st = validateDisplacementMap(map);
     if (!st)
         return Status(st.code(), path + ": " + st.message());

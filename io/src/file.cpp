@@ -2,6 +2,7 @@
 
 #include "text.h"
 
+#include <filesystem>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -13,8 +14,9 @@
 namespace strata {
 namespace io {
 
-Status readFile(const std::string& path, std::vector<unsigned char>* out, size_t maxBytes)
+Status readFile(const std::filesystem::path& pathFile, std::vector<unsigned char>* out, size_t maxBytes)
 {
+    const std::string path = pathFile.string();
     struct stat st;
     if (::stat(path.c_str(), &st) != 0)
         return Status(StatusCode::IoError, path + ": " + std::strerror(errno));
@@ -79,8 +81,9 @@ Status writeViaTempFile(const std::string& path, const std::function<std::string
     return Status::ok();
 }
 
-Status writeFileAtomic(const std::string& path, const void* data, size_t size)
+Status writeFileAtomic(const std::filesystem::path& pathFile, const void* data, size_t size)
 {
+    const std::string path = pathFile.string();
     return writeViaTempFile(path, [&](const std::string& tmp) -> std::string {
         FILE* f = std::fopen(tmp.c_str(), "wb");
         if (!f)
@@ -120,8 +123,9 @@ std::string stemOf(const std::string& path)
     return dot == std::string::npos || dot == 0 ? name : name.substr(0, dot);
 }
 
-bool isRegularFile(const std::string& path)
+bool isRegularFile(const std::filesystem::path& pathFile)
 {
+    const std::string path = pathFile.string();
     struct stat st;
     return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }

@@ -2,6 +2,7 @@
 
 #include "strata/io/file.h"
 
+#include <filesystem>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <nlohmann/json.hpp>
@@ -223,8 +224,9 @@ Status parseJointFile(const std::string& text, const std::string& name, Skeleton
     return Status::ok();
 }
 
-Status loadJointFile(const std::string& path, Skeleton* out)
+Status loadJointFile(const std::filesystem::path& pathFile, Skeleton* out)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> bytes;
     if (Status st = readFile(path, &bytes, size_t(256) << 20); !st.isOk())
         return st;

@@ -9,8 +9,9 @@
 namespace strata {
 namespace io {
 
-Status writeMesh(const std::string& path, const MeshView& mesh)
+Status writeMesh(const std::filesystem::path& pathFile, const MeshView& mesh)
 {
+    const std::string path = pathFile.string();
     if (!mesh.positions || !mesh.triangles || mesh.vertexCount == 0 || mesh.faceCount == 0)
         return Status(StatusCode::InvalidArgument, path + ": nothing to write (empty mesh)");
     if (mesh.uvs && !mesh.uvIndices)

@@ -4,6 +4,7 @@
 #include "strata/io/file.h"
 #include "mesh_writers.h"
 
+#include <filesystem>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -74,8 +75,9 @@ size_t fanStart(const std::vector<glm::vec2>& uvs, const std::vector<uint32_t>& 
 
 }  // namespace
 
-Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info)
+Status readObj(const std::filesystem::path& pathFile, ControlMesh* out, ObjReadInfo* info)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> bytes;
     Status st = readFile(path, &bytes);
     if (!st)

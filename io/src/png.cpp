@@ -2,6 +2,7 @@
 // with stb_image (Debian's libstb holds the implementation).
 #include "strata/io/png.h"
 
+#include <filesystem>
 #include <cstring>
 
 #include "strata/io/file.h"
@@ -143,16 +144,18 @@ Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t
     return encodePng(width, height, bits, 0, 1, bytes, png);
 }
 
-Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples)
+Status writePngGray(const std::filesystem::path& pathFile, int width, int height, int bits, const std::vector<uint16_t>& samples)
 {
+    const std::string path = pathFile.string();
     std::vector<uint8_t> bytes;
     if (Status st = grayRows(width, height, bits, samples, &bytes); !st)
         return Status(st.code(), path + ": " + st.message());
     return writePng(path, width, height, bits, 0, 1, bytes);
 }
 
-Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb)
+Status writePngRgb(const std::filesystem::path& pathFile, int width, int height, const std::vector<uint8_t>& rgb)
 {
+    const std::string path = pathFile.string();
     if (rgb.size() != size_t(width) * size_t(height) * 3)
         return Status(StatusCode::InvalidArgument, path + ": pixel count does not match the image size");
     return writePng(path, width, height, 8, 2, 3, rgb);
@@ -176,8 +179,9 @@ Status readPngHeader(const std::string& path, std::vector<unsigned char>* bytes,
 
 }  // namespace
 
-Status readPngRgb(const std::string& path, int* width, int* height, std::vector<uint8_t>* rgb)
+Status readPngRgb(const std::filesystem::path& pathFile, int* width, int* height, std::vector<uint8_t>* rgb)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> bytes;
     int w = 0, h = 0, comp = 0;
     if (Status st = readPngHeader(path, &bytes, &w, &h, &comp); !st)
@@ -261,8 +265,9 @@ Status decodePngGray(const unsigned char* data, size_t size, const std::string& 
     return Status::ok();
 }
 
-Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
+Status readPngGray(const std::filesystem::path& pathFile, int* width, int* height, int* bits, std::vector<uint16_t>* samples)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> bytes;
     Status st = readFile(path, &bytes, size_t(1) << 30);
     if (!st)

@@ -8,6 +8,7 @@
 #include "strata/io/file.h"
 #include "weld.h"
 
+#include <filesystem>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -451,8 +452,9 @@ Status parsePolygonMesh(const unsigned char* data, size_t size, const std::strin
     return Status::ok();
 }
 
-Status readPolygonMesh(const std::string& path, PolygonMesh* out)
+Status readPolygonMesh(const std::filesystem::path& pathFile, PolygonMesh* out)
 {
+    const std::string path = pathFile.string();
     const std::string ext = extensionOf(path);
     if (ext != ".ply" && ext != ".off" && ext != ".stl")
         return Status(StatusCode::InvalidArgument, path + ": not a .ply, .off or .stl file");

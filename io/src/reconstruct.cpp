@@ -61,8 +61,9 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     return Status::ok();
 }
 
-Status writeReconstruction(const std::string& path, const Reconstruction& rec)
+Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstruction& rec)
 {
+    const std::string path = pathFile.string();
     const Plan& plan = *rec.plan;
     MeshView view;
     view.positions = rec.positions.data();

@@ -16,6 +16,7 @@
 #include "vertex_codec.h"
 #include "gltf_mesh_writer.h"
 #include "weld.h"
+#include <filesystem>
 #include <meshoptimizer.h>
 #include "strata/displacement_math.h"
 #include "strata/normals.h"
@@ -656,8 +657,9 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
 
 }  // namespace
 
-Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
+Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
 {
+    const std::string path = pathFile.string();
     SourceDocument doc;
     Status st = loadGltfDocument(path, &doc);
     if (!st)
@@ -709,8 +711,9 @@ bool hasOrphanGreyImage(const SourceDocument& doc)
 
 }  // namespace
 
-Status loadRig(const std::string& path, Rig* out)
+Status loadRig(const std::filesystem::path& pathFile, Rig* out)
 {
+    const std::string path = pathFile.string();
     auto doc = std::make_shared<SourceDocument>();
     Status st = loadGltfDocument(path, doc.get());
     if (!st)
@@ -819,8 +822,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
 
 }  // namespace
 
-Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out)
+Status loadRigDisplacementMap(const std::filesystem::path& rigPathFile, const Rig& rig, DisplacementMap* out)
 {
+    const std::string rigPath = rigPathFile.string();
     if (!rig.hasDisplacement)
         return Status(StatusCode::InvalidArgument, rigPath + ": the rig has no displacement map");
     const DisplacementInfo& info = rig.displacement;
@@ -876,8 +880,9 @@ Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, Displa
     return Status::ok();
 }
 
-Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out)
+Status loadRigQuantizedMap(const std::filesystem::path& rigPathFile, const Rig& rig, DisplacementMap* out)
 {
+    const std::string rigPath = rigPathFile.string();
     const DisplacementInfo::Quantized& q = rig.displacement.quantized;
     if (!rig.hasDisplacement || q.uri.empty())
         return Status(StatusCode::InvalidArgument, rigPath + ": the rig has no quantised map");
@@ -1388,9 +1393,10 @@ void orderForCoding(Rig* rig)
 
 }  // namespace
 
-Status saveRig(const std::string& path, const Rig& input, const DisplacementMap* map, std::vector<std::string>* notes,
+Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const DisplacementMap* map, std::vector<std::string>* notes,
                const RigWriteOptions* options)
 {
+    const std::string path = pathFile.string();
     // A bare control mesh is written in the order that codes best (its
     // per-vertex values, when it has them, are computed on the file's order
     // below; those of a loaded rig written back keep its order).
@@ -1526,8 +1532,9 @@ Status saveRig(const std::string& path, const Rig& input, const DisplacementMap*
                : packAndWrite(path, model);
 }
 
-Status readPlainGlb(const std::string& path, std::string* bytes)
+Status readPlainGlb(const std::filesystem::path& pathFile, std::string* bytes)
 {
+    const std::string path = pathFile.string();
     std::vector<unsigned char> data;
     Status st = readFile(path, &data);
     if (!st)

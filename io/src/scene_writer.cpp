@@ -9,6 +9,7 @@
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
 
+#include <filesystem>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 
@@ -72,9 +73,10 @@ bool isRefinedAttribute(const std::string& name)
 
 }  // namespace
 
-Status writeReconstructedScene(const std::string& path, const Rig& rig, const Reconstruction& rec,
+Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig& rig, const Reconstruction& rec,
                                std::vector<std::string>* notes)
 {
+    const std::string path = pathFile.string();
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
         return Status(StatusCode::InvalidArgument, path + ": a scene must be written as .glb or .gltf");

@@ -1,6 +1,8 @@
 // Strata io: the displacement map as single-channel OpenEXR (docs/FORMAT.md).
 #pragma once
 
+#include <filesystem>
+
 #include "strata/displacement_map.h"
 #include "strata/status.h"
 
@@ -21,7 +23,7 @@ enum class ExrPixelType { Half, Float };
 /// The map's factor/offset are left at 1/0; the rig supplies them.
 /// expectWidth/Height (when positive): the size the caller needs; another
 /// size is an error found from the header, before any pixel is decoded.
-Status readDisplacementExr(const std::string& path, DisplacementMap* out, int expectWidth = 0, int expectHeight = 0);
+Status readDisplacementExr(const std::filesystem::path& path, DisplacementMap* out, int expectWidth = 0, int expectHeight = 0);
 
 /// readDisplacementExr from bytes in memory; `what` names them in messages.
 /// The size checks run on the header, before any texel is allocated: a
@@ -32,7 +34,7 @@ Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::
 
 /// Writes map's texels (not decoded: factor/offset live in the rig) as one
 /// "Y" channel, ZIP-compressed, atomically.
-Status writeDisplacementExr(const std::string& path, const DisplacementMap& map, ExrPixelType type = ExrPixelType::Half);
+Status writeDisplacementExr(const std::filesystem::path& path, const DisplacementMap& map, ExrPixelType type = ExrPixelType::Half);
 
 }  // namespace io
 }  // namespace strata

@@ -6,6 +6,8 @@
 // half-written file under the final name.
 #pragma once
 
+#include <filesystem>
+
 #include "strata/status.h"
 
 #include <functional>
@@ -17,10 +19,10 @@ namespace io {
 
 /// Reads a whole file.  Fails with a message naming the path when it is
 /// missing, unreadable, a directory, empty, or larger than maxBytes.
-Status readFile(const std::string& path, std::vector<unsigned char>* out, size_t maxBytes = size_t(1) << 31);
+Status readFile(const std::filesystem::path& path, std::vector<unsigned char>* out, size_t maxBytes = size_t(1) << 31);
 
 /// Writes bytes to path atomically (temporary file + rename).
-Status writeFileAtomic(const std::string& path, const void* data, size_t size);
+Status writeFileAtomic(const std::filesystem::path& path, const void* data, size_t size);
 
 /// For libraries that insist on writing a file by name themselves (OpenEXR):
 /// calls write(tempPath), then renames tempPath over path; removes the
@@ -29,7 +31,7 @@ Status writeFileAtomic(const std::string& path, const void* data, size_t size);
 Status writeViaTempFile(const std::string& path, const std::function<std::string(const std::string& tempPath)>& write);
 
 /// True when path names an existing regular file (not a folder, FIFO or device).
-bool isRegularFile(const std::string& path);
+bool isRegularFile(const std::filesystem::path& path);
 
 /// Lower-case extension including the dot (".glb"), or "" when none.
 std::string extensionOf(const std::string& path);

@@ -7,6 +7,8 @@
 // segment deformer, and bindSkeletonWeights turns it into glTF skin weights.
 #pragma once
 
+#include <filesystem>
+
 #include "strata/animation.h"
 #include "strata/status.h"
 
@@ -19,7 +21,7 @@ namespace io {
 /// bindSkeletonWeights with the control mesh next).  Unknown or duplicate
 /// names, a parent cycle, coincident joints, non-finite numbers and
 /// decreasing key times are errors naming the file and the joint.
-Status loadJointFile(const std::string& path, Skeleton* out);
+Status loadJointFile(const std::filesystem::path& path, Skeleton* out);
 
 /// loadJointFile from text already in memory; `name` is used in messages.
 Status parseJointFile(const std::string& text, const std::string& name, Skeleton* out);

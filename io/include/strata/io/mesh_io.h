@@ -1,6 +1,8 @@
 // Strata io: plain mesh files (OBJ in; OBJ, PLY, glTF out).
 #pragma once
 
+#include <filesystem>
+
 #include "strata/control_mesh.h"
 #include "strata/status.h"
 
@@ -24,7 +26,7 @@ struct ObjReadInfo {
 /// allowed), polygons fan-triangulated; triangles that repeat a vertex are
 /// dropped and counted in info.  Other statements and `#` comments are ignored.
 /// Errors name the file and line.
-Status readObj(const std::string& path, ControlMesh* out, ObjReadInfo* info = nullptr);
+Status readObj(const std::filesystem::path& path, ControlMesh* out, ObjReadInfo* info = nullptr);
 
 /// readObj from bytes in memory; `name` is used in messages.
 Status parseObj(const unsigned char* data, size_t size, const std::string& name, ControlMesh* out,
@@ -43,7 +45,7 @@ struct PolygonMesh {
 /// untrusted files: declared counts are checked against the file's size
 /// before anything is reserved, and the work is linear in the file size.
 /// Errors name the file and the problem; nothing is printed.
-Status readPolygonMesh(const std::string& path, PolygonMesh* out);
+Status readPolygonMesh(const std::filesystem::path& path, PolygonMesh* out);
 
 /// readPolygonMesh from bytes in memory; `format` is ".ply", ".off" or
 /// ".stl" and `name` is used in messages.
@@ -67,7 +69,7 @@ struct MeshView {
 
 /// Writes the mesh by extension: .obj (v/vt/vn), .ply (binary, per-vertex
 /// position and normal), .glb/.gltf (split where UVs differ).  Atomic.
-Status writeMesh(const std::string& path, const MeshView& mesh);
+Status writeMesh(const std::filesystem::path& path, const MeshView& mesh);
 
 }  // namespace io
 }  // namespace strata

@@ -2,6 +2,8 @@
 // and diagnostic images).
 #pragma once
 
+#include <filesystem>
+
 #include "strata/status.h"
 
 #include <cstdint>
@@ -12,7 +14,7 @@ namespace strata {
 namespace io {
 
 /// Writes a greyscale PNG, 8 or 16 bits per sample, row-major (row 0 first).
-Status writePngGray(const std::string& path, int width, int height, int bits, const std::vector<uint16_t>& samples);
+Status writePngGray(const std::filesystem::path& path, int width, int height, int bits, const std::vector<uint16_t>& samples);
 
 /// Encodes a greyscale PNG in memory (adaptive per-row filters, zlib level 9).
 Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t>& samples, std::string* png);
@@ -25,13 +27,13 @@ Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
                      std::vector<uint16_t>* samples, int expectWidth = 0, int expectHeight = 0);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
-Status writePngRgb(const std::string& path, int width, int height, const std::vector<uint8_t>& rgb);
+Status writePngRgb(const std::filesystem::path& path, int width, int height, const std::vector<uint8_t>& rgb);
 
 /// Reads any 8-bit PNG as RGB (3 bytes per pixel, row 0 first).
-Status readPngRgb(const std::string& path, int* width, int* height, std::vector<uint8_t>* rgb);
+Status readPngRgb(const std::filesystem::path& path, int* width, int* height, std::vector<uint8_t>* rgb);
 
 /// Reads a greyscale PNG of 8 or 16 bits; *bits receives which.
-Status readPngGray(const std::string& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples);
+Status readPngGray(const std::filesystem::path& path, int* width, int* height, int* bits, std::vector<uint16_t>* samples);
 
 }  // namespace io
 }  // namespace strata

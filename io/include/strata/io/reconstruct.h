@@ -1,6 +1,8 @@
 // Strata io: one-call reconstruction of a rig at level N, for tools and tests.
 #pragma once
 
+#include <filesystem>
+
 #include "strata/animation.h"
 #include "strata/displacement_map.h"
 #include "strata/plan.h"
@@ -37,7 +39,7 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
 Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose);
 
 /// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
-Status writeReconstruction(const std::string& path, const Reconstruction& rec);
+Status writeReconstruction(const std::filesystem::path& path, const Reconstruction& rec);
 
 /// Writes a bind-pose reconstruction of a rig loaded from glTF as the rig's
 /// own scene (.glb/.gltf): every control primitive replaced by its refined,
@@ -49,7 +51,7 @@ Status writeReconstruction(const std::string& path, const Reconstruction& rec);
 /// so the detailed character plays in any glTF viewer.  The displacement
 /// block and map are left out.  `notes` receives what was not carried
 /// (tangents, morph targets).
-Status writeReconstructedScene(const std::string& path, const Rig& rig, const Reconstruction& rec,
+Status writeReconstructedScene(const std::filesystem::path& path, const Rig& rig, const Reconstruction& rec,
                                std::vector<std::string>* notes = nullptr);
 
 }  // namespace io

@@ -1,6 +1,8 @@
 // Strata io: control rigs as glTF 2.0 (.glb or .gltf), see docs/FORMAT.md.
 #pragma once
 
+#include <filesystem>
+
 #include "strata/displacement_map.h"
 #include "strata/rig.h"
 #include "strata/status.h"
@@ -24,7 +26,7 @@ namespace io {
 /// complete.  External files resolve only inside the file's folder.  Every
 /// accessor is bounds-checked; a newer format version, malformed metadata or
 /// bad geometry is a clear error.  Rigs of format versions 1 and 2 load.
-Status loadRig(const std::string& path, Rig* out);
+Status loadRig(const std::filesystem::path& path, Rig* out);
 
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
 /// external file is read.  `name` is used in messages.
@@ -33,16 +35,16 @@ Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, co
 /// Loads every triangle primitive of any glTF scene (as loadRig places them)
 /// as one triangle soup welded by exact position, without the control-mesh checks (a captured
 /// high-resolution mesh may be non-manifold; the baker tolerates that).
-Status loadGltfTriangles(const std::string& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles);
+Status loadGltfTriangles(const std::filesystem::path& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles);
 
 /// Loads the rig's displacement map: the embedded image (format version 2)
 /// or the EXR its URI names beside the rig; checks its size against the rig
 /// and sets factor/offset so texels decode to distances.
-Status loadRigDisplacementMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
+Status loadRigDisplacementMap(const std::filesystem::path& rigPath, const Rig& rig, DisplacementMap* out);
 
 /// Loads the rig's optional quantised PNG map (paper eq. 12) with factor and
 /// offset set so texels decode to distances.
-Status loadRigQuantizedMap(const std::string& rigPath, const Rig& rig, DisplacementMap* out);
+Status loadRigQuantizedMap(const std::filesystem::path& rigPath, const Rig& rig, DisplacementMap* out);
 
 /// Writes rig as .glb (binary) or .gltf (JSON with an embedded buffer) by
 /// path extension, atomically.  A rig loaded from glTF (rig.source) is
@@ -103,9 +105,9 @@ struct RigWriteOptions {
 
 /// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain
 /// .glb that tools without meshopt support (tinygltf) read.
-Status readPlainGlb(const std::string& path, std::string* bytes);
+Status readPlainGlb(const std::filesystem::path& path, std::string* bytes);
 
-Status saveRig(const std::string& path, const Rig& rig, const DisplacementMap* map = nullptr,
+Status saveRig(const std::filesystem::path& path, const Rig& rig, const DisplacementMap* map = nullptr,
                std::vector<std::string>* notes = nullptr, const RigWriteOptions* options = nullptr);
 
 }  // namespace io
