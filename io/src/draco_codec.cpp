@@ -5,6 +5,7 @@
 // Edgebreaker connectivity take about half the bytes of meshopt's codecs.
 #include "gltf_accessor.h"
 #include "gltf_document.h"
+#include "gltf_mesh_writer.h"
 
 #include <nlohmann/json.hpp>
 
@@ -62,20 +63,12 @@ bool putAll(const draco::PointAttribute& att, size_t points, int components, boo
     return true;
 }
 
+// Bytes as a new bufferView of buffer 0, with no target (Draco data).
 int appendData(tinygltf::Model& model, const std::vector<unsigned char>& bytes)
 {
-    if (model.buffers.empty())
-        model.buffers.emplace_back();
-    std::vector<unsigned char>& data = model.buffers[0].data;
-    while (data.size() % 4)
-        data.push_back(0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = bytes.size();
-    data.insert(data.end(), bytes.begin(), bytes.end());
-    model.bufferViews.push_back(view);
-    return int(model.bufferViews.size() - 1);
+    const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
+    model.bufferViews[size_t(view)].target = 0;
+    return view;
 }
 
 }  // namespace
@@ -249,17 +242,7 @@ Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, con
     if (!any)
         return Status::ok();
     doc["buffers"][0]["byteLength"] = bin->size();
-    for (const char* list : {"extensionsUsed", "extensionsRequired"})
-        if (doc.contains(list) && doc[list].is_array()) {
-            Json kept = Json::array();
-            for (const Json& e : doc[list])
-                if (!(e.is_string() && e.get<std::string>() == kDraco))
-                    kept.push_back(e);
-            if (kept.empty())
-                doc.erase(list);
-            else
-                doc[list] = kept;
-        }
+    dropExtension(doc, kDraco);
     return Status::ok();
 }
 

@@ -45,6 +45,9 @@ void setDracoView(tinygltf::Primitive* p, int view);
 /// `bin` (the BIN chunk, buffer 0), and drops the extension.  Counts are
 /// checked against the accessors; errors name `path`.
 Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, const std::string& path);
+/// Removes extension `name` from a document's extensionsUsed and
+/// extensionsRequired (dropping a list it leaves empty).
+void dropExtension(nlohmann::json& doc, const char* name);
 /// Codes with KHR_draco_mesh_compression (Edgebreaker) every triangle
 /// primitive that has only a float POSITION and TEXCOORD_n sets, no morph
 /// targets and accessors no one else uses: positions quantised so that no

@@ -103,6 +103,21 @@ size_t sizeField(const Json& o, const char* name, size_t fallback, bool* ok)
 
 }  // namespace
 
+void dropExtension(Json& doc, const char* name)
+{
+    for (const char* list : {"extensionsUsed", "extensionsRequired"})
+        if (doc.contains(list) && doc[list].is_array()) {
+            Json kept = Json::array();
+            for (const Json& e : doc[list])
+                if (!(e.is_string() && e.get<std::string>() == name))
+                    kept.push_back(e);
+            if (kept.empty())
+                doc.erase(list);
+            else
+                doc[list] = kept;
+        }
+}
+
 Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::string& path, std::string* plain)
 {
     plain->clear();
@@ -225,17 +240,7 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         if (!st)
             return st;
     }
-    for (const char* list : {"extensionsUsed", "extensionsRequired"})
-        if (doc.contains(list) && doc[list].is_array()) {
-            Json kept = Json::array();
-            for (const Json& e : doc[list])
-                if (!(e.is_string() && e.get<std::string>() == kExtension))
-                    kept.push_back(e);
-            if (kept.empty())
-                doc.erase(list);
-            else
-                doc[list] = kept;
-        }
+    dropExtension(doc, kExtension);
     *plain = assembleGlb(doc.dump(), out);
     return Status::ok();
 }

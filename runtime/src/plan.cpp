@@ -526,11 +526,8 @@ Status Plan::buildTopology(Build& b)
 // control face, the unit vectors) with the sharp rules.
 Status Plan::buildLinear(Build& build)
 {
-    const Far::TopologyRefiner& refiner = build.refiner;
-    const ControlMesh& mesh = build.mesh;
+    const auto& [refiner, mesh, firstFace, firstCorner] = build;
     const int cornerChannel = kCornerChannel;
-    const std::vector<uint32_t>& firstFace = build.firstFace;
-    const std::vector<uint8_t>& firstCorner = build.firstCorner;
     const size_t nv = firstFace.size(), nf0 = mesh.faceCount();
     controlTriangles_ = mesh.triangles;
     std::vector<Bary> corners(3 * nf0);
@@ -570,11 +567,8 @@ Status Plan::buildLinear(Build& build)
 // vertex's canonical UV: the value of its first corner.
 Status Plan::buildUVs(Build& build)
 {
-    const Far::TopologyRefiner& refiner = build.refiner;
-    const ControlMesh& mesh = build.mesh;
+    const auto& [refiner, mesh, firstFace, firstCorner] = build;
     const int uvChannel = kUvChannel;
-    const std::vector<uint32_t>& firstFace = build.firstFace;
-    const std::vector<uint8_t>& firstCorner = build.firstCorner;
     uvs_.clear();
     uvIndices_.clear();
     sampleUVs_.clear();

@@ -227,28 +227,31 @@ Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* con
     return Status::ok();
 }
 
+namespace {
+
+// The xyz of a vec4-per-vertex storage buffer, read back.
+Status readVec4(GLuint buffer, size_t count, std::vector<glm::vec3>* out, const char* what)
+{
+    std::vector<glm::vec4> v(count);
+    glGetNamedBufferSubData(buffer, 0, GLsizeiptr(count * 16), v.data());
+    out->resize(count);
+    for (size_t i = 0; i < count; ++i)
+        (*out)[i] = glm::vec3(v[i]);
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, std::string("OpenGL reported an error reading the ") + what + " back");
+    return Status::ok();
+}
+
+}  // namespace
+
 Status Evaluator::readPositions(std::vector<glm::vec3>* out) const
 {
-    std::vector<glm::vec4> p(vertexCount_);
-    glGetNamedBufferSubData(buffers_[kDisplaced], 0, GLsizeiptr(vertexCount_ * 16), p.data());
-    out->resize(vertexCount_);
-    for (size_t v = 0; v < vertexCount_; ++v)
-        (*out)[v] = glm::vec3(p[v]);
-    if (glGetError() != GL_NO_ERROR)
-        return Status(StatusCode::Unsupported, "OpenGL reported an error reading the positions back");
-    return Status::ok();
+    return readVec4(buffers_[kDisplaced], vertexCount_, out, "positions");
 }
 
 Status Evaluator::readNormals(std::vector<glm::vec3>* out) const
 {
-    std::vector<glm::vec4> n(vertexCount_);
-    glGetNamedBufferSubData(buffers_[kNormals], 0, GLsizeiptr(vertexCount_ * 16), n.data());
-    out->resize(vertexCount_);
-    for (size_t v = 0; v < vertexCount_; ++v)
-        (*out)[v] = glm::vec3(n[v]);
-    if (glGetError() != GL_NO_ERROR)
-        return Status(StatusCode::Unsupported, "OpenGL reported an error reading the normals back");
-    return Status::ok();
+    return readVec4(buffers_[kNormals], vertexCount_, out, "normals");
 }
 
 }  // namespace gl
