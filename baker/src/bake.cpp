@@ -328,17 +328,8 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
                           control.faceCount());
     const size_t nf = control.faceCount(), nv = control.positions.size();
     // Vertex -> faces, for the support ring the smooth scheme needs.
-    std::vector<uint32_t> vfOffsets(nv + 1, 0), vfFaces(3 * nf);
-    for (uint32_t v : control.triangles)
-        ++vfOffsets[v + 1];
-    for (size_t v = 0; v < nv; ++v)
-        vfOffsets[v + 1] += vfOffsets[v];
-    {
-        std::vector<uint32_t> fill(vfOffsets.begin(), vfOffsets.end() - 1);
-        for (size_t f = 0; f < nf; ++f)
-            for (int c = 0; c < 3; ++c)
-                vfFaces[fill[control.triangles[3 * f + size_t(c)]]++] = uint32_t(f);
-    }
+    std::vector<uint32_t> vfOffsets, vfFaces;
+    buildVertexFaces(&vfOffsets, &vfFaces, control.triangles.data(), nf, nv);
     const std::vector<uint32_t> order = spatialFaceOrder(control);
     out->clear();
     for (int level = std::max(0, minLevel); level <= maxLevel; ++level) {

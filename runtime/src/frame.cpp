@@ -1,6 +1,8 @@
 // A render-ready frame on several threads (frame.h).
 #include "strata/frame.h"
 
+#include "strata/normals.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -16,17 +18,8 @@ void FrameEvaluator::buildFaceTable()
         return;
     const std::vector<uint32_t>& tri = plan_.refinedTriangles();
     const size_t nv = plan_.refinedVertexCount(), nf = plan_.refinedFaceCount();
-    offsets_.assign(nv + 1, 0);
-    for (uint32_t v : tri)
-        ++offsets_[v + 1];
-    for (size_t v = 0; v < nv; ++v)
-        offsets_[v + 1] += offsets_[v];
-    faces_.resize(tri.size());
+    buildVertexFaces(&offsets_, &faces_, tri.data(), nf, nv);  // ascending: the scatter's order
     faceNormals_.resize(nf);
-    std::vector<uint32_t> fill(offsets_.begin(), offsets_.end() - 1);
-    for (size_t f = 0; f < nf; ++f)  // ascending per vertex: the scatter's order
-        for (int k = 0; k < 3; ++k)
-            faces_[fill[tri[3 * f + size_t(k)]]++] = uint32_t(f);
 }
 
 void FrameEvaluator::faceNormals(const glm::vec3* p, size_t begin, size_t end)

@@ -45,4 +45,19 @@ void computeControlNormals(glm::vec3* dst, const glm::vec3* positions, size_t ve
     }
 }
 
+void buildVertexFaces(std::vector<uint32_t>* offsets, std::vector<uint32_t>* faces, const uint32_t* triangles,
+                      size_t faceCount, size_t vertexCount)
+{
+    offsets->assign(vertexCount + 1, 0);
+    for (size_t i = 0; i < 3 * faceCount; ++i)
+        ++(*offsets)[triangles[i] + 1];
+    for (size_t v = 0; v < vertexCount; ++v)
+        (*offsets)[v + 1] += (*offsets)[v];
+    faces->resize(3 * faceCount);
+    std::vector<uint32_t> fill(offsets->begin(), offsets->end() - 1);
+    for (size_t f = 0; f < faceCount; ++f)
+        for (int k = 0; k < 3; ++k)
+            (*faces)[fill[triangles[3 * f + size_t(k)]]++] = uint32_t(f);
+}
+
 }  // namespace strata

@@ -1,6 +1,7 @@
 #include "strata/gl/evaluator.h"
 
 #include "strata/gl/shaders.h"
+#include "strata/normals.h"
 
 #include <glm/vec4.hpp>
 
@@ -59,17 +60,8 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     plan.flattenStencils(&stencils);
     const size_t nv = e->vertexCount_, nf = e->faceCount_;
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
-    std::vector<uint32_t> adjacencyOffsets(nv + 1, 0), adjacentFaces(3 * nf);
-    for (uint32_t i : tris)
-        ++adjacencyOffsets[i + 1];
-    for (size_t v = 0; v < nv; ++v)
-        adjacencyOffsets[v + 1] += adjacencyOffsets[v];
-    {
-        std::vector<uint32_t> fill(adjacencyOffsets.begin(), adjacencyOffsets.end() - 1);
-        for (size_t f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k)
-                adjacentFaces[fill[tris[3 * f + size_t(k)]]++] = uint32_t(f);
-    }
+    std::vector<uint32_t> adjacencyOffsets, adjacentFaces;
+    buildVertexFaces(&adjacencyOffsets, &adjacentFaces, tris.data(), nf, nv);
     std::vector<glm::vec2> uvs = plan.sampleUVs();
     if (uvs.empty())
         uvs.assign(nv, glm::vec2(0.0f));

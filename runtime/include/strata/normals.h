@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 namespace strata {
 
@@ -27,5 +28,11 @@ namespace strata {
 /// \pre indices are in range (validateControlMesh guarantees it).  Allocates nothing.
 void computeControlNormals(glm::vec3* dst, const glm::vec3* positions, size_t vertexCount, const uint32_t* triangles,
                            size_t faceCount);
+
+/// Each vertex's faces, ascending (the order a scatter over faces adds in):
+/// vertex v's are faces[offsets[v] .. offsets[v + 1]).  A face appears once
+/// per corner it has at v.
+void buildVertexFaces(std::vector<uint32_t>* offsets, std::vector<uint32_t>* faces, const uint32_t* triangles,
+                      size_t faceCount, size_t vertexCount);
 
 }  // namespace strata
