@@ -16,11 +16,10 @@
 #include "vertex_codec.h"
 #include "gltf_mesh_writer.h"
 #include "weld.h"
-#include <filesystem>
-#include <meshoptimizer.h>
 #include "strata/displacement_math.h"
 #include "strata/normals.h"
 
+#include <meshoptimizer.h>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -31,6 +30,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -1228,9 +1228,11 @@ bool matchFaces(const ControlMesh& loaded, const ControlMesh& rig, double error,
 // Embeds the map as its samples at the refined vertices of the recommended
 // level (encoding "vertex").  The decoder numbers vertices as the loader
 // rebuilds the control mesh from the file, which may differ from rig.mesh
-// (welding, re-indexing, corners rotated by the index codec), so the file
+// (welding, re-indexing, corners rotated by the index codec, faces
+// reordered by Draco), so the file
 // is written and loaded back in memory first and the map sampled on that
-// topology, with rig.mesh's UVs (faces keep their order; checked).
+// topology, with rig.mesh's UVs (each loaded face matched to the rig face
+// it was written from: matchFaces).
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
                                 bool compressed, double positionError, bool draco, const RigWriteOptions& options,
                                 const std::string& path, DisplacementInfo* info)
