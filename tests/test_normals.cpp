@@ -5,6 +5,7 @@
 #include "strata/plan.h"
 #include "test_util.h"
 
+#include <algorithm>
 #include <cstring>
 #include <memory>
 
@@ -58,36 +59,82 @@ TEST(ControlNormals, DegenerateTrianglesContributeNothing)
     EXPECT_EQ(n[4], glm::vec3(0.0f));
 }
 
-// A render-ready frame on several threads: the same positions as
-// Plan::evaluate and the same shading normals as the scatter of
-// Plan::computeShadingNormals, bit for bit, for 1, 2 and 3 threads; on a
-// sphere the normals of the bare refined (flat, linear) mesh point outwards
-// to within the facets' angle.
-TEST(ShadingNormals, FrameEvaluatorIsBitIdenticalForAnyThreadCount)
+// A render-ready frame.  Linear scheme: per control face (tiles), the same
+// positions as Plan::evaluate bit for bit, the normals of
+// Plan::computeShadingNormals up to the order of the additions, and
+// bit-identical for 1, 2 and 3 threads.  Smooth scheme: the generic passes,
+// bit-identical to the scatter.  On a sphere the normals of the bare refined
+// (flat, linear) mesh point outwards to within the facets' angle.
+TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
 {
     ControlMesh mesh = examples::makeIcosphere(2);
-    mesh.positions.push_back(glm::vec3(5.0f));  // an unreferenced control vertex refines to itself
+    const size_t isolated = mesh.positions.size();  // an unreferenced control vertex refines to itself
+    mesh.positions.push_back(glm::vec3(5.0f));
     std::vector<glm::vec3> control(mesh.positions.size());
     computeControlNormals(control.data(), mesh.positions.data(), control.size(), mesh.triangles.data(),
                           mesh.faceCount());
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        for (int level : {0, 1, 4}) {
+            std::unique_ptr<Plan> plan;
+            ASSERT_TRUE(Plan::create(&plan, mesh, scheme, level).isOk());
+            const size_t n = plan->refinedVertexCount();
+            std::vector<float> d(n);
+            for (size_t v = 0; v < n; ++v)
+                d[v] = 0.01f * std::sin(float(v));
+            std::vector<glm::vec3> ref(n), refNormals(n), first(n);
+            ASSERT_TRUE(plan->evaluate(ref.data(), nullptr, 0, n, d.data(), mesh.positions.data(), control.data(),
+                                       control.size()).isOk());
+            plan->computeShadingNormals(refNormals.data(), ref.data());
+            FrameEvaluator frame(*plan);
+            for (int threads : {1, 2, 3}) {
+                std::vector<glm::vec3> q(n), nq(n);
+                ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), d.data(), mesh.positions.data(), control.data(),
+                                           control.size(), threads).isOk());
+                EXPECT_EQ(frame.tiled(), scheme == Scheme::Linear);
+                EXPECT_EQ(0, std::memcmp(q.data(), ref.data(), n * sizeof(glm::vec3))) << threads;
+                if (frame.tiled()) {
+                    for (size_t v = 0; v < n; ++v)
+                        ASSERT_LT(glm::length(nq[v] - refNormals[v]), 1e-5f) << v << " level " << level;
+                    if (threads == 1)
+                        first = nq;
+                    EXPECT_EQ(0, std::memcmp(nq.data(), first.data(), n * sizeof(glm::vec3))) << threads;
+                } else {
+                    EXPECT_EQ(0, std::memcmp(nq.data(), refNormals.data(), n * sizeof(glm::vec3))) << threads;
+                }
+                EXPECT_EQ(nq[isolated], glm::vec3(0.0f));  // the unreferenced vertex has no faces
+            }
+            // The tile layout: the same vertices in another order, with the
+            // triangles and the order to match.
+            FrameEvaluator tiles(*plan, FrameLayout::Tiles);
+            EXPECT_EQ(tiles.layout(), scheme == Scheme::Linear ? FrameLayout::Tiles : FrameLayout::Plan);
+            const std::vector<uint32_t> order = tiles.vertexOrder();
+            const std::vector<uint32_t> triangles = tiles.triangles();
+            ASSERT_EQ(order.size(), n);
+            ASSERT_EQ(triangles.size(), plan->refinedTriangles().size());
+            std::vector<uint8_t> hit(n, 0);
+            for (uint32_t v : order)
+                hit[v]++;
+            EXPECT_EQ(std::count(hit.begin(), hit.end(), uint8_t(1)), std::ptrdiff_t(n));  // a permutation
+            for (size_t i = 0; i < triangles.size(); ++i)
+                ASSERT_EQ(order[triangles[i]], plan->refinedTriangles()[i]);
+            for (int threads : {1, 2}) {
+                std::vector<glm::vec3> q(n), nq(n), qOnly(n);
+                ASSERT_TRUE(tiles.evaluate(q.data(), nq.data(), d.data(), mesh.positions.data(), control.data(),
+                                           control.size(), threads).isOk());
+                ASSERT_TRUE(tiles.evaluate(qOnly.data(), nullptr, d.data(), mesh.positions.data(), control.data(),
+                                           control.size(), threads).isOk());
+                for (size_t o = 0; o < n; ++o) {
+                    ASSERT_EQ(q[o], ref[order[o]]) << o;
+                    ASSERT_EQ(qOnly[o], ref[order[o]]) << o;
+                    ASSERT_EQ(nq[o], frame.tiled() ? first[order[o]] : refNormals[order[o]]) << o;
+                }
+            }
+        }
+    }
     std::unique_ptr<Plan> plan;
     ASSERT_TRUE(Plan::create(&plan, mesh, Scheme::Linear, 4).isOk());
-    const size_t n = plan->refinedVertexCount();
-    std::vector<float> d(n);
-    for (size_t v = 0; v < n; ++v)
-        d[v] = 0.01f * std::sin(float(v));
-    std::vector<glm::vec3> p(n), ref(n), refNormals(n);
-    ASSERT_TRUE(plan->evaluate(ref.data(), nullptr, 0, n, d.data(), mesh.positions.data(), control.data(),
-                               control.size()).isOk());
-    plan->computeShadingNormals(refNormals.data(), ref.data());
     FrameEvaluator frame(*plan);
-    for (int threads : {1, 2, 3}) {
-        std::vector<glm::vec3> q(n), nq(n);
-        ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), d.data(), mesh.positions.data(), control.data(),
-                                   control.size(), threads).isOk());
-        EXPECT_EQ(0, std::memcmp(q.data(), ref.data(), n * sizeof(glm::vec3))) << threads;
-        EXPECT_EQ(0, std::memcmp(nq.data(), refNormals.data(), n * sizeof(glm::vec3))) << threads;
-    }
+    const size_t n = plan->refinedVertexCount();
     std::vector<float> zero(n, 0.0f);
     std::vector<glm::vec3> q(n), nq(n);
     ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), zero.data(), mesh.positions.data(), control.data(),

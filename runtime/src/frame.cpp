@@ -1,25 +1,566 @@
-// A render-ready frame on several threads (frame.h).
+// A render-ready frame on one or several threads (frame.h).
 #include "strata/frame.h"
 
+#include "strata/displacement_math.h"
 #include "strata/normals.h"
 
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
 #include <thread>
 
 namespace strata {
 
-FrameEvaluator::FrameEvaluator(const Plan& plan) : plan_(plan) {}
+namespace {
 
-void FrameEvaluator::buildFaceTable()
+// The per-tile kernel is compiled twice on x86-64 with GCC, for AVX2 and
+// for the baseline, and the loader picks one (ifunc).  Without FMA both
+// round every operation the same way, so frames are bit-identical on any
+// CPU; AVX2 doubles the vector width of the tile's loops.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
+#define STRATA_KERNEL_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define STRATA_KERNEL_CLONES
+#endif
+#define STRATA_KERNEL_INLINE __attribute__((always_inline)) inline
+
+constexpr uint32_t kOwned = 0x80000000u;
+constexpr uint32_t kIndexMask = 0x7fffffffu;
+constexpr uint32_t kUnset = 0xffffffffu;
+
+inline glm::vec3 unitOrZero(glm::vec3 n)
 {
-    if (!offsets_.empty())
+    const float len = glm::length(n);
+    return len > 0.0f ? n / len : glm::vec3(0.0f);
+}
+
+// Face normals of a row of grid triangles (a[j], b[j], c[j]): cross(b - a,
+// c - a), whose length is twice the area.  Structure of arrays, restrict
+// outputs: the loop vectorises.
+STRATA_KERNEL_INLINE void crossRow(size_t n, const float* ax, const float* ay, const float* az, const float* bx, const float* by,
+              const float* bz, const float* cx, const float* cy, const float* cz, float* __restrict fx,
+              float* __restrict fy, float* __restrict fz)
+{
+    for (size_t j = 0; j < n; ++j) {
+        const float ex = bx[j] - ax[j], ey = by[j] - ay[j], ez = bz[j] - az[j];
+        const float gx = cx[j] - ax[j], gy = cy[j] - ay[j], gz = cz[j] - az[j];
+        fx[j] = ey * gz - ez * gy;
+        fy[j] = ez * gx - ex * gz;
+        fz[j] = ex * gy - ey * gx;
+    }
+}
+
+// One grid row's sums of face normals.  The row lies between the row pair
+// below it (p: its up triangles touch the row with corners b and c, its down
+// triangles with a and b) and the pair above it (c: up triangles with a and
+// c, down triangles with c).  Face normals are stored one slot to the right
+// with zero pads at both ends, so the grid's edges need no tests.
+STRATA_KERNEL_INLINE void rowSum(size_t m, const float* pu, const float* pd, const float* cu, const float* cd, float* __restrict sum)
+{
+    for (size_t j = 0; j < m; ++j)
+        sum[j] = (pu[j + 1] + pd[j + 1] + pd[j]) + (cu[j + 1] + cu[j] + cd[j]);
+}
+
+// A tile's displaced positions: eq. 2 at each slot's barycentrics, the same
+// expression as Plan::evaluate (bit-identical), as structure of arrays.
+STRATA_KERNEL_INLINE void displaceGrid(size_t n, const float* w1, const float* w2, const float* d, glm::vec3 A, glm::vec3 B, glm::vec3 C,
+                  glm::vec3 NA, glm::vec3 NB, glm::vec3 NC, float* __restrict px, float* __restrict py,
+                  float* __restrict pz)
+{
+    for (size_t k = 0; k < n; ++k) {
+        const float b1 = w1[k], b2 = w2[k], b0 = 1.0f - b1 - b2;
+        px[k] = (b0 * A.x + b1 * B.x + b2 * C.x) + (b0 * NA.x + b1 * NB.x + b2 * NC.x) * d[k];
+        py[k] = (b0 * A.y + b1 * B.y + b2 * C.y) + (b0 * NA.y + b1 * NB.y + b2 * NC.y) * d[k];
+        pz[k] = (b0 * A.z + b1 * B.z + b2 * C.z) + (b0 * NA.z + b1 * NB.z + b2 * NC.z) * d[k];
+    }
+}
+
+// The tiled path's unit normal: one division per vertex (zero stays zero).
+STRATA_KERNEL_INLINE float inverseLength(float x, float y, float z)
+{
+    const float len = std::sqrt(x * x + y * y + z * z);
+    return len > 0.0f ? 1.0f / len : 0.0f;
+}
+
+// Normalises sums of face normals in place, as inverseLength.
+STRATA_KERNEL_INLINE void normalizeGrid(size_t n, float* __restrict x, float* __restrict y, float* __restrict z)
+{
+    for (size_t k = 0; k < n; ++k) {
+        const float s = inverseLength(x[k], y[k], z[k]);
+        x[k] *= s;
+        y[k] *= s;
+        z[k] *= s;
+    }
+}
+
+}  // namespace
+
+// One tile's local arrays (structure of arrays, so the loops vectorise):
+// displacements and displaced positions per slot; the face normals of two
+// row pairs (previous and current: up and down triangles, padded); one
+// row's normal sums.
+struct FrameEvaluator::Scratch {
+    std::vector<float> d, px, py, pz;
+    std::vector<float> face[2][2][3];  // [pair][up, down][x, y, z]
+    std::vector<float> sum[3];         // per slot
+    void resize(size_t slots, size_t row)
+    {
+        for (std::vector<float>* v : {&d, &px, &py, &pz})
+            v->assign(slots, 0.0f);
+        for (auto& pair : face)
+            for (auto& kind : pair)
+                for (std::vector<float>& v : kind)
+                    v.assign(row + 2, 0.0f);
+        for (std::vector<float>& v : sum)
+            v.assign(slots, 0.0f);
+    }
+    size_t bytes() const { return (7 * px.capacity() + 12 * face[0][0][0].capacity()) * 4; }
+};
+
+// Worker threads kept between frames (thread start-up costs as much as a
+// small frame).  run() hands each worker one contiguous range of [0, n),
+// runs the first range on the calling thread and returns when all are done.
+class FrameEvaluator::Pool {
+public:
+    explicit Pool(int threads)
+    {
+        for (int t = 1; t < threads; ++t)
+            workers_.emplace_back([this, t] { work(t); });
+    }
+    ~Pool()
+    {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            stop_ = true;
+        }
+        wake_.notify_all();
+        for (std::thread& w : workers_)
+            w.join();
+    }
+    int size() const { return int(workers_.size()) + 1; }
+
+    template <typename Body>
+    void run(size_t n, const Body& body)
+    {
+        const size_t parts = size_t(size());
+        const std::function<void(int)> task = [&](int t) {
+            body(n * size_t(t) / parts, n * size_t(t + 1) / parts, t);
+        };
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            task_ = &task;
+            pending_ = int(parts) - 1;
+            ++generation_;
+        }
+        wake_.notify_all();
+        task(0);
+        std::unique_lock<std::mutex> lock(mutex_);
+        done_.wait(lock, [this] { return pending_ == 0; });
+        task_ = nullptr;
+    }
+
+private:
+    void work(int t)
+    {
+        uint64_t seen = 0;
+        std::unique_lock<std::mutex> lock(mutex_);
+        for (;;) {
+            wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+            if (stop_)
+                return;
+            seen = generation_;
+            const std::function<void(int)>* task = task_;
+            lock.unlock();
+            (*task)(t);
+            lock.lock();
+            if (--pending_ == 0)
+                done_.notify_one();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable wake_, done_;
+    const std::function<void(int)>* task_ = nullptr;
+    uint64_t generation_ = 0;
+    int pending_ = 0;
+    bool stop_ = false;
+    std::vector<std::thread> workers_;
+};
+
+template <typename Body>
+void FrameEvaluator::parallel(int threads, size_t n, const Body& body)
+{
+    if (threads <= 1) {
+        body(size_t(0), n, 0);
         return;
+    }
+    if (!pool_ || pool_->size() != threads)
+        pool_ = std::make_unique<Pool>(threads);
+    pool_->run(n, body);
+}
+
+FrameEvaluator::FrameEvaluator(const Plan& plan, FrameLayout layout) : plan_(plan), requested_(layout) {}
+FrameEvaluator::~FrameEvaluator() = default;
+
+void FrameEvaluator::buildTables()
+{
+    if (built_)
+        return;
+    built_ = true;
+    tiled_ = buildTiles();
+    if (tiled_ && requested_ == FrameLayout::Tiles)
+        buildTileLayout();
+    if (!tiled_) {
+        slots_ = {};
+        borderVertices_ = {};
+        borderOffsets_ = {};
+        borderEntries_ = {};
+        const std::vector<uint32_t>& tri = plan_.refinedTriangles();
+        const size_t nv = plan_.refinedVertexCount(), nf = plan_.refinedFaceCount();
+        buildVertexFaces(&offsets_, &faces_, tri.data(), nf, nv);  // ascending: the scatter's order
+        faceNormals_.resize(nf);
+    }
+}
+
+// Finds every control face's grid in the refined topology.  A refined
+// vertex's sample is in its owning control face; in a neighbouring face that
+// shares it (it lies on their common edge or corner), its barycentrics are
+// the same weights of the same control vertices.  Returns false, and the
+// generic path runs, unless every refined face is a grid triangle of its
+// control face with the grid's orientation.
+bool FrameEvaluator::buildTiles()
+{
+    if (plan_.scheme() != Scheme::Linear)
+        return false;
+    const int level = plan_.level();
+    const uint32_t R = 1u << level;
+    const std::vector<uint32_t>& control = plan_.controlTriangles();
+    const std::vector<uint32_t>& refined = plan_.refinedTriangles();
+    const std::vector<SampleLocation>& samples = plan_.sampleLocations();
+    const size_t nf0 = control.size() / 3, nf = refined.size() / 3, nv = samples.size();
+    const size_t perTile = size_t(1) << (2 * level);
+    if (nf != nf0 * perTile || nv >= kIndexMask)
+        return false;
+
+    resolution_ = int(R);
+    slotCount_ = size_t(R + 1) * (R + 2) / 2;
+    rowStart_.resize(R + 2);
+    for (uint32_t i = 0; i <= R + 1; ++i)
+        rowStart_[i] = i * (R + 1) - i * (i - 1) / 2;  // row i holds R + 1 - i slots
+    slotW1_.resize(slotCount_);
+    slotW2_.resize(slotCount_);
+    std::vector<uint16_t> slotI(slotCount_), slotJ(slotCount_);
+    borderSlots_.clear();
+    for (uint32_t i = 0; i <= R; ++i)
+        for (uint32_t j = 0; i + j <= R; ++j) {
+            const uint32_t k = rowStart_[i] + j;
+            slotW1_[k] = float(i) / float(R);
+            slotW2_[k] = float(j) / float(R);
+            slotI[k] = uint16_t(i);
+            slotJ[k] = uint16_t(j);
+            if (i == 0 || j == 0 || i + j == R)
+                borderSlots_.push_back(k);
+        }
+    auto slotOf = [&](uint32_t i, uint32_t j) { return rowStart_[i] + j; };
+
+    slots_.assign(nf0 * slotCount_, kUnset);
+    std::vector<uint8_t> owners(nv, 0), seen(perTile);
+    for (size_t g = 0; g < nf0; ++g) {
+        const uint32_t* cg = &control[3 * g];
+        std::fill(seen.begin(), seen.end(), uint8_t(0));
+        for (size_t r = g * perTile; r < (g + 1) * perTile; ++r) {
+            uint32_t local[3];
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t v = refined[3 * r + size_t(c)];
+                const SampleLocation& s = samples[v];
+                if (s.face == kNoControlFace || s.face >= nf0)
+                    return false;
+                const float w[3] = {1.0f - s.bary.x - s.bary.y, s.bary.x, s.bary.y};
+                float wg[3] = {0.0f, 0.0f, 0.0f};
+                const uint32_t* cf = &control[3 * size_t(s.face)];
+                for (int m = 0; m < 3; ++m) {
+                    if (w[m] == 0.0f)
+                        continue;
+                    const int k = cg[0] == cf[m] ? 0 : cg[1] == cf[m] ? 1 : cg[2] == cf[m] ? 2 : -1;
+                    if (k < 0)
+                        return false;  // not on this control face
+                    wg[k] = w[m];
+                }
+                const float fi = wg[1] * float(R), fj = wg[2] * float(R);
+                if (fi != std::floor(fi) || fj != std::floor(fj) || fi < 0.0f || fj < 0.0f || fi + fj > float(R))
+                    return false;
+                const uint32_t k = slotOf(uint32_t(fi), uint32_t(fj));
+                uint32_t& slot = slots_[g * slotCount_ + k];
+                const bool own = s.face == g;
+                if (slot == kUnset) {
+                    slot = v | (own ? kOwned : 0u);
+                    owners[v] = uint8_t(owners[v] + (own ? 1 : 0));
+                } else if ((slot & kIndexMask) != v) {
+                    return false;
+                }
+                local[c] = k;
+            }
+            // Rotate the smallest slot first; it is the grid triangle's
+            // (i, j) corner: up (i, j), (i + 1, j), (i, j + 1), or down
+            // (i, j + 1), (i + 1, j), (i + 1, j + 1).
+            const int first = local[0] < local[1] ? (local[0] < local[2] ? 0 : 2) : (local[1] < local[2] ? 1 : 2);
+            const uint32_t a = local[first], b = local[(first + 1) % 3], c = local[(first + 2) % 3];
+            const uint32_t i = slotI[a], j = slotJ[a];
+            // Rows before i hold rowStart_[i] - i up and rowStart_[i] - 2i
+            // down triangles; the R(R + 1)/2 up ones are numbered first.
+            size_t index;
+            if (i + j < R && b == slotOf(i + 1, j) && c == slotOf(i, j + 1))
+                index = size_t(rowStart_[i]) - i + j;
+            else if (j >= 1 && i + j < R && b == slotOf(i + 1, j - 1) && c == slotOf(i + 1, j))
+                index = size_t(R) * (R + 1) / 2 + rowStart_[i] - 2 * i + j - 1;
+            else
+                return false;
+            if (index >= perTile || seen[index])
+                return false;
+            seen[index] = 1;
+        }
+    }
+    for (size_t v = 0; v < nv; ++v)
+        if (owners[v] > 1 || (owners[v] == 0 && samples[v].face != kNoControlFace))
+            return false;
+    isolated_.clear();
+    for (size_t v = 0; v < nv; ++v)
+        if (samples[v].face == kNoControlFace)
+            isolated_.push_back(uint32_t(v));
+
+    // Each border vertex's partial sums, in tile order.
+    const size_t ring = borderSlots_.size();
+    std::vector<uint32_t> count(nv + 1, 0);
+    for (size_t g = 0; g < nf0; ++g)
+        for (size_t b = 0; b < ring; ++b)
+            ++count[(slots_[g * slotCount_ + borderSlots_[b]] & kIndexMask) + 1];
+    borderVertices_.clear();
+    borderOffsets_.assign(1, 0);
+    std::vector<uint32_t> start(nv, 0);
+    uint32_t total = 0;
+    for (size_t v = 0; v < nv; ++v) {
+        start[v] = total;
+        if (count[v + 1]) {
+            borderVertices_.push_back(uint32_t(v));
+            total += count[v + 1];
+            borderOffsets_.push_back(total);
+        }
+    }
+    borderEntries_.resize(total);
+    for (size_t g = 0; g < nf0; ++g)
+        for (size_t b = 0; b < ring; ++b)
+            borderEntries_[start[slots_[g * slotCount_ + borderSlots_[b]] & kIndexMask]++] = uint32_t(g * ring + b);
+    partials_.assign(nf0 * ring, glm::vec3(0.0f));
+    return true;
+}
+
+// Tile layout: each tile's own vertices in slot order, tile after tile,
+// then the isolated vertices.
+void FrameEvaluator::buildTileLayout()
+{
+    const size_t nv = plan_.refinedVertexCount(), nf0 = plan_.controlTriangles().size() / 3;
+    std::vector<uint32_t> out(nv, kUnset);
+    order_.resize(nv);
+    tileFirst_.resize(nf0 + 1);
+    uint32_t next = 0;
+    for (size_t g = 0; g < nf0; ++g) {
+        tileFirst_[g] = next;
+        for (size_t k = 0; k < slotCount_; ++k) {
+            const uint32_t raw = slots_[g * slotCount_ + k];
+            if (raw & kOwned) {
+                order_[next] = raw & kIndexMask;
+                out[raw & kIndexMask] = next++;
+            }
+        }
+    }
+    tileFirst_[nf0] = next;
+    for (uint32_t v : isolated_) {
+        order_[next] = v;
+        out[v] = next++;
+    }
+    for (uint32_t& v : borderVertices_)
+        v = out[v];
     const std::vector<uint32_t>& tri = plan_.refinedTriangles();
-    const size_t nv = plan_.refinedVertexCount(), nf = plan_.refinedFaceCount();
-    buildVertexFaces(&offsets_, &faces_, tri.data(), nf, nv);  // ascending: the scatter's order
-    faceNormals_.resize(nf);
+    triangles_.resize(tri.size());
+    for (size_t i = 0; i < tri.size(); ++i)
+        triangles_[i] = out[tri[i]];
+}
+
+bool FrameEvaluator::tiled()
+{
+    buildTables();
+    return tiled_;
+}
+
+FrameLayout FrameEvaluator::layout()
+{
+    buildTables();
+    return tiled_ ? requested_ : FrameLayout::Plan;
+}
+
+const std::vector<uint32_t>& FrameEvaluator::vertexOrder()
+{
+    if (layout() == FrameLayout::Plan && order_.size() != plan_.refinedVertexCount()) {
+        order_.resize(plan_.refinedVertexCount());
+        for (size_t v = 0; v < order_.size(); ++v)
+            order_[v] = uint32_t(v);
+    }
+    return order_;
+}
+
+const std::vector<uint32_t>& FrameEvaluator::triangles()
+{
+    return layout() == FrameLayout::Tiles ? triangles_ : plan_.refinedTriangles();
+}
+
+namespace {
+
+// Everything one range of tiles reads and writes (FrameEvaluator::shadeTiles).
+struct TileJob {
+    size_t R, S, ring;
+    const uint32_t *control, *rows, *slots, *borderSlots;
+    const float *w1, *w2, *d;
+    const glm::vec3 *cp, *cn;
+    glm::vec3 *positions, *normals, *partials;  // normals null: positions only
+    const uint32_t* tileFirst;  // tile layout: each tile's first frame vertex (null: the plan's order)
+    float* dl;               // S: each slot's displacement
+    float* p[3];             // S: displaced positions
+    float* sum[3];           // S: sums of face normals
+    float* face[2][2][3];    // R + 2: [pair][up, down][x, y, z], one slot right, zero pads
+    size_t faceLength;
+};
+
+STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, size_t faceEnd)
+{
+    const size_t R = job.R, S = job.S, ring = job.ring;
+    const uint32_t* rows = job.rows;
+    float* dl = job.dl;
+    float* const* p = job.p;
+    float* const* sum = job.sum;
+    auto fill = [&](float* v) { std::fill(v, v + job.faceLength, 0.0f); };
+    for (size_t f = faceBegin; f < faceEnd; ++f) {
+        const uint32_t* c = job.control + 3 * f;
+        const uint32_t* slot = job.slots + f * S;
+        const glm::vec3* cp = job.cp;
+        const glm::vec3* cn = job.cn;
+        // Positions: the same expression as Plan::evaluate, so bit-identical.
+        for (size_t k = 0; k < S; ++k)
+            dl[k] = job.d[slot[k] & kIndexMask];
+        displaceGrid(S, job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]], cn[c[2]], p[0], p[1],
+                     p[2]);
+        size_t out = job.tileFirst ? job.tileFirst[f] : 0;
+        if (!job.normals) {
+            for (size_t k = 0; k < S; ++k) {
+                const uint32_t raw = slot[k];
+                if (raw & kOwned)
+                    job.positions[job.tileFirst ? out++ : raw & kIndexMask] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+            }
+            continue;
+        }
+        // Row by row: the face normals of the row pair (i, i + 1), then row
+        // i's sums from the pairs on both sides (|cross| is twice the area).
+        for (int a = 0; a < 3; ++a) {  // no pair below row 0
+            fill(job.face[0][0][a]);
+            fill(job.face[0][1][a]);
+        }
+        for (size_t i = 0; i <= R; ++i) {
+            float* const(&below)[2][3] = job.face[i & 1];
+            float* const(&above)[2][3] = job.face[(i + 1) & 1];
+            const size_t r0 = rows[i], m = R + 1 - i;  // row i: m slots
+            if (i < R) {
+                // Up triangles (i, j), (i + 1, j), (i, j + 1): m - 1 of them;
+                // down triangles (i + 1, j), (i + 1, j + 1), (i, j + 1): m - 2.
+                const size_t r1 = rows[i + 1], up = m - 1, down = m - 2;
+                crossRow(up, p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r0 + 1,
+                         p[1] + r0 + 1, p[2] + r0 + 1, above[0][0] + 1, above[0][1] + 1, above[0][2] + 1);
+                crossRow(down, p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1, p[2] + r1 + 1,
+                         p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, above[1][0] + 1, above[1][1] + 1,
+                         above[1][2] + 1);
+                for (int a = 0; a < 3; ++a) {
+                    above[0][a][0] = above[0][a][up + 1] = 0.0f;
+                    above[1][a][0] = above[1][a][down + 1] = 0.0f;
+                }
+            } else {
+                for (int a = 0; a < 3; ++a) {  // no pair above the last row
+                    fill(above[0][a]);
+                    fill(above[1][a]);
+                }
+            }
+            for (int a = 0; a < 3; ++a)
+                rowSum(m, below[0][a], below[1][a], above[0][a], above[1][a], sum[a] + r0);
+        }
+        // Border slots keep the tile's share (partials, in borderSlots
+        // order); inside the tile the sums are complete.
+        glm::vec3* partial = job.partials + f * ring;
+        for (size_t b = 0; b < ring; ++b) {
+            const uint32_t k = job.borderSlots[b];
+            partial[b] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+        }
+        normalizeGrid(S, sum[0], sum[1], sum[2]);
+        for (size_t i = 0; i <= R; ++i) {
+            const size_t r0 = rows[i], m = R + 1 - i;
+            const size_t insideBegin = i == 0 ? m : r0 + 1, insideEnd = r0 + m - 1;
+            for (size_t k = r0; k < r0 + m; ++k) {
+                const uint32_t raw = slot[k];
+                if (raw & kOwned) {
+                    const size_t v = job.tileFirst ? out++ : raw & kIndexMask;
+                    job.positions[v] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+                    if (k >= insideBegin && k < insideEnd)
+                        job.normals[v] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+                }
+            }
+        }
+    }
+}
+
+}  // namespace
+
+void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* normals, const float* d,
+                                const glm::vec3* cp, const glm::vec3* cn, size_t faceBegin, size_t faceEnd)
+{
+    TileJob job{};
+    job.R = size_t(resolution_);
+    job.S = slotCount_;
+    job.ring = borderSlots_.size();
+    job.control = plan_.controlTriangles().data();
+    job.rows = rowStart_.data();
+    job.slots = slots_.data();
+    job.borderSlots = borderSlots_.data();
+    job.w1 = slotW1_.data();
+    job.w2 = slotW2_.data();
+    job.d = d;
+    job.cp = cp;
+    job.cn = cn;
+    job.positions = positions;
+    job.normals = normals;
+    job.partials = partials_.data();
+    job.tileFirst = requested_ == FrameLayout::Tiles ? tileFirst_.data() : nullptr;
+    job.dl = s.d.data();
+    job.p[0] = s.px.data();
+    job.p[1] = s.py.data();
+    job.p[2] = s.pz.data();
+    for (int a = 0; a < 3; ++a) {
+        job.sum[a] = s.sum[a].data();
+        for (int pair = 0; pair < 2; ++pair)
+            for (int kind = 0; kind < 2; ++kind)
+                job.face[pair][kind][a] = s.face[pair][kind][a].data();
+    }
+    job.faceLength = s.face[0][0][0].size();
+    shadeTileRange(job, faceBegin, faceEnd);
+}
+
+void FrameEvaluator::finishBorders(glm::vec3* normals, size_t begin, size_t end) const
+{
+    for (size_t u = begin; u < end; ++u) {
+        glm::vec3 n(0.0f);
+        for (uint32_t e = borderOffsets_[u]; e < borderOffsets_[u + 1]; ++e)
+            n += partials_[borderEntries_[e]];
+        normals[borderVertices_[u]] = n * inverseLength(n.x, n.y, n.z);
+    }
 }
 
 void FrameEvaluator::faceNormals(const glm::vec3* p, size_t begin, size_t end)
@@ -37,8 +578,7 @@ void FrameEvaluator::vertexNormals(glm::vec3* dst, size_t begin, size_t end) con
         glm::vec3 n(0.0f);
         for (uint32_t i = offsets_[v]; i < offsets_[v + 1]; ++i)
             n += faceNormals_[faces_[i]];
-        const float len = glm::length(n);
-        dst[v] = len > 0.0f ? n / len : glm::vec3(0.0f);
+        dst[v] = unitOrZero(n);
     }
 }
 
@@ -48,44 +588,74 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
 {
     const size_t nv = plan_.refinedVertexCount();
     const float* d = displacements ? displacements : plan_.displacements().data();
+    // An empty range validates the arguments.
     Status st = plan_.evaluate(positions, nullptr, 0, 0, d, controlPositions, controlNormals, controlCount);
     if (!st)
         return st;
     if (!positions)
         return Status(StatusCode::InvalidArgument, "FrameEvaluator: null positions");
     threads = std::max(1, std::min(threads, 64));
-    if (threads == 1 || nv < 4096) {
-        st = plan_.evaluate(positions, nullptr, 0, nv, d, controlPositions, controlNormals, controlCount);
-        if (st && normals)
-            plan_.computeShadingNormals(normals, positions);
-        return st;
-    }
-    if (normals)
-        buildFaceTable();
-    auto run = [threads](size_t n, const auto& body) {
-        std::vector<std::thread> pool;
-        pool.reserve(size_t(threads) - 1);
-        for (int t = 1; t < threads; ++t)
-            pool.emplace_back([&body, t, n, threads] {
-                body(n * size_t(t) / size_t(threads), n * size_t(t + 1) / size_t(threads));
-            });
-        body(size_t(0), n / size_t(threads));
-        for (std::thread& th : pool)
-            th.join();
+    if (nv < 4096)
+        threads = 1;
+    auto positionsOnly = [&] {
+        parallel(threads, nv, [&](size_t b, size_t e, int) {
+            plan_.evaluate(positions + b, nullptr, b, e, d, controlPositions, controlNormals, controlCount);
+        });
     };
-    run(nv, [&](size_t b, size_t e) {
-        plan_.evaluate(positions + b, nullptr, b, e, d, controlPositions, controlNormals, controlCount);
-    });
-    if (normals) {
-        run(faceNormals_.size(), [&](size_t b, size_t e) { faceNormals(positions, b, e); });
-        run(nv, [&](size_t b, size_t e) { vertexNormals(normals, b, e); });
+    // The tile layout needs the tiles even for positions alone; the plan's
+    // order streams them from Plan::evaluate.
+    if (!normals && requested_ == FrameLayout::Plan) {
+        positionsOnly();
+        return Status::ok();
     }
+    buildTables();
+    if (tiled_) {
+        if (scratch_.size() < size_t(threads)) {
+            scratch_.resize(size_t(threads));
+            for (Scratch& s : scratch_)
+                s.resize(slotCount_, size_t(resolution_) + 1);
+        }
+        const size_t nf0 = plan_.controlTriangles().size() / 3;
+        parallel(threads, nf0, [&](size_t b, size_t e, int t) {
+            shadeTiles(scratch_[size_t(t)], positions, normals, d, controlPositions, controlNormals, b, e);
+        });
+        if (normals)
+            parallel(threads, borderVertices_.size(),
+                           [&](size_t b, size_t e, int) { finishBorders(normals, b, e); });
+        const bool tiles = requested_ == FrameLayout::Tiles;
+        for (size_t r = 0; r < isolated_.size(); ++r) {
+            const uint32_t v = isolated_[r];
+            const size_t out = tiles ? tileFirst_.back() + r : v;
+            plan_.evaluate(positions + out, nullptr, v, v + 1, d, controlPositions, controlNormals, controlCount);
+            if (normals)
+                normals[out] = glm::vec3(0.0f);
+        }
+        return Status::ok();
+    }
+    if (!normals) {
+        positionsOnly();
+        return Status::ok();
+    }
+    if (threads == 1) {
+        positionsOnly();
+        plan_.computeShadingNormals(normals, positions);
+        return Status::ok();
+    }
+    positionsOnly();
+    parallel(threads, faceNormals_.size(), [&](size_t b, size_t e, int) { faceNormals(positions, b, e); });
+    parallel(threads, nv, [&](size_t b, size_t e, int) { vertexNormals(normals, b, e); });
     return Status::ok();
 }
 
 size_t FrameEvaluator::bytes() const
 {
-    return offsets_.capacity() * 4 + faces_.capacity() * 4 + faceNormals_.capacity() * sizeof(glm::vec3);
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    size_t scratch = 0;
+    for (const Scratch& s : scratch_)
+        scratch += s.bytes();
+    return bytes(tileFirst_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
+           bytes(partials_) + bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) +
+           bytes(isolated_) + bytes(offsets_) + bytes(faces_) + bytes(faceNormals_) + scratch;
 }
 
 }  // namespace strata

@@ -97,6 +97,8 @@ public:
     size_t refinedVertexCount() const { return samples_.size(); }
     size_t refinedFaceCount() const { return triangles_.size() / 3; }
     const std::vector<uint32_t>& refinedTriangles() const { return triangles_; }
+    /// The control mesh's triangles (3 vertex indices per face), as built.
+    const std::vector<uint32_t>& controlTriangles() const { return controlTriangles_; }
 
     /// Refined face-varying UVs (empty when the control mesh has none):
     /// refinedUVs() values, 3 indices into them per refined face.
