@@ -89,9 +89,10 @@ void run(const std::string& name, const std::string& path)
         });
         // What a renderer draws: the same frame plus shading normals of the
         // displaced mesh (the comparison an engine developer makes).
-        // One core, through FrameEvaluator (its tables built before timing).
+        // One core, through FrameEvaluator in tile order (the order an engine
+        // draws, with FrameEvaluator::triangles(); tables built before timing).
         std::vector<glm::vec3> shading(n);
-        FrameEvaluator frameEvaluator(*plan);
+        FrameEvaluator frameEvaluator(*plan, FrameLayout::Tiles);
         frameEvaluator.evaluate(out.data(), shading.data(), nullptr, animator.positions().data(),
                                 animator.normals().data(), animator.positions().size(), 1);
         const double frameShaded = bench::medianMs([&] {

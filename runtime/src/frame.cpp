@@ -28,6 +28,13 @@ namespace {
 #endif
 #define STRATA_KERNEL_INLINE __attribute__((always_inline)) inline
 
+// The tile loops run in whole vectors of 8 floats (AVX2's width): short
+// rows (8 slots at level 3) then need no scalar remainder.  Scratch arrays
+// are padded to match; values past a row's end are scratch that the next
+// row overwrites and nothing reads.
+constexpr size_t kLanes = 8;
+inline size_t wholeVectors(size_t n) { return (n + kLanes - 1) / kLanes * kLanes; }
+
 constexpr uint32_t kOwned = 0x80000000u;
 constexpr uint32_t kIndexMask = 0x7fffffffu;
 constexpr uint32_t kUnset = 0xffffffffu;
@@ -105,20 +112,20 @@ STRATA_KERNEL_INLINE void normalizeGrid(size_t n, float* __restrict x, float* __
 // row's normal sums.
 struct FrameEvaluator::Scratch {
     std::vector<float> d, px, py, pz;
-    std::vector<float> face[2][2][3];  // [pair][up, down][x, y, z]
+    std::vector<float> face[3][2][3];  // [pair % 3][up, down][x, y, z]
+    std::vector<float> zero;
     std::vector<float> sum[3];         // per slot
     void resize(size_t slots, size_t row)
     {
-        for (std::vector<float>* v : {&d, &px, &py, &pz})
-            v->assign(slots, 0.0f);
+        for (std::vector<float>* v : {&d, &px, &py, &pz, &sum[0], &sum[1], &sum[2]})
+            v->assign(wholeVectors(slots) + wholeVectors(row) + kLanes, 0.0f);
         for (auto& pair : face)
             for (auto& kind : pair)
                 for (std::vector<float>& v : kind)
-                    v.assign(row + 2, 0.0f);
-        for (std::vector<float>& v : sum)
-            v.assign(slots, 0.0f);
+                    v.assign(wholeVectors(row + 2) + kLanes, 0.0f);
+        zero.assign(wholeVectors(row + 2) + kLanes, 0.0f);
     }
-    size_t bytes() const { return (7 * px.capacity() + 12 * face[0][0][0].capacity()) * 4; }
+    size_t bytes() const { return (7 * px.capacity() + 19 * face[0][0][0].capacity()) * 4; }
 };
 
 // Worker threads kept between frames (thread start-up costs as much as a
@@ -251,8 +258,8 @@ bool FrameEvaluator::buildTiles()
     rowStart_.resize(R + 2);
     for (uint32_t i = 0; i <= R + 1; ++i)
         rowStart_[i] = i * (R + 1) - i * (i - 1) / 2;  // row i holds R + 1 - i slots
-    slotW1_.resize(slotCount_);
-    slotW2_.resize(slotCount_);
+    slotW1_.assign(wholeVectors(slotCount_), 0.0f);  // padded with zeros for whole-vector loops
+    slotW2_.assign(wholeVectors(slotCount_), 0.0f);
     std::vector<uint16_t> slotI(slotCount_), slotJ(slotCount_);
     borderSlots_.clear();
     for (uint32_t i = 0; i <= R; ++i)
@@ -382,8 +389,26 @@ void FrameEvaluator::buildTileLayout()
         order_[next] = v;
         out[v] = next++;
     }
-    for (uint32_t& v : borderVertices_)
-        v = out[v];
+    // Border vertices in frame order, so their normals are written in order.
+    const size_t nb = borderVertices_.size();
+    std::vector<uint32_t> byOut(nb);
+    for (size_t u = 0; u < nb; ++u)
+        byOut[u] = uint32_t(u);
+    std::sort(byOut.begin(), byOut.end(),
+              [&](uint32_t a, uint32_t b) { return out[borderVertices_[a]] < out[borderVertices_[b]]; });
+    std::vector<uint32_t> vertices(nb), offsets(nb + 1), entries(borderEntries_.size());
+    offsets[0] = 0;
+    for (size_t u = 0; u < nb; ++u) {
+        const uint32_t src = byOut[u];
+        vertices[u] = out[borderVertices_[src]];
+        const uint32_t* b = borderEntries_.data() + borderOffsets_[src];
+        const uint32_t count = borderOffsets_[src + 1] - borderOffsets_[src];
+        std::copy(b, b + count, entries.begin() + offsets[u]);
+        offsets[u + 1] = offsets[u] + count;
+    }
+    borderVertices_.swap(vertices);
+    borderOffsets_.swap(offsets);
+    borderEntries_.swap(entries);
     const std::vector<uint32_t>& tri = plan_.refinedTriangles();
     triangles_.resize(tri.size());
     for (size_t i = 0; i < tri.size(); ++i)
@@ -430,8 +455,8 @@ struct TileJob {
     float* dl;               // S: each slot's displacement
     float* p[3];             // S: displaced positions
     float* sum[3];           // S: sums of face normals
-    float* face[2][2][3];    // R + 2: [pair][up, down][x, y, z], one slot right, zero pads
-    size_t faceLength;
+    float* face[3][2][3];    // [pair % 3][up, down][x, y, z]: face normals one slot right, zero pads
+    const float* zero;       // zeros, as long as a pair buffer
 };
 
 STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, size_t faceEnd)
@@ -441,7 +466,6 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
     float* dl = job.dl;
     float* const* p = job.p;
     float* const* sum = job.sum;
-    auto fill = [&](float* v) { std::fill(v, v + job.faceLength, 0.0f); };
     for (size_t f = faceBegin; f < faceEnd; ++f) {
         const uint32_t* c = job.control + 3 * f;
         const uint32_t* slot = job.slots + f * S;
@@ -450,7 +474,7 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
         // Positions: the same expression as Plan::evaluate, so bit-identical.
         for (size_t k = 0; k < S; ++k)
             dl[k] = job.d[slot[k] & kIndexMask];
-        displaceGrid(S, job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]], cn[c[2]], p[0], p[1],
+        displaceGrid(wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]], cn[c[2]], p[0], p[1],
                      p[2]);
         size_t out = job.tileFirst ? job.tileFirst[f] : 0;
         if (!job.normals) {
@@ -461,37 +485,38 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
             }
             continue;
         }
-        // Row by row: the face normals of the row pair (i, i + 1), then row
-        // i's sums from the pairs on both sides (|cross| is twice the area).
-        for (int a = 0; a < 3; ++a) {  // no pair below row 0
-            fill(job.face[0][0][a]);
-            fill(job.face[0][1][a]);
-        }
-        for (size_t i = 0; i <= R; ++i) {
-            float* const(&below)[2][3] = job.face[i & 1];
-            float* const(&above)[2][3] = job.face[(i + 1) & 1];
-            const size_t r0 = rows[i], m = R + 1 - i;  // row i: m slots
+        // Row by row: the face normals of the row pair (i, i + 1), then the
+        // sums of row i - 1 from the pairs on both sides of it (|cross| is
+        // twice the area).  Three pair buffers in turn: a row's sums read
+        // pairs written an iteration earlier, whose stores have retired
+        // (a vector load straddling fresh stores waits for them).  Rows 0
+        // and R have no pair below or above: the zero buffer stands in.
+        for (size_t i = 0; i <= R + 1; ++i) {
             if (i < R) {
-                // Up triangles (i, j), (i + 1, j), (i, j + 1): m - 1 of them;
-                // down triangles (i + 1, j), (i + 1, j + 1), (i, j + 1): m - 2.
-                const size_t r1 = rows[i + 1], up = m - 1, down = m - 2;
-                crossRow(up, p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r0 + 1,
-                         p[1] + r0 + 1, p[2] + r0 + 1, above[0][0] + 1, above[0][1] + 1, above[0][2] + 1);
-                crossRow(down, p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1, p[2] + r1 + 1,
-                         p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, above[1][0] + 1, above[1][1] + 1,
-                         above[1][2] + 1);
+                // Up triangles (i, j), (i + 1, j), (i, j + 1): R - i of them;
+                // down triangles (i + 1, j), (i + 1, j + 1), (i, j + 1): one fewer.
+                float* const(&pair)[2][3] = job.face[i % 3];
+                const size_t r0 = rows[i], r1 = rows[i + 1], up = R - i, down = up - 1;
+                crossRow(wholeVectors(up), p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1,
+                         p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[0][0] + 1, pair[0][1] + 1, pair[0][2] + 1);
+                crossRow(wholeVectors(down), p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1,
+                         p[2] + r1 + 1, p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[1][0] + 1, pair[1][1] + 1,
+                         pair[1][2] + 1);
                 for (int a = 0; a < 3; ++a) {
-                    above[0][a][0] = above[0][a][up + 1] = 0.0f;
-                    above[1][a][0] = above[1][a][down + 1] = 0.0f;
-                }
-            } else {
-                for (int a = 0; a < 3; ++a) {  // no pair above the last row
-                    fill(above[0][a]);
-                    fill(above[1][a]);
+                    pair[0][a][0] = pair[0][a][up + 1] = 0.0f;
+                    pair[1][a][0] = pair[1][a][down + 1] = 0.0f;
                 }
             }
-            for (int a = 0; a < 3; ++a)
-                rowSum(m, below[0][a], below[1][a], above[0][a], above[1][a], sum[a] + r0);
+            if (i >= 1) {
+                const size_t row = i - 1, r0 = rows[row], m = R + 1 - row;  // row: m slots
+                for (int a = 0; a < 3; ++a) {
+                    const float* pu = row == 0 ? job.zero : job.face[(row + 2) % 3][0][a];
+                    const float* pd = row == 0 ? job.zero : job.face[(row + 2) % 3][1][a];
+                    const float* cu = row == R ? job.zero : job.face[row % 3][0][a];
+                    const float* cd = row == R ? job.zero : job.face[row % 3][1][a];
+                    rowSum(wholeVectors(m), pu, pd, cu, cd, sum[a] + r0);
+                }
+            }
         }
         // Border slots keep the tile's share (partials, in borderSlots
         // order); inside the tile the sums are complete.
@@ -500,18 +525,16 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
             const uint32_t k = job.borderSlots[b];
             partial[b] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
         }
-        normalizeGrid(S, sum[0], sum[1], sum[2]);
-        for (size_t i = 0; i <= R; ++i) {
-            const size_t r0 = rows[i], m = R + 1 - i;
-            const size_t insideBegin = i == 0 ? m : r0 + 1, insideEnd = r0 + m - 1;
-            for (size_t k = r0; k < r0 + m; ++k) {
-                const uint32_t raw = slot[k];
-                if (raw & kOwned) {
-                    const size_t v = job.tileFirst ? out++ : raw & kIndexMask;
-                    job.positions[v] = glm::vec3(p[0][k], p[1][k], p[2][k]);
-                    if (k >= insideBegin && k < insideEnd)
-                        job.normals[v] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
-                }
+        normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
+        // The tile's own vertices.  A border vertex's normal written here is
+        // the tile's share only; the border pass, which runs after every
+        // tile, overwrites it with the whole sum.
+        for (size_t k = 0; k < S; ++k) {
+            const uint32_t raw = slot[k];
+            if (raw & kOwned) {
+                const size_t v = job.tileFirst ? out++ : raw & kIndexMask;
+                job.positions[v] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+                job.normals[v] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
             }
         }
     }
@@ -538,6 +561,7 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
     job.positions = positions;
     job.normals = normals;
     job.partials = partials_.data();
+    job.zero = s.zero.data();
     job.tileFirst = requested_ == FrameLayout::Tiles ? tileFirst_.data() : nullptr;
     job.dl = s.d.data();
     job.p[0] = s.px.data();
@@ -545,11 +569,10 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
     job.p[2] = s.pz.data();
     for (int a = 0; a < 3; ++a) {
         job.sum[a] = s.sum[a].data();
-        for (int pair = 0; pair < 2; ++pair)
+        for (int pair = 0; pair < 3; ++pair)
             for (int kind = 0; kind < 2; ++kind)
                 job.face[pair][kind][a] = s.face[pair][kind][a].data();
     }
-    job.faceLength = s.face[0][0][0].size();
     shadeTileRange(job, faceBegin, faceEnd);
 }
 
