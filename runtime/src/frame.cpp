@@ -4,6 +4,8 @@
 #include "strata/displacement_math.h"
 #include "strata/normals.h"
 
+#include "simd.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -16,17 +18,6 @@
 namespace strata {
 
 namespace {
-
-// The per-tile kernel is compiled twice on x86-64 with GCC, for AVX2 and
-// for the baseline, and the loader picks one (ifunc).  Without FMA both
-// round every operation the same way, so frames are bit-identical on any
-// CPU; AVX2 doubles the vector width of the tile's loops.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__linux__)
-#define STRATA_KERNEL_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define STRATA_KERNEL_CLONES
-#endif
-#define STRATA_KERNEL_INLINE __attribute__((always_inline)) inline
 
 // The tile loops run in whole vectors of 8 floats (AVX2's width): short
 // rows (8 slots at level 3) then need no scalar remainder.  Scratch arrays
@@ -443,7 +434,6 @@ const std::vector<uint32_t>& FrameEvaluator::triangles()
 }
 
 namespace {
-
 // Everything one range of tiles reads and writes (FrameEvaluator::shadeTiles).
 struct TileJob {
     size_t R, S, ring;

@@ -1,18 +1,41 @@
 // Angle-weighted control vertex normals (paper eq. 1's n_r, n_s, n_t).
 #include "strata/normals.h"
 
+#include "simd.h"
+
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace strata {
 namespace {
 
-// Interior angle between unit-free edge vectors a and b, robust near 0 and pi
-// (atan2 of |a x b| and a.b avoids acos's loss of precision).
-float angleBetween(const glm::vec3& a, const glm::vec3& b, const glm::vec3& cross)
+// The interior angle whose sine and cosine are proportional to y >= 0 and
+// x: atan2(y, x) in [0, pi], written so that a loop of them vectorises (no
+// branches, no library call).  The ratio of the smaller to the larger of y
+// and |x| is in [0, 1]; above tan(pi/8) it is reduced by the pi/4 identity,
+// and atan there is Cephes's single-precision polynomial (about 2 ulp).
+STRATA_KERNEL_INLINE float cornerAngle(float y, float x)
 {
-    return std::atan2(glm::length(cross), glm::dot(a, b));
+    const float ax = std::fabs(x);
+    const float big = std::max(ax, y), small = std::min(ax, y);
+    const float t = small / std::max(big, std::numeric_limits<float>::min());  // 0 when both are 0
+    const bool reduce = t > 0.414213562373095f;                                // tan(pi/8)
+    const float u = reduce ? (t - 1.0f) / (t + 1.0f) : t;
+    const float z = u * u;
+    const float poly = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z -
+                        3.33329491539e-1f) * z * u + u;
+    float r = (reduce ? 0.785398163397448f : 0.0f) + poly;  // atan(small / big)
+    r = y > ax ? 1.57079632679490f - r : r;
+    return x < 0.0f ? 3.14159265358979f - r : r;
+}
+
+STRATA_KERNEL_CLONES void cornerAngles(size_t n, const float* y, const float* x, float* __restrict angle)
+{
+    for (size_t i = 0; i < n; ++i)
+        angle[i] = cornerAngle(y[i], x[i]);
 }
 
 }  // namespace
@@ -23,20 +46,37 @@ void computeControlNormals(glm::vec3* dst, const glm::vec3* positions, size_t ve
     for (size_t i = 0; i < vertexCount; ++i)
         dst[i] = glm::vec3(0.0f);
 
-    for (size_t f = 0; f < faceCount; ++f) {
-        const uint32_t i0 = triangles[3 * f + 0], i1 = triangles[3 * f + 1], i2 = triangles[3 * f + 2];
-        const glm::vec3 p0 = positions[i0], p1 = positions[i1], p2 = positions[i2];
-        const glm::vec3 e01 = p1 - p0, e12 = p2 - p1, e20 = p0 - p2;
-        const glm::vec3 n = glm::cross(e01, -e20);
-        const float len = glm::length(n);
-        if (!(len > 0.0f))
-            continue;  // degenerate triangle: no direction to contribute
-        const glm::vec3 unit = n / len;
-        // The cross product of the two edges at a corner has length 2*area for
-        // every corner, so |n| serves as the sine term for all three angles.
-        dst[i0] += unit * angleBetween(e01, -e20, n);
-        dst[i1] += unit * angleBetween(e12, -e01, n);
-        dst[i2] += unit * angleBetween(e20, -e12, n);
+    // Faces in blocks: their corners' (|a x b|, a . b) into arrays, the
+    // angles in one vector loop, then each face adds its unit normal times
+    // its corners' angles.  The cross product of the two edges at a corner
+    // has length 2*area for every corner, so |n| is the sine term of all
+    // three angles.
+    constexpr size_t kBlock = 256;
+    float y[3 * kBlock], x[3 * kBlock], angle[3 * kBlock];
+    glm::vec3 unit[kBlock];
+    for (size_t first = 0; first < faceCount; first += kBlock) {
+        const size_t count = std::min(kBlock, faceCount - first);
+        for (size_t k = 0; k < count; ++k) {
+            const uint32_t* t = triangles + 3 * (first + k);
+            const glm::vec3 p0 = positions[t[0]], p1 = positions[t[1]], p2 = positions[t[2]];
+            const glm::vec3 e01 = p1 - p0, e12 = p2 - p1, e20 = p0 - p2;
+            const glm::vec3 n = glm::cross(e01, -e20);
+            const float len = glm::length(n);
+            unit[k] = len > 0.0f ? n / len : glm::vec3(0.0f);  // degenerate: no direction to contribute
+            y[3 * k] = y[3 * k + 1] = y[3 * k + 2] = len;
+            x[3 * k] = glm::dot(e01, -e20);
+            x[3 * k + 1] = glm::dot(e12, -e01);
+            x[3 * k + 2] = glm::dot(e20, -e12);
+        }
+        cornerAngles(3 * count, y, x, angle);
+        for (size_t k = 0; k < count; ++k) {
+            if (!(y[3 * k] > 0.0f))
+                continue;
+            const uint32_t* t = triangles + 3 * (first + k);
+            dst[t[0]] += unit[k] * angle[3 * k];
+            dst[t[1]] += unit[k] * angle[3 * k + 1];
+            dst[t[2]] += unit[k] * angle[3 * k + 2];
+        }
     }
 
     for (size_t i = 0; i < vertexCount; ++i) {
