@@ -95,6 +95,51 @@ STRATA_KERNEL_INLINE void normalizeGrid(size_t n, float* __restrict x, float* __
     }
 }
 
+// The smooth scheme's tile: limit positions and tangents as the product of
+// the tile's control points with its dense weights, then eq. 2 along the
+// unit limit normal (strata_limit_normal), as structure of arrays.
+STRATA_KERNEL_INLINE void limitGrid(size_t n, size_t points, const uint32_t* control, const float* weights,
+                                    const glm::vec3* cp, const float* d, float* const* acc, float* const* p)
+{
+    // One vector of slots at a time, its nine sums held in registers over
+    // all the tile's points (the weights stream; nothing else moves).
+    for (size_t s0 = 0; s0 < n; s0 += kLanes) {
+        float a[9][kLanes] = {};
+        for (size_t k = 0; k < points; ++k) {
+            const glm::vec3 c = cp[control[k]];
+            const float* w = weights + 3 * (s0 * points + kLanes * k);
+            for (size_t l = 0; l < kLanes; ++l) {
+                const float w0 = w[l], w1 = w[kLanes + l], w2 = w[2 * kLanes + l];
+                a[0][l] += w0 * c.x;
+                a[1][l] += w0 * c.y;
+                a[2][l] += w0 * c.z;
+                a[3][l] += w1 * c.x;
+                a[4][l] += w1 * c.y;
+                a[5][l] += w1 * c.z;
+                a[6][l] += w2 * c.x;
+                a[7][l] += w2 * c.y;
+                a[8][l] += w2 * c.z;
+            }
+        }
+        for (int i = 0; i < 9; ++i)
+            for (size_t l = 0; l < kLanes; ++l)
+                acc[i][s0 + l] = a[i][l];
+    }
+    const float *ux = acc[3], *uy = acc[4], *uz = acc[5], *vx = acc[6], *vy = acc[7], *vz = acc[8];
+    float* __restrict px = p[0];
+    float* __restrict py = p[1];
+    float* __restrict pz = p[2];
+    for (size_t s = 0; s < n; ++s) {
+        const float nx = uy[s] * vz[s] - uz[s] * vy[s], ny = uz[s] * vx[s] - ux[s] * vz[s],
+                    nz = ux[s] * vy[s] - uy[s] * vx[s];
+        const float len = std::sqrt(nx * nx + ny * ny + nz * nz);
+        const float scale = len > 0.0f ? d[s] / len : 0.0f;
+        px[s] = acc[0][s] + nx * scale;
+        py[s] = acc[1][s] + ny * scale;
+        pz[s] = acc[2][s] + nz * scale;
+    }
+}
+
 }  // namespace
 
 // One tile's local arrays (structure of arrays, so the loops vectorise):
@@ -106,17 +151,20 @@ struct FrameEvaluator::Scratch {
     std::vector<float> face[3][2][3];  // [pair % 3][up, down][x, y, z]
     std::vector<float> zero;
     std::vector<float> sum[3];         // per slot
-    void resize(size_t slots, size_t row)
+    std::vector<float> limit[9];       // smooth scheme, per slot: limit position, d/ds, d/dt
+    void resize(size_t slots, size_t row, bool smooth)
     {
         for (std::vector<float>* v : {&d, &px, &py, &pz, &sum[0], &sum[1], &sum[2]})
             v->assign(wholeVectors(slots) + wholeVectors(row) + kLanes, 0.0f);
+        for (std::vector<float>& v : limit)
+            v.assign(smooth ? wholeVectors(slots) : 0, 0.0f);
         for (auto& pair : face)
             for (auto& kind : pair)
                 for (std::vector<float>& v : kind)
                     v.assign(wholeVectors(row + 2) + kLanes, 0.0f);
         zero.assign(wholeVectors(row + 2) + kLanes, 0.0f);
     }
-    size_t bytes() const { return (7 * px.capacity() + 19 * face[0][0][0].capacity()) * 4; }
+    size_t bytes() const { return (7 * px.capacity() + 19 * face[0][0][0].capacity() + 9 * limit[0].capacity()) * 4; }
 };
 
 // Worker threads kept between frames (thread start-up costs as much as a
@@ -232,8 +280,6 @@ void FrameEvaluator::buildTables()
 // control face with the grid's orientation.
 bool FrameEvaluator::buildTiles()
 {
-    if (plan_.scheme() != Scheme::Linear)
-        return false;
     const int level = plan_.level();
     const uint32_t R = 1u << level;
     const std::vector<uint32_t>& control = plan_.controlTriangles();
@@ -353,7 +399,58 @@ bool FrameEvaluator::buildTiles()
         for (size_t b = 0; b < ring; ++b)
             borderEntries_[start[slots_[g * slotCount_ + borderSlots_[b]] & kIndexMask]++] = uint32_t(g * ring + b);
     partials_.assign(nf0 * ring, glm::vec3(0.0f));
+    if (plan_.scheme() == Scheme::Smooth)
+        buildLimitTiles();
     return true;
+}
+
+// The smooth scheme per tile: the limit stencils of the tile's slots
+// (OpenSubdiv's, as Plan::flattenStencils gives them) gathered into one
+// dense matrix per tile over the control points they use, three weight rows
+// (position, d/ds, d/dt) per point, padded to whole vectors and stored a
+// vector of slots at a time: [chunk][point][position, d/ds, d/dt][lane].  A
+// frame then streams each matrix once, where the per-vertex stencils gather
+// the same control points again and again.
+void FrameEvaluator::buildLimitTiles()
+{
+    Plan::FlatStencils flat;
+    plan_.flattenStencils(&flat);
+    const size_t nf0 = plan_.controlTriangles().size() / 3, stride = wholeVectors(slotCount_);
+    std::vector<int32_t> local(plan_.controlVertexCount(), -1);
+    limitOffsets_.assign(1, 0);
+    limitControl_.clear();
+    for (size_t g = 0; g < nf0; ++g) {
+        const size_t first = limitControl_.size();
+        for (size_t k = 0; k < slotCount_; ++k) {
+            const uint32_t v = slots_[g * slotCount_ + k] & kIndexMask;
+            for (uint32_t e = flat.offsets[v]; e < flat.offsets[v + 1]; ++e)
+                if (local[flat.indices[e]] < 0) {
+                    local[flat.indices[e]] = int32_t(limitControl_.size() - first);
+                    limitControl_.push_back(flat.indices[e]);
+                }
+        }
+        for (size_t i = first; i < limitControl_.size(); ++i)
+            local[limitControl_[i]] = -1;
+        limitOffsets_.push_back(uint32_t(limitControl_.size()));
+    }
+    limitWeights_.assign(3 * stride * limitControl_.size(), 0.0f);
+    for (size_t g = 0; g < nf0; ++g) {
+        const uint32_t first = limitOffsets_[g];
+        for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
+            local[limitControl_[i]] = int32_t(i - first);
+        float* w = limitWeights_.data() + 3 * stride * first;
+        for (size_t k = 0; k < slotCount_; ++k) {
+            const uint32_t v = slots_[g * slotCount_ + k] & kIndexMask;
+            const size_t chunk = k / kLanes, lane = k % kLanes, points = limitOffsets_[g + 1] - first;
+            for (uint32_t e = flat.offsets[v]; e < flat.offsets[v + 1]; ++e) {
+                float* row = w + 3 * kLanes * (chunk * points + size_t(local[flat.indices[e]])) + lane;
+                for (int c = 0; c < 3; ++c)
+                    row[size_t(c) * kLanes] += flat.weights[3 * size_t(e) + size_t(c)];
+            }
+        }
+        for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
+            local[limitControl_[i]] = -1;
+    }
 }
 
 // Tile layout: each tile's own vertices in slot order, tile after tile,
@@ -447,6 +544,13 @@ struct TileJob {
     float* sum[3];           // S: sums of face normals
     float* face[3][2][3];    // [pair % 3][up, down][x, y, z]: face normals one slot right, zero pads
     const float* zero;       // zeros, as long as a pair buffer
+    // Smooth scheme: per tile, its control points (limitOffsets[f] ..
+    // limitOffsets[f + 1] of limitControl) and their weights from
+    // limitWeights + 3 * stride * limitOffsets[f], [chunk of kLanes
+    // slots][point][position, d/ds, d/dt][lane]; limit: 9 sums per slot.
+    const uint32_t *limitOffsets, *limitControl;
+    const float* limitWeights;
+    float* limit[9];
 };
 
 STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, size_t faceEnd)
@@ -461,11 +565,18 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
         const uint32_t* slot = job.slots + f * S;
         const glm::vec3* cp = job.cp;
         const glm::vec3* cn = job.cn;
-        // Positions: the same expression as Plan::evaluate, so bit-identical.
         for (size_t k = 0; k < S; ++k)
             dl[k] = job.d[slot[k] & kIndexMask];
-        displaceGrid(wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]], cn[c[2]], p[0], p[1],
-                     p[2]);
+        if (job.limitWeights) {
+            const size_t stride = wholeVectors(S);
+            const uint32_t first = job.limitOffsets[f], count = job.limitOffsets[f + 1] - first;
+            limitGrid(stride, count, job.limitControl + first, job.limitWeights + 3 * stride * first, cp, dl,
+                      job.limit, p);
+        } else {
+            // The same expression as Plan::evaluate, so bit-identical.
+            displaceGrid(wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]],
+                         cn[c[2]], p[0], p[1], p[2]);
+        }
         size_t out = job.tileFirst ? job.tileFirst[f] : 0;
         if (!job.normals) {
             for (size_t k = 0; k < S; ++k) {
@@ -552,6 +663,13 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
     job.normals = normals;
     job.partials = partials_.data();
     job.zero = s.zero.data();
+    if (!limitWeights_.empty()) {
+        job.limitOffsets = limitOffsets_.data();
+        job.limitControl = limitControl_.data();
+        job.limitWeights = limitWeights_.data();
+        for (int a = 0; a < 9; ++a)
+            job.limit[a] = s.limit[a].data();
+    }
     job.tileFirst = requested_ == FrameLayout::Tiles ? tileFirst_.data() : nullptr;
     job.dl = s.d.data();
     job.p[0] = s.px.data();
@@ -617,7 +735,7 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
     };
     // The tile layout needs the tiles even for positions alone; the plan's
     // order streams them from Plan::evaluate.
-    if (!normals && requested_ == FrameLayout::Plan) {
+    if (!normals && requested_ == FrameLayout::Plan && plan_.scheme() == Scheme::Linear) {
         positionsOnly();
         return Status::ok();
     }
@@ -626,7 +744,7 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
         if (scratch_.size() < size_t(threads)) {
             scratch_.resize(size_t(threads));
             for (Scratch& s : scratch_)
-                s.resize(slotCount_, size_t(resolution_) + 1);
+                s.resize(slotCount_, size_t(resolution_) + 1, plan_.scheme() == Scheme::Smooth);
         }
         const size_t nf0 = plan_.controlTriangles().size() / 3;
         parallel(threads, nf0, [&](size_t b, size_t e, int t) {
@@ -666,7 +784,7 @@ size_t FrameEvaluator::bytes() const
     size_t scratch = 0;
     for (const Scratch& s : scratch_)
         scratch += s.bytes();
-    return bytes(tileFirst_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
+    return bytes(limitOffsets_) + bytes(limitControl_) + bytes(limitWeights_) + bytes(tileFirst_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
            bytes(partials_) + bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) +
            bytes(isolated_) + bytes(offsets_) + bytes(faces_) + bytes(faceNormals_) + scratch;
 }

@@ -6,17 +6,22 @@
 // over the refined faces they cost four times the positions: each face reads
 // its corners from far apart in OpenSubdiv's level-by-level vertex order.
 //
-// In the linear scheme FrameEvaluator works per control face instead.  The
-// refined vertices of a control face are a regular triangular grid of
-// (2^level + 1)(2^level + 2)/2 vertices at known barycentrics.  One pass per
-// control face ("tile") computes the grid's displaced positions into a small
-// local array (the tile's own vertices are written out), the grid's face
-// normals and their per-vertex sums.  A vertex inside the tile is then final;
-// a vertex on the control face's border keeps its partial sum, and a second
-// pass adds the partial sums of the tiles that share it, in tile order.
-// Positions are bit-identical to Plan::evaluate; normals equal
+// FrameEvaluator works per control face instead.  The refined vertices of
+// a control face are a regular triangular grid of (2^level + 1)(2^level +
+// 2)/2 vertices at known barycentrics.  One pass per control face ("tile")
+// computes the grid's displaced positions into a small local array (the
+// tile's own vertices are written out), the grid's face normals and their
+// per-vertex sums.  A vertex inside the tile is then final; a vertex on the
+// control face's border keeps its partial sum, and a second pass adds the
+// partial sums of the tiles that share it, in tile order.  Normals equal
 // computeShadingNormals up to the order of the additions (a few ulps), and
-// are bit-identical for any thread count.
+// every result is bit-identical for any thread count.
+//
+// Positions: in the linear scheme the same expression as Plan::evaluate,
+// bit for bit.  In the smooth scheme each tile's limit stencils (the
+// plan's, from OpenSubdiv) are gathered once into a dense matrix over the
+// control points the tile uses, so a frame streams it in whole vectors;
+// positions equal Plan::evaluate's up to the order of the additions.
 //
 // The frame's vertices come in one of two orders (FrameLayout).  In the
 // plan's order a tile's vertices are written far apart (OpenSubdiv numbers
@@ -25,9 +30,9 @@
 // that draws the frame takes triangles() as its index buffer and
 // vertexOrder() to place per-vertex attributes (UVs) once.
 //
-// The smooth scheme, and a plan whose refined faces are not such grids,
-// run Plan::evaluate and a face-normal pass and per-vertex gather instead
-// (bit-identical to computeShadingNormals), always in the plan's order.
+// A plan whose refined faces are not such grids runs Plan::evaluate, a
+// face-normal pass and a per-vertex gather instead (bit-identical to
+// computeShadingNormals), always in the plan's order.
 #pragma once
 
 #include "strata/plan.h"
@@ -45,7 +50,7 @@ namespace strata {
 /// The order of a frame's vertices.
 enum class FrameLayout {
     Plan,   ///< the plan's refined vertex order: Plan::refinedTriangles() indexes it
-    Tiles,  ///< control face by control face, as the frame computes them (linear scheme)
+    Tiles,  ///< control face by control face, as the frame computes them
 };
 
 class FrameEvaluator {
@@ -68,8 +73,7 @@ public:
                     const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
                     int threads);
 
-    /// Whether frames with normals run per control face (the linear
-    /// scheme's fast path).
+    /// Whether frames run per control face (the fast path).
     bool tiled();
     /// The layout frames are written in.
     FrameLayout layout();
@@ -90,6 +94,7 @@ private:
     void buildTables();
     bool buildTiles();
     void buildTileLayout();
+    void buildLimitTiles();
     void shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* normals, const float* d, const glm::vec3* cp,
                     const glm::vec3* cn, size_t faceBegin, size_t faceEnd);
     void finishBorders(glm::vec3* normals, size_t begin, size_t end) const;
@@ -112,6 +117,8 @@ private:
     std::vector<glm::vec3> partials_;    // per tile and border slot: the tile's sum of face normals
     std::vector<uint32_t> borderVertices_, borderOffsets_, borderEntries_;  // each border vertex's partials, tile order
     std::vector<uint32_t> isolated_;     // refined vertices no face uses
+    std::vector<uint32_t> limitOffsets_, limitControl_;  // smooth: each tile's control points
+    std::vector<float> limitWeights_;    // smooth: per tile and point, 3 weight rows of whole-vector slots
     std::vector<uint32_t> tileFirst_;    // tile layout: per tile (and one past), its first frame vertex
     std::vector<uint32_t> order_, triangles_;  // vertexOrder(), triangles() (tile layout, or built on request)
     std::vector<Scratch> scratch_;
