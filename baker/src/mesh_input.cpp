@@ -17,6 +17,7 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 
 namespace strata {
@@ -27,12 +28,29 @@ using OMesh = OpenMesh::TriMesh_ArrayKernelT<>;
 
 void countTolerated(const TriangleMesh& m, HighMeshStats* s)
 {
-    std::vector<glm::vec3> sorted = m.positions;
-    std::sort(sorted.begin(), sorted.end(), [](const glm::vec3& a, const glm::vec3& b) {
-        return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
-    });
-    for (size_t i = 1; i < sorted.size(); ++i)
-        s->duplicateVertices += sorted[i] == sorted[i - 1];
+    // Equal positions as equal bit patterns (+0 for -0; the mesh holds no
+    // NaN), sorted as integers: a 96-bit radix sort, 16 bits a pass.
+    const size_t count = m.positions.size();
+    std::vector<std::array<uint32_t, 3>> keys(count), scratch(count);
+    for (size_t i = 0; i < count; ++i)
+        for (int c = 0; c < 3; ++c) {
+            const float v = m.positions[i][c] + 0.0f;
+            std::memcpy(&keys[i][size_t(c)], &v, 4);
+        }
+    for (int pass = 0; pass < 6; ++pass) {  // least significant digit first: z low, z high, y low, ...
+        const size_t word = size_t(2 - pass / 2);
+        const int shift = 16 * (pass % 2);
+        std::vector<uint32_t> bucket(65537, 0);
+        for (const auto& k : keys)
+            ++bucket[((k[word] >> shift) & 0xffffu) + 1];
+        for (size_t d = 0; d < 65536; ++d)
+            bucket[d + 1] += bucket[d];
+        for (const auto& k : keys)
+            scratch[bucket[(k[word] >> shift) & 0xffffu]++] = k;
+        keys.swap(scratch);
+    }
+    for (size_t i = 1; i < count; ++i)
+        s->duplicateVertices += keys[i] == keys[i - 1];
     for (size_t f = 0; f < m.faceCount(); ++f) {
         const glm::vec3 n = glm::cross(m.positions[m.triangles[3 * f + 1]] - m.positions[m.triangles[3 * f]],
                                        m.positions[m.triangles[3 * f + 2]] - m.positions[m.triangles[3 * f]]);

@@ -10,30 +10,69 @@ namespace strata {
 
 MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount)
 {
-    // Undirected edge keys only: counting needs no face or direction, and
-    // sorting plain integers keeps this cheap on million-triangle meshes.
+    // Undirected edges grouped by their smaller vertex (a counting sort, linear
+    // in the corners), then each group's larger vertices sorted in place:
+    // groups hold a handful of edges, so this is cheap on million-triangle
+    // meshes where sorting 64-bit keys was not.
     MeshTopologyStats s;
-    std::vector<uint64_t> keys(faceCount * 3);
-    for (size_t f = 0; f < faceCount; ++f)
-        for (int c = 0; c < 3; ++c) {
-            const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
-            keys[3 * f + c] = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-        }
-    std::sort(keys.begin(), keys.end());
-    for (size_t i = 0; i < keys.size();) {
-        size_t j = i;
-        while (j < keys.size() && keys[j] == keys[i])
-            ++j;
-        ++s.edges;
-        if (j - i == 1)
-            ++s.boundaryEdges;
-        else if (j - i > 2)
-            ++s.nonManifoldEdges;
-        i = j;
-    }
     uint32_t maxIndex = 0;
     for (size_t i = 0; i < faceCount * 3; ++i)
         maxIndex = std::max(maxIndex, triangles[i]);
+    const size_t groups = faceCount ? size_t(maxIndex) + 1 : 0;
+    if (groups > 4 * faceCount + 1024) {
+        // Sparse indices (far more vertex numbers than corners): sort keys.
+        std::vector<uint64_t> keys(faceCount * 3);
+        for (size_t f = 0; f < faceCount; ++f)
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
+                keys[3 * f + c] = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+            }
+        std::sort(keys.begin(), keys.end());
+        for (size_t i = 0; i < keys.size();) {
+            size_t j = i;
+            while (j < keys.size() && keys[j] == keys[i])
+                ++j;
+            ++s.edges;
+            s.boundaryEdges += j - i == 1;
+            s.nonManifoldEdges += j - i > 2;
+            i = j;
+        }
+        std::vector<uint32_t> corners(triangles, triangles + faceCount * 3);
+        std::sort(corners.begin(), corners.end());
+        s.vertices = size_t(std::unique(corners.begin(), corners.end()) - corners.begin());
+        s.eulerCharacteristic = long(s.vertices) - long(s.edges) + long(faceCount);
+        return s;
+    }
+    std::vector<uint32_t> start(groups + 1, 0), other(faceCount * 3);
+    for (size_t f = 0; f < faceCount; ++f)
+        for (int c = 0; c < 3; ++c)
+            ++start[std::min(triangles[3 * f + c], triangles[3 * f + (c + 1) % 3]) + 1];
+    for (size_t g = 0; g < groups; ++g)
+        start[g + 1] += start[g];
+    {
+        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+        for (size_t f = 0; f < faceCount; ++f)
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
+                other[fill[std::min(a, b)]++] = std::max(a, b);
+            }
+    }
+    for (size_t g = 0; g < groups; ++g) {
+        uint32_t* begin = other.data() + start[g];
+        uint32_t* end = other.data() + start[g + 1];
+        std::sort(begin, end);
+        for (uint32_t* i = begin; i < end;) {
+            uint32_t* j = i;
+            while (j < end && *j == *i)
+                ++j;
+            ++s.edges;
+            if (j - i == 1)
+                ++s.boundaryEdges;
+            else if (j - i > 2)
+                ++s.nonManifoldEdges;
+            i = j;
+        }
+    }
     std::vector<bool> used(faceCount ? size_t(maxIndex) + 1 : 0, false);
     for (size_t i = 0; i < faceCount * 3; ++i)
         used[triangles[i]] = true;
