@@ -112,8 +112,10 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
         FrameEvaluator planFrame(*plan), frame(*plan, FrameLayout::Tiles);
         planFrame.evaluate(out.data(), shading.data(), nullptr, mesh.positions.data(), normals.data(),
                            mesh.positions.size(), 1);
+        const double frameSetup0 = bench::nowMs();
         frame.evaluate(out.data(), shading.data(), nullptr, mesh.positions.data(), normals.data(),
                        mesh.positions.size(), 1);
+        const double frameSetup = bench::nowMs() - frameSetup0;  // its tables and one frame
         const double framePlan = bench::medianMs([&] {
             planFrame.evaluate(out.data(), shading.data(), nullptr, mesh.positions.data(), normals.data(),
                                mesh.positions.size(), 1);
@@ -172,6 +174,8 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
             .field("normals_ms", shade)
             .field("frame_mverts_per_s", double(n) / frame1 / 1000.0)
             .field("frame_ms_plan_order", framePlan)
+            .field("frame_setup_ms", frameSetup)
+            .field("frame_table_bytes_per_vertex", double(frame.bytes()) / double(n))
             .field("setup_ms", setup)
             .field("table_bytes_per_vertex", double(plan->memoryBytes()) / double(n))
             .field("osd_ms", osdMs)

@@ -134,7 +134,7 @@ TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
     computeControlNormals(control.data(), mesh.positions.data(), control.size(), mesh.triangles.data(),
                           mesh.faceCount());
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
-        for (int level : {0, 1, 4}) {
+        for (int level : {0, 1, 3, 4}) {
             std::unique_ptr<Plan> plan;
             ASSERT_TRUE(Plan::create(&plan, mesh, scheme, level).isOk());
             const size_t n = plan->refinedVertexCount();
@@ -150,8 +150,8 @@ TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
                 std::vector<glm::vec3> q(n), nq(n);
                 ASSERT_TRUE(frame.evaluate(q.data(), nq.data(), d.data(), mesh.positions.data(), control.data(),
                                            control.size(), threads).isOk());
-                EXPECT_TRUE(frame.tiled());
-                if (scheme == Scheme::Linear) {
+                EXPECT_EQ(frame.tiled(), level >= (scheme == Scheme::Linear ? 3 : 1));
+                if (scheme == Scheme::Linear || !frame.tiled()) {
                     EXPECT_EQ(0, std::memcmp(q.data(), ref.data(), n * sizeof(glm::vec3))) << threads;
                 } else {  // the same stencils, summed per tile in another order
                     for (size_t v = 0; v < n; ++v)
@@ -159,6 +159,9 @@ TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
                 }
                 for (size_t v = 0; v < n; ++v)
                     ASSERT_LT(glm::length(nq[v] - refNormals[v]), 1e-4f) << v << " level " << level;
+                if (!frame.tiled()) {
+                    EXPECT_EQ(0, std::memcmp(nq.data(), refNormals.data(), n * sizeof(glm::vec3))) << threads;
+                }
                 if (threads == 1) {
                     first = nq;
                     firstPositions = q;
@@ -170,7 +173,7 @@ TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
             // The tile layout: the same vertices in another order, with the
             // triangles and the order to match.
             FrameEvaluator tiles(*plan, FrameLayout::Tiles);
-            EXPECT_EQ(tiles.layout(), FrameLayout::Tiles);
+            EXPECT_EQ(tiles.layout(), frame.tiled() ? FrameLayout::Tiles : FrameLayout::Plan);
             const std::vector<uint32_t> order = tiles.vertexOrder();
             const std::vector<uint32_t> triangles = tiles.triangles();
             ASSERT_EQ(order.size(), n);
