@@ -224,6 +224,32 @@ TEST(Bake, OutputDoesNotDependOnThreadCount)
     EXPECT_EQ(0, std::memcmp(one.texels.data(), two.texels.data(), one.texels.size() * sizeof(float)));
 }
 
+// A triangle index big enough to be built on threads (its top levels on one,
+// its subtrees on the others) answers exactly as the one built on one thread:
+// the same face, distance and line hits for random queries, and on the
+// sphere the distance is the gap to the radius.
+TEST(Bake, TriangleIndexDoesNotDependOnThreadCount)
+{
+    const TriangleMesh sphere = icosphereMesh(6, 1.0f);  // 81920 triangles
+    TriangleIndex one, three;
+    one.build(sphere.positions.data(), sphere.triangles.data(), sphere.faceCount(), 1);
+    three.build(sphere.positions.data(), sphere.triangles.data(), sphere.faceCount(), 3);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> uni(-1.5, 1.5);
+    for (int q = 0; q < 2000; ++q) {
+        const glm::dvec3 x(uni(rng), uni(rng), uni(rng));
+        uint32_t f1 = 0, f3 = 0;
+        const double d1 = one.nearest(x, &f1), d3 = three.nearest(x, &f3);
+        ASSERT_EQ(f1, f3) << q;
+        ASSERT_EQ(d1, d3) << q;
+        EXPECT_NEAR(d1, std::abs(glm::length(x) - 1.0), 2e-3) << q;  // the flat facets lie within 1e-3 of it
+        double t1 = 0.0, t3 = 0.0;
+        const glm::dvec3 dir = glm::normalize(x);
+        ASSERT_EQ(one.intersectLine(x, dir, 3.0, &t1), three.intersectLine(x, dir, 3.0, &t3));
+        ASSERT_EQ(t1, t3) << q;
+    }
+}
+
 TEST(Bake, DegenerateDuplicateAndNonManifoldInputIsTolerated)
 {
     ControlMesh control = examples::makeIcosphere(0);

@@ -241,7 +241,7 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
         holes = owners[i] >= 0 && !valid[i];
     if (holes) {
         TriangleIndex highIndex;
-        highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
+        highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount(), options.threads);
         rep.lineFilledTexels = fillByLineIntersection(&raster.distance, &valid, owners, surface, highIndex, rep.size,
                                                       4.0 * ms.searchDistance, options.threads);
     }

@@ -1,6 +1,8 @@
 // Median-split BVH (spatial index for normal volumes and nearest-point queries).
 #include "bvh.h"
 
+#include "parallel.h"
+
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
@@ -32,7 +34,44 @@ float Box::distance2(const glm::vec3& p) const
     return glm::dot(d, d);
 }
 
-void Bvh::build(const std::vector<Box>& boxes)
+struct Bvh::SplitTask {
+    uint32_t node, first, count;
+    Box centres;
+};
+
+// Splits one task: a leaf at or below four items (or when the centres
+// coincide), else two children at the median centre along the longest axis
+// of the node's centre bounds.  Children's centre bounds are the parent's
+// cut at the median, so nothing is rescanned.  The tree depends only on the
+// items, never on the order tasks run in or on which array holds a node.
+void Bvh::split(std::vector<Node>* nodes, const SplitTask& t, const std::vector<glm::vec3>& centre,
+                std::vector<SplitTask>* out)
+{
+    const glm::vec3 ext = t.centres.hi - t.centres.lo;
+    if (t.count <= 4 || (ext.x <= 0.0f && ext.y <= 0.0f && ext.z <= 0.0f)) {
+        (*nodes)[t.node].first = t.first;
+        (*nodes)[t.node].count = t.count;
+        return;
+    }
+    const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
+    const uint32_t mid = t.first + t.count / 2;
+    std::nth_element(items_.begin() + t.first, items_.begin() + mid, items_.begin() + t.first + t.count,
+                     [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
+    const float cut = centre[items_[mid]][axis];
+    Box left = t.centres, right = t.centres;
+    left.hi[axis] = cut;
+    right.lo[axis] = cut;
+    const uint32_t l = uint32_t(nodes->size()), r = l + 1;
+    nodes->push_back({});
+    nodes->push_back({});
+    (*nodes)[t.node].first = l;
+    (*nodes)[t.node].right = r;
+    (*nodes)[t.node].count = 0;
+    out->push_back({l, t.first, mid - t.first, left});
+    out->push_back({r, mid, t.first + t.count - mid, right});
+}
+
+void Bvh::build(const std::vector<Box>& boxes, int threads)
 {
     nodes_.clear();
     items_.resize(boxes.size());
@@ -46,42 +85,44 @@ void Bvh::build(const std::vector<Box>& boxes)
         all.extend(centre[i]);
     }
     nodes_.reserve(boxes.size() / 2 + 1);
-    // Split at the median centre along the longest axis of the node's centre
-    // bounds; children's centre bounds are the parent's cut at the median, so
-    // nothing is rescanned.  Node boxes are filled bottom-up afterwards.
-    struct Task {
-        uint32_t node, first, count;
-        Box centres;
-    };
-    std::vector<Task> tasks;
     nodes_.push_back({});
-    tasks.push_back({0, 0, uint32_t(boxes.size()), all});
-    const uint32_t leafSize = 4;
-    while (!tasks.empty()) {
-        const Task t = tasks.back();
-        tasks.pop_back();
-        const glm::vec3 ext = t.centres.hi - t.centres.lo;
-        if (t.count <= leafSize || (ext.x <= 0.0f && ext.y <= 0.0f && ext.z <= 0.0f)) {
-            nodes_[t.node].first = t.first;
-            nodes_[t.node].count = t.count;
-            continue;
+    // The top levels breadth first on this thread, until there is a subtree
+    // per thread and more; then each subtree in its own node array, on the
+    // threads, appended in task order (child numbers offset).
+    std::vector<SplitTask> tasks{{0, 0, uint32_t(boxes.size()), all}}, next;
+    const size_t subtrees = threads > 1 && boxes.size() >= 65536 ? size_t(4 * threads) : 0;
+    while (!tasks.empty() && tasks.size() < subtrees) {
+        next.clear();
+        for (const SplitTask& t : tasks)
+            split(&nodes_, t, centre, &next);
+        tasks.swap(next);
+    }
+    std::vector<std::vector<Node>> local(tasks.size());
+    parallelChunks(tasks.size(), subtrees ? threads : 1, [&](int, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            std::vector<Node>& nodes = local[i];
+            nodes.push_back({});  // the subtree's root, stands for tasks[i].node
+            std::vector<SplitTask> stack{{0, tasks[i].first, tasks[i].count, tasks[i].centres}};
+            while (!stack.empty()) {
+                const SplitTask t = stack.back();
+                stack.pop_back();
+                split(&nodes, t, centre, &stack);
+            }
         }
-        const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
-        const uint32_t mid = t.first + t.count / 2;
-        std::nth_element(items_.begin() + t.first, items_.begin() + mid, items_.begin() + t.first + t.count,
-                         [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
-        const float cut = centre[items_[mid]][axis];
-        Box left = t.centres, right = t.centres;
-        left.hi[axis] = cut;
-        right.lo[axis] = cut;
-        const uint32_t l = uint32_t(nodes_.size()), r = l + 1;
-        nodes_.push_back({});
-        nodes_.push_back({});
-        nodes_[t.node].first = l;
-        nodes_[t.node].right = r;
-        nodes_[t.node].count = 0;
-        tasks.push_back({l, t.first, mid - t.first, left});
-        tasks.push_back({r, mid, t.first + t.count - mid, right});
+    });
+    for (size_t i = 0; i < tasks.size(); ++i) {
+        const uint32_t base = uint32_t(nodes_.size()) - 1;  // local node j > 0 lands at base + j
+        for (size_t j = 0; j < local[i].size(); ++j) {
+            Node n = local[i][j];
+            if (n.count == 0) {
+                n.first += base;
+                n.right += base;
+            }
+            if (j == 0)
+                nodes_[tasks[i].node] = n;
+            else
+                nodes_.push_back(n);
+        }
     }
     // Children always come after their parent: fill boxes in reverse order.
     for (size_t i = nodes_.size(); i-- > 0;) {

@@ -24,8 +24,9 @@ struct Box {
 
 class Bvh {
 public:
-    /// Builds over items 0..boxes.size()-1.
-    void build(const std::vector<Box>& boxes);
+    /// Builds over items 0..boxes.size()-1, on `threads` threads below the
+    /// top levels (the same tree for any count).
+    void build(const std::vector<Box>& boxes, int threads = 1);
 
     /// Calls visit(item) for every item whose box contains p.
     template <typename Visit>
@@ -53,9 +54,14 @@ private:
     template <typename Enter, typename Visit>
     void walk(Enter&& enter, Visit&& visit) const;
 
+    struct Node;
+    struct SplitTask;
+    void split(std::vector<Node>* nodes, const SplitTask& t, const std::vector<glm::vec3>& centre,
+               std::vector<SplitTask>* out);
+
     struct Node {
         Box box;
-        uint32_t first;  // leaf: first index into items_; inner: left child (right = first + 1... see build)
+        uint32_t first;  // leaf: first index into items_; inner: left child
         uint32_t count;  // leaf: item count; inner: 0
         uint32_t right;  // inner: right child
     };

@@ -16,15 +16,17 @@ TriangleIndex::~TriangleIndex() = default;
 TriangleIndex::TriangleIndex(TriangleIndex&&) noexcept = default;
 TriangleIndex& TriangleIndex::operator=(TriangleIndex&&) noexcept = default;
 
-void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount)
+void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount, int threads)
 {
     positions_ = positions;
     triangles_ = triangles;
     std::vector<Box> boxes(faceCount);
-    for (size_t f = 0; f < faceCount; ++f)
-        for (int k = 0; k < 3; ++k)
-            boxes[f].extend(positions[triangles[3 * f + k]]);
-    bvh_->build(boxes);
+    parallelFor(faceCount, threads, [&](size_t begin, size_t end) {
+        for (size_t f = begin; f < end; ++f)
+            for (int k = 0; k < 3; ++k)
+                boxes[f].extend(positions[triangles[3 * f + k]]);
+    });
+    bvh_->build(boxes, threads);
 }
 
 double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const

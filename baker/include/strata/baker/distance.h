@@ -22,8 +22,9 @@ public:
     TriangleIndex(TriangleIndex&&) noexcept;
     TriangleIndex& operator=(TriangleIndex&&) noexcept;
 
-    /// Indexes faceCount triangles; the arrays must outlive the index.
-    void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount);
+    /// Indexes faceCount triangles (on `threads` threads; the same index for
+    /// any count); the arrays must outlive the index.
+    void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount, int threads = 1);
     /// Distance from x to the nearest triangle; face and barycentrics of the
     /// nearest point when the pointers are non-null.  -1 when empty.
     /// `hint` (a face to try first, or -1) only speeds the search up.
