@@ -9,6 +9,8 @@
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <functional>
@@ -170,6 +172,10 @@ struct FrameEvaluator::Scratch {
 // Worker threads kept between frames (thread start-up costs as much as a
 // small frame).  run() hands each worker one contiguous range of [0, n),
 // runs the first range on the calling thread and returns when all are done.
+// A pass wakes the workers and waits for them; both sides spin for a short
+// while (kSpin) before they sleep on a condition variable, because a frame
+// is several passes a few hundred microseconds apart and a sleeping thread
+// takes tens of microseconds to wake.
 class FrameEvaluator::Pool {
 public:
     explicit Pool(int threads)
@@ -196,44 +202,65 @@ public:
         const std::function<void(int)> task = [&](int t) {
             body(n * size_t(t) / parts, n * size_t(t + 1) / parts, t);
         };
+        task_ = &task;
+        pending_.store(int(parts) - 1, std::memory_order_relaxed);
         {
             std::lock_guard<std::mutex> lock(mutex_);
-            task_ = &task;
-            pending_ = int(parts) - 1;
-            ++generation_;
+            generation_.fetch_add(1, std::memory_order_release);
         }
         wake_.notify_all();
         task(0);
-        std::unique_lock<std::mutex> lock(mutex_);
-        done_.wait(lock, [this] { return pending_ == 0; });
+        if (!spinUntil([this] { return pending_.load(std::memory_order_acquire) == 0; })) {
+            std::unique_lock<std::mutex> lock(mutex_);
+            done_.wait(lock, [this] { return pending_.load(std::memory_order_acquire) == 0; });
+        }
         task_ = nullptr;
     }
 
 private:
+    static constexpr std::chrono::microseconds kSpin{100};
+
+    template <typename Ready>
+    static bool spinUntil(const Ready& ready)
+    {
+        const auto start = std::chrono::steady_clock::now();
+        for (unsigned i = 1;; ++i) {
+            if (ready())
+                return true;
+#if defined(__x86_64__) || defined(__i386__)
+            __builtin_ia32_pause();
+#endif
+            if (i % 64 == 0 && std::chrono::steady_clock::now() - start > kSpin)
+                return false;
+        }
+    }
+
     void work(int t)
     {
         uint64_t seen = 0;
-        std::unique_lock<std::mutex> lock(mutex_);
         for (;;) {
-            wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
-            if (stop_)
-                return;
-            seen = generation_;
-            const std::function<void(int)>* task = task_;
-            lock.unlock();
-            (*task)(t);
-            lock.lock();
-            if (--pending_ == 0)
+            auto fresh = [&] { return generation_.load(std::memory_order_acquire) != seen; };
+            if (!spinUntil(fresh)) {
+                std::unique_lock<std::mutex> lock(mutex_);
+                wake_.wait(lock, [&] { return stop_ || fresh(); });
+                if (stop_)
+                    return;
+            }
+            seen = generation_.load(std::memory_order_acquire);
+            (*task_)(t);
+            if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+                std::lock_guard<std::mutex> lock(mutex_);  // the caller may be about to sleep
                 done_.notify_one();
+            }
         }
     }
 
     std::mutex mutex_;
     std::condition_variable wake_, done_;
-    const std::function<void(int)>* task_ = nullptr;
-    uint64_t generation_ = 0;
-    int pending_ = 0;
-    bool stop_ = false;
+    const std::function<void(int)>* task_ = nullptr;  // published by generation_
+    std::atomic<uint64_t> generation_{0};
+    std::atomic<int> pending_{0};
+    bool stop_ = false;  // under mutex_
     std::vector<std::thread> workers_;
 };
 
