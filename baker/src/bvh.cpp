@@ -97,6 +97,13 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
             split(&nodes_, t, centre, &next);
         tasks.swap(next);
     }
+    if (!subtrees) {  // one thread: depth first, in place
+        while (!tasks.empty()) {
+            const SplitTask t = tasks.back();
+            tasks.pop_back();
+            split(&nodes_, t, centre, &tasks);
+        }
+    }
     std::vector<std::vector<Node>> local(tasks.size());
     parallelChunks(tasks.size(), subtrees ? threads : 1, [&](int, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
@@ -123,6 +130,7 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
             else
                 nodes_.push_back(n);
         }
+        std::vector<Node>().swap(local[i]);  // into the reserved nodes_: peak memory stays one tree
     }
     // Children always come after their parent: fill boxes in reverse order.
     for (size_t i = nodes_.size(); i-- > 0;) {
