@@ -218,6 +218,21 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     EXPECT_EQ(loose.summary.find("400: "), std::string::npos) << loose.summary;
     EXPECT_LE(loose.rms, 0.01);
     EXPECT_NE(loose.summary.find("control       102 vertices, 200 triangles"), std::string::npos) << loose.summary;
+    // The chosen try is the bake: its rig, copied into place, is the one a
+    // bake at that face count writes, and nothing names the scratch folder.
+    EXPECT_EQ(loose.summary.find("strata-faces"), std::string::npos) << loose.summary;
+    EXPECT_EQ(loose.report.find("strata-faces"), std::string::npos);
+    EXPECT_NE(loose.summary.find(dir + "/loose.glb"), std::string::npos) << loose.summary;
+    ASSERT_FALSE(loose.written.empty());
+    EXPECT_EQ(loose.written.front(), dir + "/loose.glb");
+    strata::baker::BakeRequest fixed = request;
+    fixed.controlFaces = 200;
+    fixed.output = dir + "/fixed.glb";
+    strata::baker::BakeResult direct;
+    ASSERT_TRUE(strata::baker::bakeRig(fixed, &direct).isOk());
+    EXPECT_EQ(strata::test::readText(dir + "/loose.glb"), strata::test::readText(dir + "/fixed.glb"));
+    EXPECT_EQ(direct.rms, loose.rms);
+    std::filesystem::remove(dir + "/fixed.glb");
     request.output = dir + "/tight.glb";
     request.tolerance = 1e-6;
     st = strata::baker::bakeRig(request, &tight);

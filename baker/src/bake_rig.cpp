@@ -166,13 +166,44 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
 
 Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress);
 
+// The output path's checks, made before any work: not a symbolic link, not
+// one of the inputs, a .glb or .gltf.
+Status checkOutput(const BakeRequest& request)
+{
+    const std::string& out = request.output;
+    std::error_code ec;
+    if (std::filesystem::is_symlink(out, ec))
+        return Status(StatusCode::InvalidArgument,
+                      out + ": is a symbolic link; refusing to replace it (write to its target)");
+    for (const std::string& input : {request.high, request.control})
+        if (input != "auto" && std::filesystem::exists(out, ec) && std::filesystem::exists(input, ec) &&
+            std::filesystem::equivalent(out, input, ec))
+            return Status(StatusCode::InvalidArgument, out + ": the output would overwrite an input");
+    const std::string ext = io::extensionOf(out);
+    if (ext != ".glb" && ext != ".gltf")
+        return Status(StatusCode::InvalidArgument, out + ": the rig must be a .glb or .gltf file");
+    return Status::ok();
+}
+
+// Replaces every occurrence of `from` in text by `to`.
+void replaceAll(std::string* text, const std::string& from, const std::string& to)
+{
+    if (from.empty())
+        return;
+    for (size_t at = text->find(from); at != std::string::npos; at = text->find(from, at + to.size()))
+        text->replace(at, from.size(), to);
+}
+
 }  // namespace
 
 // An automatic control mesh's face count follows from the tolerance: the
 // fewest faces (in steps of 2x from a fiftieth of the capture's, at least
 // 200, at most a fifth) whose bake reaches it in the closed loop, or the
 // most accurate tried when none does.  Each try is a whole bake into a
-// scratch folder; the chosen count is then baked to the real outputs.
+// scratch folder.  When the request asks for the rig alone (a .glb, no
+// report, map images or error range of its own) the chosen try is that
+// bake: its rig is copied into place and its summary kept.  Otherwise the
+// chosen count is baked again to the real outputs.
 Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
 {
     if (!result)
@@ -186,16 +217,27 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                                                            std::to_string(std::hash<std::string>()(request.output)));
     if (ec || !fs::create_directories(scratch, ec) || ec)
         return bakeOnce(request, result, progress);
+    if (Status checked = checkOutput(request); !checked)
+        return checked;
+    const bool reusable = io::extensionOf(request.output) == ".glb" && request.report.empty() && !request.exr &&
+                          !request.layers && request.pngBits == 0 && request.errorFrom == -2 &&
+                          request.errorTo == -2;
     struct Try {
         size_t faces;
         double rms, bytes;
+        std::string output;
+        BakeResult result;
     };
     std::vector<Try> tries;
     Status st;
     auto attempt = [&](size_t faces) {
         BakeRequest r = request;
         r.controlFaces = faces;
-        r.output = (scratch / "trial.glb").string();
+        // Each try in its own folder, under the output's own file name.
+        const fs::path folder = scratch / std::to_string(faces);
+        std::error_code made;
+        fs::create_directories(folder, made);
+        r.output = (folder / fs::path(request.output).filename()).string();
         r.report.clear();
         r.exr = r.layers = false;
         r.pngBits = 0;
@@ -210,8 +252,9 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         std::error_code size;
         const double bytes = double(fs::file_size(r.output, size));
-        tries.push_back({faces, st ? out.rms : -1.0, size ? 0.0 : bytes});
-        return st && out.rms >= 0.0 && out.rms <= request.tolerance;
+        const bool ok = bool(st);
+        tries.push_back({faces, ok ? out.rms : -1.0, size ? 0.0 : bytes, r.output, std::move(out)});
+        return ok && tries.back().rms >= 0.0 && tries.back().rms <= request.tolerance;
     };
     // The capture's face count, from a first try at the usual count.
     size_t first = 0;
@@ -230,9 +273,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             }
         }
     }
-    fs::remove_all(scratch, ec);
-    if (!st && tries.size() == 1)
+    if (!st && tries.size() == 1) {
+        fs::remove_all(scratch, ec);
         return st;  // the first try failed: its message is the bake's
+    }
     // The fewest faces that met the tolerance, else the smallest error.
     const Try* chosen = nullptr;
     for (const Try& t : tries)
@@ -242,10 +286,34 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         for (const Try& t : tries)
             if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
                 chosen = &t;
-    BakeRequest r = request;
-    r.controlFaces = chosen ? chosen->faces : first;
-    if (!(st = bakeOnce(r, result, progress)))
-        return st;
+    bool reused = false;
+    if (reusable && chosen && chosen->rms >= 0.0) {
+        std::vector<uint8_t> bytes;
+        if (io::readFile(chosen->output, &bytes) && !bytes.empty()) {
+            std::error_code made;
+            if (!io::directoryOf(request.output).empty())
+                fs::create_directories(io::directoryOf(request.output), made);
+            if (!(st = io::writeFileAtomic(request.output, bytes.data(), bytes.size()))) {
+                fs::remove_all(scratch, ec);
+                return st;
+            }
+            *result = chosen->result;
+            for (std::string* text : {&result->summary, &result->report})
+                replaceAll(text, chosen->output, request.output);
+            for (std::string& w : result->written)
+                replaceAll(&w, chosen->output, request.output);
+            for (std::string& w : result->warnings)
+                replaceAll(&w, chosen->output, request.output);
+            reused = true;
+        }
+    }
+    fs::remove_all(scratch, ec);
+    if (!reused) {
+        BakeRequest r = request;
+        r.controlFaces = chosen ? chosen->faces : first;
+        if (!(st = bakeOnce(r, result, progress)))
+            return st;
+    }
     std::string line = "  cage faces    from the tolerance (closed-loop RMS / diagonal, rig bytes):";
     for (const Try& t : tries) {
         appendf(&line, "\n                  %zu: ", t.faces);
@@ -283,6 +351,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         appendf(&w, format, args...);
         result->warnings.push_back(w);
     };
+    Status st0;
     try {
         if (highPath.empty() || controlPath.empty() || outPath.empty())
             throw BakeError("--high, --control and -o are required (see --help)");
@@ -290,15 +359,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             throw BakeError("map coding must be vertex or png, not " + mapCoding);
         if (request.meshCoding != "draco" && request.meshCoding != "meshopt")
             throw BakeError("mesh coding must be draco or meshopt, not " + request.meshCoding);
-        if (std::filesystem::is_symlink(outPath))
-            throw BakeError(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
-        for (const std::string& input : {highPath, controlPath})
-            if (input != "auto" && std::filesystem::exists(outPath) && std::filesystem::exists(input) &&
-                std::filesystem::equivalent(outPath, input))
-                throw BakeError(outPath + ": the output would overwrite an input");
+        if (!(st0 = checkOutput(request)))
+            throw BakeError(st0.message());
         const std::string ext = io::extensionOf(outPath);
-        if (ext != ".glb" && ext != ".gltf")
-            throw BakeError(outPath + ": the rig must be a .glb or .gltf file");
         const std::string base = outPath.substr(0, outPath.size() - ext.size());
         const std::string stem = io::stemOf(outPath);
 
