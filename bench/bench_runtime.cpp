@@ -82,10 +82,10 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
     computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
                           mesh.faceCount());
     std::printf("\n%s, %zu control triangles, scheme %s, one core\n", name, mesh.faceCount(), schemeName(scheme));
-    std::printf("level | refined verts | setup ms | evaluate ms | M verts/s | shading normals ms | tables MB |"
+    std::printf("level | refined verts | setup ms, UVs / none | evaluate ms | M verts/s | shading normals ms | tables MB |"
                 " Osd EvalStencils ms (xyz) | evaluate / Osd | frame ms, plan order | frame ms, tile order, 1 / %d"
                 " threads | frame M verts/s | speed-up\n", threads);
-    std::printf("------+---------------+----------+-------------+-----------+--------------------+-----------+"
+    std::printf("------+---------------+----------------------+-------------+-----------+--------------------+-----------+"
                 "---------------------------+----------------+---------------------+------------------------------"
                 "----+-----------------+---------\n");
     for (int level = 0; level <= maxLevel; ++level) {
@@ -98,6 +98,19 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
         if (!st) {
             std::printf("%5d | error: %s\n", level, st.message().c_str());
             continue;
+        }
+        // The default rig's case: no UVs (its displacements are per vertex).
+        double setupNoUVs = 0.0, bytesNoUVs = 0.0;
+        {
+            ControlMesh bare = mesh;
+            bare.uvs.clear();
+            bare.uvIndices.clear();
+            const double u0 = bench::nowMs();
+            std::unique_ptr<Plan> lean;
+            if (Plan::create(&lean, bare, scheme, level).isOk()) {
+                setupNoUVs = bench::nowMs() - u0;
+                bytesNoUVs = double(lean->memoryBytes()) / double(lean->refinedVertexCount());
+            }
         }
         const size_t n = plan->refinedVertexCount();
         std::vector<glm::vec3> out(n), dir(n), shading(n);
@@ -161,9 +174,9 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
             std::snprintf(buf, sizeof(buf), "%.2fx", eval / t);
             ratio = buf;
         }
-        std::printf("%5d | %13zu | %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s | %19.3f | %16.3f / %13.3f |"
+        std::printf("%5d | %13zu | %9.1f / %8.1f | %11.3f | %9.1f | %18.3f | %9.1f | %25s | %14s | %19.3f | %16.3f / %13.3f |"
                     " %15.1f | %7.2fx\n",
-                    level, n, setup, eval, double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0,
+                    level, n, setup, setupNoUVs, eval, double(n) / eval / 1000.0, shade, double(plan->memoryBytes()) / 1048576.0,
                     osd.c_str(), ratio.c_str(), framePlan, frame1, frameN, double(n) / frame1 / 1000.0,
                     frame1 / frameN);
         jsonRows.field("scheme", schemeName(scheme))
@@ -178,6 +191,8 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
             .field("frame_table_bytes_per_vertex", double(frame.bytes()) / double(n))
             .field("setup_ms", setup)
             .field("table_bytes_per_vertex", double(plan->memoryBytes()) / double(n))
+            .field("setup_no_uvs_ms", setupNoUVs)
+            .field("table_bytes_per_vertex_no_uvs", bytesNoUVs)
             .field("osd_ms", osdMs)
             .field("threads", threads)
             .field("frame_ms_1_thread", frame1)

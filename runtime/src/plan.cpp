@@ -74,12 +74,7 @@ struct TopologyInput {
     std::vector<float> cornerWeights;
 };
 
-// Face-varying channels of a refiner made with the corner channel: the
-// corner channel first (three values per control face), then the UVs.
-constexpr int kCornerChannel = 0, kUvChannel = 1;
-
-std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in,
-                                                    bool cornerChannel = false)
+std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in)
 {
     const size_t nf = mesh.faceCount();
     in.vertsPerFace.assign(nf, 3);
@@ -114,15 +109,8 @@ std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, boo
         desc.cornerWeights = in.cornerWeights.data();
     }
 
-    Far::TopologyDescriptor::FVarChannel channels[2];
+    Far::TopologyDescriptor::FVarChannel channels[1];
     int count = 0;
-    if (cornerChannel) {
-        in.cornerIndices.resize(3 * nf);
-        for (size_t i = 0; i < in.cornerIndices.size(); ++i)
-            in.cornerIndices[i] = int(i);
-        channels[count].numValues = int(3 * nf);
-        channels[count++].valueIndices = in.cornerIndices.data();
-    }
     if (!in.uvIndices.empty()) {
         channels[count].numValues = int(mesh.uvs.size());
         channels[count++].valueIndices = in.uvIndices.data();
@@ -439,21 +427,9 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
 
 namespace {
 
-// Face-varying values interpolated level by level with OpenSubdiv's own
-// rules (Far::PrimvarRefiner): barycentrics in the parent control face, and
-// UVs.  Linear in the refined values, where a factorised stencil table
-// costs many entries per value.
-struct Bary {
-    float b[3];
-    void Clear(void* = nullptr) { b[0] = b[1] = b[2] = 0.0f; }
-    void AddWithWeight(const Bary& src, float w)
-    {
-        b[0] += w * src.b[0];
-        b[1] += w * src.b[1];
-        b[2] += w * src.b[2];
-    }
-};
-
+// Face-varying values (UVs) interpolated level by level with OpenSubdiv's
+// own rules (Far::PrimvarRefiner).  Linear in the refined values, where a
+// factorised stencil table costs many entries per value.
 struct Uv {
     glm::vec2 uv;
     void Clear(void* = nullptr) { uv = glm::vec2(0.0f); }
@@ -521,22 +497,73 @@ Status Plan::buildTopology(Build& b)
 // The linear scheme's stencils: every refined vertex is a barycentric
 // combination of its control face's corners, so the plan keeps the control
 // triangles and one (face, b1, b2) per refined vertex (b0 = 1 - b1 - b2,
-// exact: the weights are dyadic).  The barycentrics come from OpenSubdiv,
-// refining face-varying corner values (channel `cornerChannel`, three per
-// control face, the unit vectors) with the sharp rules.
+// exact: the weights are dyadic).  The weights follow OpenSubdiv's uniform
+// refinement level by level: a vertex's child keeps its weights, an edge's
+// child vertex takes the mean of its end points' (the 1-to-4 midpoint split).
+// Weights are kept per control vertex, at most three (a refined vertex lies
+// in one control face), so they need no face to be expressed in; the
+// refiner carries no face-varying channel for them, which would cost more
+// than the rest of the refinement.
+namespace {
+
+struct ControlWeights {
+    uint32_t id[3];
+    float w[3];
+    int n;
+};
+
+// The mean of two vertices' weights; false when they span more than three
+// control vertices (the two do not share a control face).
+bool midpoint(const ControlWeights& a, const ControlWeights& b, ControlWeights* out)
+{
+    *out = a;
+    for (int i = 0; i < out->n; ++i)
+        out->w[i] *= 0.5f;
+    for (int j = 0; j < b.n; ++j) {
+        int i = 0;
+        while (i < out->n && out->id[i] != b.id[j])
+            ++i;
+        if (i == out->n) {
+            if (out->n == 3)
+                return false;
+            out->id[i] = b.id[j];
+            out->w[i] = 0.0f;
+            ++out->n;
+        }
+        out->w[i] += 0.5f * b.w[j];
+    }
+    return true;
+}
+
+}  // namespace
+
 Status Plan::buildLinear(Build& build)
 {
     const auto& [refiner, mesh, firstFace, firstCorner] = build;
-    const int cornerChannel = kCornerChannel;
-    const size_t nv = firstFace.size(), nf0 = mesh.faceCount();
+    const size_t nv = firstFace.size();
     controlTriangles_ = mesh.triangles;
-    std::vector<Bary> corners(3 * nf0);
-    for (size_t i = 0; i < corners.size(); ++i) {
-        corners[i].Clear();
-        corners[i].b[i % 3] = 1.0f;
+    std::vector<ControlWeights> weights(controlVertexCount_), next;
+    for (size_t v = 0; v < weights.size(); ++v)
+        weights[v] = {{uint32_t(v), 0, 0}, {1.0f, 0.0f, 0.0f}, 1};
+    for (int level = 0; level < level_; ++level) {
+        const Far::TopologyLevel& parent = refiner.GetLevel(level);
+        next.assign(size_t(refiner.GetLevel(level + 1).GetNumVertices()), ControlWeights{{0, 0, 0}, {0, 0, 0}, 0});
+        for (Far::Index v = 0; v < parent.GetNumVertices(); ++v) {
+            const Far::Index child = parent.GetVertexChildVertex(v);
+            if (child >= 0)
+                next[size_t(child)] = weights[size_t(v)];
+        }
+        for (Far::Index e = 0; e < parent.GetNumEdges(); ++e) {
+            const Far::Index child = parent.GetEdgeChildVertex(e);
+            const Far::ConstIndexArray ends = parent.GetEdgeVertices(e);
+            if (child >= 0 && !midpoint(weights[size_t(ends[0])], weights[size_t(ends[1])], &next[size_t(child)]))
+                return Status(StatusCode::InvalidData, "refined edge " + std::to_string(e) + " at level " +
+                                                           std::to_string(level) + " spans two control faces");
+        }
+        weights.swap(next);
     }
-    const std::vector<Bary> refined = refineFaceVaryingValues(refiner, cornerChannel, std::move(corners));
-    const Far::TopologyLevel& last = refiner.GetLevel(level_);
+    if (weights.size() != nv)
+        return Status(StatusCode::InvalidData, "refinement produced an unexpected number of vertices");
     samples_.resize(nv);
     isolated_.clear();
     for (size_t v = 0; v < nv; ++v) {
@@ -551,14 +578,21 @@ Status Plan::buildLinear(Build& build)
             continue;
         }
         const uint32_t face = firstFace[v] >> (2 * level_);
-        const Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(firstFace[v]), cornerChannel);
-        const Bary& b = refined[size_t(fvv[firstCorner[v]])];
-        const bool inside = b.b[0] >= 0.0f && b.b[1] >= 0.0f && b.b[2] >= 0.0f && b.b[0] + b.b[1] + b.b[2] == 1.0f &&
-                            b.b[0] == 1.0f - b.b[1] - b.b[2];
+        const uint32_t* corner = &controlTriangles_[3 * size_t(face)];
+        float b[3] = {0.0f, 0.0f, 0.0f};
+        bool inside = weights[v].n > 0;
+        for (int i = 0; i < weights[v].n && inside; ++i) {
+            const int k = corner[0] == weights[v].id[i] ? 0 : corner[1] == weights[v].id[i] ? 1
+                        : corner[2] == weights[v].id[i] ? 2 : -1;
+            inside = k >= 0 && weights[v].w[i] >= 0.0f;
+            if (inside)
+                b[k] = weights[v].w[i];
+        }
+        inside = inside && b[0] + b[1] + b[2] == 1.0f && b[0] == 1.0f - b[1] - b[2];
         if (!inside)
             return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
                                                        " is not inside its parent control face " + std::to_string(face));
-        samples_[v] = {face, glm::vec2(b.b[1], b.b[2])};
+        samples_[v] = {face, glm::vec2(b[1], b[2])};
     }
     return Status::ok();
 }
@@ -568,7 +602,7 @@ Status Plan::buildLinear(Build& build)
 Status Plan::buildUVs(Build& build)
 {
     const auto& [refiner, mesh, firstFace, firstCorner] = build;
-    const int uvChannel = kUvChannel;
+    const int uvChannel = 0;  // the sharp refiner's only face-varying channel
     uvs_.clear();
     uvIndices_.clear();
     sampleUVs_.clear();
@@ -682,11 +716,10 @@ Status Plan::buildLimit(const ControlMesh& mesh)
 
 Status Plan::build(const ControlMesh& mesh)
 {
-    // One sharp refiner for the topology, with the corner channel (and the
-    // UVs) as face-varying data.
+    // One sharp refiner for the topology, with the UVs as face-varying data.
     TopologyInput input;
     std::unique_ptr<Far::TopologyRefiner> refiner =
-        createRefiner(mesh, /*allSharp=*/true, input, /*cornerChannel=*/true);
+        createRefiner(mesh, /*allSharp=*/true, input);
     if (!refiner)
         return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
     if (level_ > 0) {
