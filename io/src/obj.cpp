@@ -135,29 +135,31 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& path,
                     ++s;
                 if (!*s)
                     break;
+                // One corner index at s (1-based, or negative from the end)
+                // into `count` elements named `element`.
                 char* end = nullptr;
-                const long vi = std::strtol(s, &end, 10);
-                if (end == s)
-                    return lineError(path, lineNo, "malformed face index");
-                s = end;
+                auto readIndex = [&](const char* malformed, const char* element, size_t count, uint32_t* index) {
+                    const long raw = std::strtol(s, &end, 10);
+                    if (end == s)
+                        return lineError(path, lineNo, malformed);
+                    s = end;
+                    if (!resolveIndex(raw, count, index))
+                        return lineError(path, lineNo, std::string("face references ") + element + " " +
+                                                           std::to_string(raw) + " of " + std::to_string(count));
+                    return Status::ok();
+                };
                 uint32_t v;
-                if (!resolveIndex(vi, mesh.positions.size(), &v))
-                    return lineError(path, lineNo, "face references vertex " + std::to_string(vi) + " of " +
-                                                       std::to_string(mesh.positions.size()));
+                if (Status st = readIndex("malformed face index", "vertex", mesh.positions.size(), &v); !st)
+                    return st;
                 fv.push_back(v);
                 bool hasT = false;
                 if (*s == '/') {
                     ++s;
                     if (*s != '/') {
-                        const long ti = std::strtol(s, &end, 10);
-                        if (end == s)
-                            return lineError(path, lineNo, "malformed texture index");
-                        s = end;
                         uint32_t t;
-                        if (!resolveIndex(ti, mesh.uvs.size(), &t))
-                            return lineError(path, lineNo, "face references texture coordinate " +
-                                                               std::to_string(ti) + " of " +
-                                                               std::to_string(mesh.uvs.size()));
+                        if (Status st = readIndex("malformed texture index", "texture coordinate", mesh.uvs.size(), &t);
+                            !st)
+                            return st;
                         ft.push_back(t);
                         hasT = true;
                     }

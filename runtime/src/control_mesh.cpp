@@ -20,28 +20,14 @@ MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCou
         maxIndex = std::max(maxIndex, triangles[i]);
     const size_t groups = faceCount ? size_t(maxIndex) + 1 : 0;
     if (groups > 4 * faceCount + 1024) {
-        // Sparse indices (far more vertex numbers than corners): sort keys.
-        std::vector<uint64_t> keys(faceCount * 3);
-        for (size_t f = 0; f < faceCount; ++f)
-            for (int c = 0; c < 3; ++c) {
-                const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
-                keys[3 * f + c] = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-            }
-        std::sort(keys.begin(), keys.end());
-        for (size_t i = 0; i < keys.size();) {
-            size_t j = i;
-            while (j < keys.size() && keys[j] == keys[i])
-                ++j;
-            ++s.edges;
-            s.boundaryEdges += j - i == 1;
-            s.nonManifoldEdges += j - i > 2;
-            i = j;
-        }
-        std::vector<uint32_t> corners(triangles, triangles + faceCount * 3);
-        std::sort(corners.begin(), corners.end());
-        s.vertices = size_t(std::unique(corners.begin(), corners.end()) - corners.begin());
-        s.eulerCharacteristic = long(s.vertices) - long(s.edges) + long(faceCount);
-        return s;
+        // Sparse indices (far more vertex numbers than corners): the same
+        // counts over the used vertices renumbered densely.
+        std::vector<uint32_t> used(triangles, triangles + faceCount * 3), dense(faceCount * 3);
+        std::sort(used.begin(), used.end());
+        used.erase(std::unique(used.begin(), used.end()), used.end());
+        for (size_t i = 0; i < dense.size(); ++i)
+            dense[i] = uint32_t(std::lower_bound(used.begin(), used.end(), triangles[i]) - used.begin());
+        return computeTopologyStats(dense.data(), faceCount);
     }
     std::vector<uint32_t> start(groups + 1, 0), other(faceCount * 3);
     for (size_t f = 0; f < faceCount; ++f)

@@ -145,9 +145,9 @@ STRATA_KERNEL_INLINE void limitGrid(size_t n, size_t points, const uint32_t* con
 }  // namespace
 
 // One tile's local arrays (structure of arrays, so the loops vectorise):
-// displacements and displaced positions per slot; the face normals of two
-// row pairs (previous and current: up and down triangles, padded); one
-// row's normal sums.
+// displacements, displaced positions and sums of face normals per slot; the
+// face normals of three row pairs in turn (up and down triangles, padded)
+// and a zero pair for the grid's edges; the smooth scheme's nine sums.
 struct FrameEvaluator::Scratch {
     std::vector<float> d, px, py, pz;
     std::vector<float> face[3][2][3];  // [pair % 3][up, down][x, y, z]

@@ -67,7 +67,6 @@ struct TopologyInput {
     std::vector<int> vertsPerFace;
     std::vector<int> faceVerts;
     std::vector<int> uvIndices;
-    std::vector<int> cornerIndices;
     std::vector<int> creasePairs;
     std::vector<float> creaseWeights;
     std::vector<int> corners;
