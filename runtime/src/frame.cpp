@@ -783,8 +783,7 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
             shadeTiles(scratch_[size_t(t)], positions, normals, d, controlPositions, controlNormals, b, e);
         });
         if (normals)
-            parallel(threads, borderVertices_.size(),
-                           [&](size_t b, size_t e, int) { finishBorders(normals, b, e); });
+            parallel(threads, borderVertices_.size(), [&](size_t b, size_t e, int) { finishBorders(normals, b, e); });
         const bool tiles = requested_ == FrameLayout::Tiles;
         for (size_t r = 0; r < isolated_.size(); ++r) {
             const uint32_t v = isolated_[r];
@@ -795,16 +794,13 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
         }
         return Status::ok();
     }
-    if (!normals) {
-        positionsOnly();
+    positionsOnly();
+    if (!normals)
         return Status::ok();
-    }
     if (threads == 1) {
-        positionsOnly();
         plan_.computeShadingNormals(normals, positions);
         return Status::ok();
     }
-    positionsOnly();
     parallel(threads, faceNormals_.size(), [&](size_t b, size_t e, int) { faceNormals(positions, b, e); });
     parallel(threads, nv, [&](size_t b, size_t e, int) { vertexNormals(normals, b, e); });
     return Status::ok();
