@@ -162,14 +162,19 @@ int main(int argc, char** argv)
 {
     const std::string data = STRATA_SHARED_DATA;
     bool onlyGenerated = false;
-    std::string jsonPath;
+    std::string jsonPath, onlyCase;
+    int onlyThreads = 0;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--generated-only")) {
             onlyGenerated = true;
         } else if (!std::strcmp(argv[i], "--json") && i + 1 < argc) {
             jsonPath = argv[++i];
+        } else if (!std::strcmp(argv[i], "--case") && i + 1 < argc) {
+            onlyCase = argv[++i];  // a substring of the case names; skips the default CLI bake (for profiling)
+        } else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) {
+            onlyThreads = std::atoi(argv[++i]);
         } else {
-            std::fprintf(stderr, "usage: bench_bake [--generated-only] [--json FILE]\n");
+            std::fprintf(stderr, "usage: bench_bake [--generated-only] [--case NAME] [--threads N] [--json FILE]\n");
             return 2;
         }
     }
@@ -205,6 +210,9 @@ int main(int argc, char** argv)
                 "--------+--------+----------+--------\n");
     for (const Case& c : cases)
         for (int threads : {1, 2}) {
+            if ((!onlyCase.empty() && c.name.find(onlyCase) == std::string::npos) ||
+                (onlyThreads > 0 && threads != onlyThreads))
+                continue;
             const int size = c.name.find("1.3M") != std::string::npos ? 2048 : 1024;
             std::fflush(stdout);
             const pid_t pid = fork();
@@ -233,6 +241,8 @@ int main(int argc, char** argv)
         }
     std::remove(generated.c_str());
     std::remove(quarter.c_str());
+    if (!onlyCase.empty())
+        return jsonPath.empty() || jsonRows.write(jsonPath) ? 0 : 1;
 
     // The scan and its 10k remesh, written once; the remesh is made here by
     // quadric decimation (as --control auto would) outside the timing.
