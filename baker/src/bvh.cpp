@@ -34,42 +34,20 @@ float Box::distance2(const glm::vec3& p) const
     return glm::dot(d, d);
 }
 
-struct Bvh::SplitTask {
-    uint32_t node, first, count;
-    Box centres;
-};
+namespace {
 
-// Splits one task: a leaf at or below four items (or when the centres
-// coincide), else two children at the median centre along the longest axis
-// of the node's centre bounds.  Children's centre bounds are the parent's
-// cut at the median, so nothing is rescanned.  The tree depends only on the
-// items, never on the order tasks run in or on which array holds a node.
-void Bvh::split(std::vector<Node>* nodes, const SplitTask& t, const std::vector<glm::vec3>& centre,
-                std::vector<SplitTask>* out)
+// Spreads the low 10 bits of v three bits apart (bit i moves to bit 3i).
+uint32_t spreadBits(uint32_t v)
 {
-    const glm::vec3 ext = t.centres.hi - t.centres.lo;
-    if (t.count <= 4 || (ext.x <= 0.0f && ext.y <= 0.0f && ext.z <= 0.0f)) {
-        (*nodes)[t.node].first = t.first;
-        (*nodes)[t.node].count = t.count;
-        return;
-    }
-    const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
-    const uint32_t mid = t.first + t.count / 2;
-    std::nth_element(items_.begin() + t.first, items_.begin() + mid, items_.begin() + t.first + t.count,
-                     [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
-    const float cut = centre[items_[mid]][axis];
-    Box left = t.centres, right = t.centres;
-    left.hi[axis] = cut;
-    right.lo[axis] = cut;
-    const uint32_t l = uint32_t(nodes->size()), r = l + 1;
-    nodes->push_back({});
-    nodes->push_back({});
-    (*nodes)[t.node].first = l;
-    (*nodes)[t.node].right = r;
-    (*nodes)[t.node].count = 0;
-    out->push_back({l, t.first, mid - t.first, left});
-    out->push_back({r, mid, t.first + t.count - mid, right});
+    v &= 0x3ff;
+    v = (v | v << 16) & 0x030000ff;
+    v = (v | v << 8) & 0x0300f00f;
+    v = (v | v << 4) & 0x030c30c3;
+    v = (v | v << 2) & 0x09249249;
+    return v;
 }
+
+}  // namespace
 
 void Bvh::build(const std::vector<Box>& boxes, int threads)
 {
@@ -77,71 +55,102 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
     items_.resize(boxes.size());
     if (boxes.empty())
         return;
-    std::vector<glm::vec3> centre(boxes.size());
+    // Morton codes of the box centres (10 bits an axis over the centres'
+    // bounds) above each item's number, sorted on the code by a two-pass LSD
+    // radix sort that keeps equal codes in item order: O(n), where a median
+    // split re-partitions every level.
+    const size_t n = boxes.size();
     Box all;
-    for (size_t i = 0; i < boxes.size(); ++i) {
-        items_[i] = uint32_t(i);
-        centre[i] = 0.5f * (boxes[i].lo + boxes[i].hi);
-        all.extend(centre[i]);
-    }
-    nodes_.reserve(boxes.size() / 2 + 1);
-    nodes_.push_back({});
-    // The top levels breadth first on this thread, until there is a subtree
-    // per thread and more; then each subtree in its own node array, on the
-    // threads, appended in task order (child numbers offset).
-    std::vector<SplitTask> tasks{{0, 0, uint32_t(boxes.size()), all}}, next;
-    const size_t subtrees = threads > 1 && boxes.size() >= 65536 ? size_t(4 * threads) : 0;
-    while (!tasks.empty() && tasks.size() < subtrees) {
-        next.clear();
-        for (const SplitTask& t : tasks)
-            split(&nodes_, t, centre, &next);
-        tasks.swap(next);
-    }
-    if (!subtrees) {  // one thread: depth first, in place
-        while (!tasks.empty()) {
-            const SplitTask t = tasks.back();
-            tasks.pop_back();
-            split(&nodes_, t, centre, &tasks);
-        }
-    }
-    std::vector<std::vector<Node>> local(tasks.size());
-    parallelChunks(tasks.size(), subtrees ? threads : 1, [&](int, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-            std::vector<Node>& nodes = local[i];
-            nodes.push_back({});  // the subtree's root, stands for tasks[i].node
-            std::vector<SplitTask> stack{{0, tasks[i].first, tasks[i].count, tasks[i].centres}};
-            while (!stack.empty()) {
-                const SplitTask t = stack.back();
-                stack.pop_back();
-                split(&nodes, t, centre, &stack);
-            }
+    for (const Box& b : boxes)
+        all.extend(0.5f * (b.lo + b.hi));
+    const glm::vec3 ext = all.hi - all.lo;
+    const float extent = std::max({ext.x, ext.y, ext.z});
+    const float scale = extent > 0.0f ? 1023.0f / extent : 0.0f;
+    std::vector<uint64_t> key(n), keyTmp(n);
+    parallelFor(n, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            const glm::vec3 c = (0.5f * (boxes[i].lo + boxes[i].hi) - all.lo) * scale;
+            uint32_t q[3];
+            for (int a = 0; a < 3; ++a)
+                q[a] = uint32_t(std::min(1023.0f, std::max(0.0f, c[a])));
+            const uint32_t code = spreadBits(q[0]) << 2 | spreadBits(q[1]) << 1 | spreadBits(q[2]);
+            key[i] = uint64_t(code) << 32 | uint64_t(i);
         }
     });
-    for (size_t i = 0; i < tasks.size(); ++i) {
-        const uint32_t base = uint32_t(nodes_.size()) - 1;  // local node j > 0 lands at base + j
-        for (size_t j = 0; j < local[i].size(); ++j) {
-            Node n = local[i][j];
-            if (n.count == 0) {
-                n.first += base;
-                n.right += base;
-            }
-            if (j == 0)
-                nodes_[tasks[i].node] = n;
-            else
-                nodes_.push_back(n);
-        }
-        std::vector<Node>().swap(local[i]);  // into the reserved nodes_: peak memory stays one tree
+    for (int shift = 32; shift < 62; shift += 15) {
+        std::vector<uint32_t> count(32769, 0);
+        for (size_t i = 0; i < n; ++i)
+            ++count[((key[i] >> shift) & 0x7fff) + 1];
+        for (int d = 0; d < 32768; ++d)
+            count[size_t(d) + 1] += count[size_t(d)];
+        for (size_t i = 0; i < n; ++i)
+            keyTmp[count[(key[i] >> shift) & 0x7fff]++] = key[i];
+        key.swap(keyTmp);
     }
+    std::vector<uint64_t>().swap(keyTmp);
+    for (size_t i = 0; i < n; ++i)
+        items_[i] = uint32_t(key[i]);
+    auto code = [&](uint32_t i) { return uint32_t(key[i] >> 32); };
+
+    // Top down over the sorted codes: a range splits where its highest
+    // differing bit turns on (a spatial midpoint, axes in turn), at its middle
+    // when its codes are equal or the tree is already deep (the query stacks
+    // hold 64 nodes); leaves hold at most four items.  Children follow their
+    // parent in the node array.
+    struct Range {
+        uint32_t node, first, count, depth;
+    };
+    nodes_.reserve(n / 2 + 1);
+    nodes_.push_back({});
+    std::vector<Range> stack{{0, 0, uint32_t(n), 0}};
+    while (!stack.empty()) {
+        const Range r = stack.back();
+        stack.pop_back();
+        if (r.count <= 4) {
+            nodes_[r.node].first = r.first;
+            nodes_[r.node].count = r.count;
+            continue;
+        }
+        const uint32_t last = r.first + r.count - 1;
+        uint32_t mid = r.first + r.count / 2;
+        const uint32_t diff = code(r.first) ^ code(last);
+        if (diff != 0 && r.depth < 32) {
+            int bit = 31;
+            while (!((diff >> bit) & 1))
+                --bit;
+            // The first code of the range with that bit set.
+            uint32_t lo = r.first + 1, hi = last;
+            while (lo < hi) {
+                const uint32_t m = lo + (hi - lo) / 2;
+                if ((code(m) >> bit) & 1)
+                    hi = m;
+                else
+                    lo = m + 1;
+            }
+            mid = lo;
+        }
+        const uint32_t l = uint32_t(nodes_.size()), rt = l + 1;
+        nodes_.push_back({});
+        nodes_.push_back({});
+        nodes_[r.node].first = l;
+        nodes_[r.node].right = rt;
+        nodes_[r.node].count = 0;
+        stack.push_back({rt, mid, last + 1 - mid, r.depth + 1});
+        stack.push_back({l, r.first, mid - r.first, r.depth + 1});
+    }
+    itemBoxes_.resize(n);
+    for (size_t i = 0; i < n; ++i)
+        itemBoxes_[i] = boxes[items_[i]];
     // Children always come after their parent: fill boxes in reverse order.
     for (size_t i = nodes_.size(); i-- > 0;) {
-        Node& n = nodes_[i];
-        n.box = Box();
-        if (n.count > 0) {
-            for (uint32_t k = 0; k < n.count; ++k)
-                n.box.extend(boxes[items_[n.first + k]]);
+        Node& node = nodes_[i];
+        node.box = Box();
+        if (node.count > 0) {
+            for (uint32_t k = 0; k < node.count; ++k)
+                node.box.extend(itemBoxes_[node.first + k]);
         } else {
-            n.box.extend(nodes_[n.first].box);
-            n.box.extend(nodes_[n.right].box);
+            node.box.extend(nodes_[node.first].box);
+            node.box.extend(nodes_[node.right].box);
         }
     }
 }

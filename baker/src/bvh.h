@@ -1,6 +1,6 @@
 // Strata baker: a bounding-volume hierarchy over axis-aligned boxes, used as
 // the spatial index of normal volumes (point containment) and of triangle
-// meshes (nearest point).  Median-split build, flat node array, iterative
+// meshes (nearest point).  Morton-order build, flat node array, iterative
 // queries; const queries are thread-safe.
 #pragma once
 
@@ -49,15 +49,12 @@ public:
     bool empty() const { return nodes_.empty(); }
 
 private:
-    // Depth-first walk: visits the items of every leaf whose box, and every
-    // ancestor's box, passes `enter`.
+    // Depth-first walk: visits the items whose box, and every ancestor's
+    // box, passes `enter`.
     template <typename Enter, typename Visit>
     void walk(Enter&& enter, Visit&& visit) const;
 
     struct Node;
-    struct SplitTask;
-    void split(std::vector<Node>* nodes, const SplitTask& t, const std::vector<glm::vec3>& centre,
-               std::vector<SplitTask>* out);
 
     struct Node {
         Box box;
@@ -67,6 +64,7 @@ private:
     };
     std::vector<Node> nodes_;
     std::vector<uint32_t> items_;
+    std::vector<Box> itemBoxes_;  // items_[i]'s box: leaves test their items before visiting them
 };
 
 /// Closest point on triangle (a, b, c) to p (Ericson 5.1.5), in double.
@@ -89,7 +87,8 @@ void Bvh::walk(Enter&& enter, Visit&& visit) const
             continue;
         if (n.count > 0) {
             for (uint32_t i = 0; i < n.count; ++i)
-                visit(items_[n.first + i]);
+                if (enter(itemBoxes_[n.first + i]))
+                    visit(items_[n.first + i]);
         } else {
             stack[top++] = n.first;
             stack[top++] = n.right;
@@ -154,7 +153,7 @@ int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distanc
             if (n.count > 0) {
                 for (uint32_t i = 0; i < n.count; ++i) {
                     const uint32_t item = items_[n.first + i];
-                    if (int64_t(item) == hint)
+                    if (int64_t(item) == hint || itemBoxes_[n.first + i].distance2(p) > bestD2)
                         continue;
                     const float d2 = distance2(item);
                     if (d2 < bestD2 || (d2 == bestD2 && (best < 0 || item < best))) {

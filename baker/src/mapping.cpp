@@ -60,6 +60,7 @@ void SurfaceIndex::buildPrisms(double searchDistance)
         prisms[f].hi += pad;
     }
     prisms_.build(prisms);
+    prismBoxes_ = std::move(prisms);
 }
 
 bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) const
@@ -68,8 +69,12 @@ bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) co
     NormalVolumeHit best;
     uint32_t bestFace = 0;
     auto consider = [&](uint32_t f) {
+        if (!prismBoxes_[f].contains(glm::vec3(x)))
+            return;  // outside the volume's bounding box
         NormalVolumeHit hit;
-        if (!mapToNormalVolume(triangles_[f], cubics_[f], x, searchDistance_, 1e-7, &hit))
+        // Only a root no farther than the best so far can win.
+        const double window = found ? std::fabs(best.d) : searchDistance_;
+        if (!mapToNormalVolume(triangles_[f], cubics_[f], x, window, 1e-7, &hit))
             return;
         // Smallest |d| wins; ties (shared edges) go to the lower face index
         // so the result does not depend on visiting order.
@@ -87,6 +92,10 @@ bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) co
         const BakeSurface& s = *surface_;
         uint32_t seen[96];
         int nseen = 0;
+        // The nearest triangle's own volume first: it usually holds the
+        // point, and its distance then narrows every other solve.
+        consider(nearest);
+        seen[nseen++] = nearest;
         for (int k = 0; k < 3; ++k) {
             const uint32_t v = s.triangles[3 * size_t(nearest) + k];
             for (uint32_t r = s.ringOffsets[v]; r < s.ringOffsets[v + 1]; ++r) {

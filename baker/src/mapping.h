@@ -37,6 +37,7 @@ public:
     const BakeSurface& surface() const { return *surface_; }
     double searchDistance() const { return searchDistance_; }
     NormalVolumeTriangle triangle(uint32_t face) const;
+    const NormalVolumeCubic& cubic(uint32_t face) const { return cubics_[face]; }
 
     /// Closed-form mapping of x: among the normal volumes around the nearest
     /// surface triangle (the rings of its corners) the containing one with the
@@ -54,6 +55,7 @@ private:
     const BakeSurface* surface_ = nullptr;
     double searchDistance_ = 0.0;
     Bvh prisms_;
+    std::vector<Box> prismBoxes_;  // per face: the box of its prism
     TriangleIndex faces_;
     std::vector<NormalVolumeTriangle> triangles_;  // per face, in double
     std::vector<NormalVolumeCubic> cubics_;        // per face: the point-independent part of eq. 2's cubic

@@ -167,10 +167,20 @@ bool mapToNormalVolume(const NormalVolumeTriangle& tri, const glm::dvec3& x, dou
     return mapToNormalVolume(tri, NormalVolumeCubic::of(tri), x, maxDistance, tolerance, hit);
 }
 
+bool mapToNormalVolumePlane(const NormalVolumeTriangle& tri, const NormalVolumeCubic& cubic, const glm::dvec3& x,
+                            double nearD, double maxDeviation, NormalVolumeHit* hit)
+{
+    // A root in the narrow window is the closest of all; the root sought
+    // is the continuation of the vertex's own mapping, so it is usually there.
+    auto any = [](double, double) { return true; };
+    return solve(tri, cubic, x, nearD, 0.125 * maxDeviation, any, hit) ||
+           solve(tri, cubic, x, nearD, maxDeviation, any, hit);
+}
+
 bool mapToNormalVolumePlane(const NormalVolumeTriangle& tri, const glm::dvec3& x, double nearD, double maxDeviation,
                             NormalVolumeHit* hit)
 {
-    return solve(tri, NormalVolumeCubic::of(tri), x, nearD, maxDeviation, [](double, double) { return true; }, hit);
+    return mapToNormalVolumePlane(tri, NormalVolumeCubic::of(tri), x, nearD, maxDeviation, hit);
 }
 
 glm::dvec3 evaluateNormalVolume(const NormalVolumeTriangle& t, double b1, double b2, double d)

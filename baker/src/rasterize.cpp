@@ -168,12 +168,14 @@ void triangulatePieces(const SurfaceIndex& index, const glm::vec3* pos, const ui
         Piece p;
         p.face = cand[c];
         const NormalVolumeTriangle nv = index.triangle(p.face);
+        const NormalVolumeCubic& cubic = index.cubic(p.face);
         bool ok = true;
         for (int k = 0; k < 3 && ok; ++k) {
             double b1 = m[k]->b1, b2 = m[k]->b2, d = m[k]->d;
             if (m[k]->face != p.face) {
                 NormalVolumeHit hit;
-                ok = mapToNormalVolumePlane(nv, glm::dvec3(pos[tri[k]]), d, index.searchDistance() + 1e-9, &hit);
+                ok = mapToNormalVolumePlane(nv, cubic, glm::dvec3(pos[tri[k]]), d, index.searchDistance() + 1e-9,
+                                            &hit);
                 b1 = hit.b1;
                 b2 = hit.b2;
                 d = hit.d;

@@ -53,6 +53,9 @@ bool mapToNormalVolume(const NormalVolumeTriangle& tri, const NormalVolumeCubic&
 /// root is not the continuation of the vertex's mapping.
 bool mapToNormalVolumePlane(const NormalVolumeTriangle& tri, const glm::dvec3& x, double nearD, double maxDeviation,
                             NormalVolumeHit* hit);
+/// The same with the triangle's cubic precomputed.
+bool mapToNormalVolumePlane(const NormalVolumeTriangle& tri, const NormalVolumeCubic& cubic, const glm::dvec3& x,
+                            double nearD, double maxDeviation, NormalVolumeHit* hit);
 
 /// Paper eq. 2, forward: sum_k b_k (v_k + d n_k).
 glm::dvec3 evaluateNormalVolume(const NormalVolumeTriangle& tri, double b1, double b2, double d);
