@@ -24,8 +24,8 @@ struct Box {
 
 class Bvh {
 public:
-    /// Builds over items 0..boxes.size()-1, on `threads` threads below the
-    /// top levels (the same tree for any count).
+    /// Builds over items 0..boxes.size()-1 in Morton order of the box
+    /// centres; `threads` share the code pass (the same tree for any count).
     void build(const std::vector<Box>& boxes, int threads = 1);
 
     /// Calls visit(item) for every item whose box contains p.
