@@ -63,6 +63,36 @@ std::string plyCube(const std::string& format)
     return s;
 }
 
+// The layout most scanners write (the reader's fast path): float x, y, z
+// with another float after them, uchar-counted 32-bit indices; the first face
+// a quad, the others split into triangles.
+std::string plyScannerCube(const std::string& indexType)
+{
+    std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\nproperty float y\n"
+                    "property float z\nproperty float confidence\nelement face 11\nproperty list uchar " +
+                    indexType + " vertex_indices\nend_header\n";
+    for (const auto& p : kCube) {
+        for (int a = 0; a < 3; ++a)
+            put<float>(s, float(p[a]), false);
+        put<float>(s, 0.5f, false);
+    }
+    for (size_t f = 0; f < std::size(kQuads); ++f) {
+        const auto& q = kQuads[f];
+        if (f == 0) {
+            put<uint8_t>(s, 4, false);
+            for (int k = 0; k < 4; ++k)
+                put<int32_t>(s, q[k], false);
+            continue;
+        }
+        for (int t = 0; t < 2; ++t) {
+            put<uint8_t>(s, 3, false);
+            for (int c : {q[0], q[1 + t], q[2 + t]})
+                put<int32_t>(s, c, false);
+        }
+    }
+    return s;
+}
+
 std::string offCube()
 {
     std::string s = "OFF\n# a cube\n8 6 0\n";
@@ -126,7 +156,8 @@ TEST(PolygonReader, OneCubeInEveryEncoding)
     const std::string dir = test::tempDir("polygon_reader");
     const std::pair<std::string, std::string> files[] = {
         {"ascii.ply", plyCube("ascii")},         {"little.ply", plyCube("binary_little_endian")},
-        {"big.ply", plyCube("binary_big_endian")}, {"cube.off", offCube()},
+        {"big.ply", plyCube("binary_big_endian")}, {"scanner_int.ply", plyScannerCube("int")},
+        {"scanner_uint.ply", plyScannerCube("uint")}, {"cube.off", offCube()},
         {"binary.stl", stlCube(true)},          {"ascii.stl", stlCube(false)}};
     for (const auto& [name, text] : files) {
         test::writeText(dir + "/" + name, text);
@@ -134,7 +165,9 @@ TEST(PolygonReader, OneCubeInEveryEncoding)
         const Status st = io::readPolygonMesh(dir + "/" + name, &m);
         ASSERT_TRUE(st.isOk()) << name << ": " << st.message();
         expectCube(m, name);
-        if (name.find(".stl") == std::string::npos) {
+        if (name.find("scanner") != std::string::npos) {
+            EXPECT_EQ(m.polygonsTriangulated, 1u) << name;
+        } else if (name.find(".stl") == std::string::npos) {
             EXPECT_EQ(m.polygonsTriangulated, 6u) << name;
         }
     }
@@ -149,7 +182,17 @@ TEST(PolygonReader, HostileFilesAreOneClearError)
     put<uint32_t>(hugeList, 70000, false);
     const std::string ascii = plyCube("ascii");
     const std::string little = plyCube("binary_little_endian");
+    const std::string scanner = plyScannerCube("int");
+    const size_t faces = scanner.find("end_header\n") + 11 + 8 * 16;  // the first face's count byte
+    std::string badIndex = scanner, nanVertex = scanner, twoCorners = scanner;
+    badIndex.replace(faces + 1 + 16 + 1 + 8, 4, std::string("\x08\x00\x00\x00", 4));  // vertex 8 of 8
+    nanVertex.replace(faces - 16, 4, std::string("\x00\x00\xc0\x7f", 4));            // x of vertex 7: NaN
+    twoCorners[faces + 17] = 2;                                                          // the second face
     const std::pair<std::string, std::string> cases[] = {
+        {"scanner_index.ply", badIndex},
+        {"scanner_nan.ply", nanVertex},
+        {"scanner_two.ply", twoCorners},
+        {"scanner_truncated.ply", scanner.substr(0, scanner.size() - 6)},
         {"count.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\nproperty float x\n"
                       "property float y\nproperty float z\nend_header\n0000"},
         {"list.ply", hugeList},

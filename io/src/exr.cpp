@@ -13,6 +13,7 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfTestFile.h>
+#include <OpenEXR/ImfThreading.h>
 
 #include <Imath/half.h>
 
@@ -236,7 +237,8 @@ Status readDisplacementExr(const std::filesystem::path& pathFile, DisplacementMa
     return decodeDisplacementExr(bytes.data(), bytes.size(), path, out, expectWidth, expectHeight);
 }
 
-Status writeDisplacementExr(const std::filesystem::path& pathFile, const DisplacementMap& map, ExrPixelType type)
+Status writeDisplacementExr(const std::filesystem::path& pathFile, const DisplacementMap& map, ExrPixelType type,
+                            int threads)
 {
     const std::string path = pathFile.string();
     Status st = validateDisplacementMap(map);
@@ -264,7 +266,9 @@ Status writeDisplacementExr(const std::filesystem::path& pathFile, const Displac
                                  sizeof(float), size_t(map.width) * sizeof(float)));
         }
         {
-            Imf::OutputFile file(tmp.c_str(), header);
+            if (threads > 1 && Imf::globalThreadCount() < threads)
+                Imf::setGlobalThreadCount(threads);
+            Imf::OutputFile file(tmp.c_str(), header, threads > 1 ? threads : 0);
             file.setFrameBuffer(fb);
             file.writePixels(map.height);
         }  // the file is complete only once OutputFile is destroyed

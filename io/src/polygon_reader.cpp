@@ -92,8 +92,11 @@ Status addPolygon(const std::string& path, const std::vector<long>& idx, size_t 
             return fail(path, "face " + std::to_string(face) + " references vertex " + std::to_string(i) + " of " +
                                   std::to_string(vertexCount));
     out->polygonsTriangulated += idx.size() > 3;
-    for (size_t k = 1; k + 1 < idx.size(); ++k)
-        out->triangles.insert(out->triangles.end(), {uint32_t(idx[0]), uint32_t(idx[k]), uint32_t(idx[k + 1])});
+    for (size_t k = 1; k + 1 < idx.size(); ++k) {
+        out->triangles.push_back(uint32_t(idx[0]));
+        out->triangles.push_back(uint32_t(idx[k]));
+        out->triangles.push_back(uint32_t(idx[k + 1]));
+    }
     return Status::ok();
 }
 
@@ -171,6 +174,97 @@ bool binaryValue(Cursor& c, PlyType t, bool bigEndian, double* v)
     case PlyType::Float32: { float x; std::memcpy(&x, b, 4); *v = x; break; }
     case PlyType::Float64: { double x; std::memcpy(&x, b, 8); *v = x; break; }
     default: return false;
+    }
+    return true;
+}
+
+bool littleEndianHost()
+{
+    const uint16_t one = 1;
+    unsigned char b;
+    std::memcpy(&b, &one, 1);
+    return b == 1;
+}
+
+// The layout nearly every binary scan uses, read without per-value dispatch:
+// a vertex element of fixed-size scalars with float32 x, y, z, and a face
+// element whose only property is its index list with 32-bit indices.  False
+// when the element is not of that layout (the general reader takes it);
+// errors otherwise carry the general reader's messages.
+bool readPlyFast(const std::string& path, const PlyElement& e, bool isVertex, const int xyz[3], size_t nv, Cursor& c,
+                 PolygonMesh* out, Status* st)
+{
+    if (!littleEndianHost())
+        return false;
+    if (isVertex) {
+        size_t stride = 0, offset[3] = {0, 0, 0};
+        for (size_t k = 0; k < e.properties.size(); ++k) {
+            const PlyProperty& p = e.properties[k];
+            if (p.countType != PlyType::None)
+                return false;
+            for (int a = 0; a < 3; ++a)
+                if (int(k) == xyz[a]) {
+                    if (p.type != PlyType::Float32)
+                        return false;
+                    offset[a] = stride;
+                }
+            stride += plySize(p.type);
+        }
+        // The element's size was checked against the file by the caller.
+        for (size_t i = 0; i < e.count; ++i, c.p += stride) {
+            glm::vec3 f;
+            for (int a = 0; a < 3; ++a)
+                std::memcpy(&f[a], c.p + offset[a], 4);
+            if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z)) {
+                *st = fail(path, "vertex " + std::to_string(i) + " is not finite");
+                return true;
+            }
+            out->positions.push_back(f);
+        }
+        return true;
+    }
+    if (e.properties.size() != 1)
+        return false;
+    const PlyProperty& p = e.properties[0];
+    const bool indexList = p.name == "vertex_indices" || p.name == "vertex_index";
+    if (!indexList || (p.countType != PlyType::UInt8 && p.countType != PlyType::Int8) ||
+        (p.type != PlyType::Int32 && p.type != PlyType::UInt32))
+        return false;
+    std::vector<long> idx;
+    for (size_t i = 0; i < e.count; ++i) {
+        if (c.left() < 1) {
+            *st = fail(path, "PLY " + e.name + " " + std::to_string(i) + " is truncated or malformed");
+            return true;
+        }
+        const long count = p.countType == PlyType::UInt8 ? long(*c.p) : long(int8_t(*c.p));
+        ++c.p;
+        if (count < 0 || size_t(count) > c.left() / 4) {
+            *st = fail(path, "PLY " + e.name + " " + std::to_string(i) + " has a list of " + std::to_string(count) +
+                                 " entries");
+            return true;
+        }
+        uint32_t v[3];
+        if (count == 3) {
+            std::memcpy(v, c.p, 12);
+            c.p += 12;
+            const bool inRange = p.type == PlyType::UInt32 ? v[0] < nv && v[1] < nv && v[2] < nv
+                                                           : int32_t(v[0]) >= 0 && int32_t(v[1]) >= 0 &&
+                                                                 int32_t(v[2]) >= 0 && v[0] < nv && v[1] < nv && v[2] < nv;
+            if (inRange) {
+                out->triangles.insert(out->triangles.end(), v, v + 3);
+                continue;
+            }
+            c.p -= 12;  // let the general path name the bad index
+        }
+        idx.resize(size_t(count));
+        for (long j = 0; j < count; ++j) {
+            uint32_t u;
+            std::memcpy(&u, c.p, 4);
+            c.p += 4;
+            idx[size_t(j)] = p.type == PlyType::Int32 ? long(int32_t(u)) : long(u);
+        }
+        if (!(*st = addPolygon(path, idx, nv, i, out)))
+            return true;
     }
     return true;
 }
@@ -277,6 +371,21 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
         const bool isVertex = &e == vertexElement, isFace = e.name == "face";
         if (isVertex)
             out->positions.reserve(e.count);
+        if (format == 1 && (isVertex || isFace)) {
+            Status st;
+            if (readPlyFast(path, e, isVertex, xyz, nv, c, out, &st)) {
+                if (!st)
+                    return st;
+                if (isVertex)
+                    nv = out->positions.size();
+                continue;
+            }
+        }
+        std::vector<char> wantedList(e.properties.size(), 0);  // the face's index list, decided once
+        for (size_t k = 0; k < e.properties.size(); ++k)
+            wantedList[k] = isFace && (e.properties[k].name == "vertex_indices" || e.properties[k].name == "vertex_index");
+        if (isFace)
+            out->triangles.reserve(out->triangles.size() + 3 * std::min(e.count, c.left() / 4));
         std::vector<double> values;
         std::vector<long> idx;
         for (size_t i = 0; i < e.count; ++i) {
@@ -303,7 +412,7 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
                     (format != 0 && size_t(count) > c.left() / plySize(prop.type)))
                     return fail(path, "PLY " + e.name + " " + std::to_string(i) + " has a list of " +
                                           std::to_string(count) + " entries");
-                const bool wanted = isFace && (prop.name == "vertex_indices" || prop.name == "vertex_index");
+                const bool wanted = wantedList[k] != 0;
                 if (wanted)
                     idx.clear();
                 for (long j = 0; j < count; ++j) {

@@ -33,8 +33,11 @@ Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::
                              int expectWidth = 0, int expectHeight = 0, size_t maxTexels = 0);
 
 /// Writes map's texels (not decoded: factor/offset live in the rig) as one
-/// "Y" channel, ZIP-compressed, atomically.
-Status writeDisplacementExr(const std::filesystem::path& path, const DisplacementMap& map, ExrPixelType type = ExrPixelType::Half);
+/// "Y" channel, ZIP-compressed, atomically.  threads > 1 compresses line
+/// blocks on OpenEXR's global thread pool, which is grown to that size if
+/// smaller (process-wide state of OpenEXR's; it is never shrunk).
+Status writeDisplacementExr(const std::filesystem::path& path, const DisplacementMap& map,
+                            ExrPixelType type = ExrPixelType::Half, int threads = 1);
 
 }  // namespace io
 }  // namespace strata
