@@ -78,7 +78,7 @@ int runCase(const Case& c, int threads, int size)
     }
     const double w0 = bench::nowMs();
     const std::string tmp = "/tmp/strata_bench_bake_" + std::to_string(::getpid()) + ".exr";
-    if (!io::writeDisplacementExr(tmp, map).isOk())
+    if (!io::writeDisplacementExr(tmp, map, io::ExrPixelType::Half, threads).isOk())
         return 1;
     const double writeMs = bench::nowMs() - w0;
     std::remove(tmp.c_str());
@@ -239,8 +239,10 @@ int main(int argc, char** argv)
                 std::printf(" %s failed\n", c.name.c_str());
             std::fflush(stdout);
         }
-    std::remove(generated.c_str());
-    std::remove(quarter.c_str());
+    if (!std::getenv("STRATA_BENCH_KEEP")) {
+        std::remove(generated.c_str());
+        std::remove(quarter.c_str());
+    }
     if (!onlyCase.empty())
         return jsonPath.empty() || jsonRows.write(jsonPath) ? 0 : 1;
 

@@ -664,7 +664,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         rig.displacement.recommendedLevel = recommended;
         if (writeExr)
             outputs.write(base + ".exr", [&](const std::string& p) {
-                return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half);
+                return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half,
+                                                options.threads);
             });
         if (pngBits) {
             std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
