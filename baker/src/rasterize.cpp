@@ -27,7 +27,23 @@ struct Piece {
     uint32_t face;
     glm::vec2 t[3];
     float d[3];
+    int x0, x1, y0, y1;  // texels that can lie in both the piece and its control UV triangle
 };
+
+// The texel range a piece can cover inside its control triangle `ct`
+// (texel units); false when it is empty.
+bool clipRange(Piece* p, const glm::vec2 ct[3], int size)
+{
+    const float minY = std::max(std::min({p->t[0].y, p->t[1].y, p->t[2].y}), std::min({ct[0].y, ct[1].y, ct[2].y}));
+    const float maxY = std::min(std::max({p->t[0].y, p->t[1].y, p->t[2].y}), std::max({ct[0].y, ct[1].y, ct[2].y}));
+    const float minX = std::max(std::min({p->t[0].x, p->t[1].x, p->t[2].x}), std::min({ct[0].x, ct[1].x, ct[2].x}));
+    const float maxX = std::min(std::max({p->t[0].x, p->t[1].x, p->t[2].x}), std::max({ct[0].x, ct[1].x, ct[2].x}));
+    p->y0 = std::max(0, int(std::floor(minY - 0.5f)));
+    p->y1 = std::min(size - 1, int(std::ceil(maxY - 0.5f)));
+    p->x0 = std::max(0, int(std::floor(minX - 0.5f)));
+    p->x1 = std::min(size - 1, int(std::ceil(maxX - 0.5f)));
+    return p->y0 <= p->y1 && p->x0 <= p->x1;
+}
 
 // Edge function with exact antisymmetry: the edge is evaluated from its
 // lexicographically smaller endpoint, so E(a, b, p) == -E(b, a, p) bit for bit
@@ -201,11 +217,16 @@ void rasterize(RasterResult* out, const SurfaceIndex& index, const glm::vec3* hi
     r.distance.assign(size_t(size) * size_t(size), 0.0f);
     r.layers.assign(size_t(size) * size_t(size), 0);
 
-    // 1. Pieces, built in parallel per contiguous triangle range, then
-    //    concatenated in triangle order.
-    std::vector<std::vector<Piece>> chunkPieces(static_cast<size_t>(threads));
-    std::vector<RasterStats> chunkStats(static_cast<size_t>(threads));
+    // 1. Pieces, built in parallel per contiguous triangle range, each
+    //    clipped to its control triangle's texel box and filed under the row
+    //    bands (one per thread) it reaches.
+    const size_t bands = size_t(threads), bandRows = (size_t(size) + bands - 1) / bands;
+    std::vector<std::vector<std::vector<Piece>>> binned(bands, std::vector<std::vector<Piece>>(bands));
+    std::vector<RasterStats> chunkStats(bands);
+    std::vector<size_t> chunkPieces(bands, 0);
     parallelChunks(highFaceCount, threads, [&](int t, size_t b, size_t e) {
+        std::vector<Piece> pieces;
+        std::vector<std::vector<Piece>>& filed = binned[size_t(t)];
         for (size_t f = b; f < e; ++f) {
             const uint32_t* tri = &highTriangles[3 * f];
             const glm::vec3 n = glm::cross(highPositions[tri[1]] - highPositions[tri[0]],
@@ -214,61 +235,65 @@ void rasterize(RasterResult* out, const SurfaceIndex& index, const glm::vec3* hi
                 ++chunkStats[size_t(t)].degenerateTriangles;
                 continue;
             }
-            triangulatePieces(index, highPositions, tri, mapping, double(size), &chunkPieces[size_t(t)],
-                              &chunkStats[size_t(t)]);
+            pieces.clear();
+            triangulatePieces(index, highPositions, tri, mapping, double(size), &pieces, &chunkStats[size_t(t)]);
+            chunkPieces[size_t(t)] += pieces.size();
+            for (Piece& p : pieces) {
+                glm::vec2 ct[3];
+                for (int k = 0; k < 3; ++k)
+                    ct[k] = s.uvs[s.uvIndices[3 * size_t(p.face) + k]] * float(size);
+                if (!clipRange(&p, ct, size))
+                    continue;
+                for (size_t band = size_t(p.y0) / bandRows; band <= size_t(p.y1) / bandRows; ++band)
+                    filed[band].push_back(p);
+            }
         }
     });
-    std::vector<Piece> pieces;
-    for (int t = 0; t < threads; ++t) {
-        pieces.insert(pieces.end(), chunkPieces[size_t(t)].begin(), chunkPieces[size_t(t)].end());
-        r.stats.degenerateTriangles += chunkStats[size_t(t)].degenerateTriangles;
-        r.stats.borderTriangles += chunkStats[size_t(t)].borderTriangles;
-    }
     r.stats.triangles = highFaceCount;
-    r.stats.pieces = pieces.size();
+    for (size_t t = 0; t < bands; ++t) {
+        r.stats.degenerateTriangles += chunkStats[t].degenerateTriangles;
+        r.stats.borderTriangles += chunkStats[t].borderTriangles;
+        r.stats.pieces += chunkPieces[t];
+    }
 
-    // 2. Raster, rows split into bands: every band sees every piece, writes
-    //    only its rows; per-texel updates are order-independent.
-    parallelChunks(size_t(size), threads, [&](int, size_t rowBegin, size_t rowEnd) {
+    // 2. Raster, one row band per thread: a band draws the pieces filed
+    //    under it, writes only its rows; per-texel updates are
+    //    order-independent.
+    parallelChunks(size_t(size), threads, [&](int band, size_t rowBegin, size_t rowEnd) {
         const int y0 = int(rowBegin), y1 = int(rowEnd);
-        for (const Piece& p : pieces) {
-            glm::vec2 ct[3];
-            for (int k = 0; k < 3; ++k)
-                ct[k] = s.uvs[s.uvIndices[3 * size_t(p.face) + k]] * float(size);
-            // Texels inside both the piece and its control UV triangle.
-            const float minY = std::max(std::min({p.t[0].y, p.t[1].y, p.t[2].y}), std::min({ct[0].y, ct[1].y, ct[2].y}));
-            const float maxY = std::min(std::max({p.t[0].y, p.t[1].y, p.t[2].y}), std::max({ct[0].y, ct[1].y, ct[2].y}));
-            const float minX = std::max(std::min({p.t[0].x, p.t[1].x, p.t[2].x}), std::min({ct[0].x, ct[1].x, ct[2].x}));
-            const float maxX = std::min(std::max({p.t[0].x, p.t[1].x, p.t[2].x}), std::max({ct[0].x, ct[1].x, ct[2].x}));
-            const int ya = std::max(y0, int(std::floor(minY - 0.5f))), yb = std::min(y1 - 1, int(std::ceil(maxY - 0.5f)));
-            const int xa = std::max(0, int(std::floor(minX - 0.5f))), xb = std::min(size - 1, int(std::ceil(maxX - 0.5f)));
-            if (ya > yb || xa > xb)
-                continue;
-            const Triangle2 piece = makeTriangle(p.t);
-            if (!(piece.area > 0.0))
-                continue;
-            const Triangle2 control = makeTriangle(ct);
-            for (int y = ya; y <= yb; ++y)
-                for (int x = xa; x <= xb; ++x) {
-                    const glm::dvec2 c(x + 0.5, y + 0.5);
-                    double w[3], wc[3];
-                    if (!inside(piece, c, w) || !inside(control, c, wc))
-                        continue;
-                    const double d = interpolateDistance(w, p.d, piece.area);
-                    const size_t i = size_t(y) * size_t(size) + size_t(x);
-                    float& dst = r.distance[i];
-                    uint16_t& layers = r.layers[i];
-                    const float v = float(d);
-                    if (layers == 0)
-                        dst = v;
-                    else if (policy == OverlapPolicy::Max)
-                        dst = std::max(dst, v);
-                    else if (std::fabs(v) < std::fabs(dst) || (std::fabs(v) == std::fabs(dst) && v > dst))
-                        dst = v;
-                    if (layers < 0xffff)
-                        ++layers;
-                }
-        }
+        for (size_t t = 0; t < bands; ++t)
+            for (const Piece& p : binned[t][size_t(band)]) {
+                const int ya = std::max(y0, p.y0), yb = std::min(y1 - 1, p.y1);
+                if (ya > yb)
+                    continue;
+                const Triangle2 piece = makeTriangle(p.t);
+                if (!(piece.area > 0.0))
+                    continue;
+                glm::vec2 ct[3];
+                for (int k = 0; k < 3; ++k)
+                    ct[k] = s.uvs[s.uvIndices[3 * size_t(p.face) + k]] * float(size);
+                const Triangle2 control = makeTriangle(ct);
+                for (int y = ya; y <= yb; ++y)
+                    for (int x = p.x0; x <= p.x1; ++x) {
+                        const glm::dvec2 c(x + 0.5, y + 0.5);
+                        double w[3], wc[3];
+                        if (!inside(piece, c, w) || !inside(control, c, wc))
+                            continue;
+                        const double d = interpolateDistance(w, p.d, piece.area);
+                        const size_t i = size_t(y) * size_t(size) + size_t(x);
+                        float& dst = r.distance[i];
+                        uint16_t& layers = r.layers[i];
+                        const float v = float(d);
+                        if (layers == 0)
+                            dst = v;
+                        else if (policy == OverlapPolicy::Max)
+                            dst = std::max(dst, v);
+                        else if (std::fabs(v) < std::fabs(dst) || (std::fabs(v) == std::fabs(dst) && v > dst))
+                            dst = v;
+                        if (layers < 0xffff)
+                            ++layers;
+                    }
+            }
     });
     for (uint16_t l : r.layers) {
         r.stats.coveredTexels += l > 0;
