@@ -252,7 +252,7 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
         }
     if (dmin > dmax)
         return Status(StatusCode::InvalidData, "no texel was covered: the high-resolution mesh maps outside the UVs");
-    dilate(&raster.distance, &valid, rep.size, options.gutter, 0.5f * (dmin + dmax));
+    dilate(&raster.distance, &valid, rep.size, options.gutter, 0.5f * (dmin + dmax), options.threads);
     rep.times.dilate = msSince(t0);
 
     rep.overlapFraction = rep.raster.coveredTexels ? double(rep.raster.multiLayerTexels) / double(rep.raster.coveredTexels)

@@ -1,5 +1,6 @@
 // Gutter dilation by linear extrapolation.
 #include "strata/baker/dilate.h"
+#include "parallel.h"
 
 #include <algorithm>
 #include <cstddef>
@@ -7,50 +8,60 @@
 namespace strata {
 namespace baker {
 
-void dilate(std::vector<float>* values, std::vector<uint8_t>* valid, int size, int passes, float fill)
+void dilate(std::vector<float>* values, std::vector<uint8_t>* valid, int size, int passes, float fill, int threads)
 {
     std::vector<float>& v = *values;
     std::vector<uint8_t>& ok = *valid;
     static const int dx[8] = {1, -1, 0, 0, 1, 1, -1, -1}, dy[8] = {0, 0, 1, -1, 1, -1, 1, -1};
     auto at = [&](int x, int y) { return size_t(y) * size_t(size) + size_t(x); };
     // Candidates: unset texels next to a set one.  Each pass only visits
-    // those, so the cost follows the gutter area, not the image.
-    std::vector<size_t> candidates, next;
+    // those, so the cost follows the gutter area, not the image.  Found per
+    // row band and joined in band order: the serial scan's order.
+    threads = std::max(1, threads);
+    std::vector<std::vector<size_t>> found(static_cast<size_t>(threads));
     std::vector<uint8_t> queued(v.size(), 0);
-    for (int y = 0; y < size; ++y)
-        for (int x = 0; x < size; ++x) {
-            if (ok[at(x, y)])
-                continue;
-            for (int k = 0; k < 8; ++k) {
-                const int x1 = x + dx[k], y1 = y + dy[k];
-                if (x1 >= 0 && y1 >= 0 && x1 < size && y1 < size && ok[at(x1, y1)]) {
-                    candidates.push_back(at(x, y));
-                    queued[at(x, y)] = 1;
-                    break;
+    parallelChunks(size_t(size), threads, [&](int band, size_t rowBegin, size_t rowEnd) {
+        for (int y = int(rowBegin); y < int(rowEnd); ++y)
+            for (int x = 0; x < size; ++x) {
+                if (ok[at(x, y)])
+                    continue;
+                for (int k = 0; k < 8; ++k) {
+                    const int x1 = x + dx[k], y1 = y + dy[k];
+                    if (x1 >= 0 && y1 >= 0 && x1 < size && y1 < size && ok[at(x1, y1)]) {
+                        found[size_t(band)].push_back(at(x, y));
+                        queued[at(x, y)] = 1;
+                        break;
+                    }
                 }
             }
-        }
+    });
+    std::vector<size_t> candidates, next;
+    for (const std::vector<size_t>& f : found)
+        candidates.insert(candidates.end(), f.begin(), f.end());
+    found.clear();
     std::vector<float> newValues;
     for (int pass = 0; pass < passes && !candidates.empty(); ++pass) {
         newValues.assign(candidates.size(), 0.0f);
-        for (size_t c = 0; c < candidates.size(); ++c) {
-            const int x = int(candidates[c] % size_t(size)), y = int(candidates[c] / size_t(size));
-            double sum = 0.0;
-            int n = 0;
-            for (int k = 0; k < 8; ++k) {
-                const int x1 = x + dx[k], y1 = y + dy[k];
-                if (x1 < 0 || y1 < 0 || x1 >= size || y1 >= size || !ok[at(x1, y1)])
-                    continue;
-                const float v1 = v[at(x1, y1)];
-                const int x2 = x1 + dx[k], y2 = y1 + dy[k];
-                if (x2 >= 0 && y2 >= 0 && x2 < size && y2 < size && ok[at(x2, y2)])
-                    sum += 2.0 * double(v1) - double(v[at(x2, y2)]);  // linear extrapolation
-                else
-                    sum += double(v1);
-                ++n;
+        parallelFor(candidates.size(), threads, [&](size_t cb, size_t ce) {
+            for (size_t c = cb; c < ce; ++c) {
+                const int x = int(candidates[c] % size_t(size)), y = int(candidates[c] / size_t(size));
+                double sum = 0.0;
+                int n = 0;
+                for (int k = 0; k < 8; ++k) {
+                    const int x1 = x + dx[k], y1 = y + dy[k];
+                    if (x1 < 0 || y1 < 0 || x1 >= size || y1 >= size || !ok[at(x1, y1)])
+                        continue;
+                    const float v1 = v[at(x1, y1)];
+                    const int x2 = x1 + dx[k], y2 = y1 + dy[k];
+                    if (x2 >= 0 && y2 >= 0 && x2 < size && y2 < size && ok[at(x2, y2)])
+                        sum += 2.0 * double(v1) - double(v[at(x2, y2)]);  // linear extrapolation
+                    else
+                        sum += double(v1);
+                    ++n;
+                }
+                newValues[c] = float(sum / n);
             }
-            newValues[c] = float(sum / n);
-        }
+        });
         // Commit the pass (Jacobi: every value above read the previous state).
         next.clear();
         for (size_t c = 0; c < candidates.size(); ++c) {

@@ -13,8 +13,10 @@ namespace baker {
 /// texel is the mean, over the 8 directions with a valid neighbour, of the
 /// linear extrapolation 2 v1 - v2 (or v1 where the next texel is unset), so
 /// bilinear samples at chart borders stay second-order accurate.  Texels still
-/// unset afterwards are set to `fill`.  Deterministic (Jacobi passes).
-void dilate(std::vector<float>* values, std::vector<uint8_t>* valid, int size, int passes, float fill);
+/// unset afterwards are set to `fill`.  Deterministic (Jacobi passes): the
+/// same result for any number of threads.
+void dilate(std::vector<float>* values, std::vector<uint8_t>* valid, int size, int passes, float fill,
+            int threads = 1);
 
 }  // namespace baker
 }  // namespace strata
