@@ -139,8 +139,10 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
         stack.push_back({l, r.first, mid - r.first, r.depth + 1});
     }
     itemBoxes_.resize(n);
-    for (size_t i = 0; i < n; ++i)
-        itemBoxes_[i] = boxes[items_[i]];
+    parallelFor(n, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i)
+            itemBoxes_[i] = boxes[items_[i]];
+    });
     // Children always come after their parent: fill boxes in reverse order.
     for (size_t i = nodes_.size(); i-- > 0;) {
         Node& node = nodes_[i];
