@@ -284,11 +284,14 @@ TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
         // chart per triangle, every vertex is on one).
         std::vector<std::vector<float>> samples(plan->refinedVertexCount());
         std::vector<std::vector<uint32_t>> seen(plan->refinedVertexCount());
+        std::vector<glm::vec2> uvs;
+        std::vector<uint32_t> uvIndices;
+        plan->refinedUVs(&uvs, &uvIndices);
         for (size_t c = 0; c < plan->refinedTriangles().size(); ++c) {
-            const uint32_t v = plan->refinedTriangles()[c], u = plan->refinedUVIndices()[c];
+            const uint32_t v = plan->refinedTriangles()[c], u = uvIndices[c];
             if (std::find(seen[v].begin(), seen[v].end(), u) == seen[v].end()) {
                 seen[v].push_back(u);
-                samples[v].push_back(sampleDisplacement(map, plan->refinedUVs()[u]));
+                samples[v].push_back(sampleDisplacement(map, uvs[u]));
             }
         }
         for (size_t v = 0; v < plan->refinedVertexCount(); ++v) {

@@ -14,7 +14,9 @@
 #include <opensubdiv/far/topologyDescriptor.h>
 #include <opensubdiv/far/topologyRefinerFactory.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 using namespace strata;
@@ -65,7 +67,11 @@ void checkCounts(const ControlMesh& m)
         ASSERT_TRUE(plan);
         EXPECT_EQ(plan->refinedFaceCount(), m.faceCount() << (2 * level)) << "level " << level;
         EXPECT_EQ(plan->refinedVertexCount(), V) << "level " << level;
-        EXPECT_EQ(plan->refinedUVs().size(), UV) << "level " << level;
+        std::vector<glm::vec2> uvs;
+        std::vector<uint32_t> uvIndices;
+        plan->refinedUVs(&uvs, &uvIndices);
+        EXPECT_EQ(uvs.size(), UV) << "level " << level;
+        EXPECT_EQ(uvIndices.size(), m.hasUVs() ? 3 * plan->refinedFaceCount() : 0u) << "level " << level;
         EXPECT_EQ(plan->refinedTriangles().size(), 3 * plan->refinedFaceCount());
         // One midpoint per edge, 3 new edges inside each face, 4 child faces.
         V += E;
@@ -98,7 +104,142 @@ void checkLinearOnControlTriangles(const ControlMesh& m, int maxLevel)
     }
 }
 
+// OpenSubdiv's face-varying refinement of the UVs (linear, level by level):
+// per refined corner, its value index and value.
+void osdFaceVaryingUVs(const ControlMesh& m, int level, std::vector<uint32_t>* ids, std::vector<glm::vec2>* values)
+{
+    using namespace OpenSubdiv;
+    std::vector<int> vpf(m.faceCount(), 3), fv(m.triangles.begin(), m.triangles.end()),
+        uvi(m.uvIndices.begin(), m.uvIndices.end());
+    Far::TopologyDescriptor desc;
+    desc.numVertices = int(m.positions.size());
+    desc.numFaces = int(m.faceCount());
+    desc.numVertsPerFace = vpf.data();
+    desc.vertIndicesPerFace = fv.data();
+    Far::TopologyDescriptor::FVarChannel channel;
+    channel.numValues = int(m.uvs.size());
+    channel.valueIndices = uvi.data();
+    desc.numFVarChannels = 1;
+    desc.fvarChannels = &channel;
+    Sdc::Options opts;
+    opts.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_AND_CORNER);
+    opts.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_ALL);
+    using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+    std::unique_ptr<Far::TopologyRefiner> r(Factory::Create(desc, Factory::Options(Sdc::SCHEME_LOOP, opts)));
+    Far::TopologyRefiner::UniformOptions uniform(level);
+    r->RefineUniform(uniform);
+    struct V {
+        glm::vec2 p;
+        void Clear() { p = glm::vec2(0.0f); }
+        void AddWithWeight(const V& s, float w) { p += w * s.p; }
+    };
+    std::vector<V> src(m.uvs.size());
+    for (size_t i = 0; i < m.uvs.size(); ++i)
+        src[i].p = m.uvs[i];
+    Far::PrimvarRefiner pr(*r);
+    for (int l = 1; l <= level; ++l) {
+        std::vector<V> dst(size_t(r->GetLevel(l).GetNumFVarValues(0)));
+        V* in = src.data();
+        V* out = dst.data();
+        pr.InterpolateFaceVarying(l, in, out, 0);
+        src.swap(dst);
+    }
+    const Far::TopologyLevel& last = r->GetLevel(level);
+    ids->clear();
+    for (int f = 0; f < last.GetNumFaces(); ++f)
+        for (int c : last.GetFaceFVarValues(f, 0))
+            ids->push_back(uint32_t(c));
+    values->resize(src.size());
+    for (size_t i = 0; i < src.size(); ++i)
+        (*values)[i] = src[i].p;
+}
+
+// The plan's refined UVs against OpenSubdiv's: the same bits at every corner,
+// and the same values shared (a one-to-one map between the two numberings).
+void checkUVsAgainstOpenSubdiv(const ControlMesh& m, int maxLevel)
+{
+    for (int level = 0; level <= maxLevel; ++level) {
+        auto plan = makePlan(m, Scheme::Linear, level);
+        ASSERT_TRUE(plan);
+        std::vector<glm::vec2> uvs, refUVs;
+        std::vector<uint32_t> ids, refIds;
+        plan->refinedUVs(&uvs, &ids);
+        osdFaceVaryingUVs(m, level, &refIds, &refUVs);
+        ASSERT_EQ(ids.size(), refIds.size()) << "level " << level;
+        ASSERT_EQ(uvs.size(), refUVs.size()) << "level " << level;
+        std::vector<uint32_t> toRef(uvs.size(), ~0u), fromRef(refUVs.size(), ~0u);
+        size_t differ = 0, unshared = 0;
+        for (size_t c = 0; c < ids.size(); ++c) {
+            differ += std::memcmp(&uvs[ids[c]], &refUVs[refIds[c]], sizeof(glm::vec2)) != 0;
+            uint32_t& a = toRef[ids[c]];
+            uint32_t& b = fromRef[refIds[c]];
+            unshared += (a != ~0u && a != refIds[c]) || (b != ~0u && b != ids[c]);
+            a = refIds[c];
+            b = ids[c];
+        }
+        EXPECT_EQ(differ, 0u) << "level " << level;
+        EXPECT_EQ(unshared, 0u) << "level " << level;
+        // Each vertex's canonical UV is its first corner's.
+        std::vector<uint8_t> seen(plan->refinedVertexCount(), 0);
+        std::vector<glm::vec2> sampleUVs;
+        plan->sampleUVs(&sampleUVs);
+        size_t wrong = 0;
+        for (size_t c = 0; c < ids.size(); ++c) {
+            const uint32_t v = plan->refinedTriangles()[c];
+            if (!seen[v]++)
+                wrong += std::memcmp(&sampleUVs[v], &uvs[ids[c]], sizeof(glm::vec2)) != 0;
+        }
+        EXPECT_EQ(wrong, 0u) << "level " << level;
+    }
+}
+
 }  // namespace
+
+TEST(Plan, RefinedUVsAreOpenSubdivsFaceVaryingRefinement)
+{
+    ControlMesh square = examples::makeSquare();  // open: boundary edges
+    checkUVsAgainstOpenSubdiv(square, 4);
+    ControlMesh atlased = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&atlased, {512, 2}).isOk());
+    checkUVsAgainstOpenSubdiv(atlased, 4);  // every edge a UV seam
+    // A sphere cut along one meridian: continuous UVs except across the cut.
+    ControlMesh sphere = examples::makeIcosphere(2);
+    sphere.uvIndices.clear();
+    sphere.uvs.clear();
+    for (size_t f = 0; f < sphere.faceCount(); ++f) {
+        glm::vec3 p[3];
+        for (int k = 0; k < 3; ++k)
+            p[k] = sphere.positions[sphere.triangles[3 * f + size_t(k)]];
+        const bool wraps = (p[0].x < 0.0f || p[1].x < 0.0f || p[2].x < 0.0f) &&
+                           (p[0].z * p[1].z < 0.0f || p[1].z * p[2].z < 0.0f || p[2].z * p[0].z < 0.0f);
+        for (int k = 0; k < 3; ++k) {
+            float u = std::atan2(p[k].z, p[k].x) / 6.2831853f + 0.5f;
+            if (wraps && p[k].z < 0.0f)
+                u += 1.0f;  // the far side of the cut, as its own UV
+            sphere.uvIndices.push_back(uint32_t(sphere.uvs.size()));
+            sphere.uvs.emplace_back(u, 0.5f + 0.5f * p[k].y);
+        }
+    }
+    // Weld equal (vertex, UV) corners so the layout is continuous away from the cut.
+    std::vector<std::pair<std::pair<uint32_t, std::pair<float, float>>, uint32_t>> keyed;
+    for (size_t c = 0; c < sphere.uvIndices.size(); ++c)
+        keyed.push_back({{sphere.triangles[c], {sphere.uvs[c].x, sphere.uvs[c].y}}, uint32_t(c)});
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<glm::vec2> welded;
+    for (size_t i = 0; i < keyed.size(); ++i) {
+        if (i == 0 || keyed[i].first != keyed[i - 1].first)
+            welded.emplace_back(keyed[i].first.second.first, keyed[i].first.second.second);
+        sphere.uvIndices[keyed[i].second] = uint32_t(welded.size() - 1);
+    }
+    sphere.uvs = welded;
+    checkUVsAgainstOpenSubdiv(sphere, 4);
+}
+
+TEST(Plan, RefinedUVsOnSpotAreOpenSubdivs)
+{
+    STRATA_REQUIRE_DATA(path, "spot_control_mesh.obj");
+    checkUVsAgainstOpenSubdiv(spotOrSkip(path), 3);
+}
 
 TEST(Plan, CountsFollowTheSubdivisionFormulas)
 {

@@ -150,8 +150,10 @@ TEST(VertexDisplacements, RasterisedMapMatchesTheValuesInsideCharts)
     ASSERT_TRUE(Plan::create(&plan, mesh, Scheme::Linear, level).isOk());
     auto f = [](glm::vec2 uv) { return 0.25f * uv.x - 0.5f * uv.y + 0.125f; };
     std::vector<float> values(plan->refinedVertexCount());
+    std::vector<glm::vec2> sampleUVs;
+    plan->sampleUVs(&sampleUVs);
     for (size_t v = 0; v < values.size(); ++v)
-        values[v] = f(plan->sampleUVs()[v]);
+        values[v] = f(sampleUVs[v]);
     DisplacementMap map;
     map.width = 37;
     map.height = 29;
@@ -166,7 +168,7 @@ TEST(VertexDisplacements, RasterisedMapMatchesTheValuesInsideCharts)
     // linear function), wherever the clamp to the border texels does not reach.
     size_t inside = 0;
     for (size_t v = 0; v < values.size(); ++v) {
-        const glm::vec2 uv = plan->sampleUVs()[v];
+        const glm::vec2 uv = sampleUVs[v];
         if (uv.x * 37.0f < 0.5f || uv.x * 37.0f > 36.5f || uv.y * 29.0f < 0.5f || uv.y * 29.0f > 28.5f)
             continue;
         ++inside;
@@ -186,14 +188,18 @@ TEST(VertexDisplacements, RigAppliesItsValuesAtAnyLevel)
     rig.displacement.vertexLevel = 1;
     std::unique_ptr<Plan> stored;
     ASSERT_TRUE(Plan::create(&stored, rig.mesh, Scheme::Linear, 1).isOk());
-    for (const glm::vec2& uv : stored->sampleUVs())
+    std::vector<glm::vec2> storedUVs;
+    stored->sampleUVs(&storedUVs);
+    for (const glm::vec2& uv : storedUVs)
         rig.displacement.vertexValues.push_back(uv.x * uv.y);  // bilinear: not linear inside a cell
     for (int level = 0; level <= 3; ++level) {
         std::unique_ptr<Plan> plan;
         ASSERT_TRUE(Plan::create(&plan, rig.mesh, Scheme::Linear, level).isOk());
         ASSERT_TRUE(applyRigDisplacement(plan.get(), rig, nullptr, 2.0f).isOk());
+        std::vector<glm::vec2> uvs;
+        plan->sampleUVs(&uvs);
         for (size_t v = 0; v < plan->refinedVertexCount(); ++v) {
-            const glm::vec2 uv = plan->sampleUVs()[v];
+            const glm::vec2 uv = uvs[v];
             if (level <= 1)  // the stored vertices: their own value
                 ASSERT_NEAR(plan->displacements()[v], 2.0f * uv.x * uv.y, 1e-6f) << level << " " << v;
             else  // between them: within the bilinear's deviation from its interpolant

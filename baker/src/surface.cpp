@@ -45,8 +45,7 @@ Status buildBakeSurface(BakeSurface* out, const ControlMesh& control, Scheme sch
                                   control.positions.size())))
             return st;
         s.triangles = plan->refinedTriangles();
-        s.uvs = plan->refinedUVs();
-        s.uvIndices = plan->refinedUVIndices();
+        plan->refinedUVs(&s.uvs, &s.uvIndices);
     }
     // Vertex -> face rings.
     const size_t nv = s.positions.size();

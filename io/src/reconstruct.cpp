@@ -71,10 +71,13 @@ Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstr
     view.vertexCount = rec.positions.size();
     view.triangles = plan.refinedTriangles().data();
     view.faceCount = plan.refinedFaceCount();
-    if (!plan.refinedUVs().empty()) {
-        view.uvs = plan.refinedUVs().data();
-        view.uvCount = plan.refinedUVs().size();
-        view.uvIndices = plan.refinedUVIndices().data();
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> uvIndices;
+    plan.refinedUVs(&uvs, &uvIndices);
+    if (!uvs.empty()) {
+        view.uvs = uvs.data();
+        view.uvCount = uvs.size();
+        view.uvIndices = uvIndices.data();
     }
     return writeMesh(path, view);
 }

@@ -1279,8 +1279,9 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
         // A vertex on a UV seam has one sample per chart around it: the
         // median, so that no single badly covered chart corner decides.
         const std::vector<uint32_t>& tri = plan->refinedTriangles();
-        const std::vector<uint32_t>& uvi = plan->refinedUVIndices();
-        const std::vector<glm::vec2>& uvs = plan->refinedUVs();
+        std::vector<glm::vec2> uvs;
+        std::vector<uint32_t> uvi;
+        plan->refinedUVs(&uvs, &uvi);
         std::vector<uint32_t> firstUV(values.size(), ~0u);
         std::vector<uint8_t> seam(values.size(), 0);
         for (size_t c = 0; c < tri.size(); ++c) {

@@ -19,10 +19,13 @@
 #include <opensubdiv/far/topologyRefinerFactory.h>
 
 #include <glm/geometric.hpp>
+#include <glm/ext/vector_uint2_sized.hpp>
+#include <glm/vec2.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 namespace strata {
 
@@ -73,12 +76,16 @@ struct TopologyInput {
     std::vector<float> cornerWeights;
 };
 
-std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in)
+std::unique_ptr<Far::TopologyRefiner> createRefiner(const ControlMesh& mesh, bool allSharp, TopologyInput& in,
+                                                    bool withUVs = true)
 {
     const size_t nf = mesh.faceCount();
     in.vertsPerFace.assign(nf, 3);
     in.faceVerts.assign(mesh.triangles.begin(), mesh.triangles.end());
-    in.uvIndices.assign(mesh.uvIndices.begin(), mesh.uvIndices.end());
+    if (withUVs)
+        in.uvIndices.assign(mesh.uvIndices.begin(), mesh.uvIndices.end());
+    else
+        in.uvIndices.clear();
 
     Far::TopologyDescriptor desc;
     desc.numVertices = int(mesh.positions.size());
@@ -534,19 +541,19 @@ bool midpoint(const ControlWeights& a, const ControlWeights& b, ControlWeights* 
     return true;
 }
 
-}  // namespace
-
-Status Plan::buildLinear(Build& build)
+// Control weights of every refined vertex at `level` of a uniformly refined
+// refiner, level by level from the control vertices' own.
+Status refineWeights(const Far::TopologyRefiner& refiner, int level, size_t controlVertices,
+                     std::vector<ControlWeights>* out)
 {
-    const auto& [refiner, mesh, firstFace, firstCorner] = build;
-    const size_t nv = firstFace.size();
-    controlTriangles_ = mesh.triangles;
-    std::vector<ControlWeights> weights(controlVertexCount_), next;
+    std::vector<ControlWeights>& weights = *out;
+    std::vector<ControlWeights> next;
+    weights.resize(controlVertices);
     for (size_t v = 0; v < weights.size(); ++v)
         weights[v] = {{uint32_t(v), 0, 0}, {1.0f, 0.0f, 0.0f}, 1};
-    for (int level = 0; level < level_; ++level) {
-        const Far::TopologyLevel& parent = refiner.GetLevel(level);
-        next.assign(size_t(refiner.GetLevel(level + 1).GetNumVertices()), ControlWeights{{0, 0, 0}, {0, 0, 0}, 0});
+    for (int l = 0; l < level; ++l) {
+        const Far::TopologyLevel& parent = refiner.GetLevel(l);
+        next.assign(size_t(refiner.GetLevel(l + 1).GetNumVertices()), ControlWeights{{0, 0, 0}, {0, 0, 0}, 0});
         for (Far::Index v = 0; v < parent.GetNumVertices(); ++v) {
             const Far::Index child = parent.GetVertexChildVertex(v);
             if (child >= 0)
@@ -557,12 +564,58 @@ Status Plan::buildLinear(Build& build)
             const Far::ConstIndexArray ends = parent.GetEdgeVertices(e);
             if (child >= 0 && !midpoint(weights[size_t(ends[0])], weights[size_t(ends[1])], &next[size_t(child)]))
                 return Status(StatusCode::InvalidData, "refined edge " + std::to_string(e) + " at level " +
-                                                           std::to_string(level) + " spans two control faces");
+                                                           std::to_string(l) + " spans two control faces");
         }
         weights.swap(next);
     }
-    if (weights.size() != nv)
-        return Status(StatusCode::InvalidData, "refinement produced an unexpected number of vertices");
+    return Status::ok();
+}
+
+// The grid point (i, j) (barycentrics i / 2^level, j / 2^level) of each
+// corner of a control face's 4^level refined faces, in their order.  It is
+// the same for every face: uniform refinement numbers a face's children and
+// their corners by the face's own corners and edges.  Read off one triangle
+// refined by OpenSubdiv, its vertices' weights followed level by level.
+Status childCornerPattern(int level, std::vector<glm::u16vec2>* out)
+{
+    ControlMesh one;
+    one.positions = {glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f)};
+    one.triangles = {0, 1, 2};
+    std::unique_ptr<Far::TopologyRefiner> refiner = createUniformRefiner(one, level);
+    if (!refiner)
+        return Status(StatusCode::InvalidData, "OpenSubdiv rejected a single triangle");
+    std::vector<ControlWeights> weights;
+    if (Status st = refineWeights(*refiner, level, 3, &weights); !st)
+        return st;
+    const Far::TopologyLevel& last = refiner->GetLevel(level);
+    const float R = float(1u << level);
+    out->resize(3 * size_t(last.GetNumFaces()));
+    for (Far::Index f = 0; f < last.GetNumFaces(); ++f) {
+        Far::ConstIndexArray fv = last.GetFaceVertices(f);
+        for (int c = 0; c < 3; ++c) {
+            const ControlWeights& w = weights[size_t(fv[c])];
+            float b[3] = {0.0f, 0.0f, 0.0f};
+            for (int k = 0; k < w.n; ++k)
+                b[w.id[k]] = w.w[k];
+            (*out)[3 * size_t(f) + size_t(c)] = glm::u16vec2(uint16_t(b[1] * R), uint16_t(b[2] * R));
+        }
+    }
+    return Status::ok();
+}
+
+}  // namespace
+
+Status Plan::buildLinear(Build& build)
+{
+    const auto& [refiner, mesh, firstFace, firstCorner] = build;
+    (void)refiner;
+    const size_t nv = firstFace.size();
+    controlTriangles_ = mesh.triangles;
+    std::vector<glm::u16vec2> pattern;
+    if (Status st = childCornerPattern(level_, &pattern); !st)
+        return st;
+    const uint32_t R = 1u << level_, childMask = (1u << (2 * level_)) - 1;
+    const float step = 1.0f / float(R);
     samples_.resize(nv);
     isolated_.clear();
     for (size_t v = 0; v < nv; ++v) {
@@ -577,58 +630,226 @@ Status Plan::buildLinear(Build& build)
             continue;
         }
         const uint32_t face = firstFace[v] >> (2 * level_);
-        const uint32_t* corner = &controlTriangles_[3 * size_t(face)];
-        float b[3] = {0.0f, 0.0f, 0.0f};
-        bool inside = weights[v].n > 0;
-        for (int i = 0; i < weights[v].n && inside; ++i) {
-            const int k = corner[0] == weights[v].id[i] ? 0 : corner[1] == weights[v].id[i] ? 1
-                        : corner[2] == weights[v].id[i] ? 2 : -1;
-            inside = k >= 0 && weights[v].w[i] >= 0.0f;
-            if (inside)
-                b[k] = weights[v].w[i];
-        }
-        inside = inside && b[0] + b[1] + b[2] == 1.0f && b[0] == 1.0f - b[1] - b[2];
-        if (!inside)
+        const glm::u16vec2 p = pattern[3 * size_t(firstFace[v] & childMask) + firstCorner[v]];
+        // Control vertices keep their numbers and sit on their faces' corners.
+        const int corner = p == glm::u16vec2(0, 0) ? 0 : p == glm::u16vec2(R, 0) ? 1 : p == glm::u16vec2(0, R) ? 2 : -1;
+        if ((corner >= 0) != (v < controlVertexCount_) ||
+            (corner >= 0 && controlTriangles_[3 * size_t(face) + size_t(corner)] != v))
             return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
-                                                       " is not inside its parent control face " + std::to_string(face));
-        samples_[v] = {face, glm::vec2(b[1], b[2])};
+                                                       " does not follow uniform refinement in control face " +
+                                                       std::to_string(face));
+        samples_[v] = {face, glm::vec2(float(p.x) * step, float(p.y) * step)};
     }
     return Status::ok();
 }
 
 // Face-varying UVs, interpolated linearly (FVAR_LINEAR_ALL), and each
 // vertex's canonical UV: the value of its first corner.
+//
+// Computed per control face rather than by OpenSubdiv's face-varying
+// refinement, which cost more than the rest of the refinement: a face's
+// refined UVs are a triangular grid of R = 2^level steps, and the linear
+// rule makes each new grid point the mean of the two ends of the coarser
+// edge it splits, exactly as OpenSubdiv's level-by-level interpolation
+// (0.5 a + 0.5 b, rounded once), so the values are the same bits.  Values
+// are shared as OpenSubdiv shares them on a manifold UV layout: a control
+// face's corner keeps its control UV, a control edge's inner points are one
+// run of values per (edge, UV pair at its ends), so UV seams split them, and
+// a face's inner points are its own.  (OpenSubdiv also gives a UV separate
+// values at a vertex whose faces using it are not joined across UV-continuous
+// edges, and each face its own on a non-manifold edge; the bits agree.)
+// Numbered: control values, edge runs, face interiors.
+namespace {
+
+// Slot of grid point (i, j) (b1 = i / R, b2 = j / R) in a row-major
+// triangular grid of R + 1 rows.
+inline size_t gridSlot(uint32_t i, uint32_t j, uint32_t R)
+{
+    return size_t(j) * (R + 1) - size_t(j) * (j - 1) / 2 + i;
+}
+
+// The grid of one face's linearly refined values from its corner values.
+void refineGrid(std::vector<glm::vec2>* grid, const glm::vec2 corner[3], int level)
+{
+    const uint32_t R = 1u << level;
+    glm::vec2* g = grid->data();
+    g[gridSlot(0, 0, R)] = corner[0];
+    g[gridSlot(R, 0, R)] = corner[1];
+    g[gridSlot(0, R, R)] = corner[2];
+    for (int k = 1; k <= level; ++k) {
+        const uint32_t s = R >> k;  // this level's step; the parent grid's is 2 s
+        for (uint32_t j = 0; j <= R; j += s)
+            for (uint32_t i = 0; i + j <= R; i += s) {
+                const bool oi = (i / s) & 1, oj = (j / s) & 1;
+                if (!oi && !oj)
+                    continue;  // a coarser point
+                size_t a, b;
+                if (oi && !oj) {
+                    a = gridSlot(i - s, j, R);
+                    b = gridSlot(i + s, j, R);
+                } else if (!oi) {
+                    a = gridSlot(i, j - s, R);
+                    b = gridSlot(i, j + s, R);
+                } else {
+                    a = gridSlot(i - s, j + s, R);
+                    b = gridSlot(i + s, j - s, R);
+                }
+                g[gridSlot(i, j, R)] = 0.5f * g[a] + 0.5f * g[b];
+            }
+    }
+}
+
+}  // namespace
+
+// The plan keeps the control UVs; refinedUVs() and sampleUVs() make the rest.
 Status Plan::buildUVs(Build& build)
 {
-    const auto& [refiner, mesh, firstFace, firstCorner] = build;
-    const int uvChannel = 0;  // the sharp refiner's only face-varying channel
-    uvs_.clear();
-    uvIndices_.clear();
-    sampleUVs_.clear();
-    if (!mesh.hasUVs())
-        return Status::ok();
-    const Far::TopologyLevel& last = refiner.GetLevel(level_);
-    std::vector<Uv> values(mesh.uvs.size());
-    for (size_t i = 0; i < values.size(); ++i)
-        values[i].uv = mesh.uvs[i];
-    values = refineFaceVaryingValues(refiner, uvChannel, std::move(values));
-    if (values.size() != size_t(last.GetNumFVarValues(uvChannel)))
-        return Status(StatusCode::InvalidData, "OpenSubdiv refined an unexpected number of UVs");
-    uvs_.resize(values.size());
-    for (size_t i = 0; i < values.size(); ++i)
-        uvs_[i] = values[i].uv;
-    const size_t nf = triangles_.size() / 3, nv = firstFace.size();
-    uvIndices_.resize(nf * 3);
-    for (size_t f = 0; f < nf; ++f) {
-        Far::ConstIndexArray fvv = last.GetFaceFVarValues(Far::Index(f), uvChannel);
-        for (int c = 0; c < 3; ++c)
-            uvIndices_[3 * f + c] = uint32_t(fvv[c]);
+    const ControlMesh& mesh = build.mesh;
+    controlUVs_.clear();
+    controlUVIndices_.clear();
+    if (mesh.hasUVs()) {
+        controlUVs_ = mesh.uvs;
+        controlUVIndices_ = mesh.uvIndices;
     }
-    sampleUVs_.resize(nv);
-    for (size_t v = 0; v < nv; ++v)
-        sampleUVs_[v] = firstFace[v] == kNoControlFace ? glm::vec2(0.0f)
-                                                       : uvs_[uvIndices_[3 * size_t(firstFace[v]) + firstCorner[v]]];
     return Status::ok();
+}
+
+// Each vertex's canonical UV: the value of its first corner, which is its
+// first control face's grid point at its barycentrics there.  Vertices are
+// grouped by that face (a counting sort) so each face's grid is made once.
+void Plan::sampleUVs(std::vector<glm::vec2>* out) const
+{
+    out->clear();
+    if (!hasUVs())
+        return;
+    const uint32_t R = 1u << level_;
+    const size_t nfc = controlTriangles_.size() / 3, nv = samples_.size();
+    std::vector<uint32_t> start(nfc + 1, 0), order(nv);
+    for (const SampleLocation& at : samples_)
+        if (at.face != kNoControlFace)
+            ++start[size_t(at.face) + 1];
+    for (size_t f = 0; f < nfc; ++f)
+        start[f + 1] += start[f];
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t v = 0; v < nv; ++v)
+        if (samples_[v].face != kNoControlFace)
+            order[fill[samples_[v].face]++] = uint32_t(v);
+    out->assign(nv, glm::vec2(0.0f));
+    std::vector<glm::vec2> grid(size_t(R + 1) * (R + 2) / 2);
+    for (size_t f = 0; f < nfc; ++f) {
+        if (start[f] == start[f + 1])
+            continue;
+        const uint32_t* uv = &controlUVIndices_[3 * f];
+        const glm::vec2 corner[3] = {controlUVs_[uv[0]], controlUVs_[uv[1]], controlUVs_[uv[2]]};
+        refineGrid(&grid, corner, level_);
+        for (uint32_t k = start[f]; k < start[f + 1]; ++k) {
+            const glm::vec2 b = samples_[order[k]].bary * float(R);  // exact: dyadic
+            (*out)[order[k]] = grid[gridSlot(uint32_t(b.x), uint32_t(b.y), R)];
+        }
+    }
+}
+
+void Plan::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* indices) const
+{
+    values->clear();
+    indices->clear();
+    if (!hasUVs())
+        return;
+    const uint32_t R = 1u << level_;
+    const size_t nfc = controlTriangles_.size() / 3, childFaces = size_t(1) << (2 * level_);
+    const size_t gridPoints = size_t(R + 1) * (R + 2) / 2;
+    const size_t run = R - 1, inner = R >= 3 ? size_t(R - 1) * (R - 2) / 2 : 0;
+    const std::vector<uint32_t>& tri = controlTriangles_;
+    const std::vector<uint32_t>& uvi = controlUVIndices_;
+
+    // Edge runs: one per (control edge, UV pair at its ends), numbered in
+    // sorted key order; the run goes from the edge's lower vertex id.
+    struct EdgeKey {
+        uint32_t v0, v1, uv0, uv1, faceEdge;
+    };
+    std::vector<EdgeKey> keys(3 * nfc);
+    for (size_t f = 0; f < nfc; ++f)
+        for (int k = 0; k < 3; ++k) {
+            const size_t a = 3 * f + size_t(k), b = 3 * f + size_t(k + 1) % 3;
+            const bool up = tri[a] < tri[b];
+            const size_t lo = up ? a : b, hi = up ? b : a;
+            keys[a] = {tri[lo], tri[hi], uvi[lo], uvi[hi], uint32_t(a)};
+        }
+    std::sort(keys.begin(), keys.end(), [](const EdgeKey& x, const EdgeKey& y) {
+        return std::tie(x.v0, x.v1, x.uv0, x.uv1, x.faceEdge) < std::tie(y.v0, y.v1, y.uv0, y.uv1, y.faceEdge);
+    });
+    std::vector<uint32_t> edgeRun(3 * nfc);
+    uint32_t runs = 0;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        const EdgeKey& k = keys[i];
+        if (i > 0) {
+            const EdgeKey& p = keys[i - 1];
+            runs += !(p.v0 == k.v0 && p.v1 == k.v1 && p.uv0 == k.uv0 && p.uv1 == k.uv1);
+        }
+        edgeRun[k.faceEdge] = runs;
+    }
+    runs += keys.empty() ? 0 : 1;
+    const size_t edgeBase = controlUVs_.size(), faceBase = edgeBase + size_t(runs) * run;
+    values->resize(faceBase + nfc * inner);
+    std::copy(controlUVs_.begin(), controlUVs_.end(), values->begin());
+
+    // The grid point of each corner of a control face's refined faces: the
+    // same for every face (uniform refinement numbers child faces and their
+    // corners by the parent's), read from face 0's vertices' barycentrics.
+    std::vector<uint32_t> pattern(3 * childFaces);
+    for (size_t c = 0; c < pattern.size(); ++c) {
+        const SampleLocation& at = samples_[triangles_[c]];
+        float b[3] = {1.0f - at.bary.x - at.bary.y, at.bary.x, at.bary.y};
+        if (at.face != 0) {
+            // First sampled in a neighbour: its weights on the shared corners.
+            const uint32_t* other = &tri[3 * size_t(at.face)];
+            const float w[3] = {b[0], b[1], b[2]};
+            for (int k = 0; k < 3; ++k) {
+                b[k] = 0.0f;
+                for (int m = 0; m < 3; ++m)
+                    if (tri[size_t(k)] == other[m])
+                        b[k] = w[m];
+            }
+        }
+        pattern[c] = uint32_t(gridSlot(uint32_t(b[1] * float(R)), uint32_t(b[2] * float(R)), R));
+    }
+
+    std::vector<glm::vec2> grid(gridPoints);
+    std::vector<uint32_t> ids(gridPoints);
+    indices->resize(3 * nfc * childFaces);
+    for (size_t f = 0; f < nfc; ++f) {
+        const uint32_t* uv = &uvi[3 * f];
+        const glm::vec2 corner[3] = {controlUVs_[uv[0]], controlUVs_[uv[1]], controlUVs_[uv[2]]};
+        refineGrid(&grid, corner, level_);
+        uint32_t next = uint32_t(faceBase + f * inner);
+        for (uint32_t j = 0; j <= R; ++j)
+            for (uint32_t i = 0; i + j <= R; ++i) {
+                uint32_t id = 0;
+                int edge = -1;
+                uint32_t t = 0;  // steps from the edge's first corner in face order
+                if ((i == 0 && j == 0) || (i == R && j == 0) || (i == 0 && j == R))
+                    id = uv[i == R ? 1 : j == R ? 2 : 0];
+                else if (j == 0)
+                    edge = 0, t = i;
+                else if (i + j == R)
+                    edge = 1, t = j;
+                else if (i == 0)
+                    edge = 2, t = R - j;
+                else
+                    id = next++;
+                if (edge >= 0) {
+                    const uint32_t a = tri[3 * f + size_t(edge)], b = tri[3 * f + size_t(edge + 1) % 3];
+                    const uint32_t step = a < b ? t : R - t;
+                    id = uint32_t(edgeBase + size_t(edgeRun[3 * f + size_t(edge)]) * run + step - 1);
+                }
+                const size_t slot = gridSlot(i, j, R);
+                ids[slot] = id;
+                (*values)[id] = grid[slot];
+            }
+        uint32_t* dst = &(*indices)[3 * f * childFaces];
+        for (size_t c = 0; c < pattern.size(); ++c)
+            dst[c] = ids[pattern[c]];
+    }
 }
 
 // The smooth scheme: Loop limit stencils (position, d/ds, d/dt) at every
@@ -715,10 +936,10 @@ Status Plan::buildLimit(const ControlMesh& mesh)
 
 Status Plan::build(const ControlMesh& mesh)
 {
-    // One sharp refiner for the topology, with the UVs as face-varying data.
+    // One sharp refiner for the topology alone (buildUVs refines the UVs).
     TopologyInput input;
     std::unique_ptr<Far::TopologyRefiner> refiner =
-        createRefiner(mesh, /*allSharp=*/true, input);
+        createRefiner(mesh, /*allSharp=*/true, input, /*withUVs=*/false);
     if (!refiner)
         return Status(StatusCode::InvalidData, "OpenSubdiv rejected the control topology");
     if (level_ > 0) {
@@ -742,7 +963,8 @@ Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& 
 {
     if (!dst)
         return Status(StatusCode::InvalidArgument, "sampleDisplacements: null buffer");
-    const std::vector<glm::vec2>& uvs = plan.sampleUVs();
+    std::vector<glm::vec2> uvs;
+    plan.sampleUVs(&uvs);
     const std::vector<SampleLocation>& at = plan.sampleLocations();
     if (uvs.empty())
         return Status(StatusCode::InvalidArgument, "the control mesh has no UVs, so no displacement map can be applied");
@@ -910,7 +1132,7 @@ void Plan::computeShadingNormals(glm::vec3* dst, const glm::vec3* positions) con
 size_t Plan::memoryBytes() const
 {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-    return bytes(triangles_) + bytes(uvs_) + bytes(uvIndices_) + bytes(samples_) + bytes(sampleUVs_) +
+    return bytes(triangles_) + bytes(controlUVs_) + bytes(controlUVIndices_) + bytes(samples_) +
            bytes(displacements_) + bytes(controlTriangles_) + bytes(isolated_) + bytes(limitOffsets_) +
            bytes(limitIndices_) +
            bytes(limitWeights_);

@@ -33,14 +33,15 @@ Status rasterizeVertexDisplacements(DisplacementMap* map, const Plan& plan, cons
     if (w < 1 || h < 1 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize)
         return Status(StatusCode::InvalidArgument, "map size " + std::to_string(w) + "x" + std::to_string(h) +
                                                        " is invalid");
-    if (values.size() != plan.refinedVertexCount() || plan.refinedUVs().empty())
+    if (values.size() != plan.refinedVertexCount() || !plan.hasUVs())
         return Status(StatusCode::InvalidArgument, "rasterizeVertexDisplacements: values or UVs do not match the plan");
     const size_t texels = size_t(w) * size_t(h);
     std::vector<float> value(texels, 0.0f);
     std::vector<uint8_t> covered(texels, 0);
     const std::vector<uint32_t>& tri = plan.refinedTriangles();
-    const std::vector<uint32_t>& uvIndex = plan.refinedUVIndices();
-    const std::vector<glm::vec2>& uvs = plan.refinedUVs();
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> uvIndex;
+    plan.refinedUVs(&uvs, &uvIndex);
     for (size_t f = 0; f < plan.refinedFaceCount(); ++f) {
         glm::dvec2 p[3];
         double d[3];

@@ -62,7 +62,8 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
     std::vector<uint32_t> adjacencyOffsets, adjacentFaces;
     buildVertexFaces(&adjacencyOffsets, &adjacentFaces, tris.data(), nf, nv);
-    std::vector<glm::vec2> uvs = plan.sampleUVs();
+    std::vector<glm::vec2> uvs;
+    plan.sampleUVs(&uvs);
     if (uvs.empty())
         uvs.assign(nv, glm::vec2(0.0f));
     size_t& bytes = e->gpuBytes_;

@@ -100,17 +100,26 @@ public:
     /// The control mesh's triangles (3 vertex indices per face), as built.
     const std::vector<uint32_t>& controlTriangles() const { return controlTriangles_; }
 
-    /// Refined face-varying UVs (empty when the control mesh has none):
-    /// refinedUVs() values, 3 indices into them per refined face.
-    const std::vector<glm::vec2>& refinedUVs() const { return uvs_; }
-    const std::vector<uint32_t>& refinedUVIndices() const { return uvIndices_; }
+    /// Whether the control mesh had UVs (sampleUVs() and refinedUVs() then
+    /// make them).
+    bool hasUVs() const { return !controlUVIndices_.empty(); }
+    /// Refined face-varying UVs, made on demand (the plan keeps only the
+    /// control UVs: evaluation needs none): values, and 3 indices into them
+    /// per refined face.  Both empty without UVs.
+    /// Linear (FVAR_LINEAR_ALL), bit-identical to OpenSubdiv's face-varying
+    /// refinement; values are shared across a control edge whose two faces
+    /// use the same UVs at its ends, so seams split them.
+    void refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* indices) const;
 
     /// Per refined vertex: its canonical location and UV.  A vertex on a UV
     /// seam has several face-varying UVs; the canonical one is the UV of its
     /// first corner in refined face order.  It is sampled once, so the
     /// reconstructed surface has no cracks along seams.
     const std::vector<SampleLocation>& sampleLocations() const { return samples_; }
-    const std::vector<glm::vec2>& sampleUVs() const { return sampleUVs_; }
+    /// The canonical UVs, made on demand (refinedVertexCount() values, (0, 0)
+    /// for a vertex no face uses; empty without UVs): what a map is sampled
+    /// at, here or in a shader.
+    void sampleUVs(std::vector<glm::vec2>* out) const;
 
     /// Samples the map once per refined vertex at its canonical UV (the
     /// barycentric samples never change under animation, paper 2.4), scaled by
@@ -191,10 +200,9 @@ private:
     size_t controlVertexCount_ = 0;
 
     std::vector<uint32_t> triangles_;
-    std::vector<glm::vec2> uvs_;
-    std::vector<uint32_t> uvIndices_;
+    std::vector<glm::vec2> controlUVs_;  // the control mesh's UVs, for refinedUVs()
+    std::vector<uint32_t> controlUVIndices_;
     std::vector<SampleLocation> samples_;
-    std::vector<glm::vec2> sampleUVs_;
     std::vector<float> displacements_;
 
     // Linear scheme: samples_ are the stencils (barycentrics in their control
