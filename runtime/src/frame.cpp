@@ -170,8 +170,8 @@ struct FrameEvaluator::Scratch {
 };
 
 // Worker threads kept between frames (thread start-up costs as much as a
-// small frame).  run() hands each worker one contiguous range of [0, n),
-// runs the first range on the calling thread and returns when all are done.
+// small frame).  run() splits [0, n) into contiguous chunks that the
+// workers and the calling thread take in turn, and returns when all are done.
 // A pass wakes the workers and waits for them; both sides spin for a short
 // while (kSpin) before they sleep on a condition variable, because a frame
 // is several passes a few hundred microseconds apart and a sleeping thread
@@ -198,10 +198,16 @@ public:
     template <typename Body>
     void run(size_t n, const Body& body)
     {
-        const size_t parts = size_t(size());
+        // Chunks taken in turn from a shared counter, eight per thread: a
+        // thread the system slows down takes fewer (every chunk's output is
+        // its own, so which thread runs it changes no result).
+        const size_t chunks = std::min(n, size_t(size()) * 8);
+        next_.store(0, std::memory_order_relaxed);
         const std::function<void(int)> task = [&](int t) {
-            body(n * size_t(t) / parts, n * size_t(t + 1) / parts, t);
+            for (size_t c; (c = next_.fetch_add(1, std::memory_order_relaxed)) < chunks;)
+                body(n * c / chunks, n * (c + 1) / chunks, t);
         };
+        const size_t parts = size_t(size());
         task_ = &task;
         pending_.store(int(parts) - 1, std::memory_order_relaxed);
         {
@@ -260,6 +266,7 @@ private:
     const std::function<void(int)>* task_ = nullptr;  // published by generation_
     std::atomic<uint64_t> generation_{0};
     std::atomic<int> pending_{0};
+    std::atomic<size_t> next_{0};  // the next chunk of the running pass
     bool stop_ = false;  // under mutex_
     std::vector<std::thread> workers_;
 };
