@@ -2,6 +2,8 @@
 // source glTF had, and a multi-primitive, multi-material skinned character
 // with a non-manifold fin and a rigid eye bakes onto itself and
 // reconstructs watertight, posed, matching plain linear blend skinning.
+#include "strata/animation.h"
+#include "strata/frame.h"
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
@@ -967,9 +969,10 @@ TEST(Scene, DracoCompressedCharacterLoadsLikeThePlainFile)
 }
 
 // The C API (strata/strata.h) from a C99 program equals the C++ path bit for
-// bit: a skinned, animated, vertex-coded compact rig reconstructed by
-// io::reconstruct in the bind pose and posed, against the C program's
-// strata_surface_evaluate of the same file.
+// bit: a skinned, animated, vertex-coded compact rig drawn by FrameEvaluator
+// (plan order) in the bind pose and posed, against the C program's
+// strata_surface_evaluate of the same file.  The frame's positions are
+// io::reconstruct's bit for bit and its normals the scatter's to 1e-5.
 TEST(CApi, MatchesTheCppPathBitForBit)
 {
     const std::string dir = test::tempDir("c_api");
@@ -1003,12 +1006,26 @@ TEST(CApi, MatchesTheCppPathBitForBit)
     pose.animation = 0;
     pose.time = 0.5f;
     ASSERT_TRUE(io::reconstruct(&posed, loaded, &loadedMap, loaded.displacement.scheme, level, 1.0f, &pose).isOk());
+    Animator animator;
+    ASSERT_TRUE(animator.init(loaded.skeleton, loaded.mesh).isOk());
+    ASSERT_TRUE(animator.pose(pose.animation, pose.time).isOk());
     std::string expected;
     const uint32_t header[2] = {uint32_t(level), uint32_t(rest.positions.size())};
     expected.append(reinterpret_cast<const char*>(header), sizeof(header));
+    FrameEvaluator frame(*rest.plan, FrameLayout::Plan);
     for (const io::Reconstruction* r : {&rest, &posed}) {
-        expected.append(reinterpret_cast<const char*>(r->positions.data()), r->positions.size() * sizeof(glm::vec3));
-        expected.append(reinterpret_cast<const char*>(r->normals.data()), r->normals.size() * sizeof(glm::vec3));
+        const glm::vec3* control = r == &rest ? loaded.mesh.positions.data() : animator.positions().data();
+        std::vector<glm::vec3> p(r->positions.size()), n(p.size());
+        ASSERT_TRUE(frame.evaluate(p.data(), n.data(), nullptr, control, r->controlNormals.data(),
+                                   r->controlNormals.size(), 1)
+                        .isOk());
+        EXPECT_EQ(std::memcmp(p.data(), r->positions.data(), p.size() * sizeof(glm::vec3)), 0);
+        float worst = 0.0f;
+        for (size_t v = 0; v < n.size(); ++v)
+            worst = std::max(worst, glm::length(n[v] - r->normals[v]));
+        EXPECT_LE(worst, 1e-5f);
+        expected.append(reinterpret_cast<const char*>(p.data()), p.size() * sizeof(glm::vec3));
+        expected.append(reinterpret_cast<const char*>(n.data()), n.size() * sizeof(glm::vec3));
     }
     test::writeText(dir + "/expected.bin", expected);
     // The pose moved something, so the comparison is not of two bind poses.

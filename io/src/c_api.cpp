@@ -4,6 +4,7 @@
 #include "strata/strata.h"
 
 #include "strata/animation.h"
+#include "strata/frame.h"
 #include "strata/io/rig_io.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
@@ -13,6 +14,7 @@
 
 #include <cstring>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <string>
 #include <vector>
@@ -29,6 +31,10 @@ struct StrataSurface {
     std::unique_ptr<Plan> plan;
     std::unique_ptr<Animator> animator;
     std::vector<glm::vec3> positions, normals;  // current control pose
+    // The render-ready frame (tables made at the first evaluate, reused every
+    // frame); the mutex keeps concurrent evaluate calls on one surface safe.
+    mutable std::unique_ptr<FrameEvaluator> frame;
+    mutable std::mutex frameMutex;
 };
 
 namespace {
@@ -320,15 +326,15 @@ StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positi
 {
     if (!surface || !positions)
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_evaluate: null argument");
-    const size_t n = surface->plan->refinedVertexCount();
-    glm::vec3* dst = reinterpret_cast<glm::vec3*>(positions);
-    Status st = surface->plan->evaluate(dst, nullptr, 0, n, surface->positions.data(), surface->normals.data(),
-                                        surface->positions.size());
-    if (!st)
-        return fromStatus(st);
-    if (normals)
-        surface->plan->computeShadingNormals(reinterpret_cast<glm::vec3*>(normals), dst);
-    return STRATA_OK;
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        if (!surface->frame)
+            surface->frame = std::make_unique<FrameEvaluator>(*surface->plan, FrameLayout::Plan);
+        return fromStatus(surface->frame->evaluate(reinterpret_cast<glm::vec3*>(positions),
+                                                   reinterpret_cast<glm::vec3*>(normals), nullptr,
+                                                   surface->positions.data(), surface->normals.data(),
+                                                   surface->positions.size(), 1));
+    });
 }
 
 }  // extern "C"

@@ -95,7 +95,9 @@ StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const flo
 StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const float* positions, size_t count);
 
 /** Displaced refined positions (3 floats per vertex) and, unless NULL,
- *  shading normals (3 floats per vertex) of the current pose. */
+ *  shading normals (3 floats per vertex) of the current pose: the
+ *  render-ready frame of FrameEvaluator, whose tables the first call makes.
+ *  Calls on one surface from several threads are serialised. */
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals);
 
 #ifdef __cplusplus
