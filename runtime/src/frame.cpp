@@ -29,6 +29,8 @@ constexpr size_t kLanes = 8;
 inline size_t wholeVectors(size_t n) { return (n + kLanes - 1) / kLanes * kLanes; }
 
 constexpr uint32_t kOwned = 0x80000000u;
+// A tile's slot numbers fit the tile layout's 16-bit slot list.
+static_assert((size_t(1) << kMaxLevel) + 2 < 362, "(R + 1)(R + 2) / 2 slots must stay below 2^16");
 constexpr uint32_t kIndexMask = 0x7fffffffu;
 constexpr uint32_t kUnset = 0xffffffffu;
 
@@ -499,6 +501,7 @@ void FrameEvaluator::buildTileLayout()
     const size_t nv = plan_.refinedVertexCount(), nf0 = plan_.controlTriangles().size() / 3;
     std::vector<uint32_t> out(nv, kUnset);
     order_.resize(nv);
+    ownedSlots_.resize(nv);
     tileFirst_.resize(nf0 + 1);
     uint32_t next = 0;
     for (size_t g = 0; g < nf0; ++g) {
@@ -507,6 +510,7 @@ void FrameEvaluator::buildTileLayout()
             const uint32_t raw = slots_[g * slotCount_ + k];
             if (raw & kOwned) {
                 order_[next] = raw & kIndexMask;
+                ownedSlots_[next] = uint16_t(k);
                 out[raw & kIndexMask] = next++;
             }
         }
@@ -578,6 +582,7 @@ struct TileJob {
     const glm::vec3 *cp, *cn;
     glm::vec3 *positions, *normals, *partials;  // normals null: positions only
     const uint32_t* tileFirst;  // tile layout: each tile's first frame vertex (null: the plan's order)
+    const uint16_t* ownedSlots; // tile layout: per frame vertex, its slot in its tile
     float* dl;               // S: each slot's displacement
     float* p[3];             // S: displaced positions
     float* sum[3];           // S: sums of face normals
@@ -668,7 +673,17 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
         normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
         // The tile's own vertices.  A border vertex's normal written here is
         // the tile's share only; the border pass, which runs after every
-        // tile, overwrites it with the whole sum.
+        // tile, overwrites it with the whole sum.  In the tile layout they are
+        // the tile's run of frame vertices, their slots listed (no tests).
+        if (job.tileFirst) {
+            const size_t end = job.tileFirst[f + 1];
+            for (; out < end; ++out) {
+                const size_t k = job.ownedSlots[out];
+                job.positions[out] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+                job.normals[out] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+            }
+            continue;
+        }
         for (size_t k = 0; k < S; ++k) {
             const uint32_t raw = slot[k];
             if (raw & kOwned) {
@@ -710,6 +725,7 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
             job.limit[a] = s.limit[a].data();
     }
     job.tileFirst = requested_ == FrameLayout::Tiles ? tileFirst_.data() : nullptr;
+    job.ownedSlots = ownedSlots_.data();
     job.dl = s.d.data();
     job.p[0] = s.px.data();
     job.p[1] = s.py.data();
@@ -819,7 +835,7 @@ size_t FrameEvaluator::bytes() const
     size_t scratch = 0;
     for (const Scratch& s : scratch_)
         scratch += s.bytes();
-    return bytes(limitOffsets_) + bytes(limitControl_) + bytes(limitWeights_) + bytes(tileFirst_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
+    return bytes(limitOffsets_) + bytes(limitControl_) + bytes(limitWeights_) + bytes(tileFirst_) + bytes(ownedSlots_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
            bytes(partials_) + bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) +
            bytes(isolated_) + bytes(offsets_) + bytes(faces_) + bytes(faceNormals_) + scratch;
 }

@@ -120,6 +120,7 @@ private:
     std::vector<uint32_t> limitOffsets_, limitControl_;  // smooth: each tile's control points
     std::vector<float> limitWeights_;    // smooth: per tile and point, 3 weight rows of whole-vector slots
     std::vector<uint32_t> tileFirst_;    // tile layout: per tile (and one past), its first frame vertex
+    std::vector<uint16_t> ownedSlots_;   // tile layout: per frame vertex, its slot in its tile
     std::vector<uint32_t> order_, triangles_;  // vertexOrder(), triangles() (tile layout, or built on request)
     std::vector<Scratch> scratch_;
     std::unique_ptr<Pool> pool_;  // worker threads, kept between frames
