@@ -384,7 +384,7 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     // of 1 / cos 60.
     EXPECT_EQ(stats.conformalCharts, stats.charts);
     EXPECT_LT(stats.maxStretch, 1.6) << stats.maxStretch;
-    EXPECT_GT(stats.texelFill, 0.45);  // discs packed on a skyline; flatter meshes pack tighter
+    EXPECT_GT(stats.texelFill, 0.5);  // 54%: seven discs leave corners no packer fills
     ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
     // Every face keeps its orientation in UV space.
     for (size_t f = 0; f < sphere.faceCount(); ++f) {

@@ -243,12 +243,16 @@ double chartScale(const Chart& c, double scale)
     return std::min(s, 64.0 * scale);
 }
 
-// Chart point in texels inside its footprint, for rotation 0 or a quarter turn.
+// Chart point in texels inside its footprint, turned `rotation` quarter turns.
 glm::dvec2 placed(const Chart& c, const glm::dvec2& p, double scale, int rotation, int gutter)
 {
     const glm::dvec2 q = (p - c.lo) * scale;
     const double h = (c.hi.y - c.lo.y) * scale;
-    const glm::dvec2 r = rotation == 1 ? glm::dvec2(h - q.y, q.x) : q;
+    const double w = (c.hi.x - c.lo.x) * scale;
+    const glm::dvec2 r = rotation == 1   ? glm::dvec2(h - q.y, q.x)
+                         : rotation == 2 ? glm::dvec2(w - q.x, h - q.y)
+                         : rotation == 3 ? glm::dvec2(q.y, w - q.x)
+                                         : q;
     return r + glm::dvec2(double(gutter) + 0.5);
 }
 
@@ -272,8 +276,8 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
 {
     const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale;
     Footprint fp;
-    fp.width = int(std::ceil(rotation ? h : w)) + 2 * gutter + 1;
-    fp.height = int(std::ceil(rotation ? w : h)) + 2 * gutter + 1;
+    fp.width = int(std::ceil(rotation % 2 ? h : w)) + 2 * gutter + 1;
+    fp.height = int(std::ceil(rotation % 2 ? w : h)) + 2 * gutter + 1;
     fp.bottom.assign(size_t(fp.width), -1);
     fp.top.assign(size_t(fp.width), -1);
     const double reach = double(gutter) + 0.5;
@@ -306,13 +310,77 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
     return fp;
 }
 
-// Skyline packing of the charts' footprints (largest first, two rotations
-// each, lowest resulting top wins): irregular charts nest into each other's
-// profiles.  Fills x, y, rotation; false if they do not fit in `size`.
+// Texel occupancy of the map, a bitset per column (bit y of column x: texel
+// (x, y) is taken), so a chart can drop into a hole under an overhang that a
+// skyline would have closed off.
+class Occupancy {
+public:
+    explicit Occupancy(int size) : size_(size), words_(size_t(size + 63) / 64), bits_(size_t(size) * words_, 0) {}
+
+    // The lowest y >= from with rows [y, y + length) of column x all free, or
+    // size when there is none.
+    int firstFree(int x, int from, int length) const
+    {
+        const uint64_t* col = &bits_[size_t(x) * words_];
+        int y = from;
+        while (y + length <= size_) {
+            const int blocker = firstTaken(col, y, y + length);
+            if (blocker < 0)
+                return y;
+            y = firstClear(col, blocker);  // past the whole taken run
+        }
+        return size_;
+    }
+
+    void take(int x, int y0, int y1)  // rows [y0, y1] of column x
+    {
+        uint64_t* col = &bits_[size_t(x) * words_];
+        for (int y = y0; y <= y1; ++y)
+            col[size_t(y) >> 6] |= uint64_t(1) << (y & 63);
+    }
+
+private:
+    // The first free row at or after y (size when none).
+    int firstClear(const uint64_t* col, int y) const
+    {
+        while (y < size_) {
+            const uint64_t free = ~col[size_t(y) >> 6] >> (y & 63);
+            if (free)
+                return std::min(size_, y + __builtin_ctzll(free));
+            y = (y | 63) + 1;
+        }
+        return size_;
+    }
+
+    // The first taken row in [y0, y1), or -1.
+    int firstTaken(const uint64_t* col, int y0, int y1) const
+    {
+        for (int y = y0; y < y1;) {
+            const size_t w = size_t(y) >> 6;
+            uint64_t bits = col[w] >> (y & 63);
+            const int span = std::min(64 - (y & 63), y1 - y);
+            if (span < 64)
+                bits &= (uint64_t(1) << span) - 1;
+            if (bits)
+                return y + __builtin_ctzll(bits);
+            y += span;
+        }
+        return -1;
+    }
+
+    int size_;
+    size_t words_;
+    std::vector<uint64_t> bits_;
+};
+
+// Packs the charts' footprints into a texel occupancy map, largest first:
+// each chart goes, in whichever of four quarter turns, where its top ends
+// lowest, at the lowest row every one of its columns is free (holes under
+// earlier charts included).  Fills x, y, rotation; false if they do not fit.
 bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
           std::vector<int32_t>& local, double scale, int gutter, int size)
 {
-    std::vector<int> sky(size_t(size), 0);
+    Occupancy occupied(size);
     for (size_t i : order) {
         Chart& c = charts[i];
         c.scaleX = chartScale(c, scale);
@@ -320,16 +388,29 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
             local[c.vertices[k]] = int32_t(k);
         int bestTop = INT32_MAX, bestX = 0, bestY = 0, bestRotation = 0;
         Footprint best;
-        for (int rotation = 0; rotation < 2; ++rotation) {
+        for (int rotation = 0; rotation < 4; ++rotation) {
             Footprint fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
             if (fp.width > size || fp.height > size)
                 continue;
             bool improved = false;
             for (int x = 0; x + fp.width <= size; ++x) {
+                // Raise y until every column's span is free at once, giving
+                // up once the top cannot beat the best placement so far.
+                const int limit = std::min(size, bestTop - 1);
                 int y = 0;
-                for (int col = 0; col < fp.width; ++col)
-                    if (fp.bottom[size_t(col)] >= 0)
-                        y = std::max(y, sky[size_t(x + col)] - fp.bottom[size_t(col)]);
+                for (bool moved = true; moved && y + fp.height <= limit;) {
+                    moved = false;
+                    for (int col = 0; col < fp.width && y + fp.height <= limit; ++col) {
+                        const int lo = fp.bottom[size_t(col)];
+                        if (lo < 0)
+                            continue;
+                        const int at = occupied.firstFree(x + col, y + lo, fp.top[size_t(col)] - lo + 1) - lo;
+                        if (at > y) {
+                            y = at;
+                            moved = true;
+                        }
+                    }
+                }
                 const int top = y + fp.height;
                 if (top <= size && top < bestTop) {
                     bestTop = top;
@@ -347,8 +428,8 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
         if (bestTop == INT32_MAX)
             return false;
         for (int col = 0; col < best.width; ++col)
-            if (best.top[size_t(col)] >= 0)
-                sky[size_t(bestX + col)] = std::max(sky[size_t(bestX + col)], bestY + best.top[size_t(col)] + 1);
+            if (best.bottom[size_t(col)] >= 0)
+                occupied.take(bestX + col, bestY + best.bottom[size_t(col)], bestY + best.top[size_t(col)]);
         c.x = bestX;
         c.y = bestY;
         c.rotation = bestRotation;
