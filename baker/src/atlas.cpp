@@ -257,10 +257,12 @@ glm::dvec2 placed(const Chart& c, const glm::dvec2& p, double scale, int rotatio
 }
 
 // The chart's footprint at a scale and rotation: texels within the gutter
-// (plus half a texel diagonal) of any of its triangles, as column profiles.
+// (plus half a texel diagonal) of any of its triangles, as runs of rows per
+// column (the gaps between a hand's fingers stay free for other charts).
 struct Footprint {
     int width = 0, height = 0;
-    std::vector<int> bottom, top;  // per column: lowest and highest occupied row, -1 when empty
+    std::vector<uint32_t> first;  // width + 1: each column's runs in [first[x], first[x + 1])
+    std::vector<int> lo, hi;      // per run: lowest and highest row
 };
 
 double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b)
@@ -278,8 +280,7 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
     Footprint fp;
     fp.width = int(std::ceil(rotation % 2 ? h : w)) + 2 * gutter + 1;
     fp.height = int(std::ceil(rotation % 2 ? w : h)) + 2 * gutter + 1;
-    fp.bottom.assign(size_t(fp.width), -1);
-    fp.top.assign(size_t(fp.width), -1);
+    std::vector<uint8_t> mask(size_t(fp.width) * size_t(fp.height), 0);  // column-major
     const double reach = double(gutter) + 0.5;
     for (uint32_t f : c.faces) {
         glm::dvec2 t[3];
@@ -301,12 +302,23 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
                 if (!inside && std::min({segmentDistance(p, t[0], t[1]), segmentDistance(p, t[1], t[2]),
                                          segmentDistance(p, t[2], t[0])}) > reach)
                     continue;
-                int& lo = fp.bottom[size_t(x)];
-                int& hi = fp.top[size_t(x)];
-                lo = lo < 0 ? y : std::min(lo, y);
-                hi = std::max(hi, y);
+                mask[size_t(x) * size_t(fp.height) + size_t(y)] = 1;
             }
     }
+    fp.first.assign(size_t(fp.width) + 1, 0);
+    for (int x = 0; x < fp.width; ++x) {
+        fp.first[size_t(x)] = uint32_t(fp.lo.size());
+        const uint8_t* col = &mask[size_t(x) * size_t(fp.height)];
+        for (int y = 0; y < fp.height; ++y)
+            if (col[y] && (y == 0 || !col[y - 1])) {
+                int end = y;
+                while (end + 1 < fp.height && col[end + 1])
+                    ++end;
+                fp.lo.push_back(y);
+                fp.hi.push_back(end);
+            }
+    }
+    fp.first[size_t(fp.width)] = uint32_t(fp.lo.size());
     return fp;
 }
 
@@ -400,16 +412,15 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
                 int y = 0;
                 for (bool moved = true; moved && y + fp.height <= limit;) {
                     moved = false;
-                    for (int col = 0; col < fp.width && y + fp.height <= limit; ++col) {
-                        const int lo = fp.bottom[size_t(col)];
-                        if (lo < 0)
-                            continue;
-                        const int at = occupied.firstFree(x + col, y + lo, fp.top[size_t(col)] - lo + 1) - lo;
-                        if (at > y) {
-                            y = at;
-                            moved = true;
+                    for (int col = 0; col < fp.width && y + fp.height <= limit; ++col)
+                        for (uint32_t r = fp.first[size_t(col)]; r < fp.first[size_t(col) + 1]; ++r) {
+                            const int lo = fp.lo[r];
+                            const int at = occupied.firstFree(x + col, y + lo, fp.hi[r] - lo + 1) - lo;
+                            if (at > y) {
+                                y = at;
+                                moved = true;
+                            }
                         }
-                    }
                 }
                 const int top = y + fp.height;
                 if (top <= size && top < bestTop) {
@@ -428,8 +439,8 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
         if (bestTop == INT32_MAX)
             return false;
         for (int col = 0; col < best.width; ++col)
-            if (best.bottom[size_t(col)] >= 0)
-                occupied.take(bestX + col, bestY + best.bottom[size_t(col)], bestY + best.top[size_t(col)]);
+            for (uint32_t r = best.first[size_t(col)]; r < best.first[size_t(col) + 1]; ++r)
+                occupied.take(bestX + col, bestY + best.lo[r], bestY + best.hi[r]);
         c.x = bestX;
         c.y = bestY;
         c.rotation = bestRotation;
