@@ -431,33 +431,6 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
     return Status::ok();
 }
 
-namespace {
-
-// Face-varying values (UVs) interpolated level by level with OpenSubdiv's
-// own rules (Far::PrimvarRefiner).  Linear in the refined values, where a
-// factorised stencil table costs many entries per value.
-struct Uv {
-    glm::vec2 uv;
-    void Clear(void* = nullptr) { uv = glm::vec2(0.0f); }
-    void AddWithWeight(const Uv& src, float w) { uv += w * src.uv; }
-};
-
-template <typename T>
-std::vector<T> refineFaceVaryingValues(const Far::TopologyRefiner& refiner, int channel, std::vector<T> values)
-{
-    Far::PrimvarRefiner primvar(refiner);
-    for (int level = 1; level <= refiner.GetMaxLevel(); ++level) {
-        std::vector<T> next(size_t(refiner.GetLevel(level).GetNumFVarValues(channel)));
-        const T* src = values.data();
-        T* dst = next.data();
-        primvar.InterpolateFaceVarying(level, src, dst, channel);
-        values.swap(next);
-    }
-    return values;
-}
-
-}  // namespace
-
 struct Plan::Build {
     const Far::TopologyRefiner& refiner;
     const ControlMesh& mesh;
@@ -614,6 +587,9 @@ Status Plan::buildLinear(Build& build)
     std::vector<glm::u16vec2> pattern;
     if (Status st = childCornerPattern(level_, &pattern); !st)
         return st;
+    childCorners_.resize(pattern.size());
+    for (size_t c = 0; c < pattern.size(); ++c)
+        childCorners_[c] = uint32_t(pattern[c].x) | uint32_t(pattern[c].y) << 16;
     const uint32_t R = 1u << level_, childMask = (1u << (2 * level_)) - 1;
     const float step = 1.0f / float(R);
     samples_.resize(nv);
@@ -793,26 +769,11 @@ void Plan::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* ind
     values->resize(faceBase + nfc * inner);
     std::copy(controlUVs_.begin(), controlUVs_.end(), values->begin());
 
-    // The grid point of each corner of a control face's refined faces: the
-    // same for every face (uniform refinement numbers child faces and their
-    // corners by the parent's), read from face 0's vertices' barycentrics.
+    // Each corner of a face's refined faces: its grid point (buildLinear's
+    // pattern, the same for every face).
     std::vector<uint32_t> pattern(3 * childFaces);
-    for (size_t c = 0; c < pattern.size(); ++c) {
-        const SampleLocation& at = samples_[triangles_[c]];
-        float b[3] = {1.0f - at.bary.x - at.bary.y, at.bary.x, at.bary.y};
-        if (at.face != 0) {
-            // First sampled in a neighbour: its weights on the shared corners.
-            const uint32_t* other = &tri[3 * size_t(at.face)];
-            const float w[3] = {b[0], b[1], b[2]};
-            for (int k = 0; k < 3; ++k) {
-                b[k] = 0.0f;
-                for (int m = 0; m < 3; ++m)
-                    if (tri[size_t(k)] == other[m])
-                        b[k] = w[m];
-            }
-        }
-        pattern[c] = uint32_t(gridSlot(uint32_t(b[1] * float(R)), uint32_t(b[2] * float(R)), R));
-    }
+    for (size_t c = 0; c < pattern.size(); ++c)
+        pattern[c] = uint32_t(gridSlot(childCorners_[c] & 0xffffu, childCorners_[c] >> 16, R));
 
     std::vector<glm::vec2> grid(gridPoints);
     std::vector<uint32_t> ids(gridPoints);
@@ -1133,7 +1094,7 @@ size_t Plan::memoryBytes() const
 {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     return bytes(triangles_) + bytes(controlUVs_) + bytes(controlUVIndices_) + bytes(samples_) +
-           bytes(displacements_) + bytes(controlTriangles_) + bytes(isolated_) + bytes(limitOffsets_) +
+           bytes(displacements_) + bytes(controlTriangles_) + bytes(isolated_) + bytes(childCorners_) + bytes(limitOffsets_) +
            bytes(limitIndices_) +
            bytes(limitWeights_);
 }

@@ -210,6 +210,7 @@ private:
     // control vertex's number).
     std::vector<uint32_t> controlTriangles_;
     std::vector<uint32_t> isolated_;
+    std::vector<uint32_t> childCorners_;  // each corner of a face's 4^level children: grid point i | j << 16
 
     // Smooth scheme: limit stencils (position, d/ds, d/dt), CSR per refined vertex.
     std::vector<uint32_t> limitOffsets_;  // refinedVertexCount() + 1
