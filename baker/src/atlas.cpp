@@ -243,16 +243,12 @@ double chartScale(const Chart& c, double scale)
     return std::min(s, 64.0 * scale);
 }
 
-// Chart point in texels inside its footprint, turned `rotation` quarter turns.
+// Chart point in texels inside its footprint, for rotation 0 or a quarter turn.
 glm::dvec2 placed(const Chart& c, const glm::dvec2& p, double scale, int rotation, int gutter)
 {
     const glm::dvec2 q = (p - c.lo) * scale;
     const double h = (c.hi.y - c.lo.y) * scale;
-    const double w = (c.hi.x - c.lo.x) * scale;
-    const glm::dvec2 r = rotation == 1   ? glm::dvec2(h - q.y, q.x)
-                         : rotation == 2 ? glm::dvec2(w - q.x, h - q.y)
-                         : rotation == 3 ? glm::dvec2(q.y, w - q.x)
-                                         : q;
+    const glm::dvec2 r = rotation == 1 ? glm::dvec2(h - q.y, q.x) : q;
     return r + glm::dvec2(double(gutter) + 0.5);
 }
 
@@ -265,12 +261,13 @@ struct Footprint {
     std::vector<int> lo, hi;      // per run: lowest and highest row
 };
 
-double segmentDistance(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b)
+double segmentDistance2(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b)
 {
     const glm::dvec2 ab = b - a;
     const double len2 = glm::dot(ab, ab);
     const double t = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
-    return glm::length(p - (a + t * ab));
+    const glm::dvec2 e = p - (a + t * ab);
+    return glm::dot(e, e);
 }
 
 Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local, double scale,
@@ -278,8 +275,8 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
 {
     const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale;
     Footprint fp;
-    fp.width = int(std::ceil(rotation % 2 ? h : w)) + 2 * gutter + 1;
-    fp.height = int(std::ceil(rotation % 2 ? w : h)) + 2 * gutter + 1;
+    fp.width = int(std::ceil(rotation ? h : w)) + 2 * gutter + 1;
+    fp.height = int(std::ceil(rotation ? w : h)) + 2 * gutter + 1;
     std::vector<uint8_t> mask(size_t(fp.width) * size_t(fp.height), 0);  // column-major
     const double reach = double(gutter) + 0.5;
     for (uint32_t f : c.faces) {
@@ -293,16 +290,19 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
         const int y1 = std::min(fp.height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
         for (int x = x0; x <= x1; ++x)
             for (int y = y0; y <= y1; ++y) {
+                uint8_t& m = mask[size_t(x) * size_t(fp.height) + size_t(y)];
+                if (m)
+                    continue;  // a neighbouring triangle already reached it
                 const glm::dvec2 p(x + 0.5, y + 0.5);
                 bool inside = area != 0.0;
                 for (int k = 0; k < 3 && inside; ++k) {
                     const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
                     inside = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) * area >= 0.0;
                 }
-                if (!inside && std::min({segmentDistance(p, t[0], t[1]), segmentDistance(p, t[1], t[2]),
-                                         segmentDistance(p, t[2], t[0])}) > reach)
+                if (!inside && std::min({segmentDistance2(p, t[0], t[1]), segmentDistance2(p, t[1], t[2]),
+                                         segmentDistance2(p, t[2], t[0])}) > reach * reach)
                     continue;
-                mask[size_t(x) * size_t(fp.height) + size_t(y)] = 1;
+                m = 1;
             }
     }
     fp.first.assign(size_t(fp.width) + 1, 0);
@@ -386,7 +386,7 @@ private:
 };
 
 // Packs the charts' footprints into a texel occupancy map, largest first:
-// each chart goes, in whichever of four quarter turns, where its top ends
+// each chart goes, upright or turned a quarter, where its top ends
 // lowest, at the lowest row every one of its columns is free (holes under
 // earlier charts included).  Fills x, y, rotation; false if they do not fit.
 bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
@@ -400,7 +400,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
             local[c.vertices[k]] = int32_t(k);
         int bestTop = INT32_MAX, bestX = 0, bestY = 0, bestRotation = 0;
         Footprint best;
-        for (int rotation = 0; rotation < 4; ++rotation) {
+        for (int rotation = 0; rotation < 2; ++rotation) {
             Footprint fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
             if (fp.width > size || fp.height > size)
                 continue;
