@@ -47,7 +47,7 @@ public:
     {
         char b[64];
         if (std::isfinite(value))
-            std::snprintf(b, sizeof(b), "%.6g", value);
+            std::snprintf(b, sizeof(b), "%.9g", value);  // counts up to 10^9 exactly
         else
             std::snprintf(b, sizeof(b), "null");
         return append(name, b);
