@@ -1,7 +1,7 @@
 // bench_gpu: the GPU path's frame split into upload, stencils, shading
 // normals and draw (GL timestamp queries, median of 7 frames), plus the whole
 // frame by wall clock with glFinish, next to the CPU path for the same frame
-// (pose + Plan::evaluate + shading normals), at levels 0..5 (6 with --max 6).
+// (pose + FrameEvaluator, one core), at levels 0..5 (6 with --max 6).
 //
 //   bench_gpu [--size WxH] [--max-level N]
 //
@@ -11,6 +11,7 @@
 #include "procedural.h"
 #include "strata/animation.h"
 #include "strata/baker/atlas.h"
+#include "strata/frame.h"
 #include "strata/gl/context.h"
 #include "strata/gl/framebuffer.h"
 #include "strata/gl/gpu_surface.h"
@@ -129,13 +130,15 @@ void run(const Case& c, int width, int height, int maxLevel)
                 glFinish();
             },
             7, 20.0);
-        // The CPU path for the same frame.
+        // The CPU path for the same frame: FrameEvaluator in tile order, one
+        // core (its tables made before timing), as bench_runtime's frame.
         std::vector<glm::vec3> out(n), shading(n);
+        FrameEvaluator cpuFrame(*plan, FrameLayout::Tiles);
+        cpuFrame.evaluate(out.data(), shading.data(), nullptr, positions, normals, cn, 1);
         const double cpu = bench::medianMs(
             [&] {
                 pose();
-                plan->evaluate(out.data(), nullptr, 0, n, positions, normals, cn);
-                plan->computeShadingNormals(shading.data(), out.data());
+                cpuFrame.evaluate(out.data(), shading.data(), nullptr, positions, normals, cn, 1);
             },
             7, 20.0);
         (void)wall;
