@@ -38,7 +38,8 @@ struct ChartAtlasStats {
 /// conformal map (Levy et al. 2002), or, where that would fold, projected
 /// onto the seed's plane (which cannot fold); turned to its smallest bounding
 /// box, and the charts' footprints (`options.gutter` texels around them) are
-/// packed on a skyline, two rotations each, at the largest common scale that
+/// packed into a texel occupancy map (a chart may drop into a hole under
+/// another), upright or turned a quarter, at the largest common scale that
 /// fits `options.mapSize` (small charts get at least 6 texels a side).
 /// Vertices are split only on chart borders.  Fails (and leaves the mesh as
 /// it was) if a chart would fold over itself; callers fall back to
