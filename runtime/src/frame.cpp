@@ -597,6 +597,34 @@ struct TileJob {
     float* limit[9];
 };
 
+// Writes tile f's own vertices: positions p and, with Normals, unit normals
+// n (structure of arrays, by slot).  In the tile layout they are the tile's
+// run of frame vertices, their slots listed; in the plan's order each owned
+// slot names its vertex.
+template <bool Normals>
+STRATA_KERNEL_INLINE void writeOwned(const TileJob& job, size_t f, float* const* p, float* const* n)
+{
+    if (job.tileFirst) {
+        for (size_t out = job.tileFirst[f]; out < job.tileFirst[f + 1]; ++out) {
+            const size_t k = job.ownedSlots[out];
+            job.positions[out] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+            if (Normals)
+                job.normals[out] = glm::vec3(n[0][k], n[1][k], n[2][k]);
+        }
+        return;
+    }
+    const uint32_t* slot = job.slots + f * job.S;
+    for (size_t k = 0; k < job.S; ++k) {
+        const uint32_t raw = slot[k];
+        if (raw & kOwned) {
+            const size_t v = raw & kIndexMask;
+            job.positions[v] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+            if (Normals)
+                job.normals[v] = glm::vec3(n[0][k], n[1][k], n[2][k]);
+        }
+    }
+}
+
 STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, size_t faceEnd)
 {
     const size_t R = job.R, S = job.S, ring = job.ring;
@@ -621,13 +649,8 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
             displaceGrid(wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]],
                          cn[c[2]], p[0], p[1], p[2]);
         }
-        size_t out = job.tileFirst ? job.tileFirst[f] : 0;
         if (!job.normals) {
-            for (size_t k = 0; k < S; ++k) {
-                const uint32_t raw = slot[k];
-                if (raw & kOwned)
-                    job.positions[job.tileFirst ? out++ : raw & kIndexMask] = glm::vec3(p[0][k], p[1][k], p[2][k]);
-            }
+            writeOwned<false>(job, f, p, nullptr);
             continue;
         }
         // Row by row: the face normals of the row pair (i, i + 1), then the
@@ -673,25 +696,8 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
         normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
         // The tile's own vertices.  A border vertex's normal written here is
         // the tile's share only; the border pass, which runs after every
-        // tile, overwrites it with the whole sum.  In the tile layout they are
-        // the tile's run of frame vertices, their slots listed (no tests).
-        if (job.tileFirst) {
-            const size_t end = job.tileFirst[f + 1];
-            for (; out < end; ++out) {
-                const size_t k = job.ownedSlots[out];
-                job.positions[out] = glm::vec3(p[0][k], p[1][k], p[2][k]);
-                job.normals[out] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
-            }
-            continue;
-        }
-        for (size_t k = 0; k < S; ++k) {
-            const uint32_t raw = slot[k];
-            if (raw & kOwned) {
-                const size_t v = job.tileFirst ? out++ : raw & kIndexMask;
-                job.positions[v] = glm::vec3(p[0][k], p[1][k], p[2][k]);
-                job.normals[v] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
-            }
-        }
+        // tile, overwrites it with the whole sum.
+        writeOwned<true>(job, f, p, sum);
     }
 }
 
