@@ -1,4 +1,4 @@
-// Median-split BVH (spatial index for normal volumes and nearest-point queries).
+// Morton-order BVH (spatial index for normal volumes and nearest-point queries).
 #include "bvh.h"
 
 #include "parallel.h"

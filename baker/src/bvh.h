@@ -54,8 +54,6 @@ private:
     template <typename Enter, typename Visit>
     void walk(Enter&& enter, Visit&& visit) const;
 
-    struct Node;
-
     struct Node {
         Box box;
         uint32_t first;  // leaf: first index into items_; inner: left child

@@ -19,7 +19,6 @@
 #include <opensubdiv/far/topologyRefinerFactory.h>
 
 #include <glm/geometric.hpp>
-#include <glm/ext/vector_uint2_sized.hpp>
 #include <glm/vec2.hpp>
 
 #include <algorithm>
@@ -476,13 +475,12 @@ Status Plan::buildTopology(Build& b)
 // The linear scheme's stencils: every refined vertex is a barycentric
 // combination of its control face's corners, so the plan keeps the control
 // triangles and one (face, b1, b2) per refined vertex (b0 = 1 - b1 - b2,
-// exact: the weights are dyadic).  The weights follow OpenSubdiv's uniform
-// refinement level by level: a vertex's child keeps its weights, an edge's
-// child vertex takes the mean of its end points' (the 1-to-4 midpoint split).
-// Weights are kept per control vertex, at most three (a refined vertex lies
-// in one control face), so they need no face to be expressed in; the
-// refiner carries no face-varying channel for them, which would cost more
-// than the rest of the refinement.
+// exact: the weights are dyadic).  Every face's children lie on its grid the
+// same way, so the weights are followed through OpenSubdiv's uniform
+// refinement of one triangle only (a vertex's child keeps its weights, an
+// edge's child vertex takes the mean of its end points'), and that pattern
+// places every refined vertex of the mesh.  Weights are kept per control
+// vertex, at most three, so they need no face to be expressed in.
 namespace {
 
 struct ControlWeights {
@@ -545,11 +543,12 @@ Status refineWeights(const Far::TopologyRefiner& refiner, int level, size_t cont
 }
 
 // The grid point (i, j) (barycentrics i / 2^level, j / 2^level) of each
-// corner of a control face's 4^level refined faces, in their order.  It is
-// the same for every face: uniform refinement numbers a face's children and
-// their corners by the face's own corners and edges.  Read off one triangle
-// refined by OpenSubdiv, its vertices' weights followed level by level.
-Status childCornerPattern(int level, std::vector<glm::u16vec2>* out)
+// corner of a control face's 4^level refined faces, in their order, as
+// i | j << 16.  It is the same for every face: uniform refinement numbers a
+// face's children and their corners by the face's own corners and edges.
+// Read off one triangle refined by OpenSubdiv, its vertices' weights
+// followed level by level.
+Status childCornerPattern(int level, std::vector<uint32_t>* out)
 {
     ControlMesh one;
     one.positions = {glm::vec3(0.0f), glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f)};
@@ -570,7 +569,7 @@ Status childCornerPattern(int level, std::vector<glm::u16vec2>* out)
             float b[3] = {0.0f, 0.0f, 0.0f};
             for (int k = 0; k < w.n; ++k)
                 b[w.id[k]] = w.w[k];
-            (*out)[3 * size_t(f) + size_t(c)] = glm::u16vec2(uint16_t(b[1] * R), uint16_t(b[2] * R));
+            (*out)[3 * size_t(f) + size_t(c)] = uint32_t(b[1] * R) | uint32_t(b[2] * R) << 16;
         }
     }
     return Status::ok();
@@ -584,12 +583,8 @@ Status Plan::buildLinear(Build& build)
     (void)refiner;
     const size_t nv = firstFace.size();
     controlTriangles_ = mesh.triangles;
-    std::vector<glm::u16vec2> pattern;
-    if (Status st = childCornerPattern(level_, &pattern); !st)
+    if (Status st = childCornerPattern(level_, &childCorners_); !st)
         return st;
-    childCorners_.resize(pattern.size());
-    for (size_t c = 0; c < pattern.size(); ++c)
-        childCorners_[c] = uint32_t(pattern[c].x) | uint32_t(pattern[c].y) << 16;
     const uint32_t R = 1u << level_, childMask = (1u << (2 * level_)) - 1;
     const float step = 1.0f / float(R);
     samples_.resize(nv);
@@ -606,15 +601,16 @@ Status Plan::buildLinear(Build& build)
             continue;
         }
         const uint32_t face = firstFace[v] >> (2 * level_);
-        const glm::u16vec2 p = pattern[3 * size_t(firstFace[v] & childMask) + firstCorner[v]];
+        const uint32_t p = childCorners_[3 * size_t(firstFace[v] & childMask) + firstCorner[v]];
+        const uint32_t i = p & 0xffffu, j = p >> 16;
         // Control vertices keep their numbers and sit on their faces' corners.
-        const int corner = p == glm::u16vec2(0, 0) ? 0 : p == glm::u16vec2(R, 0) ? 1 : p == glm::u16vec2(0, R) ? 2 : -1;
+        const int corner = i == 0 && j == 0 ? 0 : i == R && j == 0 ? 1 : i == 0 && j == R ? 2 : -1;
         if ((corner >= 0) != (v < controlVertexCount_) ||
             (corner >= 0 && controlTriangles_[3 * size_t(face) + size_t(corner)] != v))
             return Status(StatusCode::InvalidData, "refined vertex " + std::to_string(v) +
                                                        " does not follow uniform refinement in control face " +
                                                        std::to_string(face));
-        samples_[v] = {face, glm::vec2(float(p.x) * step, float(p.y) * step)};
+        samples_[v] = {face, glm::vec2(float(i) * step, float(j) * step)};
     }
     return Status::ok();
 }
