@@ -178,6 +178,12 @@ bool binaryValue(Cursor& c, PlyType t, bool bigEndian, double* v)
     return true;
 }
 
+// Whether a face property is the vertex index list (both spellings in use).
+bool isIndexList(const std::string& name)
+{
+    return name == "vertex_indices" || name == "vertex_index";
+}
+
 bool littleEndianHost()
 {
     const uint16_t one = 1;
@@ -226,8 +232,7 @@ bool readPlyFast(const std::string& path, const PlyElement& e, bool isVertex, co
     if (e.properties.size() != 1)
         return false;
     const PlyProperty& p = e.properties[0];
-    const bool indexList = p.name == "vertex_indices" || p.name == "vertex_index";
-    if (!indexList || (p.countType != PlyType::UInt8 && p.countType != PlyType::Int8) ||
+    if (!isIndexList(p.name) || (p.countType != PlyType::UInt8 && p.countType != PlyType::Int8) ||
         (p.type != PlyType::Int32 && p.type != PlyType::UInt32))
         return false;
     std::vector<long> idx;
@@ -371,6 +376,8 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
         const bool isVertex = &e == vertexElement, isFace = e.name == "face";
         if (isVertex)
             out->positions.reserve(e.count);
+        if (isFace)
+            out->triangles.reserve(out->triangles.size() + 3 * std::min(e.count, c.left() / 4));
         if (format == 1 && (isVertex || isFace)) {
             Status st;
             if (readPlyFast(path, e, isVertex, xyz, nv, c, out, &st)) {
@@ -383,9 +390,7 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
         }
         std::vector<char> wantedList(e.properties.size(), 0);  // the face's index list, decided once
         for (size_t k = 0; k < e.properties.size(); ++k)
-            wantedList[k] = isFace && (e.properties[k].name == "vertex_indices" || e.properties[k].name == "vertex_index");
-        if (isFace)
-            out->triangles.reserve(out->triangles.size() + 3 * std::min(e.count, c.left() / 4));
+            wantedList[k] = isFace && isIndexList(e.properties[k].name);
         std::vector<double> values;
         std::vector<long> idx;
         for (size_t i = 0; i < e.count; ++i) {
