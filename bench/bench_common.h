@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace strata {
@@ -15,6 +16,13 @@ namespace bench {
 inline double nowMs()
 {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+/// The median of some timings (the upper middle one of an even count).
+inline double median(std::vector<double> v)
+{
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
 /// Median over `runs` runs of the per-call time of f, in ms; each run
@@ -35,8 +43,7 @@ double medianMs(F&& f, int runs = 7, double minRunMs = 30.0)
         } while (t - t0 < minRunMs);
         per.push_back((t - t0) / calls);
     }
-    std::sort(per.begin(), per.end());
-    return per[per.size() / 2];
+    return median(std::move(per));
 }
 
 /// Machine-readable rows for --json FILE: one object per table row, stable

@@ -37,12 +37,6 @@ struct Case {
     bool haveMap = false;
 };
 
-double median(std::vector<double> v)
-{
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
-
 void run(const Case& c, int width, int height, int maxLevel)
 {
     Animator animator;
@@ -143,8 +137,8 @@ void run(const Case& c, int width, int height, int maxLevel)
             7, 20.0);
         (void)wall;
         std::printf("%5d | %13zu | %9.3f | %11.3f | %10.3f | %7.3f | %19.3f | %9.1f | %12.3f | %6.2f\n", level, n,
-                    median(up), median(sten), median(nrm), median(drw), frame, double(n) / frame / 1000.0, cpu,
-                    cpu / frame);
+                    bench::median(up), bench::median(sten), bench::median(nrm), bench::median(drw), frame,
+                    double(n) / frame / 1000.0, cpu, cpu / frame);
         std::fflush(stdout);
     }
 }

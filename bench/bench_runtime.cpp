@@ -106,9 +106,7 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
             std::printf("%5d | error: %s\n", level, st.message().c_str());
             continue;
         }
-        const double setupFirst = setups[0];
-        std::sort(setups.begin(), setups.end());
-        const double setup = setups[setups.size() / 2];
+        const double setupFirst = setups[0], setup = bench::median(setups);
         // The default rig's case: no UVs (its displacements are per vertex).
         double setupNoUVs = 0.0, bytesNoUVs = 0.0;
         {
@@ -124,8 +122,7 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
                 lean.push_back(bench::nowMs() - u0);
                 bytesNoUVs = double(p->memoryBytes()) / double(p->refinedVertexCount());
             }
-            std::sort(lean.begin(), lean.end());
-            setupNoUVs = lean.empty() ? 0.0 : lean[lean.size() / 2];
+            setupNoUVs = bench::median(lean);
         }
         const size_t n = plan->refinedVertexCount();
         std::vector<glm::vec3> out(n), dir(n), shading(n);
