@@ -224,8 +224,8 @@ TEST(Bake, OutputDoesNotDependOnThreadCount)
     EXPECT_EQ(0, std::memcmp(one.texels.data(), two.texels.data(), one.texels.size() * sizeof(float)));
 }
 
-// A triangle index big enough to be built on threads (its top levels on one,
-// its subtrees on the others) answers exactly as the one built on one thread:
+// A triangle index built on threads (they share its Morton-code and box
+// passes) answers exactly as the one built on one thread:
 // the same face, distance and line hits for random queries, and on the
 // sphere the distance is the gap to the radius.
 TEST(Bake, TriangleIndexDoesNotDependOnThreadCount)

@@ -209,9 +209,8 @@ public:
             for (size_t c; (c = next_.fetch_add(1, std::memory_order_relaxed)) < chunks;)
                 body(n * c / chunks, n * (c + 1) / chunks, t);
         };
-        const size_t parts = size_t(size());
         task_ = &task;
-        pending_.store(int(parts) - 1, std::memory_order_relaxed);
+        pending_.store(size() - 1, std::memory_order_relaxed);
         {
             std::lock_guard<std::mutex> lock(mutex_);
             generation_.fetch_add(1, std::memory_order_release);
