@@ -143,6 +143,8 @@ py::dict bake(const std::string& high, const std::string& control, const std::st
             req.skeleton = v.cast<std::string>();
         else if (key == "close_holes")
             req.closeHoles = v.cast<bool>();
+        else if (key == "fit")
+            req.fitCage = v.cast<bool>();
         else if (key == "max_memory")
             req.maxMemoryMB = v.cast<double>();
         else if (key == "report")
@@ -177,7 +179,7 @@ PYBIND11_MODULE(strata, m)
     py::register_exception<StrataError>(m, "Error", PyExc_RuntimeError);
     m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"),
           "Bakes HIGH onto CONTROL (a mesh, a rig, or \"auto\") into the rig OUT; options mirror strata-bake's flags "
-          "(tolerance, control_faces, uv, size, scheme, threads, map_coding, mesh_coding, compress, exr, skeleton, close_holes, max_memory, "
+          "(tolerance, control_faces, uv, size, scheme, threads, map_coding, mesh_coding, compress, exr, skeleton, close_holes, fit, max_memory, "
           "report, error_levels=(from, to)).  Returns the bake report as a dict.");
     py::class_<PyRig>(m, "Rig")
         .def_readonly("path", &PyRig::path)

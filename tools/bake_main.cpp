@@ -21,7 +21,7 @@ const char* kUsage =
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
     "                   [--map-coding vertex|png] [--mesh-coding draco|meshopt] [--no-compress] [--keep-holes]\n"
-    "                   [--max-memory MB]\n"
+    "                   [--no-fit] [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop (--size forces a size), and\n"
@@ -34,7 +34,11 @@ const char* kUsage =
     "vertex data and indices meshopt-coded (--no-compress for tools without either).  An atlas\n"
     "the baker lays out only serves the bake and stays out of the rig unless an output that is\n"
     "the map asks for it: --exr also writes it as RIG.exr for pipelines, --png8/--png16 as a\n"
-    "PNG, --layers writes RIG_layers.png (surface layers per texel).\n";
+    "PNG, --layers writes RIG_layers.png (surface layers per texel).\n"
+    "A bare control mesh (OBJ or --control auto) is fitted to the capture first: its vertices\n"
+    "move so that the scheme's base surface lies close to the capture in both directions\n"
+    "(Displaced Subdivision Surfaces; --no-fit keeps them).  A glTF control's or a skinned\n"
+    "cage's never move.\n";
 
 // Fills the request from the command line; false when the run is done
 // (--help, --version).  Bad flags throw cli::Error.
@@ -69,6 +73,8 @@ bool parseArgs(int argc, char** argv, baker::BakeRequest* r)
             r->compress = false;
         } else if (a == "--keep-holes") {
             r->closeHoles = false;
+        } else if (a == "--no-fit") {
+            r->fitCage = false;
         } else if (a == "--map-coding") {
             r->mapCoding = value();
             if (r->mapCoding != "vertex" && r->mapCoding != "png")

@@ -6,6 +6,8 @@
 
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
+#include "strata/baker/fit.h"
+#include "strata/baker/fit.h"
 #include "strata/baker/mesh_input.h"
 #include "strata/displacement_math.h"
 #include "strata/segment_deformer.h"
@@ -446,7 +448,50 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         AtlasOptions atlas;
         atlas.gutter = 1;
         ChartAtlasStats chartStats;
-        const ControlMesh bare = control;
+        ControlMesh bare = control;
+        int paperLevel = 0;
+        while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
+            ++paperLevel;
+        // The capture indexed once: cage fitting, the stored values' fit and
+        // their measurement all query it.
+        TriangleIndex highIndex;
+        highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount(), options.threads);
+        // A bare cage is fitted to the capture for the scheme it will carry
+        // (Displaced Subdivision Surfaces 4.2).  A character's own vertices
+        // (a glTF control, written back as it came) and a skinned cage (its
+        // weights were bound to these positions) are never moved.
+        const bool fitting = request.fitCage && !controlRig.source && skeleton.empty();
+        struct Fitted {
+            bool done = false;
+            std::vector<glm::vec3> positions;
+            FitStats stats;
+        } fitted[2];
+        FitOptions fitOptions;
+        fitOptions.level = std::clamp(paperLevel, 1, 3);
+        fitOptions.threads = options.threads;
+        double fitMs = 0.0;
+        auto fittedPositions = [&](Scheme scheme) -> const std::vector<glm::vec3>& {
+            Fitted& f = fitted[int(scheme)];
+            if (!f.done) {
+                Progress p(progress, "fitting the control mesh to the capture");
+                const auto tf = std::chrono::steady_clock::now();
+                ControlMesh moved = bare;
+                fitOptions.scheme = scheme;
+                if (!(st = fitControlMesh(&moved, high, highIndex, fitOptions, &f.stats)))
+                    throw BakeError(highPath + ": fitting the control mesh: " + st.message());
+                f.positions = std::move(moved.positions);
+                f.done = true;
+                fitMs += msSince(tf);
+            }
+            return f.positions;
+        };
+        // Puts the cage fitted for `scheme` into `mesh` (and into `bare`, which
+        // later atlas layouts start from); a no-op without fitting.
+        auto useFit = [&](Scheme scheme, ControlMesh* mesh) {
+            if (!fitting)
+                return;
+            mesh->positions = fittedPositions(scheme);
+        };
         auto layout = [&](int mapSize) {
             atlas.mapSize = mapSize;
             control = bare;
@@ -494,9 +539,6 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         }
         if (forced)
             sizeReason = "forced by --size";
-        int paperLevel = 0;
-        while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
-            ++paperLevel;
         int recommended = paperLevel;
         struct Trial {
             int size, level;
@@ -521,9 +563,13 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         std::string schemeReason = schemeGiven ? "--scheme" : "";
         if (!schemeGiven && !forced && tolerance > 0.0) {
             // Which surface carries the map better for this pair, measured at
-            // the first size and the paper's level: the paper's linear split
-            // unless the Loop limit is clearly closer (loose cages).
-            if (uvMode == "auto" && !(st = layout(size)))
+            // the paper's level and twice the first size (up to 1024^2), so
+            // that the map's resolution, which the smaller displacements of
+            // the limit surface need less of, does not decide it: the paper's
+            // linear split unless the Loop limit is clearly closer (loose
+            // cages).
+            const int probeSize = std::max(size, std::min(2 * size, std::min(1024, sizeCap)));
+            if (uvMode == "auto" && !(st = layout(probeSize)))
                 throw BakeError(st.message());
             // The linear scheme first: when it meets the tolerance four times
             // over (a level lower would too) the smooth one is not tried (its
@@ -535,14 +581,16 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 if (candidate == Scheme::Smooth && rms[0] <= 0.25 * tolerance)
                     break;
                 BakeOptions probe = options;
-                probe.size = uvMode == "auto" ? atlas.mapSize : size;
+                probe.size = uvMode == "auto" ? atlas.mapSize : probeSize;
                 probe.scheme = candidate;
                 DisplacementMap probeMap;
                 BakeReport probeReport;
                 std::vector<LevelError> errs;
+                ControlMesh candidateMesh = control;
+                useFit(candidate, &candidateMesh);
                 Progress p(progress, "choosing the subdivision scheme");
-                if (!(st = bake(&probeMap, nullptr, &probeReport, control, high, probe)) ||
-                    !(st = closedLoopError(&errs, control, probeMap, candidate, high, paperLevel, paperLevel,
+                if (!(st = bake(&probeMap, nullptr, &probeReport, candidateMesh, high, probe)) ||
+                    !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
                                                   options.threads)))
                     throw BakeError(highPath + ": " + st.message());
                 rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
@@ -557,6 +605,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                               100.0 * rms[1], paperLevel);
             schemeReason = buf;
         }
+        useFit(options.scheme, &bare);
+        useFit(options.scheme, &control);
         for (;;) {
             if (uvMode == "auto") {
                 for (; size <= 8192; size *= 2) {
@@ -703,10 +753,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // Stored per vertex, each value is measured against the capture along
         // its own direction where that agrees with the map (within 2% of the
         // diagonal: farther is another layer of a fold).
-        TriangleIndex highIndex;
         size_t measured = 0;
+        const char* storedHow = "sampled from the map";
         if (writeOptions.vertexDisplacements) {
-            highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
             writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
                 std::vector<float> onCapture = *values;
                 Status s = measureVertexDisplacements(&onCapture, mesh, options.scheme, level, highIndex,
@@ -725,10 +774,30 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 }
                 if (!s)
                     return s;
-                if (rms[1] < rms[0])
+                if (rms[1] < rms[0]) {
                     *values = std::move(onCapture);
-                else
+                    storedHow = "measured along their directions on the capture";
+                } else {
                     measured = 0;
+                }
+                // Then fitted to the capture in both directions, from the
+                // better of the two; kept where the closed loop says so.
+                std::vector<float> fittedValues = *values;
+                DisplacementField field;
+                std::vector<LevelError> e;
+                if ((s = fitVertexDisplacements(&fittedValues, mesh, options.scheme, level, high, highIndex, 3,
+                                                options.threads)) &&
+                    (s = DisplacementField::create(&field, mesh, level, fittedValues)))
+                    s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
+                                        size_t(1) << 20, &field);
+                if (!s)
+                    return s;
+                if (std::max(e[0].forwardRms, e[0].backwardRms) < std::min(rms[0], rms[1])) {
+                    *values = std::move(fittedValues);
+                    storedHow = rms[1] < rms[0] ? "measured along their directions on the capture, then "
+                                                  "least-squares fitted to it"
+                                                : "sampled from the map, then least-squares fitted to the capture";
+                }
                 return Status::ok();
             };
         }
@@ -784,11 +853,23 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                     control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
         appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+        if (fitting) {
+            const Fitted& f = fitted[int(options.scheme)];
+            if (f.stats.maxMove > 0.0)
+                appendf(&result->summary,
+                        "  fitted        cage vertices moved by up to %.3g%% of the diagonal: the %s base surface's RMS "
+                        "distance to the capture %.4f%% -> %.4f%% (--no-fit keeps them)\n",
+                        100.0 * f.stats.maxMove / rep.diagonal, schemeName(options.scheme),
+                        100.0 * f.stats.rmsBefore / rep.diagonal, 100.0 * f.stats.rmsAfter / rep.diagonal);
+            else
+                appendf(&result->summary, "  fitted        cage kept: moving it did not bring the %s base surface closer\n",
+                        schemeName(options.scheme));
+        }
         if (writeOptions.vertexDisplacements)
             appendf(&result->summary,
-                    "  stored        per refined vertex at level %d, %zu of them measured along their direction on the "
-                    "capture (the rest from the map; the closed loop chose)%s\n",
-                    recommended, measured,
+                    "  stored        per refined vertex at level %d, %s (the closed loop chose; %zu of them "
+                    "measured)%s\n",
+                    recommended, storedHow, measured,
                     writeOptions.omitDisplacementUVs ? "; the atlas only served the bake and is not in the rig "
                                                        "(--exr keeps it)" : "");
         if (!trials.empty()) {
@@ -852,7 +933,16 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             report["scheme"] = schemeName(options.scheme);
             report["recommendedLevel"] = recommended;
             report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
-                                {"dilate", rep.times.dilate}, {"write", writeMs}, {"closedLoop", errorMs}};
+                                {"dilate", rep.times.dilate}, {"fit", fitMs}, {"write", writeMs},
+                                {"closedLoop", errorMs}};
+            if (fitting) {
+                const Fitted& f = fitted[int(options.scheme)];
+                report["fit"] = {{"moved", f.stats.maxMove > 0.0},
+                                 {"maxMove", f.stats.maxMove / rep.diagonal},
+                                 {"baseRmsBefore", f.stats.rmsBefore / rep.diagonal},
+                                 {"baseRmsAfter", f.stats.rmsAfter / rep.diagonal}};
+            }
+            report["storedValues"] = storedHow;
             nlohmann::json files = nlohmann::json::object();
             for (const std::string& p : outputs.written)
                 files[p] = fileSize(p);

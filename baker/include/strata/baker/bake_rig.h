@@ -42,6 +42,7 @@ struct BakeRequest {
     bool layers = false;     ///< also write RIG_layers.png (surface layers per texel)
     double maxMemoryMB = 2048.0;  ///< refuse work estimated past this
     bool closeHoles = true;  ///< close a plain control mesh's holes where the capture is closed
+    bool fitCage = true;     ///< move a bare cage's vertices so its base surface fits the capture (a glTF control's never move)
     std::string report;      ///< also write the JSON report here ("" none, "-" only into BakeResult::report)
 };
 
