@@ -368,8 +368,10 @@ TEST(Distance, SphereAgainstScaledSphereIsExact)
 
 TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
 {
-    // A sphere of 1280 triangles: disk charts within 60 degrees of their
-    // seed's normal, flattened without flips, packed without overlaps.
+    // A sphere of 1280 triangles: disk charts grown over 85 degrees around
+    // their seed's normal while the conformal map's area scale stays within
+    // 1.5 (else within 60 degrees), flattened without flips, packed without
+    // overlaps.
     ControlMesh sphere = examples::makeIcosphere(3);
     sphere.uvs.clear();
     sphere.uvIndices.clear();
@@ -378,13 +380,12 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     options.mapSize = 1024;
     options.gutter = 1;
     ASSERT_TRUE(buildChartAtlas(&sphere, options, &stats).isOk());
-    EXPECT_GT(stats.charts, 4u);
+    EXPECT_GT(stats.charts, 1u);  // a closed surface is no disk
     EXPECT_LT(stats.charts, sphere.faceCount() / 8);
-    // Disks flattened conformally: less stretch than the projection's bound
-    // of 1 / cos 60.
+    // Disks flattened conformally, within the wide charts' bound.
     EXPECT_EQ(stats.conformalCharts, stats.charts);
-    EXPECT_LT(stats.maxStretch, 1.6) << stats.maxStretch;
-    EXPECT_GT(stats.texelFill, 0.5);  // 54%: seven discs leave corners no packer fills
+    EXPECT_LE(stats.maxStretch, 1.5) << stats.maxStretch;
+    EXPECT_GT(stats.texelFill, 0.6);  // 63%: four caps leave corners no packer fills
     ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
     // Every face keeps its orientation in UV space.
     for (size_t f = 0; f < sphere.faceCount(); ++f) {

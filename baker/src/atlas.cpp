@@ -65,6 +65,11 @@ namespace strata {
 namespace baker {
 namespace {
 
+// The wide cone a chart is first grown over, and the conformal map's area
+// distortion (linear scale) it must stay within to keep it.
+constexpr double kWideAngleDegrees = 85.0;
+constexpr double kWideStretch = 1.5;
+
 struct Chart {
     std::vector<uint32_t> faces;
     glm::dvec3 normal{0.0};        // the seed face's unit normal: the projection plane
@@ -501,11 +506,10 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
     std::vector<Chart> charts;
     std::vector<uint32_t> vertexChart(nv, UINT32_MAX);  // the chart a vertex was last added to
-    for (uint32_t seed : seeds) {
-        if (chartOf[seed] != UINT32_MAX)
-            continue;
+    // Grows chart `id` from `seed` breadth first over faces within the cone
+    // cosine `cosCone` of the seed's normal.
+    auto grow = [&](uint32_t seed, uint32_t id, double cosCone) {
         Chart c;
-        const uint32_t id = uint32_t(charts.size());
         std::vector<uint32_t> queue = {seed};
         chartOf[seed] = id;
         for (int k = 0; k < 3; ++k)
@@ -519,7 +523,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
                     continue;
                 // Against the seed's normal, the plane the chart is projected
                 // on when the conformal map folds: no face flips there.
-                if (glm::dot(faceNormal[seed], faceNormal[g]) < cosLimit)
+                if (glm::dot(faceNormal[seed], faceNormal[g]) < cosCone)
                     continue;
                 // The chart stays a disk (Euler characteristic 1): the face
                 // adds as many vertices as edges less one, so it neither
@@ -537,6 +541,71 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
                     vertexChart[mesh->triangles[3 * size_t(g) + size_t(k)]] = id;
                 queue.push_back(g);
             }
+        }
+        return c;
+    };
+    // Largest area distortion of a chart's conformal map (a face's linear
+    // scale against the chart's, or its inverse); infinite where it folds.
+    std::vector<int32_t> probeLocal(nv, -1);
+    auto conformalStretch = [&](const Chart& grown) {
+        Chart c = grown;
+        glm::dvec3 u, v;
+        frame(glm::normalize(c.normal), &u, &v);
+        for (uint32_t f : c.faces)
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
+                if (probeLocal[p] < 0) {
+                    probeLocal[p] = int32_t(c.vertices.size());
+                    c.vertices.push_back(p);
+                    const glm::dvec3 x(mesh->positions[p]);
+                    c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
+                }
+            }
+        double stretch = 1e300;
+        if (flattenConformal(c, *mesh, probeLocal, &c.points)) {
+            double area3 = 0.0, area2 = 0.0;
+            std::vector<double> ratio;
+            for (uint32_t f : c.faces) {
+                glm::dvec2 w[3];
+                for (int k = 0; k < 3; ++k)
+                    w[k] = c.points[size_t(probeLocal[mesh->triangles[3 * size_t(f) + size_t(k)]])];
+                const double a2 =
+                    0.5 * ((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
+                area3 += faceArea[f];
+                area2 += std::fabs(a2);
+                ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : -1.0);
+            }
+            stretch = 1.0;
+            for (double r : ratio) {
+                if (r < 0.0) {
+                    stretch = 1e300;  // a face turned over
+                    break;
+                }
+                const double sc = std::sqrt(r / (area3 / area2));
+                stretch = std::max(stretch, std::max(sc, 1.0 / sc));
+            }
+        }
+        for (uint32_t p : c.vertices)
+            probeLocal[p] = -1;
+        return stretch;
+    };
+    // Each chart first grows over a wide cone and keeps it where its
+    // conformal map stays within kWideStretch; otherwise it grows again
+    // within maxAngleDegrees, where the projection is the fallback.  Fewer,
+    // larger charts: fewer gutters, fewer seams.
+    const double cosWide = std::cos(std::max(maxAngleDegrees, kWideAngleDegrees) * 3.14159265358979 / 180.0);
+    for (uint32_t seed : seeds) {
+        if (chartOf[seed] != UINT32_MAX)
+            continue;
+        const uint32_t id = uint32_t(charts.size());
+        Chart c = grow(seed, id, cosWide);
+        if (cosWide < cosLimit && !(conformalStretch(c) <= kWideStretch)) {
+            for (uint32_t f : c.faces)
+                chartOf[f] = UINT32_MAX;
+            for (uint32_t f : c.faces)
+                for (int k = 0; k < 3; ++k)
+                    vertexChart[mesh->triangles[3 * size_t(f) + size_t(k)]] = UINT32_MAX;
+            c = grow(seed, id, cosLimit);
         }
         charts.push_back(std::move(c));
     }

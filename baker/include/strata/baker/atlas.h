@@ -32,9 +32,11 @@ struct ChartAtlasStats {
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a chart atlas: faces are grown
-/// from the largest remaining face across manifold edges while their normals
-/// stay within `maxAngleDegrees` of the seed's and the chart stays a disk
-/// (Euler characteristic 1); each chart is flattened by a least-squares
+/// from the largest remaining face across manifold edges while the chart
+/// stays a disk (Euler characteristic 1) and their normals stay within 85
+/// degrees of the seed's, kept where the chart's conformal map scales no
+/// face's area by more than 1.5 (linear) against the chart's; otherwise the
+/// chart grows again within `maxAngleDegrees`.  Each chart is flattened by a least-squares
 /// conformal map (Levy et al. 2002), or, where that would fold, projected
 /// onto the seed's plane (which cannot fold); turned to its smallest bounding
 /// box, and the charts' footprints (`options.gutter` texels around them) are
