@@ -79,6 +79,7 @@ struct Chart {
     double scaleX = 0.0;  // texels per model unit, set by the packer
     int x = 0, y = 0;     // texel origin of the footprint, set by the packer
     int rotation = 0;     // quarter turns, set by the packer
+    bool conformal = false;  // points already hold the chart's conformal map
 };
 
 // Projects onto the plane orthogonal to n, in an orthonormal frame.
@@ -182,19 +183,28 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
             out[n + i] = 0.0;
         }
     };
-    // Conjugate gradients on A^T A x = 0 with the pins fixed: the residual
-    // is -A^T A x, and the search never moves the pins.
-    std::vector<double> r(2 * n), d(2 * n), q(2 * n), t(2 * rows.size());
+    // Conjugate gradients on A^T A x = 0 with the pins fixed, preconditioned
+    // by A^T A's diagonal (the same for u and v): the residual is -A^T A x,
+    // and the search never moves the pins.
+    std::vector<double> diag(n, 0.0);
+    for (const Row& row : rows)
+        for (int k = 0; k < 3; ++k)
+            diag[row.v[k]] += row.a[k] * row.a[k] + row.b[k] * row.b[k];
+    for (double& e : diag)
+        e = e > 0.0 ? 1.0 / e : 1.0;
+    std::vector<double> r(2 * n), z(2 * n), d(2 * n), q(2 * n), t(2 * rows.size());
     applyA(x, t);
     applyAt(t, r);
-    for (double& e : r)
-        e = -e;
-    d = r;
-    double rr = 0.0;
-    for (double e : r)
-        rr += e * e;
+    double rz = 0.0, rr = 0.0;
+    for (size_t i = 0; i < 2 * n; ++i) {
+        r[i] = -r[i];
+        z[i] = r[i] * diag[i % n];
+        rz += r[i] * z[i];
+        rr += r[i] * r[i];
+    }
+    d = z;
     const double stop = rr * 1e-14;
-    for (int iter = 0; iter < 4 * int(n) + 200 && rr > stop && rr > 0.0; ++iter) {
+    for (int iter = 0; iter < 4 * int(n) + 200 && rr > stop && rz > 0.0; ++iter) {
         applyA(d, t);
         applyAt(t, q);
         double dq = 0.0;
@@ -202,17 +212,20 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
             dq += d[i] * q[i];
         if (!(dq > 0.0))
             break;
-        const double alpha = rr / dq;
-        double rr2 = 0.0;
+        const double alpha = rz / dq;
+        double rz2 = 0.0, rr2 = 0.0;
         for (size_t i = 0; i < 2 * n; ++i) {
             x[i] += alpha * d[i];
             r[i] -= alpha * q[i];
+            z[i] = r[i] * diag[i % n];
+            rz2 += r[i] * z[i];
             rr2 += r[i] * r[i];
         }
-        const double beta = rr2 / rr;
+        const double beta = rz2 / rz;
+        rz = rz2;
         rr = rr2;
         for (size_t i = 0; i < 2 * n; ++i)
-            d[i] = pinned(i % n) ? 0.0 : r[i] + beta * d[i];
+            d[i] = pinned(i % n) ? 0.0 : z[i] + beta * d[i];
     }
     (void)res;
     // Reject a fold: every face must keep the orientation it has in the
@@ -547,8 +560,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     // Largest area distortion of a chart's conformal map (a face's linear
     // scale against the chart's, or its inverse); infinite where it folds.
     std::vector<int32_t> probeLocal(nv, -1);
-    auto conformalStretch = [&](const Chart& grown) {
-        Chart c = grown;
+    auto conformalStretch = [&](Chart& c) {
         glm::dvec3 u, v;
         frame(glm::normalize(c.normal), &u, &v);
         for (uint32_t f : c.faces)
@@ -587,6 +599,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         }
         for (uint32_t p : c.vertices)
             probeLocal[p] = -1;
+        c.conformal = stretch < 1e300;
         return stretch;
     };
     // Each chart first grows over a wide cone and keeps it where its
@@ -605,7 +618,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
             for (uint32_t f : c.faces)
                 for (int k = 0; k < 3; ++k)
                     vertexChart[mesh->triangles[3 * size_t(f) + size_t(k)]] = UINT32_MAX;
-            c = grow(seed, id, cosLimit);
+            c = grow(seed, id, cosLimit);  // a fresh chart: nothing flattened yet
         }
         charts.push_back(std::move(c));
     }
@@ -621,21 +634,27 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
             if (faceArea[f] > 0.0 && !(d > 0.05))
                 return Status(StatusCode::InvalidData, "a chart folds over itself");
         }
-        glm::dvec3 u, v;
-        frame(n, &u, &v);
-        for (uint32_t f : c.faces)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
-                if (local[p] < 0) {
-                    local[p] = int32_t(c.vertices.size());
-                    c.vertices.push_back(p);
-                    const glm::dvec3 x(mesh->positions[p]);
-                    c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
+        if (c.conformal) {
+            // A wide chart keeps the conformal map its growth was judged by.
+            for (size_t i = 0; i < c.vertices.size(); ++i)
+                local[c.vertices[i]] = int32_t(i);
+        } else {
+            glm::dvec3 u, v;
+            frame(n, &u, &v);
+            for (uint32_t f : c.faces)
+                for (int k = 0; k < 3; ++k) {
+                    const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
+                    if (local[p] < 0) {
+                        local[p] = int32_t(c.vertices.size());
+                        c.vertices.push_back(p);
+                        const glm::dvec3 x(mesh->positions[p]);
+                        c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
+                    }
                 }
-            }
+        }
         // Conformal where it does not fold (far less stretch on curved
         // charts), the projection otherwise.
-        if (flattenConformal(c, *mesh, local, &c.points)) {
+        if (c.conformal || flattenConformal(c, *mesh, local, &c.points)) {
             ++conformalCharts;
             // Stretch: each face's linear scale against the chart's.
             double area3 = 0.0, area2 = 0.0;

@@ -176,24 +176,35 @@ struct PairForm {
 
     // Fills q.w and g from the current positions y: each used refined vertex
     // to its nearest capture point, each capture vertex to its nearest point
-    // on the refined mesh.
-    void gather(std::vector<glm::dvec3>* g, const std::vector<glm::vec3>& y, const std::vector<uint8_t>& used,
-                const TriangleMesh& high, const TriangleIndex& highIndex, double wF, double wB, int threads)
+    // on the refined mesh.  Returns the larger RMS of those two distances.
+    double gather(std::vector<glm::dvec3>* g, const std::vector<glm::vec3>& y, const std::vector<uint8_t>& used,
+                  const TriangleMesh& high, const TriangleIndex& highIndex, double wF, double wB, int threads)
     {
         const std::vector<uint32_t>& triangles = *triangles_;
         const size_t nr = y.size();
         g->assign(nr, glm::dvec3(0.0));
         std::fill(q.w.begin(), q.w.end(), 0.0);
+        // Each query starts from the face the last round found (or, in the
+        // first, the previous vertex's): the points move little, so the
+        // search prunes at once.  Hints change only the speed.
+        forwardHint_.resize(nr, -1);
+        backwardHint_.resize(high.positions.size(), -1);
+        std::vector<double> forward(nr, 0.0), backward(high.positions.size(), 0.0);
         parallelFor(nr, threads, [&](size_t begin, size_t end) {
+            int64_t previous = -1;
             for (size_t v = begin; v < end; ++v) {
                 uint32_t f;
                 double b1, b2;
-                if (!used[v] || highIndex.nearest(glm::dvec3(y[v]), &f, &b1, &b2) < 0.0)
+                if (!used[v] ||
+                    highIndex.nearest(glm::dvec3(y[v]), &f, &b1, &b2, forwardHint_[v] >= 0 ? forwardHint_[v] : previous) <
+                        0.0)
                     continue;
+                forwardHint_[v] = previous = int64_t(f);
                 const uint32_t* t = &high.triangles[3 * size_t(f)];
                 const glm::dvec3 p = (1.0 - b1 - b2) * glm::dvec3(high.positions[t[0]]) +
                                      b1 * glm::dvec3(high.positions[t[1]]) + b2 * glm::dvec3(high.positions[t[2]]);
                 (*g)[v] = wF * p;
+                forward[v] = glm::dot(p - glm::dvec3(y[v]), p - glm::dvec3(y[v]));
                 q.w[diagonal[v]] = wF;
             }
         });
@@ -205,11 +216,17 @@ struct PairForm {
         };
         std::vector<Hit> hits(high.positions.size());
         parallelFor(hits.size(), threads, [&](size_t begin, size_t end) {
+            int64_t previous = -1;
             for (size_t j = begin; j < end; ++j) {
                 double b1 = 0.0, b2 = 0.0;
                 uint32_t f = 0;
-                if (index.nearest(glm::dvec3(high.positions[j]), &f, &b1, &b2) < 0.0)
+                const double distance = index.nearest(glm::dvec3(high.positions[j]), &f, &b1, &b2,
+                                                      backwardHint_[j] >= 0 ? backwardHint_[j] : previous);
+                if (distance < 0.0)
                     f = 0xffffffffu;
+                else
+                    backwardHint_[j] = previous = int64_t(f);
+                backward[j] = distance > 0.0 ? distance * distance : 0.0;
                 hits[j] = {f, {1.0 - b1 - b2, b1, b2}};
             }
         });
@@ -224,24 +241,23 @@ struct PairForm {
                     q.w[slots[9 * size_t(h.face) + 3 * size_t(a) + size_t(b)]] += wB * h.b[a] * h.b[b];
             }
         }
+        double sumF = 0.0, sumB = 0.0;
+        size_t countF = 0;
+        for (size_t v = 0; v < nr; ++v)
+            if (used[v]) {
+                sumF += forward[v];
+                ++countF;
+            }
+        for (double d2 : backward)
+            sumB += d2;
+        return std::max(std::sqrt(sumF / double(std::max<size_t>(countF, 1))),
+                        std::sqrt(sumB / double(std::max<size_t>(backward.size(), 1))));
     }
 
 private:
     const std::vector<uint32_t>* triangles_ = nullptr;
+    std::vector<int64_t> forwardHint_, backwardHint_;  // per query, the face its last search found
 };
-
-double surfaceRms(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& triangles,
-                  const TriangleMesh& high, const TriangleIndex& highIndex, int threads)
-{
-    TriangleIndex index;
-    index.build(positions.data(), triangles.data(), triangles.size() / 3, threads);
-    const DistanceStats forward = sampleDistance(
-        surfaceSamples(positions.data(), positions.size(), triangles.data(), triangles.size() / 3), highIndex, threads);
-    const DistanceStats backward = sampleDistance(
-        surfaceSamples(high.positions.data(), high.positions.size(), high.triangles.data(), high.faceCount()), index,
-        threads);
-    return std::max(forward.rms, backward.rms);
-}
 
 }  // namespace
 
@@ -280,9 +296,6 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
         }
     }
     const Csr st = transpose(s, n);
-
-    PairForm form;
-    form.build(refinedTriangles, nr);
 
     // The control mesh's neighbours, for the Laplacian term.
     std::vector<std::vector<uint32_t>> ring(n);
@@ -327,9 +340,24 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
         for (size_t v = 0; v < nr; ++v)
             (*x)[v] = glm::vec3(xd[v]);
     };
+    // Only vertices on a face are samples (an isolated one stays where it is).
+    std::vector<uint8_t> onFace(nr, 0);
+    size_t forwardCount = 0;
+    for (size_t v = 0; v < nr; ++v)
+        if (samples[v].face != kNoControlFace) {
+            onFace[v] = 1;
+            ++forwardCount;
+        }
+    const double wF = forwardCount ? 1.0 / double(forwardCount) : 0.0;
+    const double wB = 1.0 / double(high.positions.size());
     std::vector<glm::vec3> x;
     refine(c, &x);
-    const double before = surfaceRms(x, refinedTriangles, high, highIndex, threads);
+    // The error is measured where the fit looks: the refined vertices and
+    // the capture's vertices, each to the other surface.
+    PairForm form;
+    form.build(refinedTriangles, nr);
+    std::vector<glm::dvec3> g;
+    const double before = form.gather(&g, x, onFace, high, highIndex, wF, wB, threads);
     glm::vec3 lo(high.positions[0]), hi(high.positions[0]);
     for (const glm::vec3& p : high.positions) {
         lo = glm::min(lo, p);
@@ -343,23 +371,14 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
     if (!(before <= moveLimit))
         return Status::ok();
 
-    // Only vertices on a face are samples (an isolated one stays where it is).
-    std::vector<uint8_t> onFace(nr, 0);
-    size_t forwardCount = 0;
-    for (size_t v = 0; v < nr; ++v)
-        if (samples[v].face != kNoControlFace) {
-            onFace[v] = 1;
-            ++forwardCount;
-        }
-    const double wF = forwardCount ? 1.0 / double(forwardCount) : 0.0;
-    const double wB = 1.0 / double(high.positions.size());
     const double mu = options.smoothness / double(std::max<size_t>(n, 1));
     const double eps = 1e-6 / double(std::max<size_t>(n, 1));
 
     for (int round = 0; round < options.iterations; ++round) {
-        // Correspondences, both directions.
-        std::vector<glm::dvec3> g;
-        form.gather(&g, x, onFace, high, highIndex, wF, wB, threads);
+        // Correspondences, both directions (the first round's were found
+        // with the error before the fit).
+        if (round > 0)
+            form.gather(&g, x, onFace, high, highIndex, wF, wB, threads);
         const Csr& q = form.q;
 
         // Right-hand side and the operator.
@@ -397,7 +416,7 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
         refine(c, &x);
     }
 
-    const double after = surfaceRms(x, refinedTriangles, high, highIndex, threads);
+    const double after = form.gather(&g, x, onFace, high, highIndex, wF, wB, threads);
     double maxMove = 0.0;
     for (size_t v = 0; v < n; ++v)
         maxMove = std::max(maxMove, glm::length(c[v] - c0[v]));
