@@ -244,6 +244,41 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "only the inputs and the two rigs";  // high, control, 2 rigs
 }
 
+// Between a count that misses the tolerance and twice it that meets it, the
+// search tries their geometric mean once, and keeps it when it meets it.
+// (Here 400 faces bake at a level below 200's, so 800 is the first count
+// that beats 200.)
+TEST(BakeCli, AutomaticCageFaceCountIsRefinedBetweenItsBrackets)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_auto_refine");
+    writeInputs(dir);
+    strata::baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = "auto";
+    double rms[3];
+    for (int k = 0; k < 3; ++k) {
+        request.controlFaces = size_t(200) << k;
+        request.output = dir + "/fixed" + std::to_string(k) + ".glb";
+        strata::baker::BakeResult fixed;
+        ASSERT_TRUE(strata::baker::bakeRig(request, &fixed).isOk());
+        rms[k] = fixed.rms;
+    }
+    ASSERT_LT(rms[2], std::min(rms[0], rms[1]));
+    request.controlFaces = 0;
+    request.tolerance = 0.5 * (rms[2] + std::min(rms[0], rms[1]));
+    request.output = dir + "/auto.glb";
+    strata::baker::BakeResult result;
+    ASSERT_TRUE(strata::baker::bakeRig(request, &result).isOk());
+    for (const char* tried : {"200: ", "400: ", "800: ", "566: "})
+        EXPECT_NE(result.summary.find(tried), std::string::npos) << tried << result.summary;
+    EXPECT_LE(result.rms, request.tolerance);
+    // The middle try is the one chosen exactly when it met the tolerance.
+    const size_t at = result.summary.find("566: ");
+    const std::string line = result.summary.substr(at, result.summary.find('\n', at) - at);
+    const bool met = std::stod(line.substr(5)) <= 100.0 * request.tolerance;
+    EXPECT_EQ(line.find("<- chosen") != std::string::npos, met) << result.summary;
+}
+
 TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
 {
     const std::string dir = strata::test::tempDir("bake_cli_rebake");

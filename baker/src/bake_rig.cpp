@@ -200,8 +200,9 @@ void replaceAll(std::string* text, const std::string& from, const std::string& t
 
 // An automatic control mesh's face count follows from the tolerance: the
 // fewest faces (in steps of 2x from a fiftieth of the capture's, at least
-// 200, at most a fifth) whose bake reaches it in the closed loop, or the
-// most accurate tried when none does.  Each try is a whole bake into a
+// 200, at most a fifth, then once at the geometric mean of the two counts
+// that bracket the tolerance) whose bake reaches it in the closed loop, or
+// the most accurate tried when none does.  Each try is a whole bake into a
 // scratch folder.  When the request asks for the rig alone (a .glb, no
 // report, map images or error range of its own) the chosen try is that
 // bake: its rig is copied into place and its summary kept.  Otherwise the
@@ -278,6 +279,28 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     if (!st && tries.size() == 1) {
         fs::remove_all(scratch, ec);
         return st;  // the first try failed: its message is the bake's
+    }
+    // Between the fewest faces that met the tolerance and the most that did
+    // not (a factor of 2 apart), one more try at their geometric mean: the
+    // rig's bytes follow the face count about linearly.
+    {
+        const Try* met = nullptr;
+        const Try* missed = nullptr;
+        for (const Try& t : tries) {
+            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
+                met = &t;
+        }
+        for (const Try& t : tries)
+            if (met && t.rms > request.tolerance && t.faces < met->faces && (!missed || t.faces > missed->faces))
+                missed = &t;
+        if (met && missed) {
+            const size_t middle = size_t(std::lround(std::sqrt(double(met->faces) * double(missed->faces))));
+            if (middle > missed->faces && middle < met->faces) {
+                const Status before = st;
+                attempt(middle);
+                st = before;  // a failed extra try leaves the choice to the others
+            }
+        }
     }
     // The fewest faces that met the tolerance, else the smallest error.
     const Try* chosen = nullptr;
