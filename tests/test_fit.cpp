@@ -221,3 +221,20 @@ TEST(Fit, HandDefaultBakeReachesTheBar)
     EXPECT_GT(result.rms, 0.0);
     EXPECT_LE(result.rms, 2e-4) << result.summary;
 }
+
+// A cage file whose map is asked for as an image keeps its vertices: a
+// pipeline applies that map to the cage it has.
+TEST(Fit, MapImagesKeepTheCageAsDrawn)
+{
+    STRATA_REQUIRE_DATA(high, "spot_triangulated.obj");
+    STRATA_REQUIRE_DATA(control, "spot_control_mesh.obj");
+    BakeRequest request;
+    request.high = high;
+    request.control = control;
+    request.output = strata::test::tempDir("fit_exr") + "/spot.glb";
+    request.exr = true;
+    BakeResult result;
+    ASSERT_TRUE(bakeRig(request, &result).isOk());
+    EXPECT_NE(result.summary.find("cage kept as drawn"), std::string::npos) << result.summary;
+    EXPECT_FALSE(nlohmann::json::parse(result.report).contains("fit"));
+}

@@ -38,7 +38,7 @@ const char* kUsage =
     "A bare control mesh (OBJ or --control auto) is fitted to the capture first: its vertices\n"
     "move so that the scheme's base surface lies close to the capture in both directions\n"
     "(Displaced Subdivision Surfaces; --no-fit keeps them).  A glTF control's or a skinned\n"
-    "cage's never move.\n";
+    "cage's never move, nor does a cage file's when --exr or --png asks for the map itself.\n";
 
 // Fills the request from the command line; false when the run is done
 // (--help, --version).  Bad flags throw cli::Error.

@@ -482,8 +482,13 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // A bare cage is fitted to the capture for the scheme it will carry
         // (Displaced Subdivision Surfaces 4.2).  A character's own vertices
         // (a glTF control, written back as it came) and a skinned cage (its
-        // weights were bound to these positions) are never moved.
-        const bool fitting = request.fitCage && !controlRig.source && skeleton.empty();
+        // weights were bound to these positions) are never moved, nor is a
+        // user's cage whose map is asked for as an image (--exr, --png8/16):
+        // a pipeline applies that map to the cage it has.
+        const bool mapForPipelines = writeExr || pngBits != 0;
+        const bool fitting = request.fitCage && !controlRig.source && skeleton.empty() &&
+                             (controlPath == "auto" || !mapForPipelines);
+        const bool fitSkippedForMaps = request.fitCage && !controlRig.source && skeleton.empty() && !fitting;
         struct Fitted {
             bool done = false;
             std::vector<glm::vec3> positions;
@@ -887,6 +892,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             else
                 appendf(&result->summary, "  fitted        cage kept: moving it did not bring the %s base surface closer\n",
                         schemeName(options.scheme));
+        } else if (fitSkippedForMaps) {
+            appendf(&result->summary, "  fitted        cage kept as drawn: the map images (--exr, --png) are for the cage "
+                                      "you have\n");
         }
         if (writeOptions.vertexDisplacements)
             appendf(&result->summary,
