@@ -656,12 +656,12 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             }
             if (forced || tolerance <= 0.0)
                 break;
-            // The paper's level and the three below it (a loose tolerance is
-            // met with fewer refined vertices, hence fewer stored values); a
-            // finer level than the paper's rule rarely pays for its four
-            // times the triangles.
+            // The paper's level and every level below it (a loose tolerance
+            // is met with fewer refined vertices, hence fewer stored values;
+            // the coarse levels cost little to measure); a finer level than
+            // the paper's rule rarely pays for its four times the triangles.
             std::vector<LevelError> errs;
-            const int lo = std::max(0, paperLevel - 3), hi = paperLevel;
+            const int lo = 0, hi = paperLevel;
             {
                 Progress p(progress, "measuring the map size against --tolerance");
                 if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
