@@ -60,8 +60,19 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     plan.flattenStencils(&stencils);
     const size_t nv = e->vertexCount_, nf = e->faceCount_;
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
-    std::vector<uint32_t> adjacencyOffsets, adjacentFaces;
+    // Per vertex, the other two corners of each incident face, counter-
+    // clockwise from it, in face order: the normal pass reads two positions
+    // per face instead of a face index, three corner indices and three.
+    std::vector<uint32_t> adjacencyOffsets, adjacentFaces, adjacentEdges;
     buildVertexFaces(&adjacencyOffsets, &adjacentFaces, tris.data(), nf, nv);
+    adjacentEdges.resize(2 * adjacentFaces.size());
+    for (size_t v = 0; v < nv; ++v)
+        for (uint32_t k = adjacencyOffsets[v]; k < adjacencyOffsets[v + 1]; ++k) {
+            const uint32_t* t = &tris[3 * size_t(adjacentFaces[k])];
+            const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+            adjacentEdges[2 * size_t(k)] = t[(at + 1) % 3];
+            adjacentEdges[2 * size_t(k) + 1] = t[(at + 2) % 3];
+        }
     std::vector<glm::vec2> uvs;
     plan.sampleUVs(&uvs);
     if (uvs.empty())
@@ -78,7 +89,7 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     b[kSampleUVs] = makeBuffer(uvs.data(), nv * 8, false, &bytes);
     b[kTriangles] = makeBuffer(tris.data(), tris.size() * 4, false, &bytes);
     b[kAdjacencyOffsets] = makeBuffer(adjacencyOffsets.data(), adjacencyOffsets.size() * 4, false, &bytes);
-    b[kAdjacentFaces] = makeBuffer(adjacentFaces.data(), adjacentFaces.size() * 4, false, &bytes);
+    b[kAdjacentEdges] = makeBuffer(adjacentEdges.data(), adjacentEdges.size() * 4, false, &bytes);
     b[kNormals] = makeBuffer(nullptr, nv * 16, false, &bytes);
     b[kVertexDisplacements] = makeBuffer(nullptr, std::max<size_t>(nv, 1) * 4, true, &bytes);
 

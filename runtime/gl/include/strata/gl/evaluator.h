@@ -9,7 +9,8 @@
 //                     rig's per-vertex values) with the CPU's own formula
 //                     (displacement_math.h, sample_map.glsl)
 //   3. normals.comp   (optional) shading normals of the displaced mesh,
-//                     gathered per vertex in face order.
+//                     gathered per vertex in face order from each incident
+//                     face's other two corners.
 // The results stay in storage buffers the engine binds as it likes:
 // displaced positions and normals as vec4 per refined vertex, the refined
 // triangles as uint triples.  An engine that displaces in its own vertex
@@ -41,10 +42,13 @@ enum class SampleFilter { Shared = 0, Hardware = 1 };
 /// Shader storage binding points of the evaluator's buffers, as the shaders
 /// in shaders/ declare them.  std430 layouts: vec4 per refined vertex for
 /// Surface (two: point, direction), Displaced and Normals; float for
-/// VertexDisplacements; vec2 for SampleUVs; uint triples for Triangles.
+/// VertexDisplacements; vec2 for SampleUVs; uint triples for Triangles;
+/// uvec2 per (vertex, incident face) for AdjacentEdges: the face's other two
+/// corners counter-clockwise from the vertex, in face order, each vertex's
+/// run starting at AdjacencyOffsets[v].
 enum Binding : GLuint {
     kControlPositions = 0, kControlNormals = 1, kStencilOffsets = 2, kStencilIndices = 3, kStencilWeights = 4,
-    kSurface = 5, kDisplaced = 6, kSampleUVs = 7, kTriangles = 8, kAdjacencyOffsets = 9, kAdjacentFaces = 10,
+    kSurface = 5, kDisplaced = 6, kSampleUVs = 7, kTriangles = 8, kAdjacencyOffsets = 9, kAdjacentEdges = 10,
     kNormals = 11, kVertexDisplacements = 15
 };
 
