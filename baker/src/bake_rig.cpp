@@ -589,14 +589,15 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             double best = 1e300;
         } previous;
         std::string schemeReason = schemeGiven ? "--scheme" : "";
+        const auto schemeStart = std::chrono::steady_clock::now();
         if (!schemeGiven && !forced && tolerance > 0.0) {
             // Which surface carries the map better for this pair, measured at
-            // the paper's level and twice the first size (up to 1024^2), so
+            // the paper's level and twice the first size (up to 512^2), so
             // that the map's resolution, which the smaller displacements of
             // the limit surface need less of, does not decide it: the paper's
             // linear split unless the Loop limit is clearly closer (loose
             // cages).
-            const int probeSize = std::max(size, std::min(2 * size, std::min(1024, sizeCap)));
+            const int probeSize = std::max(size, std::min(2 * size, std::min(512, sizeCap)));
             if (uvMode == "auto" && !(st = layout(probeSize)))
                 throw BakeError(st.message());
             // The linear scheme first: when it meets the tolerance four times
@@ -635,6 +636,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         }
         useFit(options.scheme, &bare);
         useFit(options.scheme, &control);
+        const double schemeMs = msSince(schemeStart);  // fits included
+        const auto searchStart = std::chrono::steady_clock::now();
         for (;;) {
             if (uvMode == "auto") {
                 for (; size <= 8192; size *= 2) {
@@ -714,6 +717,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             previous.best = best;
             size *= 2;
         }
+        const double searchMs = msSince(searchStart);
         rep.sizeReason = sizeReason;
         if (uvMode == "auto") {
             char buf[160];
@@ -921,6 +925,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         appendf(&result->summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
                     "closed loop %.0f ms\n",
                     loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
+        appendf(&result->summary, "  choices       scheme %.0f ms (cage fits %.0f ms of it), map size and level %.0f ms\n",
+                schemeMs, fitMs, searchMs);
         appendf(&result->summary, "  outputs      ");
         for (const std::string& p : outputs.written)
             appendf(&result->summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
@@ -964,8 +970,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             report["scheme"] = schemeName(options.scheme);
             report["recommendedLevel"] = recommended;
             report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
-                                {"dilate", rep.times.dilate}, {"fit", fitMs}, {"write", writeMs},
-                                {"closedLoop", errorMs}};
+                                {"dilate", rep.times.dilate}, {"fit", fitMs}, {"schemeChoice", schemeMs},
+                                {"sizeSearch", searchMs}, {"write", writeMs}, {"closedLoop", errorMs}};
             if (fitting) {
                 const Fitted& f = fitted[int(options.scheme)];
                 report["fit"] = {{"moved", f.stats.maxMove > 0.0},
