@@ -550,15 +550,14 @@ void smoothChartBorders(const ControlMesh& mesh, const std::vector<std::array<ui
                   charts->end());
 }
 
-}  // namespace
-
-Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, double maxAngleDegrees)
+// Grows, smooths, flattens and turns the charts of a mesh: everything of
+// the atlas that does not depend on the map size.
+Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector<Chart>* chartsOut,
+                  double* maxStretchOut, size_t* conformalChartsOut)
 {
+    const ControlMesh* mesh = &meshIn;
     const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
-    if (nf == 0)
-        return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
-    if (options.mapSize < 8 || options.gutter < 1)
-        return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
+    std::vector<Chart>& charts = *chartsOut;
     const double cosLimit = std::cos(maxAngleDegrees * 3.14159265358979 / 180.0);
     std::vector<glm::dvec3> faceNormal(nf);
     std::vector<double> faceArea(nf);
@@ -601,7 +600,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     for (uint32_t f = 0; f < nf; ++f)
         seeds[f] = f;
     std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
-    std::vector<Chart> charts;
     std::vector<uint32_t> vertexChart(nv, UINT32_MAX);  // the chart a vertex was last added to
     // Grows chart `id` from `seed` breadth first over faces within the cone
     // cosine `cosCone` of the seed's normal.
@@ -800,6 +798,66 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         }
         for (uint32_t p : c.vertices)
             local[p] = -1;
+    }
+    *maxStretchOut = maxStretch;
+    *conformalChartsOut = conformalCharts;
+    return Status::ok();
+}
+
+}  // namespace
+
+struct ChartCache::Impl {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    double maxAngleDegrees = 0.0;
+    std::vector<Chart> charts;
+    double maxStretch = 1.0;
+    size_t conformalCharts = 0;
+};
+
+ChartCache::ChartCache() = default;
+ChartCache::~ChartCache() = default;
+ChartCache::ChartCache(ChartCache&&) noexcept = default;
+ChartCache& ChartCache::operator=(ChartCache&&) noexcept = default;
+
+Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, double maxAngleDegrees,
+                       ChartCache* cache)
+{
+    const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
+    if (nf == 0)
+        return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
+    if (options.mapSize < 8 || options.gutter < 1)
+        return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
+    std::vector<double> faceArea(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::dvec3 a(mesh->positions[mesh->triangles[3 * f]]), b(mesh->positions[mesh->triangles[3 * f + 1]]),
+            c(mesh->positions[mesh->triangles[3 * f + 2]]);
+        faceArea[f] = 0.5 * glm::length(glm::cross(b - a, c - a));
+    }
+    std::vector<int32_t> local(nv, -1);
+    const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
+                        cache->impl->triangles == mesh->triangles && cache->impl->maxAngleDegrees == maxAngleDegrees;
+    std::vector<Chart> charts;
+    double maxStretch = 1.0;
+    size_t conformalCharts = 0;
+    if (cached) {
+        charts = cache->impl->charts;
+        maxStretch = cache->impl->maxStretch;
+        conformalCharts = cache->impl->conformalCharts;
+    } else {
+        Status made = makeCharts(*mesh, maxAngleDegrees, &charts, &maxStretch, &conformalCharts);
+        if (!made)
+            return made;
+        if (cache) {
+            if (!cache->impl)
+                cache->impl = std::make_unique<ChartCache::Impl>();
+            cache->impl->positions = mesh->positions;
+            cache->impl->triangles = mesh->triangles;
+            cache->impl->maxAngleDegrees = maxAngleDegrees;
+            cache->impl->charts = charts;
+            cache->impl->maxStretch = maxStretch;
+            cache->impl->conformalCharts = conformalCharts;
+        }
     }
     // The largest common scale (texels per model unit) that packs: bracket,
     // then bisect.

@@ -520,10 +520,11 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 return;
             mesh->positions = fittedPositions(scheme);
         };
+        ChartCache chartCache;  // the charts, made once per cage the layouts start from
         auto layout = [&](int mapSize) {
             atlas.mapSize = mapSize;
             control = bare;
-            Status s = buildChartAtlas(&control, atlas, &chartStats);
+            Status s = buildChartAtlas(&control, atlas, &chartStats, 60.0, &chartCache);
             if (!s) {
                 control = bare;
                 AtlasOptions triangles = atlas;

@@ -6,6 +6,8 @@
 #include "strata/control_mesh.h"
 #include "strata/status.h"
 
+#include <memory>
+
 namespace strata {
 namespace baker {
 
@@ -46,8 +48,21 @@ struct ChartAtlasStats {
 /// Vertices are split only on chart borders.  Fails (and leaves the mesh as
 /// it was) if a chart would fold over itself; callers fall back to
 /// buildTriangleAtlas.
+/// The charts of a mesh (grown, flattened, turned) do not depend on the map
+/// size: buildChartAtlas calls on the same mesh (the same positions and
+/// triangles) at several sizes that share a cache make them once.
+class ChartCache {
+public:
+    ChartCache();
+    ~ChartCache();
+    ChartCache(ChartCache&&) noexcept;
+    ChartCache& operator=(ChartCache&&) noexcept;
+    struct Impl;  // atlas.cpp
+    std::unique_ptr<Impl> impl;
+};
+
 Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats = nullptr,
-                       double maxAngleDegrees = 60.0);
+                       double maxAngleDegrees = 60.0, ChartCache* cache = nullptr);
 
 }  // namespace baker
 }  // namespace strata
