@@ -556,3 +556,35 @@ TEST(ControlMeshHoles, BoundaryLoopsCloseWithConsistentFans)
     ControlMesh closed = examples::makeIcosphere(1);
     EXPECT_EQ(closeBoundaryLoops(&closed), 0u);
 }
+
+// A chart cache makes the same atlas at every size as a fresh layout, and is
+// not fooled by a mesh whose positions changed.
+TEST(Atlas, ChartCacheGivesTheSameAtlas)
+{
+    ControlMesh head = examples::makeIcosphere(3);
+    for (glm::vec3& p : head.positions)
+        p *= examples::headRadius(glm::normalize(p));
+    head.uvs.clear();
+    head.uvIndices.clear();
+    ChartCache cache;
+    for (int size : {256, 512, 256}) {
+        AtlasOptions options;
+        options.mapSize = size;
+        options.gutter = 1;
+        ControlMesh fresh = head, reused = head;
+        ASSERT_TRUE(buildChartAtlas(&fresh, options).isOk());
+        ASSERT_TRUE(buildChartAtlas(&reused, options, nullptr, 60.0, &cache).isOk());
+        EXPECT_EQ(fresh.uvs, reused.uvs) << size;
+        EXPECT_EQ(fresh.uvIndices, reused.uvIndices) << size;
+    }
+    ControlMesh moved = head;
+    for (glm::vec3& p : moved.positions)
+        p *= glm::vec3(1.0f, 0.5f, 1.0f);
+    AtlasOptions options;
+    options.mapSize = 512;
+    options.gutter = 1;
+    ControlMesh fresh = moved;
+    ASSERT_TRUE(buildChartAtlas(&fresh, options).isOk());
+    ASSERT_TRUE(buildChartAtlas(&moved, options, nullptr, 60.0, &cache).isOk());
+    EXPECT_EQ(fresh.uvs, moved.uvs);
+}
