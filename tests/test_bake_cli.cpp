@@ -44,6 +44,16 @@ void writeInputs(const std::string& dir)
     ASSERT_TRUE(io::writeMesh(dir + "/control.obj", v).isOk());
 }
 
+// A --control auto request over writeInputs' capture in dir.
+strata::baker::BakeRequest automaticCageRequest(const std::string& dir)
+{
+    writeInputs(dir);
+    strata::baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = "auto";
+    return request;
+}
+
 }  // namespace
 
 TEST(BakeCli, BakesTheBuiltInShapeAndReportsIt)
@@ -204,10 +214,7 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
 TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
 {
     const std::string dir = strata::test::tempDir("bake_cli_auto_faces");
-    writeInputs(dir);
-    strata::baker::BakeRequest request;
-    request.high = dir + "/high.obj";
-    request.control = "auto";
+    strata::baker::BakeRequest request = automaticCageRequest(dir);
     request.output = dir + "/loose.glb";
     request.tolerance = 0.01;
     strata::baker::BakeResult loose, tight;
@@ -251,10 +258,7 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
 TEST(BakeCli, AutomaticCageFaceCountIsRefinedBetweenItsBrackets)
 {
     const std::string dir = strata::test::tempDir("bake_cli_auto_refine");
-    writeInputs(dir);
-    strata::baker::BakeRequest request;
-    request.high = dir + "/high.obj";
-    request.control = "auto";
+    strata::baker::BakeRequest request = automaticCageRequest(dir);
     double rms[3];
     for (int k = 0; k < 3; ++k) {
         request.controlFaces = size_t(200) << k;

@@ -36,6 +36,18 @@ TriangleMesh icosphereMesh(int subdivisions, float radius)
     return t;
 }
 
+// The built-in head over a level-3 icosphere, without UVs: its relief
+// breaks the surface into many charts.
+ControlMesh headWithoutUVs()
+{
+    ControlMesh head = examples::makeIcosphere(3);
+    for (glm::vec3& p : head.positions)
+        p *= examples::headRadius(glm::normalize(p));
+    head.uvs.clear();
+    head.uvIndices.clear();
+    return head;
+}
+
 }  // namespace
 
 TEST(NormalVolume, MapThenEquationTwoReturnsThePoint)
@@ -409,11 +421,7 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
 // they share.
 TEST(Atlas, ChartBordersHaveNoTeeth)
 {
-    ControlMesh sphere = examples::makeIcosphere(3);
-    for (glm::vec3& p : sphere.positions)
-        p *= examples::headRadius(glm::normalize(p));
-    sphere.uvs.clear();
-    sphere.uvIndices.clear();
+    ControlMesh sphere = headWithoutUVs();
     ChartAtlasStats stats;
     AtlasOptions options;
     options.mapSize = 512;
@@ -561,11 +569,7 @@ TEST(ControlMeshHoles, BoundaryLoopsCloseWithConsistentFans)
 // not fooled by a mesh whose positions changed.
 TEST(Atlas, ChartCacheGivesTheSameAtlas)
 {
-    ControlMesh head = examples::makeIcosphere(3);
-    for (glm::vec3& p : head.positions)
-        p *= examples::headRadius(glm::normalize(p));
-    head.uvs.clear();
-    head.uvIndices.clear();
+    const ControlMesh head = headWithoutUVs();
     ChartCache cache;
     for (int size : {256, 512, 256}) {
         AtlasOptions options;

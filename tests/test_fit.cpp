@@ -43,6 +43,45 @@ double radialRms(const ControlMesh& cage, Scheme scheme, int level)
     return std::sqrt(sum / double(x.size()));
 }
 
+// The unit sphere as a dense capture, indexed.
+struct SphereCapture {
+    TriangleMesh mesh = sphereCapture(5);
+    TriangleIndex index;
+    SphereCapture() { index.build(mesh.positions.data(), mesh.triangles.data(), mesh.faceCount()); }
+};
+
+// A once-split icosahedron inscribed in the unit sphere, fitted to it for
+// `scheme`; the radial RMS of its base surface before and after.
+struct FittedCage {
+    ControlMesh cage = examples::makeIcosphere(1);
+    double before = 0.0, after = 0.0;
+    FitStats stats;
+};
+
+FittedCage fitIcosahedronToSphere(Scheme scheme)
+{
+    const SphereCapture sphere;
+    FittedCage f;
+    f.before = radialRms(f.cage, scheme, 3);
+    FitOptions options;
+    options.scheme = scheme;
+    options.level = 3;
+    EXPECT_TRUE(fitControlMesh(&f.cage, sphere.mesh, sphere.index, options, &f.stats).isOk());
+    f.after = radialRms(f.cage, scheme, 3);
+    return f;
+}
+
+// A default bake request of a real pair (shared data) into a fresh folder.
+BakeRequest pairRequest(const std::string& high, const std::string& control, const std::string& folder,
+                        const std::string& name)
+{
+    BakeRequest request;
+    request.high = high;
+    request.control = control;
+    request.output = strata::test::tempDir(folder) + "/" + name;
+    return request;
+}
+
 }  // namespace
 
 // The Loop limit surface of a once-split icosahedron inscribed in the unit
@@ -51,21 +90,12 @@ double radialRms(const ControlMesh& cage, Scheme scheme, int level)
 // surface straddles the sphere.
 TEST(Fit, IcosahedronLimitSurfaceFitsTheSphere)
 {
-    const TriangleMesh sphere = sphereCapture(5);
-    TriangleIndex index;
-    index.build(sphere.positions.data(), sphere.triangles.data(), sphere.faceCount());
-    ControlMesh cage = examples::makeIcosphere(1);
-    const double before = radialRms(cage, Scheme::Smooth, 3);
-    FitOptions options;
-    options.scheme = Scheme::Smooth;
-    options.level = 3;
-    FitStats stats;
-    ASSERT_TRUE(fitControlMesh(&cage, sphere, index, options, &stats).isOk());
-    const double after = radialRms(cage, Scheme::Smooth, 3);
-    EXPECT_GT(before, 0.05);  // the limit surface sinks ~9% (RMS) inside the sphere
-    EXPECT_LT(after, 0.05 * before);
-    EXPECT_LT(stats.rmsAfter, 0.05 * stats.rmsBefore);
-    EXPECT_GT(stats.maxMove, 0.05);
+    const FittedCage f = fitIcosahedronToSphere(Scheme::Smooth);
+    const ControlMesh& cage = f.cage;
+    EXPECT_GT(f.before, 0.05);  // the limit surface sinks ~9% (RMS) inside the sphere
+    EXPECT_LT(f.after, 0.05 * f.before);
+    EXPECT_LT(f.stats.rmsAfter, 0.05 * f.stats.rmsBefore);
+    EXPECT_GT(f.stats.maxMove, 0.05);
     // makeIcosphere lists the icosahedron's twelve vertices first.
     const float r5 = glm::length(cage.positions[0]), r6 = glm::length(cage.positions[12]);
     EXPECT_GT(r5, 1.05f);
@@ -78,16 +108,9 @@ TEST(Fit, IcosahedronLimitSurfaceFitsTheSphere)
 // cage pushes its vertices out so that the faces straddle it.
 TEST(Fit, IcosahedronFacesStraddleTheSphereWhenFittedLinearly)
 {
-    const TriangleMesh sphere = sphereCapture(5);
-    TriangleIndex index;
-    index.build(sphere.positions.data(), sphere.triangles.data(), sphere.faceCount());
-    ControlMesh cage = examples::makeIcosphere(1);
-    const double before = radialRms(cage, Scheme::Linear, 3);
-    FitOptions options;
-    options.scheme = Scheme::Linear;
-    ASSERT_TRUE(fitControlMesh(&cage, sphere, index, options).isOk());
-    EXPECT_LT(radialRms(cage, Scheme::Linear, 3), 0.6 * before);
-    for (const glm::vec3& p : cage.positions)
+    const FittedCage f = fitIcosahedronToSphere(Scheme::Linear);
+    EXPECT_LT(f.after, 0.6 * f.before);
+    for (const glm::vec3& p : f.cage.positions)
         EXPECT_GT(glm::length(p), 1.0f);
 }
 
@@ -184,15 +207,11 @@ TEST(Fit, SpotIsCloserWhenFitted)
 {
     STRATA_REQUIRE_DATA(high, "spot_triangulated.obj");
     STRATA_REQUIRE_DATA(control, "spot_control_mesh.obj");
-    const std::string dir = strata::test::tempDir("fit_spot");
-    BakeRequest request;
-    request.high = high;
-    request.control = control;
-    request.output = dir + "/fitted.glb";
+    BakeRequest request = pairRequest(high, control, "fit_spot", "fitted.glb");
     BakeResult fitted, drawn;
     ASSERT_TRUE(bakeRig(request, &fitted).isOk());
     request.fitCage = false;
-    request.output = dir + "/drawn.glb";
+    request.output.replace(request.output.rfind('/') + 1, std::string::npos, "drawn.glb");
     ASSERT_TRUE(bakeRig(request, &drawn).isOk());
     EXPECT_GT(fitted.rms, 0.0);
     EXPECT_LT(fitted.rms, drawn.rms);
@@ -212,10 +231,7 @@ TEST(Fit, HandDefaultBakeReachesTheBar)
 {
     STRATA_REQUIRE_DATA(high, "hand_closed.obj");
     STRATA_REQUIRE_DATA(control, "hand_lowres.obj");
-    BakeRequest request;
-    request.high = high;
-    request.control = control;
-    request.output = strata::test::tempDir("fit_hand") + "/hand.glb";
+    const BakeRequest request = pairRequest(high, control, "fit_hand", "hand.glb");
     BakeResult result;
     ASSERT_TRUE(bakeRig(request, &result).isOk());
     EXPECT_GT(result.rms, 0.0);
@@ -228,10 +244,7 @@ TEST(Fit, MapImagesKeepTheCageAsDrawn)
 {
     STRATA_REQUIRE_DATA(high, "spot_triangulated.obj");
     STRATA_REQUIRE_DATA(control, "spot_control_mesh.obj");
-    BakeRequest request;
-    request.high = high;
-    request.control = control;
-    request.output = strata::test::tempDir("fit_exr") + "/spot.glb";
+    BakeRequest request = pairRequest(high, control, "fit_exr", "spot.glb");
     request.exr = true;
     BakeResult result;
     ASSERT_TRUE(bakeRig(request, &result).isOk());

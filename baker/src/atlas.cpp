@@ -245,6 +245,50 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
     return true;
 }
 
+// Projects a chart's vertices onto the plane orthogonal to n (the starting
+// point of its conformal map, and its fallback): fills c->vertices and
+// c->points in first-use order, and each vertex's entry in local.
+void projectChart(Chart* c, const ControlMesh& mesh, const glm::dvec3& n, std::vector<int32_t>* local)
+{
+    glm::dvec3 u, v;
+    frame(n, &u, &v);
+    for (uint32_t f : c->faces)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t p = mesh.triangles[3 * size_t(f) + size_t(k)];
+            if ((*local)[p] < 0) {
+                (*local)[p] = int32_t(c->vertices.size());
+                c->vertices.push_back(p);
+                const glm::dvec3 x(mesh.positions[p]);
+                c->points.emplace_back(glm::dot(x, u), glm::dot(x, v));
+            }
+        }
+}
+
+// The largest linear scale of a face of a flattened chart (no face turned
+// over, as flattenConformal guarantees) against the chart's own, or its
+// inverse.
+double chartStretch(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
+                    const std::vector<double>& faceArea)
+{
+    double area3 = 0.0, area2 = 0.0;
+    std::vector<double> ratio;
+    for (uint32_t f : c.faces) {
+        glm::dvec2 w[3];
+        for (int k = 0; k < 3; ++k)
+            w[k] = c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
+        const double a2 = 0.5 * std::fabs((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
+        area3 += faceArea[f];
+        area2 += a2;
+        ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : 1.0);
+    }
+    double stretch = 1.0;
+    for (double r : ratio) {
+        const double sc = std::sqrt(r / (area3 / area2));
+        stretch = std::max(stretch, std::max(sc, 1.0 / sc));
+    }
+    return stretch;
+}
+
 // A chart's own scale: the common one, raised so that the chart spans at
 // least kMinChartTexels on each side it has (a chart of a texel or two
 // would be sampled from its gutter).
@@ -643,45 +687,11 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
     // scale against the chart's, or its inverse); infinite where it folds.
     std::vector<int32_t> probeLocal(nv, -1);
     auto conformalStretch = [&](Chart& c) {
-        glm::dvec3 u, v;
-        frame(glm::normalize(c.normal), &u, &v);
-        for (uint32_t f : c.faces)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
-                if (probeLocal[p] < 0) {
-                    probeLocal[p] = int32_t(c.vertices.size());
-                    c.vertices.push_back(p);
-                    const glm::dvec3 x(mesh->positions[p]);
-                    c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
-                }
-            }
-        double stretch = 1e300;
-        if (flattenConformal(c, *mesh, probeLocal, &c.points)) {
-            double area3 = 0.0, area2 = 0.0;
-            std::vector<double> ratio;
-            for (uint32_t f : c.faces) {
-                glm::dvec2 w[3];
-                for (int k = 0; k < 3; ++k)
-                    w[k] = c.points[size_t(probeLocal[mesh->triangles[3 * size_t(f) + size_t(k)]])];
-                const double a2 =
-                    0.5 * ((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
-                area3 += faceArea[f];
-                area2 += std::fabs(a2);
-                ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : -1.0);
-            }
-            stretch = 1.0;
-            for (double r : ratio) {
-                if (r < 0.0) {
-                    stretch = 1e300;  // a face turned over
-                    break;
-                }
-                const double sc = std::sqrt(r / (area3 / area2));
-                stretch = std::max(stretch, std::max(sc, 1.0 / sc));
-            }
-        }
+        projectChart(&c, *mesh, glm::normalize(c.normal), &probeLocal);
+        c.conformal = flattenConformal(c, *mesh, probeLocal, &c.points);
+        const double stretch = c.conformal ? chartStretch(c, *mesh, probeLocal, faceArea) : 1e300;
         for (uint32_t p : c.vertices)
             probeLocal[p] = -1;
-        c.conformal = stretch < 1e300;
         return stretch;
     };
     // Each chart first grows over a wide cone and keeps it where its
@@ -722,39 +732,13 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
             for (size_t i = 0; i < c.vertices.size(); ++i)
                 local[c.vertices[i]] = int32_t(i);
         } else {
-            glm::dvec3 u, v;
-            frame(n, &u, &v);
-            for (uint32_t f : c.faces)
-                for (int k = 0; k < 3; ++k) {
-                    const uint32_t p = mesh->triangles[3 * size_t(f) + size_t(k)];
-                    if (local[p] < 0) {
-                        local[p] = int32_t(c.vertices.size());
-                        c.vertices.push_back(p);
-                        const glm::dvec3 x(mesh->positions[p]);
-                        c.points.emplace_back(glm::dot(x, u), glm::dot(x, v));
-                    }
-                }
+            projectChart(&c, *mesh, n, &local);
         }
         // Conformal where it does not fold (far less stretch on curved
         // charts), the projection otherwise.
         if (c.conformal || flattenConformal(c, *mesh, local, &c.points)) {
             ++conformalCharts;
-            // Stretch: each face's linear scale against the chart's.
-            double area3 = 0.0, area2 = 0.0;
-            std::vector<double> ratio;
-            for (uint32_t f : c.faces) {
-                glm::dvec2 w[3];
-                for (int k = 0; k < 3; ++k)
-                    w[k] = c.points[size_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]])];
-                const double a2 = 0.5 * std::fabs((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
-                area3 += faceArea[f];
-                area2 += a2;
-                ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : 1.0);
-            }
-            for (double r : ratio) {
-                const double sc = std::sqrt(r / (area3 / area2));
-                maxStretch = std::max(maxStretch, std::max(sc, 1.0 / sc));
-            }
+            maxStretch = std::max(maxStretch, chartStretch(c, *mesh, local, faceArea));
         } else {
             for (uint32_t f : c.faces)
                 if (faceArea[f] > 0.0)

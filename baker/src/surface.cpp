@@ -47,17 +47,8 @@ Status buildBakeSurface(BakeSurface* out, const ControlMesh& control, Scheme sch
         s.triangles = plan->refinedTriangles();
         plan->refinedUVs(&s.uvs, &s.uvIndices);
     }
-    // Vertex -> face rings.
-    const size_t nv = s.positions.size();
-    s.ringOffsets.assign(nv + 1, 0);
-    for (uint32_t v : s.triangles)
-        ++s.ringOffsets[v + 1];
-    for (size_t v = 0; v < nv; ++v)
-        s.ringOffsets[v + 1] += s.ringOffsets[v];
-    s.ringFaces.resize(s.triangles.size());
-    std::vector<uint32_t> fill(s.ringOffsets.begin(), s.ringOffsets.end() - 1);
-    for (size_t i = 0; i < s.triangles.size(); ++i)
-        s.ringFaces[fill[s.triangles[i]]++] = uint32_t(i / 3);
+    // Vertex -> face rings (the runtime's, ascending faces).
+    buildVertexFaces(&s.ringOffsets, &s.ringFaces, s.triangles.data(), s.faceCount(), s.positions.size());
     *out = std::move(s);
     return Status::ok();
 }
