@@ -22,14 +22,19 @@ STRATA_KERNEL_INLINE float cornerAngle(float y, float x)
     const float ax = std::fabs(x);
     const float big = std::max(ax, y), small = std::min(ax, y);
     const float t = small / std::max(big, std::numeric_limits<float>::min());  // 0 when both are 0
-    const bool reduce = t > 0.414213562373095f;                                // tan(pi/8)
-    const float u = reduce ? (t - 1.0f) / (t + 1.0f) : t;
+    // Every branch is a blend with a 0/1 factor or a selected constant: GCC
+    // does not if-convert a condition that guards arithmetic (it may trap),
+    // and the loop then stays scalar.  The division is always done (t + 1 >= 1).
+    const float reduce = t > 0.414213562373095f ? 1.0f : 0.0f;  // tan(pi/8)
+    const float reduced = (t - 1.0f) / (t + 1.0f);
+    const float u = t + reduce * (reduced - t);
     const float z = u * u;
     const float poly = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z -
                         3.33329491539e-1f) * z * u + u;
-    float r = (reduce ? 0.785398163397448f : 0.0f) + poly;  // atan(small / big)
-    r = y > ax ? 1.57079632679490f - r : r;
-    return x < 0.0f ? 3.14159265358979f - r : r;
+    const float r = reduce * 0.785398163397448f + poly;  // atan(small / big)
+    const bool steep = y > ax, obtuse = x < 0.0f;
+    const float q = (steep ? 1.57079632679490f : 0.0f) + (steep ? -1.0f : 1.0f) * r;
+    return (obtuse ? 3.14159265358979f : 0.0f) + (obtuse ? -1.0f : 1.0f) * q;
 }
 
 STRATA_KERNEL_CLONES void cornerAngles(size_t n, const float* y, const float* x, float* __restrict angle)
