@@ -283,6 +283,25 @@ TEST(BakeCli, AutomaticCageFaceCountIsRefinedBetweenItsBrackets)
     EXPECT_EQ(line.find("<- chosen") != std::string::npos, met) << result.summary;
 }
 
+// A loose tolerance is met with the fewest stored values: the search
+// measures every level down to 0, not only the few below the paper's rule
+// (level 4 here), so the bare cage's level 0 is recommended when it suffices.
+TEST(BakeCli, LooseToleranceRecommendsTheCoarsestLevelThatMeetsIt)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_loose");
+    writeInputs(dir);
+    strata::baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = dir + "/control.obj";
+    request.output = dir + "/rig.glb";
+    request.tolerance = 0.2;  // a fifth of the diagonal
+    strata::baker::BakeResult result;
+    ASSERT_TRUE(strata::baker::bakeRig(request, &result).isOk());
+    EXPECT_EQ(result.recommendedLevel, 0) << result.summary;
+    EXPECT_NE(result.summary.find(", 0: "), std::string::npos) << result.summary;
+    EXPECT_LE(result.rms, 0.2);
+}
+
 TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
 {
     const std::string dir = strata::test::tempDir("bake_cli_rebake");
