@@ -477,24 +477,37 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
     return Status::ok();
 }
 
+Status evaluateBareSurface(std::unique_ptr<Plan>* plan, std::vector<glm::vec3>* surface,
+                           std::vector<glm::vec3>* direction, const ControlMesh& mesh, Scheme scheme, int level,
+                           size_t valueCount, const char* what)
+{
+    Status st = Plan::create(plan, mesh, scheme, level);
+    if (!st)
+        return st;
+    const size_t n = (*plan)->refinedVertexCount();
+    if (valueCount != n)
+        return Status(StatusCode::InvalidArgument, std::string(what) + ": " + std::to_string(valueCount) +
+                                                       " values for " + std::to_string(n) + " vertices");
+    std::vector<glm::vec3> normals(mesh.positions.size());
+    computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
+                          mesh.faceCount());
+    surface->resize(n);
+    direction->resize(n);
+    (*plan)->clearDisplacement();
+    return (*plan)->evaluate(surface->data(), direction->data(), 0, n, mesh.positions.data(), normals.data(),
+                             normals.size());
+}
+
 Status measureVertexDisplacements(std::vector<float>* values, const ControlMesh& mesh, Scheme scheme, int level,
                                   const TriangleIndex& high, double window, int threads, size_t* replaced)
 {
     std::unique_ptr<Plan> plan;
-    Status st = Plan::create(&plan, mesh, scheme, level);
-    if (!st)
+    std::vector<glm::vec3> surface, direction;
+    if (Status st = evaluateBareSurface(&plan, &surface, &direction, mesh, scheme, level, values->size(),
+                                        "measureVertexDisplacements");
+        !st)
         return st;
-    const size_t n = plan->refinedVertexCount();
-    if (values->size() != n)
-        return Status(StatusCode::InvalidArgument, "measureVertexDisplacements: " + std::to_string(values->size()) +
-                                                       " values for " + std::to_string(n) + " vertices");
-    std::vector<glm::vec3> normals(mesh.positions.size()), surface(n), direction(n);
-    computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
-                          mesh.faceCount());
-    plan->clearDisplacement();
-    if (!(st = plan->evaluate(surface.data(), direction.data(), 0, n, mesh.positions.data(), normals.data(),
-                              normals.size())))
-        return st;
+    const size_t n = surface.size();
     const std::vector<SampleLocation>& at = plan->sampleLocations();
     std::atomic<size_t> changed{0};
     parallelFor(n, threads, [&](size_t b, size_t e) {

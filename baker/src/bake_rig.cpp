@@ -7,7 +7,6 @@
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
 #include "strata/baker/fit.h"
-#include "strata/baker/fit.h"
 #include "strata/baker/mesh_input.h"
 #include "strata/displacement_math.h"
 #include "strata/segment_deformer.h"
@@ -280,16 +279,19 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         fs::remove_all(scratch, ec);
         return st;  // the first try failed: its message is the bake's
     }
+    auto fewestThatMet = [&]() -> const Try* {
+        const Try* met = nullptr;
+        for (const Try& t : tries)
+            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
+                met = &t;
+        return met;
+    };
     // Between the fewest faces that met the tolerance and the most that did
     // not (a factor of 2 apart), one more try at their geometric mean: the
     // rig's bytes follow the face count about linearly.
     {
-        const Try* met = nullptr;
+        const Try* met = fewestThatMet();
         const Try* missed = nullptr;
-        for (const Try& t : tries) {
-            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
-                met = &t;
-        }
         for (const Try& t : tries)
             if (met && t.rms > request.tolerance && t.faces < met->faces && (!missed || t.faces > missed->faces))
                 missed = &t;
@@ -303,10 +305,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         }
     }
     // The fewest faces that met the tolerance, else the smallest error.
-    const Try* chosen = nullptr;
-    for (const Try& t : tries)
-        if (t.rms >= 0.0 && t.rms <= request.tolerance && (!chosen || t.faces < chosen->faces))
-            chosen = &t;
+    const Try* chosen = fewestThatMet();
     if (!chosen)
         for (const Try& t : tries)
             if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
@@ -486,9 +485,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // user's cage whose map is asked for as an image (--exr, --png8/16):
         // a pipeline applies that map to the cage it has.
         const bool mapForPipelines = writeExr || pngBits != 0;
-        const bool fitting = request.fitCage && !controlRig.source && skeleton.empty() &&
-                             (controlPath == "auto" || !mapForPipelines);
-        const bool fitSkippedForMaps = request.fitCage && !controlRig.source && skeleton.empty() && !fitting;
+        const bool fittable = request.fitCage && !controlRig.source && skeleton.empty();
+        const bool fitting = fittable && (controlPath == "auto" || !mapForPipelines);
+        const bool fitSkippedForMaps = fittable && !fitting;
         struct Fitted {
             bool done = false;
             std::vector<glm::vec3> positions;
@@ -513,8 +512,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             }
             return f.positions;
         };
-        // Puts the cage fitted for `scheme` into `mesh` (and into `bare`, which
-        // later atlas layouts start from); a no-op without fitting.
+        // Puts the cage fitted for `scheme` into `mesh` (the scheme probe's
+        // cage, then the chosen scheme's into `bare`, which later atlas
+        // layouts start from, and `control`); a no-op without fitting.
         auto useFit = [&](Scheme scheme, ControlMesh* mesh) {
             if (!fitting)
                 return;
@@ -790,22 +790,25 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         const char* storedHow = "sampled from the map";
         if (writeOptions.vertexDisplacements) {
             writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
+                // The closed-loop RMS (the larger direction) of candidate values.
+                auto loopRms = [&](const std::vector<float>& candidate, double* rms) {
+                    DisplacementField field;
+                    std::vector<LevelError> e;
+                    Status s = DisplacementField::create(&field, mesh, level, candidate);
+                    if (s)
+                        s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
+                                            size_t(1) << 20, &field);
+                    if (s)
+                        *rms = std::max(e[0].forwardRms, e[0].backwardRms);
+                    return s;
+                };
                 std::vector<float> onCapture = *values;
                 Status s = measureVertexDisplacements(&onCapture, mesh, options.scheme, level, highIndex,
                                                       0.02 * rep.diagonal, options.threads, &measured);
                 // Kept only where the closed loop says so (a capture with
                 // parts close together can mislead the rays).
                 double rms[2] = {0.0, 0.0};
-                for (int k = 0; k < 2 && s; ++k) {
-                    DisplacementField field;
-                    std::vector<LevelError> e;
-                    if ((s = DisplacementField::create(&field, mesh, level, k ? onCapture : *values)))
-                        s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
-                                            size_t(1) << 20, &field);
-                    if (s)
-                        rms[k] = std::max(e[0].forwardRms, e[0].backwardRms);
-                }
-                if (!s)
+                if (!s || !(s = loopRms(*values, &rms[0])) || !(s = loopRms(onCapture, &rms[1])))
                     return s;
                 if (rms[1] < rms[0]) {
                     *values = std::move(onCapture);
@@ -816,16 +819,12 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 // Then fitted to the capture in both directions, from the
                 // better of the two; kept where the closed loop says so.
                 std::vector<float> fittedValues = *values;
-                DisplacementField field;
-                std::vector<LevelError> e;
-                if ((s = fitVertexDisplacements(&fittedValues, mesh, options.scheme, level, high, highIndex, 3,
-                                                options.threads)) &&
-                    (s = DisplacementField::create(&field, mesh, level, fittedValues)))
-                    s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
-                                        size_t(1) << 20, &field);
-                if (!s)
+                double fittedRms = 0.0;
+                if (!(s = fitVertexDisplacements(&fittedValues, mesh, options.scheme, level, high, highIndex, 3,
+                                                 options.threads)) ||
+                    !(s = loopRms(fittedValues, &fittedRms)))
                     return s;
-                if (std::max(e[0].forwardRms, e[0].backwardRms) < std::min(rms[0], rms[1])) {
+                if (fittedRms < std::min(rms[0], rms[1])) {
                     *values = std::move(fittedValues);
                     storedHow = rms[1] < rms[0] ? "measured along their directions on the capture, then "
                                                   "least-squares fitted to it"

@@ -21,8 +21,6 @@
 
 #include "parallel.h"
 
-#include "strata/normals.h"
-
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -74,6 +72,23 @@ void multiply(const Csr& a, const std::vector<glm::dvec3>& x, std::vector<glm::d
             (*y)[r] = s;
         }
     });
+}
+
+// Each vertex's neighbours across the triangles' edges, sorted, each once
+// (a vertex is not its own neighbour).
+std::vector<std::vector<uint32_t>> neighbourLists(const std::vector<uint32_t>& triangles, size_t vertexCount)
+{
+    std::vector<std::vector<uint32_t>> lists(vertexCount);
+    for (size_t f = 0; f < triangles.size() / 3; ++f)
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                if (a != b)
+                    lists[triangles[3 * f + size_t(a)]].push_back(triangles[3 * f + size_t(b)]);
+    for (std::vector<uint32_t>& l : lists) {
+        std::sort(l.begin(), l.end());
+        l.erase(std::unique(l.begin(), l.end()), l.end());
+    }
+    return lists;
 }
 
 // Componentwise helpers, so one solver serves scalars and coordinates.
@@ -142,20 +157,15 @@ struct PairForm {
 
     void build(const std::vector<uint32_t>& triangles, size_t vertexCount)
     {
-        std::vector<std::vector<uint32_t>> adjacent(vertexCount);
-        for (size_t v = 0; v < vertexCount; ++v)
-            adjacent[v].push_back(uint32_t(v));
-        for (size_t f = 0; f < triangles.size() / 3; ++f)
-            for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b)
-                    if (a != b)
-                        adjacent[triangles[3 * f + a]].push_back(triangles[3 * f + b]);
+        const std::vector<std::vector<uint32_t>> adjacent = neighbourLists(triangles, vertexCount);
         q.offsets.assign(vertexCount + 1, 0);
         q.cols.clear();
         for (size_t v = 0; v < vertexCount; ++v) {
-            std::sort(adjacent[v].begin(), adjacent[v].end());
-            adjacent[v].erase(std::unique(adjacent[v].begin(), adjacent[v].end()), adjacent[v].end());
-            q.cols.insert(q.cols.end(), adjacent[v].begin(), adjacent[v].end());
+            // The row's columns: the vertex itself among its neighbours, sorted.
+            const auto at = std::lower_bound(adjacent[v].begin(), adjacent[v].end(), uint32_t(v));
+            q.cols.insert(q.cols.end(), adjacent[v].begin(), at);
+            q.cols.push_back(uint32_t(v));
+            q.cols.insert(q.cols.end(), at, adjacent[v].end());
             q.offsets[v + 1] = uint32_t(q.cols.size());
         }
         q.w.assign(q.cols.size(), 0.0);
@@ -298,16 +308,7 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
     const Csr st = transpose(s, n);
 
     // The control mesh's neighbours, for the Laplacian term.
-    std::vector<std::vector<uint32_t>> ring(n);
-    for (size_t f = 0; f < control->faceCount(); ++f)
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b)
-                if (a != b)
-                    ring[control->triangles[3 * f + a]].push_back(control->triangles[3 * f + b]);
-    for (std::vector<uint32_t>& r : ring) {
-        std::sort(r.begin(), r.end());
-        r.erase(std::unique(r.begin(), r.end()), r.end());
-    }
+    const std::vector<std::vector<uint32_t>> ring = neighbourLists(control->triangles, n);
     auto laplacian = [&](const std::vector<glm::dvec3>& x, std::vector<glm::dvec3>* y) {
         y->resize(n);
         for (size_t v = 0; v < n; ++v) {
@@ -437,21 +438,13 @@ Status fitVertexDisplacements(std::vector<float>* values, const ControlMesh& mes
     if (!values)
         return Status(StatusCode::InvalidArgument, "fitVertexDisplacements: no values");
     std::unique_ptr<Plan> plan;
-    if (Status st = Plan::create(&plan, mesh, scheme, level); !st)
-        return st;
-    const size_t nr = plan->refinedVertexCount();
-    if (values->size() != nr)
-        return Status(StatusCode::InvalidArgument, "fitVertexDisplacements: " + std::to_string(values->size()) +
-                                                       " values for " + std::to_string(nr) + " vertices");
-    threads = std::max(1, threads);
-    std::vector<glm::vec3> normals(mesh.positions.size()), surface(nr), direction(nr);
-    computeControlNormals(normals.data(), mesh.positions.data(), normals.size(), mesh.triangles.data(),
-                          mesh.faceCount());
-    plan->clearDisplacement();
-    if (Status st = plan->evaluate(surface.data(), direction.data(), 0, nr, mesh.positions.data(), normals.data(),
-                                   normals.size());
+    std::vector<glm::vec3> surface, direction;
+    if (Status st = evaluateBareSurface(&plan, &surface, &direction, mesh, scheme, level, values->size(),
+                                        "fitVertexDisplacements");
         !st)
         return st;
+    const size_t nr = surface.size();
+    threads = std::max(1, threads);
     const std::vector<uint32_t>& triangles = plan->refinedTriangles();
     const std::vector<SampleLocation>& samples = plan->sampleLocations();
     std::vector<uint8_t> used(nr, 0);

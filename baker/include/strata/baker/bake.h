@@ -9,6 +9,7 @@
 #include "strata/vertex_displacements.h"
 #include "strata/status.h"
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -128,6 +129,14 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
 /// values changed through `replaced` when it is not null.
 Status measureVertexDisplacements(std::vector<float>* values, const ControlMesh& mesh, Scheme scheme, int level,
                                   const TriangleIndex& high, double window, int threads, size_t* replaced = nullptr);
+
+/// The refined vertices of `mesh` at `level` in `scheme` before displacement
+/// (eq. 2 with d = 0): each one's surface point and displacement direction,
+/// through the runtime's own plan, which `plan` receives.  Fails, naming
+/// `what`, when valueCount is not the refined vertex count.
+Status evaluateBareSurface(std::unique_ptr<Plan>* plan, std::vector<glm::vec3>* surface,
+                           std::vector<glm::vec3>* direction, const ControlMesh& mesh, Scheme scheme, int level,
+                           size_t valueCount, const char* what);
 
 }  // namespace baker
 }  // namespace strata
