@@ -1,6 +1,8 @@
 // Per-triangle UV atlas, paired into square cells.
 #include "strata/baker/atlas.h"
 
+#include "strata/normals.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -521,17 +523,8 @@ void smoothChartBorders(const ControlMesh& mesh, const std::vector<std::array<ui
                         std::vector<Chart>* charts, std::vector<uint32_t>* chartOf)
 {
     const size_t nf = mesh.faceCount();
-    std::vector<uint32_t> vertexFaceOffsets(mesh.positions.size() + 1, 0), vertexFaces(3 * nf);
-    for (uint32_t v : mesh.triangles)
-        ++vertexFaceOffsets[v + 1];
-    for (size_t v = 0; v < mesh.positions.size(); ++v)
-        vertexFaceOffsets[v + 1] += vertexFaceOffsets[v];
-    {
-        std::vector<uint32_t> fill(vertexFaceOffsets.begin(), vertexFaceOffsets.end() - 1);
-        for (size_t f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k)
-                vertexFaces[fill[mesh.triangles[3 * f + size_t(k)]]++] = uint32_t(f);
-    }
+    std::vector<uint32_t> vertexFaceOffsets, vertexFaces;
+    buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, mesh.positions.size());
     std::vector<uint8_t> changed(charts->size(), 0);
     for (int pass = 0; pass < 4; ++pass) {
         size_t moved = 0;
@@ -597,7 +590,7 @@ void smoothChartBorders(const ControlMesh& mesh, const std::vector<std::array<ui
 // Grows, smooths, flattens and turns the charts of a mesh: everything of
 // the atlas that does not depend on the map size.
 Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector<Chart>* chartsOut,
-                  double* maxStretchOut, size_t* conformalChartsOut)
+                  double* maxStretchOut, size_t* conformalChartsOut, double* areaOut)
 {
     const ControlMesh* mesh = &meshIn;
     const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
@@ -785,6 +778,9 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
     }
     *maxStretchOut = maxStretch;
     *conformalChartsOut = conformalCharts;
+    *areaOut = 0.0;
+    for (size_t f = 0; f < nf; ++f)
+        *areaOut += faceArea[f];
     return Status::ok();
 }
 
@@ -797,6 +793,7 @@ struct ChartCache::Impl {
     std::vector<Chart> charts;
     double maxStretch = 1.0;
     size_t conformalCharts = 0;
+    double area = 0.0;
 };
 
 ChartCache::ChartCache() = default;
@@ -812,24 +809,19 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
     if (options.mapSize < 8 || options.gutter < 1)
         return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
-    std::vector<double> faceArea(nf);
-    for (size_t f = 0; f < nf; ++f) {
-        const glm::dvec3 a(mesh->positions[mesh->triangles[3 * f]]), b(mesh->positions[mesh->triangles[3 * f + 1]]),
-            c(mesh->positions[mesh->triangles[3 * f + 2]]);
-        faceArea[f] = 0.5 * glm::length(glm::cross(b - a, c - a));
-    }
     std::vector<int32_t> local(nv, -1);
     const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
                         cache->impl->triangles == mesh->triangles && cache->impl->maxAngleDegrees == maxAngleDegrees;
     std::vector<Chart> charts;
-    double maxStretch = 1.0;
+    double maxStretch = 1.0, chartArea = 0.0;
     size_t conformalCharts = 0;
     if (cached) {
         charts = cache->impl->charts;
         maxStretch = cache->impl->maxStretch;
         conformalCharts = cache->impl->conformalCharts;
+        chartArea = cache->impl->area;
     } else {
-        Status made = makeCharts(*mesh, maxAngleDegrees, &charts, &maxStretch, &conformalCharts);
+        Status made = makeCharts(*mesh, maxAngleDegrees, &charts, &maxStretch, &conformalCharts, &chartArea);
         if (!made)
             return made;
         if (cache) {
@@ -841,6 +833,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
             cache->impl->charts = charts;
             cache->impl->maxStretch = maxStretch;
             cache->impl->conformalCharts = conformalCharts;
+            cache->impl->area = chartArea;
         }
     }
     // The largest common scale (texels per model unit) that packs: bracket,
@@ -852,9 +845,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         const glm::dvec2 ea = charts[a].hi - charts[a].lo, eb = charts[b].hi - charts[b].lo;
         return std::max(ea.x, ea.y) > std::max(eb.x, eb.y);
     });
-    double chartArea = 0.0;
-    for (size_t f = 0; f < nf; ++f)
-        chartArea += faceArea[f];
     const int size = options.mapSize, g = options.gutter;
     double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
     while (pack(charts, order, *mesh, local, hi, g, size)) {
