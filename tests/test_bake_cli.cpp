@@ -444,6 +444,20 @@ TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)
     double looseRms = 0.0, tightRms = 0.0;
     sizeAndTrials("2%", &loose, &looseTrials, &looseRms);
     sizeAndTrials("0.000001", &tight, &tightTrials, &tightRms);
+    {
+        // Unreachable on a cage the user gave: one level finer than the
+        // capture's density (80 faces x 4^4 = the capture's 5120) is written
+        // too, and kept, as its values come closer.
+        const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/r.json"));
+        EXPECT_EQ(j["recommendedLevel"], 5);
+        EXPECT_NE(j["map"]["reason"].get<std::string>().find("level 5, one finer than the capture's density, stores"),
+                  std::string::npos)
+            << j["map"]["reason"];
+        strata::Rig rig;
+        ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+        EXPECT_EQ(rig.displacement.vertexLevel, 5);
+        EXPECT_EQ(rig.displacement.recommendedLevel, 5);
+    }
     // A loose tolerance is met at the first size; an unreachable one doubles
     // the map until that stops paying, and keeps the last size that did.
     EXPECT_LE(looseRms, 0.02);

@@ -770,15 +770,21 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // RMS, in quadrature with the rest, so q = E (the tolerance, or the
         // error the chosen size and level reach when that is larger) grows
         // the total by 4%.
-        double achieved = tolerance;
-        for (const Trial& t : trials)
-            if (t.size == map.width && t.level == recommended)
-                achieved = std::max(achieved, t.rms);
+        auto quantizationStep = [&](int level) {
+            double achieved = tolerance;
+            for (const Trial& t : trials)
+                if (t.size == map.width && t.level == level)
+                    achieved = std::max(achieved, t.rms);
+            return tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
+        };
         io::RigWriteOptions writeOptions;
-        writeOptions.maxQuantizationStep = tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         writeOptions.compress = compress;
         writeOptions.draco = request.meshCoding == "draco";
-        writeOptions.maxPositionError = tolerance > 0.0 ? 0.25 * tolerance * rep.diagonal : 0.0;
+        // A bare cage's positions are stored to four times the tolerance: the
+        // stored values are measured and fitted on the decoded cage, so its
+        // error along the normals is taken up by them (on the real pairs the
+        // closed loop moved by under 1% against a quarter of it).
+        writeOptions.maxPositionError = tolerance > 0.0 ? 4.0 * tolerance * rep.diagonal : 0.0;
         writeOptions.vertexDisplacements = mapCoding == "vertex";
         // An atlas made only to bake through is left out of a vertex-coded
         // rig (nothing reads it there); outputs that are the map keep it.
@@ -786,8 +792,13 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // Stored per vertex, each value is measured against the capture along
         // its own direction where that agrees with the map (within 2% of the
         // diagonal: farther is another layer of a fold).
-        size_t measured = 0;
-        const char* storedHow = "sampled from the map";
+        struct Stored {
+            size_t measured = 0;
+            const char* how = "sampled from the map";
+            double rms = -1.0;  // the closed loop of the values before quantisation
+        } stored;
+        size_t& measured = stored.measured;
+        const char*& storedHow = stored.how;
         if (writeOptions.vertexDisplacements) {
             writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
                 // The closed-loop RMS (the larger direction) of candidate values.
@@ -810,6 +821,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 double rms[2] = {0.0, 0.0};
                 if (!s || !(s = loopRms(*values, &rms[0])) || !(s = loopRms(onCapture, &rms[1])))
                     return s;
+                stored.rms = std::min(rms[0], rms[1]);
                 if (rms[1] < rms[0]) {
                     *values = std::move(onCapture);
                     storedHow = "measured along their directions on the capture";
@@ -825,6 +837,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                     !(s = loopRms(fittedValues, &fittedRms)))
                     return s;
                 if (fittedRms < std::min(rms[0], rms[1])) {
+                    stored.rms = fittedRms;
                     *values = std::move(fittedValues);
                     storedHow = rms[1] < rms[0] ? "measured along their directions on the capture, then "
                                                   "least-squares fitted to it"
@@ -833,7 +846,53 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 return Status::ok();
             };
         }
-        outputs.write(outPath, [&](const std::string& p) { return io::saveRig(p, rig, &map, &notes, &writeOptions); });
+        auto writeRig = [&](const std::string& p, int level) {
+            rig.displacement.recommendedLevel = level;
+            writeOptions.maxQuantizationStep = quantizationStep(level);
+            notes.clear();
+            return io::saveRig(p, rig, &map, &notes, &writeOptions);
+        };
+        outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
+        if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && controlPath != "auto" &&
+            recommended == paperLevel && paperLevel < kMaxLevel && stored.rms > tolerance * rep.diagonal) {
+            // The stored values miss the tolerance at the capture's density on
+            // a cage the user gave, where the level is the only knob left (an
+            // automatic cage has its face count): one level finer is measured
+            // and written too, and kept where it comes at least 10% closer.
+            const int finer = paperLevel + 1;
+            std::vector<LevelError> e;
+            {
+                Progress p(progress, "measuring one level finer against --tolerance");
+                if (!(st = closedLoopError(&e, control, map, options.scheme, high, finer, finer, options.threads)))
+                    throw BakeError(st.message());
+            }
+            trials.push_back({map.width, finer, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
+            const Stored first = stored;
+            const std::vector<std::string> firstNotes = notes;
+            const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
+            const std::string alternative =
+                Outputs::staged((dir.empty() ? "" : dir + "/") + "finer-" + io::stemOf(outPath) + io::extensionOf(outPath));
+            if (!(st = writeRig(alternative, finer))) {
+                std::remove(alternative.c_str());
+                throw BakeError(outPath + ": " + st.message());
+            }
+            char buf[160];
+            if (stored.rms < 0.9 * first.rms && std::rename(alternative.c_str(), staged.c_str()) == 0) {
+                std::snprintf(buf, sizeof(buf), "; level %d, one finer than the capture's density, stores values %.4g%% "
+                                                "from it where level %d's are %.4g%%",
+                              finer, 100.0 * stored.rms / rep.diagonal, recommended, 100.0 * first.rms / rep.diagonal);
+                recommended = finer;
+            } else {
+                std::remove(alternative.c_str());
+                std::snprintf(buf, sizeof(buf), "; level %d, one finer than the capture's density, came no closer "
+                                                "(%.4g%% against %.4g%%)",
+                              finer, 100.0 * stored.rms / rep.diagonal, 100.0 * first.rms / rep.diagonal);
+                stored = first;
+                notes = firstNotes;
+                rig.displacement.recommendedLevel = recommended;
+            }
+            rep.sizeReason = sizeReason += buf;
+        }
         for (const std::string& n : notes)
             warn("%s: %s", outPath.c_str(), n.c_str());
         const double writeMs = msSince(t0);
