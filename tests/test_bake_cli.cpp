@@ -450,8 +450,7 @@ TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)
         // too, and kept, as its values come closer.
         const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/r.json"));
         EXPECT_EQ(j["recommendedLevel"], 5);
-        EXPECT_NE(j["map"]["reason"].get<std::string>().find("level 5, one finer than the capture's density, stores"),
-                  std::string::npos)
+        EXPECT_NE(j["map"]["reason"].get<std::string>().find("come closest at level 5"), std::string::npos)
             << j["map"]["reason"];
         strata::Rig rig;
         ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
@@ -464,6 +463,26 @@ TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)
     EXPECT_LE(loose, tight);
     EXPECT_LT(looseTrials, tightTrials);
     EXPECT_LE(tightRms, looseRms);
+    {
+        // The level is settled on the stored values (measured and fitted on
+        // the capture), which reach 0.1% a level before the map's samples.
+        int size = 0;
+        size_t trials = 0;
+        double rms = 0.0;
+        sizeAndTrials("0.1%", &size, &trials, &rms);
+        const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/r.json"));
+        const int level = j["recommendedLevel"].get<int>();
+        int sampledLevel = -1;
+        for (const auto& t : j["tradeOff"])
+            if (t["size"].get<int>() == size && t["rms"].get<double>() <= 0.001 && sampledLevel < 0)
+                sampledLevel = t["level"].get<int>();
+        EXPECT_EQ(level, 2);
+        EXPECT_EQ(sampledLevel, 3);
+        EXPECT_GT(rms, 0.001);  // the map's samples at the chosen level miss it
+        EXPECT_NE(j["map"]["reason"].get<std::string>().find("the stored values reach --tolerance at level 2"),
+                  std::string::npos)
+            << j["map"]["reason"];
+    }
     // A forced size skips the search.
     const Result r = run(args + " --size 128 --tolerance 0.000001 --report " + dir + "/r.json -o " + dir + "/rig.glb");
     ASSERT_EQ(r.code, 0) << r.output;

@@ -28,6 +28,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <new>
 #include <stdexcept>
@@ -853,44 +854,70 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             return io::saveRig(p, rig, &map, &notes, &writeOptions);
         };
         outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
-        if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && controlPath != "auto" &&
-            recommended == paperLevel && paperLevel < kMaxLevel && stored.rms > tolerance * rep.diagonal) {
-            // The stored values miss the tolerance at the capture's density on
-            // a cage the user gave, where the level is the only knob left (an
-            // automatic cage has its face count): one level finer is measured
-            // and written too, and kept where it comes at least 10% closer.
-            const int finer = paperLevel + 1;
-            std::vector<LevelError> e;
-            {
-                Progress p(progress, "measuring one level finer against --tolerance");
-                if (!(st = closedLoopError(&e, control, map, options.scheme, high, finer, finer, options.threads)))
-                    throw BakeError(st.message());
-            }
-            trials.push_back({map.width, finer, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
-            const Stored first = stored;
-            const std::vector<std::string> firstNotes = notes;
+        if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && stored.rms >= 0.0) {
+            // The map's trials chose the level from values sampled from the
+            // map; the stored ones are measured and fitted on the capture and
+            // often come much closer.  So the level is settled on them: a
+            // coarser one is written too while theirs still reach the
+            // tolerance, a finer one while they miss it.  Finer goes up to the
+            // capture's density, and on a cage the user gave one level past
+            // it, kept there only where it comes at least 10% closer (the
+            // level is the only knob left; an automatic cage has its face
+            // count).
+            const int finest = controlPath != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
+            const double goal = tolerance * rep.diagonal;
             const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
-            const std::string alternative =
-                Outputs::staged((dir.empty() ? "" : dir + "/") + "finer-" + io::stemOf(outPath) + io::extensionOf(outPath));
-            if (!(st = writeRig(alternative, finer))) {
+            const std::string alternative = Outputs::staged((dir.empty() ? "" : dir + "/") + "level-" +
+                                                            io::stemOf(outPath) + io::extensionOf(outPath));
+            const int first = recommended;
+            const double firstRms = stored.rms;
+            // Writes `level` beside the chosen rig; it replaces that rig
+            // where keep(its RMS, the chosen one's) says so.
+            auto tryLevel = [&](int level, const std::function<bool(double, double)>& keep) {
+                bool measuredAlready = false;
+                for (const Trial& t : trials)
+                    measuredAlready |= t.size == map.width && t.level == level;
+                if (!measuredAlready) {  // its map trial sets the quantisation step
+                    std::vector<LevelError> e;
+                    Progress p(progress, "measuring another level against --tolerance");
+                    if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
+                        throw BakeError(st.message());
+                    trials.push_back({map.width, level, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
+                }
+                const Stored kept = stored;
+                const std::vector<std::string> keptNotes = notes;
+                if (!(st = writeRig(alternative, level))) {
+                    std::remove(alternative.c_str());
+                    throw BakeError(outPath + ": " + st.message());
+                }
+                if (keep(stored.rms, kept.rms) && std::rename(alternative.c_str(), staged.c_str()) == 0)
+                    return true;
                 std::remove(alternative.c_str());
-                throw BakeError(outPath + ": " + st.message());
-            }
-            char buf[160];
-            if (stored.rms < 0.9 * first.rms && std::rename(alternative.c_str(), staged.c_str()) == 0) {
-                std::snprintf(buf, sizeof(buf), "; level %d, one finer than the capture's density, stores values %.4g%% "
-                                                "from it where level %d's are %.4g%%",
-                              finer, 100.0 * stored.rms / rep.diagonal, recommended, 100.0 * first.rms / rep.diagonal);
-                recommended = finer;
-            } else {
-                std::remove(alternative.c_str());
-                std::snprintf(buf, sizeof(buf), "; level %d, one finer than the capture's density, came no closer "
-                                                "(%.4g%% against %.4g%%)",
-                              finer, 100.0 * stored.rms / rep.diagonal, 100.0 * first.rms / rep.diagonal);
-                stored = first;
-                notes = firstNotes;
+                stored = kept;
+                notes = keptNotes;
                 rig.displacement.recommendedLevel = recommended;
+                return false;
+            };
+            if (stored.rms <= goal) {
+                while (recommended > 0 && tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
+                    --recommended;
+            } else {
+                while (recommended < finest && stored.rms > goal &&
+                       tryLevel(recommended + 1, [&](double rms, double was) {
+                           return rms <= goal || (recommended + 1 <= paperLevel ? rms < was : rms < 0.9 * was);
+                       }))
+                    ++recommended;
             }
+            char buf[200];
+            if (recommended != first)
+                std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%; level %d's %.4g%%)%s",
+                              stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
+                              100.0 * stored.rms / rep.diagonal, first, 100.0 * firstRms / rep.diagonal,
+                              recommended > paperLevel ? ", one level finer than the capture's density" : "");
+            else
+                std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%)",
+                              stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
+                              100.0 * stored.rms / rep.diagonal);
             rep.sizeReason = sizeReason += buf;
         }
         for (const std::string& n : notes)
