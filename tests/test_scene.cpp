@@ -923,6 +923,45 @@ TEST(Scene, DracoCodedCageIsSmallerAndReconstructsTheSameSurface)
     EXPECT_NE(report.find("draco.glb: 0 errors, 0 warnings"), std::string::npos) << report;
 }
 
+// A cage edge shorter than the position error asked would collapse under
+// Draco's quantisation; the writer takes a finer error and still codes the
+// cage with Draco, every face read back.
+TEST(Scene, DracoTakesAFinerErrorWhereAnEdgeWouldCollapse)
+{
+    const std::string dir = test::tempDir("scene_draco_short_edge");
+    Rig rig;
+    DisplacementMap map;
+    test::makeExampleRig(&rig, &map);
+    rig.displacement.recommendedLevel = 2;
+    const uint32_t a = rig.mesh.triangles[0], b = rig.mesh.triangles[1];
+    const glm::vec3 along = glm::normalize(rig.mesh.positions[b] - rig.mesh.positions[a]);
+    rig.mesh.positions[b] = rig.mesh.positions[a] + 6e-4f * along;  // far below the 2e-3 asked
+    io::RigWriteOptions options;
+    options.compress = true;
+    options.vertexDisplacements = true;
+    options.maxQuantizationStep = 1e-4;
+    options.maxPositionError = 2e-3;
+    options.draco = true;
+    const Status st = io::saveRig(dir + "/rig.glb", rig, &map, nullptr, &options);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_NE(test::readText(dir + "/rig.glb").find("KHR_draco_mesh_compression"), std::string::npos);
+    Rig loaded;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &loaded).isOk());
+    ASSERT_EQ(loaded.mesh.faceCount(), rig.mesh.faceCount());
+    ASSERT_EQ(loaded.mesh.vertexCount(), rig.mesh.vertexCount());
+    float shortest = 1e30f;
+    for (size_t c = 0; c < loaded.mesh.triangles.size(); ++c)
+        shortest = std::min(shortest, glm::length(loaded.mesh.positions[loaded.mesh.triangles[c]] -
+                                                  loaded.mesh.positions[loaded.mesh.triangles[c - c % 3 + (c + 1) % 3]]));
+    EXPECT_GT(shortest, 3e-4f);  // the short edge survived
+    for (const glm::vec3& p : loaded.mesh.positions) {
+        float nearest = 1e30f;
+        for (const glm::vec3& q : rig.mesh.positions)
+            nearest = std::min(nearest, std::max({std::fabs(p.x - q.x), std::fabs(p.y - q.y), std::fabs(p.z - q.z)}));
+        EXPECT_LE(nearest, 2.001e-3f);
+    }
+}
+
 // A Draco-compressed character (draco_transcoder, as glTF pipelines make
 // them) loads like the plain file: the same faces, skin and UVs, positions
 // within Draco's quantisation, and it bakes.

@@ -784,7 +784,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // A bare cage's positions are stored to four times the tolerance: the
         // stored values are measured and fitted on the decoded cage, so its
         // error along the normals is taken up by them (on the real pairs the
-        // closed loop moved by under 1% against a quarter of it).
+        // closed loop moved by under 1% against a quarter of it).  Where an
+        // edge would collapse at that error, the writer takes a finer one.
         writeOptions.maxPositionError = tolerance > 0.0 ? 4.0 * tolerance * rep.diagonal : 0.0;
         writeOptions.vertexDisplacements = mapCoding == "vertex";
         // An atlas made only to bake through is left out of a vertex-coded

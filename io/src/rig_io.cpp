@@ -1416,7 +1416,7 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
     const Rig& rig = reorder ? ordered : input;
     // A character's own vertex data is kept exact; a bare cage's positions
     // may be stored to the error allowed.
-    const double positionError = options && !fromSource ? options->maxPositionError : 0.0;
+    double positionError = options && !fromSource ? options->maxPositionError : 0.0;
     // Draco only where the per-vertex values' probe proves the cage reads
     // back face for face (below).
     bool draco = options && options->draco && options->vertexDisplacements && map && rig.hasDisplacement &&
@@ -1503,16 +1503,29 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
         if (map && options && options->vertexDisplacements) {
             const bool compressed = extensionOf(path) == ".glb" && options->compress;
             // Draco where it reads back face for face (it may weld or drop
-            // faces the cage has), meshopt otherwise.
-            DisplacementInfo tried = info;
-            if (draco && !embedVertexDisplacements(model, rig, *map, step, compressed, positionError, true, *options,
-                                                   path, &tried))
-                draco = false;
-            if (draco)
-                info = std::move(tried);
-            else if (!(st = embedVertexDisplacements(model, rig, *map, step, compressed, positionError, false,
-                                                     *options, path, &info)))
-                return Status(st.code(), path + ": " + st.message());
+            // faces the cage has, an edge shorter than the error collapsing),
+            // at the error allowed or down to a sixteenth of it; meshopt, and
+            // finer positions, otherwise.
+            const double allowed = positionError;
+            bool coded = false;
+            for (double error = allowed; draco && !coded && error >= allowed / 16.0; error /= 4.0) {
+                DisplacementInfo tried = info;
+                if (embedVertexDisplacements(model, rig, *map, step, compressed, error, true, *options, path, &tried)) {
+                    info = std::move(tried);
+                    positionError = error;
+                    coded = true;
+                }
+            }
+            draco = coded;
+            for (double error = allowed; !coded; error /= 4.0) {
+                st = embedVertexDisplacements(model, rig, *map, step, compressed, error, false, *options, path, &info);
+                if (st) {
+                    positionError = error;
+                    coded = true;
+                } else if (st.code() != StatusCode::InvalidData || error == 0.0 || error < allowed / 16.0) {
+                    return Status(st.code(), path + ": " + st.message());
+                }
+            }
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());
         }

@@ -73,8 +73,10 @@ struct RigWriteOptions {
     /// that decodes as a float, so skinning and node transforms are
     /// untouched); per-vertex displacements are measured on the positions
     /// as stored.  Only a bare control mesh: a rig written from a glTF
-    /// document keeps its vertex data exact.  strata-bake passes a quarter of
-    /// its tolerance.
+    /// document keeps its vertex data exact.  Where the cage does not read
+    /// back face for face at that error (an edge shorter than it collapses),
+    /// a quarter and then a sixteenth of it are tried.  strata-bake passes
+    /// four times its tolerance.
     double maxPositionError = 0.0;
     /// With compress and maxPositionError: code a bare, unskinned control
     /// mesh with KHR_draco_mesh_compression (Edgebreaker connectivity,
