@@ -307,31 +307,53 @@ double chartScale(const Chart& c, double scale)
     return std::min(s, 64.0 * scale);
 }
 
-// Chart point in texels inside its footprint, for rotation 0 or a quarter turn.
+// Chart point in texels inside its footprint, in one of eight orientations:
+// bit 2 mirrors it (a scalar map has no handedness), bits 0-1 turn it by
+// quarters.
 glm::dvec2 placed(const Chart& c, const glm::dvec2& p, double scale, int rotation, int gutter)
 {
-    const glm::dvec2 q = (p - c.lo) * scale;
-    const double h = (c.hi.y - c.lo.y) * scale;
-    const glm::dvec2 r = rotation == 1 ? glm::dvec2(h - q.y, q.x) : q;
+    glm::dvec2 q = (p - c.lo) * scale;
+    const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale;
+    if (rotation & 4)
+        q.x = w - q.x;
+    const int turn = rotation & 3;
+    const glm::dvec2 r = turn == 1 ? glm::dvec2(h - q.y, q.x)
+                         : turn == 2 ? glm::dvec2(w - q.x, h - q.y)
+                         : turn == 3 ? glm::dvec2(q.y, w - q.x)
+                                     : q;
     return r + glm::dvec2(double(gutter) + 0.5);
 }
 
-// The chart's footprint at a scale and rotation: texels within the gutter
-// (plus half a texel diagonal) of any of its triangles, as runs of rows per
-// column (the gaps between a hand's fingers stay free for other charts).
+// The chart's footprint at a scale and orientation: the texels a bilinear
+// sample inside it can read, plus gutter - 1 rings (those whose closed
+// square of half-side `gutter` about the centre meets one of its
+// triangles), as runs of rows per column (the gaps between a hand's fingers
+// stay free for other charts).  Footprints never overlap, so no texel a
+// chart reads is another chart's.
 struct Footprint {
     int width = 0, height = 0;
     std::vector<uint32_t> first;  // width + 1: each column's runs in [first[x], first[x + 1])
     std::vector<int> lo, hi;      // per run: lowest and highest row
 };
 
-double segmentDistance2(const glm::dvec2& p, const glm::dvec2& a, const glm::dvec2& b)
+// True when the closed square of half-side r about p meets triangle t
+// (separating axes: the square's two, the triangle's three edge normals).
+bool squareMeetsTriangle(const glm::dvec2& p, double r, const glm::dvec2 t[3])
 {
-    const glm::dvec2 ab = b - a;
-    const double len2 = glm::dot(ab, ab);
-    const double t = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
-    const glm::dvec2 e = p - (a + t * ab);
-    return glm::dot(e, e);
+    const double minX = std::min({t[0].x, t[1].x, t[2].x}), maxX = std::max({t[0].x, t[1].x, t[2].x});
+    const double minY = std::min({t[0].y, t[1].y, t[2].y}), maxY = std::max({t[0].y, t[1].y, t[2].y});
+    if (maxX < p.x - r || minX > p.x + r || maxY < p.y - r || minY > p.y + r)
+        return false;
+    for (int k = 0; k < 3; ++k) {
+        const glm::dvec2 a = t[k], b = t[(k + 1) % 3], o = t[(k + 2) % 3];
+        const glm::dvec2 n(b.y - a.y, a.x - b.x);  // an edge normal
+        const double side = glm::dot(n, o - a);    // where the third corner lies
+        const double centre = glm::dot(n, p - a), extent = r * (std::fabs(n.x) + std::fabs(n.y));
+        // The square lies wholly on the far side of this edge.
+        if (side > 0.0 ? centre + extent < 0.0 : side < 0.0 ? centre - extent > 0.0 : false)
+            return false;
+    }
+    return true;
 }
 
 Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local, double scale,
@@ -339,8 +361,8 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
 {
     const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale;
     Footprint fp;
-    fp.width = int(std::ceil(rotation ? h : w)) + 2 * gutter + 1;
-    fp.height = int(std::ceil(rotation ? w : h)) + 2 * gutter + 1;
+    fp.width = int(std::ceil(rotation & 1 ? h : w)) + 2 * gutter + 1;
+    fp.height = int(std::ceil(rotation & 1 ? w : h)) + 2 * gutter + 1;
     std::vector<uint8_t> mask(size_t(fp.width) * size_t(fp.height), 0);  // column-major
     const double reach = double(gutter) + 0.5;
     for (uint32_t f : c.faces) {
@@ -363,8 +385,7 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
                     const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
                     inside = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) * area >= 0.0;
                 }
-                if (!inside && std::min({segmentDistance2(p, t[0], t[1]), segmentDistance2(p, t[1], t[2]),
-                                         segmentDistance2(p, t[2], t[0])}) > reach * reach)
+                if (!inside && !squareMeetsTriangle(p, double(gutter), t))
                     continue;
                 m = 1;
             }
@@ -450,7 +471,7 @@ private:
 };
 
 // Packs the charts' footprints into a texel occupancy map, largest first:
-// each chart goes, upright or turned a quarter, where its top ends
+// each chart goes, in whichever of its eight orientations, where its top ends
 // lowest, at the lowest row every one of its columns is free (holes under
 // earlier charts included).  Fills x, y, rotation; false if they do not fit.
 bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
@@ -464,7 +485,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
             local[c.vertices[k]] = int32_t(k);
         int bestTop = INT32_MAX, bestX = 0, bestY = 0, bestRotation = 0;
         Footprint best;
-        for (int rotation = 0; rotation < 2; ++rotation) {
+        for (int rotation = 0; rotation < 8; ++rotation) {
             Footprint fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
             if (fp.width > size || fp.height > size)
                 continue;
