@@ -10,8 +10,11 @@
 #include "strata/plan.h"
 #include "test_util.h"
 
-#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include <cctype>
 #include <cstring>
+#include <filesystem>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -389,6 +392,85 @@ TEST(Rig, CorruptPerVertexDisplacementsAreRefused)
     EXPECT_NE(st.message().find("per-vertex displacements end early"), std::string::npos) << st.message();
 }
 
+// Version 4 leaves out the fields that have one value and, for values
+// without UVs, the texture object; its numbers of float data carry float
+// precision.  A version 3 block that spells everything out loads the same,
+// and a coding this build does not know is refused.
+TEST(Rig, VersionFourLeavesOutWhatHasOneValueAndVersionThreeStillLoads)
+{
+    const std::string dir = test::tempDir("rig_version4");
+    Rig rig = exampleRig(64);
+    rig.displacement.recommendedLevel = 2;
+    DisplacementMap map;
+    map.width = map.height = 64;
+    for (int i = 0; i < 64 * 64; ++i)
+        map.texels.push_back(0.013f * float(i % 17) - 0.05f);
+    io::RigWriteOptions options;
+    options.vertexDisplacements = true;
+    options.omitDisplacementUVs = true;
+    ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", rig, &map, nullptr, &options).isOk());
+    const std::string text = readText(dir + "/rig.gltf");
+    nlohmann::json doc = nlohmann::json::parse(text);
+    nlohmann::json& block = doc["meshes"][0]["extras"]["strata"];
+    EXPECT_EQ(block["version"], 4);
+    for (const char* omitted : {"direction", "normalWeighting", "subdivision", "displacementGeometryTexture"})
+        EXPECT_FALSE(block.contains(omitted)) << omitted;
+    EXPECT_FALSE(block["displacementVertices"].contains("coding"));
+    // Float data in at most nine significant digits ("0.57565022").
+    for (const char* key : {"\"displacementGeometryFactor\":", "\"displacementGeometryOffset\":", "\"max\":"}) {
+        size_t at = text.find(key);
+        ASSERT_NE(at, std::string::npos) << key;
+        at += std::strlen(key);
+        while (at < text.size() && (text[at] == ' ' || text[at] == '[' || text[at] == '\n'))
+            ++at;
+        int digits = 0;
+        bool leading = true;
+        for (; at < text.size() && (std::isdigit(static_cast<unsigned char>(text[at])) || text[at] == '.' ||
+                                    text[at] == '-');
+             ++at) {
+            if (std::isdigit(static_cast<unsigned char>(text[at])) && !(leading && text[at] == '0')) {
+                leading = false;
+                ++digits;
+            }
+        }
+        EXPECT_GE(digits, 1) << key;
+        EXPECT_LE(digits, 9) << key;
+    }
+    Rig four;
+    Status st = io::loadRig(dir + "/rig.gltf", &four);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(four.displacement.texCoord, -1);
+    EXPECT_EQ(four.displacement.encoding, "vertex");
+
+    block["version"] = 3;
+    block["direction"] = "interpolated-control-normal";
+    block["normalWeighting"] = "angle";
+    block["subdivision"] = {{"rule", "loop"}, {"boundary", "edge-and-corner"}, {"faceVaryingInterpolation", "linear-all"}};
+    block["displacementGeometryTexture"] = {{"encoding", "vertex"}, {"width", 64}, {"height", 64}};
+    block["displacementVertices"]["coding"] = "subdivision-midpoint-zstd";
+    writeText(dir + "/v3.gltf", doc.dump());
+    Rig three;
+    st = io::loadRig(dir + "/v3.gltf", &three);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(three.displacement.vertexValues, four.displacement.vertexValues);
+    EXPECT_EQ(three.displacement.factor, four.displacement.factor);
+    EXPECT_EQ(three.displacement.offset, four.displacement.offset);
+    EXPECT_EQ(three.displacement.width, 64);
+
+    // A version 3 block must spell out the direction.
+    block.erase("direction");
+    writeText(dir + "/v3bad.gltf", doc.dump());
+    st = io::loadRig(dir + "/v3bad.gltf", &three);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("\"direction\""), std::string::npos) << st.message();
+    block["direction"] = "interpolated-control-normal";
+    block["displacementVertices"]["coding"] = "wavelet";
+    writeText(dir + "/coding.gltf", doc.dump());
+    st = io::loadRig(dir + "/coding.gltf", &three);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("coding \"wavelet\" is not supported"), std::string::npos) << st.message();
+}
+
 TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
 {
     const std::string dir = test::tempDir("rig_map");
@@ -421,14 +503,14 @@ TEST(Rig, RejectsAnotherFormatVersion)
     const std::string dir = test::tempDir("rig_version");
     ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", exampleRig(64)).isOk());
     std::string json = readText(dir + "/rig.gltf");
-    const size_t at = json.find("\"version\": 3");
+    const size_t at = json.find("\"version\": 4");
     ASSERT_NE(at, std::string::npos);
     json.replace(at, 12, "\"version\": 7");
     writeText(dir + "/v7.gltf", json);
     Rig rig;
     const Status st = io::loadRig(dir + "/v7.gltf", &rig);
     EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("version 7, this build reads versions 1 to 3"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("version 7, this build reads versions 1 to 4"), std::string::npos) << st.message();
 }
 
 TEST(Rig, RejectsBrokenGltf)

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 namespace strata {
@@ -167,6 +169,19 @@ Status readUintAccessor(const tinygltf::Model& model, int index, int components,
         }
     }
     return Status::ok();
+}
+
+double jsonFloat(float v)
+{
+    if (!std::isfinite(v))
+        return double(v);
+    char text[32];
+    for (int digits = 1; digits < 9; ++digits) {
+        std::snprintf(text, sizeof(text), "%.*g", digits, double(v));
+        if (std::strtof(text, nullptr) == v)
+            return std::strtod(text, nullptr);
+    }
+    return double(v);  // nine digits always read back
 }
 
 }  // namespace io

@@ -26,5 +26,10 @@ Status readFloatAccessor(const tinygltf::Model& model, int index, int components
 Status readUintAccessor(const tinygltf::Model& model, int index, int components, const std::string& what,
                         std::vector<uint32_t>* out);
 
+/// The float `v` as the double with the fewest significant digits that
+/// still rounds to it (glTF reads JSON numbers of float data as single
+/// precision), so a writer prints "0.57565022", not "0.5756502151489258".
+double jsonFloat(float v);
+
 }  // namespace io
 }  // namespace strata

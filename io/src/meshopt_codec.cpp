@@ -5,6 +5,7 @@
 // document before tinygltf, which knows neither, parses it.
 #include "gltf_document.h"
 
+#include "gltf_accessor.h"
 #include "gltf_mesh_writer.h"
 #include "strata/io/file.h"
 
@@ -369,6 +370,10 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
                     for (size_t i = 0; i < xyz.size(); ++i) {
                         a.minValues[i % 3] = std::min(a.minValues[i % 3], double(xyz[i]));
                         a.maxValues[i % 3] = std::max(a.maxValues[i % 3], double(xyz[i]));
+                    }
+                    for (int c = 0; c < 3; ++c) {
+                        a.minValues[size_t(c)] = jsonFloat(float(a.minValues[size_t(c)]));
+                        a.maxValues[size_t(c)] = jsonFloat(float(a.maxValues[size_t(c)]));
                     }
                 }
             filtered[v] = std::move(coded);

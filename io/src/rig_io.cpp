@@ -74,15 +74,22 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     Status st = numberField(block, "version", path, &version);
     if (!st)
         return st;
-    if (version != 1 && version != 2 && version != 3)
+    if (version != 1 && version != 2 && version != 3 && version != 4)
         return Status(StatusCode::Unsupported, path + ": rig format version " + std::to_string(int(version)) +
                                                    ", this build reads versions 1 to " +
                                                    std::to_string(kRigFormatVersion));
+    // Version 4 may leave out the texture object of per-vertex values
+    // without UVs, and the fields that have one value (docs/FORMAT.md).
+    const tinygltf::Value* vertexBlock = version >= 3 ? member(block, "displacementVertices") : nullptr;
     const tinygltf::Value* tex = member(block, "displacementGeometryTexture");
+    const tinygltf::Value none{tinygltf::Value::Object()};
+    const bool texOmitted = !tex && version >= 4 && vertexBlock;
+    if (texOmitted)
+        tex = &none;
     if (!tex || !tex->IsObject())
         return Status(StatusCode::InvalidData, path + ": strata metadata has no displacementGeometryTexture object");
     double w = 0, h = 0, texCoord = 0, factor = 0, offset = 0, level = 0;
-    std::string scheme, direction, weighting;
+    std::string scheme, direction = "interpolated-control-normal", weighting = "angle";
     const tinygltf::Value* image = member(*tex, "image");
     if (version >= 2 && image) {
         if (!image->IsNumber() || image->GetNumberAsDouble() < 0 ||
@@ -93,7 +100,7 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
                                                        ", which the file does not have (the map is missing)");
         info->image = int(image->GetNumberAsDouble());
         info->uri.clear();
-    } else if (const tinygltf::Value* vertices = version >= 3 ? member(block, "displacementVertices") : nullptr) {
+    } else if (const tinygltf::Value* vertices = vertexBlock) {
         double view = -1, vlevel = -1;
         if (!vertices->IsObject() || !(st = numberField(*vertices, "bufferView", path, &view)) ||
             !(st = numberField(*vertices, "level", path, &vlevel)))
@@ -104,6 +111,12 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
         if (vlevel < 0 || vlevel > kMaxLevel || vlevel != std::floor(vlevel))
             return Status(StatusCode::InvalidData, path + ": displacementVertices level " + std::to_string(vlevel) +
                                                        " is outside 0.." + std::to_string(kMaxLevel));
+        const tinygltf::Value* coding = member(*vertices, "coding");
+        if (coding && (!coding->IsString() || coding->Get<std::string>() != "subdivision-midpoint-zstd"))
+            return Status(StatusCode::Unsupported,
+                          path + ": displacementVertices coding \"" +
+                              printable(coding->IsString() ? coding->Get<std::string>() : std::string("?"), 40) +
+                              "\" is not supported (this build reads \"subdivision-midpoint-zstd\")");
         info->vertexView = int(view);
         info->vertexLevel = int(vlevel);
         info->uri.clear();
@@ -113,15 +126,20 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     // A vertex-coded rig may have no UVs at all (texCoord absent): the
     // values are then its only form of the map.
     const bool uvless = info->vertexLevel >= 0 && !member(*tex, "texCoord");
-    if (!(st = stringField(*tex, "encoding", path, &info->encoding)) || !(st = numberField(*tex, "width", path, &w)) ||
-        !(st = numberField(*tex, "height", path, &h)) ||
-        (!uvless && !(st = numberField(*tex, "texCoord", path, &texCoord))) ||
+    if (texOmitted) {
+        info->encoding = "vertex";
+    } else if (!(st = stringField(*tex, "encoding", path, &info->encoding)) ||
+               !(st = numberField(*tex, "width", path, &w)) || !(st = numberField(*tex, "height", path, &h))) {
+        return st;
+    }
+    if ((!uvless && !(st = numberField(*tex, "texCoord", path, &texCoord))) ||
         !(st = numberField(block, "displacementGeometryFactor", path, &factor)) ||
         !(st = numberField(block, "displacementGeometryOffset", path, &offset)) ||
         !(st = stringField(block, "scheme", path, &scheme)) ||
         !(st = numberField(block, "recommendedLevel", path, &level)) ||
-        !(st = stringField(block, "direction", path, &direction)) ||
-        !(st = stringField(block, "normalWeighting", path, &weighting)))
+        ((version < 4 || member(block, "direction")) && !(st = stringField(block, "direction", path, &direction))) ||
+        ((version < 4 || member(block, "normalWeighting")) &&
+         !(st = stringField(block, "normalWeighting", path, &weighting))))
         return st;
     if (info->vertexLevel >= 0) {
         if (info->encoding != "vertex")
@@ -139,8 +157,8 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
         return Status(StatusCode::Unsupported, path + ": embedded displacement encoding \"" +
                                                    printable(info->encoding, 40) + "\" is not supported (png8, png16)");
     }
-    if (w < 1 || h < 1 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize || w != std::floor(w) ||
-        h != std::floor(h))
+    if (!texOmitted && (w < 1 || h < 1 || w > kMaxDisplacementMapSize || h > kMaxDisplacementMapSize ||
+                        w != std::floor(w) || h != std::floor(h)))
         return Status(StatusCode::InvalidData, path + ": displacement map size " + std::to_string(w) + "x" +
                                                    std::to_string(h) + " is invalid");
     if (texCoord < 0 || texCoord > 7 || texCoord != std::floor(texCoord))
@@ -910,46 +928,44 @@ Status loadRigQuantizedMap(const std::filesystem::path& rigPathFile, const Rig& 
 
 namespace {
 
+// Version 4 leaves out what has one value (direction, normal weighting,
+// subdivision rule, the values' coding) and, for per-vertex values without
+// UVs, the texture object, which describes no image then: a small rig is
+// mostly its JSON (docs/FORMAT.md).
 tinygltf::Value strataBlock(const DisplacementInfo& d)
 {
-    tinygltf::Value::Object tex;
-    if (d.image >= 0)
-        tex["image"] = tinygltf::Value(d.image);
-    else if (d.vertexLevel < 0)
-        tex["uri"] = tinygltf::Value(d.uri);
-    tex["encoding"] = tinygltf::Value(d.encoding);
-    tex["width"] = tinygltf::Value(d.width);
-    tex["height"] = tinygltf::Value(d.height);
-    if (d.texCoord >= 0)
-        tex["texCoord"] = tinygltf::Value(d.texCoord);
-    tinygltf::Value::Object subdivision;
-    subdivision["rule"] = tinygltf::Value(std::string("loop"));
-    subdivision["boundary"] = tinygltf::Value(std::string("edge-and-corner"));
-    subdivision["faceVaryingInterpolation"] = tinygltf::Value(std::string("linear-all"));
     tinygltf::Value::Object block;
     block["version"] = tinygltf::Value(kRigFormatVersion);
-    block["displacementGeometryTexture"] = tinygltf::Value(tex);
-    block["displacementGeometryFactor"] = tinygltf::Value(double(d.factor));
-    block["displacementGeometryOffset"] = tinygltf::Value(double(d.offset));
+    if (d.vertexLevel < 0 || d.texCoord >= 0) {
+        tinygltf::Value::Object tex;
+        if (d.image >= 0)
+            tex["image"] = tinygltf::Value(d.image);
+        else if (d.vertexLevel < 0)
+            tex["uri"] = tinygltf::Value(d.uri);
+        tex["encoding"] = tinygltf::Value(d.encoding);
+        tex["width"] = tinygltf::Value(d.width);
+        tex["height"] = tinygltf::Value(d.height);
+        if (d.texCoord >= 0)
+            tex["texCoord"] = tinygltf::Value(d.texCoord);
+        block["displacementGeometryTexture"] = tinygltf::Value(tex);
+    }
+    block["displacementGeometryFactor"] = tinygltf::Value(jsonFloat(d.factor));
+    block["displacementGeometryOffset"] = tinygltf::Value(jsonFloat(d.offset));
     block["scheme"] = tinygltf::Value(std::string(schemeName(d.scheme)));
     block["recommendedLevel"] = tinygltf::Value(d.recommendedLevel);
-    block["direction"] = tinygltf::Value(std::string("interpolated-control-normal"));
-    block["normalWeighting"] = tinygltf::Value(std::string("angle"));
-    block["subdivision"] = tinygltf::Value(subdivision);
     if (d.vertexLevel >= 0) {
         tinygltf::Value::Object vertices;
         vertices["bufferView"] = tinygltf::Value(d.vertexView);
         vertices["level"] = tinygltf::Value(d.vertexLevel);
         vertices["count"] = tinygltf::Value(int(d.vertexValues.size()));
-        vertices["coding"] = tinygltf::Value(std::string("subdivision-midpoint-zstd"));
         block["displacementVertices"] = tinygltf::Value(vertices);
     }
     if (!d.quantized.uri.empty()) {
         tinygltf::Value::Object q;
         q["uri"] = tinygltf::Value(d.quantized.uri);
         q["bits"] = tinygltf::Value(d.quantized.bits);
-        q["dmin"] = tinygltf::Value(double(d.quantized.dmin));
-        q["dmax"] = tinygltf::Value(double(d.quantized.dmax));
+        q["dmin"] = tinygltf::Value(jsonFloat(d.quantized.dmin));
+        q["dmax"] = tinygltf::Value(jsonFloat(d.quantized.dmax));
         block["quantizedMap"] = tinygltf::Value(q);
     }
     return tinygltf::Value(block);

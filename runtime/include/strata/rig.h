@@ -16,8 +16,8 @@
 
 namespace strata {
 
-/// Version of the rig's "strata" extras block this build writes (it reads 1, 2 and 3).
-constexpr int kRigFormatVersion = 3;
+/// Version of the rig's "strata" extras block this build writes (it reads 1 to 4).
+constexpr int kRigFormatVersion = 4;
 
 /// The glTF document a rig was loaded from, kept whole so that writing the
 /// rig back loses nothing (materials, textures, names, extras, primitives
@@ -37,10 +37,11 @@ struct DisplacementInfo {
     float offset = 0.0f;        ///< displacementGeometryOffset
     Scheme scheme = Scheme::Linear;
     int recommendedLevel = 3;
-    /// Encoding "vertex" (format version 3): the map's samples at the refined
+    /// Encoding "vertex" (format versions 3 and 4): the map's samples at the refined
     /// vertices of `vertexLevel`, decoded by the loader (d, in model units;
     /// vertex_displacements.h).  width/height then give the size of the map
-    /// rasterised from them for texture consumers.
+    /// rasterised from them for texture consumers (0 in a version 4 rig
+    /// without UVs, which has no map).
     int vertexLevel = -1;
     int vertexView = -1;  ///< the glTF bufferView holding them coded (loader), or -1
     std::vector<float> vertexValues;

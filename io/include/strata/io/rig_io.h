@@ -25,7 +25,7 @@ namespace io {
 /// whole document is kept in rig.source, so saveRig() writes it back
 /// complete.  External files resolve only inside the file's folder.  Every
 /// accessor is bounds-checked; a newer format version, malformed metadata or
-/// bad geometry is a clear error.  Rigs of format versions 1 and 2 load.
+/// bad geometry is a clear error.  Rigs of format versions 1 to 3 load.
 Status loadRig(const std::filesystem::path& path, Rig* out);
 
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
@@ -88,7 +88,7 @@ struct RigWriteOptions {
     bool draco = false;
     /// Store the map as its samples at the refined vertices of
     /// rig.displacement.recommendedLevel, predicted in subdivision order and
-    /// zstd-coded (encoding "vertex", format version 3), instead of as an
+    /// zstd-coded (encoding "vertex", format versions 3 and 4), instead of as an
     /// image: a fraction of the bytes, exact at levels up to that one,
     /// interpolated past it.  strata-bake turns it on.
     bool vertexDisplacements = false;
