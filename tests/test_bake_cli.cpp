@@ -443,6 +443,24 @@ TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)
     size_t looseTrials = 0, tightTrials = 0;
     double looseRms = 0.0, tightRms = 0.0;
     sizeAndTrials("2%", &loose, &looseTrials, &looseRms);
+    {
+        // Values well within a loose tolerance are coded with a step that
+        // spends the rest of it (larger than the tolerance itself), and the
+        // rig still reconstructs within it.
+        const Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --tolerance 2% --report " +
+                             dir + "/spent.json -o " + dir + "/spent.glb");
+        ASSERT_EQ(r.code, 0) << r.output;
+        const nlohmann::json j = nlohmann::json::parse(strata::test::readText(dir + "/spent.json"));
+        const double diagonal = j["high"]["diagonal"].get<double>();
+        EXPECT_GT(j["quantizationStep"].get<double>(), 0.02 * diagonal);
+        bool checked = false;
+        for (const auto& e : j["closedLoop"])
+            if (e["level"] == j["recommendedLevel"]) {
+                EXPECT_LE(std::max(e["forwardRms"].get<double>(), e["backwardRms"].get<double>()), 0.02);
+                checked = true;
+            }
+        EXPECT_TRUE(checked);
+    }
     sizeAndTrials("0.000001", &tight, &tightTrials, &tightRms);
     {
         // Unreachable on a cage the user gave: one level finer than the

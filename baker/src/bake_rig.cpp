@@ -29,6 +29,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <new>
 #include <stdexcept>
@@ -798,11 +799,13 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             size_t measured = 0;
             const char* how = "sampled from the map";
             double rms = -1.0;  // the closed loop of the values before quantisation
+            double step = 0.0;  // the quantisation step they were coded with
         } stored;
         size_t& measured = stored.measured;
         const char*& storedHow = stored.how;
         if (writeOptions.vertexDisplacements) {
-            writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values) {
+            writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values,
+                                                         double* step) {
                 // The closed-loop RMS (the larger direction) of candidate values.
                 auto loopRms = [&](const std::vector<float>& candidate, double* rms) {
                     DisplacementField field;
@@ -844,6 +847,34 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                     storedHow = rms[1] < rms[0] ? "measured along their directions on the capture, then "
                                                   "least-squares fitted to it"
                                                 : "sampled from the map, then least-squares fitted to the capture";
+                }
+                // The values take the bits the tolerance needs: where they
+                // come well within it, a coarser step spends the rest.  A
+                // step q adds about q / sqrt(12) RMS in quadrature, so the
+                // step that would bring the total to 90% of the tolerance is
+                // tried, kept where the closed loop of the quantised values
+                // stays within 95% of it (else halfway, else the rule's).
+                stored.step = *step;
+                const double goal = tolerance * rep.diagonal;
+                if (tolerance > 0.0 && stored.rms < 0.9 * goal) {
+                    const double spend = std::sqrt(12.0 * ((0.9 * goal) * (0.9 * goal) - stored.rms * stored.rms));
+                    float lowest = std::numeric_limits<float>::max();
+                    for (float v : *values)
+                        lowest = std::min(lowest, v);
+                    for (double candidate : {spend, std::sqrt(spend * *step)}) {
+                        if (!(candidate > *step))
+                            break;
+                        std::vector<float> quantized(*values);
+                        for (float& v : quantized)
+                            v = float(double(lowest) + std::round((double(v) - double(lowest)) / candidate) * candidate);
+                        double quantizedRms = 0.0;
+                        if (!(s = loopRms(quantized, &quantizedRms)))
+                            return s;
+                        if (quantizedRms <= 0.95 * goal) {
+                            *step = stored.step = candidate;
+                            break;
+                        }
+                    }
                 }
                 return Status::ok();
             };
@@ -990,8 +1021,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         if (writeOptions.vertexDisplacements)
             appendf(&result->summary,
                     "  stored        per refined vertex at level %d, %s (the closed loop chose; %zu of them "
-                    "measured)%s\n",
-                    recommended, storedHow, measured,
+                    "measured), quantised in steps of %.3g%% of the diagonal%s\n",
+                    recommended, storedHow, measured, 100.0 * stored.step / rep.diagonal,
                     writeOptions.omitDisplacementUVs ? "; the atlas only served the bake and is not in the rig "
                                                        "(--exr keeps it)" : "");
         if (!trials.empty()) {
@@ -1067,6 +1098,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                                  {"baseRmsAfter", f.stats.rmsAfter / rep.diagonal}};
             }
             report["storedValues"] = storedHow;
+            if (writeOptions.vertexDisplacements)
+                report["quantizationStep"] = stored.step;
             nlohmann::json files = nlohmann::json::object();
             for (const std::string& p : outputs.written)
                 files[p] = fileSize(p);

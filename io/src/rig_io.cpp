@@ -1322,14 +1322,15 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
             values[v] = k % 2 ? samples[k / 2] : 0.5f * (samples[k / 2 - 1] + samples[k / 2]);
         }
     }
-    if (options.refineVertexDisplacements && !(st = options.refineVertexDisplacements(mesh, level, &values)))
+    double step = maxStep;
+    if (options.refineVertexDisplacements && !(st = options.refineVertexDisplacements(mesh, level, &values, &step)))
         return st;
     SubdivisionParents hierarchy;
     if (!(st = buildSubdivisionParents(&hierarchy, mesh, level)))
         return st;
     std::string bytes;
     float factor = 1.0f, offset = 0.0f;
-    if (!(st = encodeVertexDisplacements(hierarchy, values, maxStep, &bytes, &factor, &offset)))
+    if (!(st = encodeVertexDisplacements(hierarchy, values, step, &bytes, &factor, &offset)))
         return st;
     const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
     model.bufferViews[size_t(view)].target = 0;

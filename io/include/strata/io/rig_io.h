@@ -59,9 +59,10 @@ Status loadRigQuantizedMap(const std::filesystem::path& rigPath, const Rig& rig,
 /// carried over, if anything.
 struct RigWriteOptions {
     /// Largest quantisation step of the embedded map, in model units (0:
-    /// 16 bits over the map's range).  The baker passes half its tolerance,
-    /// so the map takes only the bits the tolerance needs (8-bit PNG when
-    /// 256 levels suffice).
+    /// 16 bits over the map's range).  The baker passes its tolerance (the
+    /// error reached, where larger), so the map takes only the bits the
+    /// tolerance needs (8-bit PNG when 256 levels suffice); per-vertex values
+    /// may take another (refineVertexDisplacements).
     double maxQuantizationStep = 0.0;
     /// .glb only: code vertex attributes and triangle indices with
     /// EXT_meshopt_compression (three.js, Babylon.js, gltfpack and Strata
@@ -95,8 +96,11 @@ struct RigWriteOptions {
     /// With vertexDisplacements: called with the map's samples at the
     /// refined vertices of `mesh` (the control mesh as a loader rebuilds it
     /// from this file, in its numbering) before they are coded, to refine
-    /// them; the baker measures each against the capture.
-    std::function<Status(const ControlMesh& mesh, int level, std::vector<float>* values)> refineVertexDisplacements;
+    /// them (the baker measures and fits each against the capture), and with
+    /// the quantisation step they will be coded with (maxQuantizationStep),
+    /// which it may change (the baker spends what the tolerance leaves).
+    std::function<Status(const ControlMesh& mesh, int level, std::vector<float>* values, double* step)>
+        refineVertexDisplacements;
     /// With vertexDisplacements: leave out the UVs the map was baked
     /// through when nothing else uses them (an atlas the baker made).  The
     /// per-vertex values are then the map's only form: seams no longer split
