@@ -61,6 +61,19 @@ Rig exampleRig(int mapSize)
     return rig;
 }
 
+// exampleRig at level 2 with a 64^2 map of stripes: texel i holds
+// offset + step * (i % 17).
+Rig stripedRig(DisplacementMap* map, float step, float offset)
+{
+    Rig rig = exampleRig(64);
+    rig.displacement.recommendedLevel = 2;
+    map->width = map->height = 64;
+    map->texels.clear();
+    for (int i = 0; i < 64 * 64; ++i)
+        map->texels.push_back(offset + step * float(i % 17));
+    return rig;
+}
+
 }  // namespace
 
 TEST(Exr, RoundTripsHalfAndFloat)
@@ -344,12 +357,8 @@ TEST(Rig, PathsAreFilesystemPaths)
 TEST(Rig, CorruptPerVertexDisplacementsAreRefused)
 {
     const std::string dir = test::tempDir("rig_vertex_bad");
-    Rig rig = exampleRig(64);
-    rig.displacement.recommendedLevel = 2;
     DisplacementMap map;
-    map.width = map.height = 64;
-    for (int i = 0; i < 64 * 64; ++i)
-        map.texels.push_back(0.01f * float(i % 17));
+    const Rig rig = stripedRig(&map, 0.01f, 0.0f);
     io::RigWriteOptions options;
     options.vertexDisplacements = true;
     ASSERT_TRUE(io::saveRig(dir + "/rig.glb", rig, &map, nullptr, &options).isOk());
@@ -399,12 +408,8 @@ TEST(Rig, CorruptPerVertexDisplacementsAreRefused)
 TEST(Rig, VersionFourLeavesOutWhatHasOneValueAndVersionThreeStillLoads)
 {
     const std::string dir = test::tempDir("rig_version4");
-    Rig rig = exampleRig(64);
-    rig.displacement.recommendedLevel = 2;
     DisplacementMap map;
-    map.width = map.height = 64;
-    for (int i = 0; i < 64 * 64; ++i)
-        map.texels.push_back(0.013f * float(i % 17) - 0.05f);
+    const Rig rig = stripedRig(&map, 0.013f, -0.05f);
     io::RigWriteOptions options;
     options.vertexDisplacements = true;
     options.omitDisplacementUVs = true;
