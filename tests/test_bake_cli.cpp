@@ -8,6 +8,7 @@
 #include "strata/segment_deformer.h"
 #include "test_util.h"
 
+#include <cmath>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -421,6 +422,31 @@ TEST(BakeCli, JointFileBecomesAGltfSkinThatPlaysAnywhere)
     EXPECT_EQ(bad.code, 2) << bad.output;
     EXPECT_NE(bad.output.find("cycle.json"), std::string::npos) << bad.output;
     EXPECT_FALSE(strata::test::fileExists(dir + "/bad.glb"));
+}
+
+// A control mesh denser than the capture cannot make a rig smaller than
+// the capture itself; the bake still succeeds and says so.
+TEST(BakeCli, SaysWhenTheRigIsLargerThanTheCapture)
+{
+    using namespace strata;
+    const std::string dir = strata::test::tempDir("bake_cli_larger");
+    ControlMesh high = examples::makeIcosphere(1);
+    for (glm::vec3& p : high.positions)
+        p *= 1.0f + 0.05f * std::sin(5.0f * p.x);
+    ControlMesh control = examples::makeIcosphere(3);
+    for (const auto& [mesh, name] : {std::make_pair(&high, "high.obj"), std::make_pair(&control, "control.obj")}) {
+        io::MeshView v;
+        v.positions = mesh->positions.data();
+        v.vertexCount = mesh->positions.size();
+        v.triangles = mesh->triangles.data();
+        v.faceCount = mesh->faceCount();
+        ASSERT_TRUE(io::writeMesh(dir + "/" + name, v).isOk());
+    }
+    const Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj -o " + dir + "/rig.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("is larger than the capture would be as a plain glb"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("its control mesh has 1280 triangles"), std::string::npos) << r.output;
+    EXPECT_TRUE(strata::test::fileExists(dir + "/rig.glb"));
 }
 
 TEST(BakeCli, ToleranceChoosesTheSmallestMapThatReachesIt)

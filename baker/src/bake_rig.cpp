@@ -930,8 +930,18 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 rig.displacement.recommendedLevel = recommended;
                 return false;
             };
+            // A coarser level is only tried where its map samples come within
+            // 3x of the tolerance (the stored values came 1.4-2.1x closer
+            // than the map's on the real pairs).
+            auto withinReach = [&](int level) {
+                for (const Trial& t : trials)
+                    if (t.size == map.width && t.level == level)
+                        return t.rms <= 3.0 * tolerance;
+                return true;
+            };
             if (stored.rms <= goal) {
-                while (recommended > 0 && tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
+                while (recommended > 0 && withinReach(recommended - 1) &&
+                       tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
                     --recommended;
             } else {
                 while (recommended < finest && stored.rms > goal &&
@@ -985,10 +995,24 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             errorMs = msSince(t0);
         }
 
-                auto fileSize = [](const std::string& p) {
+        auto fileSize = [](const std::string& p) {
             std::vector<unsigned char> b;
             return io::readFile(Outputs::staged(p), &b).isOk() ? double(b.size()) : 0.0;
         };
+        {
+            // A rig replaces the capture; one larger than the capture as a
+            // plain glb (float positions, 16- or 32-bit indices, a little
+            // JSON) has a control mesh about as dense as the capture, and
+            // the user is told so rather than left to find out.
+            const size_t hv = high.positions.size(), hf = high.faceCount();
+            const double plain = 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0;
+            const double rigBytes = fileSize(outPath);
+            if (rigBytes > plain)
+                warn("%s: the rig (%.1f KB) is larger than the capture would be as a plain glb (about %.1f KB: %zu "
+                     "vertices, %zu triangles); its control mesh has %zu triangles, and a coarser one (or --control "
+                     "auto) makes a smaller rig",
+                     outPath.c_str(), rigBytes / 1024.0, plain / 1024.0, hv, hf, control.faceCount());
+        }
         const double diag = rep.diagonal;
         appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
                      schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
