@@ -893,9 +893,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             // coarser one is written too while theirs still reach the
             // tolerance, a finer one while they miss it.  Finer goes up to the
             // capture's density, and on a cage the user gave one level past
-            // it, kept there only where it comes at least 10% closer (the
-            // level is the only knob left; an automatic cage has its face
-            // count).
+            // it where they miss by more than 2x, kept there only where it
+            // comes at least 10% closer (the level is the only knob left; an
+            // automatic cage has its face count).
             const int finest = controlPath != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
             const double goal = tolerance * rep.diagonal;
             const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
@@ -944,7 +944,11 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                        tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
                     --recommended;
             } else {
+                // Past the capture's density only where the tolerance is
+                // missed by more than 2x: each level quadruples the values, and
+                // a near miss is better served by the smaller rig.
                 while (recommended < finest && stored.rms > goal &&
+                       (recommended + 1 <= paperLevel || stored.rms > 2.0 * goal) &&
                        tryLevel(recommended + 1, [&](double rms, double was) {
                            return rms <= goal || (recommended + 1 <= paperLevel ? rms < was : rms < 0.9 * was);
                        }))
