@@ -74,7 +74,7 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
     Status st = numberField(block, "version", path, &version);
     if (!st)
         return st;
-    if (version != 1 && version != 2 && version != 3 && version != 4)
+    if (!(version >= 1 && version <= kRigFormatVersion && version == std::floor(version)))
         return Status(StatusCode::Unsupported, path + ": rig format version " + std::to_string(int(version)) +
                                                    ", this build reads versions 1 to " +
                                                    std::to_string(kRigFormatVersion));
@@ -1525,23 +1525,25 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
             // finer positions, otherwise.
             const double allowed = positionError;
             bool coded = false;
-            for (double error = allowed; draco && !coded && error >= allowed / 16.0; error /= 4.0) {
-                DisplacementInfo tried = info;
-                if (embedVertexDisplacements(model, rig, *map, step, compressed, error, true, *options, path, &tried)) {
-                    info = std::move(tried);
-                    positionError = error;
-                    coded = true;
+            for (const bool withDraco : {true, false}) {
+                if (withDraco && !draco)
+                    continue;
+                for (int k = 0; k < 3 && !coded; ++k) {
+                    const double error = allowed / double(1 << (2 * k));
+                    DisplacementInfo tried = info;
+                    st = embedVertexDisplacements(model, rig, *map, step, compressed, error, withDraco, *options,
+                                                  path, &tried);
+                    if (st) {
+                        info = std::move(tried);
+                        positionError = error;
+                        coded = true;
+                        draco = withDraco;
+                    } else if (!withDraco && (st.code() != StatusCode::InvalidData || error == 0.0 || k == 2)) {
+                        return Status(st.code(), path + ": " + st.message());
+                    }
                 }
-            }
-            draco = coded;
-            for (double error = allowed; !coded; error /= 4.0) {
-                st = embedVertexDisplacements(model, rig, *map, step, compressed, error, false, *options, path, &info);
-                if (st) {
-                    positionError = error;
-                    coded = true;
-                } else if (st.code() != StatusCode::InvalidData || error == 0.0 || error < allowed / 16.0) {
-                    return Status(st.code(), path + ": " + st.message());
-                }
+                if (coded)
+                    break;
             }
         } else if (map && !(st = embedMap(model, *map, step, &cm, &info))) {
             return Status(st.code(), path + ": " + st.message());

@@ -25,7 +25,7 @@ namespace io {
 /// whole document is kept in rig.source, so saveRig() writes it back
 /// complete.  External files resolve only inside the file's folder.  Every
 /// accessor is bounds-checked; a newer format version, malformed metadata or
-/// bad geometry is a clear error.  Rigs of format versions 1 to 3 load.
+/// bad geometry is a clear error.  Rigs of every earlier format version load.
 Status loadRig(const std::filesystem::path& path, Rig* out);
 
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
