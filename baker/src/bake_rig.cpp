@@ -10,6 +10,7 @@
 #include "strata/baker/mesh_input.h"
 #include "strata/displacement_math.h"
 #include "strata/segment_deformer.h"
+#include "strata/vertex_displacements.h"
 #include "strata/io/exr.h"
 #include "strata/io/file.h"
 #include "strata/io/joint_file.h"
@@ -29,7 +30,6 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
-#include <limits>
 #include <mutex>
 #include <new>
 #include <stdexcept>
@@ -772,11 +772,16 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         // RMS, in quadrature with the rest, so q = E (the tolerance, or the
         // error the chosen size and level reach when that is larger) grows
         // the total by 4%.
-        auto quantizationStep = [&](int level) {
-            double achieved = tolerance;
+        // The map's trial of `level` at the chosen size, or null.
+        auto trialAt = [&](int level) -> const Trial* {
             for (const Trial& t : trials)
                 if (t.size == map.width && t.level == level)
-                    achieved = std::max(achieved, t.rms);
+                    return &t;
+            return nullptr;
+        };
+        auto quantizationStep = [&](int level) {
+            const Trial* t = trialAt(level);
+            const double achieved = t ? std::max(tolerance, t->rms) : tolerance;
             return tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
         };
         io::RigWriteOptions writeOptions;
@@ -858,17 +863,19 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
                 const double goal = tolerance * rep.diagonal;
                 if (tolerance > 0.0 && stored.rms < 0.9 * goal) {
                     const double spend = std::sqrt(12.0 * ((0.9 * goal) * (0.9 * goal) - stored.rms * stored.rms));
-                    float lowest = std::numeric_limits<float>::max();
-                    for (float v : *values)
-                        lowest = std::min(lowest, v);
                     for (double candidate : {spend, std::sqrt(spend * *step)}) {
                         if (!(candidate > *step))
                             break;
-                        std::vector<float> quantized(*values);
-                        for (float& v : quantized)
-                            v = float(double(lowest) + std::round((double(v) - double(lowest)) / candidate) * candidate);
+                        // The values as the rig will decode them.
+                        std::vector<int32_t> q;
+                        float factor = 0.0f, offset = 0.0f;
+                        if (!(s = quantizeDisplacements(*values, candidate, &q, &factor, &offset)))
+                            return s;
+                        std::vector<float> decoded(q.size());
+                        for (size_t i = 0; i < q.size(); ++i)
+                            decoded[i] = shared::strata_decode_distance(float(q[i]), factor, offset);
                         double quantizedRms = 0.0;
-                        if (!(s = loopRms(quantized, &quantizedRms)))
+                        if (!(s = loopRms(decoded, &quantizedRms)))
                             return s;
                         if (quantizedRms <= 0.95 * goal) {
                             *step = stored.step = candidate;
@@ -906,10 +913,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             // Writes `level` beside the chosen rig; it replaces that rig
             // where keep(its RMS, the chosen one's) says so.
             auto tryLevel = [&](int level, const std::function<bool(double, double)>& keep) {
-                bool measuredAlready = false;
-                for (const Trial& t : trials)
-                    measuredAlready |= t.size == map.width && t.level == level;
-                if (!measuredAlready) {  // its map trial sets the quantisation step
+                if (!trialAt(level)) {  // its map trial sets the quantisation step
                     std::vector<LevelError> e;
                     Progress p(progress, "measuring another level against --tolerance");
                     if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
@@ -934,10 +938,8 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
             // 3x of the tolerance (the stored values came 1.4-2.1x closer
             // than the map's on the real pairs).
             auto withinReach = [&](int level) {
-                for (const Trial& t : trials)
-                    if (t.size == map.width && t.level == level)
-                        return t.rms <= 3.0 * tolerance;
-                return true;
+                const Trial* t = trialAt(level);
+                return !t || t->rms <= 3.0 * tolerance;
             };
             if (stored.rms <= goal) {
                 while (recommended > 0 && withinReach(recommended - 1) &&
@@ -1000,8 +1002,9 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         }
 
         auto fileSize = [](const std::string& p) {
-            std::vector<unsigned char> b;
-            return io::readFile(Outputs::staged(p), &b).isOk() ? double(b.size()) : 0.0;
+            std::error_code ec;
+            const auto bytes = std::filesystem::file_size(Outputs::staged(p), ec);
+            return ec ? 0.0 : double(bytes);
         };
         {
             // A rig replaces the capture; one larger than the capture as a

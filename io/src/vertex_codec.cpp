@@ -8,10 +8,9 @@
 
 #include <zstd.h>
 
-#include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
+#include <utility>
 
 namespace strata {
 namespace io {
@@ -44,23 +43,10 @@ Status encodeVertexDisplacements(const SubdivisionParents& h, const std::vector<
     if (values.size() != n)
         return Status(StatusCode::InvalidArgument, "vertex displacements: " + std::to_string(values.size()) +
                                                        " values for " + std::to_string(n) + " vertices");
-    float dmin = std::numeric_limits<float>::max(), dmax = std::numeric_limits<float>::lowest();
-    for (float v : values) {
-        if (!std::isfinite(v))
-            return Status(StatusCode::InvalidData, "vertex displacements: a value is not finite");
-        dmin = std::min(dmin, v);
-        dmax = std::max(dmax, v);
-    }
-    if (n == 0)
-        dmin = dmax = 0.0f;
-    const double range = double(dmax) - double(dmin);
-    // At most 2^24 levels: every quantised value is exact in a float.
-    const double q = std::max(step > 0.0 ? step : range / 65535.0, range / 16777215.0);
-    const double levels = q > 0.0 ? std::floor(range / q) + 1.0 : 1.0;
-    std::vector<int32_t> quantized(n), residuals(n);
-    for (size_t i = 0; i < n; ++i)
-        quantized[i] = q > 0.0 ? int32_t(std::min(std::llround((double(values[i]) - dmin) / q), (long long)(levels - 1)))
-                               : 0;
+    std::vector<int32_t> quantized, residuals(n);
+    float q = 1.0f, dmin = 0.0f;
+    if (Status st = quantizeDisplacements(values, step, &quantized, &q, &dmin); !st)
+        return st;
     predictSubdivisionResiduals(h, quantized.data(), residuals.data());
     std::string out;
     size_t begin = 0;
@@ -87,7 +73,7 @@ Status encodeVertexDisplacements(const SubdivisionParents& h, const std::vector<
         begin = end;
     }
     *bytes = std::move(out);
-    *factor = float(q);
+    *factor = q;
     *offset = dmin;
     return Status::ok();
 }

@@ -383,6 +383,30 @@ float DisplacementField::evaluate(uint32_t face, float b1, float b2) const
     return at(i + 1, j) * (1.0f - fv) + at(i, j + 1) * (1.0f - fu) + at(i + 1, j + 1) * (fu + fv - 1.0f);
 }
 
+Status quantizeDisplacements(const std::vector<float>& values, double step, std::vector<int32_t>* q, float* factor,
+                             float* offset)
+{
+    float dmin = std::numeric_limits<float>::max(), dmax = std::numeric_limits<float>::lowest();
+    for (float v : values) {
+        if (!std::isfinite(v))
+            return Status(StatusCode::InvalidData, "vertex displacements: a value is not finite");
+        dmin = std::min(dmin, v);
+        dmax = std::max(dmax, v);
+    }
+    if (values.empty())
+        dmin = dmax = 0.0f;
+    const double range = double(dmax) - double(dmin);
+    const double s = std::max(step > 0.0 ? step : range / 65535.0, range / 16777215.0);
+    const double levels = s > 0.0 ? std::floor(range / s) + 1.0 : 1.0;
+    q->resize(values.size());
+    for (size_t i = 0; i < values.size(); ++i)
+        (*q)[i] = s > 0.0 ? int32_t(std::min(std::llround((double(values[i]) - dmin) / s), (long long)(levels - 1)))
+                          : 0;
+    *factor = float(s);
+    *offset = dmin;
+    return Status::ok();
+}
+
 void predictSubdivisionResiduals(const SubdivisionParents& h, const int32_t* q, int32_t* residuals)
 {
     const size_t base = h.levelCounts.front(), n = h.levelCounts.back();

@@ -59,6 +59,16 @@ private:
     std::vector<float> grid_;  // perFace_ per control face, rows of constant j
 };
 
+/// The quantisation of stored values (docs/FORMAT.md): q_i = round((d_i -
+/// dmin) / s), s = step (range / 65535 for step 0, at least range / (2^24 -
+/// 1), so every q is exact in a float), clamped to the levels the range
+/// spans; a value decodes as strata_decode_distance(q, factor, offset) with
+/// factor = s, offset = dmin.  The coder and the baker (which measures the
+/// quantised values before it settles a step) share it.  Fails on a value
+/// that is not finite.
+Status quantizeDisplacements(const std::vector<float>& values, double step, std::vector<int32_t>* q, float* factor,
+                             float* offset);
+
 /// Integer prediction in subdivision order, lossless: control vertex v is
 /// predicted by control vertex v - 1 (0 for the first), every later vertex by
 /// the floor of the mean of its two parents.  residuals[i] = q[i] - prediction.
