@@ -24,6 +24,17 @@ Result run(const std::string& args)
     return strata::test::runCommand(std::string(STRATA_BAKE_EXE) + " " + args);
 }
 
+// Writes a mesh's positions and triangles as an OBJ file.
+void writeObj(const std::string& path, const strata::ControlMesh& mesh)
+{
+    strata::io::MeshView v;
+    v.positions = mesh.positions.data();
+    v.vertexCount = mesh.positions.size();
+    v.triangles = mesh.triangles.data();
+    v.faceCount = mesh.faceCount();
+    ASSERT_TRUE(strata::io::writeMesh(path, v).isOk()) << path;
+}
+
 // A detailed head over a sphere, as OBJ files: control (icosphere 1) and high (icosphere 4).
 void writeInputs(const std::string& dir)
 {
@@ -31,18 +42,8 @@ void writeInputs(const std::string& dir)
     ControlMesh high = examples::makeIcosphere(4);
     for (glm::vec3& p : high.positions)
         p *= examples::headRadius(p);
-    io::MeshView v;
-    v.positions = high.positions.data();
-    v.vertexCount = high.positions.size();
-    v.triangles = high.triangles.data();
-    v.faceCount = high.faceCount();
-    ASSERT_TRUE(io::writeMesh(dir + "/high.obj", v).isOk());
-    ControlMesh control = examples::makeIcosphere(1);
-    v.positions = control.positions.data();
-    v.vertexCount = control.positions.size();
-    v.triangles = control.triangles.data();
-    v.faceCount = control.faceCount();
-    ASSERT_TRUE(io::writeMesh(dir + "/control.obj", v).isOk());
+    writeObj(dir + "/high.obj", high);
+    writeObj(dir + "/control.obj", examples::makeIcosphere(1));
 }
 
 // A --control auto request over writeInputs' capture in dir.
@@ -433,15 +434,8 @@ TEST(BakeCli, SaysWhenTheRigIsLargerThanTheCapture)
     ControlMesh high = examples::makeIcosphere(1);
     for (glm::vec3& p : high.positions)
         p *= 1.0f + 0.05f * std::sin(5.0f * p.x);
-    ControlMesh control = examples::makeIcosphere(3);
-    for (const auto& [mesh, name] : {std::make_pair(&high, "high.obj"), std::make_pair(&control, "control.obj")}) {
-        io::MeshView v;
-        v.positions = mesh->positions.data();
-        v.vertexCount = mesh->positions.size();
-        v.triangles = mesh->triangles.data();
-        v.faceCount = mesh->faceCount();
-        ASSERT_TRUE(io::writeMesh(dir + "/" + name, v).isOk());
-    }
+    writeObj(dir + "/high.obj", high);
+    writeObj(dir + "/control.obj", examples::makeIcosphere(3));
     const Result r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj -o " + dir + "/rig.glb");
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("is larger than the capture would be as a plain glb"), std::string::npos) << r.output;
