@@ -369,7 +369,6 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
         glm::dvec2 t[3];
         for (int k = 0; k < 3; ++k)
             t[k] = placed(c, c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])], scale, rotation, gutter);
-        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
         const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
         const int x1 = std::min(fp.width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
         const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
@@ -379,15 +378,9 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
                 uint8_t& m = mask[size_t(x) * size_t(fp.height) + size_t(y)];
                 if (m)
                     continue;  // a neighbouring triangle already reached it
-                const glm::dvec2 p(x + 0.5, y + 0.5);
-                bool inside = area != 0.0;
-                for (int k = 0; k < 3 && inside; ++k) {
-                    const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
-                    inside = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) * area >= 0.0;
-                }
-                if (!inside && !squareMeetsTriangle(p, double(gutter), t))
-                    continue;
-                m = 1;
+                // A centre inside the triangle passes too: its square meets it.
+                if (squareMeetsTriangle(glm::dvec2(x + 0.5, y + 0.5), double(gutter), t))
+                    m = 1;
             }
     }
     fp.first.assign(size_t(fp.width) + 1, 0);
