@@ -642,6 +642,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         const double schemeMs = msSince(schemeStart);  // fits included
         const auto searchStart = std::chrono::steady_clock::now();
         for (;;) {
+            checkMemory(size);  // before the atlas, whose packing at a large size is work too
             if (uvMode == "auto") {
                 for (; size <= 8192; size *= 2) {
                     if ((st = layout(size)))
