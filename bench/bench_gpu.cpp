@@ -1,7 +1,9 @@
 // bench_gpu: the GPU path's frame split into upload, stencils, shading
-// normals and draw (GL timestamp queries, median of 7 frames), plus the whole
-// frame by wall clock with glFinish, next to the CPU path for the same frame
-// (pose + FrameEvaluator, one core), at levels 0..5 (6 with --max 6).
+// normals and draw (each stage finished before the next and timed by the
+// wall clock: llvmpipe's timestamp queries land a stage late; median of 7
+// frames), plus the whole frame unsplit by wall clock with glFinish, next
+// to the CPU path for the same frame (pose + FrameEvaluator, one core), at
+// levels 0..5 (6 with --max 6).
 //
 //   bench_gpu [--size WxH] [--max-level N]
 //
@@ -91,7 +93,7 @@ void run(const Case& c, int width, int height, int maxLevel)
         const glm::vec3* positions = animated ? animator.positions().data() : c.rig.mesh.positions.data();
         const glm::vec3* normals = animated ? animator.normals().data() : restNormals.data();
         const size_t cn = c.rig.mesh.vertexCount();
-        // GPU stages by timestamps.
+        // GPU stages, each finished before the next.
         gpu->setTiming(true);
         fb.bind();
         std::vector<double> up, sten, nrm, drw, wall;

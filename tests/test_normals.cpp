@@ -214,3 +214,103 @@ TEST(ShadingNormals, FrameEvaluatorMatchesTheScatterForAnyThreadCount)
     EXPECT_FALSE(frame.evaluate(q.data(), nq.data(), zero.data(), mesh.positions.data(), control.data(),
                                 control.size() - 1, 2).isOk());
 }
+
+namespace {
+
+// Vertex v's fans from buildVertexFans as lists of ring vertices, with a
+// closed fan's first vertex repeated at its end.
+std::vector<std::vector<uint32_t>> fansOf(const std::vector<uint32_t>& offsets, const std::vector<uint32_t>& entries,
+                                          uint32_t v)
+{
+    std::vector<std::vector<uint32_t>> fans;
+    for (uint32_t k = offsets[v]; k < offsets[v + 1]; ++k) {
+        const uint32_t e = entries[k];
+        if (e & kFanStart)
+            fans.emplace_back();
+        EXPECT_FALSE(fans.empty()) << "an entry before any fan start";
+        if (fans.empty())
+            break;
+        fans.back().push_back(e & kFanIndexMask);
+        if (e & kFanClose)
+            fans.back().push_back(fans.back().front());
+    }
+    return fans;
+}
+
+}  // namespace
+
+TEST(VertexFans, ClosedRingsOpenFansAndPinchedVertices)
+{
+    // The icosahedron: every vertex one closed ring of its five neighbours,
+    // counter-clockwise (each step's face is an input face, so the ring
+    // turns the way the faces do).
+    const ControlMesh ico = examples::makeIcosphere(0);
+    std::vector<uint32_t> offsets, entries;
+    buildVertexFans(&offsets, &entries, ico.triangles.data(), ico.faceCount(), ico.positions.size());
+    EXPECT_EQ(entries.size(), 60u);  // one entry per face corner, the closing face free
+    for (uint32_t v = 0; v < ico.positions.size(); ++v) {
+        const auto fans = fansOf(offsets, entries, v);
+        ASSERT_EQ(fans.size(), 1u) << v;
+        ASSERT_EQ(fans[0].size(), 6u) << v;
+        for (size_t s = 0; s + 1 < fans[0].size(); ++s) {
+            bool isFace = false;
+            for (size_t f = 0; f < ico.faceCount(); ++f)
+                for (int k = 0; k < 3; ++k)
+                    isFace |= ico.triangles[3 * f + size_t(k)] == v &&
+                              ico.triangles[3 * f + size_t((k + 1) % 3)] == fans[0][s] &&
+                              ico.triangles[3 * f + size_t((k + 2) % 3)] == fans[0][s + 1];
+            EXPECT_TRUE(isFace) << v << " step " << s;
+        }
+    }
+    // Two fans pinched at vertex 0 (a bow tie), the second of two faces, an
+    // open strip; a face with two corners at vertex 0 (no area normal there)
+    // and one whose other two corners coincide are left out.
+    const std::vector<uint32_t> tris = {0, 1, 2, 0, 3, 4, 0, 2, 5, 0, 0, 6, 0, 6, 6};
+    buildVertexFans(&offsets, &entries, tris.data(), tris.size() / 3, 7);
+    const auto fans = fansOf(offsets, entries, 0);
+    ASSERT_EQ(fans.size(), 2u);
+    EXPECT_EQ(fans[0], (std::vector<uint32_t>{1, 2, 5}));
+    EXPECT_EQ(fans[1], (std::vector<uint32_t>{3, 4}));
+    EXPECT_EQ(fansOf(offsets, entries, 2), (std::vector<std::vector<uint32_t>>{{5, 0, 1}}));
+    EXPECT_EQ(offsets[7] - offsets[6], 0u);  // vertex 6 is only in the two faces without area at it
+}
+
+TEST(VertexFans, FanNormalsEqualTheAreaWeightedScatter)
+{
+    // A displaced refined sphere with an open cut and a pinched vertex: the
+    // GPU pass's CPU mirror against Plan::computeShadingNormals.
+    ControlMesh mesh = examples::makeIcosphere(2);
+    mesh.triangles.resize(mesh.triangles.size() - 3 * 6);  // a hole: open fans along its border
+    std::vector<glm::vec3> control(mesh.positions.size());
+    computeControlNormals(control.data(), mesh.positions.data(), control.size(), mesh.triangles.data(),
+                          mesh.faceCount());
+    for (int level : {0, 2, 3}) {
+        std::unique_ptr<Plan> plan;
+        ASSERT_TRUE(Plan::create(&plan, mesh, Scheme::Linear, level).isOk());
+        const size_t n = plan->refinedVertexCount();
+        std::vector<float> d(n);
+        for (size_t v = 0; v < n; ++v)
+            d[v] = 0.02f * std::sin(3.0f * float(v));
+        std::vector<glm::vec3> p(n), ref(n), fan(n);
+        ASSERT_TRUE(plan->evaluate(p.data(), nullptr, 0, n, d.data(), mesh.positions.data(), control.data(),
+                                   control.size()).isOk());
+        plan->computeShadingNormals(ref.data(), p.data());
+        std::vector<uint32_t> offsets, entries;
+        const std::vector<uint32_t>& tris = plan->refinedTriangles();
+        buildVertexFans(&offsets, &entries, tris.data(), tris.size() / 3, n);
+        // One entry per face corner, plus one where a fan stays open.
+        size_t starts = 0, closes = 0;
+        for (uint32_t e : entries) {
+            starts += (e & kFanStart) != 0;
+            closes += (e & kFanClose) != 0;
+        }
+        EXPECT_EQ(entries.size(), tris.size() + starts - closes);
+        computeFanNormals(fan.data(), p.data(), n, offsets.data(), entries.data());
+        size_t open = 0;
+        for (size_t v = 0; v < n; ++v) {
+            ASSERT_LT(glm::length(fan[v] - ref[v]), 1e-5f) << v << " level " << level;
+            open += offsets[v + 1] > offsets[v] && !(entries[offsets[v + 1] - 1] & kFanClose);
+        }
+        EXPECT_GT(open, 0u) << "the hole's border has open fans";
+    }
+}

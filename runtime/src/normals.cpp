@@ -105,4 +105,96 @@ void buildVertexFaces(std::vector<uint32_t>* offsets, std::vector<uint32_t>* fac
             (*faces)[fill[triangles[3 * f + size_t(k)]]++] = uint32_t(f);
 }
 
+void buildVertexFans(std::vector<uint32_t>* offsets, std::vector<uint32_t>* entries, const uint32_t* triangles,
+                     size_t faceCount, size_t vertexCount)
+{
+    std::vector<uint32_t> faceOffsets, faces;
+    buildVertexFaces(&faceOffsets, &faces, triangles, faceCount, vertexCount);
+    offsets->assign(vertexCount + 1, 0);
+    entries->clear();
+    entries->reserve(faces.size() + faces.size() / 4);
+    struct Step {
+        uint32_t a, b;
+        bool used;
+    };
+    std::vector<Step> steps;
+    std::vector<uint32_t> byA, bs;  // step indices sorted by a; every b, sorted
+    for (size_t v = 0; v < vertexCount; ++v) {
+        steps.clear();
+        uint32_t previous = UINT32_MAX;
+        for (uint32_t k = faceOffsets[v]; k < faceOffsets[v + 1]; ++k) {
+            const uint32_t f = faces[k];
+            if (f == previous)
+                continue;  // a face listed once per corner at v: two corners there, no normal at v
+            previous = f;
+            const uint32_t* t = triangles + 3 * size_t(f);
+            const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+            const uint32_t a = t[(at + 1) % 3], b = t[(at + 2) % 3];
+            if (a != v && b != v && a != b)
+                steps.push_back({a, b, false});
+        }
+        byA.resize(steps.size());
+        bs.resize(steps.size());
+        for (uint32_t i = 0; i < steps.size(); ++i) {
+            byA[i] = i;
+            bs[i] = steps[i].b;
+        }
+        std::stable_sort(byA.begin(), byA.end(), [&](uint32_t x, uint32_t y) { return steps[x].a < steps[y].a; });
+        std::sort(bs.begin(), bs.end());
+        // The first unused step leaving ring vertex a, in face order.
+        auto next = [&](uint32_t a) -> uint32_t {
+            auto it = std::lower_bound(byA.begin(), byA.end(), a,
+                                       [&](uint32_t i, uint32_t value) { return steps[i].a < value; });
+            for (; it != byA.end() && steps[*it].a == a; ++it)
+                if (!steps[*it].used)
+                    return *it;
+            return UINT32_MAX;
+        };
+        auto walk = [&](uint32_t s) {
+            const uint32_t first = steps[s].a;
+            entries->push_back(first | kFanStart);
+            for (uint32_t i = s; i != UINT32_MAX;) {
+                steps[i].used = true;
+                if (steps[i].b == first) {  // back at the start: the last step closes the ring
+                    entries->back() |= kFanClose;
+                    break;
+                }
+                entries->push_back(steps[i].b);
+                i = next(steps[i].b);
+            }
+        };
+        // Open fans first, from steps that no other step leads into (a
+        // boundary), then the closed rings that remain.
+        for (uint32_t i = 0; i < steps.size(); ++i)
+            if (!steps[i].used && !std::binary_search(bs.begin(), bs.end(), steps[i].a))
+                walk(i);
+        for (uint32_t i = 0; i < steps.size(); ++i)
+            if (!steps[i].used)
+                walk(i);
+        (*offsets)[v + 1] = uint32_t(entries->size());
+    }
+}
+
+void computeFanNormals(glm::vec3* dst, const glm::vec3* positions, size_t vertexCount, const uint32_t* offsets,
+                       const uint32_t* entries)
+{
+    for (size_t v = 0; v < vertexCount; ++v) {
+        const glm::vec3 p = positions[v];
+        glm::vec3 sum(0.0f), first(0.0f), prev(0.0f);
+        for (uint32_t k = offsets[v]; k < offsets[v + 1]; ++k) {
+            const uint32_t e = entries[k];
+            const glm::vec3 q = positions[e & kFanIndexMask] - p;
+            if (e & kFanStart)
+                first = q;
+            else
+                sum += glm::cross(prev, q);
+            if (e & kFanClose)
+                sum += glm::cross(q, first);
+            prev = q;
+        }
+        const float len = glm::length(sum);
+        dst[v] = len > 0.0f ? sum / len : glm::vec3(0.0f);
+    }
+}
+
 }  // namespace strata

@@ -6,6 +6,7 @@
 #include <glm/vec4.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <string>
 
 namespace strata {
@@ -60,19 +61,10 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     plan.flattenStencils(&stencils);
     const size_t nv = e->vertexCount_, nf = e->faceCount_;
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
-    // Per vertex, the other two corners of each incident face, counter-
-    // clockwise from it, in face order: the normal pass reads two positions
-    // per face instead of a face index, three corner indices and three.
-    std::vector<uint32_t> adjacencyOffsets, adjacentFaces, adjacentEdges;
-    buildVertexFaces(&adjacencyOffsets, &adjacentFaces, tris.data(), nf, nv);
-    adjacentEdges.resize(2 * adjacentFaces.size());
-    for (size_t v = 0; v < nv; ++v)
-        for (uint32_t k = adjacencyOffsets[v]; k < adjacencyOffsets[v + 1]; ++k) {
-            const uint32_t* t = &tris[3 * size_t(adjacentFaces[k])];
-            const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
-            adjacentEdges[2 * size_t(k)] = t[(at + 1) % 3];
-            adjacentEdges[2 * size_t(k) + 1] = t[(at + 2) % 3];
-        }
+    // Per vertex, its faces as fans of its one-ring: the normal pass reads
+    // one position per face instead of two.
+    std::vector<uint32_t> fanOffsets, fanEntries;
+    buildVertexFans(&fanOffsets, &fanEntries, tris.data(), nf, nv);
     std::vector<glm::vec2> uvs;
     plan.sampleUVs(&uvs);
     if (uvs.empty())
@@ -88,8 +80,8 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     b[kDisplaced] = makeBuffer(nullptr, nv * 16, false, &bytes);
     b[kSampleUVs] = makeBuffer(uvs.data(), nv * 8, false, &bytes);
     b[kTriangles] = makeBuffer(tris.data(), tris.size() * 4, false, &bytes);
-    b[kAdjacencyOffsets] = makeBuffer(adjacencyOffsets.data(), adjacencyOffsets.size() * 4, false, &bytes);
-    b[kAdjacentEdges] = makeBuffer(adjacentEdges.data(), adjacentEdges.size() * 4, false, &bytes);
+    b[kFanOffsets] = makeBuffer(fanOffsets.data(), fanOffsets.size() * 4, false, &bytes);
+    b[kFanEntries] = makeBuffer(fanEntries.data(), fanEntries.size() * 4, false, &bytes);
     b[kNormals] = makeBuffer(nullptr, nv * 16, false, &bytes);
     b[kVertexDisplacements] = makeBuffer(nullptr, std::max<size_t>(nv, 1) * 4, true, &bytes);
 
@@ -101,7 +93,6 @@ Status Evaluator::create(std::unique_ptr<Evaluator>* out, const Plan& plan, bool
     if (!(st = e->setDisplacementMap(zero)))
         return st;
     e->haveMap_ = false;
-    glCreateQueries(GL_TIMESTAMP, 4, e->queries_);
     if (glGetError() != GL_NO_ERROR)
         return Status(StatusCode::Unsupported, "OpenGL reported an error while uploading the plan");
     *out = std::move(e);
@@ -116,7 +107,6 @@ Evaluator::~Evaluator()
     glDeleteTextures(1, &texture_);
     for (GLuint p : {refine_, displace_, normals_})
         glDeleteProgram(p);
-    glDeleteQueries(4, queries_);
 }
 
 Status Evaluator::setDisplacementMap(const DisplacementMap& map)
@@ -179,14 +169,6 @@ void Evaluator::bindSampling(GLuint program) const
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kVertexDisplacements, buffers_[kVertexDisplacements]);
 }
 
-double Evaluator::elapsedMs(GLuint begin, GLuint end) const
-{
-    GLuint64 a = 0, b = 0;
-    glGetQueryObjectui64v(begin, GL_QUERY_RESULT, &a);
-    glGetQueryObjectui64v(end, GL_QUERY_RESULT, &b);
-    return double(b - a) * 1e-6;
-}
-
 Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
 {
     if (count != controlCount_)
@@ -195,13 +177,22 @@ Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* con
                                                        std::to_string(controlCount_));
     if (!controlPositions || (!smooth_ && !controlNormals))
         return Status(StatusCode::InvalidArgument, "GPU evaluator: null control data");
-    if (timing_)
-        glQueryCounter(queries_[0], GL_TIMESTAMP);
+    // Stages are timed by the wall clock between glFinish calls: exact on a
+    // software renderer, whose timestamp queries land a stage late
+    // (llvmpipe's normal pass read 0.1 ms by them, 85 ms by the clock), and
+    // on a GPU an upper bound by one synchronisation per stage.
+    std::chrono::steady_clock::time_point at[4];
+    auto stamp = [&](int i) {
+        if (timing_) {
+            glFinish();
+            at[i] = std::chrono::steady_clock::now();
+        }
+    };
+    stamp(0);
     glNamedBufferSubData(buffers_[kControlPositions], 0, GLsizeiptr(count * 12), controlPositions);
     if (controlNormals)
         glNamedBufferSubData(buffers_[kControlNormals], 0, GLsizeiptr(count * 12), controlNormals);
-    if (timing_)
-        glQueryCounter(queries_[1], GL_TIMESTAMP);
+    stamp(1);
     bindBuffers();
     const GLuint n = GLuint(vertexCount_);
     glUseProgram(refine_);
@@ -213,19 +204,19 @@ Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* con
     glUniform1ui(glGetUniformLocation(displace_, "u_vertexCount"), n);
     glDispatchCompute(groups(vertexCount_), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    if (timing_)
-        glQueryCounter(queries_[2], GL_TIMESTAMP);
+    stamp(2);
     if (shadingNormals_) {
         glUseProgram(normals_);
         glUniform1ui(glGetUniformLocation(normals_, "u_vertexCount"), n);
         glDispatchCompute(groups(vertexCount_), 1, 1);
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT);
     }
+    stamp(3);
     if (timing_) {
-        glQueryCounter(queries_[3], GL_TIMESTAMP);
-        timings_.uploadMs = elapsedMs(queries_[0], queries_[1]);
-        timings_.stencilMs = elapsedMs(queries_[1], queries_[2]);
-        timings_.normalsMs = elapsedMs(queries_[2], queries_[3]);
+        auto ms = [&](int a, int b) { return std::chrono::duration<double, std::milli>(at[b] - at[a]).count(); };
+        timings_.uploadMs = ms(0, 1);
+        timings_.stencilMs = ms(1, 2);
+        timings_.normalsMs = ms(2, 3);
     }
     glUseProgram(0);
     return Status::ok();

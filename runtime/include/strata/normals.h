@@ -35,4 +35,27 @@ void computeControlNormals(glm::vec3* dst, const glm::vec3* positions, size_t ve
 void buildVertexFaces(std::vector<uint32_t>* offsets, std::vector<uint32_t>* faces, const uint32_t* triangles,
                       size_t faceCount, size_t vertexCount);
 
+/// Each vertex's incident faces as fans of its one-ring, the layout the GPU
+/// normal pass reads (shaders/normals.comp.glsl): a face (v, a, b), corners
+/// counter-clockwise, is the ring step a -> b, and consecutive faces share a
+/// ring vertex, so an interior vertex of valence k reads k neighbours instead
+/// of the 2k corners of its faces.  Vertex v's entries are
+/// entries[offsets[v] .. offsets[v + 1]), each a vertex index (kFanIndexMask)
+/// with flags: kFanStart begins a fan (its first ring vertex), kFanClose on a
+/// fan's last entry adds the face back to the fan's first (a closed ring).
+/// Every face with exactly one corner at v appears once; a face with two
+/// corners at v (area normal zero at v) is left out.  Non-manifold and
+/// boundary vertices get several or open fans.  Sizes are linear; the
+/// vertex count must stay below kFanIndexMask.
+void buildVertexFans(std::vector<uint32_t>* offsets, std::vector<uint32_t>* entries, const uint32_t* triangles,
+                     size_t faceCount, size_t vertexCount);
+constexpr uint32_t kFanStart = 0x80000000u, kFanClose = 0x40000000u, kFanIndexMask = 0x3fffffffu;
+
+/// Unit area-weighted vertex normals from buildVertexFans's layout: the sum
+/// of cross(a - p, b - p) over each fan's ring steps, normalised ((0, 0, 0)
+/// where it vanishes).  The CPU mirror of the GPU normal pass, operation
+/// for operation.
+void computeFanNormals(glm::vec3* dst, const glm::vec3* positions, size_t vertexCount, const uint32_t* offsets,
+                       const uint32_t* entries);
+
 }  // namespace strata

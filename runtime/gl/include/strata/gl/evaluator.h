@@ -43,17 +43,18 @@ enum class SampleFilter { Shared = 0, Hardware = 1 };
 /// in shaders/ declare them.  std430 layouts: vec4 per refined vertex for
 /// Surface (two: point, direction), Displaced and Normals; float for
 /// VertexDisplacements; vec2 for SampleUVs; uint triples for Triangles;
-/// uvec2 per (vertex, incident face) for AdjacentEdges: the face's other two
-/// corners counter-clockwise from the vertex, in face order, each vertex's
-/// run starting at AdjacencyOffsets[v].
+/// FanOffsets and FanEntries are buildVertexFans's layout (strata/normals.h):
+/// each vertex's faces as fans of its one-ring.
 enum Binding : GLuint {
     kControlPositions = 0, kControlNormals = 1, kStencilOffsets = 2, kStencilIndices = 3, kStencilWeights = 4,
-    kSurface = 5, kDisplaced = 6, kSampleUVs = 7, kTriangles = 8, kAdjacencyOffsets = 9, kAdjacentEdges = 10,
+    kSurface = 5, kDisplaced = 6, kSampleUVs = 7, kTriangles = 8, kFanOffsets = 9, kFanEntries = 10,
     kNormals = 11, kVertexDisplacements = 15
 };
 
-/// GPU times of the last update(), in milliseconds (timer queries; only
-/// filled while timing is on, which waits for the GPU).
+/// Stage times of the last update(), in milliseconds: only filled while
+/// timing is on, which finishes each stage before the next (the wall clock
+/// between glFinish calls: exact on a software renderer, an upper bound by
+/// one synchronisation per stage on a GPU).
 struct EvaluatorTimings {
     double uploadMs = 0.0, stencilMs = 0.0, normalsMs = 0.0;
 };
@@ -108,7 +109,6 @@ public:
 
 private:
     Evaluator() = default;
-    double elapsedMs(GLuint begin, GLuint end) const;
 
     size_t vertexCount_ = 0, faceCount_ = 0, controlCount_ = 0, gpuBytes_ = 0;
     bool smooth_ = false, shadingNormals_ = true, timing_ = false;
@@ -120,7 +120,6 @@ private:
     GLuint buffers_[16] = {};
     GLuint texture_ = 0;
     GLuint refine_ = 0, displace_ = 0, normals_ = 0;
-    GLuint queries_[4] = {};
     EvaluatorTimings timings_;
 };
 

@@ -52,8 +52,9 @@ struct MaterialRange {
     int material = 0;
 };
 
-/// GPU times of the last update() and draw(), in milliseconds (timer
-/// queries; only filled while timing is enabled, which waits for the GPU).
+/// Stage times of the last update() and draw(), in milliseconds, as
+/// EvaluatorTimings measures them (only filled while timing is enabled,
+/// which finishes each stage before the next).
 struct GpuTimings {
     double uploadMs = 0.0, stencilMs = 0.0, normalsMs = 0.0, drawMs = 0.0;
 };
@@ -124,7 +125,6 @@ private:
     GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0;  // buffers of the draw pass only
     GLuint vao_ = 0, cornerVao_ = 0;
     GLuint surface_ = 0, feedbackProgram_ = 0;
-    GLuint queries_[2] = {};
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };
