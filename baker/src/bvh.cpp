@@ -23,17 +23,6 @@ void Box::extend(const Box& b)
     hi = glm::max(hi, b.hi);
 }
 
-bool Box::contains(const glm::vec3& p) const
-{
-    return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
-}
-
-float Box::distance2(const glm::vec3& p) const
-{
-    const glm::vec3 d = glm::max(glm::max(lo - p, p - hi), glm::vec3(0.0f));
-    return glm::dot(d, d);
-}
-
 namespace {
 
 // Spreads the low 10 bits of v three bits apart (bit i moves to bit 3i).

@@ -88,8 +88,14 @@ DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const Triang
 {
     std::vector<double> d(samples.size());
     parallelFor(samples.size(), threads, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i)
-            d[i] = to.nearest(glm::dvec3(samples[i]));
+        // Consecutive samples lie close: the previous answer, tried first,
+        // prunes most of the walk (the answer does not depend on it).
+        int64_t hint = -1;
+        for (size_t i = b; i < e; ++i) {
+            uint32_t face = 0;
+            d[i] = to.nearest(glm::dvec3(samples[i]), &face, nullptr, nullptr, hint);
+            hint = d[i] >= 0.0 ? int64_t(face) : -1;
+        }
     });
     DistanceStats s;
     double sum = 0.0;
