@@ -592,3 +592,23 @@ TEST(Atlas, ChartCacheGivesTheSameAtlas)
     ASSERT_TRUE(buildChartAtlas(&moved, options, nullptr, 60.0, &cache).isOk());
     EXPECT_EQ(fresh.uvs, moved.uvs);
 }
+
+// From 1024^2 up the orientations of each chart are tried on several
+// threads; the layout is the one a single thread makes, and a valid one.
+TEST(Atlas, PackingOnThreadsGivesTheSameLayout)
+{
+    const ControlMesh head = headWithoutUVs();
+    AtlasOptions options;
+    options.mapSize = 1024;
+    options.gutter = 1;
+    ControlMesh one = head;
+    ASSERT_TRUE(buildChartAtlas(&one, options).isOk());
+    for (int threads : {2, 3, 8}) {
+        options.threads = threads;
+        ControlMesh many = head;
+        ASSERT_TRUE(buildChartAtlas(&many, options).isOk());
+        EXPECT_EQ(one.uvs, many.uvs) << threads;
+        EXPECT_EQ(one.uvIndices, many.uvIndices) << threads;
+    }
+    ASSERT_TRUE(checkUVs(one, 1024).isOk());
+}

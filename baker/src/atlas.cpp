@@ -3,10 +3,13 @@
 
 #include "strata/normals.h"
 
+#include "parallel.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -535,27 +538,36 @@ private:
 // Packs the charts' footprints into a texel occupancy map, largest first:
 // each chart goes, in whichever of its eight orientations, where its top ends
 // lowest, at the lowest row every one of its columns is free (holes under
-// earlier charts included).  Fills x, y, rotation; false if they do not fit.
+// earlier charts included); ties go to the lower orientation, then the
+// lower column.  The orientations are tried on `threads` threads from a
+// size of 1024 up, each pruning against the best top any has found (ties
+// allowed, so the lower orientation still wins them): the same placement
+// for any thread count.  Fills x, y, rotation; false if they do not fit.
 bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
-          std::vector<int32_t>& local, double scale, int gutter, int size)
+          std::vector<int32_t>& local, double scale, int gutter, int size, int threads)
 {
     Occupancy occupied(size);
+    struct Placement {
+        int top = INT32_MAX, x = 0, y = 0;
+        Footprint fp;
+    };
     for (size_t i : order) {
         Chart& c = charts[i];
         c.scaleX = chartScale(c, scale);
         for (size_t k = 0; k < c.vertices.size(); ++k)
             local[c.vertices[k]] = int32_t(k);
-        int bestTop = INT32_MAX, bestX = 0, bestY = 0, bestRotation = 0;
-        Footprint best;
-        for (int rotation = 0; rotation < 8; ++rotation) {
-            Footprint fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
+        Placement found[8];
+        std::atomic<int> anyTop{INT32_MAX};
+        auto tryOrientation = [&](int rotation) {
+            Placement& own = found[rotation];
+            own.fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
+            const Footprint& fp = own.fp;
             if (fp.width > size || fp.height > size)
-                continue;
-            bool improved = false;
+                return;
             for (int x = 0; x + fp.width <= size; ++x) {
                 // Raise y until every column's span is free at once, giving
                 // up once the top cannot beat the best placement so far.
-                const int limit = std::min(size, bestTop - 1);
+                const int limit = std::min({size, own.top - 1, anyTop.load(std::memory_order_relaxed)});
                 int y = 0;
                 for (bool moved = true; moved && y + fp.height <= limit;) {
                     moved = false;
@@ -572,27 +584,34 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
                         }
                 }
                 const int top = y + fp.height;
-                if (top <= size && top < bestTop) {
-                    bestTop = top;
-                    bestX = x;
-                    bestY = y;
-                    bestRotation = rotation;
-                    improved = true;
+                if (top <= limit && top < own.top) {
+                    own.top = top;
+                    own.x = x;
+                    own.y = y;
+                    for (int seen = anyTop.load(); top < seen && !anyTop.compare_exchange_weak(seen, top);) {
+                    }
                 }
             }
-            if (improved)
-                best = std::move(fp);
-        }
+        };
+        parallelChunks(8, size >= 1024 ? threads : 1, [&](int, size_t begin, size_t end) {
+            for (size_t rotation = begin; rotation < end; ++rotation)
+                tryOrientation(int(rotation));
+        });
         for (uint32_t v : c.vertices)
             local[v] = -1;
-        if (bestTop == INT32_MAX)
+        int best = 0;
+        for (int rotation = 1; rotation < 8; ++rotation)
+            if (found[rotation].top < found[best].top)
+                best = rotation;
+        const Placement& p = found[best];
+        if (p.top == INT32_MAX)
             return false;
-        for (int col = 0; col < best.width; ++col)
-            for (uint32_t r = best.first[size_t(col)]; r < best.first[size_t(col) + 1]; ++r)
-                occupied.take(bestX + col, bestY + best.lo[r], bestY + best.hi[r]);
-        c.x = bestX;
-        c.y = bestY;
-        c.rotation = bestRotation;
+        for (int col = 0; col < p.fp.width; ++col)
+            for (uint32_t r = p.fp.first[size_t(col)]; r < p.fp.first[size_t(col) + 1]; ++r)
+                occupied.take(p.x + col, p.y + p.fp.lo[r], p.y + p.fp.hi[r]);
+        c.x = p.x;
+        c.y = p.y;
+        c.rotation = best;
     }
     return true;
 }
@@ -932,24 +951,24 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     });
     const int size = options.mapSize, g = options.gutter;
     double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
-    while (pack(charts, order, *mesh, local, hi, g, size)) {
+    while (pack(charts, order, *mesh, local, hi, g, size, options.threads)) {
         lo = hi;
         hi *= 1.25;
     }
     if (lo == 0.0) {
         lo = hi;
-        for (int tries = 0; tries < 40 && !pack(charts, order, *mesh, local, lo, g, size); ++tries)
+        for (int tries = 0; tries < 40 && !pack(charts, order, *mesh, local, lo, g, size, options.threads); ++tries)
             lo *= 0.8;
-        if (!pack(charts, order, *mesh, local, lo, g, size))
+        if (!pack(charts, order, *mesh, local, lo, g, size, options.threads))
             return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
                                                            std::to_string(charts.size()) + " charts; use a larger map");
         hi = lo / 0.8;
     }
     for (int step = 0; step < 6; ++step) {
         const double mid = 0.5 * (lo + hi);
-        (pack(charts, order, *mesh, local, mid, g, size) ? lo : hi) = mid;
+        (pack(charts, order, *mesh, local, mid, g, size, options.threads) ? lo : hi) = mid;
     }
-    pack(charts, order, *mesh, local, lo, g, size);  // the final placement
+    pack(charts, order, *mesh, local, lo, g, size, options.threads);  // the final placement
     // UVs: one value per (chart, vertex); faces index them.
     std::vector<glm::vec2> uvs;
     std::vector<uint32_t> uvIndices(3 * nf);

@@ -471,6 +471,7 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
         std::string atlasNote;
         AtlasOptions atlas;
         atlas.gutter = 1;
+        atlas.threads = options.threads;
         ChartAtlasStats chartStats;
         ControlMesh bare = control;
         int paperLevel = 0;

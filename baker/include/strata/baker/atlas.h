@@ -14,6 +14,7 @@ namespace baker {
 struct AtlasOptions {
     int mapSize = 1024;   ///< texels per side of the square map the atlas is laid out for
     int gutter = 2;       ///< texels of gutter around every chart
+    int threads = 1;      ///< chart atlas: threads that pack (the same layout for any count)
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a per-triangle atlas: triangles
