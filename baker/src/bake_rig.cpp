@@ -356,806 +356,935 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
 
 namespace {
 
+// The size of a staged output, or 0.
+double fileSize(const std::string& path)
+{
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(Outputs::staged(path), ec);
+    return ec ? 0.0 : double(bytes);
+}
+
+// One bake: its state, shared by the phases that run() calls in turn (load,
+// prepare the cage and atlas, choose the scheme, search the map size, write,
+// measure what was written, summarise, report, commit).  Every user-facing
+// failure is a BakeError; the outputs stay staged until finish().
+class BakeJob {
+public:
+    BakeJob(const BakeRequest& r, BakeResult* out, const BakeProgress* stages)
+        : request(r), result(out), progress(stages), highPath(r.high), controlPath(r.control), outPath(r.output),
+          reportPath(r.report), uvMode(r.uv), skeletonPath(r.skeleton), mapCoding(r.mapCoding),
+          controlFaces(r.controlFaces), options(r.options), asFloat(r.floatExr), writeExr(r.exr),
+          writeLayers(r.layers), schemeGiven(r.schemeGiven), compress(r.compress), pngBits(r.pngBits),
+          errorFrom(r.errorFrom), errorTo(r.errorTo), tolerance(r.tolerance), maxMemoryMB(r.maxMemoryMB)
+    {
+    }
+
+    void run()
+    {
+        loadInputs();
+        prepare();
+        chooseScheme();
+        searchMapSize();
+        writeOutputs();
+        measureWritten();
+        summarize();
+        writeReport();
+        finish();
+    }
+
+private:
+    struct Fitted {
+        bool done = false;
+        std::vector<glm::vec3> positions;
+        FitStats stats;
+    };
+    struct Trial {
+        int size, level;
+        double rms;  // the larger of both directions, over the diagonal
+    };
+    // The previous size's result, kept so that stopping when doubling no
+    // longer pays returns the smaller map.
+    struct Snapshot {
+        ControlMesh control;
+        DisplacementMap map;
+        std::vector<uint16_t> layers;
+        BakeReport rep;
+        ChartAtlasStats chartStats;
+        int size = 0, level = 0;
+        double best = 1e300;
+    };
+    // How the values stored per refined vertex were made.
+    struct Stored {
+        size_t measured = 0;
+        const char* how = "sampled from the map";
+        double rms = -1.0;  // the closed loop of the values before quantisation
+        double step = 0.0;  // the quantisation step they were coded with
+    };
+
+    void loadInputs();
+    void prepare();
+    void chooseScheme();
+    void searchMapSize();
+    void writeOutputs();
+    void measureWritten();
+    void summarize();
+    void writeReport();
+    void finish();
+
+    const std::vector<glm::vec3>& fittedPositions(Scheme scheme);
+    void useFit(Scheme scheme, ControlMesh* mesh);
+    Status layout(int mapSize);
+    void checkMemory(int mapSize) const;
+    const Trial* trialAt(int level) const;
+    double quantizationStep(int level) const;
+    Status refineStoredValues(const ControlMesh& mesh, int level, std::vector<float>* values, double* step);
+    Status writeRig(const std::string& path, int level);
+    void settleLevel();
+
+    template <typename... Args>
+    void warn(const char* format, Args... args)
+    {
+        std::string w;
+        appendf(&w, format, args...);
+        result->warnings.push_back(w);
+    }
+
+    const BakeRequest& request;
+    BakeResult* result;
+    const BakeProgress* progress;
+    // The request's fields under the names the pipeline uses.
+    std::string highPath, controlPath, outPath, reportPath, uvMode, skeletonPath, mapCoding;
+    size_t controlFaces;
+    BakeOptions options;
+    bool asFloat, writeExr, writeLayers, schemeGiven, compress;
+    int pngBits, errorFrom, errorTo;
+    double tolerance, maxMemoryMB;
+    std::string base;  // the output path without its extension
+
+    // The inputs.
+    TriangleMesh high;
+    HighMeshStats highStats;
+    TriangleIndex highIndex;  // the capture indexed once: fits, measurements and closed loops query it
+    ControlMesh control;
+    Rig controlRig;     // a glTF control keeps its whole document for the output
+    Skeleton skeleton;  // carried through from a skinned glTF control rig
+    ControlMesh bare;   // the control mesh that atlas layouts start from
+    int paperLevel = 0;
+
+    // Cage, atlas, scheme, map size and level.
+    AtlasOptions atlas;
+    ChartAtlasStats chartStats;
+    ChartCache chartCache;  // the charts, made once per cage the layouts start from
+    std::string atlasNote, sizeReason, schemeReason;
+    bool fitting = false, fitSkippedForMaps = false;
+    Fitted fitted[2];
+    FitOptions fitOptions;
+    bool forced = false;
+    int size = 0, sizeCap = 0, recommended = 0;
+    std::vector<Trial> trials;
+    DisplacementMap map;
+    std::vector<uint16_t> layers;
+    BakeReport rep;
+    Snapshot previous;
+
+    // The outputs.
+    Outputs outputs;
+    Rig rig;
+    io::RigWriteOptions writeOptions;
+    std::vector<std::string> notes;
+    Stored stored;
+    std::vector<LevelError> errors;
+    nlohmann::json report;
+    double loadMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
+};
+
+void BakeJob::loadInputs()
+{
+    if (highPath.empty() || controlPath.empty() || outPath.empty())
+        throw BakeError("--high, --control and -o are required (see --help)");
+    if (mapCoding != "vertex" && mapCoding != "png")
+        throw BakeError("map coding must be vertex or png, not " + mapCoding);
+    if (request.meshCoding != "draco" && request.meshCoding != "meshopt")
+        throw BakeError("mesh coding must be draco or meshopt, not " + request.meshCoding);
+    if (Status checked = checkOutput(request); !checked)
+        throw BakeError(checked.message());
+    const std::string ext = io::extensionOf(outPath);
+    base = outPath.substr(0, outPath.size() - ext.size());
+
+    const auto t0 = std::chrono::steady_clock::now();
+    Status st = loadHighMesh(highPath, &high, &highStats);
+    if (!st)
+        throw BakeError(st.message());
+    if (controlPath == "auto") {
+        if (controlFaces == 0)
+            controlFaces = std::max<size_t>(200, high.faceCount() / 50);
+        Progress p(progress, "simplifying the high-resolution mesh");
+        if (!(st = decimateToControlMesh(high, controlFaces, &control)))
+            throw BakeError(highPath + ": " + st.message());
+        if (uvMode == "keep")
+            throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
+        uvMode = "auto";
+    } else {
+        if (!(st = loadControlRig(controlPath, &controlRig)))
+            throw BakeError(st.message());
+        for (const std::string& w : controlRig.warnings)
+            warn("%s: %s", controlPath.c_str(), w.c_str());
+        control = controlRig.mesh;
+        skeleton = controlRig.skeleton;
+        if (uvMode.empty()) {
+            // Default: keep the control's UVs when they can carry a map
+            // (no overlaps), else lay out an atlas in a new UV set.
+            uvMode = control.hasUVs() ? "keep" : "auto";
+            if (uvMode == "keep") {
+                ControlMesh probe = control;
+                std::string note;
+                fitUVsToUnitSquare(&probe, &note);
+                if (!(st = checkUVs(probe, 1024))) {
+                    warn("%s: its UVs cannot carry the map (%s); generating an atlas in a new UV set (--uv keep "
+                         "insists)",
+                         controlPath.c_str(), st.message().c_str());
+                    uvMode = "auto";
+                }
+            }
+        }
+        if (uvMode == "keep" && !control.hasUVs())
+            throw BakeError(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+        // A closed capture over a control mesh left open (a wrist, a
+        // neck): the capture's cap has nothing to be displaced from, so
+        // the holes are closed with fans (a plain, unskinned mesh whose
+        // UVs are laid out anew only; --keep-holes keeps them open).
+        if (request.closeHoles && uvMode == "auto" && skeleton.empty() && skeletonPath.empty() &&
+            !controlRig.source && countBoundaryEdges(control.triangles.data(), control.faceCount()) > 0 &&
+            countBoundaryEdges(high.triangles.data(), high.faceCount()) == 0) {
+            const size_t before = control.faceCount();
+            if (const size_t loops = closeBoundaryLoops(&control))
+                warn("%s: the capture is closed where the control mesh is open: %zu boundary loop%s closed with "
+                     "%zu triangles (--keep-holes keeps them open)",
+                     controlPath.c_str(), loops, loops == 1 ? "" : "s", control.faceCount() - before);
+        }
+    }
+    if (!skeletonPath.empty()) {
+        // The paper's joint file: its point-to-line binding becomes
+        // standard skin weights, so the rig plays in any glTF viewer.
+        if (!skeleton.empty())
+            warn("%s: its skin is replaced by %s", controlPath.c_str(), skeletonPath.c_str());
+        if (!(st = io::loadJointFile(skeletonPath, &skeleton)))
+            throw BakeError(st.message());
+        if (!(st = bindSkeletonWeights(&skeleton, control)))
+            throw BakeError(skeletonPath + ": " + st.message());
+        controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
+    }
+    loadMs = msSince(t0);
+}
+
+void BakeJob::prepare()
+{
+    Status st;
+    // UVs, map size and recommended level.  Unless --size forces a size,
+    // the map starts at the paper's texel ~ high-res edge rule and doubles
+    // until the closed loop reaches --tolerance at a level around the
+    // paper's, or stops improving: the smallest pair that reaches it.
+    const double typicalEdge = medianEdgeLength(high);
+    atlas.gutter = 1;
+    atlas.threads = options.threads;
+    bare = control;
+    while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
+        ++paperLevel;
+    // The capture indexed once: cage fitting, the stored values' fit and
+    // their measurement all query it.
+    highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount(), options.threads);
+    // A bare cage is fitted to the capture for the scheme it will carry
+    // (Displaced Subdivision Surfaces 4.2).  A character's own vertices
+    // (a glTF control, written back as it came) and a skinned cage (its
+    // weights were bound to these positions) are never moved, nor is a
+    // user's cage whose map is asked for as an image (--exr, --png8/16):
+    // a pipeline applies that map to the cage it has.
+    const bool mapForPipelines = writeExr || pngBits != 0;
+    const bool fittable = request.fitCage && !controlRig.source && skeleton.empty();
+    fitting = fittable && (controlPath == "auto" || !mapForPipelines);
+    fitSkippedForMaps = fittable && !fitting;
+    fitOptions.level = std::clamp(paperLevel, 1, 3);
+    fitOptions.threads = options.threads;
+    forced = options.size > 0;
+    size = options.size;
+    if (uvMode == "auto") {
+        // A chart atlas (charts grown over the control mesh, projected on
+        // their planes, packed); the per-triangle atlas only if a chart
+        // would fold.
+        if (!forced) {
+            if (!(st = layout(512)))  // provisional layout to measure the UV area (scale-free)
+                throw BakeError(st.message());
+            size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+        }
+    } else {
+        std::string uvNote;
+        if (fitUVsToUnitSquare(&control, &uvNote))
+            warn("%s: %s", controlPath.c_str(), uvNote.c_str());
+        if (!forced)
+            size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
+        if (!(st = checkUVs(control, std::max(size, 1024))))
+            throw BakeError(controlPath + ": " + st.message());
+    }
+    if (forced)
+        sizeReason = "forced by --size";
+    recommended = paperLevel;
+    sizeCap = forced ? size : std::min(options.maxSize, 4096);
+}
+
+void BakeJob::chooseScheme()
+{
+    Status st;
+    schemeReason = schemeGiven ? "--scheme" : "";
+    const auto schemeStart = std::chrono::steady_clock::now();
+    if (!schemeGiven && !forced && tolerance > 0.0) {
+        // Which surface carries the map better for this pair, measured at
+        // the paper's level and twice the first size (up to 512^2), so
+        // that the map's resolution, which the smaller displacements of
+        // the limit surface need less of, does not decide it: the paper's
+        // linear split unless the Loop limit is clearly closer (loose
+        // cages).
+        const int probeSize = std::max(size, std::min(2 * size, std::min(512, sizeCap)));
+        if (uvMode == "auto" && !(st = layout(probeSize)))
+            throw BakeError(st.message());
+        // The linear scheme first: when it meets the tolerance four times
+        // over (a level lower would too) the smooth one is not tried (its
+        // bake costs several times more); otherwise the closer surface
+        // may reach the tolerance a level earlier, with a quarter of the
+        // stored values.
+        double rms[2] = {0.0, -1.0};
+        for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
+            if (candidate == Scheme::Smooth && rms[0] <= 0.25 * tolerance)
+                break;
+            BakeOptions probe = options;
+            probe.size = uvMode == "auto" ? atlas.mapSize : probeSize;
+            probe.scheme = candidate;
+            DisplacementMap probeMap;
+            BakeReport probeReport;
+            std::vector<LevelError> errs;
+            ControlMesh candidateMesh = control;
+            useFit(candidate, &candidateMesh);
+            Progress p(progress, "choosing the subdivision scheme");
+            if (!(st = bake(&probeMap, nullptr, &probeReport, candidateMesh, high, probe)) ||
+                !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
+                                              options.threads)))
+                throw BakeError(highPath + ": " + st.message());
+            rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
+        }
+        options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
+        char buf[160];
+        if (rms[1] < 0.0)
+            std::snprintf(buf, sizeof(buf), "measured: linear %.4g%% RMS at level %d meets the tolerance",
+                          100.0 * rms[0], paperLevel);
+        else
+            std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
+                          100.0 * rms[1], paperLevel);
+        schemeReason = buf;
+    }
+    useFit(options.scheme, &bare);
+    useFit(options.scheme, &control);
+    schemeMs = msSince(schemeStart);  // fits included
+}
+
+void BakeJob::searchMapSize()
+{
+    Status st;
+    const auto searchStart = std::chrono::steady_clock::now();
+    for (;;) {
+        checkMemory(size);  // before the atlas, whose packing at a large size is work too
+        if (uvMode == "auto") {
+            for (; size <= 8192; size *= 2) {
+                if ((st = layout(size)))
+                    break;
+                if (forced)
+                    throw BakeError(st.message());
+                sizeReason += "; raised to fit the charts";
+            }
+            if (!st)
+                throw BakeError(st.message());
+        }
+        options.size = size;
+        checkMemory(size);
+        {
+            Progress p(progress, "baking");
+            if (!(st = bake(&map, &layers, &rep, control, high, options)))
+                throw BakeError(highPath + ": " + st.message());
+        }
+        if (forced || tolerance <= 0.0)
+            break;
+        // The paper's level and every level below it (a loose tolerance
+        // is met with fewer refined vertices, hence fewer stored values;
+        // the coarse levels cost little to measure); a finer level than
+        // the paper's rule rarely pays for its four times the triangles.
+        std::vector<LevelError> errs;
+        const int lo = 0, hi = paperLevel;
+        {
+            Progress p(progress, "measuring the map size against --tolerance");
+            if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
+                throw BakeError(st.message());
+        }
+        double best = 1e300;
+        int met = -1, bestLevel = hi;
+        for (const LevelError& e : errs) {
+            const double rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+            trials.push_back({size, e.level, rms});
+            if (rms < best) {
+                best = rms;
+                bestLevel = e.level;
+            }
+            if (met < 0 && rms <= tolerance)
+                met = e.level;
+        }
+        if (met >= 0) {
+            recommended = met;
+            char buf[96];
+            std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * tolerance, met);
+            sizeReason += buf;
+            break;
+        }
+        if (best > 0.9 * previous.best) {
+            // Doubling no longer pays: resolution is not what limits the
+            // error here.  The previous, smaller map, at its best level.
+            control = std::move(previous.control);
+            map = std::move(previous.map);
+            layers = std::move(previous.layers);
+            rep = previous.rep;
+            chartStats = previous.chartStats;
+            size = previous.size;
+            recommended = previous.level;
+            sizeReason += "; doubling the map no longer improved the error";
+            break;
+        }
+        if (size * 2 > sizeCap) {
+            recommended = bestLevel;
+            sizeReason += "; at the size cap without reaching --tolerance";
+            break;
+        }
+        previous.control = control;
+        previous.map = std::move(map);
+        previous.layers = std::move(layers);
+        previous.rep = rep;
+        previous.chartStats = chartStats;
+        previous.size = size;
+        previous.level = bestLevel;
+        previous.best = best;
+        size *= 2;
+    }
+    searchMs = msSince(searchStart);
+    rep.sizeReason = sizeReason;
+    if (uvMode == "auto") {
+        char buf[160];
+        if (chartStats.charts)
+            std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
+                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
+        else
+            std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
+        atlasNote = buf;
+    }
+}
+
+void BakeJob::writeOutputs()
+{
+    // Outputs.
+    const auto t0 = std::chrono::steady_clock::now();
+    std::error_code mkdirError;
+    if (!io::directoryOf(outPath).empty())
+        std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
+    if (mkdirError)
+        throw BakeError(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
+    rig = std::move(controlRig);
+    rig.mesh = control;
+    rig.skeleton = std::move(skeleton);
+    rig.hasDisplacement = true;
+    rig.displacement = DisplacementInfo();
+    rig.displacement.scheme = options.scheme;
+    rig.displacement.recommendedLevel = recommended;
+    if (writeExr)
+        outputs.write(base + ".exr", [&](const std::string& p) {
+            return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half,
+                                            options.threads);
+        });
+    if (pngBits) {
+        std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
+        for (size_t i = 0; i < q.size(); ++i)
+            q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << pngBits)));
+        const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
+        outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
+        rig.displacement.quantized.uri = io::stemOf(png) + ".png";
+        rig.displacement.quantized.bits = pngBits;
+        rig.displacement.quantized.dmin = rep.dmin;
+        rig.displacement.quantized.dmax = rep.dmax;
+    }
+    if (writeLayers)
+        outputs.write(base + "_layers.png", [&](const std::string& p) {
+            return io::writePngRgb(p, map.width, map.height, layerImage(layers));
+        });
+    writeOptions.compress = compress;
+    writeOptions.draco = request.meshCoding == "draco";
+    // A bare cage's positions are stored to four times the tolerance: the
+    // stored values are measured and fitted on the decoded cage, so its
+    // error along the normals is taken up by them (on the real pairs the
+    // closed loop moved by under 1% against a quarter of it).  Where an
+    // edge would collapse at that error, the writer takes a finer one.
+    writeOptions.maxPositionError = tolerance > 0.0 ? 4.0 * tolerance * rep.diagonal : 0.0;
+    writeOptions.vertexDisplacements = mapCoding == "vertex";
+    // An atlas made only to bake through is left out of a vertex-coded
+    // rig (nothing reads it there); outputs that are the map keep it.
+    writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
+    if (writeOptions.vertexDisplacements)
+        writeOptions.refineVertexDisplacements = [this](const ControlMesh& mesh, int level,
+                                                        std::vector<float>* values, double* step) {
+            return refineStoredValues(mesh, level, values, step);
+        };
+    outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
+    settleLevel();
+    for (const std::string& n : notes)
+        warn("%s: %s", outPath.c_str(), n.c_str());
+    writeMs = msSince(t0);
+}
+
+void BakeJob::measureWritten()
+{
+    Status st;
+    // Closed loop: reconstruct from the rig just written, as the runtime
+    // will, at the levels around the recommended one unless asked.
+    if (errorFrom == -2) {
+        errorFrom = std::max(0, recommended - 1);
+        errorTo = std::min(kMaxLevel, recommended + 1);
+    }
+    if (errorTo >= 0) {
+        Rig written;
+        DisplacementMap writtenMap;
+        const std::string staged = Outputs::staged(outPath);
+        DisplacementField field;
+        if ((st = io::loadRig(staged, &written)))
+            st = written.displacement.vertexLevel >= 0
+                     ? DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
+                                                 written.displacement.vertexValues)
+                     : io::loadRigDisplacementMap(staged, written, &writtenMap);
+        if (!st)
+            throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
+        const auto t0 = std::chrono::steady_clock::now();
+        Progress p(progress, "measuring the closed-loop error");
+        if (!(st = closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
+                                   options.threads, size_t(1) << 20,
+                                   written.displacement.vertexLevel >= 0 ? &field : nullptr)))
+            throw BakeError(st.message());
+        errorMs = msSince(t0);
+    }
+}
+
+void BakeJob::summarize()
+{
+    {
+        // A rig replaces the capture; one larger than the capture as a
+        // plain glb (float positions, 16- or 32-bit indices, a little
+        // JSON) has a control mesh about as dense as the capture, and
+        // the user is told so rather than left to find out.
+        const size_t hv = high.positions.size(), hf = high.faceCount();
+        const double plain = 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0;
+        const double rigBytes = fileSize(outPath);
+        if (rigBytes > plain)
+            warn("%s: the rig (%.1f KB) is larger than the capture would be as a plain glb (about %.1f KB: %zu "
+                 "vertices, %zu triangles); its control mesh has %zu triangles, and a coarser one (or --control "
+                 "auto) makes a smaller rig",
+                 outPath.c_str(), rigBytes / 1024.0, plain / 1024.0, hv, hf, control.faceCount());
+    }
+    const double diag = rep.diagonal;
+    appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
+                 schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
+    appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
+                rep.highTriangles, rep.typicalEdge);
+    if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
+        highStats.nonManifoldEdges)
+        appendf(&result->summary, "  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
+                    "triangles, %zu non-manifold edges\n",
+                    highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
+                    highStats.nonManifoldEdges);
+    appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
+                control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
+    appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
+    if (fitting) {
+        const Fitted& f = fitted[int(options.scheme)];
+        if (f.stats.maxMove > 0.0)
+            appendf(&result->summary,
+                    "  fitted        cage vertices moved by up to %.3g%% of the diagonal: the %s base surface's RMS "
+                    "distance to the capture %.4f%% -> %.4f%% (--no-fit keeps them)\n",
+                    100.0 * f.stats.maxMove / rep.diagonal, schemeName(options.scheme),
+                    100.0 * f.stats.rmsBefore / rep.diagonal, 100.0 * f.stats.rmsAfter / rep.diagonal);
+        else
+            appendf(&result->summary, "  fitted        cage kept: moving it did not bring the %s base surface closer\n",
+                    schemeName(options.scheme));
+    } else if (fitSkippedForMaps) {
+        appendf(&result->summary, "  fitted        cage kept as drawn: the map images (--exr, --png) are for the cage "
+                                  "you have\n");
+    }
+    if (writeOptions.vertexDisplacements)
+        appendf(&result->summary,
+                "  stored        per refined vertex at level %d, %s (the closed loop chose; %zu of them "
+                "measured), quantised in steps of %.3g%% of the diagonal%s\n",
+                recommended, stored.how, stored.measured, 100.0 * stored.step / rep.diagonal,
+                writeOptions.omitDisplacementUVs ? "; the atlas only served the bake and is not in the rig "
+                                                   "(--exr keeps it)" : "");
+    if (!trials.empty()) {
+        appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
+                     100.0 * tolerance);
+        for (const Trial& t : trials)
+            appendf(&result->summary, "                %5d, %d: %.4f%%%s\n", t.size, t.level, 100.0 * t.rms,
+                         t.size == map.width && t.level == recommended ? "  <- chosen" : "");
+    }
+    appendf(&result->summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
+                rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
+    appendf(&result->summary, "  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
+                rep.raster.borderTriangles, rep.raster.pieces, 100.0 * rep.coverage, 100.0 * rep.overlapFraction);
+    appendf(&result->summary, "  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
+                rep.lineFilledTexels);
+    appendf(&result->summary, "  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
+                100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
+    appendf(&result->summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
+                "closed loop %.0f ms\n",
+                loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
+    appendf(&result->summary, "  choices       scheme %.0f ms (cage fits %.0f ms of it), map size and level %.0f ms\n",
+            schemeMs, fitMs, searchMs);
+    appendf(&result->summary, "  outputs      ");
+    for (const std::string& p : outputs.written)
+        appendf(&result->summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
+    appendf(&result->summary, "\n");
+    const double bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
+    if (!errors.empty()) {
+        appendf(&result->summary, "  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
+        appendf(&result->summary, "    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
+        for (const LevelError& e : errors)
+            appendf(&result->summary, "    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
+                        100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
+                        100.0 * e.backwardMax / diag);
+    }
+}
+
+void BakeJob::writeReport()
+{
+    const double diag = rep.diagonal, bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
+    report["high"] = {{"path", highPath},
+                      {"vertices", rep.highVertices},
+                      {"triangles", rep.highTriangles},
+                      {"medianEdge", rep.typicalEdge},
+                      {"diagonal", diag},
+                      {"polygonsTriangulated", highStats.polygonsTriangulated},
+                      {"duplicateVertices", highStats.duplicateVertices},
+                      {"degenerateTriangles", highStats.degenerateTriangles},
+                      {"nonManifoldEdges", highStats.nonManifoldEdges}};
+    report["control"] = {{"path", controlPath},
+                         {"vertices", control.positions.size()},
+                         {"triangles", control.faceCount()},
+                         {"uv", uvMode}};
+    report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
+                     {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
+                     {"multiLayerTexels", rep.raster.multiLayerTexels},
+                     {"coveredTexels", rep.raster.coveredTexels},
+                     {"lineFilledTexels", rep.lineFilledTexels}};
+    report["mapping"] = {{"fallbacks", rep.fallbackVertices}, {"searchDistance", rep.searchDistance},
+                         {"borderTriangles", rep.raster.borderTriangles}, {"pieces", rep.raster.pieces}};
+    nlohmann::json tradeOff = nlohmann::json::array();
+    for (const Trial& t : trials)
+        tradeOff.push_back({{"size", t.size}, {"level", t.level}, {"rms", t.rms}});
+    report["tolerance"] = tolerance;
+    report["tradeOff"] = tradeOff;
+    report["scheme"] = schemeName(options.scheme);
+    report["recommendedLevel"] = recommended;
+    report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
+                        {"dilate", rep.times.dilate}, {"fit", fitMs}, {"schemeChoice", schemeMs},
+                        {"sizeSearch", searchMs}, {"write", writeMs}, {"closedLoop", errorMs}};
+    if (fitting) {
+        const Fitted& f = fitted[int(options.scheme)];
+        report["fit"] = {{"moved", f.stats.maxMove > 0.0},
+                         {"maxMove", f.stats.maxMove / rep.diagonal},
+                         {"baseRmsBefore", f.stats.rmsBefore / rep.diagonal},
+                         {"baseRmsAfter", f.stats.rmsAfter / rep.diagonal}};
+    }
+    report["storedValues"] = stored.how;
+    if (writeOptions.vertexDisplacements)
+        report["quantizationStep"] = stored.step;
+    nlohmann::json files = nlohmann::json::object();
+    for (const std::string& p : outputs.written)
+        files[p] = fileSize(p);
+    report["outputBytes"] = files;
+    report["paperBound"] = {{"maxError", bound}, {"relative", bound / diag}};
+    nlohmann::json levels = nlohmann::json::array();
+    for (const LevelError& e : errors)
+        levels.push_back({{"level", e.level}, {"vertices", e.vertices}, {"triangles", e.triangles},
+                          {"forwardRms", e.forwardRms / diag}, {"forwardMax", e.forwardMax / diag},
+                          {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
+    report["closedLoop"] = levels;
+    const std::string text = report.dump(2) + "\n";
+    result->report = text;
+    if (!reportPath.empty() && reportPath != "-")
+        outputs.write(reportPath, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
+}
+
+void BakeJob::finish()
+{
+    outputs.commit();
+    result->written = outputs.written;
+    result->recommendedLevel = recommended;
+    result->scheme = options.scheme;
+    for (const LevelError& e : errors)
+        if (e.level == recommended)
+            result->rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+}
+
+const std::vector<glm::vec3>& BakeJob::fittedPositions(Scheme scheme)
+{
+    Fitted& f = fitted[int(scheme)];
+    if (!f.done) {
+        Progress p(progress, "fitting the control mesh to the capture");
+        const auto tf = std::chrono::steady_clock::now();
+        ControlMesh moved = bare;
+        fitOptions.scheme = scheme;
+        Status st;
+        if (!(st = fitControlMesh(&moved, high, highIndex, fitOptions, &f.stats)))
+            throw BakeError(highPath + ": fitting the control mesh: " + st.message());
+        f.positions = std::move(moved.positions);
+        f.done = true;
+        fitMs += msSince(tf);
+    }
+    return f.positions;
+}
+
+// Puts the cage fitted for `scheme` into `mesh` (the scheme probe's
+// cage, then the chosen scheme's into `bare`, which later atlas
+// layouts start from, and `control`); a no-op without fitting.
+void BakeJob::useFit(Scheme scheme, ControlMesh* mesh)
+{
+    if (!fitting)
+        return;
+    mesh->positions = fittedPositions(scheme);
+}
+
+Status BakeJob::layout(int mapSize)
+{
+    atlas.mapSize = mapSize;
+    control = bare;
+    Status s = buildChartAtlas(&control, atlas, &chartStats, 60.0, &chartCache);
+    if (!s) {
+        control = bare;
+        AtlasOptions triangles = atlas;
+        triangles.gutter = 2;
+        s = buildTriangleAtlas(&control, triangles);
+        chartStats = ChartAtlasStats();
+    }
+    return s;
+}
+
+// Memory before work: the baker holds about 32 bytes per texel (map,
+// layers, owners, dilation) and 200 per high-res triangle (mesh,
+// mapping, index); the closed loop is chunked.
+void BakeJob::checkMemory(int mapSize) const
+{
+    const double needMB = (32.0 * double(mapSize) * double(mapSize) + 200.0 * double(high.faceCount())) /
+                          (1024.0 * 1024.0);
+    if (needMB > maxMemoryMB)
+        throw BakeError(outPath + ": a " + std::to_string(mapSize) + "^2 map over " +
+                         std::to_string(high.faceCount()) + " triangles needs about " +
+                         std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
+                         " MB budget (raise it with --max-memory MB)");
+}
+
+// The map's trial of `level` at the chosen size, or null.
+const BakeJob::Trial* BakeJob::trialAt(int level) const
+{
+    for (const Trial& t : trials)
+        if (t.size == map.width && t.level == level)
+            return &t;
+    return nullptr;
+}
+
+// The map keeps the bits the error needs: a step q adds q / sqrt(12)
+// RMS, in quadrature with the rest, so q = E (the tolerance, or the
+// error the chosen size and level reach when that is larger) grows
+// the total by 4%.
+double BakeJob::quantizationStep(int level) const
+{
+    const Trial* t = trialAt(level);
+    const double achieved = t ? std::max(tolerance, t->rms) : tolerance;
+    return tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
+}
+
+// Stored per vertex, each value is measured against the capture along its
+// own direction where that agrees with the map (within 2% of the diagonal:
+// farther is another layer of a fold), then fitted; the closed loop keeps
+// the best, and the quantisation step spends what the tolerance leaves.
+Status BakeJob::refineStoredValues(const ControlMesh& mesh, int level, std::vector<float>* values, double* step)
+{
+    // The closed-loop RMS (the larger direction) of candidate values.
+    auto loopRms = [&](const std::vector<float>& candidate, double* rms) {
+        DisplacementField field;
+        std::vector<LevelError> e;
+        Status s = DisplacementField::create(&field, mesh, level, candidate);
+        if (s)
+            s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
+                                size_t(1) << 20, &field);
+        if (s)
+            *rms = std::max(e[0].forwardRms, e[0].backwardRms);
+        return s;
+    };
+    std::vector<float> onCapture = *values;
+    Status s = measureVertexDisplacements(&onCapture, mesh, options.scheme, level, highIndex,
+                                          0.02 * rep.diagonal, options.threads, &stored.measured);
+    // Kept only where the closed loop says so (a capture with
+    // parts close together can mislead the rays).
+    double rms[2] = {0.0, 0.0};
+    if (!s || !(s = loopRms(*values, &rms[0])) || !(s = loopRms(onCapture, &rms[1])))
+        return s;
+    stored.rms = std::min(rms[0], rms[1]);
+    if (rms[1] < rms[0]) {
+        *values = std::move(onCapture);
+        stored.how = "measured along their directions on the capture";
+    } else {
+        stored.measured = 0;
+    }
+    // Then fitted to the capture in both directions, from the
+    // better of the two; kept where the closed loop says so.
+    std::vector<float> fittedValues = *values;
+    double fittedRms = 0.0;
+    if (!(s = fitVertexDisplacements(&fittedValues, mesh, options.scheme, level, high, highIndex, 3,
+                                     options.threads)) ||
+        !(s = loopRms(fittedValues, &fittedRms)))
+        return s;
+    if (fittedRms < std::min(rms[0], rms[1])) {
+        stored.rms = fittedRms;
+        *values = std::move(fittedValues);
+        stored.how = rms[1] < rms[0] ? "measured along their directions on the capture, then "
+                                      "least-squares fitted to it"
+                                    : "sampled from the map, then least-squares fitted to the capture";
+    }
+    // The values take the bits the tolerance needs: where they
+    // come well within it, a coarser step spends the rest.  A
+    // step q adds about q / sqrt(12) RMS in quadrature, so the
+    // step that would bring the total to 90% of the tolerance is
+    // tried, kept where the closed loop of the quantised values
+    // stays within 95% of it (else halfway, else the rule's).
+    stored.step = *step;
+    const double goal = tolerance * rep.diagonal;
+    if (tolerance > 0.0 && stored.rms < 0.9 * goal) {
+        const double spend = std::sqrt(12.0 * ((0.9 * goal) * (0.9 * goal) - stored.rms * stored.rms));
+        for (double candidate : {spend, std::sqrt(spend * *step)}) {
+            if (!(candidate > *step))
+                break;
+            // The values as the rig will decode them.
+            std::vector<int32_t> q;
+            float factor = 0.0f, offset = 0.0f;
+            if (!(s = quantizeDisplacements(*values, candidate, &q, &factor, &offset)))
+                return s;
+            std::vector<float> decoded(q.size());
+            for (size_t i = 0; i < q.size(); ++i)
+                decoded[i] = shared::strata_decode_distance(float(q[i]), factor, offset);
+            double quantizedRms = 0.0;
+            if (!(s = loopRms(decoded, &quantizedRms)))
+                return s;
+            if (quantizedRms <= 0.95 * goal) {
+                *step = stored.step = candidate;
+                break;
+            }
+        }
+    }
+    return Status::ok();
+}
+
+Status BakeJob::writeRig(const std::string& p, int level)
+{
+    rig.displacement.recommendedLevel = level;
+    writeOptions.maxQuantizationStep = quantizationStep(level);
+    notes.clear();
+    return io::saveRig(p, rig, &map, &notes, &writeOptions);
+}
+
+void BakeJob::settleLevel()
+{
+    if (!writeOptions.vertexDisplacements || forced || !(tolerance > 0.0) || stored.rms < 0.0)
+        return;
+    // The map's trials chose the level from values sampled from the
+    // map; the stored ones are measured and fitted on the capture and
+    // often come much closer.  So the level is settled on them: a
+    // coarser one is written too while theirs still reach the
+    // tolerance, a finer one while they miss it.  Finer goes up to the
+    // capture's density, and on a cage the user gave one level past
+    // it where they miss by more than 2x, kept there only where it
+    // comes at least 10% closer (the level is the only knob left; an
+    // automatic cage has its face count).
+    const int finest = controlPath != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
+    const double goal = tolerance * rep.diagonal;
+    const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
+    const std::string alternative = Outputs::staged((dir.empty() ? "" : dir + "/") + "level-" +
+                                                    io::stemOf(outPath) + io::extensionOf(outPath));
+    const int first = recommended;
+    const double firstRms = stored.rms;
+    // Writes `level` beside the chosen rig; it replaces that rig
+    // where keep(its RMS, the chosen one's) says so.
+    auto tryLevel = [&](int level, const std::function<bool(double, double)>& keep) {
+        if (!trialAt(level)) {  // its map trial sets the quantisation step
+            std::vector<LevelError> e;
+            Progress p(progress, "measuring another level against --tolerance");
+            Status st;
+            if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
+                throw BakeError(st.message());
+            trials.push_back({map.width, level, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
+        }
+        const Stored kept = stored;
+        const std::vector<std::string> keptNotes = notes;
+        if (Status st = writeRig(alternative, level); !st) {
+            std::remove(alternative.c_str());
+            throw BakeError(outPath + ": " + st.message());
+        }
+        if (keep(stored.rms, kept.rms) && std::rename(alternative.c_str(), staged.c_str()) == 0)
+            return true;
+        std::remove(alternative.c_str());
+        stored = kept;
+        notes = keptNotes;
+        rig.displacement.recommendedLevel = recommended;
+        return false;
+    };
+    // A coarser level is only tried where its map samples come within
+    // 3x of the tolerance (the stored values came 1.4-2.1x closer
+    // than the map's on the real pairs).
+    auto withinReach = [&](int level) {
+        const Trial* t = trialAt(level);
+        return !t || t->rms <= 3.0 * tolerance;
+    };
+    if (stored.rms <= goal) {
+        while (recommended > 0 && withinReach(recommended - 1) &&
+               tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
+            --recommended;
+    } else {
+        // Past the capture's density only where the tolerance is
+        // missed by more than 2x: each level quadruples the values, and
+        // a near miss is better served by the smaller rig.
+        while (recommended < finest && stored.rms > goal &&
+               (recommended + 1 <= paperLevel || stored.rms > 2.0 * goal) &&
+               tryLevel(recommended + 1, [&](double rms, double was) {
+                   return rms <= goal || (recommended + 1 <= paperLevel ? rms < was : rms < 0.9 * was);
+               }))
+            ++recommended;
+    }
+    char buf[200];
+    if (recommended != first)
+        std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%; level %d's %.4g%%)%s",
+                      stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
+                      100.0 * stored.rms / rep.diagonal, first, 100.0 * firstRms / rep.diagonal,
+                      recommended > paperLevel ? ", one level finer than the capture's density" : "");
+    else
+        std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%)",
+                      stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
+                      100.0 * stored.rms / rep.diagonal);
+    rep.sizeReason = sizeReason += buf;
+}
+
 Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
 {
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
     *result = BakeResult();
-    // The request's fields under the names the pipeline below uses.
-    std::string highPath = request.high, controlPath = request.control, outPath = request.output,
-                reportPath = request.report, uvMode = request.uv, skeletonPath = request.skeleton;
-    size_t controlFaces = request.controlFaces;
-    BakeOptions options = request.options;
-    const bool asFloat = request.floatExr, writeExr = request.exr, writeLayers = request.layers;
-    const int pngBits = request.pngBits;
-    int errorFrom = request.errorFrom, errorTo = request.errorTo;
-    const double tolerance = request.tolerance, maxMemoryMB = request.maxMemoryMB;
-    const bool schemeGiven = request.schemeGiven, compress = request.compress;
-    const std::string mapCoding = request.mapCoding;
-    auto warn = [&](const char* format, auto... args) {
-        std::string w;
-        appendf(&w, format, args...);
-        result->warnings.push_back(w);
-    };
-    Status st0;
     try {
-        if (highPath.empty() || controlPath.empty() || outPath.empty())
-            throw BakeError("--high, --control and -o are required (see --help)");
-        if (mapCoding != "vertex" && mapCoding != "png")
-            throw BakeError("map coding must be vertex or png, not " + mapCoding);
-        if (request.meshCoding != "draco" && request.meshCoding != "meshopt")
-            throw BakeError("mesh coding must be draco or meshopt, not " + request.meshCoding);
-        if (!(st0 = checkOutput(request)))
-            throw BakeError(st0.message());
-        const std::string ext = io::extensionOf(outPath);
-        const std::string base = outPath.substr(0, outPath.size() - ext.size());
-        const std::string stem = io::stemOf(outPath);
-
-        nlohmann::json report;
-        auto t0 = std::chrono::steady_clock::now();
-        TriangleMesh high;
-        HighMeshStats highStats;
-        Status st = loadHighMesh(highPath, &high, &highStats);
-        if (!st)
-            throw BakeError(st.message());
-        ControlMesh control;
-        Rig controlRig;     // a glTF control keeps its whole document for the output
-        Skeleton skeleton;  // carried through from a skinned glTF control rig
-        if (controlPath == "auto") {
-            if (controlFaces == 0)
-                controlFaces = std::max<size_t>(200, high.faceCount() / 50);
-            Progress p(progress, "simplifying the high-resolution mesh");
-            if (!(st = decimateToControlMesh(high, controlFaces, &control)))
-                throw BakeError(highPath + ": " + st.message());
-            if (uvMode == "keep")
-                throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
-            uvMode = "auto";
-        } else {
-            if (!(st = loadControlRig(controlPath, &controlRig)))
-                throw BakeError(st.message());
-            for (const std::string& w : controlRig.warnings)
-                warn("%s: %s", controlPath.c_str(), w.c_str());
-            control = controlRig.mesh;
-            skeleton = controlRig.skeleton;
-            if (uvMode.empty()) {
-                // Default: keep the control's UVs when they can carry a map
-                // (no overlaps), else lay out an atlas in a new UV set.
-                uvMode = control.hasUVs() ? "keep" : "auto";
-                if (uvMode == "keep") {
-                    ControlMesh probe = control;
-                    std::string note;
-                    fitUVsToUnitSquare(&probe, &note);
-                    if (!(st = checkUVs(probe, 1024))) {
-                        warn("%s: its UVs cannot carry the map (%s); generating an atlas in a new UV set (--uv keep "
-                             "insists)",
-                             controlPath.c_str(), st.message().c_str());
-                        uvMode = "auto";
-                    }
-                }
-            }
-            if (uvMode == "keep" && !control.hasUVs())
-                throw BakeError(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
-            // A closed capture over a control mesh left open (a wrist, a
-            // neck): the capture's cap has nothing to be displaced from, so
-            // the holes are closed with fans (a plain, unskinned mesh whose
-            // UVs are laid out anew only; --keep-holes keeps them open).
-            if (request.closeHoles && uvMode == "auto" && skeleton.empty() && skeletonPath.empty() &&
-                !controlRig.source && countBoundaryEdges(control.triangles.data(), control.faceCount()) > 0 &&
-                countBoundaryEdges(high.triangles.data(), high.faceCount()) == 0) {
-                const size_t before = control.faceCount();
-                if (const size_t loops = closeBoundaryLoops(&control))
-                    warn("%s: the capture is closed where the control mesh is open: %zu boundary loop%s closed with "
-                         "%zu triangles (--keep-holes keeps them open)",
-                         controlPath.c_str(), loops, loops == 1 ? "" : "s", control.faceCount() - before);
-            }
-        }
-        if (!skeletonPath.empty()) {
-            // The paper's joint file: its point-to-line binding becomes
-            // standard skin weights, so the rig plays in any glTF viewer.
-            if (!skeleton.empty())
-                warn("%s: its skin is replaced by %s", controlPath.c_str(), skeletonPath.c_str());
-            if (!(st = io::loadJointFile(skeletonPath, &skeleton)))
-                throw BakeError(st.message());
-            if (!(st = bindSkeletonWeights(&skeleton, control)))
-                throw BakeError(skeletonPath + ": " + st.message());
-            controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
-        }
-        const double loadMs = msSince(t0);
-
-        // UVs, map size and recommended level.  Unless --size forces a size,
-        // the map starts at the paper's texel ~ high-res edge rule and doubles
-        // until the closed loop reaches --tolerance at a level around the
-        // paper's, or stops improving: the smallest pair that reaches it.
-        std::string sizeReason;
-        const double typicalEdge = medianEdgeLength(high);
-        std::string atlasNote;
-        AtlasOptions atlas;
-        atlas.gutter = 1;
-        atlas.threads = options.threads;
-        ChartAtlasStats chartStats;
-        ControlMesh bare = control;
-        int paperLevel = 0;
-        while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
-            ++paperLevel;
-        // The capture indexed once: cage fitting, the stored values' fit and
-        // their measurement all query it.
-        TriangleIndex highIndex;
-        highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount(), options.threads);
-        // A bare cage is fitted to the capture for the scheme it will carry
-        // (Displaced Subdivision Surfaces 4.2).  A character's own vertices
-        // (a glTF control, written back as it came) and a skinned cage (its
-        // weights were bound to these positions) are never moved, nor is a
-        // user's cage whose map is asked for as an image (--exr, --png8/16):
-        // a pipeline applies that map to the cage it has.
-        const bool mapForPipelines = writeExr || pngBits != 0;
-        const bool fittable = request.fitCage && !controlRig.source && skeleton.empty();
-        const bool fitting = fittable && (controlPath == "auto" || !mapForPipelines);
-        const bool fitSkippedForMaps = fittable && !fitting;
-        struct Fitted {
-            bool done = false;
-            std::vector<glm::vec3> positions;
-            FitStats stats;
-        } fitted[2];
-        FitOptions fitOptions;
-        fitOptions.level = std::clamp(paperLevel, 1, 3);
-        fitOptions.threads = options.threads;
-        double fitMs = 0.0;
-        auto fittedPositions = [&](Scheme scheme) -> const std::vector<glm::vec3>& {
-            Fitted& f = fitted[int(scheme)];
-            if (!f.done) {
-                Progress p(progress, "fitting the control mesh to the capture");
-                const auto tf = std::chrono::steady_clock::now();
-                ControlMesh moved = bare;
-                fitOptions.scheme = scheme;
-                if (!(st = fitControlMesh(&moved, high, highIndex, fitOptions, &f.stats)))
-                    throw BakeError(highPath + ": fitting the control mesh: " + st.message());
-                f.positions = std::move(moved.positions);
-                f.done = true;
-                fitMs += msSince(tf);
-            }
-            return f.positions;
-        };
-        // Puts the cage fitted for `scheme` into `mesh` (the scheme probe's
-        // cage, then the chosen scheme's into `bare`, which later atlas
-        // layouts start from, and `control`); a no-op without fitting.
-        auto useFit = [&](Scheme scheme, ControlMesh* mesh) {
-            if (!fitting)
-                return;
-            mesh->positions = fittedPositions(scheme);
-        };
-        ChartCache chartCache;  // the charts, made once per cage the layouts start from
-        auto layout = [&](int mapSize) {
-            atlas.mapSize = mapSize;
-            control = bare;
-            Status s = buildChartAtlas(&control, atlas, &chartStats, 60.0, &chartCache);
-            if (!s) {
-                control = bare;
-                AtlasOptions triangles = atlas;
-                triangles.gutter = 2;
-                s = buildTriangleAtlas(&control, triangles);
-                chartStats = ChartAtlasStats();
-            }
-            return s;
-        };
-        // Memory before work: the baker holds about 32 bytes per texel (map,
-        // layers, owners, dilation) and 200 per high-res triangle (mesh,
-        // mapping, index); the closed loop is chunked.
-        auto checkMemory = [&](int mapSize) {
-            const double needMB = (32.0 * double(mapSize) * double(mapSize) + 200.0 * double(high.faceCount())) /
-                                  (1024.0 * 1024.0);
-            if (needMB > maxMemoryMB)
-                throw BakeError(outPath + ": a " + std::to_string(mapSize) + "^2 map over " +
-                                 std::to_string(high.faceCount()) + " triangles needs about " +
-                                 std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
-                                 " MB budget (raise it with --max-memory MB)");
-        };
-        const bool forced = options.size > 0;
-        int size = options.size;
-        if (uvMode == "auto") {
-            // A chart atlas (charts grown over the control mesh, projected on
-            // their planes, packed); the per-triangle atlas only if a chart
-            // would fold.
-            if (!forced) {
-                if (!(st = layout(512)))  // provisional layout to measure the UV area (scale-free)
-                    throw BakeError(st.message());
-                size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
-            }
-        } else {
-            std::string uvNote;
-            if (fitUVsToUnitSquare(&control, &uvNote))
-                warn("%s: %s", controlPath.c_str(), uvNote.c_str());
-            if (!forced)
-                size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
-            if (!(st = checkUVs(control, std::max(size, 1024))))
-                throw BakeError(controlPath + ": " + st.message());
-        }
-        if (forced)
-            sizeReason = "forced by --size";
-        int recommended = paperLevel;
-        struct Trial {
-            int size, level;
-            double rms;  // the larger of both directions, over the diagonal
-        };
-        std::vector<Trial> trials;
-        DisplacementMap map;
-        std::vector<uint16_t> layers;
-        BakeReport rep;
-        const int sizeCap = forced ? size : std::min(options.maxSize, 4096);
-        // The previous size's result, kept so that stopping when doubling no
-        // longer pays returns the smaller map.
-        struct Snapshot {
-            ControlMesh control;
-            DisplacementMap map;
-            std::vector<uint16_t> layers;
-            BakeReport rep;
-            ChartAtlasStats chartStats;
-            int size = 0, level = 0;
-            double best = 1e300;
-        } previous;
-        std::string schemeReason = schemeGiven ? "--scheme" : "";
-        const auto schemeStart = std::chrono::steady_clock::now();
-        if (!schemeGiven && !forced && tolerance > 0.0) {
-            // Which surface carries the map better for this pair, measured at
-            // the paper's level and twice the first size (up to 512^2), so
-            // that the map's resolution, which the smaller displacements of
-            // the limit surface need less of, does not decide it: the paper's
-            // linear split unless the Loop limit is clearly closer (loose
-            // cages).
-            const int probeSize = std::max(size, std::min(2 * size, std::min(512, sizeCap)));
-            if (uvMode == "auto" && !(st = layout(probeSize)))
-                throw BakeError(st.message());
-            // The linear scheme first: when it meets the tolerance four times
-            // over (a level lower would too) the smooth one is not tried (its
-            // bake costs several times more); otherwise the closer surface
-            // may reach the tolerance a level earlier, with a quarter of the
-            // stored values.
-            double rms[2] = {0.0, -1.0};
-            for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
-                if (candidate == Scheme::Smooth && rms[0] <= 0.25 * tolerance)
-                    break;
-                BakeOptions probe = options;
-                probe.size = uvMode == "auto" ? atlas.mapSize : probeSize;
-                probe.scheme = candidate;
-                DisplacementMap probeMap;
-                BakeReport probeReport;
-                std::vector<LevelError> errs;
-                ControlMesh candidateMesh = control;
-                useFit(candidate, &candidateMesh);
-                Progress p(progress, "choosing the subdivision scheme");
-                if (!(st = bake(&probeMap, nullptr, &probeReport, candidateMesh, high, probe)) ||
-                    !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
-                                                  options.threads)))
-                    throw BakeError(highPath + ": " + st.message());
-                rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
-            }
-            options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
-            char buf[160];
-            if (rms[1] < 0.0)
-                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%% RMS at level %d meets the tolerance",
-                              100.0 * rms[0], paperLevel);
-            else
-                std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
-                              100.0 * rms[1], paperLevel);
-            schemeReason = buf;
-        }
-        useFit(options.scheme, &bare);
-        useFit(options.scheme, &control);
-        const double schemeMs = msSince(schemeStart);  // fits included
-        const auto searchStart = std::chrono::steady_clock::now();
-        for (;;) {
-            checkMemory(size);  // before the atlas, whose packing at a large size is work too
-            if (uvMode == "auto") {
-                for (; size <= 8192; size *= 2) {
-                    if ((st = layout(size)))
-                        break;
-                    if (forced)
-                        throw BakeError(st.message());
-                    sizeReason += "; raised to fit the charts";
-                }
-                if (!st)
-                    throw BakeError(st.message());
-            }
-            options.size = size;
-            checkMemory(size);
-            {
-                Progress p(progress, "baking");
-                if (!(st = bake(&map, &layers, &rep, control, high, options)))
-                    throw BakeError(highPath + ": " + st.message());
-            }
-            if (forced || tolerance <= 0.0)
-                break;
-            // The paper's level and every level below it (a loose tolerance
-            // is met with fewer refined vertices, hence fewer stored values;
-            // the coarse levels cost little to measure); a finer level than
-            // the paper's rule rarely pays for its four times the triangles.
-            std::vector<LevelError> errs;
-            const int lo = 0, hi = paperLevel;
-            {
-                Progress p(progress, "measuring the map size against --tolerance");
-                if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
-                    throw BakeError(st.message());
-            }
-            double best = 1e300;
-            int met = -1, bestLevel = hi;
-            for (const LevelError& e : errs) {
-                const double rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
-                trials.push_back({size, e.level, rms});
-                if (rms < best) {
-                    best = rms;
-                    bestLevel = e.level;
-                }
-                if (met < 0 && rms <= tolerance)
-                    met = e.level;
-            }
-            if (met >= 0) {
-                recommended = met;
-                char buf[96];
-                std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * tolerance, met);
-                sizeReason += buf;
-                break;
-            }
-            if (best > 0.9 * previous.best) {
-                // Doubling no longer pays: resolution is not what limits the
-                // error here.  The previous, smaller map, at its best level.
-                control = std::move(previous.control);
-                map = std::move(previous.map);
-                layers = std::move(previous.layers);
-                rep = previous.rep;
-                chartStats = previous.chartStats;
-                size = previous.size;
-                recommended = previous.level;
-                sizeReason += "; doubling the map no longer improved the error";
-                break;
-            }
-            if (size * 2 > sizeCap) {
-                recommended = bestLevel;
-                sizeReason += "; at the size cap without reaching --tolerance";
-                break;
-            }
-            previous.control = control;
-            previous.map = std::move(map);
-            previous.layers = std::move(layers);
-            previous.rep = rep;
-            previous.chartStats = chartStats;
-            previous.size = size;
-            previous.level = bestLevel;
-            previous.best = best;
-            size *= 2;
-        }
-        const double searchMs = msSince(searchStart);
-        rep.sizeReason = sizeReason;
-        if (uvMode == "auto") {
-            char buf[160];
-            if (chartStats.charts)
-                std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
-                              chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
-            else
-                std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
-            atlasNote = buf;
-        }
-
-        // Outputs.
-        t0 = std::chrono::steady_clock::now();
-        std::error_code mkdirError;
-        if (!io::directoryOf(outPath).empty())
-            std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
-        if (mkdirError)
-            throw BakeError(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
-        Outputs outputs;
-        Rig rig = std::move(controlRig);
-        rig.mesh = control;
-        rig.skeleton = std::move(skeleton);
-        rig.hasDisplacement = true;
-        rig.displacement = DisplacementInfo();
-        rig.displacement.scheme = options.scheme;
-        rig.displacement.recommendedLevel = recommended;
-        if (writeExr)
-            outputs.write(base + ".exr", [&](const std::string& p) {
-                return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half,
-                                                options.threads);
-            });
-        if (pngBits) {
-            std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
-            for (size_t i = 0; i < q.size(); ++i)
-                q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << pngBits)));
-            const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
-            outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
-            rig.displacement.quantized.uri = io::stemOf(png) + ".png";
-            rig.displacement.quantized.bits = pngBits;
-            rig.displacement.quantized.dmin = rep.dmin;
-            rig.displacement.quantized.dmax = rep.dmax;
-        }
-        if (writeLayers)
-            outputs.write(base + "_layers.png", [&](const std::string& p) {
-                return io::writePngRgb(p, map.width, map.height, layerImage(layers));
-            });
-        std::vector<std::string> notes;
-        // The map keeps the bits the error needs: a step q adds q / sqrt(12)
-        // RMS, in quadrature with the rest, so q = E (the tolerance, or the
-        // error the chosen size and level reach when that is larger) grows
-        // the total by 4%.
-        // The map's trial of `level` at the chosen size, or null.
-        auto trialAt = [&](int level) -> const Trial* {
-            for (const Trial& t : trials)
-                if (t.size == map.width && t.level == level)
-                    return &t;
-            return nullptr;
-        };
-        auto quantizationStep = [&](int level) {
-            const Trial* t = trialAt(level);
-            const double achieved = t ? std::max(tolerance, t->rms) : tolerance;
-            return tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
-        };
-        io::RigWriteOptions writeOptions;
-        writeOptions.compress = compress;
-        writeOptions.draco = request.meshCoding == "draco";
-        // A bare cage's positions are stored to four times the tolerance: the
-        // stored values are measured and fitted on the decoded cage, so its
-        // error along the normals is taken up by them (on the real pairs the
-        // closed loop moved by under 1% against a quarter of it).  Where an
-        // edge would collapse at that error, the writer takes a finer one.
-        writeOptions.maxPositionError = tolerance > 0.0 ? 4.0 * tolerance * rep.diagonal : 0.0;
-        writeOptions.vertexDisplacements = mapCoding == "vertex";
-        // An atlas made only to bake through is left out of a vertex-coded
-        // rig (nothing reads it there); outputs that are the map keep it.
-        writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
-        // Stored per vertex, each value is measured against the capture along
-        // its own direction where that agrees with the map (within 2% of the
-        // diagonal: farther is another layer of a fold).
-        struct Stored {
-            size_t measured = 0;
-            const char* how = "sampled from the map";
-            double rms = -1.0;  // the closed loop of the values before quantisation
-            double step = 0.0;  // the quantisation step they were coded with
-        } stored;
-        size_t& measured = stored.measured;
-        const char*& storedHow = stored.how;
-        if (writeOptions.vertexDisplacements) {
-            writeOptions.refineVertexDisplacements = [&](const ControlMesh& mesh, int level, std::vector<float>* values,
-                                                         double* step) {
-                // The closed-loop RMS (the larger direction) of candidate values.
-                auto loopRms = [&](const std::vector<float>& candidate, double* rms) {
-                    DisplacementField field;
-                    std::vector<LevelError> e;
-                    Status s = DisplacementField::create(&field, mesh, level, candidate);
-                    if (s)
-                        s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
-                                            size_t(1) << 20, &field);
-                    if (s)
-                        *rms = std::max(e[0].forwardRms, e[0].backwardRms);
-                    return s;
-                };
-                std::vector<float> onCapture = *values;
-                Status s = measureVertexDisplacements(&onCapture, mesh, options.scheme, level, highIndex,
-                                                      0.02 * rep.diagonal, options.threads, &measured);
-                // Kept only where the closed loop says so (a capture with
-                // parts close together can mislead the rays).
-                double rms[2] = {0.0, 0.0};
-                if (!s || !(s = loopRms(*values, &rms[0])) || !(s = loopRms(onCapture, &rms[1])))
-                    return s;
-                stored.rms = std::min(rms[0], rms[1]);
-                if (rms[1] < rms[0]) {
-                    *values = std::move(onCapture);
-                    storedHow = "measured along their directions on the capture";
-                } else {
-                    measured = 0;
-                }
-                // Then fitted to the capture in both directions, from the
-                // better of the two; kept where the closed loop says so.
-                std::vector<float> fittedValues = *values;
-                double fittedRms = 0.0;
-                if (!(s = fitVertexDisplacements(&fittedValues, mesh, options.scheme, level, high, highIndex, 3,
-                                                 options.threads)) ||
-                    !(s = loopRms(fittedValues, &fittedRms)))
-                    return s;
-                if (fittedRms < std::min(rms[0], rms[1])) {
-                    stored.rms = fittedRms;
-                    *values = std::move(fittedValues);
-                    storedHow = rms[1] < rms[0] ? "measured along their directions on the capture, then "
-                                                  "least-squares fitted to it"
-                                                : "sampled from the map, then least-squares fitted to the capture";
-                }
-                // The values take the bits the tolerance needs: where they
-                // come well within it, a coarser step spends the rest.  A
-                // step q adds about q / sqrt(12) RMS in quadrature, so the
-                // step that would bring the total to 90% of the tolerance is
-                // tried, kept where the closed loop of the quantised values
-                // stays within 95% of it (else halfway, else the rule's).
-                stored.step = *step;
-                const double goal = tolerance * rep.diagonal;
-                if (tolerance > 0.0 && stored.rms < 0.9 * goal) {
-                    const double spend = std::sqrt(12.0 * ((0.9 * goal) * (0.9 * goal) - stored.rms * stored.rms));
-                    for (double candidate : {spend, std::sqrt(spend * *step)}) {
-                        if (!(candidate > *step))
-                            break;
-                        // The values as the rig will decode them.
-                        std::vector<int32_t> q;
-                        float factor = 0.0f, offset = 0.0f;
-                        if (!(s = quantizeDisplacements(*values, candidate, &q, &factor, &offset)))
-                            return s;
-                        std::vector<float> decoded(q.size());
-                        for (size_t i = 0; i < q.size(); ++i)
-                            decoded[i] = shared::strata_decode_distance(float(q[i]), factor, offset);
-                        double quantizedRms = 0.0;
-                        if (!(s = loopRms(decoded, &quantizedRms)))
-                            return s;
-                        if (quantizedRms <= 0.95 * goal) {
-                            *step = stored.step = candidate;
-                            break;
-                        }
-                    }
-                }
-                return Status::ok();
-            };
-        }
-        auto writeRig = [&](const std::string& p, int level) {
-            rig.displacement.recommendedLevel = level;
-            writeOptions.maxQuantizationStep = quantizationStep(level);
-            notes.clear();
-            return io::saveRig(p, rig, &map, &notes, &writeOptions);
-        };
-        outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
-        if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && stored.rms >= 0.0) {
-            // The map's trials chose the level from values sampled from the
-            // map; the stored ones are measured and fitted on the capture and
-            // often come much closer.  So the level is settled on them: a
-            // coarser one is written too while theirs still reach the
-            // tolerance, a finer one while they miss it.  Finer goes up to the
-            // capture's density, and on a cage the user gave one level past
-            // it where they miss by more than 2x, kept there only where it
-            // comes at least 10% closer (the level is the only knob left; an
-            // automatic cage has its face count).
-            const int finest = controlPath != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
-            const double goal = tolerance * rep.diagonal;
-            const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
-            const std::string alternative = Outputs::staged((dir.empty() ? "" : dir + "/") + "level-" +
-                                                            io::stemOf(outPath) + io::extensionOf(outPath));
-            const int first = recommended;
-            const double firstRms = stored.rms;
-            // Writes `level` beside the chosen rig; it replaces that rig
-            // where keep(its RMS, the chosen one's) says so.
-            auto tryLevel = [&](int level, const std::function<bool(double, double)>& keep) {
-                if (!trialAt(level)) {  // its map trial sets the quantisation step
-                    std::vector<LevelError> e;
-                    Progress p(progress, "measuring another level against --tolerance");
-                    if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
-                        throw BakeError(st.message());
-                    trials.push_back({map.width, level, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
-                }
-                const Stored kept = stored;
-                const std::vector<std::string> keptNotes = notes;
-                if (!(st = writeRig(alternative, level))) {
-                    std::remove(alternative.c_str());
-                    throw BakeError(outPath + ": " + st.message());
-                }
-                if (keep(stored.rms, kept.rms) && std::rename(alternative.c_str(), staged.c_str()) == 0)
-                    return true;
-                std::remove(alternative.c_str());
-                stored = kept;
-                notes = keptNotes;
-                rig.displacement.recommendedLevel = recommended;
-                return false;
-            };
-            // A coarser level is only tried where its map samples come within
-            // 3x of the tolerance (the stored values came 1.4-2.1x closer
-            // than the map's on the real pairs).
-            auto withinReach = [&](int level) {
-                const Trial* t = trialAt(level);
-                return !t || t->rms <= 3.0 * tolerance;
-            };
-            if (stored.rms <= goal) {
-                while (recommended > 0 && withinReach(recommended - 1) &&
-                       tryLevel(recommended - 1, [&](double rms, double) { return rms <= goal; }))
-                    --recommended;
-            } else {
-                // Past the capture's density only where the tolerance is
-                // missed by more than 2x: each level quadruples the values, and
-                // a near miss is better served by the smaller rig.
-                while (recommended < finest && stored.rms > goal &&
-                       (recommended + 1 <= paperLevel || stored.rms > 2.0 * goal) &&
-                       tryLevel(recommended + 1, [&](double rms, double was) {
-                           return rms <= goal || (recommended + 1 <= paperLevel ? rms < was : rms < 0.9 * was);
-                       }))
-                    ++recommended;
-            }
-            char buf[200];
-            if (recommended != first)
-                std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%; level %d's %.4g%%)%s",
-                              stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
-                              100.0 * stored.rms / rep.diagonal, first, 100.0 * firstRms / rep.diagonal,
-                              recommended > paperLevel ? ", one level finer than the capture's density" : "");
-            else
-                std::snprintf(buf, sizeof(buf), "; the stored values %s at level %d (%.4g%%)",
-                              stored.rms <= goal ? "reach --tolerance" : "come closest", recommended,
-                              100.0 * stored.rms / rep.diagonal);
-            rep.sizeReason = sizeReason += buf;
-        }
-        for (const std::string& n : notes)
-            warn("%s: %s", outPath.c_str(), n.c_str());
-        const double writeMs = msSince(t0);
-
-        // Closed loop: reconstruct from the rig just written, as the runtime
-        // will, at the levels around the recommended one unless asked.
-        if (errorFrom == -2) {
-            errorFrom = std::max(0, recommended - 1);
-            errorTo = std::min(kMaxLevel, recommended + 1);
-        }
-        std::vector<LevelError> errors;
-        double errorMs = 0.0;
-        if (errorTo >= 0) {
-            Rig written;
-            DisplacementMap writtenMap;
-            const std::string staged = Outputs::staged(outPath);
-            DisplacementField field;
-            if ((st = io::loadRig(staged, &written)))
-                st = written.displacement.vertexLevel >= 0
-                         ? DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
-                                                     written.displacement.vertexValues)
-                         : io::loadRigDisplacementMap(staged, written, &writtenMap);
-            if (!st)
-                throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
-            t0 = std::chrono::steady_clock::now();
-            Progress p(progress, "measuring the closed-loop error");
-            if (!(st = closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
-                                              options.threads, size_t(1) << 20,
-                                              written.displacement.vertexLevel >= 0 ? &field : nullptr)))
-                throw BakeError(st.message());
-            errorMs = msSince(t0);
-        }
-
-        auto fileSize = [](const std::string& p) {
-            std::error_code ec;
-            const auto bytes = std::filesystem::file_size(Outputs::staged(p), ec);
-            return ec ? 0.0 : double(bytes);
-        };
-        {
-            // A rig replaces the capture; one larger than the capture as a
-            // plain glb (float positions, 16- or 32-bit indices, a little
-            // JSON) has a control mesh about as dense as the capture, and
-            // the user is told so rather than left to find out.
-            const size_t hv = high.positions.size(), hf = high.faceCount();
-            const double plain = 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0;
-            const double rigBytes = fileSize(outPath);
-            if (rigBytes > plain)
-                warn("%s: the rig (%.1f KB) is larger than the capture would be as a plain glb (about %.1f KB: %zu "
-                     "vertices, %zu triangles); its control mesh has %zu triangles, and a coarser one (or --control "
-                     "auto) makes a smaller rig",
-                     outPath.c_str(), rigBytes / 1024.0, plain / 1024.0, hv, hf, control.faceCount());
-        }
-        const double diag = rep.diagonal;
-        appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
-                     schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
-        appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
-                    rep.highTriangles, rep.typicalEdge);
-        if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
-            highStats.nonManifoldEdges)
-            appendf(&result->summary, "  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
-                        "triangles, %zu non-manifold edges\n",
-                        highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
-                        highStats.nonManifoldEdges);
-        appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
-                    control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
-        appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
-        if (fitting) {
-            const Fitted& f = fitted[int(options.scheme)];
-            if (f.stats.maxMove > 0.0)
-                appendf(&result->summary,
-                        "  fitted        cage vertices moved by up to %.3g%% of the diagonal: the %s base surface's RMS "
-                        "distance to the capture %.4f%% -> %.4f%% (--no-fit keeps them)\n",
-                        100.0 * f.stats.maxMove / rep.diagonal, schemeName(options.scheme),
-                        100.0 * f.stats.rmsBefore / rep.diagonal, 100.0 * f.stats.rmsAfter / rep.diagonal);
-            else
-                appendf(&result->summary, "  fitted        cage kept: moving it did not bring the %s base surface closer\n",
-                        schemeName(options.scheme));
-        } else if (fitSkippedForMaps) {
-            appendf(&result->summary, "  fitted        cage kept as drawn: the map images (--exr, --png) are for the cage "
-                                      "you have\n");
-        }
-        if (writeOptions.vertexDisplacements)
-            appendf(&result->summary,
-                    "  stored        per refined vertex at level %d, %s (the closed loop chose; %zu of them "
-                    "measured), quantised in steps of %.3g%% of the diagonal%s\n",
-                    recommended, storedHow, measured, 100.0 * stored.step / rep.diagonal,
-                    writeOptions.omitDisplacementUVs ? "; the atlas only served the bake and is not in the rig "
-                                                       "(--exr keeps it)" : "");
-        if (!trials.empty()) {
-            appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
-                         100.0 * tolerance);
-            for (const Trial& t : trials)
-                appendf(&result->summary, "                %5d, %d: %.4f%%%s\n", t.size, t.level, 100.0 * t.rms,
-                             t.size == map.width && t.level == recommended ? "  <- chosen" : "");
-        }
-        appendf(&result->summary, "  mapping       %zu in a normal volume, %zu fell back to the nearest point (search |d| <= %.3g)\n",
-                    rep.highVertices - rep.fallbackVertices, rep.fallbackVertices, rep.searchDistance);
-        appendf(&result->summary, "  raster        %zu border triangles, %zu pieces, coverage %.2f%%, overlap %.3f%% of texels\n",
-                    rep.raster.borderTriangles, rep.raster.pieces, 100.0 * rep.coverage, 100.0 * rep.overlapFraction);
-        appendf(&result->summary, "  holes/gutters %zu texels measured by line intersection, the rest dilated\n",
-                    rep.lineFilledTexels);
-        appendf(&result->summary, "  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
-                    100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
-        appendf(&result->summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
-                    "closed loop %.0f ms\n",
-                    loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
-        appendf(&result->summary, "  choices       scheme %.0f ms (cage fits %.0f ms of it), map size and level %.0f ms\n",
-                schemeMs, fitMs, searchMs);
-        appendf(&result->summary, "  outputs      ");
-        for (const std::string& p : outputs.written)
-            appendf(&result->summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);
-        appendf(&result->summary, "\n");
-        const double bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
-        if (!errors.empty()) {
-            appendf(&result->summary, "  closed loop (distance / diagonal; paper bound sqrt(3)/2 edge = %.3g%%)\n", 100.0 * bound / diag);
-            appendf(&result->summary, "    level | triangles | recon->high RMS   max   | high->recon RMS   max\n");
-            for (const LevelError& e : errors)
-                appendf(&result->summary, "    %5d | %9zu | %9.4f%% %8.4f%% | %9.4f%% %8.4f%%\n", e.level, e.triangles,
-                            100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
-                            100.0 * e.backwardMax / diag);
-        }
-
-        {
-            report["high"] = {{"path", highPath},
-                              {"vertices", rep.highVertices},
-                              {"triangles", rep.highTriangles},
-                              {"medianEdge", rep.typicalEdge},
-                              {"diagonal", diag},
-                              {"polygonsTriangulated", highStats.polygonsTriangulated},
-                              {"duplicateVertices", highStats.duplicateVertices},
-                              {"degenerateTriangles", highStats.degenerateTriangles},
-                              {"nonManifoldEdges", highStats.nonManifoldEdges}};
-            report["control"] = {{"path", controlPath},
-                                 {"vertices", control.positions.size()},
-                                 {"triangles", control.faceCount()},
-                                 {"uv", uvMode}};
-            report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
-                             {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
-                             {"multiLayerTexels", rep.raster.multiLayerTexels},
-                             {"coveredTexels", rep.raster.coveredTexels},
-                             {"lineFilledTexels", rep.lineFilledTexels}};
-            report["mapping"] = {{"fallbacks", rep.fallbackVertices}, {"searchDistance", rep.searchDistance},
-                                 {"borderTriangles", rep.raster.borderTriangles}, {"pieces", rep.raster.pieces}};
-            nlohmann::json tradeOff = nlohmann::json::array();
-            for (const Trial& t : trials)
-                tradeOff.push_back({{"size", t.size}, {"level", t.level}, {"rms", t.rms}});
-            report["tolerance"] = tolerance;
-            report["tradeOff"] = tradeOff;
-            report["scheme"] = schemeName(options.scheme);
-            report["recommendedLevel"] = recommended;
-            report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
-                                {"dilate", rep.times.dilate}, {"fit", fitMs}, {"schemeChoice", schemeMs},
-                                {"sizeSearch", searchMs}, {"write", writeMs}, {"closedLoop", errorMs}};
-            if (fitting) {
-                const Fitted& f = fitted[int(options.scheme)];
-                report["fit"] = {{"moved", f.stats.maxMove > 0.0},
-                                 {"maxMove", f.stats.maxMove / rep.diagonal},
-                                 {"baseRmsBefore", f.stats.rmsBefore / rep.diagonal},
-                                 {"baseRmsAfter", f.stats.rmsAfter / rep.diagonal}};
-            }
-            report["storedValues"] = storedHow;
-            if (writeOptions.vertexDisplacements)
-                report["quantizationStep"] = stored.step;
-            nlohmann::json files = nlohmann::json::object();
-            for (const std::string& p : outputs.written)
-                files[p] = fileSize(p);
-            report["outputBytes"] = files;
-            report["paperBound"] = {{"maxError", bound}, {"relative", bound / diag}};
-            nlohmann::json levels = nlohmann::json::array();
-            for (const LevelError& e : errors)
-                levels.push_back({{"level", e.level}, {"vertices", e.vertices}, {"triangles", e.triangles},
-                                  {"forwardRms", e.forwardRms / diag}, {"forwardMax", e.forwardMax / diag},
-                                  {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
-            report["closedLoop"] = levels;
-            const std::string text = report.dump(2) + "\n";
-            result->report = text;
-            if (!reportPath.empty() && reportPath != "-")
-                outputs.write(reportPath, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
-        }
-        outputs.commit();
-        result->written = outputs.written;
-        result->recommendedLevel = recommended;
-        result->scheme = options.scheme;
-        for (const LevelError& e : errors)
-            if (e.level == recommended)
-                result->rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+        BakeJob job(request, result, progress);
+        job.run();
         return Status::ok();
     } catch (const BakeError& e) {
         return Status(StatusCode::InvalidArgument, e.what());
