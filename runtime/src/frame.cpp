@@ -16,6 +16,7 @@
 #include <functional>
 #include <mutex>
 #include <thread>
+#include <unordered_map>
 
 namespace strata {
 
@@ -451,8 +452,18 @@ bool FrameEvaluator::buildTiles()
 // vector of slots at a time: [chunk][point][position, d/ds, d/dt][lane].  A
 // frame then streams each matrix once, where the per-vertex stencils gather
 // the same control points again and again.
+//
+// Most tiles share their matrix: every regular patch evaluates the same box
+// spline at the same slots.  A tile's points are put in a canonical order
+// (by their weight columns) and its matrix is kept once for all the tiles
+// whose canonical matrices agree within kShareTolerance (weights are at
+// most 1; float rounding of the same evaluation in another face's patch
+// differs by a few ulps).  The frame then reads each tile's control points
+// and a matrix that stays in cache, instead of streaming ~200 bytes of
+// weights per vertex.
 void FrameEvaluator::buildLimitTiles()
 {
+    constexpr float kShareTolerance = 1e-6f;
     Plan::FlatStencils flat;
     plan_.flattenStencils(&flat);
     const size_t nf0 = plan_.controlTriangles().size() / 3, stride = wholeVectors(slotCount_);
@@ -473,24 +484,79 @@ void FrameEvaluator::buildLimitTiles()
             local[limitControl_[i]] = -1;
         limitOffsets_.push_back(uint32_t(limitControl_.size()));
     }
-    limitWeights_.assign(3 * stride * limitControl_.size(), 0.0f);
+    limitWeights_.clear();
+    limitMatrix_.assign(nf0, 0);
+    std::vector<float> block, column, canonical;
+    std::vector<uint32_t> order;
+    // Shared matrices by a hash of their rounded weights; a hit is checked
+    // against the tolerance (a near-tie that rounds apart only loses sharing).
+    std::unordered_multimap<uint64_t, size_t> shared;
     for (size_t g = 0; g < nf0; ++g) {
         const uint32_t first = limitOffsets_[g];
+        const size_t points = limitOffsets_[g + 1] - first, rows = stride / kLanes;
         for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
             local[limitControl_[i]] = int32_t(i - first);
-        float* w = limitWeights_.data() + 3 * stride * first;
+        block.assign(3 * stride * points, 0.0f);
         for (size_t k = 0; k < slotCount_; ++k) {
             const uint32_t v = slots_[g * slotCount_ + k] & kIndexMask;
-            const size_t chunk = k / kLanes, lane = k % kLanes, points = limitOffsets_[g + 1] - first;
+            const size_t chunk = k / kLanes, lane = k % kLanes;
             for (uint32_t e = flat.offsets[v]; e < flat.offsets[v + 1]; ++e) {
-                float* row = w + 3 * kLanes * (chunk * points + size_t(local[flat.indices[e]])) + lane;
+                float* row = block.data() + 3 * kLanes * (chunk * points + size_t(local[flat.indices[e]])) + lane;
                 for (int c = 0; c < 3; ++c)
                     row[size_t(c) * kLanes] += flat.weights[3 * size_t(e) + size_t(c)];
             }
         }
         for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
             local[limitControl_[i]] = -1;
+        // Canonical point order: by weight column, compared lexicographically.
+        column.resize(points * rows * 3 * kLanes);
+        for (size_t pt = 0; pt < points; ++pt)
+            for (size_t chunk = 0; chunk < rows; ++chunk)
+                std::copy_n(block.data() + 3 * kLanes * (chunk * points + pt), 3 * kLanes,
+                            column.data() + (pt * rows + chunk) * 3 * kLanes);
+        const size_t length = rows * 3 * kLanes;
+        order.resize(points);
+        for (uint32_t pt = 0; pt < points; ++pt)
+            order[pt] = pt;
+        // Compared rounded (a strict order that a few ulps rarely change).
+        auto rounded = [&](float w) { return std::lround(double(w) / (64.0 * double(kShareTolerance))); };
+        std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+            const float *x = column.data() + size_t(a) * length, *y = column.data() + size_t(b) * length;
+            for (size_t i = 0; i < length; ++i)
+                if (rounded(x[i]) != rounded(y[i]))
+                    return rounded(x[i]) < rounded(y[i]);
+            return false;
+        });
+        canonical.resize(block.size());
+        for (size_t chunk = 0; chunk < rows; ++chunk)
+            for (size_t pt = 0; pt < points; ++pt)
+                std::copy_n(column.data() + (size_t(order[pt]) * rows + chunk) * 3 * kLanes, 3 * kLanes,
+                            canonical.data() + 3 * kLanes * (chunk * points + pt));
+        std::vector<uint32_t> control(limitControl_.begin() + first, limitControl_.begin() + first + long(points));
+        for (size_t pt = 0; pt < points; ++pt)
+            limitControl_[first + pt] = control[order[pt]];
+        uint64_t hash = 1469598103934665603ull ^ points;
+        for (float w : canonical)
+            hash = (hash ^ uint64_t(int64_t(std::lround(double(w) / (256.0 * double(kShareTolerance)))))) *
+                   1099511628211ull;
+        size_t at = limitWeights_.size();
+        for (auto [it, end] = shared.equal_range(hash); it != end; ++it) {
+            const float* w = limitWeights_.data() + it->second;
+            bool same = true;
+            for (size_t i = 0; i < canonical.size() && same; ++i)
+                same = std::fabs(w[i] - canonical[i]) <= kShareTolerance;
+            if (same) {
+                at = it->second;
+                break;
+            }
+        }
+        if (at == limitWeights_.size()) {
+            limitWeights_.insert(limitWeights_.end(), canonical.begin(), canonical.end());
+            shared.emplace(hash, at);
+        }
+        limitMatrix_[g] = at;
     }
+    limitWeights_.shrink_to_fit();
 }
 
 // Tile layout: each tile's own vertices in slot order, tile after tile,
@@ -589,10 +655,11 @@ struct TileJob {
     const float* zero;       // zeros, as long as a pair buffer
     // Smooth scheme: per tile, its control points (limitOffsets[f] ..
     // limitOffsets[f + 1] of limitControl) and their weights from
-    // limitWeights + 3 * stride * limitOffsets[f], [chunk of kLanes
+    // limitWeights + limitMatrix[f] (shared between tiles), [chunk of kLanes
     // slots][point][position, d/ds, d/dt][lane]; limit: 9 sums per slot.
     const uint32_t *limitOffsets, *limitControl;
     const float* limitWeights;
+    const size_t* limitMatrix;  // per tile: where its matrix starts in limitWeights
     float* limit[9];
 };
 
@@ -641,7 +708,7 @@ STRATA_KERNEL_CLONES void shadeTileRange(const TileJob& job, size_t faceBegin, s
         if (job.limitWeights) {
             const size_t stride = wholeVectors(S);
             const uint32_t first = job.limitOffsets[f], count = job.limitOffsets[f + 1] - first;
-            limitGrid(stride, count, job.limitControl + first, job.limitWeights + 3 * stride * first, cp, dl,
+            limitGrid(stride, count, job.limitControl + first, job.limitWeights + job.limitMatrix[f], cp, dl,
                       job.limit, p);
         } else {
             // The same expression as Plan::evaluate, so bit-identical.
@@ -726,6 +793,7 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
         job.limitOffsets = limitOffsets_.data();
         job.limitControl = limitControl_.data();
         job.limitWeights = limitWeights_.data();
+        job.limitMatrix = limitMatrix_.data();
         for (int a = 0; a < 9; ++a)
             job.limit[a] = s.limit[a].data();
     }
@@ -840,7 +908,7 @@ size_t FrameEvaluator::bytes() const
     size_t scratch = 0;
     for (const Scratch& s : scratch_)
         scratch += s.bytes();
-    return bytes(limitOffsets_) + bytes(limitControl_) + bytes(limitWeights_) + bytes(tileFirst_) + bytes(ownedSlots_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
+    return bytes(limitOffsets_) + bytes(limitControl_) + bytes(limitWeights_) + bytes(limitMatrix_) + bytes(tileFirst_) + bytes(ownedSlots_) + bytes(order_) + bytes(triangles_) + bytes(rowStart_) + bytes(slotW1_) + bytes(slotW2_) + bytes(borderSlots_) + bytes(slots_) +
            bytes(partials_) + bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) +
            bytes(isolated_) + bytes(offsets_) + bytes(faces_) + bytes(faceNormals_) + scratch;
 }

@@ -118,7 +118,8 @@ private:
     std::vector<uint32_t> borderVertices_, borderOffsets_, borderEntries_;  // each border vertex's partials, tile order
     std::vector<uint32_t> isolated_;     // refined vertices no face uses
     std::vector<uint32_t> limitOffsets_, limitControl_;  // smooth: each tile's control points
-    std::vector<float> limitWeights_;    // smooth: per tile and point, 3 weight rows of whole-vector slots
+    std::vector<float> limitWeights_;    // smooth: the distinct tile matrices, per point 3 weight rows of whole-vector slots
+    std::vector<size_t> limitMatrix_;    // smooth: per tile, where its matrix starts in limitWeights_
     std::vector<uint32_t> tileFirst_;    // tile layout: per tile (and one past), its first frame vertex
     std::vector<uint16_t> ownedSlots_;   // tile layout: per frame vertex, its slot in its tile
     std::vector<uint32_t> order_, triangles_;  // vertexOrder(), triangles() (tile layout, or built on request)
