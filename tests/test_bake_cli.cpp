@@ -562,3 +562,33 @@ TEST(BakeLibrary, BakeRigWritesWhatTheToolWrites)
     EXPECT_NE(bad.message().find("missing.obj"), std::string::npos) << bad.message();
     EXPECT_FALSE(strata::test::fileExists(dir + "/none.glb"));
 }
+
+// The smooth scheme is measured against the linear one where it can pay:
+// on a loose cage, not on a dense one (a sixteenth of the capture's faces)
+// that the linear scheme already brings within the tolerance.  Both cages
+// meet 0.03% linearly (about 0.017% and 0.021%), neither four times over.
+TEST(BakeCli, SmoothSchemeIsMeasuredOnLooseCagesOnly)
+{
+    using namespace strata;
+    const std::string dir = strata::test::tempDir("bake_cli_scheme_probe");
+    writeInputs(dir);  // a 5,120-face capture; its control.obj has 80 faces
+    writeObj(dir + "/dense.obj", examples::makeIcosphere(3));  // 1,280 faces: the paper's level is 2
+    for (const char* cage : {"dense", "control"}) {
+        baker::BakeRequest request;
+        request.high = dir + "/high.obj";
+        request.control = dir + "/" + cage + ".obj";
+        request.output = dir + "/" + cage + ".glb";
+        request.tolerance = 3e-4;
+        baker::BakeResult result;
+        ASSERT_TRUE(baker::bakeRig(request, &result).isOk()) << cage;
+        const std::string reason = result.summary.substr(0, result.summary.find('\n'));
+        EXPECT_EQ(result.scheme, Scheme::Linear) << reason;
+        if (std::string(cage) == "dense") {
+            EXPECT_NE(reason.find("RMS at level 2 meets the tolerance"), std::string::npos) << reason;
+            EXPECT_EQ(reason.find("smooth "), std::string::npos) << reason;
+        } else {
+            EXPECT_NE(reason.find(", smooth "), std::string::npos) << reason;
+        }
+        EXPECT_LE(result.rms, 3e-4) << reason;
+    }
+}
