@@ -154,8 +154,8 @@ int main(int argc, char** argv)
                         worst / diag);
         }
         std::printf("\nwrote %s/: head_highres.ply (the capture), head.glb (control rig), head.exr (displacement "
-                    "map), head_level0..%d.ply, head_level4.glb\n",
-                    outDir.c_str(), maxLevel);
+                    "map), head_level0..%d.ply, head_level%d.glb (the recommended level)\n",
+                    outDir.c_str(), maxLevel, rig.displacement.recommendedLevel);
         return 0;
     });
 }
