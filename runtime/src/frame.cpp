@@ -17,6 +17,7 @@
 #include <mutex>
 #include <thread>
 #include <unordered_map>
+#include <utility>
 
 namespace strata {
 
@@ -490,7 +491,7 @@ void FrameEvaluator::buildLimitTiles()
     std::vector<uint32_t> order;
     // Shared matrices by a hash of their rounded weights; a hit is checked
     // against the tolerance (a near-tie that rounds apart only loses sharing).
-    std::unordered_multimap<uint64_t, size_t> shared;
+    std::unordered_multimap<uint64_t, std::pair<size_t, size_t>> shared;  // hash -> (start, points)
     for (size_t g = 0; g < nf0; ++g) {
         const uint32_t first = limitOffsets_[g];
         const size_t points = limitOffsets_[g + 1] - first, rows = stride / kLanes;
@@ -541,18 +542,20 @@ void FrameEvaluator::buildLimitTiles()
                    1099511628211ull;
         size_t at = limitWeights_.size();
         for (auto [it, end] = shared.equal_range(hash); it != end; ++it) {
-            const float* w = limitWeights_.data() + it->second;
+            if (it->second.second != points)
+                continue;  // a collision between matrices of other sizes
+            const float* w = limitWeights_.data() + it->second.first;
             bool same = true;
             for (size_t i = 0; i < canonical.size() && same; ++i)
                 same = std::fabs(w[i] - canonical[i]) <= kShareTolerance;
             if (same) {
-                at = it->second;
+                at = it->second.first;
                 break;
             }
         }
         if (at == limitWeights_.size()) {
             limitWeights_.insert(limitWeights_.end(), canonical.begin(), canonical.end());
-            shared.emplace(hash, at);
+            shared.emplace(hash, std::make_pair(at, points));
         }
         limitMatrix_[g] = at;
     }
