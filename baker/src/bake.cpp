@@ -456,12 +456,8 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
             parallelFor(highSamples.size(), threads, [&](size_t b, size_t e) {
                 int64_t hint = -1;  // as in sampleDistance
                 for (size_t i = b; i < e; ++i)
-                    if (boxDistance(highSamples[i], lo, hi) < best[i]) {
-                        uint32_t face = 0;
-                        const double d = recIndex.nearest(glm::dvec3(highSamples[i]), &face, nullptr, nullptr, hint);
-                        hint = d >= 0.0 ? int64_t(face) : -1;
-                        best[i] = std::min(best[i], d);
-                    }
+                    if (boxDistance(highSamples[i], lo, hi) < best[i])
+                        best[i] = std::min(best[i], recIndex.nearest(glm::dvec3(highSamples[i]), &hint));
             });
         }
         double backwardSq = 0.0, backwardMax = 0.0;

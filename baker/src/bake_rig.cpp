@@ -674,7 +674,7 @@ void BakeJob::chooseScheme()
                 !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
                                               options.threads)))
                 throw BakeError(highPath + ": " + st.message());
-            rms[int(candidate)] = std::max(errs[0].forwardRms, errs[0].backwardRms) / probeReport.diagonal;
+            rms[int(candidate)] = errs[0].rms() / probeReport.diagonal;
         }
         options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
         char buf[160];
@@ -731,7 +731,7 @@ void BakeJob::searchMapSize()
         double best = 1e300;
         int met = -1, bestLevel = hi;
         for (const LevelError& e : errs) {
-            const double rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+            const double rms = e.rms() / rep.diagonal;
             trials.push_back({size, e.level, rms});
             if (rms < best) {
                 best = rms;
@@ -1034,7 +1034,7 @@ void BakeJob::finish()
     result->scheme = options.scheme;
     for (const LevelError& e : errors)
         if (e.level == recommended)
-            result->rms = std::max(e.forwardRms, e.backwardRms) / rep.diagonal;
+            result->rms = e.rms() / rep.diagonal;
 }
 
 const std::vector<glm::vec3>& BakeJob::fittedPositions(Scheme scheme)
@@ -1129,7 +1129,7 @@ Status BakeJob::refineStoredValues(const ControlMesh& mesh, int level, std::vect
             s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
                                 size_t(1) << 20, &field);
         if (s)
-            *rms = std::max(e[0].forwardRms, e[0].backwardRms);
+            *rms = e[0].rms();
         return s;
     };
     std::vector<float> onCapture = *values;
@@ -1232,7 +1232,7 @@ void BakeJob::settleLevel()
             Status st;
             if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
                 throw BakeError(st.message());
-            trials.push_back({map.width, level, std::max(e[0].forwardRms, e[0].backwardRms) / rep.diagonal});
+            trials.push_back({map.width, level, e[0].rms() / rep.diagonal});
         }
         const Stored kept = stored;
         const std::vector<std::string> keptNotes = notes;

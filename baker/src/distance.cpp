@@ -91,11 +91,8 @@ DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const Triang
         // Consecutive samples lie close: the previous answer, tried first,
         // prunes most of the walk (the answer does not depend on it).
         int64_t hint = -1;
-        for (size_t i = b; i < e; ++i) {
-            uint32_t face = 0;
-            d[i] = to.nearest(glm::dvec3(samples[i]), &face, nullptr, nullptr, hint);
-            hint = d[i] >= 0.0 ? int64_t(face) : -1;
-        }
+        for (size_t i = b; i < e; ++i)
+            d[i] = to.nearest(glm::dvec3(samples[i]), &hint);
     });
     DistanceStats s;
     double sum = 0.0;

@@ -105,6 +105,8 @@ struct LevelError {
     size_t vertices = 0, triangles = 0;
     double forwardRms = 0, forwardMax = 0;    ///< reconstructed -> high-res
     double backwardRms = 0, backwardMax = 0;  ///< high-res -> reconstructed
+    /// The larger RMS of the two directions: what a tolerance is held to.
+    double rms() const { return forwardRms > backwardRms ? forwardRms : backwardRms; }
 };
 /// Levels minLevel..maxLevel, streamed: each level is refined in chunks of
 /// control faces (spatially ordered) of at most chunkTriangles refined

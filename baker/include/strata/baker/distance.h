@@ -30,6 +30,15 @@ public:
     /// `hint` (a face to try first, or -1) only speeds the search up.
     double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr,
                    int64_t hint = -1) const;
+    /// The same, for a run of nearby queries: starts from *hint and leaves
+    /// the answer's face there (-1 when none) for the next query.
+    double nearest(const glm::dvec3& x, int64_t* hint) const
+    {
+        uint32_t face = 0;
+        const double d = nearest(x, &face, nullptr, nullptr, *hint);
+        *hint = d >= 0.0 ? int64_t(face) : -1;
+        return d;
+    }
 
     /// The intersection of the line origin + t * dir with the mesh that has
     /// the smallest |t| within |t| <= maxT (Moller-Trumbore); false if none.
