@@ -184,5 +184,11 @@ double jsonFloat(float v)
     return double(v);  // nine digits always read back
 }
 
+void jsonFloats(std::vector<double>* values)
+{
+    for (double& v : *values)
+        v = jsonFloat(float(v));
+}
+
 }  // namespace io
 }  // namespace strata

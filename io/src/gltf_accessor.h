@@ -30,6 +30,8 @@ Status readUintAccessor(const tinygltf::Model& model, int index, int components,
 /// still rounds to it (glTF reads JSON numbers of float data as single
 /// precision), so a writer prints "0.57565022", not "0.5756502151489258".
 double jsonFloat(float v);
+/// jsonFloat of each value: an accessor's min/max of float data.
+void jsonFloats(std::vector<double>* values);
 
 }  // namespace io
 }  // namespace strata

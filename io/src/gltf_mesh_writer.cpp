@@ -92,10 +92,8 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
     prim.mode = TINYGLTF_MODE_TRIANGLES;
     int view = appendBufferView(model, pos.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
     prim.attributes["POSITION"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
-    for (int c = 0; c < 3; ++c) {
-        pmin[size_t(c)] = jsonFloat(float(pmin[size_t(c)]));
-        pmax[size_t(c)] = jsonFloat(float(pmax[size_t(c)]));
-    }
+    jsonFloats(&pmin);
+    jsonFloats(&pmax);
     model.accessors.back().minValues = pmin;
     model.accessors.back().maxValues = pmax;
     if (unitNormals) {

@@ -371,10 +371,8 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
                         a.minValues[i % 3] = std::min(a.minValues[i % 3], double(xyz[i]));
                         a.maxValues[i % 3] = std::max(a.maxValues[i % 3], double(xyz[i]));
                     }
-                    for (int c = 0; c < 3; ++c) {
-                        a.minValues[size_t(c)] = jsonFloat(float(a.minValues[size_t(c)]));
-                        a.maxValues[size_t(c)] = jsonFloat(float(a.maxValues[size_t(c)]));
-                    }
+                    jsonFloats(&a.minValues);
+                    jsonFloats(&a.maxValues);
                 }
             filtered[v] = std::move(coded);
         }
