@@ -373,8 +373,9 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
         glm::dvec2 t[3];
         for (int k = 0; k < 3; ++k)
             t[k] = placed(c, c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])], scale, rotation, gutter);
-        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
-        const int x1 = std::min(fp.width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
+        const double minX = std::min({t[0].x, t[1].x, t[2].x}), maxX = std::max({t[0].x, t[1].x, t[2].x});
+        const int x0 = std::max(0, int(std::floor(minX - reach)));
+        const int x1 = std::min(fp.width - 1, int(std::ceil(maxX + reach)));
         const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
         const int y1 = std::min(fp.height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
         // The centres whose square meets the triangle form a convex set (the
@@ -383,7 +384,6 @@ Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<i
         // of testing every texel of the box (at 4096^2 that was most of a
         // bake's time).
         const double r = double(gutter);
-        const double minX = std::min({t[0].x, t[1].x, t[2].x}), maxX = std::max({t[0].x, t[1].x, t[2].x});
         for (int x = x0; x <= x1; ++x) {
             const double cx = x + 0.5, X = std::clamp(cx, minX, maxX);
             if (std::fabs(cx - X) > r)
@@ -584,7 +584,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
                         }
                 }
                 const int top = y + fp.height;
-                if (top <= limit && top < own.top) {
+                if (top <= limit) {  // limit < own.top: a strict improvement
                     own.top = top;
                     own.x = x;
                     own.y = y;
