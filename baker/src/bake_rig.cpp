@@ -587,6 +587,10 @@ void BakeJob::prepare()
     const double typicalEdge = medianEdgeLength(high);
     atlas.gutter = 1;
     atlas.threads = options.threads;
+    // Charts grow into the pack's gaps only where the map is an output:
+    // a map that serves the bake alone is sampled once per refined vertex
+    // and would gain nothing from finer texels.
+    atlas.growIntoGaps = writeExr || pngBits != 0 || writeLayers;
     bare = control;
     while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
         ++paperLevel;

@@ -15,6 +15,7 @@ struct AtlasOptions {
     int mapSize = 1024;   ///< texels per side of the square map the atlas is laid out for
     int gutter = 2;       ///< texels of gutter around every chart
     int threads = 1;      ///< chart atlas: threads that pack (the same layout for any count)
+    bool growIntoGaps = true;  ///< chart atlas: charts grow into the pack's gaps (finer sampling, more fill)
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a per-triangle atlas: triangles
@@ -44,8 +45,14 @@ struct ChartAtlasStats {
 /// onto the seed's plane (which cannot fold); turned to its smallest bounding
 /// box, and the charts' footprints (`options.gutter` texels around them) are
 /// packed into a texel occupancy map (a chart may drop into a hole under
-/// another), upright or turned a quarter, at the largest common scale that
-/// fits `options.mapSize` (small charts get at least 6 texels a side).
+/// another), in eight orientations (turned by quarters and mirrored), at the
+/// largest common scale that fits `options.mapSize` (small charts get at
+/// least 6 texels a side).  With `options.growIntoGaps`, each chart,
+/// smallest first, is then put back at the largest scale up to twice its
+/// own that still fits among the others (two passes), so the pack's gaps
+/// sample the surface more finely.  No chart is sampled more coarsely than
+/// the common scale, and no texel a bilinear sample inside one chart reads
+/// is read from inside another.
 /// Vertices are split only on chart borders.  Fails (and leaves the mesh as
 /// it was) if a chart would fold over itself; callers fall back to
 /// buildTriangleAtlas.
