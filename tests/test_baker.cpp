@@ -414,6 +414,48 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     EXPECT_LE(double(fileVertices.size()), 1.3 * double(sphere.positions.size()));
 }
 
+// The charts of an atlas: the components of faces joined by edges whose
+// UVs they share (chartOfFace: a representative face per component), and
+// each face's neighbour across each edge (-1 on borders and non-manifold
+// edges).
+struct AtlasCharts {
+    std::vector<uint32_t> chartOfFace;
+    std::vector<std::array<int64_t, 3>> across;
+};
+
+AtlasCharts atlasCharts(const ControlMesh& mesh)
+{
+    const size_t nf = mesh.faceCount();
+    std::map<std::pair<uint32_t, uint32_t>, std::vector<std::pair<uint32_t, int>>> edges;
+    for (uint32_t f = 0; f < nf; ++f)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t a = mesh.triangles[3 * f + k], b = mesh.triangles[3 * f + (k + 1) % 3];
+            edges[{std::min(a, b), std::max(a, b)}].push_back({f, k});
+        }
+    std::vector<uint32_t> chart(nf);
+    for (uint32_t f = 0; f < nf; ++f)
+        chart[f] = f;
+    std::function<uint32_t(uint32_t)> root = [&](uint32_t f) { return chart[f] == f ? f : chart[f] = root(chart[f]); };
+    AtlasCharts out;
+    out.across.assign(nf, {-1, -1, -1});
+    for (const auto& [key, uses] : edges) {
+        if (uses.size() != 2)
+            continue;
+        const auto [f, k] = uses[0];
+        const auto [g, l] = uses[1];
+        out.across[f][size_t(k)] = g;
+        out.across[g][size_t(l)] = f;
+        // Shared UVs: f's corners k, k + 1 are g's l + 1, l.
+        if (mesh.uvIndices[3 * f + size_t(k)] == mesh.uvIndices[3 * g + size_t((l + 1) % 3)] &&
+            mesh.uvIndices[3 * f + size_t((k + 1) % 3)] == mesh.uvIndices[3 * g + size_t(l)])
+            chart[root(f)] = root(g);
+    }
+    out.chartOfFace.resize(nf);
+    for (uint32_t f = 0; f < nf; ++f)
+        out.chartOfFace[f] = root(f);
+    return out;
+}
+
 // Straight chart borders on the built-in head (its relief breaks the
 // surface into many charts): few faces touch their own chart along one edge
 // and one other chart along both others, the teeth breadth-first growth
@@ -430,29 +472,9 @@ TEST(Atlas, ChartBordersHaveNoTeeth)
     EXPECT_GT(stats.charts, 4u);
     ASSERT_TRUE(checkUVs(sphere, 512).isOk());
     const size_t nf = sphere.faceCount();
-    std::map<std::pair<uint32_t, uint32_t>, std::vector<std::pair<uint32_t, int>>> edges;
-    for (uint32_t f = 0; f < nf; ++f)
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t a = sphere.triangles[3 * f + k], b = sphere.triangles[3 * f + (k + 1) % 3];
-            edges[{std::min(a, b), std::max(a, b)}].push_back({f, k});
-        }
-    std::vector<uint32_t> chart(nf);
-    for (uint32_t f = 0; f < nf; ++f)
-        chart[f] = f;
-    std::function<uint32_t(uint32_t)> root = [&](uint32_t f) { return chart[f] == f ? f : chart[f] = root(chart[f]); };
-    std::vector<std::array<int64_t, 3>> across(nf, {-1, -1, -1});
-    for (const auto& [key, uses] : edges) {
-        if (uses.size() != 2)
-            continue;
-        const auto [f, k] = uses[0];
-        const auto [g, l] = uses[1];
-        across[f][size_t(k)] = g;
-        across[g][size_t(l)] = f;
-        // Shared UVs: f's corners k, k + 1 are g's l + 1, l.
-        if (sphere.uvIndices[3 * f + size_t(k)] == sphere.uvIndices[3 * g + size_t((l + 1) % 3)] &&
-            sphere.uvIndices[3 * f + size_t((k + 1) % 3)] == sphere.uvIndices[3 * g + size_t(l)])
-            chart[root(f)] = root(g);
-    }
+    const AtlasCharts charts = atlasCharts(sphere);
+    const std::vector<std::array<int64_t, 3>>& across = charts.across;
+    auto root = [&](uint32_t f) { return charts.chartOfFace[f]; };
     size_t teeth = 0;
     for (uint32_t f = 0; f < nf; ++f) {
         int own = 0;
@@ -631,25 +653,7 @@ TEST(Atlas, ChartsGrownIntoGapsReadOnlyTheirOwnTexels)
         ASSERT_TRUE(checkUVs(head, size).isOk());
         EXPECT_GT(stats.texelFill, size == 256 ? 0.62 : 0.65) << size;
         const size_t nf = head.faceCount();
-        std::map<std::pair<uint32_t, uint32_t>, std::vector<std::pair<uint32_t, int>>> edges;
-        for (uint32_t f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t a = head.triangles[3 * f + k], b = head.triangles[3 * f + (k + 1) % 3];
-                edges[{std::min(a, b), std::max(a, b)}].push_back({f, k});
-            }
-        std::vector<uint32_t> chart(nf);
-        for (uint32_t f = 0; f < nf; ++f)
-            chart[f] = f;
-        std::function<uint32_t(uint32_t)> root = [&](uint32_t f) { return chart[f] == f ? f : chart[f] = root(chart[f]); };
-        for (const auto& [key, uses] : edges) {
-            if (uses.size() != 2)
-                continue;
-            const auto [f, k] = uses[0];
-            const auto [g, l] = uses[1];
-            if (head.uvIndices[3 * f + size_t(k)] == head.uvIndices[3 * g + size_t((l + 1) % 3)] &&
-                head.uvIndices[3 * f + size_t((k + 1) % 3)] == head.uvIndices[3 * g + size_t(l)])
-                chart[root(f)] = root(g);
-        }
+        const std::vector<uint32_t> chart = atlasCharts(head).chartOfFace;
         std::vector<int64_t> reader(size_t(size) * size_t(size), -1);
         size_t shared = 0, read = 0;
         for (uint32_t f = 0; f < nf; ++f) {
@@ -667,9 +671,9 @@ TEST(Atlas, ChartsGrownIntoGapsReadOnlyTheirOwnTexels)
                         continue;
                     int64_t& owner = reader[size_t(y) * size_t(size) + size_t(x)];
                     if (owner < 0) {
-                        owner = root(f);
+                        owner = chart[f];
                         ++read;
-                    } else if (owner != int64_t(root(f))) {
+                    } else if (owner != int64_t(chart[f])) {
                         ++shared;
                     }
                 }
