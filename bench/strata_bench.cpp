@@ -230,7 +230,42 @@ std::string gpuName()
     return "none";
 }
 
-Json runPair(const Pair& pair, const std::string& out, const std::string& bakeExe, std::string* md)
+// One row of the atlas table: the pair baked again with --exr, where the
+// atlas the baker lays out is an output (issue 11's targets: at least 70%
+// of the map's texels inside charts, at most 1.3x the control vertices).
+std::string atlasRow(const Pair& pair, const std::string& dir, const std::string& bakeExe, Json* j)
+{
+    const std::string cmd = bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags +
+                            " --exr --threads 2 -o '" + dir + "/atlas.glb' --report '" + dir + "/atlas.json' > /dev/null";
+    if (shell(cmd) != 0)
+        return "| " + pair.name + " | bake with --exr failed | | | | | | |\n";
+    Json report;
+    std::ifstream(dir + "/atlas.json") >> report;
+    if (!report.contains("atlas"))
+        return "";
+    const Json& a = report["atlas"];
+    const int size = report["map"]["size"].get<int>(), level = report["recommendedLevel"].get<int>();
+    double rms = -1.0;
+    for (const Json& e : report["tradeOff"])
+        if (e["size"].get<int>() == size && e["level"].get<int>() == level)
+            rms = e["rms"].get<double>();
+    const double vertices = double(report["control"]["vertices"].get<size_t>());
+    const double split = double(a["splitVertices"].get<size_t>());
+    const double fill = a["texelFill"].get<double>();
+    *j = {{"charts", a["charts"]}, {"texelFill", fill}, {"maxStretch", a["maxStretch"]}, {"splitVertices", split},
+          {"controlVertices", vertices}, {"mapSize", size}, {"level", level}, {"mapRms", rms},
+          {"exrBytes", fileBytes(dir + "/atlas.exr")}, {"glbBytes", fileBytes(dir + "/atlas.glb")}};
+    char line[400];
+    std::snprintf(line, sizeof(line), "| %s | %zu | %d^2 | %.1f%% (%s) | %.0f / %.0f = %.2fx (%s) | %.2f | %s at level %d | %s | %s |\n",
+                  pair.name.c_str(), a["charts"].get<size_t>(), size, 100.0 * fill, fill >= 0.70 ? "yes" : "no", split,
+                  vertices, split / vertices, split <= 1.3 * vertices ? "yes" : "no", a["maxStretch"].get<double>(),
+                  rms >= 0.0 ? pct(rms).c_str() : "-", level, kb(fileBytes(dir + "/atlas.exr")).c_str(),
+                  kb(fileBytes(dir + "/atlas.glb")).c_str());
+    return line;
+}
+
+Json runPair(const Pair& pair, const std::string& out, const std::string& bakeExe, std::string* md,
+             std::string* atlasMd)
 {
     Json j;
     j["name"] = pair.name;
@@ -496,6 +531,11 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
     j["regeneration"] = regen;
     j["diagonal"] = diag;
     j["recommendedLevel"] = level;
+    if (report.contains("atlas")) {
+        Json atlas;
+        *atlasMd += atlasRow(pair, dir, bakeExe, &atlas);
+        j["atlasWithExr"] = atlas;
+    }
     return j;
 }
 
@@ -552,8 +592,17 @@ int main(int argc, char** argv)
                      "`.  Sizes are file bytes; errors are surface distances to the original, sampled at every "
                      "vertex and face centroid in both directions, relative to the bounding-box diagonal.\n";
     Json all = Json::array();
+    std::string atlasMd;
     for (const Pair& p : pairs)
-        all.push_back(runPair(p, out, bakeExe, &md));
+        all.push_back(runPair(p, out, bakeExe, &md, &atlasMd));
+    if (!atlasMd.empty())
+        md += "\n### The chart atlas, baked again with `--exr`\n\nThe atlas is an output only where the map is "
+              "(`--exr`, `--png8/16`); the default rig leaves it out.  Targets: at least 70% of the map's texels "
+              "inside charts, at most 1.3x as many glb vertices as control vertices.  Map RMS: the map's own samples "
+              "at the chosen size and level, both directions, the larger.\n\n"
+              "| pair | charts | map | texels inside charts (>= 70%) | glb / control vertices (<= 1.3x) | max "
+              "stretch | map RMS | EXR | glb |\n|---|---|---|---|---|---|---|---|---|\n" +
+              atlasMd;
     std::ofstream(out + "/RESULTS.md") << md;
     std::ofstream(out + "/results.json") << all.dump(2) << "\n";
     std::printf("%s", md.c_str());

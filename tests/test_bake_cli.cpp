@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -80,6 +81,18 @@ TEST(BakeCli, BakesTheBuiltInShapeAndReportsIt)
     EXPECT_TRUE(rig.mesh.hasUVs());
     strata::DisplacementMap map;
     EXPECT_TRUE(strata::io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map).isOk());
+    // The report's atlas block counts the vertices the file holds once its
+    // seams are split: one per distinct (position, UV) corner.
+    const nlohmann::json parsed = nlohmann::json::parse(json);
+    ASSERT_TRUE(parsed.contains("atlas")) << json;
+    const nlohmann::json& atlas = parsed["atlas"];
+    std::set<std::pair<uint32_t, uint32_t>> corners;
+    for (size_t i = 0; i < rig.mesh.triangles.size(); ++i)
+        corners.insert({rig.mesh.triangles[i], rig.mesh.uvIndices[i]});
+    EXPECT_EQ(atlas["splitVertices"].get<size_t>(), corners.size());
+    EXPECT_GT(atlas["charts"].get<size_t>(), 1u);
+    EXPECT_GT(atlas["texelFill"].get<double>(), 0.5);
+    EXPECT_GE(atlas["maxStretch"].get<double>(), 1.0);
 }
 
 TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)

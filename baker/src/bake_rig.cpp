@@ -782,10 +782,14 @@ void BakeJob::searchMapSize()
     searchMs = msSince(searchStart);
     rep.sizeReason = sizeReason;
     if (uvMode == "auto") {
-        char buf[160];
+        char buf[240];
         if (chartStats.charts)
-            std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
-                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
+            std::snprintf(buf, sizeof(buf),
+                          "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f, %zu vertices "
+                          "once split at its seams (%.2fx)",
+                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch,
+                          chartStats.splitVertices,
+                          double(chartStats.splitVertices) / double(std::max<size_t>(1, control.positions.size())));
         else
             std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
         atlasNote = buf;
@@ -986,6 +990,12 @@ void BakeJob::writeReport()
                          {"vertices", control.positions.size()},
                          {"triangles", control.faceCount()},
                          {"uv", uvMode}};
+    if (uvMode == "auto")
+        report["atlas"] = {{"charts", chartStats.charts},  // 0: the per-triangle atlas
+                           {"texelFill", chartStats.texelFill},
+                           {"maxStretch", chartStats.maxStretch},
+                           {"conformalCharts", chartStats.conformalCharts},
+                           {"splitVertices", chartStats.splitVertices}};
     report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
                      {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
                      {"multiLayerTexels", rep.raster.multiLayerTexels},
