@@ -82,9 +82,7 @@ struct Chart {
     std::vector<uint32_t> vertices;  // topological vertices, in first-use order
     std::vector<glm::dvec2> points;  // projected, per entry of vertices
     glm::dvec2 lo{0.0}, hi{0.0};
-    double scaleX = 0.0;  // texels per model unit, set by the packer
-    int x = 0, y = 0;     // texel origin of the footprint, set by the packer
-    int rotation = 0;     // quarter turns, set by the packer
+    double scaleX = 0.0;  // texels per model unit, set by the packer (where it goes: its Placement)
     bool conformal = false;  // points already hold the chart's conformal map
 };
 
@@ -584,15 +582,14 @@ void setLocal(const Chart& c, std::vector<int32_t>* local, bool on)
 }
 
 // Packs the charts' footprints into a texel occupancy map, largest first,
-// each where place() puts it.  Fills x, y, rotation (and `placements`, when
-// given); false if they do not fit.
+// each where place() puts it: sets each chart's scaleX and its entry of
+// `placements`; false if they do not fit.
 bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const ControlMesh& mesh,
           std::vector<int32_t>& local, double scale, int gutter, int size, int threads,
-          std::vector<Placement>* placements = nullptr)
+          std::vector<Placement>* placements)
 {
     Occupancy occupied(size);
-    if (placements)
-        placements->assign(charts.size(), Placement());
+    placements->assign(charts.size(), Placement());
     for (size_t i : order) {
         Chart& c = charts[i];
         c.scaleX = chartScale(c, scale);
@@ -602,11 +599,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<size_t>& order, const Co
         if (p.top == INT32_MAX)
             return false;
         take(&occupied, p);
-        c.x = p.x;
-        c.y = p.y;
-        c.rotation = p.rotation;
-        if (placements)
-            (*placements)[i] = std::move(p);
+        (*placements)[i] = std::move(p);
     }
     return true;
 }
@@ -657,9 +650,6 @@ void growIntoGaps(std::vector<Chart>& charts, const std::vector<size_t>& order, 
             c.scaleX = base;  // stays where it was
         } else {
             c.scaleX = base * lo;
-            c.x = best.x;
-            c.y = best.y;
-            c.rotation = best.rotation;
             placements[i] = std::move(best);
         }
         take(&occupied, placements[i]);
@@ -1000,25 +990,26 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return std::max(ea.x, ea.y) > std::max(eb.x, eb.y);
     });
     const int size = options.mapSize, g = options.gutter;
+    std::vector<Placement> placements;
     double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
-    while (pack(charts, order, *mesh, local, hi, g, size, options.threads)) {
+    while (pack(charts, order, *mesh, local, hi, g, size, options.threads, &placements)) {
         lo = hi;
         hi *= 1.25;
     }
     if (lo == 0.0) {
         lo = hi;
-        for (int tries = 0; tries < 40 && !pack(charts, order, *mesh, local, lo, g, size, options.threads); ++tries)
+        for (int tries = 0;
+             tries < 40 && !pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements); ++tries)
             lo *= 0.8;
-        if (!pack(charts, order, *mesh, local, lo, g, size, options.threads))
+        if (!pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements))
             return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
                                                            std::to_string(charts.size()) + " charts; use a larger map");
         hi = lo / 0.8;
     }
     for (int step = 0; step < 6; ++step) {
         const double mid = 0.5 * (lo + hi);
-        (pack(charts, order, *mesh, local, mid, g, size, options.threads) ? lo : hi) = mid;
+        (pack(charts, order, *mesh, local, mid, g, size, options.threads, &placements) ? lo : hi) = mid;
     }
-    std::vector<Placement> placements;
     pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements);  // the final placement
     for (int pass = 0; pass < (options.growIntoGaps ? kGrowthPasses : 0); ++pass)
         growIntoGaps(charts, order, placements, *mesh, local, g, size, options.threads);
@@ -1026,20 +1017,20 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     std::vector<glm::vec2> uvs;
     std::vector<uint32_t> uvIndices(3 * nf);
     const double inv = 1.0 / double(size);
-    for (Chart& c : charts) {
+    for (size_t i = 0; i < charts.size(); ++i) {
+        const Chart& c = charts[i];
+        const Placement& at = placements[i];
         const uint32_t base = uint32_t(uvs.size());
         for (const glm::dvec2& p : c.points) {
-            const glm::dvec2 t = placed(c, p, c.scaleX, c.rotation, g) + glm::dvec2(double(c.x), double(c.y));
+            const glm::dvec2 t = placed(c, p, c.scaleX, at.rotation, g) + glm::dvec2(double(at.x), double(at.y));
             uvs.emplace_back(float(t.x * inv), float(t.y * inv));
         }
-        for (size_t i = 0; i < c.vertices.size(); ++i)
-            local[c.vertices[i]] = int32_t(i);
+        setLocal(c, &local, true);
         for (uint32_t f : c.faces) {
             for (int k = 0; k < 3; ++k)
                 uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]]);
         }
-        for (uint32_t p : c.vertices)
-            local[p] = -1;
+        setLocal(c, &local, false);
     }
     // Area inside charts in texels (projected area <= true area).
     double projected = 0.0;
