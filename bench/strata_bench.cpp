@@ -230,15 +230,22 @@ std::string gpuName()
     return "none";
 }
 
+// The strata-bake command line that bakes a pair into `rig` with its
+// report at `report`, plus `extra` flags.
+std::string bakeCommand(const std::string& bakeExe, const Pair& pair, const std::string& rig, const std::string& report,
+                        const std::string& extra)
+{
+    return bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags + extra +
+           " --threads 2 -o '" + rig + "' --report '" + report + "'";
+}
+
 // One row of the atlas table: the pair baked again with --exr, where the
 // atlas the baker lays out is an output (issue 11's targets: at least 70%
 // of the map's texels inside charts, at most 1.3x the control vertices).
 std::string atlasRow(const Pair& pair, const std::string& dir, const std::string& bakeExe, Json* j)
 {
-    const std::string cmd = bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags +
-                            " --exr --threads 2 -o '" + dir + "/atlas.glb' --report '" + dir + "/atlas.json' > /dev/null";
-    if (shell(cmd) != 0)
-        return "| " + pair.name + " | bake with --exr failed | | | | | | |\n";
+    if (shell(bakeCommand(bakeExe, pair, dir + "/atlas.glb", dir + "/atlas.json", " --exr") + " > /dev/null") != 0)
+        return "| " + pair.name + " | bake with --exr failed | | | | | | | |\n";
     Json report;
     std::ifstream(dir + "/atlas.json") >> report;
     if (!report.contains("atlas"))
@@ -249,18 +256,23 @@ std::string atlasRow(const Pair& pair, const std::string& dir, const std::string
     for (const Json& e : report["tradeOff"])
         if (e["size"].get<int>() == size && e["level"].get<int>() == level)
             rms = e["rms"].get<double>();
+    const size_t charts = a["charts"].get<size_t>();  // 0: the per-triangle atlas, which reports no fill
     const double vertices = double(report["control"]["vertices"].get<size_t>());
     const double split = double(a["splitVertices"].get<size_t>());
-    const double fill = a["texelFill"].get<double>();
-    *j = {{"charts", a["charts"]}, {"texelFill", fill}, {"maxStretch", a["maxStretch"]}, {"splitVertices", split},
+    const double fill = a.value("texelFill", 0.0), stretch = a.value("maxStretch", 0.0);
+    const double exrBytes = fileBytes(dir + "/atlas.exr"), glbBytes = fileBytes(dir + "/atlas.glb");
+    *j = {{"charts", charts}, {"texelFill", fill}, {"maxStretch", stretch}, {"splitVertices", split},
           {"controlVertices", vertices}, {"mapSize", size}, {"level", level}, {"mapRms", rms},
-          {"exrBytes", fileBytes(dir + "/atlas.exr")}, {"glbBytes", fileBytes(dir + "/atlas.glb")}};
+          {"exrBytes", exrBytes}, {"glbBytes", glbBytes}};
+    char fillText[64] = "per-triangle atlas";
+    if (charts)
+        std::snprintf(fillText, sizeof(fillText), "%.1f%% (%s)", 100.0 * fill, fill >= 0.70 ? "yes" : "no");
     char line[400];
-    std::snprintf(line, sizeof(line), "| %s | %zu | %d^2 | %.1f%% (%s) | %.0f / %.0f = %.2fx (%s) | %.2f | %s at level %d | %s | %s |\n",
-                  pair.name.c_str(), a["charts"].get<size_t>(), size, 100.0 * fill, fill >= 0.70 ? "yes" : "no", split,
-                  vertices, split / vertices, split <= 1.3 * vertices ? "yes" : "no", a["maxStretch"].get<double>(),
-                  rms >= 0.0 ? pct(rms).c_str() : "-", level, kb(fileBytes(dir + "/atlas.exr")).c_str(),
-                  kb(fileBytes(dir + "/atlas.glb")).c_str());
+    std::snprintf(line, sizeof(line),
+                  "| %s | %zu | %d^2 | %s | %.0f / %.0f = %.2fx (%s) | %.2f | %s at level %d | %s | %s |\n",
+                  pair.name.c_str(), charts, size, fillText, split, vertices, split / vertices,
+                  split <= 1.3 * vertices ? "yes" : "no", stretch, rms >= 0.0 ? pct(rms).c_str() : "-", level,
+                  kb(exrBytes).c_str(), kb(glbBytes).c_str());
     return line;
 }
 
@@ -274,8 +286,7 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
     std::printf("== %s\n", pair.name.c_str());
     std::fflush(stdout);
     const std::string rigPath = dir + "/rig.glb";
-    const std::string cmd = bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags +
-                            " --threads 2 -o '" + rigPath + "' --report '" + dir + "/bake.json'";
+    const std::string cmd = bakeCommand(bakeExe, pair, rigPath, dir + "/bake.json", "");
     if (shell(cmd) != 0) {
         *md += "\n### " + pair.name + "\n\nbake failed: `" + cmd + "`\n";
         j["error"] = "bake failed";

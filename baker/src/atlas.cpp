@@ -1045,7 +1045,6 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         stats->texelFill = projected;
         stats->maxStretch = maxStretch;
         stats->conformalCharts = conformalCharts;
-        stats->splitVertices = mesh->uvs.size();  // one UV per (chart, vertex)
     }
     return Status::ok();
 }

@@ -476,6 +476,7 @@ private:
     ChartAtlasStats chartStats;
     ChartCache chartCache;  // the charts, made once per cage the layouts start from
     std::string atlasNote, sizeReason, schemeReason;
+    size_t atlasVertices = 0;  // a generated atlas's vertices once split at its seams
     bool fitting = false, fitSkippedForMaps = false;
     Fitted fitted[2];
     FitOptions fitOptions;
@@ -782,17 +783,19 @@ void BakeJob::searchMapSize()
     searchMs = msSince(searchStart);
     rep.sizeReason = sizeReason;
     if (uvMode == "auto") {
+        // Either atlas gives each UV to one vertex of one chart (or
+        // triangle): the UVs are the vertices a file with them holds.
+        atlasVertices = control.uvs.size();
         char buf[240];
         if (chartStats.charts)
-            std::snprintf(buf, sizeof(buf),
-                          "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f, %zu vertices "
-                          "once split at its seams (%.2fx)",
-                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch,
-                          chartStats.splitVertices,
-                          double(chartStats.splitVertices) / double(std::max<size_t>(1, control.positions.size())));
+            std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
+                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
         else
             std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
         atlasNote = buf;
+        std::snprintf(buf, sizeof(buf), ", %zu vertices once split at its seams (%.2fx)", atlasVertices,
+                      double(atlasVertices) / double(std::max<size_t>(1, control.positions.size())));
+        atlasNote += buf;
     }
 }
 
@@ -990,12 +993,15 @@ void BakeJob::writeReport()
                          {"vertices", control.positions.size()},
                          {"triangles", control.faceCount()},
                          {"uv", uvMode}};
-    if (uvMode == "auto")
+    if (uvMode == "auto") {
         report["atlas"] = {{"charts", chartStats.charts},  // 0: the per-triangle atlas
-                           {"texelFill", chartStats.texelFill},
-                           {"maxStretch", chartStats.maxStretch},
-                           {"conformalCharts", chartStats.conformalCharts},
-                           {"splitVertices", chartStats.splitVertices}};
+                           {"splitVertices", atlasVertices}};
+        if (chartStats.charts) {
+            report["atlas"]["texelFill"] = chartStats.texelFill;
+            report["atlas"]["maxStretch"] = chartStats.maxStretch;
+            report["atlas"]["conformalCharts"] = chartStats.conformalCharts;
+        }
+    }
     report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
                      {"coverage", rep.coverage}, {"overlapFraction", rep.overlapFraction},
                      {"multiLayerTexels", rep.raster.multiLayerTexels},

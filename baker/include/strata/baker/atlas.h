@@ -33,9 +33,6 @@ struct ChartAtlasStats {
     /// 1 / cos(angle to the plane) for a projected chart.
     double maxStretch = 0.0;
     size_t conformalCharts = 0;  ///< charts flattened conformally (the rest projected)
-    /// Vertices once split where charts meet (one per chart a vertex is
-    /// in): what a glTF file with these UVs holds.
-    size_t splitVertices = 0;
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a chart atlas: faces are grown
