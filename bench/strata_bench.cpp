@@ -259,9 +259,9 @@ std::string atlasRow(const Pair& pair, const std::string& dir, const std::string
     const size_t charts = a["charts"].get<size_t>();  // 0: the per-triangle atlas, which reports no fill
     const double vertices = double(report["control"]["vertices"].get<size_t>());
     const double split = double(a["splitVertices"].get<size_t>());
-    const double fill = a.value("texelFill", 0.0), stretch = a.value("maxStretch", 0.0);
+    const double fill = a.value("texelFill", 0.0), stretch = a.value("maxDistortion", 0.0);
     const double exrBytes = fileBytes(dir + "/atlas.exr"), glbBytes = fileBytes(dir + "/atlas.glb");
-    *j = {{"charts", charts}, {"texelFill", fill}, {"maxStretch", stretch}, {"splitVertices", split},
+    *j = {{"charts", charts}, {"texelFill", fill}, {"maxDistortion", stretch}, {"splitVertices", split},
           {"controlVertices", vertices}, {"mapSize", size}, {"level", level}, {"mapRms", rms},
           {"exrBytes", exrBytes}, {"glbBytes", glbBytes}};
     char fillText[64] = "per-triangle atlas";
@@ -612,7 +612,7 @@ int main(int argc, char** argv)
               "inside charts, at most 1.3x as many glb vertices as control vertices.  Map RMS: the map's own samples "
               "at the chosen size and level, both directions, the larger.\n\n"
               "| pair | charts | map | texels inside charts (>= 70%) | glb / control vertices (<= 1.3x) | max "
-              "stretch | map RMS | EXR | glb |\n|---|---|---|---|---|---|---|---|---|\n" +
+              "distortion | map RMS | EXR | glb |\n|---|---|---|---|---|---|---|---|---|\n" +
               atlasMd;
     std::ofstream(out + "/RESULTS.md") << md;
     std::ofstream(out + "/results.json") << all.dump(2) << "\n";

@@ -15,8 +15,8 @@
 #include <array>
 #include <cstring>
 #include <cmath>
-#include <set>
 #include <map>
+#include <set>
 #include <functional>
 #include <fstream>
 #include <random>
@@ -382,9 +382,9 @@ TEST(Distance, SphereAgainstScaledSphereIsExact)
 
 TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
 {
-    // A sphere of 1280 triangles: disk charts grown over 85 degrees around
-    // their seed's normal while the conformal map's area scale stays within
-    // 1.5 (else within 60 degrees), flattened without flips, packed without
+    // A sphere of 1280 triangles: disk charts, each the largest breadth-first
+    // growth whose rigid flattening keeps every direction's sampling within
+    // 2x of the chart's mean, flattened without flips, packed without
     // overlaps.
     ControlMesh sphere = examples::makeIcosphere(3);
     sphere.uvs.clear();
@@ -396,22 +396,38 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     ASSERT_TRUE(buildChartAtlas(&sphere, options, &stats).isOk());
     EXPECT_GT(stats.charts, 1u);  // a closed surface is no disk
     EXPECT_LT(stats.charts, sphere.faceCount() / 8);
-    // Disks flattened conformally, within the wide charts' bound.
-    EXPECT_EQ(stats.conformalCharts, stats.charts);
-    EXPECT_LE(stats.maxStretch, 1.5) << stats.maxStretch;
-    EXPECT_GT(stats.texelFill, 0.6);  // 63%: four caps leave corners no packer fills
+    EXPECT_GE(stats.maxDistortion, 1.0);
+    EXPECT_LE(stats.maxDistortion, 2.0) << stats.maxDistortion;
+    EXPECT_GT(stats.texelFill, 0.7);  // 73%: seven charts, none over a quarter of the sphere
+    std::printf("SPHERE charts %zu fill %f dist %f\n", stats.charts, stats.texelFill, stats.maxDistortion);
     ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
-    // Every face keeps its orientation in UV space.
+    // No chart folds: no face is degenerate in UV space, and faces that
+    // share a UV edge turn the same way (a chart may be placed mirrored,
+    // as a whole).
+    std::map<std::pair<uint32_t, uint32_t>, std::vector<bool>> edgeTurns;
     for (size_t f = 0; f < sphere.faceCount(); ++f) {
         const glm::vec2 a = sphere.uvs[sphere.uvIndices[3 * f]], b = sphere.uvs[sphere.uvIndices[3 * f + 1]],
                         c = sphere.uvs[sphere.uvIndices[3 * f + 2]];
-        EXPECT_GT((b - a).x * (c - a).y - (b - a).y * (c - a).x, 0.0f) << f;
+        const float turn = (b - a).x * (c - a).y - (b - a).y * (c - a).x;
+        EXPECT_NE(turn, 0.0f) << f;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t u = sphere.uvIndices[3 * f + size_t(k)], v = sphere.uvIndices[3 * f + size_t((k + 1) % 3)];
+            edgeTurns[{std::min(u, v), std::max(u, v)}].push_back(turn > 0.0f);
+        }
     }
+    size_t sharedEdges = 0;
+    for (const auto& [edge, turns] : edgeTurns)
+        if (turns.size() == 2) {
+            ++sharedEdges;
+            EXPECT_EQ(turns[0], turns[1]) << edge.first << " " << edge.second;
+        }
+    EXPECT_GT(sharedEdges, sphere.faceCount());  // most of the 1920 edges lie inside charts
     // Vertices split only on chart borders: far fewer than a per-triangle atlas's three per face.
     std::set<std::pair<uint32_t, uint32_t>> fileVertices;
     for (size_t i = 0; i < sphere.triangles.size(); ++i)
         fileVertices.insert({sphere.triangles[i], sphere.uvIndices[i]});
     EXPECT_LE(double(fileVertices.size()), 1.3 * double(sphere.positions.size()));
+    std::printf("SPHERE split %zu of %zu\n", fileVertices.size(), sphere.positions.size());
 }
 
 // The charts of an atlas: the components of faces joined by edges whose
@@ -456,6 +472,64 @@ AtlasCharts atlasCharts(const ControlMesh& mesh)
     return out;
 }
 
+// A developable surface (half of a prism's side, 16 rectangles around by 8
+// along, each split in two) flattens without distortion: every chart's
+// conformal, then rigid, map is its unfolding, so each UV edge is its 3D
+// edge times the chart's one scale.  No chart takes more than a quarter of
+// the surface.
+TEST(Atlas, DevelopableSurfaceUnfoldsIsometrically)
+{
+    const int around = 16, along = 8;
+    ControlMesh tube;
+    for (int j = 0; j <= along; ++j)
+        for (int i = 0; i <= around; ++i) {
+            const double t = 3.14159265358979 * double(i) / double(around);
+            tube.positions.emplace_back(float(std::cos(t)), float(std::sin(t)), float(0.25 * j));
+        }
+    auto at = [&](int i, int j) { return uint32_t(j * (around + 1) + i); };
+    for (int j = 0; j < along; ++j)
+        for (int i = 0; i < around; ++i) {
+            for (uint32_t v : {at(i, j), at(i + 1, j), at(i + 1, j + 1)})
+                tube.triangles.push_back(v);
+            for (uint32_t v : {at(i, j), at(i + 1, j + 1), at(i, j + 1)})
+                tube.triangles.push_back(v);
+        }
+    AtlasOptions options;
+    options.mapSize = 512;
+    options.gutter = 1;
+    ChartAtlasStats stats;
+    ASSERT_TRUE(buildChartAtlas(&tube, options, &stats).isOk());
+    ASSERT_TRUE(checkUVs(tube, 512).isOk());
+    EXPECT_LT(stats.maxDistortion, 1.0 + 1e-4);
+    const size_t nf = tube.faceCount();
+    const std::vector<uint32_t> chart = atlasCharts(tube).chartOfFace;
+    std::map<uint32_t, std::pair<double, double>> ratio;  // per chart: smallest, largest UV / 3D edge
+    std::map<uint32_t, double> area;
+    double total = 0.0;
+    for (uint32_t f = 0; f < nf; ++f) {
+        glm::dvec3 p[3];
+        for (int k = 0; k < 3; ++k)
+            p[k] = glm::dvec3(tube.positions[tube.triangles[3 * f + size_t(k)]]);
+        const double a = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+        area[chart[f]] += a;
+        total += a;
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec2 u = glm::dvec2(tube.uvs[tube.uvIndices[3 * f + size_t(k)]]),
+                             v = glm::dvec2(tube.uvs[tube.uvIndices[3 * f + size_t((k + 1) % 3)]]);
+            const double r = glm::length(u - v) / glm::length(p[k] - p[(k + 1) % 3]);
+            auto it = ratio.emplace(chart[f], std::make_pair(r, r)).first;
+            it->second.first = std::min(it->second.first, r);
+            it->second.second = std::max(it->second.second, r);
+        }
+    }
+    EXPECT_EQ(ratio.size(), stats.charts);
+    for (const auto& [c, r] : ratio)
+        EXPECT_LT(r.second / r.first, 1.0 + 1e-3) << "chart " << c << ": " << r.first << " .. " << r.second;
+    EXPECT_GE(stats.charts, 4u);
+    for (const auto& [c, a] : area)
+        EXPECT_LE(a, 0.25 * total * (1.0 + 1e-9)) << "chart " << c;
+}
+
 // Straight chart borders on the built-in head (its relief breaks the
 // surface into many charts): few faces touch their own chart along one edge
 // and one other chart along both others, the teeth breadth-first growth
@@ -491,8 +565,8 @@ TEST(Atlas, ChartBordersHaveNoTeeth)
         for (const auto& [c, count] : others)
             teeth += own == 1 && count == 2;
     }
-    // Growth alone leaves 20 of 1280 here; a tooth stays only where its
-    // neighbour's cone or its own chart's disk forbids the move (4).
+    // A tooth stays only where its own chart's disk, or either chart's
+    // flattening, forbids the move (none of 1280 here).
     EXPECT_LE(teeth, nf / 200);
 }
 
@@ -599,7 +673,7 @@ TEST(Atlas, ChartCacheGivesTheSameAtlas)
         options.gutter = 1;
         ControlMesh fresh = head, reused = head;
         ASSERT_TRUE(buildChartAtlas(&fresh, options).isOk());
-        ASSERT_TRUE(buildChartAtlas(&reused, options, nullptr, 60.0, &cache).isOk());
+        ASSERT_TRUE(buildChartAtlas(&reused, options, nullptr, &cache).isOk());
         EXPECT_EQ(fresh.uvs, reused.uvs) << size;
         EXPECT_EQ(fresh.uvIndices, reused.uvIndices) << size;
     }
@@ -611,7 +685,7 @@ TEST(Atlas, ChartCacheGivesTheSameAtlas)
     options.gutter = 1;
     ControlMesh fresh = moved;
     ASSERT_TRUE(buildChartAtlas(&fresh, options).isOk());
-    ASSERT_TRUE(buildChartAtlas(&moved, options, nullptr, 60.0, &cache).isOk());
+    ASSERT_TRUE(buildChartAtlas(&moved, options, nullptr, &cache).isOk());
     EXPECT_EQ(fresh.uvs, moved.uvs);
 }
 
@@ -639,8 +713,8 @@ bool squareMeetsTriangle(const glm::dvec2& p, double r, const glm::dvec2 t[3])
 // bilinear sample inside one chart reads (its centre within a texel of the
 // chart, both axes) is read from inside another.  Charts are the components
 // of faces joined by edges whose UVs they share.  And the growth fills the
-// map: the head has 63.5% of its texels inside charts at 256^2 and 66.9% at
-// 512^2 (60.3% and 61.6% packed at one common scale).
+// map: the head's 14 charts cover 72.4% of its texels at 256^2 and 75.1% at
+// 512^2 (53.2% and 55.0% packed at one common scale).
 TEST(Atlas, ChartsGrownIntoGapsReadOnlyTheirOwnTexels)
 {
     for (int size : {256, 512}) {
@@ -651,7 +725,7 @@ TEST(Atlas, ChartsGrownIntoGapsReadOnlyTheirOwnTexels)
         ChartAtlasStats stats;
         ASSERT_TRUE(buildChartAtlas(&head, options, &stats).isOk());
         ASSERT_TRUE(checkUVs(head, size).isOk());
-        EXPECT_GT(stats.texelFill, size == 256 ? 0.62 : 0.65) << size;
+        EXPECT_GT(stats.texelFill, size == 256 ? 0.70 : 0.72) << size;
         const size_t nf = head.faceCount();
         const std::vector<uint32_t> chart = atlasCharts(head).chartOfFace;
         std::vector<int64_t> reader(size_t(size) * size_t(size), -1);

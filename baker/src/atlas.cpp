@@ -71,19 +71,25 @@ namespace strata {
 namespace baker {
 namespace {
 
-// The wide cone a chart is first grown over, and the conformal map's area
-// distortion (linear scale) it must stay within to keep it.
-constexpr double kWideAngleDegrees = 85.0;
-constexpr double kWideStretch = 1.5;
+// The most a chart's flattening may distort its sampling (chartDistortion):
+// a direction on the surface at most this many times longer, or shorter,
+// in texels than the chart's mean scale gives it.
+constexpr double kMaxDistortion = 2.0;
+constexpr int kRigidIterations = 8;
+// The largest share of the surface's area one chart may take.  The bound
+// alone lets a sphere be two hemispheres, and two discs fill at most 54% of
+// a square map: a chart that large leaves the packer too few pieces to fill
+// its box's corners.  Quarters make a sphere six charts, which fill 72%.
+constexpr double kMaxChartShare = 0.25;
 
 struct Chart {
     std::vector<uint32_t> faces;
-    glm::dvec3 normal{0.0};        // the seed face's unit normal: the projection plane
+    glm::dvec3 normal{0.0};          // area-weighted unit normal: the plane its flattening starts from
     std::vector<uint32_t> vertices;  // topological vertices, in first-use order
-    std::vector<glm::dvec2> points;  // projected, per entry of vertices
+    std::vector<glm::dvec2> points;  // flattened, per entry of vertices
     glm::dvec2 lo{0.0}, hi{0.0};
-    double scaleX = 0.0;  // texels per model unit, set by the packer (where it goes: its Placement)
-    bool conformal = false;  // points already hold the chart's conformal map
+    double scaleX = 0.0;      // texels per model unit, set by the packer (where it goes: its Placement)
+    double distortion = 1.0;  // chartDistortion of points
 };
 
 // Projects onto the plane orthogonal to n, in an orthonormal frame.
@@ -94,16 +100,35 @@ void frame(const glm::dvec3& n, glm::dvec3* u, glm::dvec3* v)
     *v = glm::cross(n, *u);
 }
 
+// Local isometric coordinates of face f's corners: corner 0 at the origin,
+// corner 1 on the x axis.  False for a degenerate face.
+bool isometric(const ControlMesh& mesh, uint32_t f, glm::dvec2 q[3])
+{
+    glm::dvec3 p[3];
+    for (int k = 0; k < 3; ++k)
+        p[k] = glm::dvec3(mesh.positions[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+    const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+    const double l1 = glm::length(e1);
+    const glm::dvec3 nrm = glm::cross(e1, e2);
+    if (!(l1 > 0.0) || !(glm::length(nrm) > 0.0))
+        return false;
+    const glm::dvec3 ex = e1 / l1, ey = glm::normalize(glm::cross(nrm, e1));
+    q[0] = glm::dvec2(0.0);
+    q[1] = glm::dvec2(l1, 0.0);
+    q[2] = glm::dvec2(glm::dot(e2, ex), glm::dot(e2, ey));
+    return true;
+}
+
 // Least-squares conformal map (Levy et al. 2002) of one disk-shaped chart,
 // started from its projection `points` and solved by conjugate gradients on
 // the normal equations with the two farthest-apart vertices pinned where the
-// projection put them.  Returns false (points untouched) when the result
-// folds: the caller keeps the projection, which cannot fold.
+// projection put them: the start of its rigid flattening.  Overwrites
+// points; false when the map folds (a face turned over).
 bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
                       std::vector<glm::dvec2>* points)
 {
     const size_t n = c.vertices.size(), m = c.faces.size();
-    if (n < 4)
+    if (n < 3)
         return false;
     // Per face: local vertex ids and the complex weights W_j = a_j + i b_j.
     struct Row {
@@ -113,22 +138,13 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
     std::vector<Row> rows;
     rows.reserve(m);
     for (uint32_t f : c.faces) {
-        glm::dvec3 p[3];
         Row r;
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t g = mesh.triangles[3 * size_t(f) + size_t(k)];
-            r.v[k] = uint32_t(local[g]);
-            p[k] = glm::dvec3(mesh.positions[g]);
-        }
-        const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
-        const double l1 = glm::length(e1);
-        const glm::dvec3 nrm = glm::cross(e1, e2);
-        const double area2 = glm::length(nrm);
-        if (!(l1 > 0.0) || !(area2 > 0.0))
+        glm::dvec2 q[3];
+        if (!isometric(mesh, f, q))
             continue;
-        const glm::dvec3 ex = e1 / l1, ey = glm::normalize(glm::cross(nrm, e1));
-        const glm::dvec2 q[3] = {glm::dvec2(0.0), glm::dvec2(l1, 0.0), glm::dvec2(glm::dot(e2, ex), glm::dot(e2, ey))};
-        const double w = 1.0 / std::sqrt(area2);
+        for (int k = 0; k < 3; ++k)
+            r.v[k] = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+        const double w = 1.0 / std::sqrt(q[1].x * q[2].y);  // 1 / sqrt(twice the area)
         for (int k = 0; k < 3; ++k) {
             const glm::dvec2 d = q[(k + 2) % 3] - q[(k + 1) % 3];
             r.a[k] = d.x * w;
@@ -161,7 +177,6 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
     }
     auto pinned = [&](size_t i) { return i == p0 || i == p1; };
     // y = A x over all variables; z = A^T y restricted to free ones.
-    std::vector<double> res(2 * rows.size());
     auto applyA = [&](const std::vector<double>& in, std::vector<double>& out) {
         for (size_t r = 0; r < rows.size(); ++r) {
             double re = 0.0, im = 0.0;
@@ -207,7 +222,7 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
         rr += r[i] * r[i];
     }
     d = z;
-    const double stop = rr * 1e-14;
+    const double stop = rr * 1e-10;
     for (int iter = 0; iter < 4 * int(n) + 200 && rr > stop && rz > 0.0; ++iter) {
         applyA(d, t);
         applyAt(t, q);
@@ -231,9 +246,8 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
         for (size_t i = 0; i < 2 * n; ++i)
             d[i] = pinned(i % n) ? 0.0 : z[i] + beta * d[i];
     }
-    (void)res;
-    // Reject a fold: every face must keep the orientation it has in the
-    // projection (counter-clockwise there).
+    // A fold: a face turned clockwise.
+    bool folded = false;
     for (uint32_t f : c.faces) {
         glm::dvec2 u[3];
         for (int k = 0; k < 3; ++k) {
@@ -241,17 +255,185 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
             u[k] = glm::dvec2(x[i], x[n + i]);
         }
         const double area = (u[1].x - u[0].x) * (u[2].y - u[0].y) - (u[1].y - u[0].y) * (u[2].x - u[0].x);
-        if (!(area > 0.0) || !std::isfinite(area))
-            return false;
+        folded = folded || !(area > 0.0) || !std::isfinite(area);
     }
     for (size_t i = 0; i < n; ++i)
         (*points)[i] = glm::dvec2(x[i], x[n + i]);
+    return !folded;
+}
+
+// As-rigid-as-possible flattening (Liu et al. 2008) of a disk chart, from
+// a fold-free start (its conformal map): alternately the rotation closest
+// to each face's Jacobian, and the cotangent-weighted least-squares
+// positions given those rotations (conjugate gradients, one vertex
+// pinned).  A conformal map of a wide curved chart shrinks its rim; this
+// one trades a little angle for area, so a chart can cover far more of
+// the surface at the same sampling.  Returns false (points untouched) when
+// the result folds.
+bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
+                  std::vector<glm::dvec2>* points, int iterations)
+{
+    const size_t n = c.vertices.size();
+    struct Face {
+        uint32_t v[3];
+        glm::dvec2 q[3];
+        double w[3];  // cotangent of the angle at corner k: the weight of the opposite edge
+    };
+    std::vector<Face> faces;
+    faces.reserve(c.faces.size());
+    for (uint32_t f : c.faces) {
+        Face t;
+        if (!isometric(mesh, f, t.q))
+            continue;
+        for (int k = 0; k < 3; ++k) {
+            t.v[k] = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+            const glm::dvec2 a = t.q[(k + 1) % 3] - t.q[k], b = t.q[(k + 2) % 3] - t.q[k];
+            const double cross = a.x * b.y - a.y * b.x;
+            t.w[k] = 0.5 * glm::dot(a, b) / cross;
+        }
+        faces.push_back(t);
+    }
+    if (n < 3 || faces.empty())
+        return false;
+    std::vector<glm::dvec2> u(*points), b(n), r(n), z(n), d(n), q(n);
+    std::vector<double> diag(n, 0.0);
+    for (const Face& t : faces)
+        for (int k = 0; k < 3; ++k) {
+            diag[t.v[(k + 1) % 3]] += t.w[k];
+            diag[t.v[(k + 2) % 3]] += t.w[k];
+        }
+    for (double& e : diag)
+        e = e > 1e-12 ? 1.0 / e : 1.0;
+    const uint32_t pin = 0;
+    auto apply = [&](const std::vector<glm::dvec2>& in, std::vector<glm::dvec2>& out) {
+        std::fill(out.begin(), out.end(), glm::dvec2(0.0));
+        for (const Face& t : faces)
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t i = t.v[(k + 1) % 3], j = t.v[(k + 2) % 3];
+                const glm::dvec2 e = t.w[k] * (in[i] - in[j]);
+                out[i] += e;
+                out[j] -= e;
+            }
+        out[pin] = glm::dvec2(0.0);
+    };
+    std::vector<double> cs(faces.size()), sn(faces.size());
+    for (int it = 0; it < iterations; ++it) {
+        // Local step: each face's closest rotation.
+        for (size_t f = 0; f < faces.size(); ++f) {
+            const Face& t = faces[f];
+            double a = 0.0, bb = 0.0, cc = 0.0, dd = 0.0;  // S = sum w (u_i - u_j)(q_i - q_j)^T
+            for (int k = 0; k < 3; ++k) {
+                const int i = (k + 1) % 3, j = (k + 2) % 3;
+                const glm::dvec2 du = u[t.v[i]] - u[t.v[j]], dq = t.q[i] - t.q[j];
+                a += t.w[k] * du.x * dq.x;
+                bb += t.w[k] * du.x * dq.y;
+                cc += t.w[k] * du.y * dq.x;
+                dd += t.w[k] * du.y * dq.y;
+            }
+            const double angle = std::atan2(cc - bb, a + dd);
+            cs[f] = std::cos(angle);
+            sn[f] = std::sin(angle);
+        }
+        // Global step: L u = b.
+        std::fill(b.begin(), b.end(), glm::dvec2(0.0));
+        for (size_t f = 0; f < faces.size(); ++f) {
+            const Face& t = faces[f];
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t i = t.v[(k + 1) % 3], j = t.v[(k + 2) % 3];
+                const glm::dvec2 dq = t.q[(k + 1) % 3] - t.q[(k + 2) % 3];
+                const glm::dvec2 e = t.w[k] * glm::dvec2(cs[f] * dq.x - sn[f] * dq.y, sn[f] * dq.x + cs[f] * dq.y);
+                b[i] += e;
+                b[j] -= e;
+            }
+        }
+        b[pin] = glm::dvec2(0.0);
+        apply(u, q);
+        double rz = 0.0, rr0 = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            r[i] = b[i] - q[i];
+            z[i] = r[i] * diag[i];
+            rz += glm::dot(r[i], z[i]);
+            rr0 += glm::dot(r[i], r[i]);
+        }
+        d = z;
+        double rr = rr0;
+        for (int cg = 0; cg < 2 * int(n) + 50 && rr > 1e-10 * rr0 && rz > 0.0; ++cg) {
+            apply(d, q);
+            double dq = 0.0;
+            for (size_t i = 0; i < n; ++i)
+                dq += glm::dot(d[i], q[i]);
+            if (!(dq > 0.0))
+                break;
+            const double alpha = rz / dq;
+            double rz2 = 0.0;
+            rr = 0.0;
+            for (size_t i = 0; i < n; ++i) {
+                u[i] += alpha * d[i];
+                r[i] -= alpha * q[i];
+                z[i] = r[i] * diag[i];
+                rz2 += glm::dot(r[i], z[i]);
+                rr += glm::dot(r[i], r[i]);
+            }
+            const double beta = rz2 / rz;
+            rz = rz2;
+            for (size_t i = 0; i < n; ++i)
+                d[i] = i == pin ? glm::dvec2(0.0) : z[i] + beta * d[i];
+        }
+    }
+    for (const Face& t : faces) {
+        const glm::dvec2 a = u[t.v[1]] - u[t.v[0]], bb = u[t.v[2]] - u[t.v[0]];
+        const double area = a.x * bb.y - a.y * bb.x;
+        if (!(area > 0.0) || !std::isfinite(area))
+            return false;
+    }
+    *points = std::move(u);
     return true;
 }
 
-// Projects a chart's vertices onto the plane orthogonal to n (the starting
-// point of its conformal map, and its fallback): fills c->vertices and
-// c->points in first-use order, and each vertex's entry in local.
+// Sampling distortion of a flattened chart: over its faces, the largest
+// ratio of a direction's length on the surface to its length in the
+// chart's plane (the singular values of the face's Jacobian) against the
+// chart's mean scale, or its inverse.  A displacement map is as coarse as
+// its worst direction, so this bounds how much finer the map must be than
+// an undistorted one.
+double chartDistortion(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local)
+{
+    double area3 = 0.0, area2 = 0.0;
+    std::vector<std::pair<double, double>> sigma;
+    sigma.reserve(c.faces.size());
+    for (uint32_t f : c.faces) {
+        glm::dvec2 q[3];
+        if (!isometric(mesh, f, q))
+            continue;
+        glm::dvec2 w[3];
+        for (int k = 0; k < 3; ++k)
+            w[k] = c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
+        // J maps the chart's plane to the face's own: J = Q W^-1.
+        const glm::dvec2 w1 = w[1] - w[0], w2 = w[2] - w[0], q1 = q[1] - q[0], q2 = q[2] - q[0];
+        const double det = w1.x * w2.y - w1.y * w2.x;
+        if (!(det > 0.0))
+            return 1e300;
+        const double i00 = w2.y / det, i01 = -w2.x / det, i10 = -w1.y / det, i11 = w1.x / det;
+        const double a = q1.x * i00 + q2.x * i10, b = q1.x * i01 + q2.x * i11;
+        const double cc = q1.y * i00 + q2.y * i10, d = q1.y * i01 + q2.y * i11;
+        const double e = 0.5 * (a * a + b * b + cc * cc + d * d), g = std::fabs(a * d - b * cc);
+        const double root = std::sqrt(std::max(0.0, e * e - g * g));
+        sigma.push_back({std::sqrt(e + root), std::sqrt(std::max(0.0, e - root))});
+        area3 += 0.5 * (q1.x * q2.y - q1.y * q2.x);
+        area2 += 0.5 * det;
+    }
+    if (!(area2 > 0.0))
+        return 1e300;
+    const double mean = std::sqrt(area3 / area2);
+    double worst = 1.0;
+    for (const auto& s : sigma)
+        worst = std::max({worst, s.first / mean, s.second > 0.0 ? mean / s.second : 1e300});
+    return worst;
+}
+
+// Projects a chart's vertices onto the plane orthogonal to n (where its
+// conformal map starts): fills c->vertices and c->points in first-use
+// order, and each vertex's entry in local.
 void projectChart(Chart* c, const ControlMesh& mesh, const glm::dvec3& n, std::vector<int32_t>* local)
 {
     glm::dvec3 u, v;
@@ -268,29 +450,48 @@ void projectChart(Chart* c, const ControlMesh& mesh, const glm::dvec3& n, std::v
         }
 }
 
-// The largest linear scale of a face of a flattened chart (no face turned
-// over, as flattenConformal guarantees) against the chart's own, or its
-// inverse.
-double chartStretch(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
-                    const std::vector<double>& faceArea)
+// True when two border edges of a flattened chart that share no vertex
+// meet: a conformal map can be fold-free and still lap over itself.
+bool selfOverlaps(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local)
 {
-    double area3 = 0.0, area2 = 0.0;
-    std::vector<double> ratio;
-    for (uint32_t f : c.faces) {
-        glm::dvec2 w[3];
-        for (int k = 0; k < 3; ++k)
-            w[k] = c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
-        const double a2 = 0.5 * std::fabs((w[1].x - w[0].x) * (w[2].y - w[0].y) - (w[1].y - w[0].y) * (w[2].x - w[0].x));
-        area3 += faceArea[f];
-        area2 += a2;
-        ratio.push_back(faceArea[f] > 0.0 && a2 > 0.0 ? faceArea[f] / a2 : 1.0);
+    std::vector<uint64_t> edges;  // undirected, as (lower << 32) | higher local vertex
+    edges.reserve(3 * c.faces.size());
+    for (uint32_t f : c.faces)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t a = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+            const uint32_t b = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t((k + 1) % 3)]]);
+            edges.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
+        }
+    std::sort(edges.begin(), edges.end());
+    std::vector<std::array<uint32_t, 2>> border;  // the edges of one face only
+    for (size_t i = 0; i < edges.size();) {
+        size_t j = i;
+        while (j < edges.size() && edges[j] == edges[i])
+            ++j;
+        if (j - i == 1)
+            border.push_back({uint32_t(edges[i] >> 32), uint32_t(edges[i] & 0xffffffffu)});
+        i = j;
     }
-    double stretch = 1.0;
-    for (double r : ratio) {
-        const double sc = std::sqrt(r / (area3 / area2));
-        stretch = std::max(stretch, std::max(sc, 1.0 / sc));
+    auto orient = [](const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& p) {
+        const double d = (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
+        return d > 0.0 ? 1 : d < 0.0 ? -1 : 0;
+    };
+    for (size_t i = 0; i < border.size(); ++i) {
+        const glm::dvec2 a = c.points[border[i][0]], b = c.points[border[i][1]];
+        const glm::dvec2 lo = glm::min(a, b), hi = glm::max(a, b);
+        for (size_t j = i + 1; j < border.size(); ++j) {
+            if (border[j][0] == border[i][0] || border[j][0] == border[i][1] || border[j][1] == border[i][0] ||
+                border[j][1] == border[i][1])
+                continue;
+            const glm::dvec2 p = c.points[border[j][0]], q = c.points[border[j][1]];
+            if (std::max(p.x, q.x) < lo.x || std::min(p.x, q.x) > hi.x || std::max(p.y, q.y) < lo.y ||
+                std::min(p.y, q.y) > hi.y)
+                continue;
+            if (orient(a, b, p) * orient(a, b, q) <= 0 && orient(p, q, a) * orient(p, q, b) <= 0)
+                return true;
+        }
     }
-    return stretch;
+    return false;
 }
 
 // A chart's own scale: the common one, raised so that the chart spans at
@@ -554,7 +755,7 @@ Placement place(const Chart& c, const Occupancy& occupied, const ControlMesh& me
             }
         }
     };
-    parallelChunks(8, size >= 1024 ? threads : 1, [&](int, size_t begin, size_t end) {
+    parallelChunks(8, size >= 256 ? threads : 1, [&](int, size_t begin, size_t end) {
         for (size_t rotation = begin; rotation < end; ++rotation)
             tryOrientation(int(rotation));
     });
@@ -656,107 +857,58 @@ void growIntoGaps(std::vector<Chart>& charts, const std::vector<size_t>& order, 
     }
 }
 
-// Breadth-first growth leaves saw-toothed borders: faces that touch their
-// own chart along one edge and a neighbouring chart along two.  Each such
-// tooth moves to the neighbour (within the neighbour's cone, and only where
-// its own chart stays a disk: the tooth's free corner belongs to no other
-// face of it), a few passes, in face order.  Straighter borders pack
-// tighter and cut shorter seams.  Charts that change are flattened anew.
-void smoothChartBorders(const ControlMesh& mesh, const std::vector<std::array<uint32_t, 3>>& neighbour,
-                        const std::vector<glm::dvec3>& faceNormal, double cosWide, double cosNarrow,
-                        std::vector<Chart>* charts, std::vector<uint32_t>* chartOf)
+// Flattens a chart whose faces are set: projected on its normal's plane,
+// then conformal, then as rigid as possible.  True, with points and
+// distortion set, when the result is fold-free, does not lap over itself
+// and stays within kMaxDistortion.  `local` must be all -1 and is left so.
+bool flattenChart(Chart* c, const ControlMesh& mesh, std::vector<int32_t>* local)
 {
-    const size_t nf = mesh.faceCount();
-    std::vector<uint32_t> vertexFaceOffsets, vertexFaces;
-    buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, mesh.positions.size());
-    std::vector<uint8_t> changed(charts->size(), 0);
-    for (int pass = 0; pass < 4; ++pass) {
-        size_t moved = 0;
-        for (size_t f = 0; f < nf; ++f) {
-            const uint32_t a = (*chartOf)[f];
-            if (a == UINT32_MAX)
-                continue;
-            uint32_t other[3];
-            int own = 0, sharedEdge = -1;
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t g = neighbour[f][size_t(k)];
-                other[k] = g == UINT32_MAX ? UINT32_MAX : (*chartOf)[g];
-                if (other[k] == a) {
-                    ++own;
-                    sharedEdge = k;
-                }
-            }
-            if (own != 1)
-                continue;
-            uint32_t b = UINT32_MAX;
-            for (int k = 0; k < 3; ++k)
-                for (int l = k + 1; l < 3; ++l)
-                    if (other[k] != UINT32_MAX && other[k] != a && other[k] == other[l])
-                        b = other[k];
-            if (b == UINT32_MAX)
-                continue;
-            const Chart& target = (*charts)[b];
-            const double cone = target.conformal ? cosWide : cosNarrow;
-            if (glm::dot(glm::normalize(target.normal), faceNormal[f]) < cone)
-                continue;
-            // Edge k runs from corner k to corner k + 1: the free corner is
-            // the one off the edge shared with the own chart.
-            const uint32_t free = mesh.triangles[3 * f + size_t((sharedEdge + 2) % 3)];
-            bool alone = true;
-            for (uint32_t e = vertexFaceOffsets[free]; e < vertexFaceOffsets[free + 1] && alone; ++e)
-                alone = vertexFaces[e] == f || (*chartOf)[vertexFaces[e]] != a;
-            if (!alone)
-                continue;
-            (*chartOf)[f] = b;
-            changed[a] = changed[b] = 1;
-            ++moved;
-        }
-        if (!moved)
-            break;
+    c->vertices.clear();
+    c->points.clear();
+    projectChart(c, mesh, c->normal, local);
+    bool ok = true;
+    if (c->faces.size() == 1) {
+        glm::dvec2 q[3];
+        if (isometric(mesh, c->faces[0], q))  // a degenerate face keeps its projection
+            c->points.assign(q, q + 3);
+        c->distortion = 1.0;
+    } else {
+        const bool conformal = flattenConformal(*c, mesh, *local, &c->points);
+        ok = flattenRigid(*c, mesh, *local, &c->points, kRigidIterations) || conformal;
+        ok = ok && !selfOverlaps(*c, mesh, *local);
+        c->distortion = ok ? chartDistortion(*c, mesh, *local) : 1e300;
+        ok = ok && c->distortion <= kMaxDistortion;
     }
-    for (size_t c = 0; c < charts->size(); ++c)
-        if (changed[c]) {
-            Chart& chart = (*charts)[c];
-            chart.faces.clear();
-            chart.vertices.clear();
-            chart.points.clear();
-            chart.conformal = false;
-        }
-    for (size_t f = 0; f < nf; ++f) {
-        const uint32_t c = (*chartOf)[f];
-        if (c != UINT32_MAX && changed[c])
-            (*charts)[c].faces.push_back(uint32_t(f));
-    }
-    charts->erase(std::remove_if(charts->begin(), charts->end(), [](const Chart& c) { return c.faces.empty(); }),
-                  charts->end());
+    for (uint32_t v : c->vertices)
+        (*local)[v] = -1;
+    return ok;
 }
 
-// Grows, smooths, flattens and turns the charts of a mesh: everything of
-// the atlas that does not depend on the map size.
-Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector<Chart>* chartsOut,
-                  double* maxStretchOut, size_t* conformalChartsOut, double* areaOut)
+// Grows, flattens, straightens and turns the charts of a mesh: everything
+// of the atlas that does not depend on the map size (nor on `threads`).
+void makeCharts(const ControlMesh& mesh, int threads, std::vector<Chart>* chartsOut, double* maxDistortionOut,
+                double* areaOut)
 {
-    const ControlMesh* mesh = &meshIn;
-    const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
+    const size_t nf = mesh.faceCount(), nv = mesh.positions.size();
     std::vector<Chart>& charts = *chartsOut;
-    const double cosLimit = std::cos(maxAngleDegrees * 3.14159265358979 / 180.0);
     std::vector<glm::dvec3> faceNormal(nf);
     std::vector<double> faceArea(nf);
     for (size_t f = 0; f < nf; ++f) {
-        const glm::dvec3 a(mesh->positions[mesh->triangles[3 * f]]), b(mesh->positions[mesh->triangles[3 * f + 1]]),
-            c(mesh->positions[mesh->triangles[3 * f + 2]]);
+        const glm::dvec3 a(mesh.positions[mesh.triangles[3 * f]]), b(mesh.positions[mesh.triangles[3 * f + 1]]),
+            c(mesh.positions[mesh.triangles[3 * f + 2]]);
         const glm::dvec3 n = glm::cross(b - a, c - a);
         faceArea[f] = 0.5 * glm::length(n);
-        faceNormal[f] = faceArea[f] > 0.0 ? n / (2.0 * faceArea[f]) : glm::dvec3(0.0);
+        faceNormal[f] = faceArea[f] > 0.0 ? n / (2.0 * faceArea[f]) : glm::dvec3(0.0, 0.0, 1.0);
     }
     // Neighbours across manifold, consistently oriented edges only.
     std::vector<std::array<uint32_t, 3>> neighbour(nf, {UINT32_MAX, UINT32_MAX, UINT32_MAX});
     {
-        std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nf);  // (directed key, face * 3 + corner)
+        std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nf);  // (undirected key, face * 3 + corner)
         for (size_t f = 0; f < nf; ++f)
             for (int k = 0; k < 3; ++k) {
-                const uint32_t a = mesh->triangles[3 * f + size_t(k)], b = mesh->triangles[3 * f + size_t((k + 1) % 3)];
-                edges[3 * f + size_t(k)] = {(uint64_t(std::min(a, b)) << 32) | std::max(a, b), uint32_t(3 * f + size_t(k))};
+                const uint32_t a = mesh.triangles[3 * f + size_t(k)], b = mesh.triangles[3 * f + size_t((k + 1) % 3)];
+                const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+                edges[3 * f + size_t(k)] = {key, uint32_t(3 * f + size_t(k))};
             }
         std::sort(edges.begin(), edges.end());
         for (size_t i = 0; i < edges.size();) {
@@ -766,7 +918,7 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
             if (j - i == 2) {
                 const uint32_t e0 = edges[i].second, e1 = edges[i + 1].second;
                 const uint32_t f0 = e0 / 3, f1 = e1 / 3;
-                const bool opposite = mesh->triangles[e0] != mesh->triangles[e1];  // start vertices differ
+                const bool opposite = mesh.triangles[e0] != mesh.triangles[e1];  // start vertices differ
                 if (f0 != f1 && opposite) {
                     neighbour[f0][e0 % 3] = f1;
                     neighbour[f1][e1 % 3] = f0;
@@ -775,38 +927,28 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
             i = j;
         }
     }
-    // Grow charts: breadth first from the largest unassigned face.
     std::vector<uint32_t> chartOf(nf, UINT32_MAX);
-    std::vector<uint32_t> seeds(nf);
-    for (uint32_t f = 0; f < nf; ++f)
-        seeds[f] = f;
-    std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
     std::vector<uint32_t> vertexChart(nv, UINT32_MAX);  // the chart a vertex was last added to
-    // Grows chart `id` from `seed` breadth first over faces within the cone
-    // cosine `cosCone` of the seed's normal.
-    auto grow = [&](uint32_t seed, uint32_t id, double cosCone) {
+    // Chart `id` grown breadth first from `seed` over unassigned faces, up
+    // to `limit` faces, while it stays a disk (Euler characteristic 1): a
+    // face joins only if it adds as many vertices as edges less one, so it
+    // neither pinches the border at a vertex nor closes a loop.  Every
+    // prefix of its faces is a disk too.
+    auto grow = [&](uint32_t seed, uint32_t id, size_t limit) {
         Chart c;
-        std::vector<uint32_t> queue = {seed};
+        std::vector<uint32_t>& queue = c.faces;
+        queue.push_back(seed);
         chartOf[seed] = id;
         for (int k = 0; k < 3; ++k)
-            vertexChart[mesh->triangles[3 * size_t(seed) + size_t(k)]] = id;
-        c.normal = faceNormal[seed];
-        for (size_t q = 0; q < queue.size(); ++q) {
+            vertexChart[mesh.triangles[3 * size_t(seed) + size_t(k)]] = id;
+        for (size_t q = 0; q < queue.size() && queue.size() < limit; ++q) {
             const uint32_t f = queue[q];
-            c.faces.push_back(f);
             for (uint32_t g : neighbour[f]) {
-                if (g == UINT32_MAX || chartOf[g] != UINT32_MAX || faceArea[g] <= 0.0)
+                if (g == UINT32_MAX || chartOf[g] != UINT32_MAX || faceArea[g] <= 0.0 || queue.size() >= limit)
                     continue;
-                // Against the seed's normal, the plane the chart is projected
-                // on when the conformal map folds: no face flips there.
-                if (glm::dot(faceNormal[seed], faceNormal[g]) < cosCone)
-                    continue;
-                // The chart stays a disk (Euler characteristic 1): the face
-                // adds as many vertices as edges less one, so it neither
-                // pinches the border at a vertex nor closes a loop.
                 int newVertices = 0, newEdges = 0;
                 for (int k = 0; k < 3; ++k) {
-                    newVertices += vertexChart[mesh->triangles[3 * size_t(g) + size_t(k)]] != id;
+                    newVertices += vertexChart[mesh.triangles[3 * size_t(g) + size_t(k)]] != id;
                     const uint32_t across = neighbour[g][size_t(k)];
                     newEdges += across == UINT32_MAX || chartOf[across] != id;
                 }
@@ -814,74 +956,192 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
                     continue;
                 chartOf[g] = id;
                 for (int k = 0; k < 3; ++k)
-                    vertexChart[mesh->triangles[3 * size_t(g) + size_t(k)]] = id;
+                    vertexChart[mesh.triangles[3 * size_t(g) + size_t(k)]] = id;
                 queue.push_back(g);
             }
         }
         return c;
     };
-    // Largest area distortion of a chart's conformal map (a face's linear
-    // scale against the chart's, or its inverse); infinite where it folds.
-    std::vector<int32_t> probeLocal(nv, -1);
-    auto conformalStretch = [&](Chart& c) {
-        projectChart(&c, *mesh, glm::normalize(c.normal), &probeLocal);
-        c.conformal = flattenConformal(c, *mesh, probeLocal, &c.points);
-        const double stretch = c.conformal ? chartStretch(c, *mesh, probeLocal, faceArea) : 1e300;
-        for (uint32_t p : c.vertices)
-            probeLocal[p] = -1;
-        return stretch;
+    auto release = [&](const Chart& c, size_t from) {
+        for (size_t i = from; i < c.faces.size(); ++i)
+            chartOf[c.faces[i]] = UINT32_MAX;
+        if (from == 0)
+            for (uint32_t f : c.faces)
+                for (int k = 0; k < 3; ++k)
+                    vertexChart[mesh.triangles[3 * size_t(f) + size_t(k)]] = UINT32_MAX;
     };
-    // Each chart first grows over a wide cone and keeps it where its
-    // conformal map stays within kWideStretch; otherwise it grows again
-    // within maxAngleDegrees, where the projection is the fallback.  Fewer,
-    // larger charts: fewer gutters, fewer seams.
-    const double cosWide = std::cos(std::max(maxAngleDegrees, kWideAngleDegrees) * 3.14159265358979 / 180.0);
+    std::vector<int32_t> local(nv, -1);
+    auto normalOf = [&](const std::vector<uint32_t>& faces) {
+        glm::dvec3 sum(0.0);
+        for (uint32_t f : faces)
+            sum += faceArea[f] * faceNormal[f];
+        return glm::length(sum) > 0.0 ? glm::normalize(sum) : faceNormal[faces[0]];
+    };
+    // The first k faces of `grown` as a chart, if they flatten.
+    double totalArea = 0.0;
+    for (double a : faceArea)
+        totalArea += a;
+    auto prefix = [&](const Chart& grown, size_t k, Chart* out) {
+        Chart c;
+        c.faces.assign(grown.faces.begin(), grown.faces.begin() + std::ptrdiff_t(k));
+        double area = 0.0;
+        for (uint32_t f : c.faces)
+            area += faceArea[f];
+        if (k > 1 && area > kMaxChartShare * totalArea)
+            return false;
+        c.normal = normalOf(c.faces);
+        if (!flattenChart(&c, mesh, &local))
+            return false;
+        *out = std::move(c);
+        return true;
+    };
+    // Each chart, from the largest unassigned face, is the longest prefix of
+    // its breadth-first growth that flattens within kMaxDistortion (and
+    // kMaxChartShare): found by growing twice as large while it flattens (a
+    // flat region becomes one chart without every face being tried), then
+    // bisecting to within a sixteenth.  A single face always flattens.
+    std::vector<uint32_t> seeds(nf);
+    for (uint32_t f = 0; f < nf; ++f)
+        seeds[f] = f;
+    std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
     for (uint32_t seed : seeds) {
         if (chartOf[seed] != UINT32_MAX)
             continue;
         const uint32_t id = uint32_t(charts.size());
-        Chart c = grow(seed, id, cosWide);
-        if (cosWide < cosLimit && !(conformalStretch(c) <= kWideStretch)) {
-            for (uint32_t f : c.faces)
-                chartOf[f] = UINT32_MAX;
-            for (uint32_t f : c.faces)
-                for (int k = 0; k < 3; ++k)
-                    vertexChart[mesh->triangles[3 * size_t(f) + size_t(k)]] = UINT32_MAX;
-            c = grow(seed, id, cosLimit);  // a fresh chart: nothing flattened yet
+        Chart best, grown;
+        size_t good = 0;  // the longest prefix known to flatten
+        for (size_t limit = 16;; limit *= 2) {
+            grown = grow(seed, id, limit);
+            if (prefix(grown, grown.faces.size(), &best)) {
+                good = grown.faces.size();
+                if (good < limit)
+                    break;  // nothing left to grow into
+                release(grown, 0);
+                continue;
+            }
+            size_t bad = grown.faces.size();
+            while (bad - good > std::max<size_t>(1, good / 16)) {
+                const size_t mid = good + (bad - good) / 2;
+                (prefix(grown, mid, &best) ? good : bad) = mid;
+            }
+            if (good == 0) {
+                good = 1;
+                prefix(grown, 1, &best);
+            } else if (best.faces.size() != good) {
+                prefix(grown, good, &best);
+            }
+            break;
         }
-        charts.push_back(std::move(c));
+        release(grown, good);
+        charts.push_back(std::move(best));
     }
-    smoothChartBorders(*mesh, neighbour, faceNormal, cosWide, cosLimit, &charts, &chartOf);
-    // Project each chart onto its seed's plane: every face is within the
-    // angle limit of it, so none flips.
-    double maxStretch = 1.0;
-    size_t conformalCharts = 0;
-    std::vector<int32_t> local(nv, -1);
+    // Breadth-first borders are saw-toothed: faces that touch their own
+    // chart along one edge and another chart along two.  Each such tooth
+    // moves to the other chart (the tooth's free corner must belong to no
+    // other face of its own chart, which stays a disk), a few passes:
+    // straighter borders pack tighter, and every move takes one vertex off
+    // the seams.  The charts a pass changed are flattened again, and the
+    // moves into or out of one that no longer flattens are undone, until
+    // those left all flatten.
+    std::vector<uint32_t> vertexFaceOffsets, vertexFaces;
+    buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, nv);
+    for (size_t i = 0; i < charts.size(); ++i)
+        for (uint32_t f : charts[i].faces)
+            chartOf[f] = uint32_t(i);
+    // The chart face f would move to as a tooth, or UINT32_MAX.
+    auto toothTarget = [&](uint32_t f) {
+        const uint32_t a = chartOf[f];
+        int own = 0, sharedEdge = -1;
+        uint32_t other[3];
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t g = neighbour[f][size_t(k)];
+            other[k] = g == UINT32_MAX ? UINT32_MAX : chartOf[g];
+            if (other[k] == a) {
+                ++own;
+                sharedEdge = k;
+            }
+        }
+        if (own != 1)
+            return UINT32_MAX;
+        uint32_t b = UINT32_MAX;
+        for (int k = 0; k < 3; ++k)
+            for (int l = k + 1; l < 3; ++l)
+                if (other[k] != UINT32_MAX && other[k] != a && other[k] == other[l])
+                    b = other[k];
+        if (b == UINT32_MAX)
+            return UINT32_MAX;
+        // Edge k runs from corner k to corner k + 1: the free corner is the
+        // one off the edge shared with the own chart.
+        const uint32_t free = mesh.triangles[3 * size_t(f) + size_t((sharedEdge + 2) % 3)];
+        for (uint32_t e = vertexFaceOffsets[free]; e < vertexFaceOffsets[free + 1]; ++e)
+            if (vertexFaces[e] != f && chartOf[vertexFaces[e]] == a)
+                return UINT32_MAX;
+        return b;
+    };
+    struct Move {
+        uint32_t face, from, to;
+    };
+    for (int pass = 0; pass < 4; ++pass) {
+        std::vector<Move> moves;
+        for (uint32_t f = 0; f < nf; ++f) {
+            const uint32_t a = chartOf[f], b = toothTarget(f);
+            if (b != UINT32_MAX) {
+                chartOf[f] = b;
+                moves.push_back({f, a, b});
+            }
+        }
+        if (moves.empty())
+            break;
+        const std::vector<Chart> before = charts;
+        std::vector<uint8_t> bad(charts.size(), 0);
+        for (;;) {
+            std::vector<uint8_t> changed(charts.size(), 0);
+            for (const Move& m : moves)
+                changed[m.from] = changed[m.to] = 1;
+            for (size_t c = 0; c < charts.size(); ++c)
+                if (changed[c])
+                    charts[c].faces.clear();
+            for (uint32_t f = 0; f < nf; ++f)
+                if (changed[chartOf[f]])
+                    charts[chartOf[f]].faces.push_back(f);
+            // Each changed chart flattened on its own (charts are independent).
+            std::vector<uint32_t> redo;
+            for (size_t c = 0; c < charts.size(); ++c)
+                if (changed[c])
+                    redo.push_back(uint32_t(c));
+            parallelChunks(redo.size(), threads, [&](int, size_t begin, size_t end) {
+                std::vector<int32_t> scratch(begin < end ? nv : 0, -1);
+                for (size_t i = begin; i < end; ++i) {
+                    Chart& c = charts[redo[i]];
+                    c.normal = normalOf(c.faces);
+                    if (!flattenChart(&c, mesh, &scratch))
+                        bad[redo[i]] = 1;
+                }
+            });
+            bool failed = false;
+            for (uint32_t c : redo)
+                failed = failed || bad[c];
+            if (!failed)
+                break;
+            std::vector<Move> kept;
+            for (const Move& m : moves)
+                if (bad[m.from] || bad[m.to])
+                    chartOf[m.face] = m.from;
+                else
+                    kept.push_back(m);
+            moves.swap(kept);
+            for (size_t c = 0; c < charts.size(); ++c)
+                if (changed[c])
+                    charts[c] = before[c];  // flattened again if a kept move still changes it
+        }
+        if (moves.empty())
+            break;
+    }
+    // Each chart turned to its smallest bounding box (5-degree steps), lying
+    // down: shelves pack better.
+    double maxDistortion = 1.0;
     for (Chart& c : charts) {
-        glm::dvec3 n = glm::length(c.normal) > 0.0 ? glm::normalize(c.normal) : glm::dvec3(0, 0, 1);
-        for (uint32_t f : c.faces) {
-            const double d = glm::dot(n, faceNormal[f]);
-            if (faceArea[f] > 0.0 && !(d > 0.05))
-                return Status(StatusCode::InvalidData, "a chart folds over itself");
-        }
-        if (c.conformal) {
-            // A wide chart keeps the conformal map its growth was judged by.
-            for (size_t i = 0; i < c.vertices.size(); ++i)
-                local[c.vertices[i]] = int32_t(i);
-        } else {
-            projectChart(&c, *mesh, n, &local);
-        }
-        // Conformal where it does not fold (far less stretch on curved
-        // charts), the projection otherwise.
-        if (c.conformal || flattenConformal(c, *mesh, local, &c.points)) {
-            ++conformalCharts;
-            maxStretch = std::max(maxStretch, chartStretch(c, *mesh, local, faceArea));
-        } else {
-            for (uint32_t f : c.faces)
-                if (faceArea[f] > 0.0)
-                    maxStretch = std::max(maxStretch, 1.0 / glm::dot(n, faceNormal[f]));
-        }
-        // The rotation with the smallest bounding box, in 5-degree steps.
+        maxDistortion = std::max(maxDistortion, c.distortion);
         double bestArea = 1e300, bestAngle = 0.0;
         for (int step = 0; step < 18; ++step) {
             const double t = double(step) * 3.14159265358979 / 36.0, cs = std::cos(t), sn = std::sin(t);
@@ -905,11 +1165,9 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
             c.lo = glm::min(c.lo, p);
             c.hi = glm::max(c.hi, p);
         }
-        if (c.hi.y - c.lo.y > c.hi.x - c.lo.x) {  // tall boxes lie down: shelves pack better
+        if (c.hi.y - c.lo.y > c.hi.x - c.lo.x) {
             for (glm::dvec2& p : c.points)
                 p = glm::dvec2(p.y, -p.x);
-            c.lo = glm::dvec2(c.lo.y, -c.hi.x);
-            c.hi = glm::dvec2(c.hi.y, -c.lo.x);
             c.lo = glm::dvec2(1e300);
             c.hi = glm::dvec2(-1e300);
             for (const glm::dvec2& p : c.points) {
@@ -917,15 +1175,9 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
                 c.hi = glm::max(c.hi, p);
             }
         }
-        for (uint32_t p : c.vertices)
-            local[p] = -1;
     }
-    *maxStretchOut = maxStretch;
-    *conformalChartsOut = conformalCharts;
-    *areaOut = 0.0;
-    for (size_t f = 0; f < nf; ++f)
-        *areaOut += faceArea[f];
-    return Status::ok();
+    *maxDistortionOut = maxDistortion;
+    *areaOut = totalArea;
 }
 
 }  // namespace
@@ -933,10 +1185,8 @@ Status makeCharts(const ControlMesh& meshIn, double maxAngleDegrees, std::vector
 struct ChartCache::Impl {
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> triangles;
-    double maxAngleDegrees = 0.0;
     std::vector<Chart> charts;
-    double maxStretch = 1.0;
-    size_t conformalCharts = 0;
+    double maxDistortion = 1.0;
     double area = 0.0;
 };
 
@@ -945,8 +1195,7 @@ ChartCache::~ChartCache() = default;
 ChartCache::ChartCache(ChartCache&&) noexcept = default;
 ChartCache& ChartCache::operator=(ChartCache&&) noexcept = default;
 
-Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, double maxAngleDegrees,
-                       ChartCache* cache)
+Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, ChartCache* cache)
 {
     const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
     if (nf == 0)
@@ -955,28 +1204,22 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
     std::vector<int32_t> local(nv, -1);
     const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
-                        cache->impl->triangles == mesh->triangles && cache->impl->maxAngleDegrees == maxAngleDegrees;
+                        cache->impl->triangles == mesh->triangles;
     std::vector<Chart> charts;
-    double maxStretch = 1.0, chartArea = 0.0;
-    size_t conformalCharts = 0;
+    double maxDistortion = 1.0, chartArea = 0.0;
     if (cached) {
         charts = cache->impl->charts;
-        maxStretch = cache->impl->maxStretch;
-        conformalCharts = cache->impl->conformalCharts;
+        maxDistortion = cache->impl->maxDistortion;
         chartArea = cache->impl->area;
     } else {
-        Status made = makeCharts(*mesh, maxAngleDegrees, &charts, &maxStretch, &conformalCharts, &chartArea);
-        if (!made)
-            return made;
+        makeCharts(*mesh, options.threads, &charts, &maxDistortion, &chartArea);
         if (cache) {
             if (!cache->impl)
                 cache->impl = std::make_unique<ChartCache::Impl>();
             cache->impl->positions = mesh->positions;
             cache->impl->triangles = mesh->triangles;
-            cache->impl->maxAngleDegrees = maxAngleDegrees;
             cache->impl->charts = charts;
-            cache->impl->maxStretch = maxStretch;
-            cache->impl->conformalCharts = conformalCharts;
+            cache->impl->maxDistortion = maxDistortion;
             cache->impl->area = chartArea;
         }
     }
@@ -990,27 +1233,37 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return std::max(ea.x, ea.y) > std::max(eb.x, eb.y);
     });
     const int size = options.mapSize, g = options.gutter;
-    std::vector<Placement> placements;
+    std::vector<Placement> placements, trial;
+    // Packs at `scale`; on success keeps the placement (the largest scale
+    // that packs is always the last success).
+    auto packs = [&](double scale) {
+        if (!pack(charts, order, *mesh, local, scale, g, size, options.threads, &trial))
+            return false;
+        placements.swap(trial);
+        return true;
+    };
     double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
-    while (pack(charts, order, *mesh, local, hi, g, size, options.threads, &placements)) {
+    while (packs(hi)) {
         lo = hi;
         hi *= 1.25;
     }
     if (lo == 0.0) {
         lo = hi;
-        for (int tries = 0;
-             tries < 40 && !pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements); ++tries)
+        for (int tries = 0; !packs(lo); ++tries) {
+            if (tries == 40)
+                return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
+                                                               std::to_string(charts.size()) +
+                                                               " charts; use a larger map");
             lo *= 0.8;
-        if (!pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements))
-            return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
-                                                           std::to_string(charts.size()) + " charts; use a larger map");
+        }
         hi = lo / 0.8;
     }
     for (int step = 0; step < 6; ++step) {
         const double mid = 0.5 * (lo + hi);
-        (pack(charts, order, *mesh, local, mid, g, size, options.threads, &placements) ? lo : hi) = mid;
+        (packs(mid) ? lo : hi) = mid;
     }
-    pack(charts, order, *mesh, local, lo, g, size, options.threads, &placements);  // the final placement
+    for (Chart& c : charts)
+        c.scaleX = chartScale(c, lo);  // as the kept placement packed them
     for (int pass = 0; pass < (options.growIntoGaps ? kGrowthPasses : 0); ++pass)
         growIntoGaps(charts, order, placements, *mesh, local, g, size, options.threads);
     // UVs: one value per (chart, vertex); faces index them.
@@ -1043,8 +1296,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     if (stats) {
         stats->charts = charts.size();
         stats->texelFill = projected;
-        stats->maxStretch = maxStretch;
-        stats->conformalCharts = conformalCharts;
+        stats->maxDistortion = maxDistortion;
     }
     return Status::ok();
 }

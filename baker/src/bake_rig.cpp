@@ -613,9 +613,9 @@ void BakeJob::prepare()
     forced = options.size > 0;
     size = options.size;
     if (uvMode == "auto") {
-        // A chart atlas (charts grown over the control mesh, projected on
-        // their planes, packed); the per-triangle atlas only if a chart
-        // would fold.
+        // A chart atlas (charts grown over the control mesh, flattened,
+        // packed); the per-triangle atlas only where the charts do not fit
+        // the map.
         if (!forced) {
             if (!(st = layout(512)))  // provisional layout to measure the UV area (scale-free)
                 throw BakeError(st.message());
@@ -788,10 +788,11 @@ void BakeJob::searchMapSize()
         atlasVertices = control.uvs.size();
         char buf[240];
         if (chartStats.charts)
-            std::snprintf(buf, sizeof(buf), "chart atlas: %zu charts, %.0f%% of texels inside charts, stretch <= %.2f",
-                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxStretch);
+            std::snprintf(buf, sizeof(buf),
+                          "chart atlas: %zu charts, %.0f%% of texels inside charts, distortion <= %.2f",
+                          chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxDistortion);
         else
-            std::snprintf(buf, sizeof(buf), "per-triangle atlas (a chart would fold)");
+            std::snprintf(buf, sizeof(buf), "per-triangle atlas (the charts did not fit the map)");
         atlasNote = buf;
         std::snprintf(buf, sizeof(buf), ", %zu vertices once split at its seams (%.2fx)", atlasVertices,
                       double(atlasVertices) / double(std::max<size_t>(1, control.positions.size())));
@@ -998,8 +999,7 @@ void BakeJob::writeReport()
                            {"splitVertices", atlasVertices}};
         if (chartStats.charts) {
             report["atlas"]["texelFill"] = chartStats.texelFill;
-            report["atlas"]["maxStretch"] = chartStats.maxStretch;
-            report["atlas"]["conformalCharts"] = chartStats.conformalCharts;
+            report["atlas"]["maxDistortion"] = chartStats.maxDistortion;
         }
     }
     report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
@@ -1089,7 +1089,7 @@ Status BakeJob::layout(int mapSize)
 {
     atlas.mapSize = mapSize;
     control = bare;
-    Status s = buildChartAtlas(&control, atlas, &chartStats, 60.0, &chartCache);
+    Status s = buildChartAtlas(&control, atlas, &chartStats, &chartCache);
     if (!s) {
         control = bare;
         AtlasOptions triangles = atlas;

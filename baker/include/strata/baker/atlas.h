@@ -28,33 +28,33 @@ Status buildTriangleAtlas(ControlMesh* mesh, const AtlasOptions& options);
 
 struct ChartAtlasStats {
     size_t charts = 0;
-    double texelFill = 0.0;     ///< fraction of the map's area inside charts
-    /// Largest linear scale of a face against its chart's (or its inverse):
-    /// 1 / cos(angle to the plane) for a projected chart.
-    double maxStretch = 0.0;
-    size_t conformalCharts = 0;  ///< charts flattened conformally (the rest projected)
+    double texelFill = 0.0;  ///< fraction of the map's area inside charts
+    /// The largest sampling distortion of a chart's flattening: over its
+    /// faces, the most a direction on the surface is stretched or shrunk in
+    /// the map against the chart's mean scale (at most 2).
+    double maxDistortion = 0.0;
 };
 
-/// Replaces mesh.uvs / mesh.uvIndices with a chart atlas: faces are grown
-/// from the largest remaining face across manifold edges while the chart
-/// stays a disk (Euler characteristic 1) and their normals stay within 85
-/// degrees of the seed's, kept where the chart's conformal map scales no
-/// face's area by more than 1.5 (linear) against the chart's; otherwise the
-/// chart grows again within `maxAngleDegrees`.  Each chart is flattened by a least-squares
-/// conformal map (Levy et al. 2002), or, where that would fold, projected
-/// onto the seed's plane (which cannot fold); turned to its smallest bounding
-/// box, and the charts' footprints (`options.gutter` texels around them) are
-/// packed into a texel occupancy map (a chart may drop into a hole under
-/// another), in eight orientations (turned by quarters and mirrored), at the
-/// largest common scale that fits `options.mapSize` (small charts get at
-/// least 6 texels a side).  With `options.growIntoGaps`, each chart,
-/// smallest first, is then put back at the largest scale up to twice its
-/// own that still fits among the others (two passes), so the pack's gaps
-/// sample the surface more finely.  No chart is sampled more coarsely than
-/// the common scale, and no texel a bilinear sample inside one chart reads
-/// is read from inside another.
+/// Replaces mesh.uvs / mesh.uvIndices with a chart atlas.  Each chart grows
+/// breadth first from the largest remaining face across manifold edges
+/// while it stays a disk (Euler characteristic 1), and is the longest
+/// prefix of that growth whose flattening stays within a sampling
+/// distortion of 2: its least-squares conformal map (Levy et al. 2002)
+/// refined as rigid as possible (Liu et al. 2008), fold-free and not lapping
+/// over itself.  Faces whose border is saw-toothed (one edge on their chart,
+/// two on another) then move where both charts still flatten.  Each chart is
+/// turned to its smallest bounding box, and the charts' footprints
+/// (`options.gutter` texels around them) are packed into a texel occupancy
+/// map (a chart may drop into a hole under another), in eight orientations
+/// (turned by quarters and mirrored), at the largest common scale that fits
+/// `options.mapSize` (small charts get at least 6 texels a side).  With
+/// `options.growIntoGaps`, each chart, smallest first, is then put back at
+/// the largest scale up to twice its own that still fits among the others
+/// (two passes), so the pack's gaps sample the surface more finely.  No
+/// chart is sampled more coarsely than the common scale, and no texel a
+/// bilinear sample inside one chart reads is read from inside another.
 /// Vertices are split only on chart borders.  Fails (and leaves the mesh as
-/// it was) if a chart would fold over itself; callers fall back to
+/// it was) when the charts do not fit the map; callers fall back to
 /// buildTriangleAtlas.
 /// The charts of a mesh (grown, flattened, turned) do not depend on the map
 /// size: buildChartAtlas calls on the same mesh (the same positions and
@@ -70,7 +70,7 @@ public:
 };
 
 Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats = nullptr,
-                       double maxAngleDegrees = 60.0, ChartCache* cache = nullptr);
+                       ChartCache* cache = nullptr);
 
 }  // namespace baker
 }  // namespace strata
