@@ -5,6 +5,7 @@
 
 #include "parallel.h"
 
+#include <Eigen/Sparse>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <tuple>
 #include <vector>
 #include <string>
 
@@ -76,11 +78,18 @@ namespace {
 // in texels than the chart's mean scale gives it.
 constexpr double kMaxDistortion = 2.0;
 constexpr int kRigidIterations = 8;
-// The largest share of the surface's area one chart may take.  The bound
-// alone lets a sphere be two hemispheres, and two discs fill at most 54% of
-// a square map: a chart that large leaves the packer too few pieces to fill
-// its box's corners.  Quarters make a sphere six charts, which fill 72%.
+// The largest share of the surface's area a chart may grow to (border
+// teeth may then add a face or two).  The distortion bound alone makes a
+// sphere two large charts, which fill 52% of a square map (two discs fill at
+// most 54%); grown to quarters it is seven, which fill 73%.  A cage that
+// large charts cover well may pack best that way, so where the share binds
+// the atlas is laid out both ways and the one with more texels inside
+// charts is kept.
 constexpr double kMaxChartShare = 0.25;
+// The most faces one chart may have, which bounds a try's sparse
+// factorisations: a dense cage's flat regions are cut into charts this
+// large.
+constexpr size_t kMaxChartFaces = 65536;
 
 struct Chart {
     std::vector<uint32_t> faces;
@@ -119,39 +128,17 @@ bool isometric(const ControlMesh& mesh, uint32_t f, glm::dvec2 q[3])
     return true;
 }
 
-// Least-squares conformal map (Levy et al. 2002) of one disk-shaped chart,
-// started from its projection `points` and solved by conjugate gradients on
-// the normal equations with the two farthest-apart vertices pinned where the
-// projection put them: the start of its rigid flattening.  Overwrites
-// points; false when the map folds (a face turned over).
+// Least-squares conformal map (Levy et al. 2002) of one disk-shaped chart:
+// the two vertices farthest apart in its projection `points` stay where
+// the projection put them, the rest solve the normal equations (a sparse
+// Cholesky factorisation).  Overwrites points; false when the map folds (a
+// face turned clockwise) or cannot be solved.
 bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
                       std::vector<glm::dvec2>* points)
 {
-    const size_t n = c.vertices.size(), m = c.faces.size();
+    const size_t n = c.vertices.size();
     if (n < 3)
         return false;
-    // Per face: local vertex ids and the complex weights W_j = a_j + i b_j.
-    struct Row {
-        uint32_t v[3];
-        double a[3], b[3];
-    };
-    std::vector<Row> rows;
-    rows.reserve(m);
-    for (uint32_t f : c.faces) {
-        Row r;
-        glm::dvec2 q[3];
-        if (!isometric(mesh, f, q))
-            continue;
-        for (int k = 0; k < 3; ++k)
-            r.v[k] = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
-        const double w = 1.0 / std::sqrt(q[1].x * q[2].y);  // 1 / sqrt(twice the area)
-        for (int k = 0; k < 3; ++k) {
-            const glm::dvec2 d = q[(k + 2) % 3] - q[(k + 1) % 3];
-            r.a[k] = d.x * w;
-            r.b[k] = d.y * w;
-        }
-        rows.push_back(r);
-    }
     // Pins: the two vertices farthest apart in the projection.
     size_t p0 = 0, p1 = 0;
     {
@@ -170,106 +157,74 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
     }
     if (p0 == p1)
         return false;
-    std::vector<double> x(2 * n);  // u then v
-    for (size_t i = 0; i < n; ++i) {
-        x[i] = (*points)[i].x;
-        x[n + i] = (*points)[i].y;
-    }
-    auto pinned = [&](size_t i) { return i == p0 || i == p1; };
-    // y = A x over all variables; z = A^T y restricted to free ones.
-    auto applyA = [&](const std::vector<double>& in, std::vector<double>& out) {
-        for (size_t r = 0; r < rows.size(); ++r) {
-            double re = 0.0, im = 0.0;
-            for (int k = 0; k < 3; ++k) {
-                const double u = in[rows[r].v[k]], v = in[n + rows[r].v[k]];
-                re += rows[r].a[k] * u - rows[r].b[k] * v;
-                im += rows[r].b[k] * u + rows[r].a[k] * v;
+    // Unknowns: u then v of every free vertex.
+    std::vector<int> column(n, -1);
+    int free = 0;
+    for (size_t i = 0; i < n; ++i)
+        if (i != p0 && i != p1)
+            column[i] = free++;
+    // Per face, the complex weights W_k = a_k + i b_k of its conformality
+    // residual sum_k W_k (u_k + i v_k), over sqrt(twice its area): two
+    // real rows of A.
+    std::vector<Eigen::Triplet<double>> entries;
+    std::vector<double> rhs;
+    entries.reserve(12 * c.faces.size());
+    int row = 0;
+    for (uint32_t f : c.faces) {
+        glm::dvec2 q[3];
+        if (!isometric(mesh, f, q))
+            continue;
+        const double w = 1.0 / std::sqrt(q[1].x * q[2].y);
+        double fixedRe = 0.0, fixedIm = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec2 d = (q[(k + 2) % 3] - q[(k + 1) % 3]) * w;
+            const size_t v = size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+            if (column[v] < 0) {
+                const glm::dvec2 x = (*points)[v];
+                fixedRe += d.x * x.x - d.y * x.y;
+                fixedIm += d.y * x.x + d.x * x.y;
+                continue;
             }
-            out[2 * r] = re;
-            out[2 * r + 1] = im;
+            entries.emplace_back(row, column[v], d.x);
+            entries.emplace_back(row, free + column[v], -d.y);
+            entries.emplace_back(row + 1, column[v], d.y);
+            entries.emplace_back(row + 1, free + column[v], d.x);
         }
-    };
-    auto applyAt = [&](const std::vector<double>& in, std::vector<double>& out) {
-        std::fill(out.begin(), out.end(), 0.0);
-        for (size_t r = 0; r < rows.size(); ++r)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t i = rows[r].v[k];
-                out[i] += rows[r].a[k] * in[2 * r] + rows[r].b[k] * in[2 * r + 1];
-                out[n + i] += -rows[r].b[k] * in[2 * r] + rows[r].a[k] * in[2 * r + 1];
-            }
-        for (size_t i : {p0, p1}) {
-            out[i] = 0.0;
-            out[n + i] = 0.0;
-        }
-    };
-    // Conjugate gradients on A^T A x = 0 with the pins fixed, preconditioned
-    // by A^T A's diagonal (the same for u and v): the residual is -A^T A x,
-    // and the search never moves the pins.
-    std::vector<double> diag(n, 0.0);
-    for (const Row& row : rows)
-        for (int k = 0; k < 3; ++k)
-            diag[row.v[k]] += row.a[k] * row.a[k] + row.b[k] * row.b[k];
-    for (double& e : diag)
-        e = e > 0.0 ? 1.0 / e : 1.0;
-    std::vector<double> r(2 * n), z(2 * n), d(2 * n), q(2 * n), t(2 * rows.size());
-    applyA(x, t);
-    applyAt(t, r);
-    double rz = 0.0, rr = 0.0;
-    for (size_t i = 0; i < 2 * n; ++i) {
-        r[i] = -r[i];
-        z[i] = r[i] * diag[i % n];
-        rz += r[i] * z[i];
-        rr += r[i] * r[i];
+        rhs.push_back(-fixedRe);
+        rhs.push_back(-fixedIm);
+        row += 2;
     }
-    d = z;
-    const double stop = rr * 1e-10;
-    for (int iter = 0; iter < 4 * int(n) + 200 && rr > stop && rz > 0.0; ++iter) {
-        applyA(d, t);
-        applyAt(t, q);
-        double dq = 0.0;
-        for (size_t i = 0; i < 2 * n; ++i)
-            dq += d[i] * q[i];
-        if (!(dq > 0.0))
-            break;
-        const double alpha = rz / dq;
-        double rz2 = 0.0, rr2 = 0.0;
-        for (size_t i = 0; i < 2 * n; ++i) {
-            x[i] += alpha * d[i];
-            r[i] -= alpha * q[i];
-            z[i] = r[i] * diag[i % n];
-            rz2 += r[i] * z[i];
-            rr2 += r[i] * r[i];
-        }
-        const double beta = rz2 / rz;
-        rz = rz2;
-        rr = rr2;
-        for (size_t i = 0; i < 2 * n; ++i)
-            d[i] = pinned(i % n) ? 0.0 : z[i] + beta * d[i];
-    }
+    Eigen::SparseMatrix<double> a(row, 2 * free);
+    a.setFromTriplets(entries.begin(), entries.end());
+    const Eigen::SparseMatrix<double> normal = Eigen::SparseMatrix<double>(a.transpose()) * a;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+    if (solver.info() != Eigen::Success)
+        return false;
+    const Eigen::VectorXd x = solver.solve(a.transpose() * Eigen::Map<const Eigen::VectorXd>(rhs.data(), row));
+    if (solver.info() != Eigen::Success)
+        return false;
+    for (size_t i = 0; i < n; ++i)
+        if (column[i] >= 0)
+            (*points)[i] = glm::dvec2(x[column[i]], x[free + column[i]]);
     // A fold: a face turned clockwise.
-    bool folded = false;
     for (uint32_t f : c.faces) {
         glm::dvec2 u[3];
-        for (int k = 0; k < 3; ++k) {
-            const size_t i = size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
-            u[k] = glm::dvec2(x[i], x[n + i]);
-        }
+        for (int k = 0; k < 3; ++k)
+            u[k] = (*points)[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
         const double area = (u[1].x - u[0].x) * (u[2].y - u[0].y) - (u[1].y - u[0].y) * (u[2].x - u[0].x);
-        folded = folded || !(area > 0.0) || !std::isfinite(area);
+        if (!(area > 0.0) || !std::isfinite(area))
+            return false;
     }
-    for (size_t i = 0; i < n; ++i)
-        (*points)[i] = glm::dvec2(x[i], x[n + i]);
-    return !folded;
+    return true;
 }
 
 // As-rigid-as-possible flattening (Liu et al. 2008) of a disk chart, from
-// a fold-free start (its conformal map): alternately the rotation closest
-// to each face's Jacobian, and the cotangent-weighted least-squares
-// positions given those rotations (conjugate gradients, one vertex
-// pinned).  A conformal map of a wide curved chart shrinks its rim; this
-// one trades a little angle for area, so a chart can cover far more of
-// the surface at the same sampling.  Returns false (points untouched) when
-// the result folds.
+// its conformal map: alternately the rotation closest to each face's
+// Jacobian, and the cotangent-weighted least-squares positions given those
+// rotations (one vertex pinned; the Laplacian factorised once).  A conformal
+// map of a wide curved chart shrinks its rim; this one trades a little angle
+// for area, so a chart can cover far more of the surface at the same
+// sampling.  Returns false (points untouched) when the result folds.
 bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local,
                   std::vector<glm::dvec2>* points, int iterations)
 {
@@ -277,7 +232,7 @@ bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int
     struct Face {
         uint32_t v[3];
         glm::dvec2 q[3];
-        double w[3];  // cotangent of the angle at corner k: the weight of the opposite edge
+        double w[3];  // half the cotangent of the angle at corner k: the weight of the opposite edge
     };
     std::vector<Face> faces;
     faces.reserve(c.faces.size());
@@ -288,97 +243,72 @@ bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int
         for (int k = 0; k < 3; ++k) {
             t.v[k] = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
             const glm::dvec2 a = t.q[(k + 1) % 3] - t.q[k], b = t.q[(k + 2) % 3] - t.q[k];
-            const double cross = a.x * b.y - a.y * b.x;
-            t.w[k] = 0.5 * glm::dot(a, b) / cross;
+            t.w[k] = 0.5 * glm::dot(a, b) / (a.x * b.y - a.y * b.x);
         }
         faces.push_back(t);
     }
     if (n < 3 || faces.empty())
         return false;
-    std::vector<glm::dvec2> u(*points), b(n), r(n), z(n), d(n), q(n);
-    std::vector<double> diag(n, 0.0);
+    // The Laplacian over every vertex but the pinned one (vertex 0).
+    const uint32_t pin = 0;
+    auto column = [&](uint32_t v) { return int(v) - 1; };
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(12 * faces.size());
     for (const Face& t : faces)
         for (int k = 0; k < 3; ++k) {
-            diag[t.v[(k + 1) % 3]] += t.w[k];
-            diag[t.v[(k + 2) % 3]] += t.w[k];
-        }
-    for (double& e : diag)
-        e = e > 1e-12 ? 1.0 / e : 1.0;
-    const uint32_t pin = 0;
-    auto apply = [&](const std::vector<glm::dvec2>& in, std::vector<glm::dvec2>& out) {
-        std::fill(out.begin(), out.end(), glm::dvec2(0.0));
-        for (const Face& t : faces)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t i = t.v[(k + 1) % 3], j = t.v[(k + 2) % 3];
-                const glm::dvec2 e = t.w[k] * (in[i] - in[j]);
-                out[i] += e;
-                out[j] -= e;
+            const uint32_t i = t.v[(k + 1) % 3], j = t.v[(k + 2) % 3];
+            for (uint32_t x : {i, j})
+                if (x != pin)
+                    entries.emplace_back(column(x), column(x), t.w[k]);
+            if (i != pin && j != pin) {
+                entries.emplace_back(column(i), column(j), -t.w[k]);
+                entries.emplace_back(column(j), column(i), -t.w[k]);
             }
-        out[pin] = glm::dvec2(0.0);
-    };
-    std::vector<double> cs(faces.size()), sn(faces.size());
+        }
+    Eigen::SparseMatrix<double> laplacian(int(n) - 1, int(n) - 1);
+    laplacian.setFromTriplets(entries.begin(), entries.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(laplacian);
+    if (solver.info() != Eigen::Success)
+        return false;
+    std::vector<glm::dvec2> u(*points);
+    Eigen::MatrixXd b(int(n) - 1, 2);
     for (int it = 0; it < iterations; ++it) {
-        // Local step: each face's closest rotation.
-        for (size_t f = 0; f < faces.size(); ++f) {
-            const Face& t = faces[f];
-            double a = 0.0, bb = 0.0, cc = 0.0, dd = 0.0;  // S = sum w (u_i - u_j)(q_i - q_j)^T
+        b.setZero();
+        for (const Face& t : faces) {
+            // Local step: the rotation closest to the face's Jacobian, from
+            // S = sum w (u_i - u_j)(q_i - q_j)^T.
+            double s00 = 0.0, s01 = 0.0, s10 = 0.0, s11 = 0.0;
             for (int k = 0; k < 3; ++k) {
                 const int i = (k + 1) % 3, j = (k + 2) % 3;
                 const glm::dvec2 du = u[t.v[i]] - u[t.v[j]], dq = t.q[i] - t.q[j];
-                a += t.w[k] * du.x * dq.x;
-                bb += t.w[k] * du.x * dq.y;
-                cc += t.w[k] * du.y * dq.x;
-                dd += t.w[k] * du.y * dq.y;
+                s00 += t.w[k] * du.x * dq.x;
+                s01 += t.w[k] * du.x * dq.y;
+                s10 += t.w[k] * du.y * dq.x;
+                s11 += t.w[k] * du.y * dq.y;
             }
-            const double angle = std::atan2(cc - bb, a + dd);
-            cs[f] = std::cos(angle);
-            sn[f] = std::sin(angle);
-        }
-        // Global step: L u = b.
-        std::fill(b.begin(), b.end(), glm::dvec2(0.0));
-        for (size_t f = 0; f < faces.size(); ++f) {
-            const Face& t = faces[f];
+            const double angle = std::atan2(s10 - s01, s00 + s11), cs = std::cos(angle), sn = std::sin(angle);
+            // Global step's right-hand side: each edge's rotated rest vector.
             for (int k = 0; k < 3; ++k) {
                 const uint32_t i = t.v[(k + 1) % 3], j = t.v[(k + 2) % 3];
                 const glm::dvec2 dq = t.q[(k + 1) % 3] - t.q[(k + 2) % 3];
-                const glm::dvec2 e = t.w[k] * glm::dvec2(cs[f] * dq.x - sn[f] * dq.y, sn[f] * dq.x + cs[f] * dq.y);
-                b[i] += e;
-                b[j] -= e;
+                const glm::dvec2 e = t.w[k] * glm::dvec2(cs * dq.x - sn * dq.y, sn * dq.x + cs * dq.y);
+                for (const auto& [x, y, sign] : {std::make_tuple(i, j, 1.0), std::make_tuple(j, i, -1.0)}) {
+                    if (x == pin)
+                        continue;
+                    b(column(x), 0) += sign * e.x;
+                    b(column(x), 1) += sign * e.y;
+                    if (y == pin) {  // the pinned neighbour's known position
+                        b(column(x), 0) += t.w[k] * u[pin].x;
+                        b(column(x), 1) += t.w[k] * u[pin].y;
+                    }
+                }
             }
         }
-        b[pin] = glm::dvec2(0.0);
-        apply(u, q);
-        double rz = 0.0, rr0 = 0.0;
-        for (size_t i = 0; i < n; ++i) {
-            r[i] = b[i] - q[i];
-            z[i] = r[i] * diag[i];
-            rz += glm::dot(r[i], z[i]);
-            rr0 += glm::dot(r[i], r[i]);
-        }
-        d = z;
-        double rr = rr0;
-        for (int cg = 0; cg < 2 * int(n) + 50 && rr > 1e-10 * rr0 && rz > 0.0; ++cg) {
-            apply(d, q);
-            double dq = 0.0;
-            for (size_t i = 0; i < n; ++i)
-                dq += glm::dot(d[i], q[i]);
-            if (!(dq > 0.0))
-                break;
-            const double alpha = rz / dq;
-            double rz2 = 0.0;
-            rr = 0.0;
-            for (size_t i = 0; i < n; ++i) {
-                u[i] += alpha * d[i];
-                r[i] -= alpha * q[i];
-                z[i] = r[i] * diag[i];
-                rz2 += glm::dot(r[i], z[i]);
-                rr += glm::dot(r[i], r[i]);
-            }
-            const double beta = rz2 / rz;
-            rz = rz2;
-            for (size_t i = 0; i < n; ++i)
-                d[i] = i == pin ? glm::dvec2(0.0) : z[i] + beta * d[i];
-        }
+        const Eigen::MatrixXd x = solver.solve(b);
+        if (solver.info() != Eigen::Success)
+            return false;
+        for (uint32_t v = 1; v < n; ++v)
+            u[v] = glm::dvec2(x(column(v), 0), x(column(v), 1));
     }
     for (const Face& t : faces) {
         const glm::dvec2 a = u[t.v[1]] - u[t.v[0]], bb = u[t.v[2]] - u[t.v[0]];
@@ -886,11 +816,12 @@ bool flattenChart(Chart* c, const ControlMesh& mesh, std::vector<int32_t>* local
 
 // Grows, flattens, straightens and turns the charts of a mesh: everything
 // of the atlas that does not depend on the map size (nor on `threads`).
-void makeCharts(const ControlMesh& mesh, int threads, std::vector<Chart>* chartsOut, double* maxDistortionOut,
-                double* areaOut)
+void makeCharts(const ControlMesh& mesh, int threads, double maxShare, std::vector<Chart>* chartsOut,
+                double* maxDistortionOut, bool* shareBoundOut)
 {
     const size_t nf = mesh.faceCount(), nv = mesh.positions.size();
     std::vector<Chart>& charts = *chartsOut;
+    *shareBoundOut = false;
     std::vector<glm::dvec3> faceNormal(nf);
     std::vector<double> faceArea(nf);
     for (size_t f = 0; f < nf; ++f) {
@@ -987,8 +918,10 @@ void makeCharts(const ControlMesh& mesh, int threads, std::vector<Chart>* charts
         double area = 0.0;
         for (uint32_t f : c.faces)
             area += faceArea[f];
-        if (k > 1 && area > kMaxChartShare * totalArea)
+        if (k > 1 && maxShare < 1.0 && area > maxShare * totalArea) {
+            *shareBoundOut = true;
             return false;
+        }
         c.normal = normalOf(c.faces);
         if (!flattenChart(&c, mesh, &local))
             return false;
@@ -1010,12 +943,12 @@ void makeCharts(const ControlMesh& mesh, int threads, std::vector<Chart>* charts
         const uint32_t id = uint32_t(charts.size());
         Chart best, grown;
         size_t good = 0;  // the longest prefix known to flatten
-        for (size_t limit = 16;; limit *= 2) {
+        for (size_t limit = 16;; limit = std::min(2 * limit, kMaxChartFaces)) {
             grown = grow(seed, id, limit);
             if (prefix(grown, grown.faces.size(), &best)) {
                 good = grown.faces.size();
-                if (good < limit)
-                    break;  // nothing left to grow into
+                if (good < limit || limit == kMaxChartFaces)
+                    break;  // nothing left to grow into, or as large as a chart may be
                 release(grown, 0);
                 continue;
             }
@@ -1177,54 +1110,28 @@ void makeCharts(const ControlMesh& mesh, int threads, std::vector<Chart>* charts
         }
     }
     *maxDistortionOut = maxDistortion;
-    *areaOut = totalArea;
 }
 
 }  // namespace
 
-struct ChartCache::Impl {
-    std::vector<glm::vec3> positions;
-    std::vector<uint32_t> triangles;
+namespace {
+
+// A mesh's charts, grown under one share of the surface.
+struct ChartSet {
     std::vector<Chart> charts;
     double maxDistortion = 1.0;
-    double area = 0.0;
 };
 
-ChartCache::ChartCache() = default;
-ChartCache::~ChartCache() = default;
-ChartCache::ChartCache(ChartCache&&) noexcept = default;
-ChartCache& ChartCache::operator=(ChartCache&&) noexcept = default;
-
-Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, ChartCache* cache)
+// Packs the charts into an options.mapSize map (the largest common scale
+// that fits: bracket, then bisect; then, with options.growIntoGaps, each
+// chart put back larger where it fits) and writes the UVs they give: one
+// per (chart, vertex), which faces index.  `fill`: the fraction of the map
+// inside charts.
+Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const AtlasOptions& options, double area,
+                    std::vector<glm::vec2>* uvsOut, std::vector<uint32_t>* uvIndicesOut, double* fill)
 {
-    const size_t nf = mesh->faceCount(), nv = mesh->positions.size();
-    if (nf == 0)
-        return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
-    if (options.mapSize < 8 || options.gutter < 1)
-        return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
-    std::vector<int32_t> local(nv, -1);
-    const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
-                        cache->impl->triangles == mesh->triangles;
-    std::vector<Chart> charts;
-    double maxDistortion = 1.0, chartArea = 0.0;
-    if (cached) {
-        charts = cache->impl->charts;
-        maxDistortion = cache->impl->maxDistortion;
-        chartArea = cache->impl->area;
-    } else {
-        makeCharts(*mesh, options.threads, &charts, &maxDistortion, &chartArea);
-        if (cache) {
-            if (!cache->impl)
-                cache->impl = std::make_unique<ChartCache::Impl>();
-            cache->impl->positions = mesh->positions;
-            cache->impl->triangles = mesh->triangles;
-            cache->impl->charts = charts;
-            cache->impl->maxDistortion = maxDistortion;
-            cache->impl->area = chartArea;
-        }
-    }
-    // The largest common scale (texels per model unit) that packs: bracket,
-    // then bisect.
+    const size_t nf = mesh.faceCount();
+    std::vector<int32_t> local(mesh.positions.size(), -1);
     std::vector<size_t> order(charts.size());
     for (size_t i = 0; i < order.size(); ++i)
         order[i] = i;
@@ -1237,12 +1144,12 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     // Packs at `scale`; on success keeps the placement (the largest scale
     // that packs is always the last success).
     auto packs = [&](double scale) {
-        if (!pack(charts, order, *mesh, local, scale, g, size, options.threads, &trial))
+        if (!pack(charts, order, mesh, local, scale, g, size, options.threads, &trial))
             return false;
         placements.swap(trial);
         return true;
     };
-    double lo = 0.0, hi = chartArea > 0.0 ? std::sqrt(double(size) * double(size) / chartArea) : 1.0;
+    double lo = 0.0, hi = area > 0.0 ? std::sqrt(double(size) * double(size) / area) : 1.0;
     while (packs(hi)) {
         lo = hi;
         hi *= 1.25;
@@ -1265,10 +1172,11 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     for (Chart& c : charts)
         c.scaleX = chartScale(c, lo);  // as the kept placement packed them
     for (int pass = 0; pass < (options.growIntoGaps ? kGrowthPasses : 0); ++pass)
-        growIntoGaps(charts, order, placements, *mesh, local, g, size, options.threads);
-    // UVs: one value per (chart, vertex); faces index them.
-    std::vector<glm::vec2> uvs;
-    std::vector<uint32_t> uvIndices(3 * nf);
+        growIntoGaps(charts, order, placements, mesh, local, g, size, options.threads);
+    std::vector<glm::vec2>& uvs = *uvsOut;
+    std::vector<uint32_t>& uvIndices = *uvIndicesOut;
+    uvs.clear();
+    uvIndices.assign(3 * nf, 0);
     const double inv = 1.0 / double(size);
     for (size_t i = 0; i < charts.size(); ++i) {
         const Chart& c = charts[i];
@@ -1279,24 +1187,106 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
             uvs.emplace_back(float(t.x * inv), float(t.y * inv));
         }
         setLocal(c, &local, true);
-        for (uint32_t f : c.faces) {
+        for (uint32_t f : c.faces)
             for (int k = 0; k < 3; ++k)
-                uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh->triangles[3 * size_t(f) + size_t(k)]]);
-        }
+                uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
         setLocal(c, &local, false);
     }
     // Area inside charts in texels (projected area <= true area).
-    double projected = 0.0;
+    *fill = 0.0;
     for (size_t f = 0; f < nf; ++f) {
         const glm::vec2 a = uvs[uvIndices[3 * f]], b = uvs[uvIndices[3 * f + 1]], c = uvs[uvIndices[3 * f + 2]];
-        projected += 0.5 * std::fabs(double((b - a).x * (c - a).y - (b - a).y * (c - a).x));
+        *fill += 0.5 * std::fabs(double((b - a).x * (c - a).y - (b - a).y * (c - a).x));
     }
-    mesh->uvs = std::move(uvs);
-    mesh->uvIndices = std::move(uvIndices);
+    return Status::ok();
+}
+
+}  // namespace
+
+struct ChartCache::Impl {
+    std::vector<glm::vec3> positions;
+    std::vector<uint32_t> triangles;
+    std::vector<ChartSet> sets;
+    int chosen = -1;  // the set the first layout kept, or -1
+};
+
+ChartCache::ChartCache() = default;
+ChartCache::~ChartCache() = default;
+ChartCache::ChartCache(ChartCache&&) noexcept = default;
+ChartCache& ChartCache::operator=(ChartCache&&) noexcept = default;
+
+Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, ChartCache* cache)
+{
+    const size_t nf = mesh->faceCount();
+    if (nf == 0)
+        return Status(StatusCode::InvalidArgument, "cannot build an atlas for a mesh without faces");
+    if (options.mapSize < 8 || options.gutter < 1)
+        return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
+    const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
+                        cache->impl->triangles == mesh->triangles;
+    std::vector<ChartSet> sets;
+    int chosen = -1;
+    if (cached) {
+        sets = cache->impl->sets;
+        chosen = cache->impl->chosen;
+    } else {
+        // Under kMaxChartShare; whole charts as well where the share bound.
+        sets.emplace_back();
+        bool bound = false;
+        makeCharts(*mesh, options.threads, kMaxChartShare, &sets[0].charts, &sets[0].maxDistortion, &bound);
+        if (bound) {
+            sets.emplace_back();
+            makeCharts(*mesh, options.threads, 1.0, &sets[1].charts, &sets[1].maxDistortion, &bound);
+        }
+        if (cache) {
+            if (!cache->impl)
+                cache->impl = std::make_unique<ChartCache::Impl>();
+            cache->impl->positions = mesh->positions;
+            cache->impl->triangles = mesh->triangles;
+            cache->impl->sets = sets;
+            cache->impl->chosen = -1;
+        }
+    }
+    double area = 0.0;
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::vec3 a = mesh->positions[mesh->triangles[3 * f]], b = mesh->positions[mesh->triangles[3 * f + 1]],
+                        c = mesh->positions[mesh->triangles[3 * f + 2]];
+        area += 0.5 * glm::length(glm::cross(glm::dvec3(b - a), glm::dvec3(c - a)));
+    }
+    // Each set laid out; the one with the most texels inside charts kept
+    // (the first on a tie).  A cache remembers the choice for the cage's
+    // other sizes: how well charts pack hardly depends on the size.
+    Status first;
+    bool tried = false;
+    double bestFill = -1.0;
+    size_t best = 0;
+    std::vector<glm::vec2> uvs, bestUVs;
+    std::vector<uint32_t> uvIndices, bestIndices;
+    for (size_t i = 0; i < sets.size(); ++i) {
+        if (chosen >= 0 && i != size_t(chosen))
+            continue;
+        double fill = 0.0;
+        Status st = layoutCharts(sets[i].charts, *mesh, options, area, &uvs, &uvIndices, &fill);
+        if (!tried)
+            first = st;
+        tried = true;
+        if (st && fill > bestFill) {
+            bestFill = fill;
+            best = i;
+            bestUVs.swap(uvs);
+            bestIndices.swap(uvIndices);
+        }
+    }
+    if (bestFill < 0.0)
+        return first;
+    if (cache && cache->impl && chosen < 0 && sets.size() > 1)
+        cache->impl->chosen = int(best);
+    mesh->uvs = std::move(bestUVs);
+    mesh->uvIndices = std::move(bestIndices);
     if (stats) {
-        stats->charts = charts.size();
-        stats->texelFill = projected;
-        stats->maxDistortion = maxDistortion;
+        stats->charts = sets[best].charts.size();
+        stats->texelFill = bestFill;
+        stats->maxDistortion = sets[best].maxDistortion;
     }
     return Status::ok();
 }

@@ -38,27 +38,32 @@ struct ChartAtlasStats {
 /// Replaces mesh.uvs / mesh.uvIndices with a chart atlas.  Each chart grows
 /// breadth first from the largest remaining face across manifold edges
 /// while it stays a disk (Euler characteristic 1), and is the longest
-/// prefix of that growth whose flattening stays within a sampling
-/// distortion of 2: its least-squares conformal map (Levy et al. 2002)
-/// refined as rigid as possible (Liu et al. 2008), fold-free and not lapping
-/// over itself.  Faces whose border is saw-toothed (one edge on their chart,
-/// two on another) then move where both charts still flatten.  Each chart is
-/// turned to its smallest bounding box, and the charts' footprints
-/// (`options.gutter` texels around them) are packed into a texel occupancy
-/// map (a chart may drop into a hole under another), in eight orientations
-/// (turned by quarters and mirrored), at the largest common scale that fits
-/// `options.mapSize` (small charts get at least 6 texels a side).  With
-/// `options.growIntoGaps`, each chart, smallest first, is then put back at
-/// the largest scale up to twice its own that still fits among the others
-/// (two passes), so the pack's gaps sample the surface more finely.  No
-/// chart is sampled more coarsely than the common scale, and no texel a
-/// bilinear sample inside one chart reads is read from inside another.
+/// prefix of that growth, up to a quarter of the surface and 65536 faces,
+/// whose flattening stays within a sampling distortion of 2: its
+/// least-squares conformal map (Levy et al. 2002) refined as rigid as
+/// possible (Liu et al. 2008), both solved by sparse Cholesky (Eigen),
+/// fold-free and not lapping over itself.  Faces whose border is
+/// saw-toothed (one edge on their chart, two on another) then move where
+/// both charts still flatten.  Where the quarter bound a chart, the charts
+/// are grown again without it, both are laid out, and the layout with more
+/// of the map inside charts is kept.  Each chart is turned to its smallest
+/// bounding box, and the charts' footprints (`options.gutter` texels around
+/// them) are packed into a texel occupancy map (a chart may drop into a hole
+/// under another), in eight orientations (turned by quarters and mirrored),
+/// at the largest common scale that fits `options.mapSize` (small charts get
+/// at least 6 texels a side).  With `options.growIntoGaps`, each chart,
+/// smallest first, is then put back at the largest scale up to twice its
+/// own that still fits among the others (two passes), so the pack's gaps
+/// sample the surface more finely.  No chart is sampled more coarsely than
+/// the common scale, and no texel a bilinear sample inside one chart reads
+/// is read from inside another.
 /// Vertices are split only on chart borders.  Fails (and leaves the mesh as
 /// it was) when the charts do not fit the map; callers fall back to
 /// buildTriangleAtlas.
 /// The charts of a mesh (grown, flattened, turned) do not depend on the map
 /// size: buildChartAtlas calls on the same mesh (the same positions and
-/// triangles) at several sizes that share a cache make them once.
+/// triangles) at several sizes that share a cache make them once, and keep
+/// the first call's choice between the two growths.
 class ChartCache {
 public:
     ChartCache();
