@@ -640,7 +640,7 @@ struct Placement {
 // its eight orientations its top ends lowest, at the lowest row every one
 // of its columns is free (holes under earlier charts included); ties go to
 // the lower orientation, then the lower column.  The orientations are tried
-// on `threads` threads from a size of 1024 up, each pruning against the best
+// on `threads` threads from a size of 256 up, each pruning against the best
 // top any has found (ties allowed, so the lower orientation still wins
 // them): the same placement for any thread count.  `local` must map the
 // chart's vertices to their entries.
