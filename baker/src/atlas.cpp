@@ -814,26 +814,31 @@ bool flattenChart(Chart* c, const ControlMesh& mesh, std::vector<int32_t>* local
     return ok;
 }
 
-// Grows, flattens, straightens and turns the charts of a mesh: everything
-// of the atlas that does not depend on the map size (nor on `threads`).
-void makeCharts(const ControlMesh& mesh, int threads, double maxShare, std::vector<Chart>* chartsOut,
-                double* maxDistortionOut, bool* shareBoundOut)
-{
-    const size_t nf = mesh.faceCount(), nv = mesh.positions.size();
-    std::vector<Chart>& charts = *chartsOut;
-    *shareBoundOut = false;
-    std::vector<glm::dvec3> faceNormal(nf);
-    std::vector<double> faceArea(nf);
-    for (size_t f = 0; f < nf; ++f) {
-        const glm::dvec3 a(mesh.positions[mesh.triangles[3 * f]]), b(mesh.positions[mesh.triangles[3 * f + 1]]),
-            c(mesh.positions[mesh.triangles[3 * f + 2]]);
-        const glm::dvec3 n = glm::cross(b - a, c - a);
-        faceArea[f] = 0.5 * glm::length(n);
-        faceNormal[f] = faceArea[f] > 0.0 ? n / (2.0 * faceArea[f]) : glm::dvec3(0.0, 0.0, 1.0);
-    }
-    // Neighbours across manifold, consistently oriented edges only.
-    std::vector<std::array<uint32_t, 3>> neighbour(nf, {UINT32_MAX, UINT32_MAX, UINT32_MAX});
+// What chart growth needs of a mesh, whichever share bounds it: per face
+// its unit normal, area and neighbours (across manifold, consistently
+// oriented edges only), and each vertex's faces.
+struct ChartMesh {
+    std::vector<glm::dvec3> faceNormal;
+    std::vector<double> faceArea;
+    double totalArea = 0.0;
+    std::vector<std::array<uint32_t, 3>> neighbour;
+    std::vector<uint32_t> vertexFaceOffsets, vertexFaces;
+
+    explicit ChartMesh(const ControlMesh& mesh)
     {
+        const size_t nf = mesh.faceCount();
+        faceNormal.resize(nf);
+        faceArea.resize(nf);
+        for (size_t f = 0; f < nf; ++f) {
+            const glm::dvec3 a(mesh.positions[mesh.triangles[3 * f]]), b(mesh.positions[mesh.triangles[3 * f + 1]]),
+                c(mesh.positions[mesh.triangles[3 * f + 2]]);
+            const glm::dvec3 n = glm::cross(b - a, c - a);
+            faceArea[f] = 0.5 * glm::length(n);
+            faceNormal[f] = faceArea[f] > 0.0 ? n / (2.0 * faceArea[f]) : glm::dvec3(0.0, 0.0, 1.0);
+        }
+        for (double a : faceArea)
+            totalArea += a;
+        neighbour.assign(nf, {UINT32_MAX, UINT32_MAX, UINT32_MAX});
         std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nf);  // (undirected key, face * 3 + corner)
         for (size_t f = 0; f < nf; ++f)
             for (int k = 0; k < 3; ++k) {
@@ -857,7 +862,24 @@ void makeCharts(const ControlMesh& mesh, int threads, double maxShare, std::vect
             }
             i = j;
         }
+        buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, mesh.positions.size());
     }
+};
+
+// Grows, flattens, straightens and turns the charts of a mesh: everything
+// of the atlas that does not depend on the map size (nor on `threads`).
+void makeCharts(const ControlMesh& mesh, const ChartMesh& geometry, int threads, double maxShare,
+                std::vector<Chart>* chartsOut, double* maxDistortionOut, bool* shareBoundOut)
+{
+    const size_t nf = mesh.faceCount(), nv = mesh.positions.size();
+    std::vector<Chart>& charts = *chartsOut;
+    *shareBoundOut = false;
+    const std::vector<glm::dvec3>& faceNormal = geometry.faceNormal;
+    const std::vector<double>& faceArea = geometry.faceArea;
+    const double totalArea = geometry.totalArea;
+    const std::vector<std::array<uint32_t, 3>>& neighbour = geometry.neighbour;
+    const std::vector<uint32_t>& vertexFaceOffsets = geometry.vertexFaceOffsets;
+    const std::vector<uint32_t>& vertexFaces = geometry.vertexFaces;
     std::vector<uint32_t> chartOf(nf, UINT32_MAX);
     std::vector<uint32_t> vertexChart(nv, UINT32_MAX);  // the chart a vertex was last added to
     // Chart `id` grown breadth first from `seed` over unassigned faces, up
@@ -909,9 +931,6 @@ void makeCharts(const ControlMesh& mesh, int threads, double maxShare, std::vect
         return glm::length(sum) > 0.0 ? glm::normalize(sum) : faceNormal[faces[0]];
     };
     // The first k faces of `grown` as a chart, if they flatten.
-    double totalArea = 0.0;
-    for (double a : faceArea)
-        totalArea += a;
     auto prefix = [&](const Chart& grown, size_t k, Chart* out) {
         Chart c;
         c.faces.assign(grown.faces.begin(), grown.faces.begin() + std::ptrdiff_t(k));
@@ -976,8 +995,6 @@ void makeCharts(const ControlMesh& mesh, int threads, double maxShare, std::vect
     // the seams.  The charts a pass changed are flattened again, and the
     // moves into or out of one that no longer flattens are undone, until
     // those left all flatten.
-    std::vector<uint32_t> vertexFaceOffsets, vertexFaces;
-    buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, nv);
     for (size_t i = 0; i < charts.size(); ++i)
         for (uint32_t f : charts[i].faces)
             chartOf[f] = uint32_t(i);
@@ -1188,8 +1205,8 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
         }
         setLocal(c, &local, true);
         for (uint32_t f : c.faces)
-            for (int k = 0; k < 3; ++k)
-                uvIndices[3 * size_t(f) + size_t(k)] = base + uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
+            for (size_t k = 0; k < 3; ++k)
+                uvIndices[3 * size_t(f) + k] = base + uint32_t(local[mesh.triangles[3 * size_t(f) + k]]);
         setLocal(c, &local, false);
     }
     // Area inside charts in texels (projected area <= true area).
@@ -1206,6 +1223,7 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
 struct ChartCache::Impl {
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> triangles;
+    double area = 0.0;
     std::vector<ChartSet> sets;
     int chosen = -1;  // the set the first layout kept, or -1
 };
@@ -1224,35 +1242,34 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return Status(StatusCode::InvalidArgument, "atlas map size must be at least 8 and the gutter at least 1");
     const bool cached = cache && cache->impl && cache->impl->positions == mesh->positions &&
                         cache->impl->triangles == mesh->triangles;
-    std::vector<ChartSet> sets;
-    int chosen = -1;
-    if (cached) {
-        sets = cache->impl->sets;
-        chosen = cache->impl->chosen;
-    } else {
+    ChartCache scratch;  // holds the charts when no cache is given
+    ChartCache& store = cache ? *cache : scratch;
+    if (!cached) {
         // Under kMaxChartShare; whole charts as well where the share bound.
-        sets.emplace_back();
+        const ChartMesh geometry(*mesh);
+        store.impl = std::make_unique<ChartCache::Impl>();
+        ChartCache::Impl& made = *store.impl;
+        made.positions = mesh->positions;
+        made.triangles = mesh->triangles;
+        for (size_t f = 0; f < nf; ++f) {  // the packer's area: from the float edge vectors
+            const uint32_t* t = &mesh->triangles[3 * f];
+            const glm::vec3 a = mesh->positions[t[0]], b = mesh->positions[t[1]], c = mesh->positions[t[2]];
+            made.area += 0.5 * glm::length(glm::cross(glm::dvec3(b - a), glm::dvec3(c - a)));
+        }
+        made.sets.emplace_back();
         bool bound = false;
-        makeCharts(*mesh, options.threads, kMaxChartShare, &sets[0].charts, &sets[0].maxDistortion, &bound);
+        makeCharts(*mesh, geometry, options.threads, kMaxChartShare, &made.sets[0].charts, &made.sets[0].maxDistortion,
+                   &bound);
         if (bound) {
-            sets.emplace_back();
-            makeCharts(*mesh, options.threads, 1.0, &sets[1].charts, &sets[1].maxDistortion, &bound);
-        }
-        if (cache) {
-            if (!cache->impl)
-                cache->impl = std::make_unique<ChartCache::Impl>();
-            cache->impl->positions = mesh->positions;
-            cache->impl->triangles = mesh->triangles;
-            cache->impl->sets = sets;
-            cache->impl->chosen = -1;
+            made.sets.emplace_back();
+            makeCharts(*mesh, geometry, options.threads, 1.0, &made.sets[1].charts, &made.sets[1].maxDistortion,
+                       &bound);
         }
     }
-    double area = 0.0;
-    for (size_t f = 0; f < nf; ++f) {
-        const glm::vec3 a = mesh->positions[mesh->triangles[3 * f]], b = mesh->positions[mesh->triangles[3 * f + 1]],
-                        c = mesh->positions[mesh->triangles[3 * f + 2]];
-        area += 0.5 * glm::length(glm::cross(glm::dvec3(b - a), glm::dvec3(c - a)));
-    }
+    ChartCache::Impl& charts = *store.impl;
+    const std::vector<ChartSet>& sets = charts.sets;
+    const int chosen = charts.chosen;
+    const double area = charts.area;
     // Each set laid out; the one with the most texels inside charts kept
     // (the first on a tie).  A cache remembers the choice for the cage's
     // other sizes: how well charts pack hardly depends on the size.
@@ -1279,8 +1296,8 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     }
     if (bestFill < 0.0)
         return first;
-    if (cache && cache->impl && chosen < 0 && sets.size() > 1)
-        cache->impl->chosen = int(best);
+    if (chosen < 0 && sets.size() > 1)
+        charts.chosen = int(best);
     mesh->uvs = std::move(bestUVs);
     mesh->uvIndices = std::move(bestIndices);
     if (stats) {
