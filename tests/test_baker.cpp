@@ -521,6 +521,42 @@ TEST(Atlas, DevelopableSurfaceUnfoldsIsometrically)
     EXPECT_GT(stats.texelFill, 0.7);
 }
 
+// A chart only a texel or two across is stretched across its short side to
+// six texels (bilinear samples inside it then read texels it covers), not
+// scaled up whole: a sliver face beside a square keeps close to the
+// square's texels per unit along its length.  Scaled up whole, this one
+// would be about seven times as long as the square's scale makes it and
+// would crowd the map.
+TEST(Atlas, ThinChartIsStretchedAcrossOnly)
+{
+    ControlMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {3, 0, 0}, {4, 0, 0}, {3.5f, 0.005f, 0}};
+    mesh.triangles = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    AtlasOptions options;
+    options.mapSize = 256;
+    options.gutter = 1;
+    ChartAtlasStats stats;
+    ASSERT_TRUE(buildChartAtlas(&mesh, options, &stats).isOk());
+    ASSERT_TRUE(checkUVs(mesh, 256).isOk());
+    ASSERT_EQ(stats.charts, 2u);
+    auto texels = [&](size_t f, int k) {  // UV length of face f's edge k, in texels
+        const glm::dvec2 a = glm::dvec2(mesh.uvs[mesh.uvIndices[3 * f + size_t(k)]]),
+                         b = glm::dvec2(mesh.uvs[mesh.uvIndices[3 * f + size_t((k + 1) % 3)]]);
+        return 256.0 * glm::length(a - b);
+    };
+    const double square = texels(0, 0);  // edge (0,0,0)-(1,0,0): texels per unit
+    const double along = texels(2, 0);   // the sliver's unit-long edge
+    // Its height: twice its area over its long edge, in texels.
+    const glm::dvec2 a = glm::dvec2(mesh.uvs[mesh.uvIndices[6]]), b = glm::dvec2(mesh.uvs[mesh.uvIndices[7]]),
+                     c = glm::dvec2(mesh.uvs[mesh.uvIndices[8]]);
+    const double across = 256.0 * std::fabs((b - a).x * (c - a).y - (b - a).y * (c - a).x) / glm::length(b - a);
+    EXPECT_GT(square, 100.0);
+    EXPECT_GE(across, 6.0 - 1e-3);
+    // Packing may grow either chart into free space, up to twice its scale.
+    EXPECT_LT(along, 2.0 * square + 1e-6) << across;
+    EXPECT_GT(along, 0.5 * square - 1e-6) << across;
+}
+
 // Straight chart borders on the built-in head (its relief breaks the
 // surface into many charts): few faces touch their own chart along one edge
 // and one other chart along both others, the teeth breadth-first growth
