@@ -1193,12 +1193,18 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     const size_t nf = mesh.faceCount();
     std::vector<int32_t> local(mesh.positions.size(), -1);
     const int size = options.mapSize, g = options.gutter;
+    // Charts are packed into the map with a gutter's margin around it: a
+    // footprint may reach into the margin, the chart itself never (it lies
+    // g + 1/2 texels inside its footprint).  The sampler clamps to the edge,
+    // so no sample reads a texel there; the map's own border texels are not
+    // spent on gutters.
+    const int span = size + 2 * g;
     const std::vector<std::vector<size_t>> orders = packingOrders(charts);
     std::vector<Placement> placements, trial;
     size_t used = 0;
     // Packs orders[k] at `scale`; on success keeps the placement.
     auto packs = [&](size_t k, double scale) {
-        if (!pack(charts, orders[k], mesh, local, scale, g, size, options.threads, &trial))
+        if (!pack(charts, orders[k], mesh, local, scale, g, span, options.threads, &trial))
             return false;
         placements.swap(trial);
         used = k;
@@ -1244,7 +1250,7 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     for (Chart& c : charts)
         setChartScale(&c, lo);  // as the kept placement packed them
     for (int pass = 0; pass < (options.growIntoGaps ? kGrowthPasses : 0); ++pass)
-        growIntoGaps(charts, orders[used], placements, mesh, local, g, size, options.threads);
+        growIntoGaps(charts, orders[used], placements, mesh, local, g, span, options.threads);
     std::vector<glm::vec2>& uvs = *uvsOut;
     std::vector<uint32_t>& uvIndices = *uvIndicesOut;
     uvs.clear();
@@ -1255,7 +1261,7 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
         const Placement& at = placements[i];
         const uint32_t base = uint32_t(uvs.size());
         for (const glm::dvec2& p : c.points) {
-            const glm::dvec2 t = placed(c, p, c.scaleX, at.rotation, g) + glm::dvec2(double(at.x), double(at.y));
+            const glm::dvec2 t = placed(c, p, c.scaleX, at.rotation, g) + glm::dvec2(double(at.x - g), double(at.y - g));
             uvs.emplace_back(float(t.x * inv), float(t.y * inv));
         }
         setLocal(c, &local, true);

@@ -51,7 +51,10 @@ struct ChartAtlasStats {
 /// them) are packed into a texel occupancy map (a chart may drop into a hole
 /// under another), in eight orientations (turned by quarters and mirrored),
 /// at the largest common scale that fits `options.mapSize` (small charts get
-/// at least 6 texels a side).  With `options.growIntoGaps`, each chart,
+/// at least 6 texels along, and are stretched to 6 across), in whichever
+/// of eight chart orders packs at the largest scale.  A footprint may reach
+/// a gutter past the map's edge (the sampler clamps to it; the chart itself
+/// stays inside).  With `options.growIntoGaps`, each chart,
 /// smallest first, is then put back at the largest scale up to twice its
 /// own that still fits among the others (two passes), so the pack's gaps
 /// sample the surface more finely.  No chart is sampled more coarsely than
