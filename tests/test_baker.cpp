@@ -385,8 +385,8 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
 {
     // A sphere of 1280 triangles: disk charts, each the largest breadth-first
     // growth whose rigid flattening keeps every direction's sampling within
-    // 2x of the chart's mean, flattened without flips, packed without
-    // overlaps.
+    // kChartMaxDistortion of the chart's mean, flattened without flips,
+    // packed without overlaps.
     ControlMesh sphere = examples::makeIcosphere(3);
     sphere.uvs.clear();
     sphere.uvIndices.clear();
@@ -398,8 +398,8 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     EXPECT_GT(stats.charts, 1u);  // a closed surface is no disk
     EXPECT_LT(stats.charts, sphere.faceCount() / 8);
     EXPECT_GE(stats.maxDistortion, 1.0);
-    EXPECT_LE(stats.maxDistortion, 2.0) << stats.maxDistortion;
-    EXPECT_GT(stats.texelFill, 0.7);  // 73%: seven charts grown to at most a quarter of the sphere
+    EXPECT_LE(stats.maxDistortion, kChartMaxDistortion) << stats.maxDistortion;
+    EXPECT_GT(stats.texelFill, 0.7);  // 75%: seven charts grown to at most a quarter of the sphere
     ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
     // No chart folds: no face is degenerate in UV space, and faces that
     // share a UV edge turn the same way (a chart may be placed mirrored,
@@ -806,4 +806,33 @@ TEST(Atlas, PackingOnThreadsGivesTheSameLayout)
         EXPECT_EQ(one.uvIndices, many.uvIndices) << threads;
     }
     ASSERT_TRUE(checkUVs(one, 1024).isOk());
+}
+
+// Issue 11's bars on real cages: at least 70% of the map inside charts and
+// few split vertices, at the sizes their bakes choose (256^2).  Spot's and
+// the penguin's cages filled 68.8% and 68.3% (340 and 364 vertices) before
+// border faces moved wherever that splits fewer vertices (retried one at a
+// time where a batch of moves failed to flatten) and charts could distort
+// their sampling 2.5x: 70.7% each, 326 and 344 vertices.
+TEST(Atlas, RealCagesFillSeventyPercent)
+{
+    for (const char* name : {"spot_control_mesh.obj", "penguin_control_mesh.obj"}) {
+        STRATA_REQUIRE_DATA(path, name);
+        ControlMesh cage;
+        ASSERT_TRUE(baker::loadControlMesh(path, &cage).isOk());
+        cage.uvs.clear();
+        cage.uvIndices.clear();
+        ChartAtlasStats stats;
+        AtlasOptions options;
+        options.mapSize = 256;
+        options.gutter = 1;
+        ASSERT_TRUE(buildChartAtlas(&cage, options, &stats).isOk()) << name;
+        ASSERT_TRUE(checkUVs(cage, 256).isOk()) << name;
+        EXPECT_GE(stats.texelFill, 0.70) << name;
+        EXPECT_LE(stats.maxDistortion, kChartMaxDistortion) << name;
+        std::set<std::pair<uint32_t, uint32_t>> corners;  // a glb vertex per distinct (position, UV)
+        for (size_t i = 0; i < cage.triangles.size(); ++i)
+            corners.insert({cage.triangles[i], cage.uvIndices[i]});
+        EXPECT_LE(double(corners.size()), 1.75 * double(cage.positions.size())) << name;
+    }
 }

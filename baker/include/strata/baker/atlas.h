@@ -26,12 +26,17 @@ struct AtlasOptions {
 /// Fails when the map is too small to give every triangle at least a few texels.
 Status buildTriangleAtlas(ControlMesh* mesh, const AtlasOptions& options);
 
+/// The most a chart's flattening may distort its sampling: no direction on
+/// the surface is sampled more than this many times more finely or coarsely
+/// (in texels per unit length) than the chart's mean.
+constexpr double kChartMaxDistortion = 2.5;
+
 struct ChartAtlasStats {
     size_t charts = 0;
     double texelFill = 0.0;  ///< fraction of the map's area inside charts
     /// The largest sampling distortion of a chart's flattening: over its
     /// faces, the most a direction on the surface is stretched or shrunk in
-    /// the map against the chart's mean scale (at most 2).
+    /// the map against the chart's mean scale (at most kChartMaxDistortion).
     double maxDistortion = 0.0;
 };
 
@@ -39,12 +44,13 @@ struct ChartAtlasStats {
 /// breadth first from the largest remaining face across manifold edges
 /// while it stays a disk (Euler characteristic 1), and is the longest
 /// prefix of that growth, up to a quarter of the surface and 65536 faces,
-/// whose flattening stays within a sampling distortion of 2: its
+/// whose flattening stays within kChartMaxDistortion: its
 /// least-squares conformal map (Levy et al. 2002) refined as rigid as
 /// possible (Liu et al. 2008), both solved by sparse Cholesky (Eigen),
-/// fold-free and not lapping over itself.  Faces whose border is
-/// saw-toothed (one edge on their chart, two on another) then move where
-/// both charts still flatten.  Where the quarter bound a chart, the charts
+/// fold-free and not lapping over itself.  A border face then moves to a
+/// neighbouring chart where that splits fewer vertices (it is its chart's
+/// only face at more corners than the other chart is missing from, as a
+/// saw tooth is) and both charts stay disks that flatten.  Where the quarter bound a chart, the charts
 /// are grown again without it, both are laid out, and the layout with more
 /// of the map inside charts is kept.  Each chart is turned to its smallest
 /// bounding box, and the charts' footprints (`options.gutter` texels around
