@@ -49,6 +49,21 @@ ControlMesh headWithoutUVs()
     return head;
 }
 
+// A chart atlas laid out for a size x size map with the bake's one-texel
+// gutter, its UVs checked (inside the map, no two triangles overlapping).
+::testing::AssertionResult chartAtlas(ControlMesh* mesh, int size, ChartAtlasStats* stats)
+{
+    AtlasOptions options;
+    options.mapSize = size;
+    options.gutter = 1;
+    Status s = buildChartAtlas(mesh, options, stats);
+    if (s)
+        s = checkUVs(*mesh, size);
+    if (!s)
+        return ::testing::AssertionFailure() << s.message();
+    return ::testing::AssertionSuccess();
+}
+
 }  // namespace
 
 TEST(NormalVolume, MapThenEquationTwoReturnsThePoint)
@@ -391,16 +406,12 @@ TEST(Atlas, ChartAtlasIsCompactAndFoldFree)
     sphere.uvs.clear();
     sphere.uvIndices.clear();
     ChartAtlasStats stats;
-    AtlasOptions options;
-    options.mapSize = 1024;
-    options.gutter = 1;
-    ASSERT_TRUE(buildChartAtlas(&sphere, options, &stats).isOk());
+    ASSERT_TRUE(chartAtlas(&sphere, 1024, &stats));
     EXPECT_GT(stats.charts, 1u);  // a closed surface is no disk
     EXPECT_LT(stats.charts, sphere.faceCount() / 8);
     EXPECT_GE(stats.maxDistortion, 1.0);
     EXPECT_LE(stats.maxDistortion, kChartMaxDistortion) << stats.maxDistortion;
     EXPECT_GT(stats.texelFill, 0.7);  // 75%: seven charts grown to at most a quarter of the sphere
-    ASSERT_TRUE(checkUVs(sphere, 1024).isOk());  // inside [0, 1], no two triangles overlap
     // No chart folds: no face is degenerate in UV space, and faces that
     // share a UV edge turn the same way (a chart may be placed mirrored,
     // as a whole).
@@ -493,12 +504,8 @@ TEST(Atlas, DevelopableSurfaceUnfoldsIsometrically)
             for (uint32_t v : {at(i, j), at(i + 1, j + 1), at(i, j + 1)})
                 tube.triangles.push_back(v);
         }
-    AtlasOptions options;
-    options.mapSize = 512;
-    options.gutter = 1;
     ChartAtlasStats stats;
-    ASSERT_TRUE(buildChartAtlas(&tube, options, &stats).isOk());
-    ASSERT_TRUE(checkUVs(tube, 512).isOk());
+    ASSERT_TRUE(chartAtlas(&tube, 512, &stats));
     EXPECT_LT(stats.maxDistortion, 1.0 + 1e-4);
     const size_t nf = tube.faceCount();
     const std::vector<uint32_t> chart = atlasCharts(tube).chartOfFace;
@@ -533,12 +540,8 @@ TEST(Atlas, ThinChartIsStretchedAcrossOnly)
     ControlMesh mesh;
     mesh.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {3, 0, 0}, {4, 0, 0}, {3.5f, 0.005f, 0}};
     mesh.triangles = {0, 1, 2, 0, 2, 3, 4, 5, 6};
-    AtlasOptions options;
-    options.mapSize = 256;
-    options.gutter = 1;
     ChartAtlasStats stats;
-    ASSERT_TRUE(buildChartAtlas(&mesh, options, &stats).isOk());
-    ASSERT_TRUE(checkUVs(mesh, 256).isOk());
+    ASSERT_TRUE(chartAtlas(&mesh, 256, &stats));
     ASSERT_EQ(stats.charts, 2u);
     auto texels = [&](size_t f, int k) {  // UV length of face f's edge k, in texels
         const glm::dvec2 a = glm::dvec2(mesh.uvs[mesh.uvIndices[3 * f + size_t(k)]]),
@@ -567,12 +570,8 @@ TEST(Atlas, ChartBordersHaveNoTeeth)
 {
     ControlMesh sphere = headWithoutUVs();
     ChartAtlasStats stats;
-    AtlasOptions options;
-    options.mapSize = 512;
-    options.gutter = 1;
-    ASSERT_TRUE(buildChartAtlas(&sphere, options, &stats).isOk());
+    ASSERT_TRUE(chartAtlas(&sphere, 512, &stats));
     EXPECT_GT(stats.charts, 4u);
-    ASSERT_TRUE(checkUVs(sphere, 512).isOk());
     const size_t nf = sphere.faceCount();
     const AtlasCharts charts = atlasCharts(sphere);
     const std::vector<std::array<int64_t, 3>>& across = charts.across;
@@ -748,12 +747,8 @@ TEST(Atlas, ChartsGrownIntoGapsReadOnlyTheirOwnTexels)
 {
     for (int size : {256, 512}) {
         ControlMesh head = headWithoutUVs();
-        AtlasOptions options;
-        options.mapSize = size;
-        options.gutter = 1;
         ChartAtlasStats stats;
-        ASSERT_TRUE(buildChartAtlas(&head, options, &stats).isOk());
-        ASSERT_TRUE(checkUVs(head, size).isOk());
+        ASSERT_TRUE(chartAtlas(&head, size, &stats));
         EXPECT_GT(stats.texelFill, size == 256 ? 0.70 : 0.72) << size;
         const size_t nf = head.faceCount();
         const std::vector<uint32_t> chart = atlasCharts(head).chartOfFace;
@@ -823,11 +818,7 @@ TEST(Atlas, RealCagesFillSeventyPercent)
         cage.uvs.clear();
         cage.uvIndices.clear();
         ChartAtlasStats stats;
-        AtlasOptions options;
-        options.mapSize = 256;
-        options.gutter = 1;
-        ASSERT_TRUE(buildChartAtlas(&cage, options, &stats).isOk()) << name;
-        ASSERT_TRUE(checkUVs(cage, 256).isOk()) << name;
+        ASSERT_TRUE(chartAtlas(&cage, 256, &stats)) << name;
         EXPECT_GE(stats.texelFill, 0.70) << name;
         EXPECT_LE(stats.maxDistortion, kChartMaxDistortion) << name;
         std::set<std::pair<uint32_t, uint32_t>> corners;  // a glb vertex per distinct (position, UV)
