@@ -1327,7 +1327,7 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     // The other orders only where they beat it by kOrderGain: most cost one
     // pack that fails.  Where one succeeds, its own largest scale below the
     // first order's failure bound, hi, or 1.25 times that beyond.
-    for (size_t k = 1; k < orders.size(); ++k) {
+    for (size_t k = 1; k < (options.tryOrders ? orders.size() : 1); ++k) {
         double a = lo * (1.0 + kOrderGain);
         if (!packs(k, a))
             continue;
@@ -1379,6 +1379,16 @@ struct ChartCache::Impl {
     double area = 0.0;
     std::vector<ChartSet> sets;
     int chosen = -1;  // the set the first layout kept, or -1
+    // The layouts made, for a bake that asks for a size again.
+    struct Layout {
+        int size = 0, gutter = 0;
+        bool grow = false, orders = false;
+        size_t set = 0;
+        double fill = 0.0;
+        std::vector<glm::vec2> uvs;
+        std::vector<uint32_t> uvIndices;
+    };
+    std::vector<Layout> layouts;
 };
 
 ChartCache::ChartCache() = default;
@@ -1423,6 +1433,21 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     const std::vector<ChartSet>& sets = charts.sets;
     const int chosen = charts.chosen;
     const double area = charts.area;
+    auto report = [&](size_t set, double fill) {
+        if (stats) {
+            stats->charts = sets[set].charts.size();
+            stats->texelFill = fill;
+            stats->maxDistortion = sets[set].maxDistortion;
+        }
+    };
+    for (const ChartCache::Impl::Layout& l : charts.layouts)
+        if (l.size == options.mapSize && l.gutter == options.gutter && l.grow == options.growIntoGaps &&
+            l.orders == options.tryOrders) {
+            mesh->uvs = l.uvs;
+            mesh->uvIndices = l.uvIndices;
+            report(l.set, l.fill);
+            return Status::ok();
+        }
     // Each set laid out; the one with the most texels inside charts kept
     // (the first on a tie).  A cache remembers the choice for the cage's
     // other sizes: how well charts pack hardly depends on the size.
@@ -1451,13 +1476,12 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         return first;
     if (chosen < 0 && sets.size() > 1)
         charts.chosen = int(best);
+    if (cache)
+        charts.layouts.push_back(
+            {options.mapSize, options.gutter, options.growIntoGaps, options.tryOrders, best, bestFill, bestUVs, bestIndices});
     mesh->uvs = std::move(bestUVs);
     mesh->uvIndices = std::move(bestIndices);
-    if (stats) {
-        stats->charts = sets[best].charts.size();
-        stats->texelFill = bestFill;
-        stats->maxDistortion = sets[best].maxDistortion;
-    }
+    report(best, bestFill);
     return Status::ok();
 }
 

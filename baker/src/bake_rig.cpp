@@ -588,10 +588,14 @@ void BakeJob::prepare()
     const double typicalEdge = medianEdgeLength(high);
     atlas.gutter = 1;
     atlas.threads = options.threads;
-    // Charts grow into the pack's gaps only where the map is an output:
-    // a map that serves the bake alone is sampled once per refined vertex
-    // and would gain nothing from finer texels.
+    // Charts grow into the pack's gaps, and the packer tries its eight
+    // chart orders, only where the map is an output: a map that serves the
+    // bake alone is sampled once per refined vertex and would gain nothing
+    // from finer texels (without the orders every default rig of the paper
+    // run came out byte for byte the same, nefertiti's within 0.1%, and
+    // the 100k scan's layouts took half the time).
     atlas.growIntoGaps = writeExr || pngBits != 0 || writeLayers;
+    atlas.tryOrders = atlas.growIntoGaps;
     bare = control;
     while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
         ++paperLevel;

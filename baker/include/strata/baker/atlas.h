@@ -16,6 +16,10 @@ struct AtlasOptions {
     int gutter = 2;       ///< texels of gutter around every chart
     int threads = 1;      ///< chart atlas: threads that pack (the same layout for any count)
     bool growIntoGaps = true;  ///< chart atlas: charts grow into the pack's gaps (finer sampling, more fill)
+    /// Chart atlas: the packer tries eight chart orders and keeps the one
+    /// that packs at the largest scale (more fill, at up to twice the
+    /// packing time); false: the longest chart first only.
+    bool tryOrders = true;
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a per-triangle atlas: triangles
@@ -58,9 +62,9 @@ struct ChartAtlasStats {
 /// under another), in eight orientations (turned by quarters and mirrored),
 /// at the largest common scale that fits `options.mapSize` (small charts get
 /// at least 6 texels along, and are stretched to 6 across), in whichever
-/// of eight chart orders packs at the largest scale.  A footprint may reach
-/// a gutter past the map's edge (the sampler clamps to it; the chart itself
-/// stays inside).  With `options.growIntoGaps`, each chart,
+/// of eight chart orders packs at the largest scale (`options.tryOrders`).
+/// A footprint may reach a gutter past the map's edge (the sampler clamps
+/// to it; the chart itself stays inside).  With `options.growIntoGaps`, each chart,
 /// smallest first, is then put back at the largest scale up to twice its
 /// own that still fits among the others (two passes), so the pack's gaps
 /// sample the surface more finely.  No chart is sampled more coarsely than
@@ -72,7 +76,8 @@ struct ChartAtlasStats {
 /// The charts of a mesh (grown, flattened, turned) do not depend on the map
 /// size: buildChartAtlas calls on the same mesh (the same positions and
 /// triangles) at several sizes that share a cache make them once, and keep
-/// the first call's choice between the two growths.
+/// the first call's choice between the two growths; a layout asked for
+/// again (the same size and options) is the cache's copy.
 class ChartCache {
 public:
     ChartCache();
