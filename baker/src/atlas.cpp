@@ -73,15 +73,14 @@ namespace strata {
 namespace baker {
 namespace {
 
-// The most a chart's flattening may distort its sampling (chartDistortion):
-// a direction on the surface at most this many times longer, or shorter,
-// in texels than the chart's mean scale gives it.  At 2 the real cages'
-// charts stopped a few faces short of what packs well: 2.5 fills 70-72% of
-// spot's, the penguin's and the hand's maps where 2 (and 2.25) filled
-// 69.4-70.9%; spot's and the penguin's seams lose 6 and 13 vertices (the
-// hand's gain 18, 1.27 -> 1.30x), and their maps' closed loops stay within
-// 5% (spot's 0.0325 -> 0.0311%).
-constexpr double kMaxDistortion = kChartMaxDistortion;
+// Charts flatten within kChartMaxDistortion (chartDistortion measures it).
+// At 2 the real cages' charts stopped a few faces short of what packs well:
+// 2.5 fills 70-72% of spot's, the penguin's and the hand's maps where 2 (and
+// 2.25) filled 69.4-70.9%; spot's and the penguin's seams lose 6 and 13
+// vertices (the hand's gain 18, 1.27 -> 1.30x), and their maps' closed loops
+// stay within 5% (spot's 0.0325 -> 0.0311%).
+
+// Local/global iterations of the as-rigid-as-possible refinement.
 constexpr int kRigidIterations = 8;
 // The largest share of the surface's area a chart may grow to (border
 // teeth may then add a face or two).  The distortion bound alone makes a
@@ -803,7 +802,7 @@ void growIntoGaps(std::vector<Chart>& charts, const std::vector<size_t>& order, 
 // Flattens a chart whose faces are set: projected on its normal's plane,
 // then conformal, then as rigid as possible.  True, with points and
 // distortion set, when the result is fold-free, does not lap over itself
-// and stays within kMaxDistortion.  `local` must be all -1 and is left so.
+// and stays within kChartMaxDistortion.  `local` must be all -1 and is left so.
 bool flattenChart(Chart* c, const ControlMesh& mesh, std::vector<int32_t>* local)
 {
     c->vertices.clear();
@@ -820,7 +819,7 @@ bool flattenChart(Chart* c, const ControlMesh& mesh, std::vector<int32_t>* local
         ok = flattenRigid(*c, mesh, *local, &c->points, kRigidIterations) || conformal;
         ok = ok && !selfOverlaps(*c, mesh, *local);
         c->distortion = ok ? chartDistortion(*c, mesh, *local) : 1e300;
-        ok = ok && c->distortion <= kMaxDistortion;
+        ok = ok && c->distortion <= kChartMaxDistortion;
     }
     for (uint32_t v : c->vertices)
         (*local)[v] = -1;
@@ -961,7 +960,7 @@ void makeCharts(const ControlMesh& mesh, const ChartMesh& geometry, int threads,
         return true;
     };
     // Each chart, from the largest unassigned face, is the longest prefix of
-    // its breadth-first growth that flattens within kMaxDistortion (and
+    // its breadth-first growth that flattens within kChartMaxDistortion (and
     // kMaxChartShare): found by growing twice as large while it flattens (a
     // flat region becomes one chart without every face being tried), then
     // bisecting to within a sixteenth.  A single face always flattens.

@@ -54,9 +54,9 @@ struct ChartAtlasStats {
 /// fold-free and not lapping over itself.  A border face then moves to a
 /// neighbouring chart where that splits fewer vertices (it is its chart's
 /// only face at more corners than the other chart is missing from, as a
-/// saw tooth is) and both charts stay disks that flatten.  Where the quarter bound a chart, the charts
-/// are grown again without it, both are laid out, and the layout with more
-/// of the map inside charts is kept.  Each chart is turned to its smallest
+/// saw tooth is) and both charts stay disks that flatten.  Where the quarter
+/// bound a chart, the charts are grown again without it, both are laid out,
+/// and the layout with more of the map inside charts is kept.  Each chart is turned to its smallest
 /// bounding box, and the charts' footprints (`options.gutter` texels around
 /// them) are packed into a texel occupancy map (a chart may drop into a hole
 /// under another), in eight orientations (turned by quarters and mirrored),
@@ -64,8 +64,8 @@ struct ChartAtlasStats {
 /// at least 6 texels along, and are stretched to 6 across), in whichever
 /// of eight chart orders packs at the largest scale (`options.tryOrders`).
 /// A footprint may reach a gutter past the map's edge (the sampler clamps
-/// to it; the chart itself stays inside).  With `options.growIntoGaps`, each chart,
-/// smallest first, is then put back at the largest scale up to twice its
+/// to it; the chart itself stays inside).  With `options.growIntoGaps`,
+/// each chart, smallest first, is then put back at the largest scale up to twice its
 /// own that still fits among the others (two passes), so the pack's gaps
 /// sample the surface more finely.  No chart is sampled more coarsely than
 /// the common scale, and no texel a bilinear sample inside one chart reads
