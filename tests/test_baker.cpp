@@ -809,6 +809,156 @@ TEST(Atlas, PackingOnThreadsGivesTheSameLayout)
 // border faces moved wherever that splits fewer vertices (retried one at a
 // time where a batch of moves failed to flatten) and charts could distort
 // their sampling 2.5x: 70.7% each, 326 and 344 vertices.
+// The one-chart atlas of a flat, irregular disk: no cut (it is a disk),
+// its four sharpest border vertices (the square's corners) on the map's
+// corners, and mean value coordinates reproduce linear maps, so the inside
+// lands where the plane's own affine map puts it: every edge has the same
+// length in the map over its length on the surface, and the stretch is 1.
+TEST(Atlas, SquareAtlasOfAFlatSquareIsAnAffineMap)
+{
+    const int n = 9;
+    ControlMesh disk;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> jitter(-0.3f, 0.3f);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const bool inner = i > 0 && j > 0 && i < n - 1 && j < n - 1;
+            disk.positions.emplace_back(2.0f * (float(i) + (inner ? jitter(rng) : 0.0f)),
+                                        2.0f * (float(j) + (inner ? jitter(rng) : 0.0f)), 0.0f);
+        }
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n; ++i) {
+            const uint32_t a = uint32_t(j * n + i), b = a + 1, c = a + uint32_t(n), d = c + 1;
+            disk.triangles.insert(disk.triangles.end(), {a, b, d, a, d, c});
+        }
+    SquareAtlasOptions options;
+    options.mapSize = 0;  // the unit square
+    ChartAtlasStats stats;
+    ASSERT_TRUE(buildSquareAtlas(&disk, options, &stats).isOk());
+    EXPECT_TRUE(stats.wholeMap);
+    EXPECT_EQ(disk.uvs.size(), disk.positions.size());  // nothing cut
+    EXPECT_NEAR(stats.stretch, 1.0, 1e-6);
+    EXPECT_NEAR(stats.maxDistortion, 1.0, 1e-6);
+    for (size_t f = 0; f < disk.faceCount(); ++f)
+        for (int k = 0; k < 3; ++k) {
+            const size_t a = 3 * f + size_t(k), b = 3 * f + size_t((k + 1) % 3);
+            const double uv = glm::length(glm::dvec2(disk.uvs[disk.uvIndices[a]] - disk.uvs[disk.uvIndices[b]]));
+            const double xyz =
+                glm::length(glm::dvec3(disk.positions[disk.triangles[a]] - disk.positions[disk.triangles[b]]));
+            ASSERT_NEAR(uv / xyz, 1.0 / (2.0 * double(n - 1)), 1e-5) << "face " << f;
+        }
+    // On a map, the square's sides lie on the border texels' centres.
+    ControlMesh placed = disk;
+    fitSquareAtlas(&placed.uvs, 64);
+    float lo = 1.0f, hi = 0.0f;
+    for (const glm::vec2& uv : placed.uvs) {
+        lo = std::min({lo, uv.x, uv.y});
+        hi = std::max({hi, uv.x, uv.y});
+    }
+    EXPECT_FLOAT_EQ(lo, 0.5f / 64.0f);
+    EXPECT_FLOAT_EQ(hi, 63.5f / 64.0f);
+    EXPECT_TRUE(checkUVs(placed, 64).isOk());
+}
+
+// A closed genus-0 cage is cut open into one chart over the whole map
+// within 1.3x its vertices, fold-free, and the sphere baked through it
+// comes back as the chart atlas's does (the cut's seams stay closed: one
+// sample per refined vertex).  buildAtlas takes it for the level-1
+// icosphere, whose charts split far more than 1.3x its vertices.
+TEST(Atlas, SquareAtlasCutsASphereOpen)
+{
+    for (int subdivisions : {1, 3}) {
+        ControlMesh sphere = examples::makeIcosphere(subdivisions);
+        sphere.uvs.clear();
+        sphere.uvIndices.clear();
+        SquareAtlasOptions options;
+        options.mapSize = 256;
+        ChartAtlasStats stats;
+        ASSERT_TRUE(buildSquareAtlas(&sphere, options, &stats).isOk()) << subdivisions;
+        EXPECT_LE(double(sphere.uvs.size()), 1.3 * double(sphere.positions.size())) << subdivisions;
+        EXPECT_GT(sphere.uvs.size(), sphere.positions.size());  // a sphere must be cut
+        EXPECT_GT(stats.texelFill, 0.99);
+        EXPECT_LT(stats.stretch, 1.5) << subdivisions;
+        EXPECT_TRUE(checkUVs(sphere, 256).isOk()) << subdivisions;
+        for (size_t f = 0; f < sphere.faceCount(); ++f) {  // counter-clockwise, as the surface is
+            const glm::dvec2 a(sphere.uvs[sphere.uvIndices[3 * f]]), b(sphere.uvs[sphere.uvIndices[3 * f + 1]]),
+                c(sphere.uvs[sphere.uvIndices[3 * f + 2]]);
+            ASSERT_GT((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x), 0.0) << "face " << f;
+        }
+    }
+    ControlMesh control = examples::makeIcosphere(1);
+    control.uvs.clear();
+    control.uvIndices.clear();
+    AtlasOptions options;
+    options.mapSize = 256;
+    options.gutter = 1;
+    ChartAtlasStats stats;
+    ASSERT_TRUE(buildAtlas(&control, options, &stats).isOk());
+    EXPECT_TRUE(stats.wholeMap);
+    EXPECT_LE(double(control.uvs.size()), 1.3 * double(control.positions.size()));
+    const TriangleMesh high = icosphereMesh(5, 1.0f);
+    BakeOptions bakeOptions;
+    bakeOptions.size = 256;
+    DisplacementMap map;
+    BakeReport report;
+    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, bakeOptions).isOk());
+    std::vector<LevelError> errors;
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 4, 4, 2).isOk());
+    EXPECT_LT(errors[0].forwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
+}
+
+// Only one connected genus-0 manifold opens into one square: a torus (a
+// handle), two spheres and a fin on an edge are refused, the mesh left
+// as it was; buildAtlas then keeps the chart atlas.
+TEST(Atlas, SquareAtlasRefusesWhatCannotOpenIntoADisk)
+{
+    ControlMesh torus;
+    const int around = 12, tube = 8;
+    for (int i = 0; i < around; ++i)
+        for (int j = 0; j < tube; ++j) {
+            const double u = 2.0 * M_PI * i / around, v = 2.0 * M_PI * j / tube;
+            torus.positions.emplace_back(float((2.0 + 0.6 * std::cos(v)) * std::cos(u)),
+                                         float((2.0 + 0.6 * std::cos(v)) * std::sin(u)), float(0.6 * std::sin(v)));
+        }
+    for (int i = 0; i < around; ++i)
+        for (int j = 0; j < tube; ++j) {
+            const uint32_t a = uint32_t(i * tube + j), b = uint32_t(((i + 1) % around) * tube + j),
+                           c = uint32_t(((i + 1) % around) * tube + (j + 1) % tube),
+                           d = uint32_t(i * tube + (j + 1) % tube);
+            torus.triangles.insert(torus.triangles.end(), {a, b, c, a, c, d});
+        }
+    ControlMesh two = examples::makeIcosphere(1);
+    {
+        const ControlMesh other = examples::makeIcosphere(1);
+        const uint32_t base = uint32_t(two.positions.size());
+        for (const glm::vec3& p : other.positions)
+            two.positions.push_back(p + glm::vec3(3.0f, 0.0f, 0.0f));
+        for (uint32_t v : other.triangles)
+            two.triangles.push_back(base + v);
+    }
+    ControlMesh fin = examples::makeIcosphere(1);
+    fin.positions.emplace_back(0.0f, 0.0f, 3.0f);
+    fin.triangles.insert(fin.triangles.end(), {fin.triangles[0], fin.triangles[1], uint32_t(fin.positions.size() - 1)});
+    for (ControlMesh* mesh : {&torus, &two, &fin}) {
+        mesh->uvs.clear();
+        mesh->uvIndices.clear();
+        const ControlMesh before = *mesh;
+        Status s = buildSquareAtlas(mesh, SquareAtlasOptions());
+        EXPECT_FALSE(s.isOk());
+        EXPECT_TRUE(mesh->uvIndices.empty()) << s.message();
+        EXPECT_EQ(mesh->positions, before.positions);
+    }
+    EXPECT_NE(buildSquareAtlas(&torus, SquareAtlasOptions()).message().find("handles"), std::string::npos);
+    AtlasOptions options;
+    options.mapSize = 512;
+    ChartAtlasStats stats;
+    ASSERT_TRUE(buildAtlas(&torus, options, &stats).isOk());
+    EXPECT_FALSE(stats.wholeMap);
+    EXPECT_GT(stats.charts, 0u);
+}
+
 TEST(Atlas, RealCagesFillSeventyPercent)
 {
     for (const char* name : {"spot_control_mesh.obj", "penguin_control_mesh.obj"}) {
@@ -825,5 +975,31 @@ TEST(Atlas, RealCagesFillSeventyPercent)
         for (size_t i = 0; i < cage.triangles.size(); ++i)
             corners.insert({cage.triangles[i], cage.uvIndices[i]});
         EXPECT_LE(double(corners.size()), 1.75 * double(cage.positions.size())) << name;
+    }
+}
+
+// The atlas a bake lays out for the real cages meets the atlas targets:
+// at least 70% of the map's texels inside charts and at most 1.3x as many
+// vertices as the cage once split at its seams (their chart atlases split
+// 1.7x: one chart over the whole map), fold-free and inside the map.
+TEST(Atlas, RealCagesMeetTheAtlasTargets)
+{
+    for (const char* name : {"spot_control_mesh.obj", "penguin_control_mesh.obj", "hand_lowres.obj"}) {
+        STRATA_REQUIRE_DATA(path, name);
+        ControlMesh cage;
+        ASSERT_TRUE(baker::loadControlMesh(path, &cage).isOk());
+        cage.uvs.clear();
+        cage.uvIndices.clear();
+        AtlasOptions options;
+        options.mapSize = 256;
+        options.gutter = 1;
+        ChartAtlasStats stats;
+        ASSERT_TRUE(buildAtlas(&cage, options, &stats).isOk()) << name;
+        EXPECT_TRUE(checkUVs(cage, 256).isOk()) << name;
+        EXPECT_GE(stats.texelFill, 0.70) << name;
+        std::set<std::pair<uint32_t, uint32_t>> corners;  // a glb vertex per distinct (position, UV)
+        for (size_t i = 0; i < cage.triangles.size(); ++i)
+            corners.insert({cage.triangles[i], cage.uvIndices[i]});
+        EXPECT_LE(double(corners.size()), 1.3 * double(cage.positions.size())) << name;
     }
 }

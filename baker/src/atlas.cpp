@@ -1388,6 +1388,12 @@ struct ChartCache::Impl {
         std::vector<uint32_t> uvIndices;
     };
     std::vector<Layout> layouts;
+    // The one-chart atlas (buildAtlas), over the unit square, once made.
+    bool squareMade = false;
+    Status square;
+    std::vector<glm::vec2> squareUVs;
+    std::vector<uint32_t> squareIndices;
+    ChartAtlasStats squareStats;
 };
 
 ChartCache::ChartCache() = default;
@@ -1482,6 +1488,42 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     mesh->uvIndices = std::move(bestIndices);
     report(best, bestFill);
     return Status::ok();
+}
+
+Status buildAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats, ChartCache* cache)
+{
+    ChartCache scratch;  // holds the charts when no cache is given
+    ChartCache& store = cache ? *cache : scratch;
+    ChartAtlasStats own;
+    if (!stats)
+        stats = &own;
+    Status s = buildChartAtlas(mesh, options, stats, &store);
+    const SquareAtlasOptions whole;
+    const double fill = stats->texelFill;
+    if (!s || !options.wholeMap || (double(mesh->uvs.size()) <= whole.maxVertexRatio * double(mesh->positions.size()) &&
+               fill >= kAtlasMinFill))
+        return s;
+    ChartCache::Impl& made = *store.impl;  // the charts' cache: this cage's
+    if (!made.squareMade) {
+        ControlMesh cut;
+        cut.positions = mesh->positions;
+        cut.triangles = mesh->triangles;
+        SquareAtlasOptions unit = whole;
+        unit.mapSize = 0;
+        made.square = buildSquareAtlas(&cut, unit, &made.squareStats);
+        made.squareUVs = std::move(cut.uvs);
+        made.squareIndices = std::move(cut.uvIndices);
+        made.squareMade = true;
+    }
+    if (!made.square)
+        return s;  // not genus 0, or no cut within the vertex budget: the charts
+    mesh->uvs = made.squareUVs;
+    mesh->uvIndices = made.squareIndices;
+    fitSquareAtlas(&mesh->uvs, options.mapSize);
+    *stats = made.squareStats;
+    const double size = double(options.mapSize);
+    stats->texelFill = (size - 1.0) * (size - 1.0) / (size * size);
+    return s;
 }
 
 }  // namespace baker

@@ -596,6 +596,9 @@ void BakeJob::prepare()
     // the 100k scan's layouts took half the time).
     atlas.growIntoGaps = writeExr || pngBits != 0 || writeLayers;
     atlas.tryOrders = atlas.growIntoGaps;
+    // So is one chart over the whole map where the charts miss the atlas
+    // targets (a file's vertices and texels inside charts).
+    atlas.wholeMap = atlas.growIntoGaps;
     bare = control;
     while (paperLevel < kMaxLevel && (control.faceCount() << (2 * paperLevel)) <= high.faceCount())
         ++paperLevel;
@@ -791,7 +794,12 @@ void BakeJob::searchMapSize()
         // triangle): the UVs are the vertices a file with them holds.
         atlasVertices = control.uvs.size();
         char buf[240];
-        if (chartStats.charts)
+        if (chartStats.wholeMap)
+            std::snprintf(buf, sizeof(buf),
+                          "one chart over the whole map (the chart atlas split over %.1fx the vertices), "
+                          "%.0f%% of texels inside it, L2 stretch %.2f",
+                          SquareAtlasOptions().maxVertexRatio, 100.0 * chartStats.texelFill, chartStats.stretch);
+        else if (chartStats.charts)
             std::snprintf(buf, sizeof(buf),
                           "chart atlas: %zu charts, %.0f%% of texels inside charts, distortion <= %.2f",
                           chartStats.charts, 100.0 * chartStats.texelFill, chartStats.maxDistortion);
@@ -1000,10 +1008,13 @@ void BakeJob::writeReport()
                          {"uv", uvMode}};
     if (uvMode == "auto") {
         report["atlas"] = {{"charts", chartStats.charts},  // 0: the per-triangle atlas
+                           {"kind", chartStats.wholeMap ? "whole map" : chartStats.charts ? "charts" : "triangles"},
                            {"splitVertices", atlasVertices}};
         if (chartStats.charts) {
             report["atlas"]["texelFill"] = chartStats.texelFill;
             report["atlas"]["maxDistortion"] = chartStats.maxDistortion;
+            if (chartStats.wholeMap)
+                report["atlas"]["stretch"] = chartStats.stretch;
         }
     }
     report["map"] = {{"size", map.width}, {"reason", rep.sizeReason}, {"dmin", rep.dmin}, {"dmax", rep.dmax},
@@ -1093,7 +1104,7 @@ Status BakeJob::layout(int mapSize)
 {
     atlas.mapSize = mapSize;
     control = bare;
-    Status s = buildChartAtlas(&control, atlas, &chartStats, &chartCache);
+    Status s = buildAtlas(&control, atlas, &chartStats, &chartCache);
     if (!s) {
         control = bare;
         AtlasOptions triangles = atlas;

@@ -20,6 +20,9 @@ struct AtlasOptions {
     /// that packs at the largest scale (more fill, at up to twice the
     /// packing time); false: the longest chart first only.
     bool tryOrders = true;
+    /// buildAtlas: where the chart atlas misses its targets, one chart over
+    /// the whole map instead (buildSquareAtlas); false: the chart atlas.
+    bool wholeMap = true;
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a per-triangle atlas: triangles
@@ -42,6 +45,12 @@ struct ChartAtlasStats {
     /// faces, the most a direction on the surface is stretched or shrunk in
     /// the map against the chart's mean scale (at most kChartMaxDistortion).
     double maxDistortion = 0.0;
+    /// buildSquareAtlas: one chart over the whole map; stretch is its L2
+    /// stretch (Sander et al. 2001: the root mean square, over the surface,
+    /// of how much a direction is stretched against the mean scale; 1 is an
+    /// isometry), and maxDistortion is not bounded by kChartMaxDistortion.
+    bool wholeMap = false;
+    double stretch = 0.0;
 };
 
 /// Replaces mesh.uvs / mesh.uvIndices with a chart atlas.  Each chart grows
@@ -90,6 +99,48 @@ public:
 
 Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats = nullptr,
                        ChartCache* cache = nullptr);
+
+struct SquareAtlasOptions {
+    int mapSize = 1024;           ///< texels per side of the square map; 0: UVs over the unit square
+    double maxVertexRatio = 1.3;  ///< the most vertices the cut surface may have, per control vertex
+};
+
+/// Replaces mesh.uvs / mesh.uvIndices with one chart that covers the whole
+/// map (Gu et al. 2002, "Geometry images"): the surface is cut open into a
+/// disk, its border laid along the square's sides by length and its inside
+/// placed by a barycentric embedding, mean value weights (Floater 2003)
+/// reweighted against stretch (Yoshizawa et al. 2004), which cannot fold.
+/// Four border vertices go on the corners, chosen so that no inner edge
+/// between two border vertices lies along a side.  The cut starts from the
+/// border loops joined up (on a closed surface: the shortest path between
+/// its two sharpest tips) and grows by shortest paths, each round from
+/// whichever of its most stretched vertices lowers the stretch most, while
+/// the cut surface keeps within `options.maxVertexRatio` times the
+/// vertices; the cut that stretches least is kept.  The chart's border
+/// lies on the border texels' centres (see fitSquareAtlas).  Only for one
+/// connected, consistently oriented manifold of genus 0 (a sphere, a disk,
+/// a disk with holes); fails (the mesh left as it was) otherwise.  Its
+/// cost grows with the cut's length: meant for cages of up to a few
+/// thousand vertices, whose chart atlases split the most.
+Status buildSquareAtlas(ControlMesh* mesh, const SquareAtlasOptions& options, ChartAtlasStats* stats = nullptr);
+
+/// The least share of the map's texels an atlas should have inside charts.
+constexpr double kAtlasMinFill = 0.70;
+
+/// The atlas a bake lays out for `--uv auto`: the chart atlas or, with
+/// `options.wholeMap`, where the charts split more than
+/// SquareAtlasOptions::maxVertexRatio times the vertices (small cages: their
+/// seams are long against their vertex count) or fill less than
+/// kAtlasMinFill of the map and the cage allows it, the one-chart atlas,
+/// which splits far fewer and fills the map.  A cache keeps both for the
+/// cage's other sizes.  Fails where buildChartAtlas does.
+Status buildAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStats* stats = nullptr,
+                  ChartCache* cache = nullptr);
+
+/// Moves UVs that span the unit square (buildSquareAtlas with mapSize 0)
+/// onto a map of `mapSize` texels: the square's sides on the centres of the
+/// map's border texels, so a bilinear sample inside never reads past them.
+void fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize);
 
 }  // namespace baker
 }  // namespace strata
