@@ -896,6 +896,13 @@ TEST(Atlas, SquareAtlasCutsASphereOpen)
     ASSERT_TRUE(buildAtlas(&control, options, &stats).isOk());
     EXPECT_TRUE(stats.wholeMap);
     EXPECT_LE(double(control.uvs.size()), 1.3 * double(control.positions.size()));
+    {
+        ControlMesh charts = control;  // the same stats then describe the charts alone
+        ASSERT_TRUE(buildChartAtlas(&charts, options, &stats).isOk());
+        EXPECT_FALSE(stats.wholeMap);
+        EXPECT_EQ(stats.stretch, 0.0);
+        EXPECT_GT(stats.charts, 1u);
+    }
     const TriangleMesh high = icosphereMesh(5, 1.0f);
     BakeOptions bakeOptions;
     bakeOptions.size = 256;

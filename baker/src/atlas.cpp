@@ -1440,6 +1440,7 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
     const double area = charts.area;
     auto report = [&](size_t set, double fill) {
         if (stats) {
+            *stats = ChartAtlasStats();
             stats->charts = sets[set].charts.size();
             stats->texelFill = fill;
             stats->maxDistortion = sets[set].maxDistortion;
