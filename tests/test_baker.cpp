@@ -51,12 +51,18 @@ ControlMesh headWithoutUVs()
 
 // A chart atlas laid out for a size x size map with the bake's one-texel
 // gutter, its UVs checked (inside the map, no two triangles overlapping).
-::testing::AssertionResult chartAtlas(ControlMesh* mesh, int size, ChartAtlasStats* stats)
+// With `bakes`, the atlas a bake lays out (buildAtlas: charts, or one chart
+// over the whole map), its UVs cleared first.
+::testing::AssertionResult chartAtlas(ControlMesh* mesh, int size, ChartAtlasStats* stats, bool bakes = false)
 {
     AtlasOptions options;
     options.mapSize = size;
     options.gutter = 1;
-    Status s = buildChartAtlas(mesh, options, stats);
+    if (bakes) {
+        mesh->uvs.clear();
+        mesh->uvIndices.clear();
+    }
+    Status s = bakes ? buildAtlas(mesh, options, stats) : buildChartAtlas(mesh, options, stats);
     if (s)
         s = checkUVs(*mesh, size);
     if (!s)
@@ -64,6 +70,25 @@ ControlMesh headWithoutUVs()
     return ::testing::AssertionSuccess();
 }
 
+
+// The unit sphere baked through `control`'s atlas (a level-1 icosphere
+// cage) at 256^2 comes back at level 4 within the per-triangle atlas's
+// bound: chords of the sphere plus bilinear sampling, well under 1e-3 of
+// the diagonal.
+void expectSphereBakesBack(const ControlMesh& control)
+{
+    const TriangleMesh high = icosphereMesh(5, 1.0f);
+    BakeOptions bakeOptions;
+    bakeOptions.size = 256;
+    DisplacementMap map;
+    BakeReport report;
+    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, bakeOptions).isOk());
+    std::vector<LevelError> errors;
+    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 4, 4, 2).isOk());
+    EXPECT_LT(errors[0].forwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
+    EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
+}
 }  // namespace
 
 TEST(NormalVolume, MapThenEquationTwoReturnsThePoint)
@@ -604,19 +629,7 @@ TEST(Atlas, SphereBakedThroughAChartAtlasIsTheSphere)
     options.mapSize = 256;
     options.gutter = 1;
     ASSERT_TRUE(buildChartAtlas(&control, options).isOk());
-    const TriangleMesh high = icosphereMesh(5, 1.0f);
-    BakeOptions bakeOptions;
-    bakeOptions.size = 256;
-    DisplacementMap map;
-    BakeReport report;
-    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, bakeOptions).isOk());
-    std::vector<LevelError> errors;
-    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 4, 4, 2).isOk());
-    // The same bound as the per-triangle atlas: chords of the unit sphere plus
-    // bilinear sampling, well under 1e-3 of the diagonal.
-    EXPECT_LT(errors[0].forwardRms / report.diagonal, 3e-4);
-    EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
-    EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
+    expectSphereBakesBack(control);
 }
 
 // Per-vertex values measured on the capture: an icosahedral cage inside a
@@ -887,33 +900,18 @@ TEST(Atlas, SquareAtlasCutsASphereOpen)
         }
     }
     ControlMesh control = examples::makeIcosphere(1);
-    control.uvs.clear();
-    control.uvIndices.clear();
-    AtlasOptions options;
-    options.mapSize = 256;
-    options.gutter = 1;
     ChartAtlasStats stats;
-    ASSERT_TRUE(buildAtlas(&control, options, &stats).isOk());
+    ASSERT_TRUE(chartAtlas(&control, 256, &stats, true));
     EXPECT_TRUE(stats.wholeMap);
     EXPECT_LE(double(control.uvs.size()), 1.3 * double(control.positions.size()));
     {
         ControlMesh charts = control;  // the same stats then describe the charts alone
-        ASSERT_TRUE(buildChartAtlas(&charts, options, &stats).isOk());
+        ASSERT_TRUE(chartAtlas(&charts, 256, &stats));
         EXPECT_FALSE(stats.wholeMap);
         EXPECT_EQ(stats.stretch, 0.0);
         EXPECT_GT(stats.charts, 1u);
     }
-    const TriangleMesh high = icosphereMesh(5, 1.0f);
-    BakeOptions bakeOptions;
-    bakeOptions.size = 256;
-    DisplacementMap map;
-    BakeReport report;
-    ASSERT_TRUE(bake(&map, nullptr, &report, control, high, bakeOptions).isOk());
-    std::vector<LevelError> errors;
-    ASSERT_TRUE(closedLoopError(&errors, control, map, Scheme::Linear, high, 4, 4, 2).isOk());
-    EXPECT_LT(errors[0].forwardRms / report.diagonal, 3e-4);
-    EXPECT_LT(errors[0].backwardRms / report.diagonal, 3e-4);
-    EXPECT_LT(errors[0].forwardMax / report.diagonal, 2e-3);
+    expectSphereBakesBack(control);
 }
 
 // Only one connected genus-0 manifold opens into one square: a torus (a
@@ -995,14 +993,8 @@ TEST(Atlas, RealCagesMeetTheAtlasTargets)
         STRATA_REQUIRE_DATA(path, name);
         ControlMesh cage;
         ASSERT_TRUE(baker::loadControlMesh(path, &cage).isOk());
-        cage.uvs.clear();
-        cage.uvIndices.clear();
-        AtlasOptions options;
-        options.mapSize = 256;
-        options.gutter = 1;
         ChartAtlasStats stats;
-        ASSERT_TRUE(buildAtlas(&cage, options, &stats).isOk()) << name;
-        EXPECT_TRUE(checkUVs(cage, 256).isOk()) << name;
+        ASSERT_TRUE(chartAtlas(&cage, 256, &stats, true)) << name;
         EXPECT_GE(stats.texelFill, 0.70) << name;
         std::set<std::pair<uint32_t, uint32_t>> corners;  // a glb vertex per distinct (position, UV)
         for (size_t i = 0; i < cage.triangles.size(); ++i)

@@ -3,6 +3,7 @@
 
 #include "strata/normals.h"
 
+#include "distortion.h"
 #include "parallel.h"
 
 #include <Eigen/Sparse>
@@ -115,25 +116,6 @@ void frame(const glm::dvec3& n, glm::dvec3* u, glm::dvec3* v)
     const glm::dvec3 a = std::fabs(n.x) < 0.6 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
     *u = glm::normalize(glm::cross(n, a));
     *v = glm::cross(n, *u);
-}
-
-// Local isometric coordinates of face f's corners: corner 0 at the origin,
-// corner 1 on the x axis.  False for a degenerate face.
-bool isometric(const ControlMesh& mesh, uint32_t f, glm::dvec2 q[3])
-{
-    glm::dvec3 p[3];
-    for (int k = 0; k < 3; ++k)
-        p[k] = glm::dvec3(mesh.positions[mesh.triangles[3 * size_t(f) + size_t(k)]]);
-    const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
-    const double l1 = glm::length(e1);
-    const glm::dvec3 nrm = glm::cross(e1, e2);
-    if (!(l1 > 0.0) || !(glm::length(nrm) > 0.0))
-        return false;
-    const glm::dvec3 ex = e1 / l1, ey = glm::normalize(glm::cross(nrm, e1));
-    q[0] = glm::dvec2(0.0);
-    q[1] = glm::dvec2(l1, 0.0);
-    q[2] = glm::dvec2(glm::dot(e2, ex), glm::dot(e2, ey));
-    return true;
 }
 
 // Least-squares conformal map (Levy et al. 2002) of one disk-shaped chart:
@@ -328,17 +310,11 @@ bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int
     return true;
 }
 
-// Sampling distortion of a flattened chart: over its faces, the largest
-// ratio of a direction's length on the surface to its length in the
-// chart's plane (the singular values of the face's Jacobian) against the
-// chart's mean scale, or its inverse.  A displacement map is as coarse as
-// its worst direction, so this bounds how much finer the map must be than
-// an undistorted one.
+// Sampling distortion of a flattened chart (SamplingDistortion over its
+// faces); 1e300 where a face folds.
 double chartDistortion(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local)
 {
-    double area3 = 0.0, area2 = 0.0;
-    std::vector<std::pair<double, double>> sigma;
-    sigma.reserve(c.faces.size());
+    SamplingDistortion distortion;
     for (uint32_t f : c.faces) {
         glm::dvec2 q[3];
         if (!isometric(mesh, f, q))
@@ -346,27 +322,10 @@ double chartDistortion(const Chart& c, const ControlMesh& mesh, const std::vecto
         glm::dvec2 w[3];
         for (int k = 0; k < 3; ++k)
             w[k] = c.points[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
-        // J maps the chart's plane to the face's own: J = Q W^-1.
-        const glm::dvec2 w1 = w[1] - w[0], w2 = w[2] - w[0], q1 = q[1] - q[0], q2 = q[2] - q[0];
-        const double det = w1.x * w2.y - w1.y * w2.x;
-        if (!(det > 0.0))
+        if (!distortion.add(q, w))
             return 1e300;
-        const double i00 = w2.y / det, i01 = -w2.x / det, i10 = -w1.y / det, i11 = w1.x / det;
-        const double a = q1.x * i00 + q2.x * i10, b = q1.x * i01 + q2.x * i11;
-        const double cc = q1.y * i00 + q2.y * i10, d = q1.y * i01 + q2.y * i11;
-        const double e = 0.5 * (a * a + b * b + cc * cc + d * d), g = std::fabs(a * d - b * cc);
-        const double root = std::sqrt(std::max(0.0, e * e - g * g));
-        sigma.push_back({std::sqrt(e + root), std::sqrt(std::max(0.0, e - root))});
-        area3 += 0.5 * (q1.x * q2.y - q1.y * q2.x);
-        area2 += 0.5 * det;
     }
-    if (!(area2 > 0.0))
-        return 1e300;
-    const double mean = std::sqrt(area3 / area2);
-    double worst = 1.0;
-    for (const auto& s : sigma)
-        worst = std::max({worst, s.first / mean, s.second > 0.0 ? mean / s.second : 1e300});
-    return worst;
+    return distortion.worst();
 }
 
 // Projects a chart's vertices onto the plane orthogonal to n (where its

@@ -4,6 +4,8 @@
 // barycentric embedding (Yoshizawa, Belyaev and Seidel 2004).
 #include "strata/baker/atlas.h"
 
+#include "distortion.h"
+
 #include <Eigen/Sparse>
 #include <glm/geometric.hpp>
 
@@ -63,6 +65,24 @@ struct UnionFind {
     }
     void unite(uint32_t a, uint32_t b) { parent[find(a)] = find(b); }
 };
+
+// The angle at corner c (3f + k) of the mesh's triangles, and the lengths
+// of its two edges (to corners k + 1 and k + 2); -1 where one is empty.
+double cornerAngle(const ControlMesh& mesh, size_t c, double* la = nullptr, double* lb = nullptr)
+{
+    const size_t f = c / 3, k = c % 3;
+    const glm::dvec3 x(mesh.positions[mesh.triangles[c]]);
+    const glm::dvec3 a = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 1) % 3]]) - x;
+    const glm::dvec3 b = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 2) % 3]]) - x;
+    const double lengthA = glm::length(a), lengthB = glm::length(b);
+    if (la)
+        *la = lengthA;
+    if (lb)
+        *lb = lengthB;
+    if (!(lengthA > 0.0) || !(lengthB > 0.0))
+        return -1.0;
+    return std::acos(std::clamp(glm::dot(a, b) / (lengthA * lengthB), -1.0, 1.0));
+}
 
 // Fails on anything but one connected, consistently oriented, manifold
 // surface of genus 0 (a sphere or a disk with holes).
@@ -284,15 +304,8 @@ std::vector<std::array<size_t, 4>> chooseCorners(const ControlMesh& mesh, const 
     // The surface's angle at each border vertex (a right angle maps onto
     // a corner without distortion, a straight border onto a side).
     std::vector<double> angle(d.source.size(), 0.0);
-    for (size_t h = 0; h < 3 * t.nf; ++h) {
-        const size_t f = h / 3, k = h % 3;
-        const glm::dvec3 x(mesh.positions[mesh.triangles[h]]);
-        const glm::dvec3 a = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 1) % 3]]) - x;
-        const glm::dvec3 b = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 2) % 3]]) - x;
-        const double la = glm::length(a), lb = glm::length(b);
-        if (la > 0.0 && lb > 0.0)
-            angle[d.corner[h]] += std::acos(std::clamp(glm::dot(a, b) / (la * lb), -1.0, 1.0));
-    }
+    for (size_t h = 0; h < 3 * t.nf; ++h)
+        angle[d.corner[h]] += std::max(0.0, cornerAngle(mesh, h));
     // First corners: evenly spaced along the border, and its sharpest vertices.
     std::vector<size_t> firsts;
     const size_t spaced = std::min<size_t>(n, 48);
@@ -425,13 +438,10 @@ Stretch embed(const ControlMesh& mesh, const Topology& t, const Disk& d, const s
             const uint32_t i = d.corner[3 * f + size_t(k)];
             if (column[i] < 0)
                 continue;
-            const glm::dvec3 x = glm::dvec3(mesh.positions[mesh.triangles[3 * f + size_t(k)]]);
-            const glm::dvec3 a = glm::dvec3(mesh.positions[mesh.triangles[3 * f + size_t((k + 1) % 3)]]) - x;
-            const glm::dvec3 b = glm::dvec3(mesh.positions[mesh.triangles[3 * f + size_t((k + 2) % 3)]]) - x;
-            const double la = glm::length(a), lb = glm::length(b);
-            if (!(la > 0.0) || !(lb > 0.0))
+            double la = 0.0, lb = 0.0;
+            const double angle = cornerAngle(mesh, 3 * f + size_t(k), &la, &lb);
+            if (angle < 0.0)
                 return Stretch();
-            const double angle = std::acos(std::clamp(glm::dot(a, b) / (la * lb), -1.0, 1.0));
             const double tanHalf = std::tan(0.5 * angle);
             if (!std::isfinite(tanHalf))
                 return Stretch();  // a face flat as a line
@@ -552,53 +562,25 @@ bool cutTowards(const Topology& t, uint32_t v, const std::vector<char>& on, std:
 std::vector<double> angleDeficit(const ControlMesh& mesh)
 {
     std::vector<double> deficit(mesh.positions.size(), 2.0 * M_PI);
-    for (size_t c = 0; c < mesh.triangles.size(); ++c) {
-        const size_t f = c / 3, k = c % 3;
-        const glm::dvec3 x(mesh.positions[mesh.triangles[c]]);
-        const glm::dvec3 a = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 1) % 3]]) - x;
-        const glm::dvec3 b = glm::dvec3(mesh.positions[mesh.triangles[3 * f + (k + 2) % 3]]) - x;
-        const double la = glm::length(a), lb = glm::length(b);
-        if (la > 0.0 && lb > 0.0)
-            deficit[mesh.triangles[c]] -= std::acos(std::clamp(glm::dot(a, b) / (la * lb), -1.0, 1.0));
-    }
+    for (size_t c = 0; c < mesh.triangles.size(); ++c)
+        deficit[mesh.triangles[c]] -= std::max(0.0, cornerAngle(mesh, c));
     return deficit;
 }
 
 // The largest sampling distortion over the faces, as chart atlases
-// measure it: a direction's stretch against the map's mean scale, or its
-// inverse.
+// measure it; 0 where no face counts.
 double worstDistortion(const ControlMesh& mesh, const Disk& d, const std::vector<glm::dvec2>& uv)
 {
-    double area2 = 0.0, area3 = 0.0;
-    std::vector<std::pair<double, double>> sigma;
+    SamplingDistortion distortion;
+    bool any = false;
     for (size_t f = 0; f < mesh.faceCount(); ++f) {
-        const glm::dvec2 w0 = uv[d.corner[3 * f]], w1 = uv[d.corner[3 * f + 1]] - w0, w2 = uv[d.corner[3 * f + 2]] - w0;
-        const glm::dvec3 q0(mesh.positions[mesh.triangles[3 * f]]);
-        const glm::dvec3 e1 = glm::dvec3(mesh.positions[mesh.triangles[3 * f + 1]]) - q0;
-        const glm::dvec3 e2 = glm::dvec3(mesh.positions[mesh.triangles[3 * f + 2]]) - q0;
-        const double det = w1.x * w2.y - w1.y * w2.x, l1 = glm::length(e1);
-        const glm::dvec3 nrm = glm::cross(e1, e2);
-        if (!(det > 0.0) || !(l1 > 0.0) || !(glm::length(nrm) > 0.0))
+        glm::dvec2 q[3];
+        if (!isometric(mesh, uint32_t(f), q))
             continue;
-        // The face in its own plane: q1 = (l1, 0), q2 = (x, y).
-        const glm::dvec3 ex = e1 / l1, ey = glm::normalize(glm::cross(nrm, e1));
-        const glm::dvec2 q1(l1, 0.0), q2(glm::dot(e2, ex), glm::dot(e2, ey));
-        const double i00 = w2.y / det, i01 = -w2.x / det, i10 = -w1.y / det, i11 = w1.x / det;
-        const double a = q1.x * i00 + q2.x * i10, b = q1.x * i01 + q2.x * i11;
-        const double c = q1.y * i00 + q2.y * i10, e = q1.y * i01 + q2.y * i11;
-        const double h = 0.5 * (a * a + b * b + c * c + e * e), g = std::fabs(a * e - b * c);
-        const double root = std::sqrt(std::max(0.0, h * h - g * g));
-        sigma.push_back({std::sqrt(h + root), std::sqrt(std::max(0.0, h - root))});
-        area2 += 0.5 * det;
-        area3 += 0.5 * glm::length(nrm);
+        const glm::dvec2 w[3] = {uv[d.corner[3 * f]], uv[d.corner[3 * f + 1]], uv[d.corner[3 * f + 2]]};
+        any = distortion.add(q, w) || any;
     }
-    if (!(area2 > 0.0))
-        return 0.0;
-    const double mean = std::sqrt(area3 / area2);
-    double worst = 1.0;
-    for (const auto& s : sigma)
-        worst = std::max({worst, s.first / mean, s.second > 0.0 ? mean / s.second : 1e300});
-    return worst;
+    return any ? distortion.worst() : 0.0;
 }
 
 }  // namespace
