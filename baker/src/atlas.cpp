@@ -1460,8 +1460,8 @@ Status buildAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStat
     Status s = buildChartAtlas(mesh, options, stats, &store);
     const SquareAtlasOptions whole;
     const double fill = stats->texelFill;
-    if (!s || !options.wholeMap || (double(mesh->uvs.size()) <= whole.maxVertexRatio * double(mesh->positions.size()) &&
-               fill >= kAtlasMinFill))
+    const bool splitsFew = double(mesh->uvs.size()) <= whole.maxVertexRatio * double(mesh->positions.size());
+    if (!s || !options.wholeMap || (splitsFew && fill >= kAtlasMinFill))
         return s;
     ChartCache::Impl& made = *store.impl;  // the charts' cache: this cage's
     if (!made.squareMade) {
@@ -1479,10 +1479,8 @@ Status buildAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStat
         return s;  // not genus 0, or no cut within the vertex budget: the charts
     mesh->uvs = made.squareUVs;
     mesh->uvIndices = made.squareIndices;
-    fitSquareAtlas(&mesh->uvs, options.mapSize);
     *stats = made.squareStats;
-    const double size = double(options.mapSize);
-    stats->texelFill = (size - 1.0) * (size - 1.0) / (size * size);
+    stats->texelFill = fitSquareAtlas(&mesh->uvs, options.mapSize);
     return s;
 }
 

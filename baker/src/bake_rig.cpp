@@ -796,9 +796,10 @@ void BakeJob::searchMapSize()
         char buf[240];
         if (chartStats.wholeMap)
             std::snprintf(buf, sizeof(buf),
-                          "one chart over the whole map (the chart atlas split over %.1fx the vertices), "
-                          "%.0f%% of texels inside it, L2 stretch %.2f",
-                          SquareAtlasOptions().maxVertexRatio, 100.0 * chartStats.texelFill, chartStats.stretch);
+                          "one chart over the whole map (the charts split over %.1fx the vertices or filled "
+                          "under %.0f%% of the map), %.0f%% of texels inside it, L2 stretch %.2f",
+                          SquareAtlasOptions().maxVertexRatio, 100.0 * kAtlasMinFill, 100.0 * chartStats.texelFill,
+                          chartStats.stretch);
         else if (chartStats.charts)
             std::snprintf(buf, sizeof(buf),
                           "chart atlas: %zu charts, %.0f%% of texels inside charts, distortion <= %.2f",

@@ -52,6 +52,7 @@ struct Topology {
     std::vector<std::array<uint32_t, 2>> ends;  // per edge
     std::vector<std::vector<std::pair<uint32_t, uint32_t>>> around;  // per vertex: (neighbour, edge)
     std::vector<double> length;   // per edge
+    std::vector<double> area;     // per face, on the surface
 };
 
 struct UnionFind {
@@ -99,6 +100,12 @@ Status buildTopology(const ControlMesh& mesh, Topology* t, size_t* borderLoops)
         const uint32_t a = tri[h], b = tri[h - h % 3 + (h % 3 + 1) % 3];
         if (!directed.emplace(key(a, b), h).second)
             return Status(StatusCode::InvalidArgument, "an edge is shared by more than two faces or the faces' orientations disagree");
+    }
+    t->area.resize(t->nf);
+    for (size_t f = 0; f < t->nf; ++f) {
+        const glm::dvec3 q0(mesh.positions[tri[3 * f]]), q1(mesh.positions[tri[3 * f + 1]]),
+            q2(mesh.positions[tri[3 * f + 2]]);
+        t->area[f] = 0.5 * glm::length(glm::cross(q1 - q0, q2 - q0));
     }
     t->twin.assign(nh, kNone);
     t->edge.assign(nh, kNone);
@@ -233,7 +240,7 @@ struct Stretch {
     bool valid = false;
 };
 
-Stretch measureStretch(const ControlMesh& mesh, const Disk& d, const std::vector<glm::dvec2>& uv)
+Stretch measureStretch(const ControlMesh& mesh, const Topology& t, const Disk& d, const std::vector<glm::dvec2>& uv)
 {
     Stretch s;
     s.face.assign(mesh.faceCount(), 0.0);
@@ -247,17 +254,32 @@ Stretch measureStretch(const ControlMesh& mesh, const Disk& d, const std::vector
             return s;
         const glm::dvec3 ss = (q0 * (p1.y - p2.y) + q1 * (p2.y - p0.y) + q2 * (p0.y - p1.y)) / (2.0 * a);
         const glm::dvec3 st = (q0 * (p2.x - p1.x) + q1 * (p0.x - p2.x) + q2 * (p1.x - p0.x)) / (2.0 * a);
-        const double a3 = 0.5 * glm::length(glm::cross(q1 - q0, q2 - q0));
         s.face[f] = 0.5 * (glm::dot(ss, ss) + glm::dot(st, st));
-        sum += a3 * s.face[f];
+        sum += t.area[f] * s.face[f];
         area2 += a;
-        area3 += a3;
+        area3 += t.area[f];
     }
     if (!(area3 > 0.0))
         return s;
     s.total = std::sqrt(sum / area3 * area2 / area3);
     s.valid = std::isfinite(s.total);
     return s;
+}
+
+// Per vertex (numbered as `corner` numbers the faces' corners: a disk's
+// vertices or the mesh's), the squared stretch of its faces over their
+// area on the surface; -1 for a vertex without area.
+std::vector<double> vertexStretch(const Topology& t, const std::vector<uint32_t>& corner, size_t count,
+                                  const Stretch& s)
+{
+    std::vector<double> sum(count, 0.0), area(count, 0.0);
+    for (size_t c = 0; c < 3 * t.nf; ++c) {
+        sum[corner[c]] += t.area[c / 3] * s.face[c / 3];
+        area[corner[c]] += t.area[c / 3];
+    }
+    for (size_t v = 0; v < count; ++v)
+        sum[v] = area[v] > 0.0 ? sum[v] / area[v] : -1.0;
+    return sum;
 }
 
 // Corners for the disk's border on the unit square.  An inner edge whose
@@ -480,7 +502,7 @@ Stretch embed(const ControlMesh& mesh, const Topology& t, const Disk& d, const s
                 if (column[v] >= 0)
                     uv[v] = glm::dvec2(x(column[v], 0), x(column[v], 1));
         }
-        Stretch s = measureStretch(mesh, d, uv);
+        Stretch s = measureStretch(mesh, t, d, uv);
         if (!s.valid)
             break;
         if (best.valid && s.total >= best.total * 0.999) {
@@ -494,19 +516,10 @@ Stretch embed(const ControlMesh& mesh, const Topology& t, const Disk& d, const s
         bestUV = uv;
         // Each vertex's stretch (over the area of its faces) divides the
         // weights towards it: stretched regions get more of the square.
-        std::vector<double> sum(n, 0.0), area(n, 0.0);
-        for (size_t f = 0; f < t.nf; ++f) {
-            const glm::dvec3 q0(mesh.positions[mesh.triangles[3 * f]]), q1(mesh.positions[mesh.triangles[3 * f + 1]]),
-                q2(mesh.positions[mesh.triangles[3 * f + 2]]);
-            const double a3 = 0.5 * glm::length(glm::cross(q1 - q0, q2 - q0));
-            for (int k = 0; k < 3; ++k) {
-                sum[d.corner[3 * f + size_t(k)]] += a3 * best.face[f];
-                area[d.corner[3 * f + size_t(k)]] += a3;
-            }
-        }
+        const std::vector<double> stretch = vertexStretch(t, d.corner, n, best);
         for (size_t v = 0; v < n; ++v)
-            if (area[v] > 0.0)
-                scale[v] *= std::sqrt(std::sqrt(sum[v] / area[v]));
+            if (stretch[v] >= 0.0)
+                scale[v] *= std::sqrt(std::sqrt(stretch[v]));
     }
     if (best.valid)
         *uvOut = std::move(bestUV);
@@ -666,20 +679,11 @@ Status buildSquareAtlas(ControlMesh* mesh, const SquareAtlasOptions& options, Ch
     }
     for (int round = 0; round < kMaxCuts && current.valid && work < kMaxWork; ++round) {
         mark();
-        std::vector<double> sum(t.nv, 0.0), area(t.nv, 0.0);
-        for (size_t f = 0; f < nf; ++f) {
-            const glm::dvec3 q0(mesh->positions[mesh->triangles[3 * f]]),
-                q1(mesh->positions[mesh->triangles[3 * f + 1]]), q2(mesh->positions[mesh->triangles[3 * f + 2]]);
-            const double a3 = 0.5 * glm::length(glm::cross(q1 - q0, q2 - q0));
-            for (int k = 0; k < 3; ++k) {
-                sum[mesh->triangles[3 * f + size_t(k)]] += a3 * current.face[f];
-                area[mesh->triangles[3 * f + size_t(k)]] += a3;
-            }
-        }
+        const std::vector<double> stretch = vertexStretch(t, mesh->triangles, t.nv, current);
         std::vector<std::pair<double, uint32_t>> worst;
         for (uint32_t v = 0; v < t.nv; ++v)
-            if (!on[v] && area[v] > 0.0)
-                worst.push_back({sum[v] / area[v], v});
+            if (!on[v] && stretch[v] >= 0.0)
+                worst.push_back({stretch[v], v});
         const size_t tries = std::min(worst.size(), kAugmentTries);
         std::partial_sort(worst.begin(), worst.begin() + long(tries), worst.end(), std::greater<>());
         bool grown = false;
@@ -701,17 +705,15 @@ Status buildSquareAtlas(ControlMesh* mesh, const SquareAtlasOptions& options, Ch
             chosenUV = uv;
             grown = true;
         }
-        if (grown) {
-            cut.swap(chosenCut);
-            current = std::move(chosen);
-            if (current.total < best.total) {
-                best = current;
-                bestDisk = chosenDisk;
-                bestUV = chosenUV;
-            }
-        }
         if (!grown)
             break;
+        cut.swap(chosenCut);
+        current = std::move(chosen);
+        if (current.total < best.total) {
+            best = current;
+            bestDisk = std::move(chosenDisk);
+            bestUV = std::move(chosenUV);
+        }
     }
     if (!best.valid)
         return Status(StatusCode::InvalidArgument, "no cut within " + std::to_string(options.maxVertexRatio) +
@@ -720,13 +722,11 @@ Status buildSquareAtlas(ControlMesh* mesh, const SquareAtlasOptions& options, Ch
     for (size_t v = 0; v < bestDisk.source.size(); ++v)
         mesh->uvs[v] = glm::vec2(bestUV[v]);
     mesh->uvIndices = bestDisk.corner;
-    if (options.mapSize > 0)
-        fitSquareAtlas(&mesh->uvs, options.mapSize);
+    const double fill = options.mapSize > 0 ? fitSquareAtlas(&mesh->uvs, options.mapSize) : 1.0;
     if (stats) {
-        const double size = double(options.mapSize);
         *stats = ChartAtlasStats();
         stats->charts = 1;
-        stats->texelFill = size > 0.0 ? (size - 1.0) * (size - 1.0) / (size * size) : 1.0;
+        stats->texelFill = fill;
         stats->maxDistortion = worstDistortion(*mesh, bestDisk, bestUV);
         stats->wholeMap = true;
         stats->stretch = best.total;
@@ -734,7 +734,7 @@ Status buildSquareAtlas(ControlMesh* mesh, const SquareAtlasOptions& options, Ch
     return Status::ok();
 }
 
-void fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize)
+double fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize)
 {
     // The border texels' centres hold the chart's border: a bilinear sample
     // inside it reads no texel past the map (nor clamps).
@@ -742,6 +742,7 @@ void fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize)
     for (glm::vec2& uv : *uvs)
         uv = glm::vec2(float((0.5 + double(uv.x) * (size - 1.0)) / size),
                        float((0.5 + double(uv.y) * (size - 1.0)) / size));
+    return (size - 1.0) * (size - 1.0) / (size * size);
 }
 
 }  // namespace baker

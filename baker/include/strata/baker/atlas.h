@@ -140,7 +140,8 @@ Status buildAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtlasStat
 /// Moves UVs that span the unit square (buildSquareAtlas with mapSize 0)
 /// onto a map of `mapSize` texels: the square's sides on the centres of the
 /// map's border texels, so a bilinear sample inside never reads past them.
-void fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize);
+/// Returns the share of the map's texels inside the chart.
+double fitSquareAtlas(std::vector<glm::vec2>* uvs, int mapSize);
 
 }  // namespace baker
 }  // namespace strata
