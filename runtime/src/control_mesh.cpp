@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace strata {
@@ -109,6 +110,75 @@ Status validateControlMesh(const ControlMesh& mesh)
     }
 
     return Status::ok();
+}
+
+namespace {
+
+constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ull, kFnvPrime = 0x100000001b3ull;
+
+uint64_t fnv(uint64_t h, uint32_t word)
+{
+    for (int k = 0; k < 4; ++k) {
+        h ^= (word >> (8 * k)) & 0xffu;
+        h *= kFnvPrime;
+    }
+    return h;
+}
+
+uint32_t floatBits(float v)
+{
+    uint32_t b;
+    std::memcpy(&b, &v, 4);
+    return b == 0x80000000u ? 0u : b;  // -0 reads as +0, as the loaders weld it
+}
+
+// splitmix64's finaliser: spreads a position's bits over the word.
+uint64_t mix(uint64_t x)
+{
+    x ^= x >> 30;
+    x *= 0xbf58476d1ce4e5b9ull;
+    x ^= x >> 27;
+    x *= 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+}  // namespace
+
+uint64_t controlTopologyHash(const uint32_t* triangles, size_t faceCount, size_t vertexCount)
+{
+    uint64_t h = fnv(fnv(kFnvOffset, uint32_t(vertexCount)), uint32_t(uint64_t(vertexCount) >> 32));
+    for (size_t i = 0; i < 3 * faceCount; ++i)
+        h = fnv(h, triangles[i]);
+    return h;
+}
+
+ControlMeshFingerprint fingerprintControlMesh(const ControlMesh& mesh)
+{
+    ControlMeshFingerprint f;
+    f.vertices = mesh.vertexCount();
+    f.faces = mesh.faceCount();
+    f.topology = controlTopologyHash(mesh.triangles.data(), f.faces, f.vertices);
+    std::vector<uint64_t> vertexHash(f.vertices);
+    uint64_t h = kFnvOffset;
+    for (size_t v = 0; v < f.vertices; ++v) {
+        const uint32_t x = floatBits(mesh.positions[v].x), y = floatBits(mesh.positions[v].y),
+                       z = floatBits(mesh.positions[v].z);
+        h = fnv(fnv(fnv(h, x), y), z);
+        vertexHash[v] = mix(mix(mix(uint64_t(x)) ^ y) ^ z);
+    }
+    f.positions = h;
+    uint64_t shape = 0;
+    for (size_t t = 0; t < f.faces; ++t) {
+        uint64_t c[3];
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = mesh.triangles[3 * t + size_t(k)];
+            c[k] = v < f.vertices ? vertexHash[v] : 0;
+        }
+        const int first = c[0] <= c[1] && c[0] <= c[2] ? 0 : (c[1] <= c[2] ? 1 : 2);
+        shape += mix(mix(mix(c[first]) ^ c[(first + 1) % 3]) ^ c[(first + 2) % 3]);
+    }
+    f.shape = shape;
+    return f;
 }
 
 }  // namespace strata

@@ -447,6 +447,7 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
     plan->scheme_ = scheme;
     plan->level_ = level;
     plan->controlVertexCount_ = mesh.positions.size();
+    plan->controlTopology_ = strata::controlTopologyHash(mesh.triangles.data(), mesh.faceCount(), mesh.vertexCount());
     st = plan->build(mesh);
     if (!st)
         return st;

@@ -15,6 +15,18 @@ Status applyRigDisplacement(Plan* plan, const Rig& rig, const DisplacementMap* m
     if (!plan)
         return Status(StatusCode::InvalidArgument, "applyRigDisplacement: no plan");
     const DisplacementInfo& info = rig.displacement;
+    // The displacements belong to one surface: the rig's control mesh, in the
+    // scheme it was baked against.  Any other plan would draw another surface.
+    if (rig.hasDisplacement && plan->scheme() != info.scheme)
+        return Status(StatusCode::InvalidArgument,
+                      std::string("the plan uses the ") + schemeName(plan->scheme()) +
+                          " scheme but the rig was baked against the " + schemeName(info.scheme) +
+                          " scheme: build the plan with rig.displacement.scheme");
+    if (plan->controlVertexCount() != rig.mesh.vertexCount() ||
+        plan->controlTopologyHash() != controlTopologyHash(rig.mesh.triangles.data(), rig.mesh.faceCount(),
+                                                           rig.mesh.vertexCount()))
+        return Status(StatusCode::InvalidArgument, "the plan was built from another control mesh than the rig's "
+                                                   "(other vertices or triangles): build it from rig.mesh");
     if (rig.hasDisplacement && info.vertexLevel >= 0) {
         DisplacementField field;
         Status st = DisplacementField::create(&field, rig.mesh, info.vertexLevel, info.vertexValues);

@@ -35,6 +35,24 @@ struct ControlMesh {
 /// The message names the first offending face, vertex or UV.
 Status validateControlMesh(const ControlMesh& mesh);
 
+/// What a displacement layer was baked against, so that a control mesh that
+/// changed after the bake is refused rather than displaced wrongly (the
+/// per-vertex values are numbered by the refinement of exactly this mesh).
+/// `topology` and `positions` are order-sensitive FNV-1a hashes (vertex count
+/// and triangle indices; position bit patterns with -0 read as +0); `shape`
+/// is order-insensitive (the sum over faces of a hash of the corners'
+/// positions from the corner whose hash is smallest, winding kept), so a
+/// mesh that was only renumbered keeps its shape and loses its topology.
+struct ControlMeshFingerprint {
+    size_t vertices = 0, faces = 0;
+    uint64_t topology = 0, positions = 0, shape = 0;
+};
+
+ControlMeshFingerprint fingerprintControlMesh(const ControlMesh& mesh);
+
+/// The order-sensitive topology hash alone (ControlMeshFingerprint::topology).
+uint64_t controlTopologyHash(const uint32_t* triangles, size_t faceCount, size_t vertexCount);
+
 /// Counts used by tests and tools: edges, boundary edges, non-manifold edges.
 struct MeshTopologyStats {
     size_t vertices = 0;          ///< vertices referenced by at least one face

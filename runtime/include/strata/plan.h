@@ -91,6 +91,9 @@ public:
     Scheme scheme() const { return scheme_; }
     int level() const { return level_; }
     size_t controlVertexCount() const { return controlVertexCount_; }
+    /// controlTopologyHash of the control mesh the plan was built from: a
+    /// rig's displacements apply only to a plan of the same topology.
+    uint64_t controlTopologyHash() const { return controlTopology_; }
 
     /// Refined topology: refinedVertexCount() vertices, 3 indices per face,
     /// counter-clockwise like the control mesh.  4^level faces per control face.
@@ -198,6 +201,7 @@ private:
     Scheme scheme_ = Scheme::Linear;
     int level_ = 0;
     size_t controlVertexCount_ = 0;
+    uint64_t controlTopology_ = 0;
 
     std::vector<uint32_t> triangles_;
     std::vector<glm::vec2> controlUVs_;  // the control mesh's UVs, for refinedUVs()
