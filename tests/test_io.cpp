@@ -401,11 +401,14 @@ TEST(Rig, CorruptPerVertexDisplacementsAreRefused)
     EXPECT_NE(st.message().find("per-vertex displacements end early"), std::string::npos) << st.message();
 }
 
-// Version 4 leaves out the fields that have one value and, for values
-// without UVs, the texture object; its numbers of float data carry float
-// precision.  A version 3 block that spells everything out loads the same,
-// and a coding this build does not know is refused.
-TEST(Rig, VersionFourLeavesOutWhatHasOneValueAndVersionThreeStillLoads)
+// Version 5 is the declared extension STRATA_layered_displacement: listed in
+// extensionsUsed only, the coded values reached through an accessor, the
+// control mesh it was baked on recorded, and (as version 4) the fields that
+// have one value left out.  Its numbers of float data carry float precision.
+// Version 4 (the same block in extras, the values by bufferView) and a
+// version 3 block that spells everything out load the same, and a coding
+// this build does not know is refused.
+TEST(Rig, VersionFiveIsTheDeclaredExtensionAndVersionsThreeAndFourStillLoad)
 {
     const std::string dir = test::tempDir("rig_version4");
     DisplacementMap map;
@@ -416,11 +419,22 @@ TEST(Rig, VersionFourLeavesOutWhatHasOneValueAndVersionThreeStillLoads)
     ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", rig, &map, nullptr, &options).isOk());
     const std::string text = readText(dir + "/rig.gltf");
     nlohmann::json doc = nlohmann::json::parse(text);
-    nlohmann::json& block = doc["meshes"][0]["extras"]["strata"];
-    EXPECT_EQ(block["version"], 4);
-    for (const char* omitted : {"direction", "normalWeighting", "subdivision", "displacementGeometryTexture"})
-        EXPECT_FALSE(block.contains(omitted)) << omitted;
-    EXPECT_FALSE(block["displacementVertices"].contains("coding"));
+    const nlohmann::json& layer = doc["meshes"][0]["extensions"][io::kLayerExtension];
+    ASSERT_TRUE(layer.is_object());
+    EXPECT_EQ(doc["extensionsUsed"], nlohmann::json::array({io::kLayerExtension}));
+    EXPECT_FALSE(doc.contains("extensionsRequired"));
+    EXPECT_FALSE(doc["meshes"][0].contains("extras"));
+    for (const char* omitted : {"version", "direction", "normalWeighting", "subdivision", "displacementGeometryTexture"})
+        EXPECT_FALSE(layer.contains(omitted)) << omitted;
+    EXPECT_FALSE(layer["displacementVertices"].contains("coding"));
+    const nlohmann::json& values = doc["accessors"][layer["displacementVertices"]["accessor"].get<size_t>()];
+    EXPECT_EQ(values["componentType"], 5121);
+    EXPECT_EQ(values["type"], "SCALAR");
+    EXPECT_EQ(layer["control"]["vertices"], rig.mesh.vertexCount());
+    EXPECT_EQ(layer["control"]["triangles"], rig.mesh.faceCount());
+    for (const char* hash : {"topology", "positions", "shape"})
+        EXPECT_EQ(layer["control"][hash].get<std::string>().find_first_not_of("0123456789abcdef"), std::string::npos)
+            << hash;
     // Float data in at most nine significant digits ("0.57565022").
     for (const char* key : {"\"displacementGeometryFactor\":", "\"displacementGeometryOffset\":", "\"max\":"}) {
         size_t at = text.find(key);
@@ -441,10 +455,19 @@ TEST(Rig, VersionFourLeavesOutWhatHasOneValueAndVersionThreeStillLoads)
         EXPECT_GE(digits, 1) << key;
         EXPECT_LE(digits, 9) << key;
     }
-    Rig four;
-    Status st = io::loadRig(dir + "/rig.gltf", &four);
+    Rig five;
+    Status st = io::loadRig(dir + "/rig.gltf", &five);
     ASSERT_TRUE(st.isOk()) << st.message();
-    EXPECT_EQ(four.displacement.texCoord, -1);
+    EXPECT_EQ(five.displacement.texCoord, -1);
+    EXPECT_EQ(five.displacement.encoding, "vertex");
+
+    test::layerToVersionFour(doc);
+    nlohmann::json& block = doc["meshes"][0]["extras"]["strata"];
+    writeText(dir + "/v4.gltf", doc.dump());
+    Rig four;
+    st = io::loadRig(dir + "/v4.gltf", &four);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(four.displacement.vertexValues, five.displacement.vertexValues);
     EXPECT_EQ(four.displacement.encoding, "vertex");
 
     block["version"] = 3;
@@ -507,15 +530,15 @@ TEST(Rig, RejectsAnotherFormatVersion)
 {
     const std::string dir = test::tempDir("rig_version");
     ASSERT_TRUE(io::saveRig(dir + "/rig.gltf", exampleRig(64)).isOk());
-    std::string json = readText(dir + "/rig.gltf");
-    const size_t at = json.find("\"version\": 4");
-    ASSERT_NE(at, std::string::npos);
-    json.replace(at, 12, "\"version\": 7");
-    writeText(dir + "/v7.gltf", json);
+    nlohmann::json doc = nlohmann::json::parse(readText(dir + "/rig.gltf"));
+    test::layerToVersionFour(doc);
+    doc["meshes"][0]["extras"]["strata"]["version"] = 7;
+    writeText(dir + "/v7.gltf", doc.dump());
     Rig rig;
     const Status st = io::loadRig(dir + "/v7.gltf", &rig);
     EXPECT_FALSE(st.isOk());
-    EXPECT_NE(st.message().find("version 7, this build reads versions 1 to 4"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("version 7 in extras, this build reads versions 1 to 4"), std::string::npos)
+        << st.message();
 }
 
 TEST(Rig, RejectsBrokenGltf)

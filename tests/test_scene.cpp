@@ -128,15 +128,15 @@ void checkKeepsEverything(const std::string& source, const std::string& dir, con
         EXPECT_EQ(imageBytes(in, i), imageBytes(out, i)) << "image " << i;
         EXPECT_EQ(a["images"][i].value("mimeType", ""), b["images"][i].value("mimeType", ""));
     }
-    const json& block = b["meshes"][0]["extras"]["strata"];
-    EXPECT_EQ(block["version"], 4);
+    const json& block = b["meshes"][0]["extensions"][io::kLayerExtension];
+    EXPECT_FALSE(block.contains("version"));
     if (block.contains("displacementGeometryTexture")) {  // left out without UVs
         EXPECT_EQ(block["displacementGeometryTexture"]["encoding"], "vertex");
         EXPECT_FALSE(block["displacementGeometryTexture"].contains("image"));
     }
     ASSERT_TRUE(block["displacementVertices"].is_object());
     EXPECT_EQ(block["displacementVertices"]["level"], block["recommendedLevel"]);
-    EXPECT_LT(block["displacementVertices"]["bufferView"].get<size_t>(), b["bufferViews"].size());
+    EXPECT_LT(block["displacementVertices"]["accessor"].get<size_t>(), b["accessors"].size());
     Rig loaded;
     const Status st = io::loadRig(rig, &loaded);
     ASSERT_TRUE(st.isOk()) << st.message();
@@ -626,14 +626,25 @@ TEST(Scene, StrippedRigsFailLoudlyOrWarn)
     st = io::loadRig(dir + "/noimage.glb", &out);
     EXPECT_FALSE(st.isOk());
     EXPECT_NE(st.message().find("map is missing"), std::string::npos) << st.message();
-    // The block stripped from a Strata file: loads plain, with a warning.
+    // The layer stripped from a Strata file, its declaration kept: loads
+    // plain, with a warning that the displacement is gone.
     tinygltf::Model noBlock = m;
-    noBlock.meshes[0].extras = tinygltf::Value();
+    noBlock.meshes[0].extensions.erase(io::kLayerExtension);
     ASSERT_TRUE(io.WriteGltfSceneToFile(&noBlock, dir + "/noblock.glb", true, true, false, true));
     ASSERT_TRUE(io::loadRig(dir + "/noblock.glb", &out).isOk());
     EXPECT_FALSE(out.hasDisplacement);
     ASSERT_EQ(out.warnings.size(), 1u);
-    EXPECT_NE(out.warnings[0].find("no displacement block"), std::string::npos) << out.warnings[0];
+    EXPECT_NE(out.warnings[0].find("declares STRATA_layered_displacement but no mesh carries the layer"),
+              std::string::npos)
+        << out.warnings[0];
+    EXPECT_NE(io::missingLayerCause(out).find("a tool dropped it"), std::string::npos);
+    // ... and its declaration too: Strata's generator is the trace left.
+    noBlock.extensionsUsed.clear();
+    noBlock.asset.generator = "Strata 0.5";
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&noBlock, dir + "/noblock2.glb", true, true, false, true));
+    ASSERT_TRUE(io::loadRig(dir + "/noblock2.glb", &out).isOk());
+    ASSERT_EQ(out.warnings.size(), 1u);
+    EXPECT_NE(out.warnings[0].find("the displacement is gone"), std::string::npos) << out.warnings[0];
 }
 
 TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
@@ -654,7 +665,7 @@ TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
     // loader says what it suspects instead of reconstructing silently.
     if (!packed.hasDisplacement) {
         ASSERT_EQ(packed.warnings.size(), 1u);
-        EXPECT_NE(packed.warnings[0].find("stripped"), std::string::npos) << packed.warnings[0];
+        EXPECT_NE(packed.warnings[0].find("dropped the layer"), std::string::npos) << packed.warnings[0];
     }
     // Integer positions with the dequantisation on the node: the same surface
     // to gltfpack's 14-bit precision.
@@ -759,12 +770,15 @@ TEST(Scene, VersionOneRigsStillLoad)
     rig.displacement.uri = "v1.exr";
     ASSERT_TRUE(io::writeDisplacementExr(dir + "/v1.exr", map).isOk());
     ASSERT_TRUE(io::saveRig(dir + "/v2.gltf", rig).isOk());
-    std::string text = test::readText(dir + "/v2.gltf");
-    // Version 1 spelled out the fields that version 4 may leave out.
-    const size_t at = text.find("\"version\": 4");
-    ASSERT_NE(at, std::string::npos);
-    text.replace(at, 12, "\"direction\": \"interpolated-control-normal\", \"normalWeighting\": \"angle\", \"version\": 1");
-    test::writeText(dir + "/v1.gltf", text);
+    // Version 1: the block in extras, with the fields that later versions
+    // may leave out spelled out.
+    nlohmann::json doc = nlohmann::json::parse(test::readText(dir + "/v2.gltf"));
+    test::layerToVersionFour(doc);
+    nlohmann::json& block = doc["meshes"][0]["extras"]["strata"];
+    block["version"] = 1;
+    block["direction"] = "interpolated-control-normal";
+    block["normalWeighting"] = "angle";
+    test::writeText(dir + "/v1.gltf", doc.dump());
     Rig back;
     const Status st = io::loadRig(dir + "/v1.gltf", &back);
     ASSERT_TRUE(st.isOk()) << st.message();

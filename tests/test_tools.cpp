@@ -25,10 +25,19 @@ TEST(Tools, DemoThenReconstructEveryFormat)
     ASSERT_TRUE(strata::test::fileExists(dir + "/head.exr"));
     for (const char* ext : {"obj", "ply", "glb"}) {
         const std::string out = dir + "/out." + ext;
-        r = run(reconstruct + " '" + dir + "/head.glb' --level 2 --scheme smooth -o '" + out + "'");
+        r = run(reconstruct + " '" + dir + "/head.glb' --level 2 -o '" + out + "'");
         EXPECT_EQ(r.code, 0) << r.output;
         EXPECT_TRUE(strata::test::fileExists(out)) << out;
     }
+    // The rig was baked against the linear scheme: drawn with its
+    // displacement in the smooth one it would be another surface.
+    r = run(reconstruct + " '" + dir + "/head.glb' --level 2 --scheme smooth -o '" + dir + "/smooth.obj'");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("was baked against the linear scheme"), std::string::npos) << r.output;
+    EXPECT_FALSE(strata::test::fileExists(dir + "/smooth.obj"));
+    r = run(reconstruct + " '" + dir + "/head.glb' --level 2 --scheme smooth --no-displacement -o '" + dir +
+            "/smooth.obj'");
+    EXPECT_EQ(r.code, 0) << r.output;
 }
 
 TEST(Tools, ReconstructRejectsBadInputWithExitCode2)
@@ -148,7 +157,7 @@ TEST(Tools, DeepNodeChainsLoad)
     text.replace(text.find("\"nodes\":[{\"mesh\":0}]"), 20, "\"nodes\":" + nodes);
     text.replace(text.find("\"scenes\":[{\"nodes\":[0]}]"), 24, "\"scenes\":[{\"nodes\":[300]}]");
     strata::test::writeText(dir + "/deep.gltf", text);
-    const Result r = run(reconstruct + " '" + dir + "/deep.gltf' --level 1 -o '" + dir + "/o.obj'");
+    const Result r = run(reconstruct + " '" + dir + "/deep.gltf' --level 1 --no-displacement -o '" + dir + "/o.obj'");
     EXPECT_EQ(r.code, 0) << r.output;
     // 300 translations of 0.001 along x: the first vertex sits at x = 0.3.
     const std::string obj = strata::test::readText(dir + "/o.obj");

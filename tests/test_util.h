@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cstdio>
@@ -34,6 +35,43 @@ inline std::string sharedData(const std::string& name)
     const std::string var = ::strata::test::sharedData(name);                          \
     if (var.empty())                                                                   \
     GTEST_SKIP() << "../shared/data/" << name << " is absent; test needs it"
+
+/// Rewrites a rig's JSON as format version 4 wrote it: the layer of each
+/// mesh moves from its STRATA_layered_displacement extension to
+/// extras.strata with "version": 4, the coded values are named by their
+/// accessor's bufferView, and the control fingerprint goes.  For tests that
+/// older rigs still load.
+inline void layerToVersionFour(nlohmann::json& doc)
+{
+    const char* name = "STRATA_layered_displacement";
+    for (nlohmann::json& mesh : doc["meshes"]) {
+        if (!mesh.contains("extensions") || !mesh["extensions"].contains(name))
+            continue;
+        nlohmann::json block = mesh["extensions"][name];
+        mesh["extensions"].erase(name);
+        if (mesh["extensions"].empty())
+            mesh.erase("extensions");
+        block["version"] = 4;
+        block.erase("control");
+        if (block.contains("displacementVertices")) {
+            nlohmann::json& v = block["displacementVertices"];
+            v["bufferView"] = doc["accessors"][v["accessor"].get<size_t>()]["bufferView"];
+            v.erase("accessor");
+        }
+        mesh["extras"]["strata"] = block;
+    }
+    for (const char* list : {"extensionsUsed", "extensionsRequired"})
+        if (doc.contains(list)) {
+            nlohmann::json kept = nlohmann::json::array();
+            for (const auto& e : doc[list])
+                if (e != name)
+                    kept.push_back(e);
+            if (kept.empty())
+                doc.erase(list);
+            else
+                doc[list] = kept;
+        }
+}
 
 /// Runs a shell command, returning its exit code and its stdout + stderr.
 struct CommandResult {

@@ -31,7 +31,8 @@ TEST(GltfValidator, EveryFileTheProjectWritesIsClean)
     ASSERT_TRUE(io::saveRig(files.back(), plain).isOk());
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         io::Reconstruction rec;
-        ASSERT_TRUE(io::reconstruct(&rec, rig, &map, scheme, 3).isOk());
+        // The displacement only in the scheme it was baked against.
+        ASSERT_TRUE(io::reconstruct(&rec, rig, scheme == rig.displacement.scheme ? &map : nullptr, scheme, 3).isOk());
         files.push_back(dir + "/level3_" + schemeName(scheme) + ".glb");
         ASSERT_TRUE(io::writeReconstruction(files.back(), rec).isOk());
     }

@@ -20,7 +20,7 @@ const char* kUsage =
     "                   [--control-faces K] [--uv keep|auto] [--size auto|N] [--scheme linear|smooth]\n"
     "                   [--float] [--png8|--png16] [--overlap max|nearest] [--threads N]\n"
     "                   [--tolerance E|P%] [--error-levels N|A:B|none] [--skeleton JOINTS.json] [--exr] [--layers]\n"
-    "                   [--map-coding vertex|png] [--mesh-coding draco|meshopt] [--no-compress] [--keep-holes]\n"
+    "                   [--map-coding vertex|png] [--mesh-coding plain|meshopt|draco] [--keep-holes]\n"
     "                   [--no-fit] [--max-memory MB]\n"
     "                   -o RIG.{glb,gltf} [--report REPORT.json|-] [--version]\n"
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
@@ -31,9 +31,10 @@ const char* kUsage =
     "The rig is one self-contained file: the map is stored as its samples at the recommended\n"
     "level's refined vertices, quantised to the bits the tolerance needs, predicted in\n"
     "subdivision order and zstd-coded (--map-coding png embeds it as a grey PNG instead);\n"
-    "a bare cage is Draco-coded (KHR_draco_mesh_compression, positions to four times the\n"
-    "tolerance; --mesh-coding meshopt codes it with EXT_meshopt_compression instead), other\n"
-    "vertex data and indices meshopt-coded (--no-compress for tools without either).  An atlas\n"
+    "the control mesh is written as plain accessors, which every glTF tool opens (Blender 3.4,\n"
+    "gltfpack); --mesh-coding meshopt (EXT_meshopt_compression) or draco (a bare cage as\n"
+    "KHR_draco_mesh_compression, positions to four times the tolerance) write smaller files\n"
+    "that three.js, Babylon.js and Strata read but Blender 3.4 and gltfpack do not.  An atlas\n"
     "the baker lays out only serves the bake and stays out of the rig unless an output that is\n"
     "the map asks for it: --exr also writes it as RIG.exr for pipelines, --png8/--png16 as a\n"
     "PNG, --layers writes RIG_layers.png (surface layers per texel).\n"
@@ -69,8 +70,8 @@ bool parseArgs(int argc, char** argv, baker::BakeRequest* r)
             r->maxMemoryMB = double(cli::parseInt(a, value(), 16, 1 << 24));
         } else if (a == "--mesh-coding") {
             r->meshCoding = value();
-            if (r->meshCoding != "draco" && r->meshCoding != "meshopt")
-                throw cli::Error("--mesh-coding takes draco or meshopt, not " + r->meshCoding);
+            if (r->meshCoding != "plain" && r->meshCoding != "draco" && r->meshCoding != "meshopt")
+                throw cli::Error("--mesh-coding takes plain, meshopt or draco, not " + r->meshCoding);
         } else if (a == "--no-compress") {
             r->compress = false;
         } else if (a == "--keep-holes") {

@@ -122,6 +122,16 @@ int main(int argc, char** argv)
         } else if (!(st = io::loadRig(rigPath, &rig))) {
             throw cli::Error(st.message());
         }
+        // A glTF without the layer is never drawn as if it were the baked
+        // surface: the layer may have been dropped by the last tool to touch it.
+        if (rig.source && !rig.hasDisplacement && displace)
+            throw cli::Error(rigPath + ": no displacement layer (" + io::missingLayerCause(rig) +
+                             "): bake again, or pass --no-displacement to refine the plain mesh");
+        if (rig.hasDisplacement && displace && haveScheme && scheme != rig.displacement.scheme)
+            throw cli::Error(std::string("--scheme ") + schemeName(scheme) + ": " + rigPath + " was baked against the " +
+                             schemeName(rig.displacement.scheme) +
+                             " scheme, and its displacement drawn in another is another surface (pass "
+                             "--no-displacement to refine the bare cage in it)");
         if (!skeletonPath.empty()) {
             if (!(st = io::loadJointFile(skeletonPath, &rig.skeleton)))
                 throw cli::Error(st.message());

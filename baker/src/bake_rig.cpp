@@ -374,7 +374,7 @@ public:
         : request(r), result(out), progress(stages), highPath(r.high), controlPath(r.control), outPath(r.output),
           reportPath(r.report), uvMode(r.uv), skeletonPath(r.skeleton), mapCoding(r.mapCoding),
           controlFaces(r.controlFaces), options(r.options), asFloat(r.floatExr), writeExr(r.exr),
-          writeLayers(r.layers), schemeGiven(r.schemeGiven), compress(r.compress), pngBits(r.pngBits),
+          writeLayers(r.layers), schemeGiven(r.schemeGiven), compress(r.compress && r.meshCoding != "plain"), pngBits(r.pngBits),
           errorFrom(r.errorFrom), errorTo(r.errorTo), tolerance(r.tolerance), maxMemoryMB(r.maxMemoryMB)
     {
     }
@@ -505,8 +505,8 @@ void BakeJob::loadInputs()
         throw BakeError("--high, --control and -o are required (see --help)");
     if (mapCoding != "vertex" && mapCoding != "png")
         throw BakeError("map coding must be vertex or png, not " + mapCoding);
-    if (request.meshCoding != "draco" && request.meshCoding != "meshopt")
-        throw BakeError("mesh coding must be draco or meshopt, not " + request.meshCoding);
+    if (request.meshCoding != "plain" && request.meshCoding != "draco" && request.meshCoding != "meshopt")
+        throw BakeError("mesh coding must be plain, meshopt or draco, not " + request.meshCoding);
     if (Status checked = checkOutput(request); !checked)
         throw BakeError(checked.message());
     const std::string ext = io::extensionOf(outPath);
@@ -920,6 +920,10 @@ void BakeJob::summarize()
                  "auto) makes a smaller rig",
                  outPath.c_str(), rigBytes / 1024.0, plain / 1024.0, hv, hf, control.faceCount());
     }
+    if (compress && io::extensionOf(outPath) == ".glb")
+        warn("%s: %s-coded, which Blender 3.4 (Debian's, without Draco) and gltfpack do not open; "
+             "--mesh-coding plain writes a rig they do",
+             outPath.c_str(), request.meshCoding == "draco" ? "Draco" : "meshopt");
     const double diag = rep.diagonal;
     appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
                  schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());

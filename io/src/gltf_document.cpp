@@ -4,6 +4,7 @@
 #include "gltf_document.h"
 
 #include "strata/io/file.h"
+#include "strata/io/rig_io.h"
 #include "gltf_mesh_writer.h"
 
 #include <sys/stat.h>
@@ -269,7 +270,7 @@ bool onlyKnownExtensions(const tinygltf::Model& model)
     for (const std::string& e : model.extensionsUsed)
         if (e.rfind("KHR_materials_", 0) != 0 && e != "KHR_texture_transform" && e != "KHR_lights_punctual" &&
             e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp" &&
-            e != "KHR_draco_mesh_compression")
+            e != "KHR_draco_mesh_compression" && e != kLayerExtension)
             return false;
     return true;
 }
@@ -288,6 +289,15 @@ void forEachAccessorReference(tinygltf::Model& model,
                 for (auto& [name, a] : target)
                     visit(a, AccessorUse::MorphTarget, &p);
         }
+    for (tinygltf::Mesh& m : model.meshes) {
+        const int layer = layerAccessor(m);
+        if (layer >= 0) {
+            int a = layer;
+            visit(a, AccessorUse::Other, nullptr);
+            if (a != layer)
+                setLayerAccessor(&m, a);
+        }
+    }
     for (tinygltf::Skin& sk : model.skins)
         visit(sk.inverseBindMatrices, AccessorUse::Other, nullptr);
     for (tinygltf::Animation& an : model.animations)
@@ -295,6 +305,58 @@ void forEachAccessorReference(tinygltf::Model& model,
             visit(sa.input, AccessorUse::Other, nullptr);
             visit(sa.output, AccessorUse::Other, nullptr);
         }
+}
+
+int layerAccessor(const tinygltf::Mesh& mesh)
+{
+    auto it = mesh.extensions.find(kLayerExtension);
+    if (it == mesh.extensions.end() || !it->second.IsObject() || !it->second.Has("displacementVertices"))
+        return -1;
+    const tinygltf::Value& vertices = it->second.Get("displacementVertices");
+    if (!vertices.IsObject() || !vertices.Has("accessor") || !vertices.Get("accessor").IsNumber())
+        return -1;
+    const double a = vertices.Get("accessor").GetNumberAsDouble();
+    return a >= 0 && a < 2147483647.0 ? int(a) : -1;
+}
+
+void setLayerAccessor(tinygltf::Mesh* mesh, int accessor)
+{
+    tinygltf::Value::Object block = mesh->extensions[kLayerExtension].Get<tinygltf::Value::Object>();
+    tinygltf::Value::Object vertices = block["displacementVertices"].Get<tinygltf::Value::Object>();
+    vertices["accessor"] = tinygltf::Value(accessor);
+    block["displacementVertices"] = tinygltf::Value(vertices);
+    mesh->extensions[kLayerExtension] = tinygltf::Value(block);
+}
+
+int dropLayers(tinygltf::Model& model)
+{
+    int mapImage = -1;
+    auto imageOf = [&](const tinygltf::Value& block) {
+        if (!block.IsObject() || !block.Has("displacementGeometryTexture"))
+            return;
+        const tinygltf::Value& tex = block.Get("displacementGeometryTexture");
+        if (tex.IsObject() && tex.Has("image") && tex.Get("image").IsNumber()) {
+            const double i = tex.Get("image").GetNumberAsDouble();
+            if (i >= 0 && i < double(model.images.size()))
+                mapImage = int(i);
+        }
+    };
+    for (tinygltf::Mesh& m : model.meshes) {
+        auto it = m.extensions.find(kLayerExtension);
+        if (it != m.extensions.end()) {
+            imageOf(it->second);
+            m.extensions.erase(it);
+        }
+        if (m.extras.IsObject() && m.extras.Has("strata")) {
+            imageOf(m.extras.Get("strata"));
+            tinygltf::Value::Object obj = m.extras.Get<tinygltf::Value::Object>();
+            obj.erase("strata");
+            m.extras = obj.empty() ? tinygltf::Value() : tinygltf::Value(obj);
+        }
+    }
+    for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
+        list->erase(std::remove(list->begin(), list->end(), std::string(kLayerExtension)), list->end());
+    return mapImage;
 }
 
 int strataVertexView(const tinygltf::Value& extras)

@@ -55,6 +55,16 @@ void dropExtension(nlohmann::json& doc, const char* name);
 /// as floats).  The old bufferViews are left for packBuffers to drop.
 Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_t* coded);
 
+/// The accessor a mesh's STRATA_layered_displacement layer stores its coded
+/// per-vertex values in (-1: none), and its renumbering.
+int layerAccessor(const tinygltf::Mesh& mesh);
+void setLayerAccessor(tinygltf::Mesh* mesh, int accessor);
+
+/// Removes every displacement layer (STRATA_layered_displacement, and the
+/// format 1-4 block in extras) and its declaration; returns the index of the
+/// map image a layer named (for the caller to remove), or -1.
+int dropLayers(tinygltf::Model& model);
+
 /// The bufferView a mesh's strata block stores per-vertex displacements in
 /// (-1: none), and its renumbering when buffers are packed.
 int strataVertexView(const tinygltf::Value& extras);

@@ -47,6 +47,17 @@ const tinygltf::Value* member(const tinygltf::Value& obj, const char* name)
     return &obj.Get(name);
 }
 
+bool writtenByStrata(const tinygltf::Model& model)
+{
+    return model.asset.generator.rfind("Strata", 0) == 0;
+}
+
+std::string generatorName(const tinygltf::Model& model)
+{
+    return model.asset.generator.empty() ? std::string("a tool that names no generator")
+                                         : "\"" + printable(model.asset.generator, 60) + "\"";
+}
+
 Status numberField(const tinygltf::Value& obj, const char* name, const std::string& where, double* out)
 {
     const tinygltf::Value* v = member(obj, name);
@@ -67,17 +78,30 @@ Status stringField(const tinygltf::Value& obj, const char* name, const std::stri
     return Status::ok();
 }
 
-Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, const tinygltf::Model& model,
-                        DisplacementInfo* info)
+// The layer of mesh m and its format version: the declared extension
+// (version 5), else the "strata" block of its extras (versions 1 to 4).
+const tinygltf::Value* layerBlock(const tinygltf::Mesh& mesh, bool* extension)
 {
-    double version = 0;
-    Status st = numberField(block, "version", path, &version);
-    if (!st)
+    auto it = mesh.extensions.find(kLayerExtension);
+    *extension = it != mesh.extensions.end();
+    if (*extension)
+        return &it->second;
+    return member(mesh.extras, "strata");
+}
+
+Status parseStrataBlock(const tinygltf::Value& block, bool extension, const std::string& path,
+                        const tinygltf::Model& model, DisplacementInfo* info)
+{
+    double version = kRigFormatVersion;
+    Status st;
+    if (!block.IsObject())
+        return Status(StatusCode::InvalidData, path + ": the displacement layer is not a JSON object");
+    if (!extension && !(st = numberField(block, "version", path, &version)))
         return st;
-    if (!(version >= 1 && version <= kRigFormatVersion && version == std::floor(version)))
+    if (!extension && !(version >= 1 && version <= 4 && version == std::floor(version)))
         return Status(StatusCode::Unsupported, path + ": rig format version " + std::to_string(int(version)) +
-                                                   ", this build reads versions 1 to " +
-                                                   std::to_string(kRigFormatVersion));
+                                                   " in extras, this build reads versions 1 to 4 there (and " +
+                                                   kLayerExtension + ")");
     // Version 4 may leave out the texture object of per-vertex values
     // without UVs, and the fields that have one value (docs/FORMAT.md).
     const tinygltf::Value* vertexBlock = version >= 3 ? member(block, "displacementVertices") : nullptr;
@@ -102,12 +126,16 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
         info->uri.clear();
     } else if (const tinygltf::Value* vertices = vertexBlock) {
         double view = -1, vlevel = -1;
-        if (!vertices->IsObject() || !(st = numberField(*vertices, "bufferView", path, &view)) ||
+        if (!vertices->IsObject())
+            return Status(StatusCode::InvalidData, path + ": displacementVertices is not an object");
+        if (!(st = numberField(*vertices, extension ? "accessor" : "bufferView", path, &view)) ||
             !(st = numberField(*vertices, "level", path, &vlevel)))
-            return st ? Status(StatusCode::InvalidData, path + ": displacementVertices is not an object") : st;
-        if (view < 0 || view >= double(model.bufferViews.size()) || view != std::floor(view))
-            return Status(StatusCode::InvalidData, path + ": displacementVertices names a bufferView the file does not "
-                                                       "have (the displacements are missing)");
+            return st;
+        const size_t available = extension ? model.accessors.size() : model.bufferViews.size();
+        if (view < 0 || view >= double(available) || view != std::floor(view))
+            return Status(StatusCode::InvalidData, path + ": displacementVertices names " +
+                                                       (extension ? "an accessor" : "a bufferView") +
+                                                       " the file does not have (the displacements are missing)");
         if (vlevel < 0 || vlevel > kMaxLevel || vlevel != std::floor(vlevel))
             return Status(StatusCode::InvalidData, path + ": displacementVertices level " + std::to_string(vlevel) +
                                                        " is outside 0.." + std::to_string(kMaxLevel));
@@ -117,7 +145,7 @@ Status parseStrataBlock(const tinygltf::Value& block, const std::string& path, c
                           path + ": displacementVertices coding \"" +
                               printable(coding->IsString() ? coding->Get<std::string>() : std::string("?"), 40) +
                               "\" is not supported (this build reads \"subdivision-midpoint-zstd\")");
-        info->vertexView = int(view);
+        (extension ? info->vertexAccessor : info->vertexView) = int(view);
         info->vertexLevel = int(vlevel);
         info->uri.clear();
     } else if (!(st = stringField(*tex, "uri", path, &info->uri))) {
@@ -317,7 +345,8 @@ Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitiv
 struct SceneGeometry {
     Rig rig;                 // mesh (not yet validated), sourceVertex, fileCorners, parts
     std::vector<const tinygltf::Primitive*> primitives;  // per part
-    int blockMesh = -1;      // a mesh carrying a strata block, or -1
+    int blockMesh = -1;      // a mesh carrying a displacement layer, or -1
+    bool blockIsExtension = false;  // the layer is STRATA_layered_displacement (else extras.strata)
     size_t passThrough = 0;  // point and line primitives, kept untouched
     size_t missingUV = 0;    // triangle parts without the displacement UV set
     std::string firstMissingUV;
@@ -335,7 +364,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     int texCoord = 0;
     bool legacy = false;
     for (size_t m = 0; m < model.meshes.size() && out->blockMesh < 0; ++m)
-        if (const tinygltf::Value* block = member(model.meshes[m].extras, "strata")) {
+        if (const tinygltf::Value* block = layerBlock(model.meshes[m], &out->blockIsExtension)) {
             out->blockMesh = int(m);
             const tinygltf::Value* v = member(*block, "version");
             legacy = v && v->IsNumber() && v->GetNumberAsDouble() == 1.0;
@@ -694,7 +723,7 @@ Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm:
 
 namespace {
 
-Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out);
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, bool checkBinding = true);
 
 // An image no texture uses whose bytes are a 16-bit greyscale PNG.
 bool hasOrphanGreyImage(const SourceDocument& doc)
@@ -729,6 +758,21 @@ bool hasOrphanGreyImage(const SourceDocument& doc)
 
 }  // namespace
 
+std::string missingLayerCause(const Rig& rig)
+{
+    if (!rig.source)
+        return "it is a plain mesh file, not a baked rig";
+    const tinygltf::Model& model = rig.source->model;
+    if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), kLayerExtension) !=
+        model.extensionsUsed.end())
+        return std::string("it declares ") + kLayerExtension + " but no mesh carries the layer: a tool dropped it";
+    if (writtenByStrata(model))
+        return "Strata wrote it, but its displacement layer is gone: another tool stripped it";
+    return "written by " + generatorName(model) + ", which does not carry the " + kLayerExtension +
+           " layer (gltfpack, Blender's exporter and gltf-transform without js/gltf-transform.config.mjs drop it), "
+           "or it was never baked";
+}
+
 Status loadRig(const std::filesystem::path& pathFile, Rig* out)
 {
     const std::string path = pathFile.string();
@@ -762,7 +806,112 @@ const unsigned char* viewBytes(const tinygltf::Model& model, int index)
     return model.buffers[size_t(view.buffer)].data.data() + view.byteOffset;
 }
 
-Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out)
+int blockVersion(const tinygltf::Value& block)
+{
+    const tinygltf::Value* v = member(block, "version");
+    return v && v->IsNumber() ? int(v->GetNumberAsDouble()) : 0;
+}
+
+// Whether an extras block reaches its data by index (a bufferView or an
+// image) rather than by a URI beside the rig.
+bool refersByIndex(const tinygltf::Value& block)
+{
+    const tinygltf::Value* tex = member(block, "displacementGeometryTexture");
+    return member(block, "displacementVertices") || (tex && member(*tex, "image"));
+}
+
+std::string hex64(uint64_t v)
+{
+    char text[17];
+    std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(v));
+    return text;
+}
+
+// The placeholders saveRig writes for the fingerprint's hashes and then
+// replaces, in the encoded file, by those of the control mesh that file
+// reads back as (the same length, so no offset moves).
+const char* const kTopologyToken = "~strata~topolog~";
+const char* const kPositionsToken = "~strata~position";
+const char* const kShapeToken = "~strata~shape~~~";
+
+// Refuses a control mesh other than the one the layer was baked on, naming
+// what changed (the per-vertex values are numbered by its refinement, and
+// the displacement is measured from its surface).
+Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, const ControlMesh& mesh,
+                         bool checkBinding)
+{
+    const tinygltf::Value* control = member(block, "control");
+    if (!control || !control->IsObject())
+        return Status(StatusCode::InvalidData, path + ": the displacement layer does not say which control mesh it was "
+                                                   "baked on (no \"control\" object)");
+    double vertices = 0, triangles = 0;
+    std::string topology, positions, shape;
+    Status st;
+    if (!(st = numberField(*control, "vertices", path, &vertices)) ||
+        !(st = numberField(*control, "triangles", path, &triangles)) ||
+        !(st = stringField(*control, "topology", path, &topology)) ||
+        !(st = stringField(*control, "positions", path, &positions)) ||
+        !(st = stringField(*control, "shape", path, &shape)))
+        return st;
+    if (!checkBinding)
+        return Status::ok();
+    const ControlMeshFingerprint f = fingerprintControlMesh(mesh);
+    const std::string advice = ": run that step before baking, or bake again";
+    if (vertices != double(f.vertices) || triangles != double(f.faces))
+        return Status(StatusCode::InvalidData,
+                      path + ": the control mesh has " + std::to_string(f.vertices) + " vertices and " +
+                          std::to_string(f.faces) + " triangles, but the displacement layer was baked on " +
+                          std::to_string(size_t(std::max(0.0, vertices))) + " and " +
+                          std::to_string(size_t(std::max(0.0, triangles))) +
+                          ": a tool welded, split, simplified or rebuilt it after the bake (weld, simplify, "
+                          "optimize, draco)" + advice);
+    const bool sameOrder = topology == hex64(f.topology), samePlaces = positions == hex64(f.positions);
+    if (sameOrder && samePlaces)
+        return Status::ok();
+    if (!sameOrder && shape == hex64(f.shape))
+        return Status(StatusCode::InvalidData,
+                      path + ": the control mesh was renumbered after the bake (reorder, meshopt, draco and optimize "
+                             "reorder vertices and triangles; the layer's values follow the baked order)" + advice);
+    if (sameOrder)
+        return Status(StatusCode::InvalidData,
+                      path + ": the control mesh's vertices moved after the bake (quantize, or a lossy re-encoding "
+                             "such as draco or meshopt, changes positions; the surface would move with them)" +
+                          advice);
+    return Status(StatusCode::InvalidData,
+                  path + ": the control mesh was renumbered and its vertices moved after the bake (meshopt, draco and "
+                         "optimize reorder and quantize it)" + advice);
+}
+
+// The coded per-vertex values: a bufferView (versions 3 and 4) or an
+// accessor of unsigned bytes (version 5).
+Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& info, const std::string& path,
+                        const unsigned char** bytes, size_t* length)
+{
+    if (info.vertexAccessor < 0) {
+        *bytes = viewBytes(model, info.vertexView);
+        *length = *bytes ? model.bufferViews[size_t(info.vertexView)].byteLength : 0;
+        if (!*bytes)
+            return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
+        return Status::ok();
+    }
+    const tinygltf::Accessor& acc = model.accessors[size_t(info.vertexAccessor)];
+    const std::string what = path + ": the displacements' accessor " + std::to_string(info.vertexAccessor);
+    if (acc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || acc.type != TINYGLTF_TYPE_SCALAR ||
+        acc.sparse.isSparse)
+        return Status(StatusCode::InvalidData, what + " is not a plain SCALAR accessor of unsigned bytes");
+    if (acc.bufferView < 0 || size_t(acc.bufferView) >= model.bufferViews.size())
+        return Status(StatusCode::InvalidData, what + " has no bufferView (the displacements are missing)");
+    const unsigned char* b = viewBytes(model, acc.bufferView);
+    const tinygltf::BufferView& view = model.bufferViews[size_t(acc.bufferView)];
+    if (!b || (view.byteStride != 0 && view.byteStride != 1) || acc.byteOffset > view.byteLength ||
+        acc.count > view.byteLength - acc.byteOffset)
+        return Status(StatusCode::InvalidData, what + " reads past the end of its bufferView");
+    *bytes = b + acc.byteOffset;
+    *length = acc.count;
+    return Status::ok();
+}
+
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, bool checkBinding)
 {
     Status st;
     SceneGeometry scene;
@@ -780,30 +929,43 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                " point or line primitives are kept in the file but not refined");
     const tinygltf::Model& model = doc->model;
     if (scene.blockMesh >= 0) {
-        const tinygltf::Value& block = *member(model.meshes[size_t(scene.blockMesh)].extras, "strata");
-        if (!(st = parseStrataBlock(block, path, model, &rig.displacement)))
+        bool extension = false;
+        const tinygltf::Value& block = *layerBlock(model.meshes[size_t(scene.blockMesh)], &extension);
+        // Versions 1 to 4 reach their data by a bufferView or image index in
+        // extras, which tools that rewrite glTF renumber without knowing it:
+        // after such a tool the index points at other data.
+        if (!extension && !writtenByStrata(model) && refersByIndex(block))
+            return Status(StatusCode::InvalidData,
+                          path + ": a format " + std::to_string(blockVersion(block)) + " rig rewritten by " +
+                              generatorName(model) +
+                              ", which renumbers the bufferViews and images the layer in extras points at, so it "
+                              "no longer finds its displacements: bake again (this strata-bake writes the layer as the "
+                              "STRATA_layered_displacement extension, which such tools keep or drop whole)");
+        if (!(st = parseStrataBlock(block, extension, path, model, &rig.displacement)))
+            return st;
+        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, checkBinding)))
             return st;
         if (scene.missingUV && rig.displacement.texCoord >= 0)
             return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but " + scene.firstMissingUV +
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
                                                        " (stripped by another tool?)");
-        if (rig.displacement.vertexView >= 0) {
+        if (rig.displacement.vertexLevel >= 0) {
             DisplacementInfo& info = rig.displacement;
-            const tinygltf::BufferView& view = model.bufferViews[size_t(info.vertexView)];
-            const unsigned char* b = viewBytes(model, info.vertexView);
-            if (!b)
-                return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
-            info.embedded.assign(b, b + view.byteLength);
+            const unsigned char* b = nullptr;
+            size_t length = 0;
+            if (!(st = layerVertexBytes(model, info, path, &b, &length)))
+                return st;
+            info.embedded.assign(b, b + length);
             // Refining costs per refined triangle, and zstd packs a field of
             // zeros into almost nothing: a level that declares far more
             // triangles than its bytes could plausibly describe is refused
             // before any refinement (a hostile file cannot buy gigabytes).
             const double refined = double(rig.mesh.faceCount()) * std::pow(4.0, info.vertexLevel);
-            if (refined > double(1 << 22) && refined > 1024.0 * double(view.byteLength))
+            if (refined > double(1 << 22) && refined > 1024.0 * double(length))
                 return Status(StatusCode::InvalidData, path + ": the per-vertex displacements declare level " +
                                                            std::to_string(info.vertexLevel) + " (" +
                                                            std::to_string(size_t(refined)) + " triangles) in only " +
-                                                           std::to_string(view.byteLength) + " bytes");
+                                                           std::to_string(length) + " bytes");
             SubdivisionParents hierarchy;
             if (!(st = buildSubdivisionParents(&hierarchy, rig.mesh, info.vertexLevel)))
                 return Status(st.code(), path + ": " + st.message());
@@ -823,15 +985,18 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
             rig.displacement.embedded.assign(b, b + view.byteLength);
         }
         rig.hasDisplacement = true;
-    } else if (model.asset.generator.rfind("Strata", 0) == 0) {
+    } else if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), kLayerExtension) !=
+               model.extensionsUsed.end()) {
+        rig.warnings.push_back(std::string("declares ") + kLayerExtension +
+                               " but no mesh carries the layer (dropped by another tool?): the displacement is gone");
+    } else if (writtenByStrata(model)) {
         rig.warnings.push_back("written by " + printable(model.asset.generator, 40) +
-                               " but has no displacement block (stripped by another tool?): reconstructed without "
-                               "displacement");
+                               " but has no displacement layer (stripped by another tool?): the displacement is gone");
     } else if (hasOrphanGreyImage(*doc)) {
         // Tools such as gltfpack drop mesh extras and the generator but keep
         // images: a 16-bit grey PNG no material uses is most likely a map.
-        rig.warnings.push_back("holds a 16-bit grey image no material uses but no displacement block: if it is a "
-                               "Strata rig, another tool stripped the block; reconstructed without displacement");
+        rig.warnings.push_back("holds a 16-bit grey image no material uses but no displacement layer: if it is a "
+                               "Strata rig, another tool dropped the layer and the displacement is gone");
     }
     rig.source = std::move(doc);
     *out = std::move(rig);
@@ -928,14 +1093,15 @@ Status loadRigQuantizedMap(const std::filesystem::path& rigPathFile, const Rig& 
 
 namespace {
 
-// Version 4 leaves out what has one value (direction, normal weighting,
-// subdivision rule, the values' coding) and, for per-vertex values without
-// UVs, the texture object, which describes no image then: a small rig is
-// mostly its JSON (docs/FORMAT.md).
-tinygltf::Value strataBlock(const DisplacementInfo& d)
+// The layer as STRATA_layered_displacement writes it (format version 5,
+// docs/STRATA_layered_displacement.md): version 4's fields, the coded values
+// reached through an accessor, and the control mesh it was baked on, whose
+// hashes are placeholders until sealLayer reads the encoded file back.  What
+// has one value (direction, normal weighting, subdivision rule, coding) is
+// left out, and so is the texture object of per-vertex values without UVs.
+tinygltf::Value layerBlockValue(const DisplacementInfo& d, const ControlMesh& mesh)
 {
     tinygltf::Value::Object block;
-    block["version"] = tinygltf::Value(kRigFormatVersion);
     if (d.vertexLevel < 0 || d.texCoord >= 0) {
         tinygltf::Value::Object tex;
         if (d.image >= 0)
@@ -955,7 +1121,7 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
     block["recommendedLevel"] = tinygltf::Value(d.recommendedLevel);
     if (d.vertexLevel >= 0) {
         tinygltf::Value::Object vertices;
-        vertices["bufferView"] = tinygltf::Value(d.vertexView);
+        vertices["accessor"] = tinygltf::Value(d.vertexAccessor);
         vertices["level"] = tinygltf::Value(d.vertexLevel);
         vertices["count"] = tinygltf::Value(int(d.vertexValues.size()));
         block["displacementVertices"] = tinygltf::Value(vertices);
@@ -968,7 +1134,61 @@ tinygltf::Value strataBlock(const DisplacementInfo& d)
         q["dmax"] = tinygltf::Value(jsonFloat(d.quantized.dmax));
         block["quantizedMap"] = tinygltf::Value(q);
     }
+    tinygltf::Value::Object control;
+    control["vertices"] = tinygltf::Value(int(mesh.vertexCount()));
+    control["triangles"] = tinygltf::Value(int(mesh.faceCount()));
+    control["topology"] = tinygltf::Value(std::string(kTopologyToken));
+    control["positions"] = tinygltf::Value(std::string(kPositionsToken));
+    control["shape"] = tinygltf::Value(std::string(kShapeToken));
+    block["control"] = tinygltf::Value(control);
     return tinygltf::Value(block);
+}
+
+// Replaces every placeholder hash in an encoded rig by the fingerprint of
+// the control mesh the file reads back as, after checking that it reads
+// back with the counts the layer declares.
+Status sealLayer(const std::string& path, std::string* bytes)
+{
+    Rig loaded;
+    const bool binary = extensionOf(path) == ".glb";
+    auto doc = std::make_shared<SourceDocument>();
+    Status st = parseGltfDocument(reinterpret_cast<const unsigned char*>(bytes->data()), bytes->size(), binary,
+                                  "/nonexistent-strata-folder", path, doc.get());
+    if (!st || !(st = finishRig(path, std::move(doc), &loaded, false)))
+        return Status(st.code(), "the rig does not read back: " + st.message());
+    const ControlMeshFingerprint f = fingerprintControlMesh(loaded.mesh);
+    const std::pair<const char*, std::string> tokens[] = {
+        {kTopologyToken, hex64(f.topology)}, {kPositionsToken, hex64(f.positions)}, {kShapeToken, hex64(f.shape)}};
+    for (const auto& [token, value] : tokens) {
+        size_t at = 0, n = 0;
+        while ((at = bytes->find(token, at)) != std::string::npos) {
+            bytes->replace(at, value.size(), value);
+            ++n;
+        }
+        if (n == 0)
+            return Status(StatusCode::InvalidData, path + ": the layer's control fingerprint is missing from the file");
+    }
+    return Status::ok();
+}
+
+void setStrataExtras(tinygltf::Value* extras, const tinygltf::Value* block);
+
+// Sets (or removes, with a null block) the layer of a mesh, in its
+// extensions; any format 1-4 block in extras goes.
+void setLayer(tinygltf::Model* model, tinygltf::Mesh* mesh, const tinygltf::Value* block)
+{
+    if (block)
+        mesh->extensions[kLayerExtension] = *block;
+    else
+        mesh->extensions.erase(kLayerExtension);
+    setStrataExtras(&mesh->extras, nullptr);
+    bool used = false;
+    for (const tinygltf::Mesh& m : model->meshes)
+        used = used || m.extensions.count(kLayerExtension);
+    auto& list = model->extensionsUsed;
+    list.erase(std::remove(list.begin(), list.end(), std::string(kLayerExtension)), list.end());
+    if (used)
+        list.push_back(kLayerExtension);
 }
 
 // Sets (or removes, with a null block) the "strata" member of extras,
@@ -1335,6 +1555,8 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
     model.bufferViews[size_t(view)].target = 0;
     info->vertexView = view;
+    info->vertexAccessor =
+        appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_SCALAR, bytes.size());
     info->vertexLevel = level;
     info->vertexValues = std::move(values);
     info->image = -1;
@@ -1457,16 +1679,7 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
         std::vector<std::vector<unsigned char>> imageBytes = rig.source->imageBytes;
         imageBytes.resize(model.images.size());
         // The previous bake's block and embedded map go; the new ones replace them.
-        int oldImage = -1;
-        for (tinygltf::Mesh& m : model.meshes)
-            if (const tinygltf::Value* b = member(m.extras, "strata")) {
-                const tinygltf::Value* tex = member(*b, "displacementGeometryTexture");
-                const tinygltf::Value* im = tex ? member(*tex, "image") : nullptr;
-                if (im && im->IsNumber() && im->GetNumberAsDouble() >= 0 &&
-                    im->GetNumberAsDouble() < double(model.images.size()))
-                    oldImage = int(im->GetNumberAsDouble());
-                setStrataExtras(&m.extras, nullptr);
-            }
+        const int oldImage = dropLayers(model);
         if (oldImage >= 0) {
             removeImage(model, &imageBytes, oldImage);
             if (info.image == oldImage)
@@ -1554,17 +1767,32 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
                 return Status(StatusCode::InvalidArgument, path + ": the rig's per-vertex displacements have no data");
             info.vertexView = appendBufferView(model, info.embedded.data(), info.embedded.size(), -1);
             model.bufferViews[size_t(info.vertexView)].target = 0;
+            info.vertexAccessor = appendAccessor(model, info.vertexView, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                                 TINYGLTF_TYPE_SCALAR, info.embedded.size());
         }
         if (info.image < 0 && info.uri.empty() && info.vertexLevel < 0)
             return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");
-        const tinygltf::Value block = strataBlock(info);
+        const tinygltf::Value block = layerBlockValue(info, cm);
         for (int m : blockMeshes)
-            setStrataExtras(&model.meshes[size_t(m)].extras, &block);
+            setLayer(&model, &model.meshes[size_t(m)], &block);
     }
-    // Rigs are compact: Draco- or meshopt-coded vertex data and indices (.glb).
-    return extensionOf(path) == ".glb" && options && options->compress
-               ? writeCompressedGlb(path, model, positionError, draco)
-               : packAndWrite(path, model);
+    // Compact rigs: Draco- or meshopt-coded vertex data and indices (.glb).
+    std::string bytes;
+    if (extensionOf(path) == ".glb" && options && options->compress) {
+        st = encodeCompressedGlb(path, model, &bytes, positionError, draco);
+    } else if ((st = prepareForWriting(path, model))) {
+        tinygltf::TinyGLTF writer;
+        std::ostringstream stream;
+        const bool binary = extensionOf(path) == ".glb";
+        if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/!binary, binary))
+            return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+        bytes = stream.str();
+    }
+    if (!st)
+        return st;
+    if (rig.hasDisplacement && !(st = sealLayer(path, &bytes)))
+        return st;
+    return writeFileAtomic(path, bytes.data(), bytes.size());
 }
 
 Status readPlainGlb(const std::filesystem::path& pathFile, std::string* bytes)

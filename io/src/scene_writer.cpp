@@ -98,19 +98,7 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
     std::vector<std::vector<unsigned char>> imageBytes = rig.source->imageBytes;
     imageBytes.resize(model.images.size());
     // The output is a plain detailed mesh: no displacement block, no map.
-    int mapImage = -1;
-    for (tinygltf::Mesh& m : model.meshes)
-        if (m.extras.IsObject() && m.extras.Has("strata")) {
-            const tinygltf::Value& b = m.extras.Get("strata");
-            if (b.IsObject() && b.Has("displacementGeometryTexture")) {
-                const tinygltf::Value& tex = b.Get("displacementGeometryTexture");
-                if (tex.IsObject() && tex.Has("image") && tex.Get("image").IsNumber())
-                    mapImage = int(tex.Get("image").GetNumberAsDouble());
-            }
-            tinygltf::Value::Object obj = m.extras.Get<tinygltf::Value::Object>();
-            obj.erase("strata");
-            m.extras = obj.empty() ? tinygltf::Value() : tinygltf::Value(obj);
-        }
+    const int mapImage = dropLayers(model);
     if (mapImage >= 0 && size_t(mapImage) < model.images.size())
         removeImage(model, &imageBytes, mapImage);
     embedImages(model, imageBytes, notes);

@@ -16,8 +16,10 @@
 
 namespace strata {
 
-/// Version of the rig's "strata" extras block this build writes (it reads 1 to 4).
-constexpr int kRigFormatVersion = 4;
+/// Version of the rig format this build writes: 5 is the declared glTF
+/// extension STRATA_layered_displacement (docs/STRATA_layered_displacement.md);
+/// versions 1 to 4, the "strata" block in mesh extras, are still read.
+constexpr int kRigFormatVersion = 5;
 
 /// The glTF document a rig was loaded from, kept whole so that writing the
 /// rig back loses nothing (materials, textures, names, extras, primitives
@@ -43,7 +45,8 @@ struct DisplacementInfo {
     /// rasterised from them for texture consumers (0 in a version 4 rig
     /// without UVs, which has no map).
     int vertexLevel = -1;
-    int vertexView = -1;  ///< the glTF bufferView holding them coded (loader), or -1
+    int vertexView = -1;  ///< the glTF bufferView holding them coded (loader, versions 3 and 4), or -1
+    int vertexAccessor = -1;  ///< the glTF accessor holding them coded (loader, version 5), or -1
     std::vector<float> vertexValues;
     /// Optional second copy of the map as an 8- or 16-bit PNG quantised with
     /// paper eq. 12: q = round((2^bits - 1) (d - dmin) / (dmax - dmin)).

@@ -34,8 +34,14 @@ struct BakeRequest {
     int errorFrom = -2, errorTo = -2;  ///< closed-loop levels to report; -2: around the recommended one, -1: none
     std::string skeleton;    ///< optional joint file (paper 2.4) that becomes the rig's skin
     std::string mapCoding = "vertex";  ///< "vertex" (per refined vertex) or "png"
-    bool compress = true;    ///< EXT_meshopt_compression for .glb
-    std::string meshCoding = "draco";  ///< a bare cage's coding with compress: "draco" or "meshopt"
+    bool compress = true;    ///< false: plain accessors whatever meshCoding says (--no-compress)
+    /// The control mesh's coding in a .glb: "plain" accessors (the default:
+    /// every glTF tool opens them, Blender 3.4 and gltfpack included),
+    /// "meshopt" (EXT_meshopt_compression) or "draco" (a bare cage as
+    /// KHR_draco_mesh_compression, other vertex data meshopt-coded): smaller
+    /// files that three.js, Babylon.js and Strata read, but Debian's Blender
+    /// 3.4 and gltfpack do not.
+    std::string meshCoding = "plain";
     bool exr = false;        ///< also write RIG.exr (half, or float with floatExr)
     bool floatExr = false;
     int pngBits = 0;         ///< 8 or 16: also write the eq. 12 quantised PNG beside the rig

@@ -14,6 +14,15 @@
 namespace strata {
 namespace io {
 
+/// The glTF extension that carries a rig's displacement layer (format
+/// version 5, docs/STRATA_layered_displacement.md), on every mesh that takes part.
+constexpr const char* kLayerExtension = "STRATA_layered_displacement";
+
+/// One clause on why a glTF file loaded as `rig` has no displacement layer
+/// (which tool wrote it, and what that tool does with the layer), for
+/// tools that refuse to draw such a file as if it were displaced.
+std::string missingLayerCause(const Rig& rig);
+
 /// Loads a control rig, or any glTF scene with triangles (then
 /// rig.hasDisplacement is false).  Every triangle primitive of every mesh is
 /// read (strips and fans unrolled; points and lines kept in the document
