@@ -10,7 +10,7 @@ packages=(
   libtinygltf-dev nlohmann-json3-dev libstb-dev zlib1g-dev libgtest-dev libmeshoptimizer-dev libdraco-dev libzstd-dev libeigen3-dev
   pybind11-dev python3-dev python3-numpy python3-pytest
   libegl-dev libegl1-mesa-dev libgl1-mesa-dri libosmesa6-dev xvfb xauth libimgui-dev
-  draco gltfpack
+  draco gltfpack blender
   nodejs npm
 )
 
@@ -44,4 +44,11 @@ if [ ! -f "$tools/node_modules/gltf-validator/package.json" ]; then
   mkdir -p "$tools"
   echo "strata: installing gltf-validator from npm into $tools" >&2
   (cd "$tools" && npm install --no-audit --no-fund --loglevel=error "gltf-validator@$validator_version" >/dev/null)
+fi
+
+# glTF Transform and Strata's extension for it (js/, from js/package-lock.json),
+# for the ecosystem matrix and js's own tests.
+if [ ! -x "$here/js/node_modules/.bin/gltf-transform" ]; then
+  echo "strata: installing js/ dependencies from npm (glTF Transform)" >&2
+  (cd "$here/js" && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
 fi

@@ -499,6 +499,82 @@ TEST(Rig, VersionFiveIsTheDeclaredExtensionAndVersionsThreeAndFourStillLoad)
     EXPECT_NE(st.message().find("coding \"wavelet\" is not supported"), std::string::npos) << st.message();
 }
 
+// glTF allows accessors without a bufferView (zeros) and sparse accessors
+// (a base, or zeros, with elements replaced): gltf-transform writes both.
+// A quad whose positions are sparse over a base, whose UVs have no
+// bufferView and whose morph target is sparse over zeros loads with the
+// values the spec defines, and writes back as plain valid glTF.  A sparse
+// part whose indices do not increase, or a count no bytes back, is refused.
+TEST(Rig, AccessorsWithoutBufferViewsAndSparseAccessorsRead)
+{
+    const std::string dir = test::tempDir("rig_sparse");
+    std::vector<unsigned char> bin(88, 0);
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const uint16_t indices[6] = {0, 1, 2, 0, 2, 3};
+    const uint16_t sparseIndices[2] = {1, 2};
+    const float sparseValues[6] = {2, 0, 0, 2, 2, 0.5f};
+    std::memcpy(&bin[0], positions, 48);
+    std::memcpy(&bin[48], indices, 12);
+    std::memcpy(&bin[60], sparseIndices, 4);
+    std::memcpy(&bin[64], sparseValues, 24);
+    {
+        std::ofstream f(dir + "/quad.bin", std::ios::binary);
+        f.write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+    }
+    const std::string sparse = R"("sparse":{"count":2,"indices":{"bufferView":2,"componentType":5123},"values":{"bufferView":3}})";
+    auto gltf = [&](const std::string& positionSparse, size_t uvCount) {
+        return std::string(R"({"asset":{"version":"2.0"},"buffers":[{"uri":"quad.bin","byteLength":88}],)") +
+               R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":12},)" +
+               R"({"buffer":0,"byteOffset":60,"byteLength":4},{"buffer":0,"byteOffset":64,"byteLength":24}],)" +
+               R"("accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[2,2,0.5],)" +
+               positionSparse + R"(},{"bufferView":1,"componentType":5123,"count":6,"type":"SCALAR"},)" +
+               R"({"componentType":5126,"count":)" + std::to_string(uvCount) + R"(,"type":"VEC2"},)" +
+               R"({"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[2,2,0.5],)" + sparse + "}],"
+               R"("meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":2},"indices":1,"targets":[{"POSITION":3}]}],"weights":[0]}],)"
+               R"("nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0})";
+    };
+    writeText(dir + "/quad.gltf", gltf(sparse, 4));
+    Rig rig;
+    Status st = io::loadRig(dir + "/quad.gltf", &rig);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(rig.mesh.vertexCount(), 4u);
+    EXPECT_EQ(rig.mesh.positions[0], glm::vec3(0, 0, 0));
+    EXPECT_EQ(rig.mesh.positions[1], glm::vec3(2, 0, 0));  // replaced by the sparse part
+    EXPECT_EQ(rig.mesh.positions[2], glm::vec3(2, 2, 0.5f));
+    EXPECT_EQ(rig.mesh.positions[3], glm::vec3(0, 1, 0));
+    ASSERT_TRUE(rig.mesh.hasUVs());
+    for (const glm::vec2& uv : rig.mesh.uvs)
+        EXPECT_EQ(uv, glm::vec2(0.0f));  // no bufferView: zeros
+    ASSERT_TRUE(io::saveRig(dir + "/back.glb", rig).isOk());
+    int code = 0;
+    const std::string report = test::runGltfValidator({dir + "/back.glb"}, &code);
+    EXPECT_EQ(code, 0) << report;
+    Rig back;
+    ASSERT_TRUE(io::loadRig(dir + "/back.glb", &back).isOk());
+    EXPECT_EQ(back.mesh.positions, rig.mesh.positions);
+
+    // Sparse indices that do not increase.
+    std::vector<unsigned char> swapped = bin;
+    const uint16_t down[2] = {2, 1};
+    std::memcpy(&swapped[60], down, 4);
+    {
+        std::ofstream f(dir + "/quad.bin", std::ios::binary);
+        f.write(reinterpret_cast<const char*>(swapped.data()), std::streamsize(swapped.size()));
+    }
+    st = io::loadRig(dir + "/quad.gltf", &rig);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("not increasing"), std::string::npos) << st.message();
+    // A billion zeros that no byte backs.
+    {
+        std::ofstream f(dir + "/quad.bin", std::ios::binary);
+        f.write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+    }
+    writeText(dir + "/huge.gltf", gltf(sparse, 1000000000));
+    st = io::loadRig(dir + "/huge.gltf", &rig);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("without the bytes to back them"), std::string::npos) << st.message();
+}
+
 TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
 {
     const std::string dir = test::tempDir("rig_map");

@@ -650,7 +650,7 @@ TEST(Scene, StrippedRigsFailLoudlyOrWarn)
 TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
 {
     if (std::system("command -v gltfpack >/dev/null 2>&1") != 0)
-        GTEST_SKIP() << "gltfpack is not installed (cmake/install-deps.sh installs it)";
+        GTEST_FAIL() << "gltfpack is not installed (cmake/install-deps.sh installs it)";
     const std::string dir = test::tempDir("scene_gltfpack");
     Rig rig;
     DisplacementMap map;

@@ -22,7 +22,7 @@
 namespace strata {
 namespace test {
 
-/// Path of a third-party asset in ../shared/data, or "" when the folder is absent.
+/// Path of a third-party asset in tests/data (STRATA_SHARED_DATA), or "" when it is missing.
 inline std::string sharedData(const std::string& name)
 {
     const std::string path = std::string(STRATA_SHARED_DATA) + "/" + name;
@@ -30,11 +30,12 @@ inline std::string sharedData(const std::string& name)
     return ::stat(path.c_str(), &st) == 0 ? path : std::string();
 }
 
-/// Skips the calling test (with a message) when a shared asset is missing.
+/// Fails the calling test when an asset of tests/data is missing: every
+/// asset a test uses ships with the repository, so none is ever skipped.
 #define STRATA_REQUIRE_DATA(var, name)                                                 \
     const std::string var = ::strata::test::sharedData(name);                          \
     if (var.empty())                                                                   \
-    GTEST_SKIP() << "../shared/data/" << name << " is absent; test needs it"
+    GTEST_FAIL() << "tests/data/" << name << " is missing (it ships with the repository)"
 
 /// Rewrites a rig's JSON as format version 4 wrote it: the layer of each
 /// mesh moves from its STRATA_layered_displacement extension to

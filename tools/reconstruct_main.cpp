@@ -126,7 +126,7 @@ int main(int argc, char** argv)
         // surface: the layer may have been dropped by the last tool to touch it.
         if (rig.source && !rig.hasDisplacement && displace)
             throw cli::Error(rigPath + ": no displacement layer (" + io::missingLayerCause(rig) +
-                             "): bake again, or pass --no-displacement to refine the plain mesh");
+                             "): bake again, or pass --no-displacement for the plain mesh");
         if (rig.hasDisplacement && displace && haveScheme && scheme != rig.displacement.scheme)
             throw cli::Error(std::string("--scheme ") + schemeName(scheme) + ": " + rigPath + " was baked against the " +
                              schemeName(rig.displacement.scheme) +

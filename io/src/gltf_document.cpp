@@ -112,6 +112,124 @@ Status loadGltfDocument(const std::string& path, SourceDocument* doc)
     return parseGltfDocument(bytes.data(), bytes.size(), ext == ".glb", directoryOf(path), path, doc);
 }
 
+namespace {
+
+size_t typeComponents(int type)
+{
+    switch (type) {
+    case TINYGLTF_TYPE_SCALAR: return 1;
+    case TINYGLTF_TYPE_VEC2: return 2;
+    case TINYGLTF_TYPE_VEC3: return 3;
+    case TINYGLTF_TYPE_VEC4: return 4;
+    case TINYGLTF_TYPE_MAT2: return 4;
+    case TINYGLTF_TYPE_MAT3: return 9;
+    case TINYGLTF_TYPE_MAT4: return 16;
+    default: return 0;
+    }
+}
+
+// The bytes [offset, offset + length) of bufferView `index`, or nullptr.
+const unsigned char* viewRange(const tinygltf::Model& model, int index, size_t offset, size_t length)
+{
+    if (index < 0 || size_t(index) >= model.bufferViews.size())
+        return nullptr;
+    const tinygltf::BufferView& view = model.bufferViews[size_t(index)];
+    if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+        return nullptr;
+    const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+    if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset ||
+        offset > view.byteLength || length > view.byteLength - offset)
+        return nullptr;
+    return data.data() + view.byteOffset + offset;
+}
+
+}  // namespace
+
+// glTF allows an accessor without a bufferView (all zeros) and sparse
+// accessors (a base, or zeros, with some elements replaced).  Both are made
+// plain here, once, so that every reader and writer downstream sees tightly
+// packed data.  What they add is bounded by the file's own size: zeros cost
+// no bytes in a file, so a few bytes could otherwise declare gigabytes.
+Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::string& path)
+{
+    const double budget = 16.0 * double(fileBytes) + double(64u << 20);
+    double added = 0.0;
+    for (size_t a = 0; a < model.accessors.size(); ++a) {
+        tinygltf::Accessor& acc = model.accessors[a];
+        if (acc.bufferView >= 0 && !acc.sparse.isSparse)
+            continue;
+        const std::string what = path + ": accessor " + std::to_string(a);
+        const size_t components = typeComponents(acc.type);
+        const int cbytes = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+        if (components == 0 || cbytes <= 0)
+            return Status(StatusCode::InvalidData, what + " has an unknown type or component type");
+        const size_t element = components * size_t(cbytes);
+        added += double(acc.count) * double(element);
+        if (added > budget)
+            return Status(StatusCode::InvalidData, what + " declares " + std::to_string(acc.count) +
+                                                       " elements without the bytes to back them (sparse or no "
+                                                       "bufferView), far more than the file's size justifies");
+        std::vector<unsigned char> dense(acc.count * element, 0);
+        if (acc.bufferView >= 0) {
+            if (size_t(acc.bufferView) >= model.bufferViews.size())
+                return Status(StatusCode::InvalidData, what + " names a bufferView the file does not have");
+            const size_t stride = model.bufferViews[size_t(acc.bufferView)].byteStride;
+            const size_t s = stride ? stride : element;
+            const size_t span = acc.count ? s * (acc.count - 1) + element : 0;
+            const unsigned char* base = s >= element ? viewRange(model, acc.bufferView, acc.byteOffset, span) : nullptr;
+            if (!base)
+                return Status(StatusCode::InvalidData, what + " reads past the end of its bufferView");
+            for (size_t i = 0; i < acc.count; ++i)
+                std::memcpy(&dense[i * element], base + i * s, element);
+        }
+        if (acc.sparse.isSparse) {
+            const size_t n = size_t(std::max(0, acc.sparse.count));
+            const int icomp = acc.sparse.indices.componentType;
+            const int ibytes = icomp == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
+                               : icomp == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
+                               : icomp == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT   ? 4
+                                                                                 : 0;
+            if (n == 0 || n > acc.count || ibytes == 0)
+                return Status(StatusCode::InvalidData, what + " has a sparse part of " + std::to_string(n) +
+                                                           " elements (1 to its count, indices of unsigned integers)");
+            const unsigned char* indices =
+                viewRange(model, acc.sparse.indices.bufferView, size_t(acc.sparse.indices.byteOffset), n * size_t(ibytes));
+            const unsigned char* values =
+                viewRange(model, acc.sparse.values.bufferView, size_t(acc.sparse.values.byteOffset), n * element);
+            if (!indices || !values)
+                return Status(StatusCode::InvalidData, what + ": its sparse indices or values read past their bufferView");
+            uint64_t previous = 0;
+            for (size_t k = 0; k < n; ++k) {
+                uint32_t i = 0;
+                if (ibytes == 1) {
+                    i = indices[k];
+                } else if (ibytes == 2) {
+                    uint16_t u;
+                    std::memcpy(&u, indices + 2 * k, 2);
+                    i = u;
+                } else {
+                    std::memcpy(&i, indices + 4 * k, 4);
+                }
+                if (i >= acc.count || (k > 0 && uint64_t(i) <= previous))
+                    return Status(StatusCode::InvalidData, what + ": sparse index " + std::to_string(i) + " at " +
+                                                               std::to_string(k) +
+                                                               " is out of range or not increasing");
+                previous = i;
+                std::memcpy(&dense[size_t(i) * element], values + k * element, element);
+            }
+        }
+        const int view = appendBufferView(model, dense.data(), dense.size(), -1);
+        model.bufferViews[size_t(view)].target = 0;
+        acc.bufferView = view;
+        acc.byteOffset = 0;
+        acc.sparse.isSparse = false;
+        acc.sparse.count = 0;
+        acc.sparse.indices.bufferView = acc.sparse.values.bufferView = -1;
+        acc.sparse.indices.byteOffset = acc.sparse.values.byteOffset = 0;
+    }
+    return Status::ok();
+}
+
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
                          const std::string& path, SourceDocument* doc)
 {
@@ -151,6 +269,8 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     if (!ok)
         return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
     doc->imageBytes.resize(doc->model.images.size());
+    if (Status st = densifyAccessors(doc->model, size, path); !st)
+        return st;
     for (const std::string& e : doc->model.extensionsRequired)
         if (e == "EXT_meshopt_compression")  // only .gltf gets here
             return Status(StatusCode::Unsupported, path + ": meshopt-compressed meshes are read from .glb only; "

@@ -227,6 +227,15 @@ Status parseStrataBlock(const tinygltf::Value& block, bool extension, const std:
 
 
 
+uint64_t uvHash(const std::vector<glm::vec2>& uvs)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    const unsigned char* b = reinterpret_cast<const unsigned char*>(uvs.data());
+    for (size_t i = 0; i < uvs.size() * sizeof(glm::vec2); ++i)
+        h = (h ^ b[i]) * 0x100000001b3ull;
+    return h;
+}
+
 glm::mat4 localMatrix(const tinygltf::Node& n)
 {
     glm::mat4 m(1.0f);
@@ -478,6 +487,8 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     if (withUV) {
         rig.mesh.uvs = std::move(uv);
         rig.mesh.uvIndices = rig.fileCorners;
+        rig.fileTexCoord = texCoord;
+        rig.fileUVHash = uvHash(rig.mesh.uvs);
     }
     return Status::ok();
 }
@@ -768,9 +779,8 @@ std::string missingLayerCause(const Rig& rig)
         return std::string("it declares ") + kLayerExtension + " but no mesh carries the layer: a tool dropped it";
     if (writtenByStrata(model))
         return "Strata wrote it, but its displacement layer is gone: another tool stripped it";
-    return "written by " + generatorName(model) + ", which does not carry the " + kLayerExtension +
-           " layer (gltfpack, Blender's exporter and gltf-transform without js/gltf-transform.config.mjs drop it), "
-           "or it was never baked";
+    return "written by " + generatorName(model) + ", a tool that drops " + kLayerExtension +
+           " (gltfpack, Blender, gltf-transform without js/gltf-transform.config.mjs), or never baked";
 }
 
 Status loadRig(const std::filesystem::path& pathFile, Rig* out)
@@ -870,8 +880,9 @@ Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, 
         return Status::ok();
     if (!sameOrder && shape == hex64(f.shape))
         return Status(StatusCode::InvalidData,
-                      path + ": the control mesh was renumbered after the bake (reorder, meshopt, draco and optimize "
-                             "reorder vertices and triangles; the layer's values follow the baked order)" + advice);
+                      path + ": the control mesh was renumbered after the bake (weld, unweld, reorder, simplify and "
+                             "optimize renumber vertices and triangles; the layer's values follow the baked order)" +
+                          advice);
     if (sameOrder)
         return Status(StatusCode::InvalidData,
                       path + ": the control mesh's vertices moved after the bake (quantize, or a lossy re-encoding "
@@ -879,7 +890,7 @@ Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, 
                           advice);
     return Status(StatusCode::InvalidData,
                   path + ": the control mesh was renumbered and its vertices moved after the bake (meshopt, draco and "
-                         "optimize reorder and quantize it)" + advice);
+                         "optimize reorder and quantize it; the layer's values follow the baked mesh)" + advice);
 }
 
 // The coded per-vertex values: a bufferView (versions 3 and 4) or an
@@ -1688,7 +1699,10 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
         // Images from files or data URIs travel inside the rig.
         embedImages(model, imageBytes, notes);
         // New displacement UVs (an atlas made by the baker) go in a new set.
-        bool sameUVs = cm.hasUVs() && cm.uvIndices == rig.fileCorners && cm.uvs.size() == rig.sourceVertex.size();
+        // The file's own UVs, untouched (an atlas the baker laid out may
+        // happen to number its UVs as the file numbers its vertices).
+        bool sameUVs = cm.hasUVs() && rig.fileTexCoord >= 0 && cm.uvIndices == rig.fileCorners &&
+                       cm.uvs.size() == rig.sourceVertex.size() && uvHash(cm.uvs) == rig.fileUVHash;
         if (omitUVs && !sameUVs) {
             info.texCoord = -1;
         } else if (cm.hasUVs() && !sameUVs) {

@@ -75,6 +75,11 @@ struct Rig {
     std::vector<uint32_t> sourceVertex;  ///< per file vertex: its topological vertex in mesh
     std::vector<uint32_t> fileCorners;   ///< per face corner of mesh: the file vertex it came from
     std::vector<RigPart> parts;       ///< the triangle primitives, in face order (one part for OBJ input)
+    /// The UV set mesh.uvs was loaded from (TEXCOORD_n of every part), or -1,
+    /// and a hash of the values loaded: a writer keeps the file's UVs only
+    /// while mesh.uvs still holds them.
+    int fileTexCoord = -1;
+    uint64_t fileUVHash = 0;
     std::shared_ptr<const SourceDocument> source;  ///< null unless loaded from glTF
     bool hasDisplacement = false;     ///< false for a plain glTF without a strata block
     DisplacementInfo displacement;

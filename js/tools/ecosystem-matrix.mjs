@@ -1,0 +1,253 @@
+// The rig against the tools that rewrite glTF every day.
+//
+//   node js/tools/ecosystem-matrix.mjs --build BUILD_DIR [--work DIR] [--markdown docs/ECOSYSTEM.md]
+//
+// Bakes a bare-cage rig (spot, smooth scheme), a skinned character with
+// real displacement (the penguin with its joint file) and a textured glTF
+// character (CesiumMan onto itself), then passes each through
+// glTF Transform commands (with and without js/gltf-transform.config.mjs),
+// gltfpack with default options and a Blender 3.4 import -> export with
+// default settings.  Each output goes to strata-reconstruct at the
+// recommended level, and every cell must end one of two ways:
+//   - the same surface: every vertex within 1e-5 of the diagonal of the
+//     original rig's reconstruction (same topology, so the vertex-wise
+//     distance bounds the Hausdorff distance), or
+//   - exit 2 with one error line naming the cause.
+// A cell that exits 0 with another surface fails the run (exit 1).  A tool
+// that cannot open or write the file is recorded as such (it is the tool's
+// limit, not a wrong surface).  --markdown writes the table.
+import { execFileSync, spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const jsDir = path.resolve(here, '..');
+const root = path.resolve(jsDir, '..');
+
+function option(name, fallback) {
+  const i = process.argv.indexOf(name);
+  return i >= 0 && i + 1 < process.argv.length ? process.argv[i + 1] : fallback;
+}
+const build = path.resolve(option('--build', path.join(root, 'build')));
+const work = path.resolve(option('--work', fs.mkdtempSync(path.join(os.tmpdir(), 'strata-ecosystem-'))));
+const markdown = option('--markdown', '');
+const bake = path.join(build, 'tools', 'strata-bake');
+const reconstruct = path.join(build, 'tools', 'strata-reconstruct');
+const data = path.join(root, 'tests', 'data');
+const gltfTransform = path.join(jsDir, 'node_modules', '.bin', 'gltf-transform');
+const config = path.join(jsDir, 'gltf-transform.config.mjs');
+fs.mkdirSync(work, { recursive: true });
+
+function run(cmd, args, opts = {}) {
+  const r = spawnSync(cmd, args, { encoding: 'utf8', timeout: 300000, ...opts });
+  return { code: r.status === null ? -1 : r.status, out: (r.stdout || '') + (r.stderr || ''), stderr: r.stderr || '' };
+}
+
+function have(cmd) {
+  return spawnSync('sh', ['-c', `command -v ${cmd}`], { encoding: 'utf8' }).status === 0;
+}
+
+// Vertex positions of an OBJ.
+function objVertices(file) {
+  const v = [];
+  for (const line of fs.readFileSync(file, 'utf8').split('\n'))
+    if (line.startsWith('v ')) {
+      const [, x, y, z] = line.trim().split(/\s+/);
+      v.push(+x, +y, +z);
+    }
+  return Float64Array.from(v);
+}
+
+function diagonal(v) {
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < v.length; i += 3)
+    for (let k = 0; k < 3; ++k) {
+      lo[k] = Math.min(lo[k], v[i + k]);
+      hi[k] = Math.max(hi[k], v[i + k]);
+    }
+  return Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+}
+
+// The rigs: [name, description, strata-bake arguments].
+const rigs = [
+  ['spot', 'bare cage, smooth scheme', ['--high', path.join(data, 'spot_triangulated.obj'),
+    '--control', path.join(data, 'spot_control_mesh.obj')]],
+  ['penguin', 'skinned cage (joint file), animated', ['--high', path.join(data, 'penguin_hr.obj'),
+    '--control', path.join(data, 'penguin_control_mesh.obj'), '--skeleton', path.join(data, 'penguin_joints.json')]],
+  ['cesiumman', 'textured skinned glTF character', ['--high', path.join(data, 'CesiumMan.glb'),
+    '--control', path.join(data, 'CesiumMan.glb')]],
+];
+
+// The tools: [name, with config, function(in, out) -> {code, out}].
+const gt = (args, withConfig) => (input, output) =>
+  run(gltfTransform, [args[0], input, output, ...args.slice(1), ...(withConfig ? ['--config', config] : [])],
+      { cwd: jsDir });
+const transformCommands = [
+  ['copy'], ['dedup'], ['prune'], ['resample'], ['sparse'], ['flatten'], ['center'], ['instance'],
+  ['unweld'], ['weld'], ['reorder'], ['simplify'], ['optimize'], ['meshopt'], ['draco'], ['quantize'],
+  ['dequantize'],
+];
+const tools = [];
+for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
+for (const c of [['copy'], ['prune'], ['weld'], ['meshopt'], ['draco'], ['optimize']])
+  tools.push([`gltf-transform ${c.join(' ')}`, 'none', gt(c, false)]);
+tools.push(['gltfpack', 'defaults', (input, output) => run('gltfpack', ['-i', input, '-o', output])]);
+tools.push(['Blender 3.4 import -> export', 'defaults', (input, output) =>
+  run('blender', ['-b', '--factory-startup', '--python', path.join(root, 'tools', 'blender_roundtrip.py'), '--',
+                  input, output])]);
+
+const rows = [];
+let wrong = 0;
+for (const [name, description, args] of rigs) {
+  const rig = path.join(work, `${name}.glb`);
+  const baked = run(bake, [...args, '--error-levels', 'none', '-o', rig]);
+  if (baked.code !== 0) {
+    console.error(`bake of ${name} failed:\n${baked.out}`);
+    process.exit(1);
+  }
+  const ref = path.join(work, `${name}_ref.obj`);
+  const r = run(reconstruct, [rig, '-o', ref]);
+  if (r.code !== 0) {
+    console.error(`reconstruct of ${name} failed:\n${r.out}`);
+    process.exit(1);
+  }
+  const refV = objVertices(ref);
+  const tolerance = 1e-5 * diagonal(refV);
+  for (const [tool, how, fn] of tools) {
+    const tag = `${name}_${tool.replace(/[^a-z0-9]+/gi, '_')}_${how}`;
+    const out = path.join(work, `${tag}.glb`);
+    if ((tool.startsWith('gltfpack') && !have('gltfpack')) || (tool.startsWith('Blender') && !have('blender'))) {
+      rows.push([name, tool, how, 'MISSING TOOL', 'not installed (cmake/install-deps.sh installs it)']);
+      ++wrong;
+      continue;
+    }
+    const t = fn(rig, out);
+    if (t.code !== 0 || !fs.existsSync(out)) {
+      const why = t.out.split('\n').map((l) => l.trim()).filter((l) =>
+        /error|failed|requires|compressed/i.test(l)).pop() || `exit ${t.code}`;
+      rows.push([name, tool, how, 'tool cannot process it', why.slice(0, 160)]);
+      continue;
+    }
+    const recon = path.join(work, `${tag}.obj`);
+    const s = run(reconstruct, [out, '-o', recon]);
+    if (s.code === 0) {
+      const v = objVertices(recon);
+      let max = v.length === refV.length ? 0 : Infinity;
+      for (let i = 0; i < v.length && max < Infinity; i += 3)
+        max = Math.max(max, Math.hypot(v[i] - refV[i], v[i + 1] - refV[i + 1], v[i + 2] - refV[i + 2]));
+      if (max <= tolerance) {
+        rows.push([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal`]);
+      } else {
+        rows.push([name, tool, how, 'WRONG SURFACE', v.length === refV.length
+          ? `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(2)} of the diagonal`
+          : `${v.length / 3} vertices, the rig's surface has ${refV.length / 3}`]);
+        ++wrong;
+      }
+    } else {
+      const errors = s.stderr.split('\n').filter((l) => l.includes(': error: '));
+      if (s.code === 2 && errors.length === 1) {
+        rows.push([name, tool, how, 'refused', errors[0].replace(/^strata-reconstruct: error: [^:]*: /, '')]);
+      } else {
+        rows.push([name, tool, how, 'BAD EXIT', `exit ${s.code}: ${s.stderr.trim().slice(0, 200)}`]);
+        ++wrong;
+      }
+    }
+  }
+}
+
+// Valid glTF that other tools write is read: gltf-transform optimize's
+// output of Fox and CesiumMan (meshopt, quantised, pruned) and of a
+// character with morph targets made sparse (accessors without bufferViews,
+// sparse accessors), each baked onto itself and refined plain.
+async function morphCharacter(file) {
+  const { Document, NodeIO } = await import('@gltf-transform/core');
+  const { sparse } = await import('@gltf-transform/functions');
+  const doc = new Document();
+  const buffer = doc.createBuffer();
+  const n = 8;  // a strip of 2n triangles with one morph target touching two vertices
+  const pos = new Float32Array(3 * 2 * (n + 1)), delta = new Float32Array(pos.length), idx = [];
+  for (let i = 0; i <= n; ++i) {
+    pos.set([i / n, 0, 0], 6 * i);
+    pos.set([i / n, 1, 0], 6 * i + 3);
+  }
+  delta.set([0, 0, 0.25], 6 * 3);
+  delta.set([0, 0, 0.25], 6 * 3 + 3);
+  for (let i = 0; i < n; ++i) idx.push(2 * i, 2 * i + 2, 2 * i + 1, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+  const acc = (array, type) => doc.createAccessor().setArray(array).setType(type).setBuffer(buffer);
+  const target = doc.createPrimitiveTarget().setAttribute('POSITION', acc(delta, 'VEC3'));
+  const prim = doc.createPrimitive().setAttribute('POSITION', acc(pos, 'VEC3'))
+    .setIndices(acc(new Uint16Array(idx), 'SCALAR')).addTarget(target);
+  const mesh = doc.createMesh('morph').addPrimitive(prim).setWeights([0]);
+  doc.createScene().addChild(doc.createNode('morph').setMesh(mesh));
+  await doc.transform(sparse({ ratio: 0.5 }));
+  await new NodeIO().write(file, doc);
+}
+
+const reads = [];
+{
+  const morph = path.join(work, 'morph.glb');
+  await morphCharacter(morph);
+  const inputs = [['Fox', path.join(data, 'Fox.glb'), true], ['CesiumMan', path.join(data, 'CesiumMan.glb'), true],
+                  ['morph-target strip', morph, true],
+                  ['(as gltf-transform sparse wrote it) morph-target strip', morph, false]];
+  for (const [label, input, optimize] of inputs) {
+    const optimized = optimize ? path.join(work, `${path.basename(input, '.glb')}_optimized.glb`) : input;
+    const o = optimize ? run(gltfTransform, ['optimize', input, optimized, '--texture-compress', 'false'], { cwd: jsDir })
+                       : { code: 0, out: '' };
+    const text = fs.existsSync(optimized) ? fs.readFileSync(optimized) : Buffer.alloc(0);
+    const jsonLength = text.length > 20 ? text.readUInt32LE(12) : 0;
+    const json = jsonLength ? JSON.parse(text.subarray(20, 20 + jsonLength).toString()) : { accessors: [] };
+    const noView = json.accessors.filter((a) => a.bufferView === undefined).length;
+    const sparseCount = json.accessors.filter((a) => a.sparse).length;
+    const b = o.code === 0 ? run(bake, ['--high', optimized, '--control', optimized, '--error-levels', 'none', '-o',
+                                        path.join(work, `${path.basename(optimized, '.glb')}_rig.glb`)])
+                           : { code: -1, out: o.out };
+    const r = o.code === 0 ? run(reconstruct, [optimized, '--no-displacement', '--level', '1', '-o',
+                                               path.join(work, `${path.basename(optimized, '.glb')}.obj`)])
+                           : { code: -1, out: '' };
+    const ok = b.code === 0 && r.code === 0;
+    if (!ok) ++wrong;
+    reads.push([optimize ? `gltf-transform optimize of ${label}` : label, `${noView} without bufferView, ${sparseCount} sparse`, ok ? 'baked and refined'
+      : `FAILED: ${(b.code ? b.out : r.out).trim().split('\n').pop().slice(0, 200)}`]);
+  }
+}
+
+const escape = (s) => s.replace(/\|/g, '\\|');
+let table = '| rig | tool | extension support | result | detail |\n|---|---|---|---|---|\n';
+for (const r of rows) table += `| ${r.map(escape).join(' | ')} |\n`;
+let readTable = '| input | accessors | Strata |\n|---|---|---|\n';
+for (const r of reads) readTable += `| ${r.map(escape).join(' | ')} |\n`;
+console.log(table);
+console.log(readTable);
+console.log(`${rows.length + reads.length - wrong} passed, ${wrong} failed`);
+if (markdown) {
+  const described = rigs.map(([n, d]) => `\`${n}\` (${d})`).join(', ');
+  const text = `# The rig through other tools
+
+Generated by \`node js/tools/ecosystem-matrix.mjs --build build --markdown docs/ECOSYSTEM.md\`
+(run in CI by ctest as \`ecosystem.matrix\`).  Rigs: ${described}, each
+baked with default flags.  Every output is reconstructed by
+\`strata-reconstruct\` at the recommended level and compared with the
+original rig's reconstruction.  A cell passes with the **same surface**
+(every vertex within 1e-5 of the diagonal) or when Strata **refuses** the
+file with one line naming the cause; **no cell may draw another surface
+with exit 0**.  "config" runs glTF Transform with
+\`--config js/gltf-transform.config.mjs\` (the STRATA_layered_displacement
+extension registered); "none" runs it as installed.  "tool cannot process
+it" is the tool's own refusal.
+
+${table}
+## Valid glTF from other tools is read
+
+\`gltf-transform optimize\` (meshopt, quantisation) of two characters and of
+a strip with a morph target, and that strip as \`sparse\` wrote it (a morph
+target as a sparse accessor without a bufferView); each is baked onto itself
+with \`strata-bake\` and refined plain with \`strata-reconstruct
+--no-displacement\`.
+
+${readTable}`;
+  fs.writeFileSync(markdown, text);
+}
+process.exit(wrong ? 1 : 0);
