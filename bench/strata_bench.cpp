@@ -235,8 +235,10 @@ std::string gpuName()
 std::string bakeCommand(const std::string& bakeExe, const Pair& pair, const std::string& rig, const std::string& report,
                         const std::string& extra)
 {
+    // The compact coding: the rig against Draco and gltfpack is the smallest
+    // Strata writes (the default, plain accessors, opens in more tools).
     return bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags + extra +
-           " --threads 2 -o '" + rig + "' --report '" + report + "'";
+           " --mesh-coding draco --threads 2 -o '" + rig + "' --report '" + report + "'";
 }
 
 // One row of the atlas table: the pair baked again with --exr, where the
