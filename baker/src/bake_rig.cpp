@@ -911,14 +911,30 @@ void BakeJob::summarize()
         // plain glb (float positions, 16- or 32-bit indices, a little
         // JSON) has a control mesh about as dense as the capture, and
         // the user is told so rather than left to find out.
+        // Like with like: a capture that is a glTF file is compared as the
+        // file it is (textures, animations and skins included); a mesh file
+        // as a plain glb of its triangles, plus whatever textures,
+        // animations and skins the rig carries from its control.
         const size_t hv = high.positions.size(), hf = high.faceCount();
-        const double plain = 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0;
+        const std::string highExt = io::extensionOf(highPath);
+        const bool gltfCapture = highExt == ".glb" || highExt == ".gltf";
+        const double extra = double(io::characterBytes(rig));
+        std::error_code sizeError;
+        const double highBytes = gltfCapture ? double(std::filesystem::file_size(highPath, sizeError)) : 0.0;
+        const double plain = gltfCapture && !sizeError ? highBytes
+                                         : 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0 +
+                                               extra;
         const double rigBytes = fileSize(outPath);
+        char what[160];
+        if (gltfCapture && !sizeError)
+            std::snprintf(what, sizeof(what), "as the file it is");
+        else
+            std::snprintf(what, sizeof(what), "as a plain glb (about %.1f KB: %zu vertices, %zu triangles%s)",
+                          plain / 1024.0, hv, hf, extra > 0 ? ", with the rig's textures, animations and skins" : "");
         if (rigBytes > plain)
-            warn("%s: the rig (%.1f KB) is larger than the capture would be as a plain glb (about %.1f KB: %zu "
-                 "vertices, %zu triangles); its control mesh has %zu triangles, and a coarser one (or --control "
-                 "auto) makes a smaller rig",
-                 outPath.c_str(), rigBytes / 1024.0, plain / 1024.0, hv, hf, control.faceCount());
+            warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); its control mesh has %zu triangles, "
+                 "and a coarser one (--control auto), or --mesh-coding meshopt or draco, makes a smaller rig",
+                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, control.faceCount());
     }
     if (compress && io::extensionOf(outPath) == ".glb")
         warn("%s: %s-coded, which Blender 3.4 (Debian's, without Draco) and gltfpack do not open; "

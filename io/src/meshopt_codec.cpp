@@ -267,6 +267,69 @@ Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, doubl
     return st ? writeFileAtomic(path, bytes.data(), bytes.size()) : st;
 }
 
+namespace {
+
+// Gives every primitive's attribute, morph target and index accessor a
+// tightly packed bufferView of its own where its view is shared with
+// another accessor, has a stride other than its element, or the accessor
+// starts at an offset: the layout meshopt's codecs code.  Accessors that
+// skins, animations or a layer also use keep their views.
+Status ownViews(tinygltf::Model& model)
+{
+    const size_t na = model.accessors.size(), nv = model.bufferViews.size();
+    std::vector<int> users(nv, 0);
+    std::vector<uint8_t> geometry(na, 0), other(na, 0);
+    for (const tinygltf::Accessor& a : model.accessors)
+        if (a.bufferView >= 0 && size_t(a.bufferView) < nv)
+            ++users[size_t(a.bufferView)];
+    forEachAccessorReference(model, [&](int& a, AccessorUse use, const tinygltf::Primitive*) {
+        if (a < 0 || size_t(a) >= na)
+            return;
+        (use == AccessorUse::Other ? other : geometry)[size_t(a)] = 1;
+    });
+    for (size_t a = 0; a < na; ++a) {
+        const tinygltf::Accessor acc = model.accessors[a];
+        if (!geometry[a] || other[a] || acc.bufferView < 0 || size_t(acc.bufferView) >= nv || acc.sparse.isSparse)
+            continue;
+        const tinygltf::BufferView view = model.bufferViews[size_t(acc.bufferView)];
+        const int cbytes = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+        const int comps = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+        if (cbytes <= 0 || comps <= 0)
+            continue;
+        const size_t elem = size_t(cbytes) * size_t(comps);
+        const size_t stride = view.byteStride ? size_t(view.byteStride) : elem;
+        if (users[size_t(acc.bufferView)] == 1 && acc.byteOffset == 0 && stride == ((elem + 3) & ~size_t(3)) &&
+            view.byteLength == stride * acc.count)
+            continue;
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            return Status(StatusCode::InvalidData, "bufferView " + std::to_string(acc.bufferView) +
+                                                       " references a missing buffer");
+        const std::vector<unsigned char>& data = model.buffers[size_t(view.buffer)].data;
+        const bool indices = view.target == TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER || (comps == 1 && elem <= 4 &&
+                                                                                    acc.type == TINYGLTF_TYPE_SCALAR &&
+                                                                                    view.target != TINYGLTF_TARGET_ARRAY_BUFFER);
+        const size_t packed = indices ? elem : (elem + 3) & ~size_t(3);
+        std::vector<unsigned char> bytes(packed * acc.count, 0);
+        for (size_t i = 0; i < acc.count; ++i) {
+            const size_t at = view.byteOffset + acc.byteOffset + i * stride;
+            if (at > data.size() || elem > data.size() - at || at + elem > view.byteOffset + view.byteLength)
+                return Status(StatusCode::InvalidData, "accessor " + std::to_string(a) +
+                                                           " reads past the end of its bufferView");
+            std::memcpy(&bytes[i * packed], &data[at], elem);
+        }
+        const int v = appendBufferView(model, bytes.data(), bytes.size(),
+                                       indices ? TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER : TINYGLTF_TARGET_ARRAY_BUFFER);
+        if (packed != elem)
+            model.bufferViews[size_t(v)].byteStride = packed;
+        tinygltf::Accessor& moved = model.accessors[a];
+        moved.bufferView = v;
+        moved.byteOffset = 0;
+    }
+    return packBuffers(model);  // drops the views nothing uses now
+}
+
+}  // namespace
+
 Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out, double positionError,
                            bool draco)
 {
@@ -282,6 +345,11 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
     }
     if (model.buffers.empty())
         return plainGlb(path, model, out);
+    // Accessors that share a bufferView or sit at an offset in it (as many
+    // exporters write them) get views of their own first, so that every
+    // vertex attribute and index list can be coded.
+    if (!(st = ownViews(model)))
+        return Status(st.code(), path + ": " + st.message());
     // Which views to code: vertex attributes with 4-byte-multiple strides and
     // triangle-list indices; each view must serve one kind of accessor only.
     const size_t nv = model.bufferViews.size();

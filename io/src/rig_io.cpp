@@ -769,6 +769,37 @@ bool hasOrphanGreyImage(const SourceDocument& doc)
 
 }  // namespace
 
+size_t characterBytes(const Rig& rig)
+{
+    if (!rig.source)
+        return 0;
+    const tinygltf::Model& model = rig.source->model;
+    size_t total = 0;
+    auto accessorBytes = [&](int a) {
+        if (a < 0 || size_t(a) >= model.accessors.size())
+            return size_t(0);
+        const tinygltf::Accessor& acc = model.accessors[size_t(a)];
+        const int c = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+        const int n = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+        return c > 0 && n > 0 ? acc.count * size_t(c) * size_t(n) : size_t(0);
+    };
+    for (const tinygltf::Animation& an : model.animations)
+        for (const tinygltf::AnimationSampler& sa : an.samplers)
+            total += accessorBytes(sa.input) + accessorBytes(sa.output);
+    for (const tinygltf::Skin& sk : model.skins)
+        total += accessorBytes(sk.inverseBindMatrices);
+    for (size_t i = 0; i < model.images.size(); ++i) {
+        if (int(i) == rig.displacement.image && rig.hasDisplacement)
+            continue;
+        const int v = model.images[i].bufferView;
+        if (v >= 0 && size_t(v) < model.bufferViews.size())
+            total += model.bufferViews[size_t(v)].byteLength;
+        else if (i < rig.source->imageBytes.size())
+            total += rig.source->imageBytes[i].size();
+    }
+    return total;
+}
+
 std::string missingLayerCause(const Rig& rig)
 {
     if (!rig.source)

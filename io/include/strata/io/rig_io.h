@@ -23,6 +23,12 @@ constexpr const char* kLayerExtension = "STRATA_layered_displacement";
 /// tools that refuse to draw such a file as if it were displaced.
 std::string missingLayerCause(const Rig& rig);
 
+/// Bytes of what a rig loaded from glTF carries besides its meshes and its
+/// displacement layer: images (textures, embedded or beside the file),
+/// animation keys and skins' inverse bind matrices, which a plain glb of
+/// the same character carries too; 0 for other rigs.
+size_t characterBytes(const Rig& rig);
+
 /// Loads a control rig, or any glTF scene with triangles (then
 /// rig.hasDisplacement is false).  Every triangle primitive of every mesh is
 /// read (strips and fans unrolled; points and lines kept in the document
