@@ -117,20 +117,27 @@ py::dict bake(const std::string& high, const std::string& control, const std::st
     for (const auto& item : kw) {
         const std::string key = item.first.cast<std::string>();
         const py::handle v = item.second;
-        if (key == "tolerance")
-            req.tolerance = v.cast<double>();
-        else if (key == "control_faces")
+        if (key == "control_faces")
             req.controlFaces = v.cast<size_t>();
         else if (key == "uv")
             req.uv = v.cast<std::string>();
-        else if (key == "size")
-            req.options.size = v.cast<int>();
         else if (key == "scheme") {
             if (!parseScheme(v.cast<std::string>(), &req.options.scheme))
                 throw StrataError("scheme expects \"linear\" or \"smooth\"");
             req.schemeGiven = true;
-        } else if (key == "threads")
+        } else if (key == "threads") {
             req.options.threads = v.cast<int>();
+            if (req.options.threads < 1 || req.options.threads > 256)  // as strata-bake --threads
+                throw StrataError("threads expects 1..256, not " + std::to_string(req.options.threads));
+        } else if (key == "tolerance") {
+            req.tolerance = v.cast<double>();
+            if (!(req.tolerance >= 0.0 && req.tolerance < 1.0))  // as strata-bake --tolerance
+                throw StrataError("tolerance expects a fraction of the diagonal in [0, 1)");
+        } else if (key == "size") {
+            req.options.size = v.cast<int>();
+            if (req.options.size != 0 && (req.options.size < 16 || req.options.size > 8192))  // as --size
+                throw StrataError("size expects 0 (automatic) or 16..8192, not " + std::to_string(req.options.size));
+        }
         else if (key == "map_coding")
             req.mapCoding = v.cast<std::string>();
         else if (key == "mesh_coding")
@@ -175,6 +182,11 @@ py::dict bake(const std::string& high, const std::string& control, const std::st
 PYBIND11_MODULE(strata, m)
 {
     m.doc() = "Strata: layered animation with displacement maps (bake, load, reconstruct)";
+    // pybind11 looks numpy's C API up in a function-local static the first
+    // time an array is made, importing numpy, which lets go of the GIL: a
+    // second thread that holds the GIL then waits on the static's guard
+    // forever.  Made here, under the import lock, before any thread can race.
+    (void)py::array_t<float>(0);
     m.attr("__version__") = STRATA_VERSION;
     py::register_exception<StrataError>(m, "Error", PyExc_RuntimeError);
     m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"),

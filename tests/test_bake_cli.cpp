@@ -144,7 +144,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj --uv keep -o " + out, "overlap"},
         {ok + " -o " + dir + "/high.obj/sub/rig.glb", "cannot create the output folder"},
         {ok + " -o " + dir + "/out/rig.obj", "must be a .glb or .gltf"},
-        {"--high " + dir + "/same.glb --control " + dir + "/control.obj -o " + dir + "/same.glb", "overwrite an input"},
+        {"--high " + dir + "/same.glb --control " + dir + "/control.obj -o " + dir + "/same.glb", "would overwrite the input"},
         {ok + " --tolerance lots -o " + out, "--tolerance"},
         {ok + " --size 8192 --max-memory 64 -o " + out, "--max-memory"},
         {ok + " --size 3 -o " + out, "--size"},
@@ -335,6 +335,48 @@ TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_EQ(strata::test::readText(dir + "/rig.glb"), before);
     EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 3u) << "no staging file is left behind";  // high.obj, control.obj, rig.glb
+}
+
+// No input is ever overwritten, whatever the spelling: a report named as
+// the capture, a rig named through a folder that does not exist
+// ("z/../control.glb"), and no folder is made before the checks pass.  A
+// report that is a folder fails before any output (rig, EXR) is replaced.
+TEST(BakeCli, InputsAreNeverOverwrittenAndFailuresLeaveNothing)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_overwrite");
+    writeInputs(dir);
+    const std::string high = strata::test::readText(dir + "/high.obj");
+    const std::string args = "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none";
+    Result r = run(args + " --report " + dir + "/high.obj -o " + dir + "/rig.glb");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("would overwrite the input"), std::string::npos) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/high.obj"), high);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/rig.glb"));
+
+    ASSERT_EQ(run(args + " -o " + dir + "/rig.glb").code, 0);
+    const std::string rig = strata::test::readText(dir + "/rig.glb");
+    r = run("--high " + dir + "/high.obj --control " + dir + "/rig.glb --error-levels none -o " + dir +
+            "/z/../rig.glb");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("would overwrite the input"), std::string::npos) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/rig.glb"), rig);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/z")) << "no folder is made before the checks";
+
+    std::filesystem::create_directories(dir + "/somedir");
+    r = run(args + " --exr --report " + dir + "/somedir -o " + dir + "/rig.glb");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("is a folder"), std::string::npos) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/rig.glb"), rig);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/rig.exr"));
+    EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "no staging file is left behind";  // 2 inputs, rig, somedir
+
+    // Staging files of a bake killed with SIGKILL (its process is gone, or
+    // the old naming without one) are removed by the next bake there.
+    writeText(dir + "/.strata-staging-2147483000-rig.glb", "left by a killed bake");
+    writeText(dir + "/.strata-staging-rig.tmp77.0badf00d.glb", "left by an older build");
+    ASSERT_EQ(run(args + " -o " + dir + "/rig.glb").code, 0);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/.strata-staging-2147483000-rig.glb"));
+    EXPECT_FALSE(strata::test::fileExists(dir + "/.strata-staging-rig.tmp77.0badf00d.glb"));
 }
 
 TEST(BakeCli, SkinnedControlRigIsCarriedThrough)

@@ -575,6 +575,44 @@ TEST(Rig, AccessorsWithoutBufferViewsAndSparseAccessorsRead)
     EXPECT_NE(st.message().find("without the bytes to back them"), std::string::npos) << st.message();
 }
 
+// External files are confined by what they resolve to, not by spelling: a
+// buffer that is a symbolic link out of the rig's folder, or that lies in a
+// sub-folder linking out of it, is refused; a link that stays inside loads.
+TEST(Rig, SymbolicLinksOutOfTheRigFolderAreRefused)
+{
+    const std::string root = test::tempDir("rig_symlinks");
+    const std::string dir = root + "/rig", secret = root + "/secret";
+    std::filesystem::create_directories(dir);
+    std::filesystem::create_directories(secret);
+    const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    {
+        std::ofstream f(secret + "/data.bin", std::ios::binary);
+        f.write(reinterpret_cast<const char*>(positions), 36);
+        std::ofstream g(dir + "/real.bin", std::ios::binary);
+        g.write(reinterpret_cast<const char*>(positions), 36);
+    }
+    auto gltf = [](const std::string& uri) {
+        return R"({"asset":{"version":"2.0"},"buffers":[{"uri":")" + uri +
+               R"(","byteLength":36}],"bufferViews":[{"buffer":0,"byteLength":36}],)"
+               R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],)"
+               R"("meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]})";
+    };
+    std::filesystem::create_symlink("../secret/data.bin", dir + "/out.bin");
+    std::filesystem::create_directory_symlink("../secret", dir + "/sub");
+    std::filesystem::create_symlink("real.bin", dir + "/in.bin");
+    Rig rig;
+    for (const char* uri : {"out.bin", "sub/data.bin"}) {
+        writeText(dir + "/r.gltf", gltf(uri));
+        const Status st = io::loadRig(dir + "/r.gltf", &rig);
+        EXPECT_FALSE(st.isOk()) << uri;
+        EXPECT_NE(st.message().find("leads outside the rig's folder"), std::string::npos) << st.message();
+    }
+    writeText(dir + "/r.gltf", gltf("in.bin"));
+    const Status st = io::loadRig(dir + "/r.gltf", &rig);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(rig.mesh.vertexCount(), 3u);
+}
+
 TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
 {
     const std::string dir = test::tempDir("rig_map");

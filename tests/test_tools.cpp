@@ -144,6 +144,30 @@ TEST(Tools, HostileRigsAndPathsAreOneLineErrors)
     EXPECT_TRUE(strata::test::fileExists(dir + "/dossier é/sortie ü.ply"));
 }
 
+// strata-reconstruct never writes over its input: not through a folder
+// that does not exist ("x/../rig.glb", and x is not made), and not as frame
+// 0 of a sequence whose name is the input's.
+TEST(Tools, ReconstructNeverOverwritesItsInput)
+{
+    const std::string dir = strata::test::tempDir("tools_overwrite");
+    Result r = run(demo + " --out '" + dir + "' --max-level 1 --size 256");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string rig = strata::test::readText(dir + "/head.glb");
+    r = run(reconstruct + " '" + dir + "/head.glb' -o '" + dir + "/x/../head.glb'");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("would overwrite the input"), std::string::npos) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/head.glb"), rig);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/x"));
+    // A control OBJ named out_0000.obj, and frames out_NNNN.obj.
+    ASSERT_EQ(run(reconstruct + " '" + dir + "/head.glb' --level 0 -o '" + dir + "/out_0000.obj'").code, 0);
+    const std::string control = strata::test::readText(dir + "/out_0000.obj");
+    r = run(reconstruct + " '" + dir + "/out_0000.obj' --frames 0:1:1 -o '" + dir + "/out.obj'");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("would overwrite the input"), std::string::npos) << r.output;
+    EXPECT_EQ(strata::test::readText(dir + "/out_0000.obj"), control);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/out_0001.obj"));
+}
+
 TEST(Tools, DeepNodeChainsLoad)
 {
     // A 300-deep chain of nodes above the mesh: loads and places the mesh.

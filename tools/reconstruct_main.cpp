@@ -142,9 +142,22 @@ int main(int argc, char** argv)
         }
         if (std::filesystem::is_symlink(outPath))
             throw cli::Error(outPath + ": is a symbolic link; refusing to replace it (write to its target)");
-        if (io::extensionOf(outPath) == io::extensionOf(rigPath) &&
-            std::filesystem::exists(outPath) && std::filesystem::equivalent(outPath, rigPath))
-            throw cli::Error(outPath + ": the output would overwrite the input rig");
+        // By file identity, for the output and every frame of a sequence,
+        // before any folder is made.
+        std::vector<std::string> outputs = {outPath};
+        if (frames) {
+            const std::string e = io::extensionOf(outPath), stem = outPath.substr(0, outPath.size() - e.size());
+            const int count = int(std::floor((frameEnd - frameStart) * fps + 1e-4f)) + 1;
+            for (int f = 0; f < count; ++f) {
+                char suffix[16];
+                std::snprintf(suffix, sizeof(suffix), "_%04d", f);
+                outputs.push_back(stem + suffix + e);
+            }
+        }
+        for (const std::string& output : outputs)
+            for (const std::string& input : {rigPath, skeletonPath})
+                if (io::sameFile(output, input))
+                    throw cli::Error(output + ": the output would overwrite the input " + input);
         // Memory before work: the map's texels and the refined mesh (tables,
         // positions, normals, triangles: about 230 bytes per refined vertex).
         {

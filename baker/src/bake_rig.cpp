@@ -35,6 +35,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include <signal.h>
 #include <unistd.h>
 
 namespace strata {
@@ -117,7 +118,28 @@ struct Outputs {
         const std::string dir = io::directoryOf(path);
         const size_t slash = path.find_last_of('/');
         const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
-        return (dir.empty() ? std::string() : dir + "/") + ".strata-staging-" + name;
+        return (dir.empty() ? std::string() : dir + "/") + ".strata-staging-" + std::to_string(::getpid()) + "-" + name;
+    }
+    // Removes the staging files of bakes into `dir` that no longer run (a
+    // bake killed with SIGKILL leaves its own): the ones whose process id is
+    // gone, and those of the old naming, which has none.  A bake that still
+    // runs keeps its files.
+    static void removeStale(const std::string& dir)
+    {
+        std::error_code ec;
+        const std::string prefix = ".strata-staging-";
+        for (std::filesystem::directory_iterator it(dir.empty() ? "." : dir, ec), end; !ec && it != end;
+             it.increment(ec)) {
+            const std::string name = it->path().filename().string();
+            if (name.compare(0, prefix.size(), prefix) != 0 || !it->is_regular_file(ec))
+                continue;
+            char* rest = nullptr;
+            const long pid = std::strtol(name.c_str() + prefix.size(), &rest, 10);
+            const bool running = rest && *rest == '-' && pid > 0 && pid < 0x7fffffffL &&
+                                 (::kill(pid_t(pid), 0) == 0 || errno == EPERM);
+            if (!running)
+                std::filesystem::remove(it->path(), ec);
+        }
     }
     // Writes through `write(stagedPath)`; errors name the final path only.
     template <typename F>
@@ -136,6 +158,12 @@ struct Outputs {
     }
     void commit()
     {
+        // All or nothing: every target is checked before any is replaced.
+        for (const std::string& p : written) {
+            std::error_code ec;
+            if (std::filesystem::is_directory(p, ec))
+                throw BakeError(p + ": is a folder; no output was replaced");
+        }
         for (const std::string& p : written)
             if (std::rename(staged(p).c_str(), p.c_str()) != 0)
                 throw BakeError(p + ": cannot replace the file (" + std::strerror(errno) + ")");
@@ -178,13 +206,36 @@ Status checkOutput(const BakeRequest& request)
     if (std::filesystem::is_symlink(out, ec))
         return Status(StatusCode::InvalidArgument,
                       out + ": is a symbolic link; refusing to replace it (write to its target)");
-    for (const std::string& input : {request.high, request.control})
-        if (input != "auto" && std::filesystem::exists(out, ec) && std::filesystem::exists(input, ec) &&
-            std::filesystem::equivalent(out, input, ec))
-            return Status(StatusCode::InvalidArgument, out + ": the output would overwrite an input");
     const std::string ext = io::extensionOf(out);
     if (ext != ".glb" && ext != ".gltf")
         return Status(StatusCode::InvalidArgument, out + ": the rig must be a .glb or .gltf file");
+    // Every output against every input and every other output, by file
+    // identity (device and inode, `..` and links resolved), before any
+    // folder is made or any byte written.
+    const std::string base = out.substr(0, out.size() - ext.size());
+    std::vector<std::string> outputs = {out};
+    if (!request.report.empty() && request.report != "-")
+        outputs.push_back(request.report);
+    if (request.exr)
+        outputs.push_back(base + ".exr");
+    if (request.layers)
+        outputs.push_back(base + "_layers.png");
+    if (request.pngBits)
+        outputs.push_back(base + (request.pngBits == 8 ? ".png8.png" : ".png16.png"));
+    for (size_t i = 0; i < outputs.size(); ++i) {
+        for (const std::string& input : {request.high, request.control, request.skeleton})
+            if (input != "auto" && io::sameFile(outputs[i], input))
+                return Status(StatusCode::InvalidArgument,
+                              outputs[i] + ": the output would overwrite the input " + input);
+        for (size_t j = 0; j < i; ++j)
+            if (io::sameFile(outputs[i], outputs[j]))
+                return Status(StatusCode::InvalidArgument, outputs[i] + ": two outputs would be the same file");
+        if (i > 0 && std::filesystem::is_symlink(outputs[i], ec))
+            return Status(StatusCode::InvalidArgument,
+                          outputs[i] + ": is a symbolic link; refusing to replace it (write to its target)");
+        if (std::filesystem::is_directory(outputs[i], ec))
+            return Status(StatusCode::InvalidArgument, outputs[i] + ": is a folder, not a file to write");
+    }
     return Status::ok();
 }
 
@@ -212,6 +263,9 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
 {
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
+    if (!request.output.empty())
+        if (Status checked = checkOutput(request); !checked)
+            return checked;
     if (request.control != "auto" || request.controlFaces != 0 || !(request.tolerance > 0.0) ||
         request.high.empty() || request.output.empty())
         return bakeOnce(request, result, progress);
@@ -509,6 +563,7 @@ void BakeJob::loadInputs()
         throw BakeError("mesh coding must be plain, meshopt or draco, not " + request.meshCoding);
     if (Status checked = checkOutput(request); !checked)
         throw BakeError(checked.message());
+    Outputs::removeStale(io::directoryOf(outPath));
     const std::string ext = io::extensionOf(outPath);
     base = outPath.substr(0, outPath.size() - ext.size());
 

@@ -81,6 +81,19 @@ Status writeViaTempFile(const std::string& path, const std::function<std::string
     return Status::ok();
 }
 
+bool sameFile(const std::string& output, const std::string& input)
+{
+    if (output.empty() || input.empty())
+        return false;
+    struct stat a, b;
+    if (::stat(output.c_str(), &a) == 0 && ::stat(input.c_str(), &b) == 0)
+        return a.st_dev == b.st_dev && a.st_ino == b.st_ino;
+    std::error_code ea, eb;
+    const std::filesystem::path pa = std::filesystem::weakly_canonical(std::filesystem::absolute(output), ea);
+    const std::filesystem::path pb = std::filesystem::weakly_canonical(std::filesystem::absolute(input), eb);
+    return !ea && !eb && pa == pb;
+}
+
 Status writeFileAtomic(const std::filesystem::path& pathFile, const void* data, size_t size)
 {
     const std::string path = pathFile.string();

@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <functional>
 #include <cstring>
 
@@ -50,10 +51,35 @@ std::string confinedRelative(const std::string& full, const FsContext& ctx)
 }
 
 
+// Confinement by file, not by spelling: the path with every symbolic link
+// resolved must still lie inside the document's folder (resolved too), so a
+// buffer, image or sub-folder that links outside it is refused.
+bool resolvesInside(const std::string& path, const FsContext& ctx)
+{
+    return resolvesInsideFolder(path, ctx.base);
+}
+
+}  // namespace
+
+bool resolvesInsideFolder(const std::string& path, const std::string& folder)
+{
+    std::error_code ec;
+    const std::filesystem::path file = std::filesystem::canonical(path, ec);
+    if (ec)
+        return false;
+    const std::filesystem::path base = std::filesystem::canonical(folder.empty() ? "." : folder, ec);
+    if (ec)
+        return false;
+    const std::string f = file.string(), b = base.string();
+    return f.size() > b.size() && f.compare(0, b.size(), b) == 0 && (b.back() == '/' || f[b.size()] == '/');
+}
+
+namespace {
+
 bool fsExists(const std::string& path, void* user)
 {
     const FsContext& ctx = *static_cast<FsContext*>(user);
-    return !confinedRelative(path, ctx).empty() && isRegularFile(path);
+    return !confinedRelative(path, ctx).empty() && isRegularFile(path);  // fsRead says why a link is refused
 }
 
 std::string fsExpand(const std::string& path, void*)
@@ -67,6 +93,11 @@ bool fsRead(std::vector<unsigned char>* out, std::string* err, const std::string
     if (confinedRelative(path, ctx).empty() || !isRegularFile(path)) {
         if (err)
             *err += "external files must be regular files inside the rig's folder";
+        return false;
+    }
+    if (!resolvesInside(path, ctx)) {
+        if (err)
+            *err += "leads outside the rig's folder through a symbolic link (external files must resolve inside it)";
         return false;
     }
     const Status st = readFile(path, out, size_t(1) << 30);

@@ -24,6 +24,10 @@ struct SourceDocument {
 
 namespace io {
 
+/// Whether `path`, every symbolic link resolved, lies inside `folder` (also
+/// resolved; "" is the working directory): confinement by file, not spelling.
+bool resolvesInsideFolder(const std::string& path, const std::string& folder);
+
 /// Parses a .glb/.gltf.  External buffers and images resolve only inside
 /// the file's folder (no absolute paths, no "..", no URI schemes but data:,
 /// regular files only).  Image pixels are not decoded; their encoded bytes

@@ -1089,6 +1089,9 @@ Status loadRigDisplacementMap(const std::filesystem::path& rigPathFile, const Ri
     } else {
         const std::string dir = directoryOf(rigPath);
         mapName = dir.empty() ? info.uri : dir + "/" + info.uri;
+        if (isRegularFile(mapName) && !resolvesInsideFolder(mapName, dir))
+            return Status(StatusCode::InvalidData, mapName + ": a symbolic link that leads outside the rig's folder; "
+                                                             "the displacement map must resolve inside it");
         if (!isRegularFile(mapName))
             return Status(StatusCode::InvalidData, mapName + ": the rig's displacement map is missing or not a file");
         Status st = readDisplacementExr(mapName, &map, info.width, info.height);

@@ -6,6 +6,7 @@ from tests/data, which ships with the repository.
 import math
 import os
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -129,3 +130,34 @@ def test_penguin_in_a_few_lines(tmp_path):
     vertices, triangles = strata.load_rig(str(tmp_path / "penguin.glb")).reconstruct(level=3)
     assert report["recommendedLevel"] == 3
     assert vertices.shape == (12738, 3) and triangles.shape == (25472, 3)
+
+
+def test_keywords_are_validated_as_the_cli_does(baked, tmp_path):
+    d, _ = baked
+    for kw in ({"threads": 100000}, {"threads": 0}, {"tolerance": -1.0}, {"size": 3}):
+        with pytest.raises(strata.Error):
+            strata.bake(str(d / "high.obj"), str(d / "control.obj"), str(tmp_path / "r.glb"), **kw)
+        assert not (tmp_path / "r.glb").exists()
+
+
+def test_eight_threads_reconstruct_at_once_without_warm_up(baked):
+    # A fresh interpreter, so that nothing has made an array yet: the first
+    # arrays are made by eight threads at once (this deadlocked when numpy's
+    # API was looked up lazily under a static guard).
+    d, _ = baked
+    script = (
+        "import sys, threading\n"
+        "import strata\n"
+        "out = []\n"
+        "def work():\n"
+        "    v, t = strata.load_rig(sys.argv[1]).reconstruct(level=2)\n"
+        "    out.append(len(v))\n"
+        "ts = [threading.Thread(target=work) for _ in range(8)]\n"
+        "[t.start() for t in ts]\n"
+        "[t.join() for t in ts]\n"
+        "print(len(out), len(set(out)))\n")
+    for _ in range(5):
+        r = subprocess.run([sys.executable, "-c", script, str(d / "rig.glb")], capture_output=True, text=True,
+                           timeout=60, env=dict(os.environ))
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.split() == ["8", "1"]

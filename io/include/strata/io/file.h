@@ -24,6 +24,12 @@ Status readFile(const std::filesystem::path& path, std::vector<unsigned char>* o
 /// Writes bytes to path atomically (temporary file + rename).
 Status writeFileAtomic(const std::filesystem::path& path, const void* data, size_t size);
 
+/// Whether writing `output` would replace `input`, judged by the file and not
+/// by its spelling: the same device and inode where both exist, else the
+/// same path once `.`, `..` and the links of its existing part are resolved
+/// (so `x/../in.glb` is `in.glb` even while `x` does not exist).
+bool sameFile(const std::string& output, const std::string& input);
+
 /// For libraries that insist on writing a file by name themselves (OpenEXR):
 /// calls write(tempPath), then renames tempPath over path; removes the
 /// temporary file on failure.  write returns an empty string on success or a
