@@ -701,6 +701,22 @@ TEST(ControlMeshHoles, BoundaryLoopsCloseWithConsistentFans)
     EXPECT_EQ(closeBoundaryLoops(&closed), 0u);
 }
 
+// A boundary whose edges chain into a vertex that no boundary edge leaves
+// (inconsistent orientation around non-manifold edges) is no closed loop:
+// nothing is closed, and nothing is read past the boundary list (the
+// chain's end was looked up beyond it: a heap overflow under ASan).
+TEST(ControlMeshHoles, ABoundaryChainThatEndsOpenIsLeftAlone)
+{
+    ControlMesh m;
+    for (int i = 0; i < 5; ++i)
+        m.positions.push_back(glm::vec3(float(i), float(i * i % 3), float(i % 2)));
+    m.triangles = {1, 0, 3, 4, 1, 3, 4, 2, 3, 2, 3, 1, 4, 0, 1, 4, 1, 2};
+    const ControlMesh before = m;
+    EXPECT_EQ(closeBoundaryLoops(&m), 0u);
+    EXPECT_EQ(m.triangles, before.triangles);
+    EXPECT_EQ(m.positions.size(), before.positions.size());
+}
+
 // A chart cache makes the same atlas at every size as a fresh layout, and is
 // not fooled by a mesh whose positions changed.
 TEST(Atlas, ChartCacheGivesTheSameAtlas)

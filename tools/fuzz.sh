@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_rig fuzz_mesh fuzz_joints fuzz_map fuzz_exr)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_rig fuzz_mesh fuzz_joints fuzz_map fuzz_exr fuzz_bake_input)
 bash cmake/install-deps.sh
 if ! command -v clang++ >/dev/null 2>&1 || ! ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
   sudo=""

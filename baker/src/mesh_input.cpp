@@ -267,6 +267,8 @@ size_t closeBoundaryLoops(ControlMesh* mesh)
         uint32_t a = boundary[i].first;
         for (size_t guard = 0; guard <= boundary.size(); ++guard) {
             const auto it = std::lower_bound(boundary.begin(), boundary.end(), std::make_pair(a, 0u));
+            if (it == boundary.end() || it->first != a)
+                return 0;  // the chain ends at a vertex no boundary edge leaves: no closed loop
             const size_t k = size_t(it - boundary.begin());
             if (used[k])
                 break;
