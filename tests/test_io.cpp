@@ -613,6 +613,44 @@ TEST(Rig, SymbolicLinksOutOfTheRigFolderAreRefused)
     EXPECT_EQ(rig.mesh.vertexCount(), 3u);
 }
 
+// Memory is justified by bytes: an EXT_meshopt_compression fallback buffer
+// that declares 2 GiB (a fallback is no backing), or a view that declares
+// far more decoded bytes than its coded bytes can carry, is refused before
+// anything is allocated.
+TEST(Rig, MeshoptFallbackBuffersAreNoBacking)
+{
+    const std::string dir = test::tempDir("rig_fallback");
+    DisplacementMap map;
+    const Rig rig = stripedRig(&map, 0.013f, -0.05f);
+    io::RigWriteOptions options;
+    options.compress = true;
+    ASSERT_TRUE(io::saveRig(dir + "/rig.glb", rig, &map, nullptr, &options).isOk());
+    const std::string glb = test::readText(dir + "/rig.glb");
+    nlohmann::json doc = test::glbJson(glb);
+    ASSERT_GE(doc["buffers"].size(), 2u) << "a meshopt rig has a fallback buffer";
+    Rig back;
+    ASSERT_TRUE(io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(glb.data()), glb.size(), true, "rig.glb",
+                                      &back).isOk());
+    doc["buffers"][1]["byteLength"] = 2147483000;
+    std::string hostile = test::glbWithJson(glb, doc);
+    Status st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(hostile.data()), hostile.size(), true,
+                                      "rig.glb", &back);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("a fallback is no backing"), std::string::npos) << st.message();
+    doc = test::glbJson(glb);
+    for (nlohmann::json& view : doc["bufferViews"])
+        if (view.contains("extensions")) {
+            view["byteLength"] = 1 << 30;
+            view["extensions"]["EXT_meshopt_compression"]["count"] = (1 << 30) / view["extensions"]["EXT_meshopt_compression"]["byteStride"].get<int>();
+            break;
+        }
+    hostile = test::glbWithJson(glb, doc);
+    st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(hostile.data()), hostile.size(), true, "rig.glb",
+                               &back);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("coded bytes"), std::string::npos) << st.message();
+}
+
 TEST(Rig, LoadsTheMapBesideItAndChecksItsSize)
 {
     const std::string dir = test::tempDir("rig_map");

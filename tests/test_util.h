@@ -74,6 +74,33 @@ inline void layerToVersionFour(nlohmann::json& doc)
         }
 }
 
+/// A .glb's JSON chunk, parsed.
+inline nlohmann::json glbJson(const std::string& glb)
+{
+    uint32_t length = 0;
+    std::memcpy(&length, glb.data() + 12, 4);
+    return nlohmann::json::parse(glb.substr(20, length));
+}
+
+/// The .glb with its JSON chunk replaced by `json` (the BIN chunk kept).
+inline std::string glbWithJson(const std::string& glb, const nlohmann::json& json)
+{
+    uint32_t jsonLength = 0;
+    std::memcpy(&jsonLength, glb.data() + 12, 4);
+    std::string text = json.dump();
+    while (text.size() % 4)
+        text += ' ';
+    const std::string bin = glb.substr(20 + jsonLength);
+    std::string out(20, '\0');
+    std::memcpy(&out[0], "glTF", 4);
+    const uint32_t version = 2, total = uint32_t(20 + text.size() + bin.size()), n = uint32_t(text.size());
+    std::memcpy(&out[4], &version, 4);
+    std::memcpy(&out[8], &total, 4);
+    std::memcpy(&out[12], &n, 4);
+    std::memcpy(&out[16], "JSON", 4);
+    return out + text + bin;
+}
+
 /// Runs a shell command, returning its exit code and its stdout + stderr.
 struct CommandResult {
     int code = -1;

@@ -166,6 +166,27 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
             return bad("buffer " + std::to_string(b) + " is not the BIN chunk nor a fallback (external buffers are not read here)");
         fallback[b] = true;
     }
+    // Memory justified by bytes: a fallback buffer is no backing, so it may
+    // declare no more than the views coded into it fill (with alignment),
+    // and each view may decode to no more than its coded bytes can carry
+    // (meshopt's codecs reach about 64:1 on constant data).
+    std::vector<double> filled(buffers.size(), 0.0);
+    for (size_t v = 0; v < views.size(); ++v) {
+        const Json& view = views[v];
+        if (!view.is_object() || !view.contains("extensions") || !view["extensions"].is_object() ||
+            !view["extensions"].contains(kExtension))
+            continue;
+        bool ok = true;
+        const Json& ext = view["extensions"][kExtension];
+        const size_t buffer = sizeField(view, "buffer", 0, &ok), dstLength = sizeField(view, "byteLength", 0, &ok),
+                     srcLength = sizeField(ext, "byteLength", 0, &ok);
+        if (!ok || buffer >= buffers.size())
+            return bad("bufferView " + std::to_string(v) + " has an invalid compressed range");
+        if (double(dstLength) > 128.0 * double(srcLength) + 4096.0)
+            return bad("bufferView " + std::to_string(v) + " declares " + std::to_string(dstLength) +
+                       " bytes decoded from only " + std::to_string(srcLength) + " coded bytes");
+        filled[buffer] += double(dstLength) + 16.0;
+    }
     std::vector<unsigned char> out(bin, bin + binSize);
     std::vector<size_t> fallbackBase(buffers.size(), 0);
     for (size_t b = 0; b < buffers.size(); ++b)
@@ -174,6 +195,10 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
             const size_t length = sizeField(buffers[b], "byteLength", 0, &ok);
             if (!ok || length > (size_t(1) << 31))
                 return bad("fallback buffer " + std::to_string(b) + " has an invalid byteLength");
+            if (double(length) > filled[b] + 64.0)
+                return bad("fallback buffer " + std::to_string(b) + " declares " + std::to_string(length) +
+                           " bytes but its coded views fill only " + std::to_string(size_t(filled[b])) +
+                           " (a fallback is no backing)");
             while (out.size() % 16)
                 out.push_back(0);
             fallbackBase[b] = out.size();
