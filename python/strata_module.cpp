@@ -57,8 +57,14 @@ struct PyRig {
         return names;
     }
 
-    py::tuple reconstruct(py::object level, py::object animation, py::object time) const
+    py::tuple reconstruct(py::object level, py::object animation, py::object time, bool displacement) const
     {
+        // As strata-reconstruct: a glTF without the layer is not drawn as if
+        // it were the baked surface (the last tool to touch it may have
+        // dropped the layer) unless displacement=False asks for the plain mesh.
+        if (displacement && rig.source && !rig.hasDisplacement)
+            throw StrataError(path + ": no displacement layer (" + io::missingLayerCause(rig) +
+                              "): bake again, or pass displacement=False for the plain mesh");
         const int lvl = level.is_none() ? (rig.hasDisplacement ? rig.displacement.recommendedLevel : 0)
                                         : level.cast<int>();
         io::Pose pose;
@@ -82,7 +88,7 @@ struct PyRig {
         auto rec = std::make_unique<io::Reconstruction>();
         {
             py::gil_scoped_release unlocked;
-            check(io::reconstruct(rec.get(), rig, rig.hasDisplacement ? &map : nullptr, scheme, lvl, 1.0f,
+            check(io::reconstruct(rec.get(), rig, rig.hasDisplacement && displacement ? &map : nullptr, scheme, lvl, 1.0f,
                                   posed ? &pose : nullptr));
         }
         // The arrays view the reconstruction, which a capsule keeps alive.
@@ -203,8 +209,10 @@ PYBIND11_MODULE(strata, m)
         .def_property_readonly("control_vertex_count", [](const PyRig& r) { return r.rig.mesh.positions.size(); })
         .def_property_readonly("warnings", [](const PyRig& r) { return r.rig.warnings; })
         .def("reconstruct", &PyRig::reconstruct, py::arg("level") = py::none(), py::arg("animation") = py::none(),
-             py::arg("time") = py::none(),
+             py::arg("time") = py::none(), py::arg("displacement") = true,
              "Refined, displaced vertices (float32 [N, 3]) and triangles (uint32 [M, 3]) at `level` (default: the "
-             "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.");
+             "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.  A glTF without "
+             "the STRATA_layered_displacement layer raises strata.Error naming the tool that dropped it, unless "
+             "displacement=False asks for the plain mesh refined.");
     m.def("load_rig", &loadRig, py::arg("path"), "Loads a Strata rig (or any glTF scene with triangles).");
 }

@@ -161,3 +161,29 @@ def test_eight_threads_reconstruct_at_once_without_warm_up(baked):
                            timeout=60, env=dict(os.environ))
         assert r.returncode == 0, r.stderr
         assert r.stdout.split() == ["8", "1"]
+
+
+def test_a_gltf_without_the_layer_is_refused_unless_asked(baked, tmp_path):
+    # The layer stripped as tools that do not know the extension do: the
+    # surface would be the bare cage, so reconstruct refuses by default.
+    import json, struct
+    d, _ = baked
+    glb = (d / "rig.glb").read_bytes()
+    n = struct.unpack("<I", glb[12:16])[0]
+    doc = json.loads(glb[20:20 + n])
+    for mesh in doc["meshes"]:
+        mesh.pop("extensions", None)
+    doc["extensionsUsed"] = [e for e in doc.get("extensionsUsed", []) if e != "STRATA_layered_displacement"]
+    if not doc["extensionsUsed"]:
+        del doc["extensionsUsed"]
+    doc["asset"]["generator"] = "some tool 1.0"
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    binary = glb[20 + n:]
+    out = struct.pack("<4sII", b"glTF", 2, 20 + len(text) + len(binary)) + struct.pack("<I4s", len(text), b"JSON")
+    (tmp_path / "stripped.glb").write_bytes(out + text + binary)
+    rig = strata.load_rig(str(tmp_path / "stripped.glb"))
+    with pytest.raises(strata.Error, match="no displacement layer .*some tool 1.0"):
+        rig.reconstruct(level=1)
+    v, t = rig.reconstruct(level=1, displacement=False)
+    assert len(v) > 0 and len(t) > 0
