@@ -874,6 +874,21 @@ std::string hex64(uint64_t v)
 const char* const kTopologyToken = "~strata~topolog~";
 const char* const kPositionsToken = "~strata~position";
 const char* const kShapeToken = "~strata~shape~~~";
+const char* const kUVToken = "~strata~uvs~~~~~";
+
+// FNV-1a of the UVs of every face corner, in face order: what a map sampled
+// through the UVs depends on (per-vertex values do not).
+uint64_t cornerUVHash(const ControlMesh& mesh)
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (uint32_t i : mesh.uvIndices) {
+        const glm::vec2 uv = i < mesh.uvs.size() ? mesh.uvs[i] : glm::vec2(0.0f);
+        const unsigned char* b = reinterpret_cast<const unsigned char*>(&uv);
+        for (size_t k = 0; k < sizeof(uv); ++k)
+            h = (h ^ b[k]) * 0x100000001b3ull;
+    }
+    return h;
+}
 
 // Refuses a control mesh other than the one the layer was baked on, naming
 // what changed (the per-vertex values are numbered by its refinement, and
@@ -907,6 +922,13 @@ Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, 
                           ": a tool welded, split, simplified or rebuilt it after the bake (weld, simplify, "
                           "optimize, draco)" + advice);
     const bool sameOrder = topology == hex64(f.topology), samePlaces = positions == hex64(f.positions);
+    std::string uvs;
+    if (sameOrder && samePlaces && member(*control, "uvs") && (st = stringField(*control, "uvs", path, &uvs)) &&
+        uvs != hex64(cornerUVHash(mesh)))
+        return Status(StatusCode::InvalidData,
+                      path + ": the control mesh's UVs changed after the bake (quantize, or a texture coordinate "
+                             "edit), and the map is sampled through them" +
+                          advice);
     if (sameOrder && samePlaces)
         return Status::ok();
     if (!sameOrder && shape == hex64(f.shape))
@@ -985,12 +1007,17 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                               "STRATA_layered_displacement extension, which such tools keep or drop whole)");
         if (!(st = parseStrataBlock(block, extension, path, model, &rig.displacement)))
             return st;
-        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, checkBinding)))
-            return st;
+        // Per-vertex values need no UVs: a tool that dropped the set leaves
+        // them intact (there is then no map to rasterise for textures).
+        if (scene.missingUV && rig.displacement.texCoord >= 0 && rig.displacement.vertexLevel >= 0)
+            rig.displacement.texCoord = -1;
         if (scene.missingUV && rig.displacement.texCoord >= 0)
             return Status(StatusCode::InvalidData, path + ": the rig has a displacement map but " + scene.firstMissingUV +
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
-                                                       " (stripped by another tool?)");
+                                                       " (a tool dropped it: prune, for one, drops texture coordinates "
+                                                       "no material uses)");
+        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, checkBinding)))
+            return st;
         if (rig.displacement.vertexLevel >= 0) {
             DisplacementInfo& info = rig.displacement;
             const unsigned char* b = nullptr;
@@ -1185,6 +1212,8 @@ tinygltf::Value layerBlockValue(const DisplacementInfo& d, const ControlMesh& me
     control["topology"] = tinygltf::Value(std::string(kTopologyToken));
     control["positions"] = tinygltf::Value(std::string(kPositionsToken));
     control["shape"] = tinygltf::Value(std::string(kShapeToken));
+    if (d.vertexLevel < 0 && d.texCoord >= 0)  // a map sampled through the UVs
+        control["uvs"] = tinygltf::Value(std::string(kUVToken));
     block["control"] = tinygltf::Value(control);
     return tinygltf::Value(block);
 }
@@ -1202,15 +1231,17 @@ Status sealLayer(const std::string& path, std::string* bytes)
     if (!st || !(st = finishRig(path, std::move(doc), &loaded, false)))
         return Status(st.code(), "the rig does not read back: " + st.message());
     const ControlMeshFingerprint f = fingerprintControlMesh(loaded.mesh);
-    const std::pair<const char*, std::string> tokens[] = {
-        {kTopologyToken, hex64(f.topology)}, {kPositionsToken, hex64(f.positions)}, {kShapeToken, hex64(f.shape)}};
+    const std::pair<const char*, std::string> tokens[] = {{kTopologyToken, hex64(f.topology)},
+                                                          {kPositionsToken, hex64(f.positions)},
+                                                          {kShapeToken, hex64(f.shape)},
+                                                          {kUVToken, hex64(cornerUVHash(loaded.mesh))}};
     for (const auto& [token, value] : tokens) {
         size_t at = 0, n = 0;
         while ((at = bytes->find(token, at)) != std::string::npos) {
             bytes->replace(at, value.size(), value);
             ++n;
         }
-        if (n == 0)
+        if (n == 0 && token != kUVToken)
             return Status(StatusCode::InvalidData, path + ": the layer's control fingerprint is missing from the file");
     }
     return Status::ok();

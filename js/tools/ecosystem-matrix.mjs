@@ -78,6 +78,8 @@ const rigs = [
     '--control', path.join(data, 'penguin_control_mesh.obj'), '--skeleton', path.join(data, 'penguin_joints.json')]],
   ['cesiumman', 'textured skinned glTF character', ['--high', path.join(data, 'CesiumMan.glb'),
     '--control', path.join(data, 'CesiumMan.glb')]],
+  ['spot-png', 'bare cage, map as an embedded PNG sampled through UVs', ['--high', path.join(data, 'spot_triangulated.obj'),
+    '--control', path.join(data, 'spot_control_mesh.obj'), '--map-coding', 'png']],
 ];
 
 // The tools: [name, with config, function(in, out) -> {code, out}].
@@ -87,7 +89,7 @@ const gt = (args, withConfig) => (input, output) =>
 const transformCommands = [
   ['copy'], ['dedup'], ['prune'], ['resample'], ['sparse'], ['flatten'], ['center'], ['instance'],
   ['unweld'], ['weld'], ['reorder'], ['simplify'], ['optimize'], ['meshopt'], ['draco'], ['quantize'],
-  ['dequantize'],
+  ['quantize', '--pattern', 'TEXCOORD_*'], ['dequantize'],
 ];
 const tools = [];
 for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
