@@ -379,6 +379,31 @@ TEST(BakeCli, InputsAreNeverOverwrittenAndFailuresLeaveNothing)
     EXPECT_FALSE(strata::test::fileExists(dir + "/.strata-staging-rig.tmp77.0badf00d.glb"));
 }
 
+// The advice a refused rig gives, "bake again", works: a rig whose layer no
+// longer matches its control mesh is refused by loadRig but bakes again as
+// a control, its old layer dropped with a warning.
+TEST(BakeCli, ARigWhoseLayerNoLongerMatchesBakesAgain)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_stale");
+    writeInputs(dir);
+    const std::string args = "--high " + dir + "/high.obj --error-levels none";
+    ASSERT_EQ(run(args + " --control " + dir + "/control.obj -o " + dir + "/rig.glb").code, 0);
+    const std::string glb = strata::test::readText(dir + "/rig.glb");
+    nlohmann::json doc = strata::test::glbJson(glb);
+    doc["meshes"][0]["extensions"]["STRATA_layered_displacement"]["control"]["topology"] = "0123456789abcdef";
+    writeText(dir + "/stale.glb", strata::test::glbWithJson(glb, doc));
+    strata::Rig rig;
+    const strata::Status st = strata::io::loadRig(dir + "/stale.glb", &rig);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("renumbered after the bake"), std::string::npos) << st.message();
+    const Result r = run(args + " --control " + dir + "/stale.glb -o " + dir + "/again.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("its displacement layer is ignored, since the new bake replaces it"), std::string::npos)
+        << r.output;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/again.glb", &rig).isOk());
+    EXPECT_TRUE(rig.hasDisplacement);
+}
+
 TEST(BakeCli, SkinnedControlRigIsCarriedThrough)
 {
     STRATA_REQUIRE_DATA(cesium, "CesiumMan.glb");

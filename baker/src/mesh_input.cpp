@@ -111,7 +111,7 @@ Status loadControlRig(const std::string& path, Rig* out)
         if (info.degenerate)
             rig.warnings.push_back(std::to_string(info.degenerate) + " triangles repeat a vertex (zero area) and are left out");
     } else if (ext == ".glb" || ext == ".gltf") {
-        if (!(st = io::loadRig(path, &rig)))
+        if (!(st = io::loadControlForBake(path, &rig)))
             return st;
     } else {
         return Status(StatusCode::InvalidArgument,

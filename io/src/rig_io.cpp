@@ -734,7 +734,14 @@ Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm:
 
 namespace {
 
-Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, bool checkBinding = true);
+// What finishRig does with a layer that does not match its control mesh:
+// refuse the file (loadRig), skip the comparison (sealLayer, whose file has
+// placeholders yet), or drop the layer with a warning (a control mesh for a
+// new bake, whose layer the bake replaces).
+enum class LayerCheck { Enforce, Seal, DropStale };
+
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out,
+                 LayerCheck check = LayerCheck::Enforce);
 
 // An image no texture uses whose bytes are a 16-bit greyscale PNG.
 bool hasOrphanGreyImage(const SourceDocument& doc)
@@ -822,6 +829,16 @@ Status loadRig(const std::filesystem::path& pathFile, Rig* out)
     if (!st)
         return st;
     return finishRig(path, std::move(doc), out);
+}
+
+Status loadControlForBake(const std::filesystem::path& pathFile, Rig* out)
+{
+    const std::string path = pathFile.string();
+    auto doc = std::make_shared<SourceDocument>();
+    Status st = loadGltfDocument(path, doc.get());
+    if (!st)
+        return st;
+    return finishRig(path, std::move(doc), out, LayerCheck::DropStale);
 }
 
 Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out)
@@ -975,7 +992,7 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
     return Status::ok();
 }
 
-Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, bool checkBinding)
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, LayerCheck check)
 {
     Status st;
     SceneGeometry scene;
@@ -992,7 +1009,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         rig.warnings.push_back(std::to_string(scene.passThrough) +
                                " point or line primitives are kept in the file but not refined");
     const tinygltf::Model& model = doc->model;
-    if (scene.blockMesh >= 0) {
+    // The layer: read whole, or (a control mesh for a new bake) dropped with
+    // a warning where it no longer matches, since the bake replaces it.
+    auto readLayer = [&]() -> Status {
         bool extension = false;
         const tinygltf::Value& block = *layerBlock(model.meshes[size_t(scene.blockMesh)], &extension);
         // Versions 1 to 4 reach their data by a bufferView or image index in
@@ -1016,7 +1035,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
                                                        " (a tool dropped it: prune, for one, drops texture coordinates "
                                                        "no material uses)");
-        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, checkBinding)))
+        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, check != LayerCheck::Seal)))
             return st;
         if (rig.displacement.vertexLevel >= 0) {
             DisplacementInfo& info = rig.displacement;
@@ -1053,6 +1072,17 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                 return Status(StatusCode::InvalidData, path + ": the displacement image's bufferView is out of range");
             rig.displacement.embedded.assign(b, b + view.byteLength);
         }
+        return Status::ok();
+    };
+    if (scene.blockMesh >= 0 && !(st = readLayer()) && check != LayerCheck::DropStale)
+        return st;
+    if (scene.blockMesh >= 0 && !st) {
+        std::string why = st.message();
+        if (why.rfind(path + ": ", 0) == 0)
+            why = why.substr(path.size() + 2);
+        rig.warnings.push_back("its displacement layer is ignored, since the new bake replaces it: " + why);
+        rig.displacement = DisplacementInfo();
+    } else if (scene.blockMesh >= 0) {
         rig.hasDisplacement = true;
     } else if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), kLayerExtension) !=
                model.extensionsUsed.end()) {
@@ -1228,7 +1258,7 @@ Status sealLayer(const std::string& path, std::string* bytes)
     auto doc = std::make_shared<SourceDocument>();
     Status st = parseGltfDocument(reinterpret_cast<const unsigned char*>(bytes->data()), bytes->size(), binary,
                                   "/nonexistent-strata-folder", path, doc.get());
-    if (!st || !(st = finishRig(path, std::move(doc), &loaded, false)))
+    if (!st || !(st = finishRig(path, std::move(doc), &loaded, LayerCheck::Seal)))
         return Status(st.code(), "the rig does not read back: " + st.message());
     const ControlMeshFingerprint f = fingerprintControlMesh(loaded.mesh);
     const std::pair<const char*, std::string> tokens[] = {{kTopologyToken, hex64(f.topology)},

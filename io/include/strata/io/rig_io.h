@@ -43,6 +43,12 @@ size_t characterBytes(const Rig& rig);
 /// bad geometry is a clear error.  Rigs of every earlier format version load.
 Status loadRig(const std::filesystem::path& path, Rig* out);
 
+/// loadRig for a control mesh that a new bake will displace: a layer that no
+/// longer matches the mesh (a tool welded, reordered or quantised it, or
+/// dropped what it refers to) is dropped with a warning instead of refusing
+/// the file, since the bake replaces it.
+Status loadControlForBake(const std::filesystem::path& path, Rig* out);
+
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
 /// external file is read.  `name` is used in messages.
 Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out);
