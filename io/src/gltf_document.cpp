@@ -145,20 +145,6 @@ Status loadGltfDocument(const std::string& path, SourceDocument* doc)
 
 namespace {
 
-size_t typeComponents(int type)
-{
-    switch (type) {
-    case TINYGLTF_TYPE_SCALAR: return 1;
-    case TINYGLTF_TYPE_VEC2: return 2;
-    case TINYGLTF_TYPE_VEC3: return 3;
-    case TINYGLTF_TYPE_VEC4: return 4;
-    case TINYGLTF_TYPE_MAT2: return 4;
-    case TINYGLTF_TYPE_MAT3: return 9;
-    case TINYGLTF_TYPE_MAT4: return 16;
-    default: return 0;
-    }
-}
-
 // The bytes [offset, offset + length) of bufferView `index`, or nullptr.
 const unsigned char* viewRange(const tinygltf::Model& model, int index, size_t offset, size_t length)
 {
@@ -190,11 +176,11 @@ Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::str
         if (acc.bufferView >= 0 && !acc.sparse.isSparse)
             continue;
         const std::string what = path + ": accessor " + std::to_string(a);
-        const size_t components = typeComponents(acc.type);
+        const int ncomp = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
         const int cbytes = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
-        if (components == 0 || cbytes <= 0)
+        if (ncomp <= 0 || cbytes <= 0)
             return Status(StatusCode::InvalidData, what + " has an unknown type or component type");
-        const size_t element = components * size_t(cbytes);
+        const size_t element = size_t(ncomp) * size_t(cbytes);
         added += double(acc.count) * double(element);
         if (added > budget)
             return Status(StatusCode::InvalidData, what + " declares " + std::to_string(acc.count) +

@@ -227,13 +227,20 @@ Status parseStrataBlock(const tinygltf::Value& block, bool extension, const std:
 
 
 
-uint64_t uvHash(const std::vector<glm::vec2>& uvs)
+// 64-bit FNV-1a of `size` bytes, continuing from `h`.
+uint64_t fnvBytes(uint64_t h, const void* data, size_t size)
 {
-    uint64_t h = 0xcbf29ce484222325ull;
-    const unsigned char* b = reinterpret_cast<const unsigned char*>(uvs.data());
-    for (size_t i = 0; i < uvs.size() * sizeof(glm::vec2); ++i)
+    const unsigned char* b = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < size; ++i)
         h = (h ^ b[i]) * 0x100000001b3ull;
     return h;
+}
+
+constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ull;
+
+uint64_t uvHash(const std::vector<glm::vec2>& uvs)
+{
+    return fnvBytes(kFnvOffset, uvs.data(), uvs.size() * sizeof(glm::vec2));
 }
 
 glm::mat4 localMatrix(const tinygltf::Node& n)
@@ -897,12 +904,10 @@ const char* const kUVToken = "~strata~uvs~~~~~";
 // through the UVs depends on (per-vertex values do not).
 uint64_t cornerUVHash(const ControlMesh& mesh)
 {
-    uint64_t h = 0xcbf29ce484222325ull;
+    uint64_t h = kFnvOffset;
     for (uint32_t i : mesh.uvIndices) {
         const glm::vec2 uv = i < mesh.uvs.size() ? mesh.uvs[i] : glm::vec2(0.0f);
-        const unsigned char* b = reinterpret_cast<const unsigned char*>(&uv);
-        for (size_t k = 0; k < sizeof(uv); ++k)
-            h = (h ^ b[k]) * 0x100000001b3ull;
+        h = fnvBytes(h, &uv, sizeof(uv));
     }
     return h;
 }
@@ -1575,6 +1580,25 @@ bool matchFaces(const ControlMesh& loaded, const ControlMesh& rig, double error,
 // is written and loaded back in memory first and the map sampled on that
 // topology, with rig.mesh's UVs (each loaded face matched to the rig face
 // it was written from: matchFaces).
+// The bytes of a model as a rig file: Draco- or meshopt-coded (.glb,
+// `compressed`) or plain, .glb or pretty-printed .gltf.  The per-vertex
+// values' probe and the file itself go through it, so they agree.
+Status encodeModel(const std::string& path, tinygltf::Model& model, bool compressed, bool binary,
+                   double positionError, bool draco, std::string* out)
+{
+    if (compressed)
+        return encodeCompressedGlb(path, model, out, positionError, draco);
+    Status st = prepareForWriting(path, model);
+    if (!st)
+        return st;
+    tinygltf::TinyGLTF writer;
+    std::ostringstream stream;
+    if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/!binary, binary))
+        return Status(StatusCode::IoError, path + ": glTF serialisation failed");
+    *out = stream.str();
+    return Status::ok();
+}
+
 Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
                                 bool compressed, double positionError, bool draco, const RigWriteOptions& options,
                                 const std::string& path, DisplacementInfo* info)
@@ -1583,16 +1607,7 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     // rotates triangles, which renumbers refined vertices).
     tinygltf::Model probe = model;
     std::string glb;
-    Status st;
-    if (compressed) {
-        st = encodeCompressedGlb(path, probe, &glb, positionError, draco);
-    } else if ((st = prepareForWriting(path, probe))) {
-        tinygltf::TinyGLTF writer;
-        std::ostringstream stream;
-        if (!writer.WriteGltfSceneToStream(&probe, stream, false, true))
-            return Status(StatusCode::IoError, "glTF serialisation failed");
-        glb = stream.str();
-    }
+    Status st = encodeModel(path, probe, compressed, true, positionError, draco, &glb);
     if (!st)
         return st;
     Rig loaded;
@@ -1887,17 +1902,8 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
     }
     // Compact rigs: Draco- or meshopt-coded vertex data and indices (.glb).
     std::string bytes;
-    if (extensionOf(path) == ".glb" && options && options->compress) {
-        st = encodeCompressedGlb(path, model, &bytes, positionError, draco);
-    } else if ((st = prepareForWriting(path, model))) {
-        tinygltf::TinyGLTF writer;
-        std::ostringstream stream;
-        const bool binary = extensionOf(path) == ".glb";
-        if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/!binary, binary))
-            return Status(StatusCode::IoError, path + ": glTF serialisation failed");
-        bytes = stream.str();
-    }
-    if (!st)
+    const bool binary = extensionOf(path) == ".glb";
+    if (!(st = encodeModel(path, model, binary && options && options->compress, binary, positionError, draco, &bytes)))
         return st;
     if (rig.hasDisplacement && !(st = sealLayer(path, &bytes)))
         return st;
