@@ -139,7 +139,7 @@ TEST(BakeCli, BadInputGivesOneLineExitTwoAndNoOutput)
         {"--high " + dir + "/nan.obj --control " + dir + "/control.obj -o " + out, "nan.obj"},
         {"--high " + dir + "/garbage.ply --control " + dir + "/control.obj -o " + out, "garbage.ply"},
         {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "control mesh"},
-        {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "high.obj"},
+        {"--high " + dir + "/high.obj --control " + dir + "/far.obj -o " + out, "not in one frame"},
         {ok + " --uv keep -o " + out, "no UVs"},
         {"--high " + dir + "/high.obj --control " + dir + "/overlap.obj --uv keep -o " + out, "overlap"},
         {ok + " -o " + dir + "/high.obj/sub/rig.glb", "cannot create the output folder"},

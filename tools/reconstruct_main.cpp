@@ -119,8 +119,11 @@ int main(int argc, char** argv)
             if (info.degenerate)
                 rig.warnings.push_back(std::to_string(info.degenerate) +
                                        " triangles repeat a vertex (zero area) and are left out");
-        } else if (!(st = io::loadRig(rigPath, &rig))) {
-            throw cli::Error(st.message());
+        } else {
+            io::LoadOptions options;
+            options.maxMemoryMB = maxMemoryMB;
+            if (!(st = io::loadRig(rigPath, &rig, options)))
+                throw cli::Error(st.message());
         }
         // A glTF without the layer is never drawn as if it were the baked
         // surface: the layer may have been dropped by the last tool to touch it.
@@ -158,15 +161,19 @@ int main(int argc, char** argv)
             for (const std::string& input : {rigPath, skeletonPath})
                 if (io::sameFile(output, input))
                     throw cli::Error(output + ": the output would overwrite the input " + input);
-        // Memory before work: the map's texels and the refined mesh (tables,
-        // positions, normals, triangles: about 230 bytes per refined vertex).
+        // Memory before work: the plan, the map's texels and the output as
+        // it is staged (measured peaks, io::reconstructionPeakBytes).
         {
             const int lvl = level >= 0 ? level : (rig.hasDisplacement ? rig.displacement.recommendedLevel : 0);
-            const double refined = double(rig.mesh.faceCount()) * std::pow(4.0, lvl) * 0.5 + double(rig.mesh.vertexCount());
-            const double mapBytes = rig.hasDisplacement && displace
-                                        ? 8.0 * double(rig.displacement.width) * double(rig.displacement.height)
-                                        : 0.0;
-            const double needMB = (230.0 * refined + mapBytes) / (1024.0 * 1024.0);
+            const Scheme s = haveScheme ? scheme : rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;
+            const bool posedOut = !rig.skeleton.empty() && (!anim.empty() || haveTime || frames);
+            const std::string ext = io::extensionOf(outPath);
+            const bool sceneOut = !frames && !posedOut && !staticMesh && rig.source && skeletonPath.empty() &&
+                                  (ext == ".glb" || ext == ".gltf");
+            const double texels = rig.hasDisplacement && displace && rigNeedsMap(rig)
+                                      ? double(rig.displacement.width) * double(rig.displacement.height)
+                                      : 0.0;
+            const double needMB = io::reconstructionPeakBytes(rig, s, lvl, ext, sceneOut, texels) / (1024.0 * 1024.0);
             if (needMB > maxMemoryMB)
                 throw cli::Error(rigPath + ": level " + std::to_string(lvl) + " needs about " +
                                  std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +

@@ -471,12 +471,21 @@ bool slabRows(double cx, double r, const glm::dvec2 t[3], int* lo, int* hi)
 }
 
 Footprint footprint(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local, double scale,
-                    int rotation, int gutter)
+                    int rotation, int gutter, int size)
 {
     const double w = (c.hi.x - c.lo.x) * scale, h = (c.hi.y - c.lo.y) * scale * c.stretchY;
     Footprint fp;
-    fp.width = int(std::ceil(rotation & 1 ? h : w)) + 2 * gutter + 1;
-    fp.height = int(std::ceil(rotation & 1 ? w : h)) + 2 * gutter + 1;
+    // A chart wider or taller than the atlas fits nowhere: its size alone
+    // says so, before a mask as large as the chart (a cage with one vertex
+    // two billion units out makes a chart of billions of texels).
+    const double fw = std::ceil(rotation & 1 ? h : w) + 2.0 * gutter + 1.0;
+    const double fh = std::ceil(rotation & 1 ? w : h) + 2.0 * gutter + 1.0;
+    if (!(fw <= double(size)) || !(fh <= double(size))) {
+        fp.width = fp.height = size + 1;
+        return fp;
+    }
+    fp.width = int(fw);
+    fp.height = int(fh);
     std::vector<uint8_t> mask(size_t(fp.width) * size_t(fp.height), 0);  // column-major
     const double reach = double(gutter) + 0.5;
     for (uint32_t f : c.faces) {
@@ -623,7 +632,7 @@ Placement place(const Chart& c, const Occupancy& occupied, const ControlMesh& me
     auto tryOrientation = [&](int rotation) {
         Placement& own = found[rotation];
         own.rotation = rotation;
-        own.fp = footprint(c, mesh, local, c.scaleX, rotation, gutter);
+        own.fp = footprint(c, mesh, local, c.scaleX, rotation, gutter, size);
         const Footprint& fp = own.fp;
         if (fp.width > size || fp.height > size)
             return;

@@ -30,6 +30,7 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <new>
 #include <stdexcept>
@@ -319,7 +320,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     {
         TriangleMesh probe;
         HighMeshStats stats;
-        if (!loadHighMesh(request.high, &probe, &stats))
+        if (!loadHighMesh(request.high, &probe, &stats, request.maxMemoryMB))
             return bakeOnce(request, result, progress);  // it reports the problem
         first = std::max<size_t>(200, probe.faceCount() / 50);
         const size_t most = std::max(first, probe.faceCount() / 5);
@@ -476,6 +477,7 @@ private:
     };
 
     void loadInputs();
+    void checkOneFrame() const;
     void prepare();
     void chooseScheme();
     void searchMapSize();
@@ -568,7 +570,7 @@ void BakeJob::loadInputs()
     base = outPath.substr(0, outPath.size() - ext.size());
 
     const auto t0 = std::chrono::steady_clock::now();
-    Status st = loadHighMesh(highPath, &high, &highStats);
+    Status st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB);
     if (!st)
         throw BakeError(st.message());
     if (controlPath == "auto") {
@@ -581,12 +583,13 @@ void BakeJob::loadInputs()
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";
     } else {
-        if (!(st = loadControlRig(controlPath, &controlRig)))
+        if (!(st = loadControlRig(controlPath, &controlRig, maxMemoryMB)))
             throw BakeError(st.message());
         for (const std::string& w : controlRig.warnings)
             warn("%s: %s", controlPath.c_str(), w.c_str());
         control = controlRig.mesh;
         skeleton = controlRig.skeleton;
+        checkOneFrame();
         if (uvMode.empty()) {
             // Default: keep the control's UVs when they can carry a map
             // (no overlaps), else lay out an atlas in a new UV set.
@@ -631,6 +634,34 @@ void BakeJob::loadInputs()
         controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
     }
     loadMs = msSince(t0);
+}
+
+// The normal-volume mapping joins a control mesh to a capture in one frame:
+// a control vertex many capture sizes away (a stray vertex, other units, a
+// vertex two billion units out) makes every later stage (charts, map size,
+// codecs) work on a meaningless extent, so it is refused here, by name.
+void BakeJob::checkOneFrame() const
+{
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (const glm::vec3& p : high.positions) {
+        lo = glm::min(lo, glm::dvec3(p));
+        hi = glm::max(hi, glm::dvec3(p));
+    }
+    const double diagonal = glm::length(hi - lo);
+    if (!(diagonal > 0.0) || !std::isfinite(diagonal))
+        throw BakeError(highPath + ": the high-resolution mesh has no extent (every vertex at one point)");
+    constexpr double kReach = 4.0;  // capture diagonals
+    for (size_t i = 0; i < control.positions.size(); ++i) {
+        const glm::dvec3 p(control.positions[i]);
+        const double away = glm::length(glm::max(glm::max(lo - p, p - hi), glm::dvec3(0.0)));
+        if (away > kReach * diagonal) {
+            char where[160];
+            std::snprintf(where, sizeof(where), "control vertex %zu at (%.6g, %.6g, %.6g) lies %.3g diagonals of the capture from it",
+                          i, p.x, p.y, p.z, away / diagonal);
+            throw BakeError((controlPath == "auto" ? highPath : controlPath) + ": " + where +
+                            ": the control mesh and the capture are not in one frame (a stray vertex, or other units?)");
+        }
+    }
 }
 
 void BakeJob::prepare()

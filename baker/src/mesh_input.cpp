@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <filesystem>
 
 namespace strata {
 namespace baker {
@@ -61,12 +62,35 @@ void countTolerated(const TriangleMesh& m, HighMeshStats* s)
 
 }  // namespace
 
-Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats)
+namespace {
+
+// A mesh read from text or binary takes a few times its file's bytes
+// while it is parsed and welded (an OBJ line of ~30 bytes becomes 12 of
+// position, a PLY's binary records about their own size, plus the index):
+// a file past a quarter of the budget is refused before it is read.
+Status checkReadBudget(const std::string& path, double maxMemoryMB)
+{
+    std::error_code ec;
+    const uintmax_t bytes = std::filesystem::file_size(path, ec);
+    const double need = 4.0 * double(bytes), budget = maxMemoryMB * 1024.0 * 1024.0;
+    if (ec || need <= budget)
+        return Status::ok();  // the reader reports a missing file
+    return Status(StatusCode::InvalidArgument, path + ": reading its " + std::to_string(bytes) + " bytes needs about " +
+                                                   std::to_string(long(need / (1024.0 * 1024.0))) + " MB, over the " +
+                                                   std::to_string(long(maxMemoryMB)) +
+                                                   " MB budget (raise it with --max-memory MB)");
+}
+
+}  // namespace
+
+Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats, double maxMemoryMB)
 {
     const std::string ext = io::extensionOf(path);
     TriangleMesh mesh;
     HighMeshStats s;
     Status st;
+    if (!(st = checkReadBudget(path, maxMemoryMB)))
+        return st;
     if (ext == ".obj") {
         ControlMesh cm;
         io::ObjReadInfo info;
@@ -76,7 +100,9 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
         mesh.triangles = std::move(cm.triangles);
         s.polygonsTriangulated = info.triangulated;
     } else if (ext == ".glb" || ext == ".gltf") {
-        if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles)))
+        io::LoadOptions options;
+        options.maxMemoryMB = maxMemoryMB;
+        if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles, options)))
             return st;
     } else if (ext == ".ply" || ext == ".stl" || ext == ".off") {
         // Strata's own bounded reader: untrusted bytes never reach OpenMesh.
@@ -99,11 +125,13 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     return Status::ok();
 }
 
-Status loadControlRig(const std::string& path, Rig* out)
+Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB)
 {
     const std::string ext = io::extensionOf(path);
     Status st;
     Rig rig;
+    if (!(st = checkReadBudget(path, maxMemoryMB)))
+        return st;
     if (ext == ".obj") {
         io::ObjReadInfo info;
         if (!(st = io::readObj(path, &rig.mesh, &info)))
@@ -111,7 +139,9 @@ Status loadControlRig(const std::string& path, Rig* out)
         if (info.degenerate)
             rig.warnings.push_back(std::to_string(info.degenerate) + " triangles repeat a vertex (zero area) and are left out");
     } else if (ext == ".glb" || ext == ".gltf") {
-        if (!(st = io::loadControlForBake(path, &rig)))
+        io::LoadOptions options;
+        options.maxMemoryMB = maxMemoryMB;
+        if (!(st = io::loadControlForBake(path, &rig, options)))
             return st;
     } else {
         return Status(StatusCode::InvalidArgument,

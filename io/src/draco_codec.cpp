@@ -324,7 +324,13 @@ Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_
             // Draco quantises over the largest extent: a step of range / (2^q - 1),
             // half of which is the error.
             const double range = std::max({double(hi[0] - lo[0]), double(hi[1] - lo[1]), double(hi[2] - lo[2])});
-            const int bits = std::min(30, std::max(8, int(std::ceil(std::log2(range / (2.0 * positionError) + 1.0)))));
+            // Past 24 bits a step is finer than a float resolves over the
+            // range, and Draco's 30-bit limit is near: such a mesh (a vertex
+            // billions of units out) is left to the exact coding.
+            const double needed = std::ceil(std::log2(range / (2.0 * positionError) + 1.0));
+            if (!(needed <= 24.0))
+                continue;  // stays meshopt-coded, or plain
+            const int bits = std::max(8, int(needed));
             draco::ExpertEncoder encoder(dm);
             encoder.SetEncodingMethod(draco::MESH_EDGEBREAKER_ENCODING);
             encoder.SetSpeedOptions(0, 0);

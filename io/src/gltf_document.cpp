@@ -131,16 +131,29 @@ bool keepImageBytes(tinygltf::Image* image, const int index, std::string*, std::
 
 
 
-Status loadGltfDocument(const std::string& path, SourceDocument* doc)
+Status overBudget(const std::string& what, double needBytes, size_t maxBytes)
+{
+    const double mb = 1024.0 * 1024.0;
+    return Status(StatusCode::InvalidArgument, what + " needs about " + std::to_string(long(std::ceil(needBytes / mb))) +
+                                                   " MB, over the " + std::to_string(long(double(maxBytes) / mb)) +
+                                                   " MB budget (raise it with --max-memory MB)");
+}
+
+Status loadGltfDocument(const std::string& path, SourceDocument* doc, size_t maxBytes)
 {
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
         return Status(StatusCode::InvalidArgument, path + ": not a .glb or .gltf file");
     std::vector<unsigned char> bytes;
+    // The file, a decoded copy and tinygltf's buffers: three times its size.
+    std::error_code ec;
+    const uintmax_t fileSize = std::filesystem::file_size(path, ec);
+    if (!ec && 3.0 * double(fileSize) > double(maxBytes))
+        return overBudget(path + ": loading its " + std::to_string(fileSize) + " bytes", 3.0 * double(fileSize), maxBytes);
     Status st = readFile(path, &bytes);
     if (!st)
         return st;
-    return parseGltfDocument(bytes.data(), bytes.size(), ext == ".glb", directoryOf(path), path, doc);
+    return parseGltfDocument(bytes.data(), bytes.size(), ext == ".glb", directoryOf(path), path, doc, maxBytes);
 }
 
 namespace {
@@ -167,9 +180,16 @@ const unsigned char* viewRange(const tinygltf::Model& model, int index, size_t o
 // plain here, once, so that every reader and writer downstream sees tightly
 // packed data.  What they add is bounded by the file's own size: zeros cost
 // no bytes in a file, so a few bytes could otherwise declare gigabytes.
-Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::string& path)
+Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::string& path, size_t maxBytes)
 {
     const double budget = 16.0 * double(fileBytes) + double(64u << 20);
+    double needed = 0.0;
+    for (const tinygltf::Accessor& acc : model.accessors)
+        if (acc.bufferView < 0 || acc.sparse.isSparse)
+            needed += double(acc.count) * double(std::max(0, tinygltf::GetNumComponentsInType(uint32_t(acc.type)))) *
+                      double(std::max(0, tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType))));
+    if (needed <= budget && double(fileBytes) + 2.0 * needed > double(maxBytes))
+        return overBudget(path + ": its sparse and bufferView-less accessors", double(fileBytes) + 2.0 * needed, maxBytes);
     double added = 0.0;
     for (size_t a = 0; a < model.accessors.size(); ++a) {
         tinygltf::Accessor& acc = model.accessors[a];
@@ -248,7 +268,7 @@ Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::str
 }
 
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
-                         const std::string& path, SourceDocument* doc)
+                         const std::string& path, SourceDocument* doc, size_t maxBytes)
 {
     if (size == 0)
         return Status(StatusCode::InvalidData, path + ": file is empty");
@@ -266,6 +286,8 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
         Status st = decodeCompressedGlb(data, size, path, &plain);
         if (!st)
             return st;
+        if (2.0 * double(plain.size()) + double(size) > double(maxBytes))
+            return overBudget(path + ": its decoded buffers", 2.0 * double(plain.size()) + double(size), maxBytes);
         if (!plain.empty()) {
             data = reinterpret_cast<const unsigned char*>(plain.data());
             size = plain.size();
@@ -286,7 +308,7 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     if (!ok)
         return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
     doc->imageBytes.resize(doc->model.images.size());
-    if (Status st = densifyAccessors(doc->model, size, path); !st)
+    if (Status st = densifyAccessors(doc->model, size, path, maxBytes); !st)
         return st;
     for (const std::string& e : doc->model.extensionsRequired)
         if (e == "EXT_meshopt_compression")  // only .gltf gets here

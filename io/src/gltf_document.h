@@ -32,12 +32,16 @@ bool resolvesInsideFolder(const std::string& path, const std::string& folder);
 /// the file's folder (no absolute paths, no "..", no URI schemes but data:,
 /// regular files only).  Image pixels are not decoded; their encoded bytes
 /// are kept in doc->imageBytes.
-Status loadGltfDocument(const std::string& path, SourceDocument* doc);
+Status loadGltfDocument(const std::string& path, SourceDocument* doc, size_t maxBytes = size_t(2048) << 20);
+
+/// The one-line refusal of work that needs `needBytes`, over `maxBytes`:
+/// "<what> needs about N MB, over the M MB budget (raise it with --max-memory MB)".
+Status overBudget(const std::string& what, double needBytes, size_t maxBytes);
 
 /// loadGltfDocument from bytes: external files resolve inside `folder`
 /// ("" denies them all when folder names no real directory).
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
-                         const std::string& path, SourceDocument* doc);
+                         const std::string& path, SourceDocument* doc, size_t maxBytes = size_t(2048) << 20);
 
 
 /// The bufferView of a primitive's KHR_draco_mesh_compression data (-1:

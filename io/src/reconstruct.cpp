@@ -3,6 +3,9 @@
 #include "strata/io/mesh_io.h"
 #include "strata/normals.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace strata {
 namespace io {
 
@@ -59,6 +62,27 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
         return st;
     *out = std::move(rec);
     return Status::ok();
+}
+
+double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const std::string& outputExt, bool scene,
+                               double mapTexels)
+{
+    // Refined vertices: a triangle mesh's are about half its refined faces.
+    const double vertices = double(rig.mesh.faceCount()) * std::pow(4.0, level) * 0.5 + double(rig.mesh.vertexCount());
+    // Bytes per refined vertex, measured: the linear plan with the output
+    // file staged in memory (binary PLY least; OBJ text; a glb mesh; a
+    // scene with refined attributes and skin more; .gltf adds base64).
+    double perVertex = outputExt == ".obj" ? 405.0 : outputExt == ".ply" || outputExt == ".stl" ? 275.0 : 341.0;
+    if (scene)
+        perVertex = 560.0;
+    if (outputExt == ".gltf")
+        perVertex += 80.0;
+    // The smooth (Loop) plan's stencil tables peak while they are built,
+    // above what the output adds.
+    if (scheme != Scheme::Linear)
+        perVertex = std::max(760.0, perVertex + 215.0);
+    const double base = 16.0 * 1024.0 * 1024.0;  // the process, the rig, its document
+    return base + perVertex * vertices + 8.0 * mapTexels;
 }
 
 Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstruction& rec)

@@ -40,6 +40,20 @@ namespace strata {
 namespace io {
 namespace {
 
+// A number from a file as its author wrote it: 9, not 9.000000.
+std::string shortNumber(double v)
+{
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.9g", v);
+    return buf;
+}
+
+size_t budgetBytes(const LoadOptions& options)
+{
+    const double bytes = options.maxMemoryMB * 1024.0 * 1024.0;
+    return std::isnan(bytes) || bytes >= double(SIZE_MAX) ? SIZE_MAX : size_t(std::max(0.0, bytes));
+}
+
 const tinygltf::Value* member(const tinygltf::Value& obj, const char* name)
 {
     if (!obj.IsObject() || !obj.Has(name))
@@ -137,7 +151,7 @@ Status parseStrataBlock(const tinygltf::Value& block, bool extension, const std:
                                                        (extension ? "an accessor" : "a bufferView") +
                                                        " the file does not have (the displacements are missing)");
         if (vlevel < 0 || vlevel > kMaxLevel || vlevel != std::floor(vlevel))
-            return Status(StatusCode::InvalidData, path + ": displacementVertices level " + std::to_string(vlevel) +
+            return Status(StatusCode::InvalidData, path + ": displacementVertices level " + shortNumber(vlevel) +
                                                        " is outside 0.." + std::to_string(kMaxLevel));
         const tinygltf::Value* coding = member(*vertices, "coding");
         if (coding && (!coding->IsString() || coding->Get<std::string>() != "subdivision-midpoint-zstd"))
@@ -722,11 +736,12 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
 
 }  // namespace
 
-Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles)
+Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles,
+                         const LoadOptions& options)
 {
     const std::string path = pathFile.string();
     SourceDocument doc;
-    Status st = loadGltfDocument(path, &doc);
+    Status st = loadGltfDocument(path, &doc, budgetBytes(options));
     if (!st)
         return st;
     SceneGeometry scene;
@@ -748,7 +763,7 @@ namespace {
 enum class LayerCheck { Enforce, Seal, DropStale };
 
 Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out,
-                 LayerCheck check = LayerCheck::Enforce);
+                 LayerCheck check = LayerCheck::Enforce, size_t maxBytes = size_t(2048) << 20);
 
 // An image no texture uses whose bytes are a 16-bit greyscale PNG.
 bool hasOrphanGreyImage(const SourceDocument& doc)
@@ -828,34 +843,36 @@ std::string missingLayerCause(const Rig& rig)
            " (gltfpack, Blender, gltf-transform without js/gltf-transform.config.mjs), or never baked";
 }
 
-Status loadRig(const std::filesystem::path& pathFile, Rig* out)
+Status loadRig(const std::filesystem::path& pathFile, Rig* out, const LoadOptions& options)
 {
     const std::string path = pathFile.string();
     auto doc = std::make_shared<SourceDocument>();
-    Status st = loadGltfDocument(path, doc.get());
+    Status st = loadGltfDocument(path, doc.get(), budgetBytes(options));
     if (!st)
         return st;
-    return finishRig(path, std::move(doc), out);
+    return finishRig(path, std::move(doc), out, LayerCheck::Enforce, budgetBytes(options));
 }
 
-Status loadControlForBake(const std::filesystem::path& pathFile, Rig* out)
+Status loadControlForBake(const std::filesystem::path& pathFile, Rig* out, const LoadOptions& options)
 {
     const std::string path = pathFile.string();
     auto doc = std::make_shared<SourceDocument>();
-    Status st = loadGltfDocument(path, doc.get());
+    Status st = loadGltfDocument(path, doc.get(), budgetBytes(options));
     if (!st)
         return st;
-    return finishRig(path, std::move(doc), out, LayerCheck::DropStale);
+    return finishRig(path, std::move(doc), out, LayerCheck::DropStale, budgetBytes(options));
 }
 
-Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out)
+Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out,
+                         const LoadOptions& options)
 {
     auto doc = std::make_shared<SourceDocument>();
     // No folder: a rig in memory has no files beside it.
-    Status st = parseGltfDocument(data, size, binary, "/nonexistent-strata-folder", name, doc.get());
+    Status st =
+        parseGltfDocument(data, size, binary, "/nonexistent-strata-folder", name, doc.get(), budgetBytes(options));
     if (!st)
         return st;
-    return finishRig(name, std::move(doc), out);
+    return finishRig(name, std::move(doc), out, LayerCheck::Enforce, budgetBytes(options));
 }
 
 namespace {
@@ -997,7 +1014,8 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
     return Status::ok();
 }
 
-Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, LayerCheck check)
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, LayerCheck check,
+                 size_t maxBytes)
 {
     Status st;
     SceneGeometry scene;
@@ -1059,6 +1077,14 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                                            std::to_string(info.vertexLevel) + " (" +
                                                            std::to_string(size_t(refined)) + " triangles) in only " +
                                                            std::to_string(length) + " bytes");
+            // OpenSubdiv's refiner holds every level's topology while the
+            // hierarchy is read off it (about 200 bytes per refined vertex,
+            // measured), and the values take 4 more.
+            const double need = 0.5 * refined * 204.0;
+            if (need > double(maxBytes))
+                return overBudget(path + ": decoding its level-" + std::to_string(info.vertexLevel) +
+                                      " per-vertex displacements (" + std::to_string(size_t(refined)) + " triangles)",
+                                  need, maxBytes);
             SubdivisionParents hierarchy;
             if (!(st = buildSubdivisionParents(&hierarchy, rig.mesh, info.vertexLevel)))
                 return Status(st.code(), path + ": " + st.message());

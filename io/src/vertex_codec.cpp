@@ -93,11 +93,11 @@ Status decodeVertexDisplacements(const SubdivisionParents& h, const unsigned cha
     for (size_t l = 0; l < h.levelCounts.size(); ++l) {
         const size_t end = h.levelCounts[l], count = end - begin;
         if (size - pos < 4)
-            return bad("end early (level " + std::to_string(l) + ")");
+            return bad("end early: levels 0 to " + std::to_string(h.levelCounts.size() - 1) + " are declared, the data stop in level " + std::to_string(l) + " (truncated, or the declared level was changed)");
         const size_t frameSize = getLength(data + pos);
         pos += 4;
         if (frameSize > size - pos)
-            return bad("end early (level " + std::to_string(l) + ")");
+            return bad("end early: levels 0 to " + std::to_string(h.levelCounts.size() - 1) + " are declared, the data stop in level " + std::to_string(l) + " (truncated, or the declared level was changed)");
         // A level of `count` residuals takes between count and 5 count bytes.
         const unsigned long long declared = ZSTD_getFrameContentSize(data + pos, frameSize);
         if (declared == ZSTD_CONTENTSIZE_ERROR || declared == ZSTD_CONTENTSIZE_UNKNOWN || declared < count ||

@@ -21,8 +21,9 @@ struct HighMeshStats {
 };
 
 /// Reads OBJ (own reader), PLY / STL / OFF (OpenMesh, polygons
-/// triangulated) or glTF / GLB.  Errors name the file.
-Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats);
+/// triangulated) or glTF / GLB.  Errors name the file.  A file whose
+/// reading would take more than maxMemoryMB is refused before it is read.
+Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats, double maxMemoryMB = 2048.0);
 
 /// Reads a control mesh: OBJ (with UVs when present) or glTF / GLB (a rig or
 /// any triangle mesh).  A glTF's skin, skeleton and animations go to
@@ -31,8 +32,9 @@ Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skel
 
 /// The control mesh as a whole rig: from glTF with its source document
 /// (so the baked rig keeps everything the file had), parts and skin; from
-/// OBJ the mesh alone.  Warnings say what was tolerated.
-Status loadControlRig(const std::string& path, Rig* out);
+/// OBJ the mesh alone.  Warnings say what was tolerated.  Loading is
+/// bounded by maxMemoryMB as loadHighMesh's is.
+Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB = 2048.0);
 
 /// Derives a control mesh from a high-resolution one by OpenMesh's quadric
 /// Decimater (with normal-flip protection) down to about targetFaces

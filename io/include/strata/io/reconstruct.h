@@ -54,5 +54,14 @@ Status writeReconstruction(const std::filesystem::path& path, const Reconstructi
 Status writeReconstructedScene(const std::filesystem::path& path, const Rig& rig, const Reconstruction& rec,
                                std::vector<std::string>* notes = nullptr);
 
+/// Peak memory, in bytes, of reconstructing `rig` at `level` in `scheme`
+/// and writing it to a file with extension `outputExt` (".ply", ".obj",
+/// ".glb", ".gltf"; `scene`: as writeReconstructedScene, with refined skin
+/// and attributes), with a map of `mapTexels` texels: calibrated against
+/// the measured peak of strata-reconstruct (CesiumMan and spot, levels 4-6,
+/// both schemes, every format: docs/RESULTS.md), within 20% of it.
+double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const std::string& outputExt, bool scene,
+                               double mapTexels);
+
 }  // namespace io
 }  // namespace strata

@@ -29,6 +29,16 @@ std::string missingLayerCause(const Rig& rig);
 /// the same character carries too; 0 for other rigs.
 size_t characterBytes(const Rig& rig);
 
+/// What loading a file may cost.  Every count a file declares is checked
+/// against the bytes that back it; what it would then take in memory
+/// (decoded buffers, zeros a sparse or bufferView-less accessor stands for,
+/// the subdivision hierarchy its per-vertex displacements need) is checked
+/// against maxMemoryMB before it is allocated, and a file that needs more
+/// is refused with the figure and the flag that raises it.
+struct LoadOptions {
+    double maxMemoryMB = 2048.0;  ///< fits a 4 GB machine with the work that follows
+};
+
 /// Loads a control rig, or any glTF scene with triangles (then
 /// rig.hasDisplacement is false).  Every triangle primitive of every mesh is
 /// read (strips and fans unrolled; points and lines kept in the document
@@ -41,22 +51,24 @@ size_t characterBytes(const Rig& rig);
 /// complete.  External files resolve only inside the file's folder.  Every
 /// accessor is bounds-checked; a newer format version, malformed metadata or
 /// bad geometry is a clear error.  Rigs of every earlier format version load.
-Status loadRig(const std::filesystem::path& path, Rig* out);
+Status loadRig(const std::filesystem::path& path, Rig* out, const LoadOptions& options = LoadOptions());
 
 /// loadRig for a control mesh that a new bake will displace: a layer that no
 /// longer matches the mesh (a tool welded, reordered or quantised it, or
 /// dropped what it refers to) is dropped with a warning instead of refusing
 /// the file, since the bake replaces it.
-Status loadControlForBake(const std::filesystem::path& path, Rig* out);
+Status loadControlForBake(const std::filesystem::path& path, Rig* out, const LoadOptions& options = LoadOptions());
 
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
 /// external file is read.  `name` is used in messages.
-Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out);
+Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out,
+                         const LoadOptions& options = LoadOptions());
 
 /// Loads every triangle primitive of any glTF scene (as loadRig places them)
 /// as one triangle soup welded by exact position, without the control-mesh checks (a captured
 /// high-resolution mesh may be non-manifold; the baker tolerates that).
-Status loadGltfTriangles(const std::filesystem::path& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles);
+Status loadGltfTriangles(const std::filesystem::path& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles,
+                         const LoadOptions& options = LoadOptions());
 
 /// Loads the rig's displacement map: the embedded image (format version 2)
 /// or the EXR its URI names beside the rig; checks its size against the rig
