@@ -130,7 +130,11 @@ TEST(Exr, RejectsBadFiles)
     writeRawExr(dir + "/whole.exr", "Y", 64, 64, 0.5f);
     const std::string bytes = readText(dir + "/whole.exr");
     writeText(dir + "/cut.exr", bytes.substr(0, bytes.size() / 2));
-    EXPECT_FALSE(io::readDisplacementExr(dir + "/cut.exr", &map).isOk());
+    st = io::readDisplacementExr(dir + "/cut.exr", &map);
+    EXPECT_FALSE(st.isOk());
+    // In Strata's words, the file named once (OpenEXR repeats the path).
+    EXPECT_EQ(st.message().find("cut.exr"), st.message().rfind("cut.exr")) << st.message();
+    EXPECT_EQ(st.message().find("Cannot read"), std::string::npos) << st.message();
 
     // Values a half cannot hold are refused rather than written as inf.
     DisplacementMap big;

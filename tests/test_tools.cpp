@@ -144,6 +144,49 @@ TEST(Tools, HostileRigsAndPathsAreOneLineErrors)
     EXPECT_TRUE(strata::test::fileExists(dir + "/dossier é/sortie ü.ply"));
 }
 
+// What tinygltf and nlohmann::json say about a broken file reaches the user
+// in Strata's words, on one line, naming the file once: not "glTF Binary",
+// "[json.exception.parse_error.101]" or "property is missing in Accessor".
+TEST(Tools, LibraryMessagesAreInStrataWords)
+{
+    const std::string dir = strata::test::tempDir("tools_words");
+    ASSERT_EQ(run(demo + " --out '" + dir + "' --max-level 0 --size 256").code, 0);
+    using strata::test::writeText;
+    const std::string glb = strata::test::readText(dir + "/head.glb");
+    writeText(dir + "/cut.glb", glb.substr(0, 300));
+    writeText(dir + "/json.gltf", "{\"asset\": ");
+    const std::string data = "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA";
+    writeText(dir + "/missing.gltf", gltfWithBuffer("missing.bin", 36));
+    writeText(dir + "/base64.gltf", gltfWithBuffer("data:application/octet-stream;base64,@@@@", 36));
+    std::string noCount = gltfWithBuffer(data, 36);
+    noCount.replace(noCount.find("\"count\":3,"), 10, "");
+    writeText(dir + "/nocount.gltf", noCount);
+    std::string negative = gltfWithBuffer(data, 36);
+    negative.replace(negative.find("\"count\":3"), 9, "\"count\":-3");
+    writeText(dir + "/negative.gltf", negative);
+    struct Case {
+        std::string file, needle;
+    };
+    const Case cases[] = {
+        {"cut.glb", "not a complete .glb file"},
+        {"json.gltf", "not valid JSON (line 1, column"},
+        {"missing.gltf", "the external file \"missing.bin\" it refers to is missing"},
+        {"base64.gltf", "data: URI is not valid base64"},
+        {"nocount.gltf", "an accessor has no \"count\""},
+        {"negative.gltf", "\"count\" is not a positive integer"},
+    };
+    for (const Case& c : cases) {
+        const Result r = run(reconstruct + " '" + dir + "/" + c.file + "' -o '" + dir + "/o.obj'");
+        EXPECT_EQ(r.code, 2) << c.file << "\n" << r.output;
+        EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.file << "\n" << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+        EXPECT_EQ(r.output.find(c.file), r.output.rfind(c.file)) << "named twice: " << r.output;
+        for (const char* foreign : {"json.exception", "glTF Binary", "property is missing", "File not found"})
+            EXPECT_EQ(r.output.find(foreign), std::string::npos) << r.output;
+        EXPECT_FALSE(strata::test::fileExists(dir + "/o.obj"));
+    }
+}
+
 // strata-reconstruct never writes over its input: not through a folder
 // that does not exist ("x/../rig.glb", and x is not made), and not as frame
 // 0 of a sequence whose name is the input's.

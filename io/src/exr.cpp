@@ -221,9 +221,9 @@ Status decodeDisplacementExr(const unsigned char* data, size_t size, const std::
         *out = std::move(map);
         return Status::ok();
     } catch (const std::exception& e) {
-        // OpenEXR's messages are its own wording about its own structures;
-        // keep them, on one printable line, after the file's name.
-        return Status(StatusCode::InvalidData, name + ": not a readable OpenEXR file (" + printable(e.what()) + ")");
+        // OpenEXR's own wording, translated where it says something a user
+        // can act on (truncated, not EXR), on one line after the file's name.
+        return Status(StatusCode::InvalidData, name + ": not a readable OpenEXR file (" + plainExrError(e.what()) + ")");
     }
 }
 

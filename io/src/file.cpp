@@ -1,5 +1,7 @@
 #include "strata/io/file.h"
 
+#include <regex>
+
 #include "text.h"
 
 #include <filesystem>
@@ -141,6 +143,32 @@ bool isRegularFile(const std::filesystem::path& pathFile)
     const std::string path = pathFile.string();
     struct stat st;
     return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+std::string plainJsonError(const std::string& what)
+{
+    std::smatch m;
+    if (std::regex_search(what, m, std::regex("parse error at line ([0-9]+), column ([0-9]+)")))
+        return "not valid JSON (line " + m[1].str() + ", column " + m[2].str() + ")";
+    if (std::regex_search(what, m, std::regex("type_error[^ ]* (.*)$")))
+        return "a value of the wrong type (" + printable(m[1].str(), 80) + ")";
+    if (std::regex_search(what, m, std::regex("\\[json\\.exception\\.[a-z_]+\\.[0-9]+\\] (.*)$")))
+        return printable(m[1].str(), 120);
+    return printable(what, 120);
+}
+
+std::string plainExrError(const std::string& what)
+{
+    if (what.find("end of file") != std::string::npos || what.find("Unexpected end") != std::string::npos ||
+        what.find("premature") != std::string::npos)
+        return "the file ends early (truncated)";
+    if (what.find("magic number") != std::string::npos || what.find("is not an image file") != std::string::npos)
+        return "not an OpenEXR file";
+    // "Cannot read image file \"/long/path.exr\". <reason>": the reason.
+    std::smatch m;
+    if (std::regex_search(what, m, std::regex("^Cannot [a-z ]+ file \"[^\"]*\"\\. *(.*)$")) && m[1].length() > 0)
+        return printable(m[1].str(), 160);
+    return printable(what, 160);
 }
 
 // One line, printable: control bytes become '?', long text is cut.

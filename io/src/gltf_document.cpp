@@ -12,7 +12,9 @@
 #include <algorithm>
 #include <filesystem>
 #include <functional>
+#include <cctype>
 #include <cstring>
+#include <regex>
 
 namespace strata {
 namespace io {
@@ -267,6 +269,50 @@ Status densifyAccessors(tinygltf::Model& model, size_t fileBytes, const std::str
     return Status::ok();
 }
 
+namespace {
+
+// "an accessor", "a bufferView": glTF's names for tinygltf's type names.
+std::string withArticle(std::string type)
+{
+    if (type.empty())
+        return "an object";
+    type[0] = char(std::tolower(static_cast<unsigned char>(type[0])));
+    return (std::string("aeio").find(type[0]) != std::string::npos ? "an " : "a ") + type;
+}
+
+// tinygltf's first error in Strata's words: what is wrong with the file,
+// without the parser's internals ("[json.exception.parse_error.101]").
+std::string plainGltfError(const std::string& err)
+{
+    std::string line = err.substr(0, err.find('\n'));
+    while (!line.empty() && (line.back() == '.' || line.back() == ' ' || line.back() == '\r'))
+        line.pop_back();
+    if (line.empty())
+        return "not a valid glTF file";
+    std::smatch m;
+    if (line.find("glTF Binary") != std::string::npos || line.find("Invalid magic") != std::string::npos ||
+        line.find("Invalid glTF binary") != std::string::npos || line.find("Invalid binary glTF") != std::string::npos)
+        return "not a complete .glb file (truncated, or not glTF at all)";
+    if (line.find("json.exception") != std::string::npos)
+        return plainJsonError(line);
+    if (std::regex_search(line, m, std::regex("^File not found : (.*)$")))
+        return "the external file \"" + m[1].str() + "\" it refers to is missing";
+    if (std::regex_search(line, m, std::regex("^File read error : ([^:]*)(: (.*))?$")))
+        return "cannot read the external file \"" + m[1].str() + "\" it refers to" +
+               (m[3].matched ? " (" + m[3].str() + ")" : "");
+    if (std::regex_search(line, m, std::regex("^'([^']+)' property is missing in (\\w+)")))
+        return withArticle(m[2].str()) + " has no \"" + m[1].str() + "\", which glTF requires";
+    if (std::regex_search(line, m, std::regex("^'([^']+)' property is (not .*)$")))
+        return "property \"" + m[1].str() + "\" is " + m[2].str();
+    if (std::regex_search(line, m, std::regex("^Failed to decode 'uri' : data:.* in (\\w+)")))
+        return withArticle(m[1].str()) + "'s data: URI is not valid base64";
+    if (!line.empty())
+        line[0] = char(std::tolower(static_cast<unsigned char>(line[0])));
+    return line;
+}
+
+}  // namespace
+
 Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, const std::string& folder,
                          const std::string& path, SourceDocument* doc, size_t maxBytes)
 {
@@ -306,7 +352,7 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
                                         ctx.base);
     }
     if (!ok)
-        return Status(StatusCode::InvalidData, path + ": " + printable(err.empty() ? "not a valid glTF file" : err));
+        return Status(StatusCode::InvalidData, path + ": " + printable(plainGltfError(err)));
     doc->imageBytes.resize(doc->model.images.size());
     if (Status st = densifyAccessors(doc->model, size, path, maxBytes); !st)
         return st;

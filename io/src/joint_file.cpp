@@ -1,6 +1,7 @@
 #include "strata/io/joint_file.h"
 
 #include "strata/io/file.h"
+#include "text.h"
 
 #include <filesystem>
 #include <glm/gtc/matrix_transform.hpp>
@@ -212,14 +213,14 @@ Status parseJointFile(const std::string& text, const std::string& name, Skeleton
     try {
         root = Json::parse(text);
     } catch (const std::exception& e) {
-        return Status(StatusCode::InvalidData, name + ": not a JSON joint file (" + e.what() + ")");
+        return Status(StatusCode::InvalidData, name + ": not a JSON joint file (" + plainJsonError(e.what()) + ")");
     }
     try {
         parse(root, out);
     } catch (const ParseError& e) {
         return Status(StatusCode::InvalidData, name + ": " + e.message);
     } catch (const std::exception& e) {
-        return Status(StatusCode::InvalidData, name + ": malformed joint file (" + e.what() + ")");
+        return Status(StatusCode::InvalidData, name + ": malformed joint file (" + plainJsonError(e.what()) + ")");
     }
     return Status::ok();
 }
