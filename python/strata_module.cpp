@@ -59,14 +59,16 @@ struct PyRig {
 
     py::tuple reconstruct(py::object level, py::object animation, py::object time, bool displacement) const
     {
-        // As strata-reconstruct: a glTF without the layer is not drawn as if
-        // it were the baked surface (the last tool to touch it may have
-        // dropped the layer) unless displacement=False asks for the plain mesh.
-        if (displacement && rig.source && !rig.hasDisplacement)
-            throw StrataError(path + ": no displacement layer (" + io::missingLayerCause(rig) +
-                              "): bake again, or pass displacement=False for the plain mesh");
-        const int lvl = level.is_none() ? (rig.hasDisplacement ? rig.displacement.recommendedLevel : 0)
-                                        : level.cast<int>();
+        // As strata-reconstruct: what the surface refuses (a glTF whose layer
+        // a tool dropped), refused before any work, with this binding's advice.
+        SurfaceOptions options;
+        options.level = level.is_none() ? -1 : level.cast<int>();
+        options.displace = displacement;
+        if (Status c = Surface::check(rig, options); !c)
+            throw StrataError(path + ": " + c.message() +
+                              (c.code() == StatusCode::InvalidData
+                                   ? ": bake again, or pass displacement=False for the plain mesh"
+                                   : ""));
         io::Pose pose;
         bool posed = false;
         if (!animation.is_none()) {
@@ -84,22 +86,20 @@ struct PyRig {
         }
         if (posed && rig.skeleton.empty())
             throw StrataError(path + ": the rig has no skin to animate");
-        const Scheme scheme = rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;
         auto rec = std::make_unique<io::Reconstruction>();
         {
             py::gil_scoped_release unlocked;
-            check(io::reconstruct(rec.get(), rig, rig.hasDisplacement && displacement ? &map : nullptr, scheme, lvl, 1.0f,
-                                  posed ? &pose : nullptr));
+            check(io::reconstruct(rec.get(), rig, &map, options, posed ? &pose : nullptr));
         }
         // The arrays view the reconstruction, which a capsule keeps alive.
         io::Reconstruction* owner = rec.release();
         py::capsule keep(owner, [](void* p) { delete static_cast<io::Reconstruction*>(p); });
-        const py::ssize_t n = py::ssize_t(owner->positions.size()), m = py::ssize_t(owner->plan->refinedFaceCount());
+        const py::ssize_t n = py::ssize_t(owner->positions.size()), m = py::ssize_t(owner->surface->triangleCount());
         py::array_t<float> vertices({n, py::ssize_t(3)}, {py::ssize_t(3 * sizeof(float)), py::ssize_t(sizeof(float))},
                                     reinterpret_cast<const float*>(owner->positions.data()), keep);
         py::array_t<uint32_t> triangles({m, py::ssize_t(3)},
                                         {py::ssize_t(3 * sizeof(uint32_t)), py::ssize_t(sizeof(uint32_t))},
-                                        owner->plan->refinedTriangles().data(), keep);
+                                        owner->surface->triangles().data(), keep);
         return py::make_tuple(vertices, triangles);
     }
 };

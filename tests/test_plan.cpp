@@ -474,7 +474,7 @@ TEST(Reconstruction, OpenBoundaryKeepsItsBoundary)
     for (int level = 0; level <= 4; ++level) {
         io::Reconstruction rec;
         ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, level).isOk());
-        const auto& t = rec.plan->refinedTriangles();
+        const auto& t = rec.plan().refinedTriangles();
         const MeshTopologyStats s = computeTopologyStats(t.data(), t.size() / 3);
         EXPECT_EQ(s.boundaryEdges, 4u << level);
         EXPECT_EQ(s.eulerCharacteristic, 1);

@@ -150,7 +150,7 @@ int main(int argc, char** argv)
                 !(st = io::writeReconstruction(outDir + "/head_level" + std::to_string(level) + ".glb", rec)))
                 throw cli::Error(st.message());
             std::printf(" %5d | %8zu | %9zu | %14.1f | %17.2e | %16.2e\n", level, rec.positions.size(),
-                        rec.plan->refinedFaceCount(), ms, std::sqrt(sum / double(rec.positions.size())) / diag,
+                        rec.plan().refinedFaceCount(), ms, std::sqrt(sum / double(rec.positions.size())) / diag,
                         worst / diag);
         }
         std::printf("\nwrote %s/: head_highres.ply (the capture), head.glb (control rig), head.exr (displacement "

@@ -125,16 +125,21 @@ int main(int argc, char** argv)
             if (!(st = io::loadRig(rigPath, &rig, options)))
                 throw cli::Error(st.message());
         }
-        // A glTF without the layer is never drawn as if it were the baked
-        // surface: the layer may have been dropped by the last tool to touch it.
-        if (rig.source && !rig.hasDisplacement && displace)
-            throw cli::Error(rigPath + ": no displacement layer (" + io::missingLayerCause(rig) +
-                             "): bake again, or pass --no-displacement for the plain mesh");
-        if (rig.hasDisplacement && displace && haveScheme && scheme != rig.displacement.scheme)
-            throw cli::Error(std::string("--scheme ") + schemeName(scheme) + ": " + rigPath + " was baked against the " +
-                             schemeName(rig.displacement.scheme) +
-                             " scheme, and its displacement drawn in another is another surface (pass "
-                             "--no-displacement to refine the bare cage in it)");
+        // What the surface would refuse (a dropped layer, another scheme),
+        // before the map is read or a folder made.
+        SurfaceOptions options;
+        options.level = level;
+        options.displace = displace;
+        options.scheme = scheme;
+        options.schemeGiven = haveScheme;
+        options.scale = scale;
+        if (Status c = Surface::check(rig, options); !c) {
+            const bool otherScheme = haveScheme && displace && rig.hasDisplacement;
+            throw cli::Error((otherScheme ? std::string("--scheme ") + schemeName(scheme) + ": " : std::string()) +
+                             rigPath + ": " + c.message() +
+                             (otherScheme ? " (pass --no-displacement to refine the bare cage in it)"
+                                          : ": bake again, or pass --no-displacement for the plain mesh"));
+        }
         if (!skeletonPath.empty()) {
             if (!(st = io::loadJointFile(skeletonPath, &rig.skeleton)))
                 throw cli::Error(st.message());
@@ -164,8 +169,8 @@ int main(int argc, char** argv)
         // Memory before work: the plan, the map's texels and the output as
         // it is staged (measured peaks, io::reconstructionPeakBytes).
         {
-            const int lvl = level >= 0 ? level : (rig.hasDisplacement ? rig.displacement.recommendedLevel : 0);
-            const Scheme s = haveScheme ? scheme : rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;
+            const int lvl = Surface::levelFor(rig, options);
+            const Scheme s = Surface::schemeFor(rig, options);
             const bool posedOut = !rig.skeleton.empty() && (!anim.empty() || haveTime || frames);
             const std::string ext = io::extensionOf(outPath);
             const bool sceneOut = !frames && !posedOut && !staticMesh && rig.source && skeletonPath.empty() &&
@@ -183,10 +188,8 @@ int main(int argc, char** argv)
         const bool useMap = displace && rig.hasDisplacement;
         if (useMap && rigNeedsMap(rig) && !(st = io::loadRigDisplacementMap(rigPath, rig, &map)))
             throw cli::Error(st.message());
-        if (!haveScheme)
-            scheme = rig.hasDisplacement ? rig.displacement.scheme : Scheme::Linear;
-        if (level < 0)
-            level = rig.hasDisplacement ? rig.displacement.recommendedLevel : 0;
+        scheme = Surface::schemeFor(rig, options);
+        level = Surface::levelFor(rig, options);
         io::Pose pose;
         pose.time = time;
         pose.method = method;
@@ -214,7 +217,8 @@ int main(int argc, char** argv)
         io::Reconstruction rec;
         // Without --anim/--time/--frames: the bind pose, in mesh space, as stored.
         const bool posed = skinned && (!anim.empty() || haveTime || frames);
-        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, scheme, level, scale, posed ? &pose : nullptr)))
+        options.method = method;
+        if (!(st = io::reconstruct(&rec, rig, useMap ? &map : nullptr, options, posed ? &pose : nullptr)))
             throw cli::Error(rigPath + ": " + st.message());
         const auto t1 = std::chrono::steady_clock::now();
         const std::string outExt = io::extensionOf(outPath);
@@ -230,11 +234,10 @@ int main(int argc, char** argv)
             for (const glm::vec3& p : rec.positions)
                 if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
                     std::string culprit = "the control mesh or the map";
-                    Animator probe;
-                    if (skinned && at && probe.init(rig.skeleton, rig.mesh) &&
-                        probe.pose(at->animation, at->time, at->method))
-                        for (size_t j = 0; j < probe.skinMatrices().size(); ++j) {
-                            const glm::mat4& m = probe.skinMatrices()[j];
+                    const std::vector<glm::mat4>& skin = rec.surface->skinMatrices();
+                    if (skinned && at)
+                        for (size_t j = 0; j < skin.size(); ++j) {
+                            const glm::mat4& m = skin[j];
                             bool finite = true;
                             for (int k = 0; k < 16; ++k)
                                 finite = finite && std::isfinite(m[k / 4][k % 4]);
@@ -259,21 +262,18 @@ int main(int argc, char** argv)
             for (const std::string& n : notes)
                 std::fprintf(stderr, "strata-reconstruct: note: %s: %s\n", outPath.c_str(), n.c_str());
             std::fprintf(stderr, "strata-reconstruct: %s level %d (%s): %zu vertices, %zu triangles in %.1f ms -> %s\n",
-                         rigPath.c_str(), level, schemeName(scheme), rec.positions.size(), rec.plan->refinedFaceCount(),
+                         rigPath.c_str(), level, schemeName(scheme), rec.positions.size(), rec.surface->triangleCount(),
                          std::chrono::duration<double, std::milli>(t1 - t0).count(), outPath.c_str());
             return 0;
         }
         // Frame sequence: one plan, one animator, a file per frame.
         const std::string ext = io::extensionOf(outPath);
         const std::string base = outPath.substr(0, outPath.size() - ext.size());
-        Animator animator;
-        if (skinned && !(st = animator.init(rig.skeleton, rig.mesh)))
-            throw cli::Error(rigPath + ": " + st.message());
         const int count = int(std::floor((frameEnd - frameStart) * fps + 1e-4f)) + 1;
         std::vector<std::string> written;
         for (int f = 0; f < count; ++f) {
             pose.time = frameStart + float(f) / fps;
-            if (skinned && !(st = io::reconstructPose(&rec, &animator, rig, pose)))
+            if (skinned && !(st = io::reconstructPose(&rec, pose)))
                 throw cli::Error(rigPath + ": " + st.message());
             checkFinite(&pose);
             char suffix[16];

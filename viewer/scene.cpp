@@ -67,10 +67,7 @@ Status Scene::open(const std::string& path)
     haveMap_ = rig_->hasDisplacement;
     highPositions_.clear();
     highTriangles_.clear();
-    animated_ = !rig_->skeleton.empty() && animator_.init(rig_->skeleton, rig_->mesh).isOk();
-    restNormals_.assign(rig_->mesh.vertexCount(), glm::vec3(0.0f));
-    computeControlNormals(restNormals_.data(), rig_->mesh.positions.data(), restNormals_.size(),
-                          rig_->mesh.triangles.data(), rig_->mesh.faceCount());
+    animated_ = !rig_->skeleton.empty();
     if (!settings.schemeGiven)
         settings.scheme = haveMap_ ? rig_->displacement.scheme : Scheme::Linear;
     if (settings.level < 0)
@@ -157,21 +154,29 @@ const gl::GpuTimings& Scene::gpuTimings() const
 
 Status Scene::rebuild()
 {
-    std::unique_ptr<Plan> plan;
-    Status st = Plan::create(&plan, rig_->mesh, settings.scheme, settings.level);
+    // The one sequence every front end uses (strata::Surface): the rig's
+    // scheme with its displacement (another scheme is refused, and the view
+    // stays on the last one that worked), the rig's values applied.
+    SurfaceOptions options;
+    options.level = settings.level;
+    options.scheme = settings.scheme;
+    options.schemeGiven = true;
+    options.displace = haveMap_;
+    std::unique_ptr<Surface> cpu;
+    Status st = Surface::create(&cpu, *rig_, &map_, options);
     std::unique_ptr<gl::GpuSurface> surface;
     if (st)
-        st = gl::GpuSurface::create(&surface, *plan);
+        st = gl::GpuSurface::create(&surface, cpu->plan());
     if (st && haveMap_ && !map_.texels.empty())
         st = surface->setDisplacementMap(map_);
     // A rig with per-vertex displacements: the GPU gets the CPU's own values.
-    if (st && haveMap_ && rig_->displacement.vertexLevel >= 0 && (st = applyRigDisplacement(plan.get(), *rig_, &map_)))
-        st = surface->setDisplacements(plan->displacements().data(), plan->displacements().size());
+    if (st && haveMap_ && rig_->displacement.vertexLevel >= 0)
+        st = surface->setDisplacements(cpu->plan().displacements().data(), cpu->plan().displacements().size());
     if (!st) {
         lastError_ = st.message();
         return st;
     }
-    plan_ = std::move(plan);
+    cpu_ = std::move(cpu);
     surface_ = std::move(surface);
     surface_->setTiming(timing_);
     builtMaterials_ = settings.materials;
@@ -231,13 +236,10 @@ void Scene::computeErrors()
     if (!surface_ || highPositions_.empty())
         return;
     // Distance of the bind-pose reconstruction to the high-res mesh, on the
-    // CPU with the plan the GPU surface was built from (the map is sampled
-    // into it only here: without a high-res mesh the CPU never needs it).
-    if (haveMap_ && !applyRigDisplacement(plan_.get(), *rig_, &map_))
-        return;
-    std::vector<glm::vec3> positions(plan_->refinedVertexCount());
-    if (!plan_->evaluate(positions.data(), nullptr, 0, positions.size(), rig_->mesh.positions.data(),
-                         restNormals_.data(), restNormals_.size()))
+    // CPU by the surface the GPU one was built from (update() poses it again
+    // every frame).
+    std::vector<glm::vec3> positions(cpu_->vertexCount());
+    if (!cpu_->setRestPose() || !cpu_->evaluate(positions.data(), nullptr, positions.size()))
         return;
     baker::TriangleIndex index;
     index.build(highPositions_.data(), highTriangles_.data(), highTriangles_.size() / 3);
@@ -319,19 +321,22 @@ void Scene::update(float dt)
         settings.time = len > 0.0f ? std::fmod(settings.time + dt, len) : 0.0f;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const glm::vec3* positions = rig_->mesh.positions.data();
-    const glm::vec3* normals = restNormals_.data();
     if (animated_) {
         const float start =
             settings.animation >= 0 ? rig_->skeleton.animations[size_t(settings.animation)].start : 0.0f;
-        SkinningMethod method = settings.skinning;
-        if (method == SkinningMethod::Segments && !animator_.segmentStatus().isOk())
-            method = SkinningMethod::Linear;
-        if (animator_.pose(settings.animation, start + settings.time, method)) {
-            positions = animator_.positions().data();
-            normals = animator_.normals().data();
+        // The paper's deformer needs a chain of joints: linear blend
+        // skinning where the skin has none.
+        cpu_->setSkinningMethod(settings.skinning);
+        if (!cpu_->setAnimationTime(settings.animation, start + settings.time) &&
+            settings.skinning == SkinningMethod::Segments) {
+            cpu_->setSkinningMethod(SkinningMethod::Linear);
+            cpu_->setAnimationTime(settings.animation, start + settings.time);
         }
+    } else {
+        cpu_->setRestPose();
     }
+    const glm::vec3* positions = cpu_->controlPositions().data();
+    const glm::vec3* normals = cpu_->controlNormals().data();
     cpuFrameMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (framePose_) {
         // A skinned mesh's bind space can be far from where its skeleton puts

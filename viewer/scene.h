@@ -7,6 +7,7 @@
 #include "strata/io/materials.h"
 #include "strata/plan.h"
 #include "strata/rig.h"
+#include "strata/surface.h"
 
 #include <glm/vec3.hpp>
 
@@ -97,11 +98,11 @@ private:
     bool framePose_ = false;  ///< frame the first posed frame (skinned models)
     void drawColorScale(int width, int height);
     bool haveMap_ = false;
-    std::unique_ptr<Plan> plan_;
+    // The rig's Surface at the built level: the plan and displacements the
+    // GPU surface is made from, and the pose (control positions, normals).
+    std::unique_ptr<Surface> cpu_;
     std::unique_ptr<gl::GpuSurface> surface_;
-    Animator animator_;
     bool animated_ = false;
-    std::vector<glm::vec3> restNormals_;
     int builtLevel_ = -1;
     Scheme builtScheme_ = Scheme::Linear;
     bool timing_ = false;

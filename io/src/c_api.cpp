@@ -1,14 +1,11 @@
-// The C API (strata/strata.h) over the C++ runtime and io: the same calls
-// io::reconstruct makes, in the same order, so a C program's numbers equal
-// the C++ path's bit for bit.  No exception crosses the boundary.
+// The C API (strata/strata.h): a thin layer over strata::Surface, the one
+// object the tools, Python and the viewer draw through, so a C program's
+// numbers equal theirs bit for bit.  No exception crosses the boundary.
 #include "strata/strata.h"
 
-#include "strata/animation.h"
-#include "strata/frame.h"
 #include "strata/io/rig_io.h"
-#include "strata/normals.h"
-#include "strata/plan.h"
 #include "strata/rig.h"
+#include "strata/surface.h"
 
 #include <glm/mat4x4.hpp>
 
@@ -27,13 +24,9 @@ struct StrataRig {
 };
 
 struct StrataSurface {
-    std::unique_ptr<Rig> rig;  // its own copy: the animator and plan refer into it
-    std::unique_ptr<Plan> plan;
-    std::unique_ptr<Animator> animator;
-    std::vector<glm::vec3> positions, normals;  // current control pose
-    // The render-ready frame (tables made at the first evaluate, reused every
-    // frame); the mutex keeps concurrent evaluate calls on one surface safe.
-    mutable std::unique_ptr<FrameEvaluator> frame;
+    std::unique_ptr<Surface> surface;
+    // Surface::evaluate keeps scratch between frames: concurrent evaluate
+    // calls on one handle are serialised.
     mutable std::mutex frameMutex;
 };
 
@@ -76,30 +69,12 @@ StrataStatus guarded(F&& body)
     }
 }
 
-// The bind pose: control positions as loaded, normals as the baker computed them.
-void restPose(StrataSurface* s)
-{
-    const ControlMesh& cm = s->rig->mesh;
-    s->positions = cm.positions;
-    s->normals.assign(cm.positions.size(), glm::vec3(0.0f));
-    computeControlNormals(s->normals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
-                          cm.faceCount());
-}
-
-StrataStatus finishSurface(std::unique_ptr<StrataSurface> s, const DisplacementMap* map, Scheme scheme, int level,
+StrataStatus finishSurface(const Rig& rig, const DisplacementMap* map, const SurfaceOptions& options,
                            StrataSurface** out)
 {
-    Status st = Plan::create(&s->plan, s->rig->mesh, scheme, level);
-    if (st && (map || s->rig->displacement.vertexLevel >= 0))
-        st = applyRigDisplacement(s->plan.get(), *s->rig, map);
-    if (!st)
+    auto s = std::make_unique<StrataSurface>();
+    if (Status st = Surface::create(&s->surface, rig, map, options); !st)
         return fromStatus(st);
-    if (!s->rig->skeleton.empty()) {
-        s->animator = std::make_unique<Animator>();
-        if (!(st = s->animator->init(s->rig->skeleton, s->rig->mesh)))
-            return fromStatus(st);
-    }
-    restPose(s.get());
     *out = s.release();
     return STRATA_OK;
 }
@@ -195,11 +170,9 @@ StrataStatus strata_surface_create(const StrataRig* rig, int level, StrataSurfac
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_create: null argument");
     *out = nullptr;
     return guarded([&] {
-        auto s = std::make_unique<StrataSurface>();
-        s->rig = std::make_unique<Rig>(rig->rig);
-        const int lvl = level < 0 ? strata_rig_recommended_level(rig) : level;
-        return finishSurface(std::move(s), rig->rig.hasDisplacement ? &rig->map : nullptr,
-                             rig->rig.hasDisplacement ? rig->rig.displacement.scheme : Scheme::Linear, lvl, out);
+        SurfaceOptions options;
+        options.level = level < 0 ? -1 : level;
+        return finishSurface(rig->rig, &rig->map, options, out);
     });
 }
 
@@ -220,9 +193,8 @@ StrataStatus strata_surface_create_from_arrays(const float* positions, size_t ve
     if (vertex_count > (size_t(1) << 28) || triangle_count > (size_t(1) << 28) || uv_count > (size_t(1) << 28))
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_create_from_arrays: counts are out of range");
     return guarded([&] {
-        auto s = std::make_unique<StrataSurface>();
-        s->rig = std::make_unique<Rig>();
-        ControlMesh& m = s->rig->mesh;
+        Rig rig;
+        ControlMesh& m = rig.mesh;
         m.positions.resize(vertex_count);
         std::memcpy(m.positions.data(), positions, vertex_count * sizeof(glm::vec3));
         m.triangles.assign(triangles, triangles + 3 * triangle_count);
@@ -234,6 +206,7 @@ StrataStatus strata_surface_create_from_arrays(const float* positions, size_t ve
         Status st = validateControlMesh(m);
         if (!st)
             return fromStatus(st);
+        // The caller's own map, sampled in the scheme asked for.
         DisplacementMap map;
         if (displaced) {
             map.width = map_width;
@@ -241,10 +214,12 @@ StrataStatus strata_surface_create_from_arrays(const float* positions, size_t ve
             map.texels.assign(map_texels, map_texels + size_t(map_width) * size_t(map_height));
             map.factor = map_factor;
             map.offset = map_offset;
-            s->rig->hasDisplacement = true;
         }
-        return finishSurface(std::move(s), displaced ? &map : nullptr,
-                             scheme == STRATA_SCHEME_SMOOTH ? Scheme::Smooth : Scheme::Linear, level, out);
+        SurfaceOptions options;
+        options.level = level;
+        options.scheme = scheme == STRATA_SCHEME_SMOOTH ? Scheme::Smooth : Scheme::Linear;
+        options.schemeGiven = true;
+        return finishSurface(rig, displaced ? &map : nullptr, options, out);
     });
 }
 
@@ -255,19 +230,19 @@ void strata_surface_destroy(StrataSurface* surface)
 
 size_t strata_surface_vertex_count(const StrataSurface* surface)
 {
-    return surface ? surface->plan->refinedVertexCount() : 0;
+    return surface ? surface->surface->vertexCount() : 0;
 }
 
 size_t strata_surface_triangle_count(const StrataSurface* surface)
 {
-    return surface ? surface->plan->refinedFaceCount() : 0;
+    return surface ? surface->surface->triangleCount() : 0;
 }
 
 StrataStatus strata_surface_triangles(const StrataSurface* surface, uint32_t* dst)
 {
     if (!surface || !dst)
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_triangles: null argument");
-    const std::vector<uint32_t>& t = surface->plan->refinedTriangles();
+    const std::vector<uint32_t>& t = surface->surface->triangles();
     std::memcpy(dst, t.data(), t.size() * sizeof(uint32_t));
     return STRATA_OK;
 }
@@ -276,15 +251,9 @@ StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int anima
 {
     if (!surface)
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_animation_time: null argument");
-    if (!surface->animator)
-        return fail(STRATA_INVALID_ARGUMENT, "the rig has no skin to animate");
     return guarded([&] {
-        Status st = surface->animator->pose(animation, time, SkinningMethod::Linear);
-        if (!st)
-            return fromStatus(st);
-        surface->positions = surface->animator->positions();
-        surface->normals = surface->animator->normals();
-        return STRATA_OK;
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        return fromStatus(surface->surface->setAnimationTime(animation, time));
     });
 }
 
@@ -292,19 +261,12 @@ StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const flo
 {
     if (!surface || !matrices)
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_joint_matrices: null argument");
-    const Skeleton& skeleton = surface->rig->skeleton;
-    if (skeleton.empty() || joint_count != skeleton.skin.joints.size())
-        return fail(STRATA_INVALID_ARGUMENT, std::to_string(joint_count) + " joint matrices for a skin of " +
-                                                 std::to_string(skeleton.skin.joints.size()) + " joints");
     return guarded([&] {
         std::vector<glm::mat4> skin(joint_count);
-        std::memcpy(&skin[0][0][0], matrices, joint_count * 16 * sizeof(float));
-        const ControlMesh& cm = surface->rig->mesh;
-        surface->positions.resize(cm.positions.size());
-        skinLinear(surface->positions.data(), cm.positions.data(), cm.positions.size(), skeleton.weights, skin.data());
-        computeControlNormals(surface->normals.data(), surface->positions.data(), surface->positions.size(),
-                              cm.triangles.data(), cm.faceCount());
-        return STRATA_OK;
+        if (joint_count)
+            std::memcpy(&skin[0][0][0], matrices, joint_count * 16 * sizeof(float));
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        return fromStatus(surface->surface->setJointMatrices(skin.data(), joint_count));
     });
 }
 
@@ -312,14 +274,11 @@ StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const 
 {
     if (!surface || !positions)
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_control_positions: null argument");
-    const ControlMesh& cm = surface->rig->mesh;
-    if (count != cm.positions.size())
-        return fail(STRATA_INVALID_ARGUMENT, std::to_string(count) + " control positions for " +
-                                                 std::to_string(cm.positions.size()) + " control vertices");
-    std::memcpy(surface->positions.data(), positions, count * sizeof(glm::vec3));
-    computeControlNormals(surface->normals.data(), surface->positions.data(), count, cm.triangles.data(),
-                          cm.faceCount());
-    return STRATA_OK;
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        return fromStatus(
+            surface->surface->setControlPositions(reinterpret_cast<const glm::vec3*>(positions), count));
+    });
 }
 
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals)
@@ -328,12 +287,9 @@ StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positi
         return fail(STRATA_INVALID_ARGUMENT, "strata_surface_evaluate: null argument");
     return guarded([&] {
         std::lock_guard<std::mutex> lock(surface->frameMutex);
-        if (!surface->frame)
-            surface->frame = std::make_unique<FrameEvaluator>(*surface->plan, FrameLayout::Plan);
-        return fromStatus(surface->frame->evaluate(reinterpret_cast<glm::vec3*>(positions),
-                                                   reinterpret_cast<glm::vec3*>(normals), nullptr,
-                                                   surface->positions.data(), surface->normals.data(),
-                                                   surface->positions.size(), 1));
+        Surface& s = *surface->surface;
+        return fromStatus(s.evaluate(reinterpret_cast<glm::vec3*>(positions), reinterpret_cast<glm::vec3*>(normals),
+                                     s.vertexCount()));
     });
 }
 

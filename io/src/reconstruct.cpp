@@ -1,7 +1,6 @@
 #include "strata/io/reconstruct.h"
 
 #include "strata/io/mesh_io.h"
-#include "strata/normals.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,57 +10,55 @@ namespace io {
 
 namespace {
 
-// Displaced positions and shading normals for control positions and normals.
-Status evaluate(Reconstruction* rec, const glm::vec3* controlPositions, size_t controlCount)
+Status evaluate(Reconstruction* rec)
 {
-    const size_t n = rec->plan->refinedVertexCount();
+    const size_t n = rec->surface->vertexCount();
     rec->positions.resize(n);
     rec->normals.resize(n);
-    Status st = rec->plan->evaluate(rec->positions.data(), nullptr, 0, n, controlPositions, rec->controlNormals.data(),
-                                    controlCount);
-    if (!st)
-        return st;
-    rec->plan->computeShadingNormals(rec->normals.data(), rec->positions.data());
-    return Status::ok();
+    return rec->surface->evaluate(rec->positions.data(), rec->normals.data(), n);
 }
 
 }  // namespace
 
-Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose)
+Status reconstructPose(Reconstruction* rec, const Pose& pose)
 {
-    Status st = animator->pose(pose.animation, pose.time, pose.method);
+    if (!rec || !rec->surface)
+        return Status(StatusCode::InvalidArgument, "reconstructPose: no reconstruction");
+    rec->surface->setSkinningMethod(pose.method);
+    Status st = rec->surface->setAnimationTime(pose.animation, pose.time);
+    return st ? evaluate(rec) : st;
+}
+
+Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, const SurfaceOptions& options,
+                   const Pose* pose)
+{
+    Reconstruction rec;
+    SurfaceOptions o = options;
+    if (pose)
+        o.method = pose->method;
+    Status st = Surface::create(&rec.surface, rig, map, o);
     if (!st)
         return st;
-    rec->controlNormals = animator->normals();
-    return evaluate(rec, animator->positions().data(), rig.mesh.positions.size());
+    if (pose && !rig.skeleton.empty())
+        st = reconstructPose(&rec, *pose);
+    else
+        st = evaluate(&rec);
+    if (!st)
+        return st;
+    *out = std::move(rec);
+    return Status::ok();
 }
 
 Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
                    float scale, const Pose* pose)
 {
-    Reconstruction rec;
-    Status st = Plan::create(&rec.plan, rig.mesh, scheme, level);
-    if (!st)
-        return st;
-    if (map && !(st = applyRigDisplacement(rec.plan.get(), rig, map, scale)))
-        return st;
-    const ControlMesh& cm = rig.mesh;
-    if (pose && !rig.skeleton.empty()) {
-        Animator animator;
-        if (!(st = animator.init(rig.skeleton, rig.mesh)))
-            return st;
-        if (!(st = reconstructPose(&rec, &animator, rig, *pose)))
-            return st;
-        *out = std::move(rec);
-        return Status::ok();
-    }
-    rec.controlNormals.resize(cm.positions.size());
-    computeControlNormals(rec.controlNormals.data(), cm.positions.data(), cm.positions.size(), cm.triangles.data(),
-                          cm.faceCount());
-    if (!(st = evaluate(&rec, cm.positions.data(), cm.positions.size())))
-        return st;
-    *out = std::move(rec);
-    return Status::ok();
+    SurfaceOptions options;
+    options.level = level;
+    options.scheme = scheme;
+    options.schemeGiven = true;
+    options.displace = map != nullptr;
+    options.scale = scale;
+    return reconstruct(out, rig, map, options, pose);
 }
 
 double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const std::string& outputExt, bool scene,
@@ -88,7 +85,7 @@ double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const s
 Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstruction& rec)
 {
     const std::string path = pathFile.string();
-    const Plan& plan = *rec.plan;
+    const Plan& plan = rec.plan();
     MeshView view;
     view.positions = rec.positions.data();
     view.normals = rec.normals.data();

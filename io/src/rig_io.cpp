@@ -1129,6 +1129,8 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                "Strata rig, another tool dropped the layer and the displacement is gone");
     }
     rig.source = std::move(doc);
+    if (!rig.hasDisplacement)
+        rig.layerMissing = missingLayerCause(rig);
     *out = std::move(rig);
     return Status::ok();
 }

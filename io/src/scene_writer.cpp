@@ -82,7 +82,7 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
         return Status(StatusCode::InvalidArgument, path + ": a scene must be written as .glb or .gltf");
     if (!rig.source || rig.parts.empty() || rig.fileCorners.size() != rig.mesh.triangles.size())
         return Status(StatusCode::InvalidArgument, path + ": the rig was not loaded from a glTF scene");
-    const Plan& plan = *rec.plan;
+    const Plan& plan = rec.plan();
     if (rec.positions.size() != plan.refinedVertexCount() || rec.normals.size() != plan.refinedVertexCount())
         return Status(StatusCode::InvalidArgument, path + ": the reconstruction has not been evaluated");
     for (const glm::vec3& p : rec.positions)

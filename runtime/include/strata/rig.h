@@ -82,6 +82,10 @@ struct Rig {
     uint64_t fileUVHash = 0;
     std::shared_ptr<const SourceDocument> source;  ///< null unless loaded from glTF
     bool hasDisplacement = false;     ///< false for a plain glTF without a strata block
+    /// Loaded from glTF without the layer: why (a tool dropped it, or the
+    /// file was never baked).  Surface refuses such a rig unless asked for
+    /// the bare cage, so a stripped file is never drawn as the baked surface.
+    std::string layerMissing;
     DisplacementInfo displacement;
     Skeleton skeleton;                ///< empty when the mesh is not skinned
     std::vector<std::string> warnings;  ///< tolerated problems found while loading

@@ -8,6 +8,7 @@
 #include "strata/plan.h"
 #include "strata/rig.h"
 #include "strata/status.h"
+#include "strata/surface.h"
 
 #include <memory>
 #include <string>
@@ -16,11 +17,12 @@
 namespace strata {
 namespace io {
 
+/// A rig's Surface and one evaluated frame of it.
 struct Reconstruction {
-    std::unique_ptr<Plan> plan;
-    std::vector<glm::vec3> controlNormals;  ///< of the pose that was evaluated
-    std::vector<glm::vec3> positions;       ///< displaced refined positions
-    std::vector<glm::vec3> normals;         ///< shading normals of the displaced mesh
+    std::unique_ptr<Surface> surface;
+    std::vector<glm::vec3> positions;  ///< displaced refined positions
+    std::vector<glm::vec3> normals;    ///< shading normals of the displaced mesh
+    const Plan& plan() const { return surface->plan(); }
 };
 
 /// A pose of a skinned rig: animation index (-1: the nodes' rest pose) and time.
@@ -30,13 +32,18 @@ struct Pose {
     SkinningMethod method = SkinningMethod::Linear;
 };
 
-/// Builds a plan for rig.mesh, applies `map` (nullptr: no displacement) scaled
-/// by `scale`, and evaluates the bind pose, or `pose` when the rig is skinned.
+/// A Surface of the rig (options as Surface::create; `map` as there),
+/// evaluated in the bind pose, or at `pose` when the rig is skinned.
+Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, const SurfaceOptions& options,
+                   const Pose* pose = nullptr);
+
+/// The same with the displacement applied when `map` is given (an empty
+/// map for a rig that stores its values per vertex) in `scheme` at `level`.
 Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* map, Scheme scheme, int level,
                    float scale = 1.0f, const Pose* pose = nullptr);
 
-/// Re-evaluates an existing reconstruction at another pose (same plan).
-Status reconstructPose(Reconstruction* rec, Animator* animator, const Rig& rig, const Pose& pose);
+/// Re-evaluates an existing reconstruction at another pose (same surface).
+Status reconstructPose(Reconstruction* rec, const Pose& pose);
 
 /// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
 Status writeReconstruction(const std::filesystem::path& path, const Reconstruction& rec);

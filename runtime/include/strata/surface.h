@@ -1,0 +1,150 @@
+// Strata runtime: a rig at a level, posed and evaluated every frame.
+//
+// Surface is the one object every front end draws through: strata-reconstruct
+// (io::reconstruct), the C API, the Python module, the viewer and the benches.
+// It holds the plan in the rig's own scheme, the rig's displacements, the
+// animator, the control normals of the current pose and the frame evaluator,
+// in the one order that gives the baked surface:
+//
+//     Plan::create(rig.mesh, rig.displacement.scheme, level)
+//     applyRigDisplacement(plan, rig, map)        once
+//     pose -> control positions -> computeControlNormals
+//     FrameEvaluator::evaluate                     every frame
+//
+// Inputs that would draw another surface are errors, never a different
+// surface: a scheme other than the one the rig was baked against (with its
+// displacement), a glTF whose layer a tool dropped, a map-coded rig without
+// its map, joint matrices or control positions of another count, buffers of
+// another size.
+//
+//     std::unique_ptr<strata::Surface> surface;
+//     strata::Surface::create(&surface, rig, &map);        // rig, map: io::loadRig
+//     surface->setAnimationTime(0, t);                      // or joint matrices, positions
+//     surface->evaluate(positions, normals, surface->vertexCount());
+#pragma once
+
+#include "strata/animation.h"
+#include "strata/displacement_map.h"
+#include "strata/frame.h"
+#include "strata/plan.h"
+#include "strata/rig.h"
+#include "strata/status.h"
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <memory>
+#include <vector>
+
+namespace strata {
+
+struct SurfaceOptions {
+    /// Refinement level 0..kMaxLevel; -1: the rig's recommended level (0
+    /// for a rig without displacement).
+    int level = -1;
+    /// false: the bare control mesh refined, without the displacement (then
+    /// any scheme may be asked for).
+    bool displace = true;
+    /// Only with displace = false: the scheme to refine the bare cage in.
+    /// With the displacement the rig's own scheme is used, and asking for
+    /// another (schemeGiven) is refused.
+    Scheme scheme = Scheme::Linear;
+    bool schemeGiven = false;
+    /// Multiplies every displacement (1: the baked surface).
+    float scale = 1.0f;
+    /// The order of the frame's vertices (frame.h).
+    FrameLayout layout = FrameLayout::Plan;
+    /// How setAnimationTime skins the control mesh.
+    SkinningMethod method = SkinningMethod::Linear;
+};
+
+class Surface {
+public:
+    /// The rig at options.level in its own scheme with its displacement,
+    /// in the bind pose (control positions as stored).  `map` is the rig's
+    /// map when rigNeedsMap(rig) (io::loadRigDisplacementMap), else unused
+    /// and may be null; for a rig assembled in memory without a layer
+    /// (hasDisplacement false, not from a file) it is the caller's own map,
+    /// sampled in options.scheme.  The surface keeps its own copy of the control mesh
+    /// and skeleton: the rig and map need not outlive it.
+    static Status create(std::unique_ptr<Surface>* out, const Rig& rig, const DisplacementMap* map,
+                         const SurfaceOptions& options = {});
+    /// What create would refuse about the rig and options alone, before any
+    /// work (a tool checks this before it reads the map or writes a file):
+    /// a level out of range, a scheme other than the baked one, a dropped
+    /// layer.  Messages name no file; front ends add it and their advice.
+    static Status check(const Rig& rig, const SurfaceOptions& options);
+    /// The level create uses for these options.
+    static int levelFor(const Rig& rig, const SurfaceOptions& options);
+    /// The scheme create uses for these options.
+    static Scheme schemeFor(const Rig& rig, const SurfaceOptions& options);
+    ~Surface();
+    Surface(const Surface&) = delete;
+    Surface& operator=(const Surface&) = delete;
+
+    int level() const;
+    Scheme scheme() const;
+    /// Whether the rig's displacement is applied.
+    bool displaced() const { return displaced_; }
+    /// Refined vertices: the size of every per-vertex buffer evaluate writes.
+    size_t vertexCount() const;
+    size_t triangleCount() const;
+    /// The refined triangles (3 per triangle), indexing the frame's vertices.
+    const std::vector<uint32_t>& triangles() const;
+    /// Per frame vertex, its refined vertex in the plan (the identity in the
+    /// plan's layout): to place per-vertex attributes.
+    const std::vector<uint32_t>& vertexOrder() const;
+    /// The refined UVs (face-varying: values and 3 indices per triangle,
+    /// in the plan's vertex order); empty when the rig has no UVs.
+    void refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* indices) const;
+
+    size_t controlVertexCount() const { return mesh_.vertexCount(); }
+    /// Skin joints (0 when the rig is not skinned): setJointMatrices' count.
+    size_t jointCount() const { return skeleton_.skin.joints.size(); }
+    size_t animationCount() const { return skeleton_.animations.size(); }
+
+    /// The bind pose: control positions as stored.
+    Status setRestPose();
+    /// The rig's animation `animation` at `time` seconds (-1: the nodes' rest
+    /// pose), skinned with options.method.
+    Status setAnimationTime(int animation, float time);
+    /// The skinning setAnimationTime uses from now on.
+    void setSkinningMethod(SkinningMethod method) { method_ = method; }
+    /// Skin matrices an engine computed (world * inverse bind, one per joint
+    /// in the rig's order), linear blend skinning.
+    Status setJointMatrices(const glm::mat4* matrices, size_t count);
+    /// Control positions an engine deformed itself.
+    Status setControlPositions(const glm::vec3* positions, size_t count);
+
+    /// The current pose's displaced positions and (normals not null) shading
+    /// normals into caller buffers of `count` = vertexCount() elements, on
+    /// `threads` threads; bit-identical for any thread count.  Not
+    /// re-entrant: serialise calls on one surface.
+    Status evaluate(glm::vec3* positions, glm::vec3* normals, size_t count, int threads = 1);
+
+    /// The current pose's control positions and normals.
+    const std::vector<glm::vec3>& controlPositions() const { return controlPositions_; }
+    const std::vector<glm::vec3>& controlNormals() const { return controlNormals_; }
+    /// The skin matrices of the last setAnimationTime or setJointMatrices.
+    const std::vector<glm::mat4>& skinMatrices() const { return skinMatrices_; }
+    /// The plan (for GPU upload and refined attributes) and its
+    /// displacements, already applied.
+    const Plan& plan() const { return *plan_; }
+
+private:
+    Surface() = default;
+    void updateNormals();
+
+    ControlMesh mesh_;
+    Skeleton skeleton_;
+    SkinningMethod method_ = SkinningMethod::Linear;
+    bool displaced_ = false;
+    std::unique_ptr<Plan> plan_;
+    std::unique_ptr<Animator> animator_;  // refers to mesh_ and skeleton_
+    std::unique_ptr<FrameEvaluator> frame_;
+    std::vector<glm::vec3> controlPositions_, controlNormals_;
+    std::vector<glm::mat4> skinMatrices_;
+};
+
+}  // namespace strata

@@ -1,0 +1,190 @@
+// Surface: the one sequence from a rig to a displaced frame (surface.h).
+#include "strata/surface.h"
+
+#include "strata/normals.h"
+
+#include <cstring>
+#include <string>
+
+namespace strata {
+
+int Surface::levelFor(const Rig& rig, const SurfaceOptions& options)
+{
+    if (options.level >= 0)
+        return options.level;
+    return rig.hasDisplacement && options.displace ? rig.displacement.recommendedLevel : 0;
+}
+
+Scheme Surface::schemeFor(const Rig& rig, const SurfaceOptions& options)
+{
+    if (rig.hasDisplacement && options.displace)
+        return rig.displacement.scheme;
+    return options.schemeGiven ? options.scheme : Scheme::Linear;
+}
+
+Status Surface::check(const Rig& rig, const SurfaceOptions& options)
+{
+    const int level = levelFor(rig, options);
+    if (level < 0 || level > kMaxLevel)
+        return Status(StatusCode::InvalidArgument,
+                      "level " + std::to_string(level) + " is out of range (0.." + std::to_string(kMaxLevel) + ")");
+    if (!options.displace)
+        return Status::ok();
+    // A glTF whose layer is gone is not drawn as if it were the baked
+    // surface: the last tool to touch the file may have dropped it.
+    if (!rig.hasDisplacement && !rig.layerMissing.empty())
+        return Status(StatusCode::InvalidData, "no displacement layer (" + rig.layerMissing + ")");
+    if (rig.hasDisplacement && options.schemeGiven && options.scheme != rig.displacement.scheme)
+        return Status(StatusCode::InvalidArgument,
+                      std::string("the rig was baked against the ") + schemeName(rig.displacement.scheme) +
+                          " scheme, and its displacement drawn in the " + schemeName(options.scheme) +
+                          " scheme is another surface");
+    if (!(options.scale == options.scale) || options.scale > 1e6f || options.scale < -1e6f)
+        return Status(StatusCode::InvalidArgument, "the displacement scale is not a finite number in -1e6..1e6");
+    return Status::ok();
+}
+
+Status Surface::create(std::unique_ptr<Surface>* out, const Rig& rig, const DisplacementMap* map,
+                       const SurfaceOptions& options)
+{
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "Surface::create: null output");
+    if (Status st = check(rig, options); !st)
+        return st;
+    std::unique_ptr<Surface> s(new Surface());
+    s->mesh_ = rig.mesh;
+    s->skeleton_ = rig.skeleton;
+    s->method_ = options.method;
+    // A rig assembled by hand (not loaded from a file, no layer recorded)
+    // with a map of the caller's: the map is sampled in the scheme asked for.
+    const bool callersMap = !rig.hasDisplacement && !rig.source && rig.layerMissing.empty() && map &&
+                            !map->texels.empty();
+    s->displaced_ = options.displace && (rig.hasDisplacement || callersMap);
+    Status st = Plan::create(&s->plan_, s->mesh_, schemeFor(rig, options), levelFor(rig, options));
+    if (!st)
+        return st;
+    if (s->displaced_ && rigNeedsMap(rig) && (!map || map->texels.empty()))
+        return Status(StatusCode::InvalidArgument,
+                      "the rig samples a displacement map and none was given (io::loadRigDisplacementMap)");
+    if (s->displaced_ && !(st = applyRigDisplacement(s->plan_.get(), rig, map, options.scale)))
+        return st;
+    if (!s->skeleton_.empty()) {
+        s->animator_ = std::make_unique<Animator>();
+        if (!(st = s->animator_->init(s->skeleton_, s->mesh_)))
+            return st;
+    }
+    s->frame_ = std::make_unique<FrameEvaluator>(*s->plan_, options.layout);
+    if (!(st = s->setRestPose()))
+        return st;
+    *out = std::move(s);
+    return Status::ok();
+}
+
+Surface::~Surface() = default;
+
+int Surface::level() const
+{
+    return plan_->level();
+}
+
+Scheme Surface::scheme() const
+{
+    return plan_->scheme();
+}
+
+size_t Surface::vertexCount() const
+{
+    return plan_->refinedVertexCount();
+}
+
+size_t Surface::triangleCount() const
+{
+    return plan_->refinedFaceCount();
+}
+
+const std::vector<uint32_t>& Surface::triangles() const
+{
+    return frame_->layout() == FrameLayout::Plan ? plan_->refinedTriangles() : frame_->triangles();
+}
+
+const std::vector<uint32_t>& Surface::vertexOrder() const
+{
+    return frame_->vertexOrder();
+}
+
+void Surface::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* indices) const
+{
+    plan_->refinedUVs(values, indices);
+}
+
+void Surface::updateNormals()
+{
+    controlNormals_.assign(controlPositions_.size(), glm::vec3(0.0f));
+    computeControlNormals(controlNormals_.data(), controlPositions_.data(), controlPositions_.size(),
+                          mesh_.triangles.data(), mesh_.faceCount());
+}
+
+Status Surface::setRestPose()
+{
+    controlPositions_ = mesh_.positions;
+    skinMatrices_.clear();
+    updateNormals();
+    return Status::ok();
+}
+
+Status Surface::setAnimationTime(int animation, float time)
+{
+    if (!animator_)
+        return Status(StatusCode::InvalidArgument, "the rig has no skin to animate");
+    if (animation < -1 || animation >= int(skeleton_.animations.size()))
+        return Status(StatusCode::InvalidArgument, "animation " + std::to_string(animation) + " does not exist (the rig has " +
+                                                       std::to_string(skeleton_.animations.size()) + ")");
+    if (!(time == time))
+        return Status(StatusCode::InvalidArgument, "the animation time is not a number");
+    Status st = animator_->pose(animation, time, method_);
+    if (!st)
+        return st;
+    controlPositions_ = animator_->positions();
+    controlNormals_ = animator_->normals();
+    skinMatrices_ = animator_->skinMatrices();
+    return Status::ok();
+}
+
+Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
+{
+    if (skeleton_.empty())
+        return Status(StatusCode::InvalidArgument, "the rig has no skin to pose");
+    if (!matrices || count != skeleton_.skin.joints.size())
+        return Status(StatusCode::InvalidArgument, std::to_string(matrices ? count : 0) + " joint matrices for a skin of " +
+                                                       std::to_string(skeleton_.skin.joints.size()) + " joints");
+    skinMatrices_.assign(matrices, matrices + count);
+    controlPositions_.resize(mesh_.positions.size());
+    skinLinear(controlPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights,
+               skinMatrices_.data());
+    updateNormals();
+    return Status::ok();
+}
+
+Status Surface::setControlPositions(const glm::vec3* positions, size_t count)
+{
+    if (!positions || count != mesh_.positions.size())
+        return Status(StatusCode::InvalidArgument, std::to_string(positions ? count : 0) + " control positions for " +
+                                                       std::to_string(mesh_.positions.size()) + " control vertices");
+    controlPositions_.assign(positions, positions + count);
+    skinMatrices_.clear();
+    updateNormals();
+    return Status::ok();
+}
+
+Status Surface::evaluate(glm::vec3* positions, glm::vec3* normals, size_t count, int threads)
+{
+    if (!positions)
+        return Status(StatusCode::InvalidArgument, "Surface::evaluate: no position buffer");
+    if (count != vertexCount())
+        return Status(StatusCode::InvalidArgument, "buffers of " + std::to_string(count) + " vertices for a surface of " +
+                                                       std::to_string(vertexCount()) + " refined vertices");
+    return frame_->evaluate(positions, normals, nullptr, controlPositions_.data(), controlNormals_.data(),
+                            controlPositions_.size(), threads < 1 ? 1 : threads);
+}
+
+}  // namespace strata
