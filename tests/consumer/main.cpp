@@ -1,23 +1,33 @@
-// Uses only the core runtime: refine a tetrahedron to level 2 and displace it.
-#include <strata/normals.h>
-#include <strata/plan.h>
+// Uses only the core runtime: a tetrahedron assembled in memory, its
+// Surface at level 2 (34 vertices, 64 triangles), posed by control
+// positions, evaluated into our own buffers.
+#include <strata/surface.h>
 
 #include <cstdio>
 
 int main()
 {
-    strata::ControlMesh mesh;
-    mesh.positions = {{1, 1, 1}, {-1, -1, 1}, {-1, 1, -1}, {1, -1, -1}};
-    mesh.triangles = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
-    std::unique_ptr<strata::Plan> plan;
-    strata::Status st = strata::Plan::create(&plan, mesh, strata::Scheme::Linear, 2);
+    strata::Rig rig;
+    rig.mesh.positions = {{1, 1, 1}, {-1, -1, 1}, {-1, 1, -1}, {1, -1, -1}};
+    rig.mesh.triangles = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
+    strata::SurfaceOptions options;
+    options.level = 2;
+    std::unique_ptr<strata::Surface> surface;
+    strata::Status st = strata::Surface::create(&surface, rig, nullptr, options);
+    std::vector<glm::vec3> moved = rig.mesh.positions, out;
+    for (glm::vec3& p : moved)
+        p *= 2.0f;
+    if (st)
+        st = surface->setControlPositions(moved.data(), moved.size());
+    if (st) {
+        out.resize(surface->vertexCount());
+        st = surface->evaluate(out.data(), nullptr, out.size());
+    }
     if (!st) {
         std::fprintf(stderr, "%s\n", st.message().c_str());
         return 1;
     }
-    std::vector<glm::vec3> normals(4), out(plan->refinedVertexCount());
-    strata::computeControlNormals(normals.data(), mesh.positions.data(), 4, mesh.triangles.data(), 4);
-    st = plan->evaluate(out.data(), nullptr, 0, out.size(), mesh.positions.data(), normals.data(), 4);
-    std::printf("%zu vertices, %zu triangles\n", out.size(), plan->refinedFaceCount());
-    return st && out.size() == 34 && plan->refinedFaceCount() == 64 ? 0 : 1;
+    std::printf("%zu vertices, %zu triangles\n", out.size(), surface->triangleCount());
+    // The scaled tetrahedron's vertices are the first four refined ones.
+    return out.size() == 34 && surface->triangleCount() == 64 && out[0] == moved[0] ? 0 : 1;
 }

@@ -1,6 +1,7 @@
 /* Strata C API (C99): load a rig, refine it, pose it, evaluate displaced
  * positions and normals into buffers the caller owns.  For engines that are
- * not C++ (P/Invoke, Rust, Zig, C).  Link Strata::io.
+ * not C++ (P/Invoke, Rust, Zig, C).  Link Strata::c: libstrata.so, which
+ * exports these functions and nothing else (pkg-config --libs strata).
  *
  *   StrataRig* rig;  StrataSurface* surface;
  *   if (strata_rig_load("hero.glb", &rig) != STRATA_OK) puts(strata_last_error());
