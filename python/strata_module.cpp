@@ -8,6 +8,7 @@
 // Errors raise strata.Error (a RuntimeError) carrying the tools' one-line
 // message.  Arrays are numpy float32 [N, 3] and uint32 [M, 3] that own the
 // reconstruction's buffers (no copy).
+#include "strata/baker/bake_options.h"
 #include "strata/baker/bake_rig.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
@@ -114,60 +115,40 @@ std::unique_ptr<PyRig> loadRig(const std::string& path)
     return r;
 }
 
-py::dict bake(const std::string& high, const std::string& control, const std::string& out, const py::kwargs& kw)
+// A keyword's value as the option table's text: bools as true/false, a
+// pair of levels as A:B, numbers as Python prints them.
+std::string optionText(const py::handle& v)
 {
-    baker::BakeRequest req;
-    req.high = high;
-    req.control = control;
-    req.output = out;
+    if (py::isinstance<py::bool_>(v))
+        return v.cast<bool>() ? "true" : "false";
+    if (py::isinstance<py::tuple>(v) || py::isinstance<py::list>(v)) {
+        const py::sequence t = v.cast<py::sequence>();
+        if (t.size() != 2)
+            throw StrataError("a pair of levels (from, to) is expected, not " + py::str(v).cast<std::string>());
+        return py::str(t[0]).cast<std::string>() + ":" + py::str(t[1]).cast<std::string>();
+    }
+    if (py::isinstance<py::str>(v) || py::isinstance<py::int_>(v) || py::isinstance<py::float_>(v))
+        return py::str(v).cast<std::string>();
+    if (py::hasattr(v, "__fspath__"))
+        return py::str(v.attr("__fspath__")()).cast<std::string>();
+    throw StrataError("a value of type " + py::str(v.get_type().attr("__name__")).cast<std::string>() +
+                      " is not an option value");
+}
+
+py::dict bake(const py::object& high, const py::object& control, const py::object& out, const py::kwargs& kw)
+{
+    // strata-bake's option table: the same names, checks and defaults.
+    baker::BakeRequest req = baker::defaultBakeRequest();
+    const std::pair<const char*, const py::object*> positional[] = {{"high", &high}, {"control", &control},
+                                                                     {"out", &out}};
+    for (const auto& p : positional)
+        check(baker::applyBakeOption(&req, *baker::findBakeOption(p.first), p.first, optionText(*p.second)));
     for (const auto& item : kw) {
         const std::string key = item.first.cast<std::string>();
-        const py::handle v = item.second;
-        if (key == "control_faces")
-            req.controlFaces = v.cast<size_t>();
-        else if (key == "uv")
-            req.uv = v.cast<std::string>();
-        else if (key == "scheme") {
-            if (!parseScheme(v.cast<std::string>(), &req.options.scheme))
-                throw StrataError("scheme expects \"linear\" or \"smooth\"");
-            req.schemeGiven = true;
-        } else if (key == "threads") {
-            req.options.threads = v.cast<int>();
-            if (req.options.threads < 1 || req.options.threads > 256)  // as strata-bake --threads
-                throw StrataError("threads expects 1..256, not " + std::to_string(req.options.threads));
-        } else if (key == "tolerance") {
-            req.tolerance = v.cast<double>();
-            if (!(req.tolerance >= 0.0 && req.tolerance < 1.0))  // as strata-bake --tolerance
-                throw StrataError("tolerance expects a fraction of the diagonal in [0, 1)");
-        } else if (key == "size") {
-            req.options.size = v.cast<int>();
-            if (req.options.size != 0 && (req.options.size < 16 || req.options.size > 8192))  // as --size
-                throw StrataError("size expects 0 (automatic) or 16..8192, not " + std::to_string(req.options.size));
-        }
-        else if (key == "map_coding")
-            req.mapCoding = v.cast<std::string>();
-        else if (key == "mesh_coding")
-            req.meshCoding = v.cast<std::string>();
-        else if (key == "compress")
-            req.compress = v.cast<bool>();
-        else if (key == "exr")
-            req.exr = v.cast<bool>();
-        else if (key == "skeleton")
-            req.skeleton = v.cast<std::string>();
-        else if (key == "close_holes")
-            req.closeHoles = v.cast<bool>();
-        else if (key == "fit")
-            req.fitCage = v.cast<bool>();
-        else if (key == "max_memory")
-            req.maxMemoryMB = v.cast<double>();
-        else if (key == "report")
-            req.report = v.cast<std::string>();
-        else if (key == "error_levels") {
-            const py::tuple t = v.cast<py::tuple>();
-            req.errorFrom = t[0].cast<int>();
-            req.errorTo = t[1].cast<int>();
-        } else
-            throw StrataError("bake() got an unknown option \"" + key + "\"");
+        const baker::BakeOption* option = baker::findBakeOption(key);
+        if (!option || !option->keyword || key != option->keyword || option->required)
+            throw StrataError("bake() got an unknown option \"" + key + "\" (see help(strata.bake))");
+        check(baker::applyBakeOption(&req, *option, key, optionText(item.second)));
     }
     baker::BakeResult result;
     Status st;
@@ -195,10 +176,14 @@ PYBIND11_MODULE(strata, m)
     (void)py::array_t<float>(0);
     m.attr("__version__") = STRATA_VERSION;
     py::register_exception<StrataError>(m, "Error", PyExc_RuntimeError);
-    m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"),
-          "Bakes HIGH onto CONTROL (a mesh, a rig, or \"auto\") into the rig OUT; options mirror strata-bake's flags "
-          "(tolerance, control_faces, uv, size, scheme, threads, map_coding, mesh_coding, compress, exr, skeleton, close_holes, fit, max_memory, "
-          "report, error_levels=(from, to)).  Returns the bake report as a dict.");
+    static const std::string bakeDoc =
+        "bake(high, control, out, **options) -> dict\n\n"
+        "Bakes the capture HIGH onto CONTROL (a mesh, a rig, or \"auto\") into the rig OUT, as strata-bake "
+        "does, and returns the bake report as a dict (with its warnings, the files written and the summary).  "
+        "Paths may be str or os.PathLike.  Raises strata.Error with strata-bake's one-line message.\n\n"
+        "Options (keyword (type, default; the strata-bake flag): meaning):\n" +
+        baker::bakeOptionsDocstring();
+    m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"), bakeDoc.c_str());
     py::class_<PyRig>(m, "Rig")
         .def_readonly("path", &PyRig::path)
         .def_property_readonly("joint_names", &PyRig::jointNames)

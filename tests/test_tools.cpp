@@ -282,3 +282,24 @@ TEST(Examples, EngineProgramsDrawWhatStrataReconstructWrites)
     const Result r = run(std::string(STRATA_EXAMPLE_ENGINE_EXE) + " " + q(dir + "/spot.glb") + " " + q(dir + "/x.obj"));
     EXPECT_NE(r.output.find("level"), std::string::npos) << r.output;
 }
+
+// docs/CLI.md's option table is strata-bake's own (--help-options), which
+// is also Python's docstring: the copy in the docs is current.
+TEST(Tools, CliReferenceIsGeneratedFromTheOptionTable)
+{
+    const Result r = run(std::string(STRATA_BAKE_EXE) + " --help-options");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string doc = strata::test::readText(std::string(STRATA_SOURCE_DIR) + "/docs/CLI.md");
+    const std::string begin = "<!-- generated: strata-bake --help-options -->\n", end = "<!-- end generated -->";
+    const size_t a = doc.find(begin), b = doc.find(end);
+    ASSERT_NE(a, std::string::npos);
+    ASSERT_NE(b, std::string::npos);
+    EXPECT_EQ(doc.substr(a + begin.size(), b - a - begin.size()), r.output)
+        << "docs/CLI.md is stale: paste `strata-bake --help-options` between its markers";
+    // Every flag the usage line names has a row.
+    const Result usage = run(std::string(STRATA_BAKE_EXE) + " --help");
+    for (const char* flag : {"--tolerance", "--control-faces", "--mesh-coding", "--no-fit", "--png16", "--max-memory"}) {
+        EXPECT_NE(usage.output.find(flag), std::string::npos) << flag;
+        EXPECT_NE(r.output.find(std::string("`") + flag), std::string::npos) << flag;
+    }
+}
