@@ -17,7 +17,12 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -143,20 +148,115 @@ py::dict bake(const py::object& high, const py::object& control, const py::objec
                                                                      {"out", &out}};
     for (const auto& p : positional)
         check(baker::applyBakeOption(&req, *baker::findBakeOption(p.first), p.first, optionText(*p.second)));
+    py::object progress = py::none();
     for (const auto& item : kw) {
         const std::string key = item.first.cast<std::string>();
+        if (key == "progress") {  // Python's own: a callable, not a strata-bake flag
+            progress = py::reinterpret_borrow<py::object>(item.second);
+            if (!progress.is_none() && !py::isinstance<py::function>(progress) && !py::hasattr(progress, "__call__"))
+                throw StrataError("progress expects a callable progress(stage, seconds) or None");
+            continue;
+        }
         const baker::BakeOption* option = baker::findBakeOption(key);
         if (!option || !option->keyword || key != option->keyword || option->required)
             throw StrataError("bake() got an unknown option \"" + key + "\" (see help(strata.bake))");
         check(baker::applyBakeOption(&req, *option, key, optionText(item.second)));
     }
-    baker::BakeResult result;
-    Status st;
+    // The bake runs on its own thread with the GIL released (other Python
+    // threads run, and bake at once); this thread wakes every 100 ms to pass
+    // progress events to Python and to look for Ctrl-C, which cancels the
+    // bake at its next stage boundary: nothing is written, and
+    // KeyboardInterrupt is raised once it has stopped.
+    if (progress.is_none() && py::module_::import("sys").attr("stderr").attr("isatty")().cast<bool>())
+        progress = py::cpp_function([](const std::string& stage, double seconds) {
+            py::print(seconds < 0.0 ? "strata.bake: " + stage + "..."
+                                    : "strata.bake: " + stage + " done in " + std::to_string(seconds).substr(0, 4) +
+                                          " s",
+                      py::arg("file") = py::module_::import("sys").attr("stderr"), py::arg("flush") = true);
+        });
+    struct Shared {
+        std::mutex m;
+        std::condition_variable cv;
+        std::vector<std::pair<std::string, double>> events;
+        bool done = false;
+        std::atomic<bool> cancel{false};
+        baker::BakeResult result;
+        Status status;
+    };
+    auto shared = std::make_shared<Shared>();
+    req.cancel = &shared->cancel;
+    const baker::BakeProgress onStage = [shared](const char* stage, double seconds) {
+        std::lock_guard<std::mutex> lock(shared->m);
+        shared->events.emplace_back(stage, seconds);
+        shared->cv.notify_all();
+    };
+    std::thread worker([shared, req, onStage] {
+        Status st;
+        try {
+            st = baker::bakeRig(req, &shared->result, &onStage);
+        } catch (const std::exception& e) {
+            st = Status(StatusCode::InvalidData, std::string("unexpected failure: ") + e.what());
+        }
+        std::lock_guard<std::mutex> lock(shared->m);
+        shared->status = st;
+        shared->done = true;
+        shared->cv.notify_all();
+    });
+    bool interrupted = false;
+    py::object interruptError;
+    // A progress callback that raises cancels the bake too: the worker is
+    // always joined before this function leaves.
+    auto stopWorker = [&] {
+        shared->cancel = true;
+        py::gil_scoped_release unlocked;
+        if (worker.joinable())
+            worker.join();
+    };
+    try {
+    for (;;) {
+        std::vector<std::pair<std::string, double>> events;
+        bool done = false;
+        {
+            py::gil_scoped_release unlocked;
+            std::unique_lock<std::mutex> lock(shared->m);
+            shared->cv.wait_for(lock, std::chrono::milliseconds(100),
+                                [&] { return shared->done || !shared->events.empty(); });
+            events.swap(shared->events);
+            done = shared->done;
+        }
+        for (const auto& e : events)
+            if (!progress.is_none() && !interrupted)
+                progress(e.first, e.second);
+        if (done)
+            break;
+        if (!interrupted && PyErr_CheckSignals() != 0) {
+            interrupted = true;
+            shared->cancel = true;
+            // Keep the exception (KeyboardInterrupt) to raise once the bake has stopped.
+            PyObject *type, *value, *trace;
+            PyErr_Fetch(&type, &value, &trace);
+            PyErr_NormalizeException(&type, &value, &trace);
+            if (trace)
+                PyException_SetTraceback(value, trace);
+            interruptError = py::reinterpret_steal<py::object>(value);
+            Py_XDECREF(type);
+            Py_XDECREF(trace);
+        }
+    }
+    } catch (...) {
+        stopWorker();
+        throw;
+    }
     {
         py::gil_scoped_release unlocked;
-        st = baker::bakeRig(req, &result);
+        worker.join();
     }
-    check(st);
+    if (interrupted) {
+        PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(interruptError.ptr())), interruptError.ptr());
+        throw py::error_already_set();
+    }
+    check(shared->status);
+    baker::BakeResult& result = shared->result;
     py::dict report = py::module_::import("json").attr("loads")(result.report);
     report["warnings"] = result.warnings;
     report["written"] = result.written;
@@ -180,7 +280,10 @@ PYBIND11_MODULE(strata, m)
         "bake(high, control, out, **options) -> dict\n\n"
         "Bakes the capture HIGH onto CONTROL (a mesh, a rig, or \"auto\") into the rig OUT, as strata-bake "
         "does, and returns the bake report as a dict (with its warnings, the files written and the summary).  "
-        "Paths may be str or os.PathLike.  Raises strata.Error with strata-bake's one-line message.\n\n"
+        "Paths may be str or os.PathLike.  Raises strata.Error with strata-bake's one-line message.  "
+        "progress (callable(stage: str, seconds: float) or None, default: stage lines on stderr when it is a "
+        "terminal): called when a stage has run a second (seconds < 0) and when it ends.  Ctrl-C (KeyboardInterrupt) "
+        "cancels the bake at its next stage boundary and writes nothing.  The GIL is released while it runs.\n\n"
         "Options (keyword (type, default; the strata-bake flag): meaning):\n" +
         baker::bakeOptionsDocstring();
     m.def("bake", &bake, py::arg("high"), py::arg("control"), py::arg("out"), bakeDoc.c_str());

@@ -8,6 +8,8 @@
 #include "strata/segment_deformer.h"
 #include "test_util.h"
 
+#include <atomic>
+
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -647,6 +649,21 @@ TEST(BakeLibrary, BakeRigWritesWhatTheToolWrites)
     EXPECT_FALSE(bad.isOk());
     EXPECT_NE(bad.message().find("missing.obj"), std::string::npos) << bad.message();
     EXPECT_FALSE(strata::test::fileExists(dir + "/none.glb"));
+    // A cancelled bake (the flag Python sets on Ctrl-C) writes nothing, and
+    // an earlier rig of the same name stays as it was.
+    request.high = dir + "/high.obj";
+    request.output = dir + "/lib.glb";
+    request.exr = true;
+    std::atomic<bool> cancel{true};
+    request.cancel = &cancel;
+    const std::string before = strata::test::readText(dir + "/lib.glb");
+    const size_t files = strata::test::filesIn(dir, true);
+    const strata::Status cancelled = strata::baker::bakeRig(request, &result);
+    EXPECT_EQ(cancelled.code(), strata::StatusCode::Cancelled) << cancelled.message();
+    EXPECT_NE(cancelled.message().find("cancelled"), std::string::npos) << cancelled.message();
+    EXPECT_EQ(strata::test::readText(dir + "/lib.glb"), before);
+    EXPECT_FALSE(strata::test::fileExists(dir + "/lib.exr"));
+    EXPECT_EQ(strata::test::filesIn(dir, true), files) << "a staging file was left behind";
 }
 
 // The smooth scheme is measured against the linear one where it can pay:

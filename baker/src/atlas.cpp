@@ -4,6 +4,7 @@
 #include "strata/normals.h"
 
 #include "distortion.h"
+#include "cancel.h"
 #include "parallel.h"
 
 #include <Eigen/Sparse>
@@ -1263,6 +1264,8 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     size_t used = 0;
     // Packs orders[k] at `scale`; on success keeps the placement.
     auto packs = [&](size_t k, double scale) {
+        if (cancelRequested())  // a cancelled bake: every pack fails at once
+            return false;
         if (!pack(charts, orders[k], mesh, local, scale, g, span, options.threads, &trial))
             return false;
         placements.swap(trial);
@@ -1279,6 +1282,8 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     if (lo == 0.0) {
         lo = hi;
         for (int tries = 0; !packs(0, lo); ++tries) {
+            if (cancelRequested())
+                return Status(StatusCode::Cancelled, "cancelled");
             if (tries == 40)
                 return Status(StatusCode::InvalidArgument, "a " + std::to_string(size) + " map is too small for " +
                                                                std::to_string(charts.size()) +
@@ -1291,6 +1296,8 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
         const double mid = 0.5 * (lo + hi);
         (packs(0, mid) ? lo : hi) = mid;
     }
+    if (cancelRequested())
+        return Status(StatusCode::Cancelled, "cancelled");
     // The other orders only where they beat it by kOrderGain: most cost one
     // pack that fails.  Where one succeeds, its own largest scale below the
     // first order's failure bound, hi, or 1.25 times that beyond.

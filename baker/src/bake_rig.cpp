@@ -4,6 +4,8 @@
 // BakeRequest and call bakeRig; nothing here prints.
 #include "strata/baker/bake_rig.h"
 
+#include "cancel.h"
+
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
 #include "strata/baker/fit.h"
@@ -65,6 +67,11 @@ double msSince(std::chrono::steady_clock::time_point t0)
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+Status cancelledStatus(const BakeRequest& request)
+{
+    return Status(StatusCode::Cancelled, request.output + ": the bake was cancelled; nothing was written");
+}
+
 // Reports a stage (seconds < 0) only if it runs longer than a second, then
 // its duration when it ends.
 class Progress {
@@ -72,6 +79,8 @@ public:
     Progress(const BakeProgress* report, const char* stage)
         : report_(report), stage_(stage), t0_(std::chrono::steady_clock::now())
     {
+        if (cancelRequested())
+            throw BakeCancelled();
         if (!report_ || !*report_)
             return;
         watcher_ = std::thread([this] {
@@ -160,6 +169,8 @@ struct Outputs {
     void commit()
     {
         // All or nothing: every target is checked before any is replaced.
+        if (cancelRequested())
+            throw BakeCancelled();
         for (const std::string& p : written) {
             std::error_code ec;
             if (std::filesystem::is_directory(p, ec))
@@ -332,9 +343,9 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             }
         }
     }
-    if (!st && tries.size() == 1) {
+    if ((!st && tries.size() == 1) || st.code() == StatusCode::Cancelled) {
         fs::remove_all(scratch, ec);
-        return st;  // the first try failed: its message is the bake's
+        return st;  // the first try failed (or the bake was cancelled): its message is the bake's
     }
     auto fewestThatMet = [&]() -> const Try* {
         const Try* met = nullptr;
@@ -357,6 +368,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             if (middle > missed->faces && middle < met->faces) {
                 const Status before = st;
                 attempt(middle);
+                if (st.code() == StatusCode::Cancelled) {
+                    fs::remove_all(scratch, ec);
+                    return st;
+                }
                 st = before;  // a failed extra try leaves the choice to the others
             }
         }
@@ -797,7 +812,13 @@ void BakeJob::searchMapSize()
         checkMemory(size);  // before the atlas, whose packing at a large size is work too
         if (uvMode == "auto") {
             for (; size <= 8192; size *= 2) {
-                if ((st = layout(size)))
+                {
+                    Progress p(progress, "laying out the atlas");
+                    st = layout(size);
+                }
+                if (st.code() == StatusCode::Cancelled)
+                    throw BakeCancelled();
+                if (st)
                     break;
                 if (forced)
                     throw BakeError(st.message());
@@ -1442,10 +1463,13 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
     *result = BakeResult();
+    CancelScope scope(request.cancel);
     try {
         BakeJob job(request, result, progress);
         job.run();
         return Status::ok();
+    } catch (const BakeCancelled&) {
+        return cancelledStatus(request);
     } catch (const BakeError& e) {
         return Status(StatusCode::InvalidArgument, e.what());
     } catch (const std::bad_alloc&) {

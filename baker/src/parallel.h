@@ -4,6 +4,8 @@
 // for any thread count.
 #pragma once
 
+#include "cancel.h"
+
 #include <algorithm>
 #include <cstddef>
 #include <thread>
@@ -25,9 +27,13 @@ void parallelChunks(size_t n, int threads, F&& f)
         return;
     }
     std::vector<std::thread> pool;
+    const std::atomic<bool>* cancel = cancelFlag();
     for (int t = 0; t < threads; ++t) {
         const size_t b = std::min(n, chunk * size_t(t)), e = std::min(n, b + chunk);
-        pool.emplace_back([&f, t, b, e] { f(t, b, e); });
+        pool.emplace_back([&f, t, b, e, cancel] {
+            CancelScope scope(cancel);  // nested loops see the bake's flag
+            f(t, b, e);
+        });
     }
     for (std::thread& th : pool)
         th.join();
@@ -38,12 +44,15 @@ void parallelChunks(size_t n, int threads, F&& f)
 template <typename F>
 void parallelFor(size_t n, int threads, F&& f)
 {
+    // A cancelled bake skips the work; its next stage boundary unwinds it.
+    if (cancelRequested())
+        return;
     if (threads <= 1 || n < 1024) {
         f(size_t(0), n);
         return;
     }
     parallelChunks(n, threads, [&f](int, size_t b, size_t e) {
-        if (b < e)
+        if (b < e && !cancelRequested())
             f(b, e);
     });
 }

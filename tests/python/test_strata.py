@@ -4,6 +4,7 @@ Run by ctest (PYTHONPATH=build/python); the data test reads the penguin
 from tests/data, which ships with the repository.
 """
 import math
+import time
 import os
 import subprocess
 import sys
@@ -187,3 +188,67 @@ def test_a_gltf_without_the_layer_is_refused_unless_asked(baked, tmp_path):
         rig.reconstruct(level=1)
     v, t = rig.reconstruct(level=1, displacement=False)
     assert len(v) > 0 and len(t) > 0
+
+
+def test_ctrl_c_cancels_a_bake_and_leaves_no_file(tmp_path):
+    # A bake that runs for tens of seconds (a forced 4096 map on one thread);
+    # SIGINT once its first stage has run a second.  KeyboardInterrupt comes
+    # within a second or two, and the folder is as it was: no rig, no
+    # staging file.
+    import signal
+    script = (
+        "import sys, strata\n"
+        "def progress(stage, seconds):\n"
+        "    print('stage', stage, seconds, flush=True)\n"
+        "try:\n"
+        "    strata.bake(sys.argv[1], sys.argv[2], sys.argv[3], size=4096, threads=1, progress=progress)\n"
+        "    print('finished', flush=True)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('cancelled', flush=True)\n"
+        "    sys.exit(3)\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    p = subprocess.Popen([sys.executable, "-c", script, os.path.join(SHARED, "penguin_hr.obj"),
+                          os.path.join(SHARED, "penguin_control_mesh.obj"), str(out / "penguin.glb")],
+                         stdout=subprocess.PIPE, text=True, env=dict(os.environ))
+    first = p.stdout.readline()
+    assert first.startswith("stage "), first
+    sent = time.monotonic()
+    p.send_signal(signal.SIGINT)
+    rest = p.communicate(timeout=60)[0]
+    elapsed = time.monotonic() - sent
+    assert p.returncode == 3, rest
+    assert "cancelled" in rest and "finished" not in rest
+    assert elapsed < 2.0, f"the bake took {elapsed:.2f} s to stop"
+    assert os.listdir(out) == []
+
+
+def test_two_threads_bake_at_once(baked, tmp_path):
+    # The GIL is released while a bake runs: two threads bake together, each
+    # to its own file, and get the same bytes from the same inputs.  (The
+    # progress callback is exercised by the Ctrl-C test, whose first line it
+    # prints.)
+    import threading
+    d, _ = baked
+    errors = []
+
+    def work(name):
+        try:
+            strata.bake(d / "high.obj", d / "control.obj", tmp_path / name, threads=1)
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(n,)) for n in ("a.glb", "b.glb")]
+    [t.start() for t in threads]
+    [t.join() for t in threads]
+    assert not errors, errors
+    assert (tmp_path / "a.glb").read_bytes() == (tmp_path / "b.glb").read_bytes()
+
+
+def test_help_lists_every_keyword_with_its_type_and_default():
+    doc = strata.bake.__doc__
+    for keyword in ("tolerance", "control_faces", "uv", "size", "scheme", "overlap", "threads", "error_levels",
+                    "skeleton", "map_coding", "mesh_coding", "compress", "exr", "float_exr", "png", "layers",
+                    "close_holes", "fit", "max_memory", "report", "progress"):
+        assert f"\n    {keyword} (" in doc or f"{keyword} (callable" in doc, keyword
+    assert "default" in doc and "--tolerance" in doc

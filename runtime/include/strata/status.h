@@ -16,6 +16,7 @@ enum class StatusCode {
     InvalidData,      ///< baked or loaded data is malformed (never trusted)
     Unsupported,      ///< valid input the runtime does not handle (e.g. a newer format version)
     IoError,          ///< a file could not be read or written (io layer only)
+    Cancelled,        ///< the caller cancelled the work (a bake's cancel flag); nothing was written
 };
 
 class Status {

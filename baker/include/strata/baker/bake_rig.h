@@ -13,6 +13,7 @@
 #include "strata/plan.h"
 #include "strata/status.h"
 
+#include <atomic>
 #include <functional>
 #include <string>
 #include <vector>
@@ -50,6 +51,10 @@ struct BakeRequest {
     bool closeHoles = true;  ///< close a plain control mesh's holes where the capture is closed
     bool fitCage = true;     ///< move a bare cage's vertices so its base surface fits the capture (a glTF control's never move)
     std::string report;      ///< also write the JSON report here ("" none, "-" only into BakeResult::report)
+    /// When it becomes true (from any thread), the bake stops at its next
+    /// stage boundary and returns StatusCode::Cancelled, writing nothing
+    /// (Python sets it on Ctrl-C).  Null: not cancellable.
+    const std::atomic<bool>* cancel = nullptr;
 };
 
 /// What came out.
