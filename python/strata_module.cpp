@@ -110,8 +110,9 @@ struct PyRig {
     }
 };
 
-std::unique_ptr<PyRig> loadRig(const std::string& path)
+std::unique_ptr<PyRig> loadRig(const py::object& where)
 {
+    const std::string path = py::str(py::module_::import("os").attr("fspath")(where)).cast<std::string>();
     auto r = std::make_unique<PyRig>();
     r->path = path;
     check(io::loadRig(path, &r->rig));
@@ -266,7 +267,7 @@ py::dict bake(const py::object& high, const py::object& control, const py::objec
 
 }  // namespace
 
-PYBIND11_MODULE(strata, m)
+PYBIND11_MODULE(_strata, m)
 {
     m.doc() = "Strata: layered animation with displacement maps (bake, load, reconstruct)";
     // pybind11 looks numpy's C API up in a function-local static the first
