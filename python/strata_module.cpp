@@ -262,6 +262,7 @@ py::dict bake(const py::object& high, const py::object& control, const py::objec
     report["warnings"] = result.warnings;
     report["written"] = result.written;
     report["summary"] = result.summary;
+    report["rms"] = result.rms;  // closed-loop RMS / diagonal at the recommended level (-1: not measured)
     return report;
 }
 
@@ -303,5 +304,17 @@ PYBIND11_MODULE(_strata, m)
              "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.  A glTF without "
              "the STRATA_layered_displacement layer raises strata.Error naming the tool that dropped it, unless "
              "displacement=False asks for the plain mesh refined.");
+    m.def(
+        "bake_options",
+        [] {
+            py::list out;
+            for (const baker::BakeOption& o : baker::bakeOptions())
+                if (o.keyword)
+                    out.append(py::dict(py::arg("keyword") = o.keyword, py::arg("flag") = o.flag,
+                                        py::arg("type") = o.type, py::arg("default") = o.defaultText,
+                                        py::arg("help") = o.help, py::arg("required") = o.required));
+            return out;
+        },
+        "strata-bake's option table: keyword, flag, type, default, help and whether it is required, per option.");
     m.def("load_rig", &loadRig, py::arg("path"), "Loads a Strata rig (or any glTF scene with triangles).");
 }

@@ -8,6 +8,6 @@ bake() takes strata-bake's options as keywords (help(strata.bake) lists them);
 Rig.reconstruct() returns numpy arrays.  Failures raise strata.Error with the
 tools' one-line message.  The work runs in C++ with the GIL released.
 """
-from ._strata import Error, Rig, __version__, bake, load_rig
+from ._strata import Error, Rig, __version__, bake, bake_options, load_rig
 
-__all__ = ["Error", "Rig", "bake", "load_rig", "__version__"]
+__all__ = ["Error", "Rig", "bake", "bake_options", "load_rig", "__version__"]
