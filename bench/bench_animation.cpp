@@ -18,6 +18,7 @@
 #include "strata/animation.h"
 #include "strata/io/rig_io.h"
 #include "strata/frame.h"
+#include "strata/surface.h"
 #include "strata/plan.h"
 
 #include <algorithm>
@@ -89,16 +90,21 @@ void run(const std::string& name, const std::string& path)
         });
         // What a renderer draws: the same frame plus shading normals of the
         // displaced mesh (the comparison an engine developer makes).
-        // One core, through FrameEvaluator in tile order (the order an engine
-        // draws, with FrameEvaluator::triangles(); tables built before timing).
+        // One core, through strata::Surface (what an engine calls) in tile
+        // order (the order an engine draws, with Surface::triangles(); its
+        // tables built before timing).
         std::vector<glm::vec3> shading(n);
-        FrameEvaluator frameEvaluator(*plan, FrameLayout::Tiles);
-        frameEvaluator.evaluate(out.data(), shading.data(), nullptr, animator.positions().data(),
-                                animator.normals().data(), animator.positions().size(), 1);
+        SurfaceOptions surfaceOptions;
+        surfaceOptions.level = level;
+        surfaceOptions.displace = rig.hasDisplacement && !rigNeedsMap(rig);  // a map-coded rig: the bare cage
+        surfaceOptions.layout = FrameLayout::Tiles;
+        std::unique_ptr<Surface> surface;
+        if (!Surface::create(&surface, rig, nullptr, surfaceOptions) ||
+            !surface->evaluate(out.data(), shading.data(), n, 1))
+            return;
         const double frameShaded = bench::medianMs([&] {
-            animator.pose(0, nextTime());
-            frameEvaluator.evaluate(out.data(), shading.data(), nullptr, animator.positions().data(),
-                                    animator.normals().data(), animator.positions().size(), 1);
+            surface->setAnimationTime(0, nextTime());
+            surface->evaluate(out.data(), shading.data(), n, 1);
         });
 
         // The engine's alternative: an n-vertex mesh, 4 influences each.

@@ -114,5 +114,22 @@ inline AnimationChannel rotationKeys(int node, const std::vector<float>& times, 
     return c;
 }
 
+/// The example rig skinned to two joints ("hips", "chest") with one
+/// animation, "bend", that turns the chest 0.6 rad about z over 1 s.
+inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
+{
+    makeExampleRig(rig, map);
+    twoJointSkin(&rig->skeleton, rig->mesh, "hips", "chest", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
+                 [](const glm::vec3& p) { return glm::clamp(p.y + 0.5f, 0.0f, 1.0f); });
+    Animation bend;
+    bend.name = "bend";
+    bend.channels.push_back(rotationKeys(
+        1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.6f, glm::vec3(0.0f, 0.0f, 1.0f))}));
+    bend.end = 1.0f;
+    rig->skeleton.animations.push_back(bend);
+    ASSERT_TRUE(finalizeSkeleton(&rig->skeleton, rig->mesh.vertexCount()).isOk());
+}
+
+
 }  // namespace test
 }  // namespace strata

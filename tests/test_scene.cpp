@@ -1034,16 +1034,7 @@ TEST(CApi, MatchesTheCppPathBitForBit)
     const std::string dir = test::tempDir("c_api");
     Rig rig;
     DisplacementMap map;
-    test::makeExampleRig(&rig, &map);
-    test::twoJointSkin(&rig.skeleton, rig.mesh, "hips", "chest", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
-                       [](const glm::vec3& p) { return glm::clamp(p.y + 0.5f, 0.0f, 1.0f); });
-    Animation bend;
-    bend.name = "bend";
-    bend.channels.push_back(test::rotationKeys(
-        1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.6f, glm::vec3(0.0f, 0.0f, 1.0f))}));
-    bend.end = 1.0f;
-    rig.skeleton.animations.push_back(bend);
-    ASSERT_TRUE(finalizeSkeleton(&rig.skeleton, rig.mesh.vertexCount()).isOk());
+    test::makeBendingExampleRig(&rig, &map);
     rig.displacement.recommendedLevel = 3;
     io::RigWriteOptions options;
     options.compress = true;

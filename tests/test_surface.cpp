@@ -122,16 +122,7 @@ TEST(Surface, EveryWayToPoseGivesTheSameSurface)
 {
     Rig rig;
     DisplacementMap map;
-    test::makeExampleRig(&rig, &map);
-    test::twoJointSkin(&rig.skeleton, rig.mesh, "hips", "chest", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
-                       [](const glm::vec3& p) { return glm::clamp(p.y + 0.5f, 0.0f, 1.0f); });
-    Animation bend;
-    bend.name = "bend";
-    bend.channels.push_back(test::rotationKeys(
-        1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.6f, glm::vec3(0.0f, 0.0f, 1.0f))}));
-    bend.end = 1.0f;
-    rig.skeleton.animations.push_back(bend);
-    ASSERT_TRUE(finalizeSkeleton(&rig.skeleton, rig.mesh.vertexCount()).isOk());
+    test::makeBendingExampleRig(&rig, &map);
     SurfaceOptions options;
     options.level = 3;
     std::unique_ptr<Surface> s;

@@ -46,7 +46,8 @@ endif()
 
 # A rig from the installed tools, and the installed reconstruction of it.
 run("${prefix}/bin/strata-demo" --out "${WORK_DIR}/demo" --max-level 3 --size 256)
-run("${WORK_DIR}/build/consumer_bake" "${WORK_DIR}/demo/head_highres.ply" "${WORK_DIR}/baked.glb")
+run("${WORK_DIR}/build/consumer_bake" "${WORK_DIR}/demo/head_highres.ply" "${WORK_DIR}/demo/head.glb"
+    "${WORK_DIR}/baked.glb")
 set(rig "${WORK_DIR}/demo/head.glb")
 run("${prefix}/bin/strata-reconstruct" "${rig}" -o "${WORK_DIR}/reference.obj")
 file(STRINGS "${WORK_DIR}/reference.obj" expected REGEX "^v ")

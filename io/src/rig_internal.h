@@ -1,0 +1,92 @@
+// Internal to strata_io: what the rig reader (rig_read.cpp), the scene's
+// geometry (rig_scene.cpp), its skeleton (rig_skeleton.cpp) and the rig
+// writer (rig_write.cpp) share.  Not installed.
+#pragma once
+
+#include "gltf_document.h"
+#include "strata/io/rig_io.h"
+#include "strata/rig.h"
+#include "strata/status.h"
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+namespace rigfile {
+
+// ---- The layer block (rig_read.cpp) ----
+
+/// obj[name] when obj is an object that has it, else null.
+const tinygltf::Value* member(const tinygltf::Value& obj, const char* name);
+/// The mesh's layer: its STRATA_layered_displacement extension (*extension
+/// true) or the extras.strata block of format versions 1-4; null if none.
+const tinygltf::Value* layerBlock(const tinygltf::Mesh& mesh, bool* extension);
+
+/// 64-bit FNV-1a of `size` bytes, continuing from `h` (start: kFnvOffset).
+uint64_t fnvBytes(uint64_t h, const void* data, size_t size);
+constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ull;
+uint64_t uvHash(const std::vector<glm::vec2>& uvs);
+/// FNV-1a of the UVs of every face corner, in face order.
+uint64_t cornerUVHash(const ControlMesh& mesh);
+std::string hex64(uint64_t v);
+
+/// The placeholders saveRig writes for the fingerprint's hashes and then
+/// replaces, in the encoded file, by those of the control mesh that file
+/// reads back as (the same length, so no offset moves).
+const char* const kTopologyToken = "~strata~topolog~";
+const char* const kPositionsToken = "~strata~position";
+const char* const kShapeToken = "~strata~shape~~~";
+const char* const kUVToken = "~strata~uvs~~~~~";
+
+/// What finishRig does with a layer that does not match its control mesh:
+/// refuse the file (loadRig), skip the comparison (sealLayer, whose file has
+/// placeholders yet), or drop the layer with a warning (a control mesh for a
+/// new bake, whose layer the bake replaces).
+enum class LayerCheck { Enforce, Seal, DropStale };
+
+/// A loaded document as a Rig: its scene's geometry, skeleton and layer.
+Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out,
+                 LayerCheck check = LayerCheck::Enforce, size_t maxBytes = size_t(2048) << 20);
+
+// ---- The scene's geometry (rig_scene.cpp) ----
+
+glm::mat4 localMatrix(const tinygltf::Node& n);
+/// Each node's parent and world matrix at rest; refuses cycles and nodes
+/// with two parents.
+Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, std::vector<int>* parentOut,
+                         std::vector<glm::mat4>* world);
+/// The accessor of attribute `name`, or -1.
+int attributeOf(const tinygltf::Primitive& prim, const std::string& name);
+/// A triangle primitive's indices (or 0..n-1), checked against vertexCount.
+Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitive& prim, size_t vertexCount,
+                          const std::string& what, std::vector<uint32_t>* out);
+
+/// The whole scene's triangle geometry, welded, with one part per primitive.
+struct SceneGeometry {
+    Rig rig;                 // mesh (not yet validated), sourceVertex, fileCorners, parts
+    std::vector<const tinygltf::Primitive*> primitives;  // per part
+    int blockMesh = -1;      // a mesh carrying a displacement layer, or -1
+    bool blockIsExtension = false;  // the layer is STRATA_layered_displacement (else extras.strata)
+    size_t passThrough = 0;  // point and line primitives, kept untouched
+    size_t missingUV = 0;    // triangle parts without the displacement UV set
+    std::string firstMissingUV;
+};
+
+Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out);
+
+// ---- The skeleton (rig_skeleton.cpp) ----
+
+/// Nodes, the skin of the skinned parts (rigid parts ride on their node as
+/// an extra joint), per-vertex influences and animations.
+Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const SceneGeometry& scene, Rig* rig);
+
+}  // namespace rigfile
+}  // namespace io
+}  // namespace strata

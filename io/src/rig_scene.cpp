@@ -1,0 +1,292 @@
+// A glTF scene's triangle geometry as one welded control mesh: node
+// transforms at rest, every triangle primitive of every mesh in the scene's
+// space, one part per primitive (docs/FORMAT.md).
+#include "strata/io/rig_io.h"
+
+#include "rig_internal.h"
+
+#include "strata/io/exr.h"
+#include "strata/io/file.h"
+#include "gltf_accessor.h"
+#include "strata/io/png.h"
+#include "gltf_document.h"
+#include "vertex_codec.h"
+#include "gltf_mesh_writer.h"
+#include "weld.h"
+#include "strata/displacement_math.h"
+#include "strata/normals.h"
+
+#include <meshoptimizer.h>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat4x4.hpp>
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <unordered_map>
+
+
+namespace strata {
+namespace io {
+
+namespace rigfile {
+
+glm::mat4 localMatrix(const tinygltf::Node& n)
+{
+    glm::mat4 m(1.0f);
+    if (n.matrix.size() == 16) {
+        for (int k = 0; k < 16; ++k)
+            m[k / 4][k % 4] = float(n.matrix[size_t(k)]);
+        return m;
+    }
+    if (n.translation.size() == 3)
+        m = glm::translate(m, glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2])));
+    if (n.rotation.size() == 4)
+        m = m * glm::mat4_cast(glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                                         float(n.rotation[2])));
+    if (n.scale.size() == 3)
+        m = glm::scale(m, glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2])));
+    return m;
+}
+
+// Every node's parent and its world matrix at rest.  A node with two
+// parents, a missing child or a cycle is an error.
+Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, std::vector<int>* parentOut,
+                         std::vector<glm::mat4>* world)
+{
+    const size_t n = model.nodes.size();
+    std::vector<int> parent(n, -1);
+    for (size_t i = 0; i < n; ++i)
+        for (int c : model.nodes[i].children) {
+            if (c < 0 || size_t(c) >= n)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " has a missing child");
+            if (parent[size_t(c)] >= 0 || size_t(c) == i)
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(c) + " has two parents");
+            parent[size_t(c)] = int(i);
+        }
+    world->assign(n, glm::mat4(1.0f));
+    std::vector<uint8_t> state(n, 0);  // 0 unvisited, 1 on the current chain, 2 done
+    std::vector<size_t> chain;
+    for (size_t i = 0; i < n; ++i) {
+        chain.clear();
+        int v = int(i);
+        while (v >= 0 && state[size_t(v)] == 0) {
+            state[size_t(v)] = 1;
+            chain.push_back(size_t(v));
+            v = parent[size_t(v)];
+        }
+        if (v >= 0 && state[size_t(v)] == 1)
+            return Status(StatusCode::InvalidData, path + ": the node hierarchy has a cycle through node " +
+                                                       std::to_string(v));
+        for (auto it = chain.rbegin(); it != chain.rend(); ++it) {
+            const int p = parent[*it];
+            (*world)[*it] = (p >= 0 ? (*world)[size_t(p)] : glm::mat4(1.0f)) * localMatrix(model.nodes[*it]);
+            state[*it] = 2;
+        }
+    }
+    for (size_t i = 0; i < n; ++i)
+        for (int k = 0; k < 16; ++k)
+            if (!std::isfinite((*world)[i][k / 4][k % 4]))
+                return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " (" +
+                                                           printable(model.nodes[i].name, 60) +
+                                                           ") has a non-finite transform");
+    *parentOut = std::move(parent);
+    return Status::ok();
+}
+
+int attributeOf(const tinygltf::Primitive& prim, const std::string& name)
+{
+    auto it = prim.attributes.find(name);
+    return it == prim.attributes.end() ? -1 : it->second;
+}
+
+bool isTriangles(int mode)
+{
+    return mode == TINYGLTF_MODE_TRIANGLES || mode == -1 || mode == TINYGLTF_MODE_TRIANGLE_STRIP ||
+           mode == TINYGLTF_MODE_TRIANGLE_FAN;
+}
+
+// Triangle-list indices of a triangle primitive (strips and fans unrolled).
+Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitive& prim, size_t vertexCount,
+                          const std::string& what, std::vector<uint32_t>* out)
+{
+    std::vector<uint32_t> idx;
+    if (prim.indices >= 0) {
+        Status st = readUintAccessor(model, prim.indices, 1, what + " indices", &idx);
+        if (!st)
+            return st;
+    } else {
+        idx.resize(vertexCount);
+        for (size_t i = 0; i < vertexCount; ++i)
+            idx[i] = uint32_t(i);
+    }
+    for (size_t i = 0; i < idx.size(); ++i)
+        if (idx[i] >= vertexCount)
+            return Status(StatusCode::InvalidData, what + ": index " + std::to_string(idx[i]) + " at position " +
+                                                       std::to_string(i) + " is beyond the " +
+                                                       std::to_string(vertexCount) + " vertices");
+    out->clear();
+    if (prim.mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (size_t i = 2; i < idx.size(); ++i) {
+            if (i % 2 == 0)
+                out->insert(out->end(), {idx[i - 2], idx[i - 1], idx[i]});
+            else
+                out->insert(out->end(), {idx[i - 1], idx[i - 2], idx[i]});
+        }
+    } else if (prim.mode == TINYGLTF_MODE_TRIANGLE_FAN) {
+        for (size_t i = 2; i < idx.size(); ++i)
+            out->insert(out->end(), {idx[0], idx[i - 1], idx[i]});
+    } else {
+        if (idx.size() % 3 != 0)
+            return Status(StatusCode::InvalidData, what + ": " + std::to_string(idx.size()) +
+                                                       " indices, not a multiple of 3");
+        *out = std::move(idx);
+    }
+    return Status::ok();
+}
+
+
+Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
+{
+    const tinygltf::Model& model = doc.model;
+    std::vector<int> parent;
+    std::vector<glm::mat4> world;
+    Status st = restWorldMatrices(path, model, &parent, &world);
+    if (!st)
+        return st;
+    // The block: version 1 rigs carry it on the one mesh they displace.
+    int texCoord = 0;
+    bool legacy = false;
+    for (size_t m = 0; m < model.meshes.size() && out->blockMesh < 0; ++m)
+        if (const tinygltf::Value* block = layerBlock(model.meshes[m], &out->blockIsExtension)) {
+            out->blockMesh = int(m);
+            const tinygltf::Value* v = member(*block, "version");
+            legacy = v && v->IsNumber() && v->GetNumberAsDouble() == 1.0;
+            const tinygltf::Value* tex = member(*block, "displacementGeometryTexture");
+            const tinygltf::Value* tc = tex ? member(*tex, "texCoord") : nullptr;
+            if (tc && tc->IsNumber() && tc->GetNumberAsDouble() >= 0 && tc->GetNumberAsDouble() <= 7)
+                texCoord = int(tc->GetNumberAsDouble());
+            else if (!tc && member(*block, "displacementVertices"))
+                texCoord = -1;  // per-vertex values without UVs
+        }
+    std::vector<int> firstNode(model.meshes.size(), -1);
+    for (size_t i = 0; i < model.nodes.size(); ++i) {
+        const int m = model.nodes[i].mesh;
+        if (m >= 0 && size_t(m) < model.meshes.size() && firstNode[size_t(m)] < 0)
+            firstNode[size_t(m)] = int(i);
+        else if (m >= 0 && size_t(m) >= model.meshes.size())
+            return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " references missing mesh " +
+                                                       std::to_string(m));
+    }
+    Rig& rig = out->rig;
+    std::vector<float> pos;  // all file vertices, scene space
+    std::vector<glm::vec2> uv;
+    std::vector<uint32_t> tri;  // file-vertex triangles
+    std::vector<uint32_t> partOfTri;
+    const std::string uvName = "TEXCOORD_" + std::to_string(texCoord);
+    for (size_t m = 0; m < model.meshes.size(); ++m) {
+        if (legacy && int(m) != out->blockMesh)
+            continue;
+        const tinygltf::Mesh& mesh = model.meshes[m];
+        for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+            const tinygltf::Primitive& prim = mesh.primitives[p];
+            if (!isTriangles(prim.mode)) {
+                ++out->passThrough;
+                continue;
+            }
+            RigPart part;
+            part.mesh = int(m);
+            part.primitive = int(p);
+            part.node = firstNode[m];
+            part.material = prim.material;
+            part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
+            part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
+            part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
+                        " primitive " + std::to_string(p);
+            const std::string what = path + ": " + part.name;
+            if (attributeOf(prim, "POSITION") < 0)
+                return Status(StatusCode::InvalidData, what + " has no POSITION attribute");
+            std::vector<float> ppos, puv;
+            if (!(st = readFloatAccessor(model, attributeOf(prim, "POSITION"), 3, "POSITION", &ppos)))
+                return Status(st.code(), what + ": " + st.message());
+            const size_t n = ppos.size() / 3;
+            if (n == 0)
+                continue;
+            if (pos.size() / 3 + n >= 0x7fffffffu)
+                return Status(StatusCode::InvalidData, path + ": the scene has too many vertices");
+            const int uvAcc = texCoord >= 0 ? attributeOf(prim, uvName) : -1;
+            if (uvAcc >= 0) {
+                if (!(st = readFloatAccessor(model, uvAcc, 2, uvName, &puv)))
+                    return Status(st.code(), what + ": " + st.message());
+                if (puv.size() / 2 != n)
+                    return Status(StatusCode::InvalidData, what + ": " + uvName + " has " +
+                                                               std::to_string(puv.size() / 2) + " elements for " +
+                                                               std::to_string(n) + " vertices");
+            } else if (out->missingUV++ == 0) {
+                out->firstMissingUV = part.name;
+            }
+            std::vector<uint32_t> ptri;
+            if (!(st = primitiveTriangles(model, prim, n, what, &ptri)))
+                return st;
+            part.firstVertex = uint32_t(pos.size() / 3);
+            part.vertexCount = uint32_t(n);
+            for (size_t i = 0; i < n; ++i) {
+                const glm::vec4 q = part.toScene * glm::vec4(ppos[3 * i], ppos[3 * i + 1], ppos[3 * i + 2], 1.0f);
+                if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+                    return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(i) +
+                                                               " is not finite in the scene's space");
+                pos.insert(pos.end(), {q.x, q.y, q.z});
+                uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
+            }
+            for (uint32_t i : ptri) {
+                tri.push_back(part.firstVertex + i);
+                if (tri.size() % 3 == 0)
+                    partOfTri.push_back(uint32_t(rig.parts.size()));
+            }
+            out->primitives.push_back(&prim);
+            rig.parts.push_back(std::move(part));
+        }
+    }
+    if (rig.parts.empty())
+        return Status(StatusCode::InvalidData, path + ": no triangle mesh in the file");
+    const size_t nFile = pos.size() / 3;
+    if (nFile == 0)
+        return Status(StatusCode::InvalidData, path + ": the meshes have no vertices");
+
+    // Weld file vertices into topological vertices (exact position match, over
+    // every primitive: coincident vertices of different primitives join, so the
+    // refined surface is watertight wherever the input is).
+    weldByPosition(reinterpret_cast<const glm::vec3*>(pos.data()), nFile, &rig.sourceVertex, &rig.mesh.positions);
+    const bool withUV = out->missingUV == 0;
+    for (size_t t = 0; t < tri.size(); t += 3) {
+        const uint32_t a = rig.sourceVertex[tri[t]], b = rig.sourceVertex[tri[t + 1]], c = rig.sourceVertex[tri[t + 2]];
+        RigPart& part = rig.parts[partOfTri[t / 3]];
+        if (part.faceCount == 0)
+            part.firstFace = uint32_t(rig.mesh.triangles.size() / 3);
+        if (a == b || b == c || a == c)
+            continue;  // zero area after welding: no surface to refine (the file keeps it)
+        rig.mesh.triangles.insert(rig.mesh.triangles.end(), {a, b, c});
+        rig.fileCorners.insert(rig.fileCorners.end(), {tri[t], tri[t + 1], tri[t + 2]});
+        ++part.faceCount;
+    }
+    if (withUV) {
+        rig.mesh.uvs = std::move(uv);
+        rig.mesh.uvIndices = rig.fileCorners;
+        rig.fileTexCoord = texCoord;
+        rig.fileUVHash = uvHash(rig.mesh.uvs);
+    }
+    return Status::ok();
+}
+
+}  // namespace rigfile
+
+}  // namespace io
+}  // namespace strata

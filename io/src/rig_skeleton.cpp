@@ -1,0 +1,260 @@
+// A glTF scene's nodes, skin, per-vertex influences and animations as the
+// rig's Skeleton (rigid parts ride on their node as an extra joint).
+#include "strata/io/rig_io.h"
+
+#include "rig_internal.h"
+
+#include "strata/io/exr.h"
+#include "strata/io/file.h"
+#include "gltf_accessor.h"
+#include "strata/io/png.h"
+#include "gltf_document.h"
+#include "vertex_codec.h"
+#include "gltf_mesh_writer.h"
+#include "weld.h"
+#include "strata/displacement_math.h"
+#include "strata/normals.h"
+
+#include <meshoptimizer.h>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat4x4.hpp>
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <unordered_map>
+
+
+namespace strata {
+namespace io {
+
+namespace rigfile {
+
+// Nodes, the skin of the skinned parts (rigid parts ride on their node as an
+// extra joint), per-vertex influences and animations.
+Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const SceneGeometry& scene, Rig* rig)
+{
+    Skeleton& sk = rig->skeleton;
+    const size_t nn = model.nodes.size();
+    sk.nodes.resize(nn);
+    for (size_t i = 0; i < nn; ++i) {
+        const tinygltf::Node& n = model.nodes[i];
+        SkeletonNode& out = sk.nodes[i];
+        out.name = n.name;
+        if (n.matrix.size() == 16) {
+            out.hasMatrix = true;
+            out.matrix = localMatrix(n);
+        }
+        if (n.translation.size() == 3)
+            out.rest.translation = glm::vec3(float(n.translation[0]), float(n.translation[1]), float(n.translation[2]));
+        if (n.rotation.size() == 4)
+            out.rest.rotation = glm::quat(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                                          float(n.rotation[2]));
+        if (n.scale.size() == 3)
+            out.rest.scale = glm::vec3(float(n.scale[0]), float(n.scale[1]), float(n.scale[2]));
+        for (int c : n.children)
+            sk.nodes[size_t(c)].parent = int(i);  // checked by restWorldMatrices
+    }
+    int skinIndex = -1;
+    for (const RigPart& part : rig->parts)
+        if (part.skinned) {
+            const int s = model.nodes[size_t(part.node)].skin;
+            if (skinIndex < 0) {
+                skinIndex = s;
+                sk.meshNode = part.node;
+            } else if (s != skinIndex) {
+                return Status(StatusCode::Unsupported, path + ": meshes use different skins (" + std::to_string(skinIndex) +
+                                                           " and " + std::to_string(s) +
+                                                           "); a Strata rig has one skin");
+            }
+        }
+    Status st;
+    if (skinIndex >= 0) {
+        if (size_t(skinIndex) >= model.skins.size())
+            return Status(StatusCode::InvalidData, path + ": a mesh node references missing skin " +
+                                                       std::to_string(skinIndex));
+        const tinygltf::Skin& skin = model.skins[size_t(skinIndex)];
+        sk.skin.joints = skin.joints;
+        if (sk.skin.joints.empty())
+            return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) + " has no joints");
+        for (int j : sk.skin.joints)
+            if (j < 0 || size_t(j) >= nn)
+                return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) +
+                                                           " names missing node " + std::to_string(j));
+        if (skin.inverseBindMatrices >= 0) {
+            std::vector<float> m;
+            if (!(st = readFloatAccessor(model, skin.inverseBindMatrices, 16, "inverseBindMatrices", &m)))
+                return Status(st.code(), path + ": " + st.message());
+            if (m.size() / 16 < sk.skin.joints.size())
+                return Status(StatusCode::InvalidData, path + ": inverseBindMatrices holds " + std::to_string(m.size() / 16) +
+                                                           " matrices for " + std::to_string(sk.skin.joints.size()) +
+                                                           " joints");
+            sk.skin.inverseBindMatrices.resize(sk.skin.joints.size());
+            for (size_t j = 0; j < sk.skin.joints.size(); ++j)
+                for (int k = 0; k < 16; ++k)
+                    sk.skin.inverseBindMatrices[j][k / 4][k % 4] = m[16 * j + size_t(k)];
+        } else {
+            sk.skin.inverseBindMatrices.assign(sk.skin.joints.size(), glm::mat4(1.0f));
+        }
+        // Influences per file vertex, then per topological vertex (its first copy).
+        int sets = 1;
+        for (size_t p = 0; p < rig->parts.size(); ++p)
+            if (rig->parts[p].skinned && attributeOf(*scene.primitives[p], "JOINTS_1") >= 0 &&
+                attributeOf(*scene.primitives[p], "WEIGHTS_1") >= 0)
+                sets = 2;
+        const int inf = 4 * sets;
+        const size_t nFile = rig->sourceVertex.size();
+        std::vector<uint16_t> fileJoints(nFile * size_t(inf), 0);
+        std::vector<float> fileWeights(nFile * size_t(inf), 0.0f);
+        std::map<int, uint16_t> rigidJoint;  // node -> its extra joint
+        for (size_t p = 0; p < rig->parts.size(); ++p) {
+            const RigPart& part = rig->parts[p];
+            const tinygltf::Primitive& prim = *scene.primitives[p];
+            if (!part.skinned) {
+                // A rigid part follows its node: one extra joint whose inverse
+                // bind matrix undoes the node's rest transform.
+                uint16_t j = 0;
+                if (part.node >= 0) {
+                    auto it = rigidJoint.find(part.node);
+                    if (it == rigidJoint.end()) {
+                        if (sk.skin.joints.size() >= 0xffff)
+                            return Status(StatusCode::InvalidData, path + ": too many joints");
+                        it = rigidJoint.emplace(part.node, uint16_t(sk.skin.joints.size())).first;
+                        sk.skin.joints.push_back(part.node);
+                        sk.skin.inverseBindMatrices.push_back(glm::inverse(part.toScene));
+                    }
+                    j = it->second;
+                }
+                for (uint32_t v = 0; v < part.vertexCount; ++v) {
+                    fileJoints[size_t(part.firstVertex + v) * size_t(inf)] = j;
+                    fileWeights[size_t(part.firstVertex + v) * size_t(inf)] = 1.0f;
+                }
+                continue;
+            }
+            if (attributeOf(prim, "JOINTS_0") < 0 || attributeOf(prim, "WEIGHTS_0") < 0)
+                return Status(StatusCode::InvalidData, path + ": " + part.name + " is skinned but has no JOINTS_0/WEIGHTS_0");
+            for (int set = 0; set < sets; ++set) {
+                const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
+                if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
+                    continue;
+                std::vector<uint32_t> joints;
+                std::vector<float> weights;
+                if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, &joints)) ||
+                    !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, &weights)))
+                    return Status(st.code(), path + ": " + part.name + ": " + st.message());
+                if (joints.size() != 4 * size_t(part.vertexCount) || weights.size() != joints.size())
+                    return Status(StatusCode::InvalidData, path + ": " + part.name + ": " + js + "/" + ws +
+                                                               " do not have one element per vertex");
+                for (uint32_t v = 0; v < part.vertexCount; ++v)
+                    for (int k = 0; k < 4; ++k) {
+                        const uint32_t j = joints[4 * v + uint32_t(k)];
+                        const float w = weights[4 * v + uint32_t(k)];
+                        if (w != 0.0f && j >= skin.joints.size())
+                            return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
+                                                                       std::to_string(v) + " is skinned to joint " +
+                                                                       std::to_string(j) + " of a " +
+                                                                       std::to_string(skin.joints.size()) +
+                                                                       "-joint skin");
+                        if (!(w >= 0.0f))
+                            return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
+                                                                       std::to_string(v) + " has a negative skin weight");
+                        const size_t slot = size_t(part.firstVertex + v) * size_t(inf) + size_t(4 * set + k);
+                        fileJoints[slot] = uint16_t(w != 0.0f ? j : 0);
+                        fileWeights[slot] = w;
+                    }
+            }
+        }
+        const size_t nv = rig->mesh.positions.size();
+        std::vector<uint32_t> firstCopy(nv, uint32_t(-1));
+        for (size_t f = 0; f < nFile; ++f)
+            if (firstCopy[rig->sourceVertex[f]] == uint32_t(-1))
+                firstCopy[rig->sourceVertex[f]] = uint32_t(f);
+        VertexWeights& vw = sk.weights;
+        vw.influences = inf;
+        vw.joints.assign(nv * size_t(inf), 0);
+        vw.weights.assign(nv * size_t(inf), 0.0f);
+        size_t renormalised = 0;
+        for (size_t v = 0; v < nv; ++v) {
+            const size_t f = firstCopy[v];
+            float sum = 0.0f;
+            for (int k = 0; k < inf; ++k) {
+                vw.joints[v * size_t(inf) + size_t(k)] = fileJoints[f * size_t(inf) + size_t(k)];
+                sum += vw.weights[v * size_t(inf) + size_t(k)] = fileWeights[f * size_t(inf) + size_t(k)];
+            }
+            if (!(sum > 0.0f) || !std::isfinite(sum))
+                return Status(StatusCode::InvalidData, path + ": file vertex " + std::to_string(f) +
+                                                           " has no usable skin weight");
+            if (std::fabs(sum - 1.0f) > 1e-3f) {
+                ++renormalised;
+                for (int k = 0; k < inf; ++k)
+                    vw.weights[v * size_t(inf) + size_t(k)] /= sum;
+            }
+        }
+        if (renormalised)
+            rig->warnings.push_back(std::to_string(renormalised) +
+                                    " vertices had skin weights not summing to 1; renormalised");
+        if (!rigidJoint.empty())
+            rig->warnings.push_back(std::to_string(rigidJoint.size()) +
+                                    " unskinned mesh nodes follow their node as rigid parts");
+    }
+    for (size_t a = 0; a < model.animations.size(); ++a) {
+        const tinygltf::Animation& in = model.animations[a];
+        Animation anim;
+        anim.name = in.name.empty() ? "animation" + std::to_string(a) : in.name;
+        if (in.samplers.empty() || in.channels.empty())
+            return Status(StatusCode::InvalidData, path + ": animation " + std::to_string(a) + " (" + anim.name +
+                                                       ") has no samplers or channels");
+        for (const tinygltf::AnimationChannel& ch : in.channels) {
+            if (ch.target_path == "weights") {
+                rig->warnings.push_back("animation " + printable(anim.name, 60) + ": morph-target weights are not supported, ignored");
+                continue;
+            }
+            if (ch.sampler < 0 || size_t(ch.sampler) >= in.samplers.size())
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has a channel without a sampler");
+            const tinygltf::AnimationSampler& sa = in.samplers[size_t(ch.sampler)];
+            AnimationChannel c;
+            c.node = ch.target_node;
+            if (ch.target_path == "translation")
+                c.path = AnimationPath::Translation;
+            else if (ch.target_path == "rotation")
+                c.path = AnimationPath::Rotation;
+            else if (ch.target_path == "scale")
+                c.path = AnimationPath::Scale;
+            else
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown path '" +
+                                                           printable(ch.target_path, 40) + "'");
+            if (sa.interpolation == "LINEAR" || sa.interpolation.empty())
+                c.interpolation = AnimationInterpolation::Linear;
+            else if (sa.interpolation == "STEP")
+                c.interpolation = AnimationInterpolation::Step;
+            else if (sa.interpolation == "CUBICSPLINE")
+                c.interpolation = AnimationInterpolation::CubicSpline;
+            else
+                return Status(StatusCode::InvalidData, path + ": animation " + anim.name + " has an unknown interpolation");
+            const std::string what = "animation " + printable(anim.name, 60);
+            if (!(st = readFloatAccessor(model, sa.input, 1, what + " key times", &c.times)) ||
+                !(st = readFloatAccessor(model, sa.output, c.path == AnimationPath::Rotation ? 4 : 3, what + " key values",
+                                         &c.values)))
+                return Status(st.code(), path + ": " + st.message());
+            anim.channels.push_back(std::move(c));
+        }
+        if (!anim.channels.empty())
+            sk.animations.push_back(std::move(anim));
+    }
+    if (!(st = finalizeSkeleton(&sk, rig->mesh.positions.size())))
+        return Status(st.code(), path + ": " + st.message());
+    return Status::ok();
+}
+
+}  // namespace rigfile
+
+}  // namespace io
+}  // namespace strata
