@@ -3,12 +3,14 @@
 #include "strata/frame.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
+#include "strata/plane.h"
 #include "test_util.h"
 
 #include <algorithm>
 #include <cstring>
 #include <memory>
 #include <random>
+#include <type_traits>
 
 using namespace strata;
 
@@ -340,4 +342,23 @@ TEST(ShadingNormals, SmoothTilesShareTheirWeights)
     EXPECT_LT(double(frame.bytes()), 0.25 * unshared);
     for (size_t v = 0; v < n; ++v)
         ASSERT_LT(glm::length(q[v] - ref[v]), 1e-5f) << v;
+}
+
+// strata/plane.h, the one edge function: twice the signed area, the sign
+// of the turn, exact antisymmetry, and the arguments' own scalar type.
+TEST(Plane, OrientationIsTwiceTheSignedArea)
+{
+    const glm::dvec2 a(0.0, 0.0), b(4.0, 0.0), c(0.0, 3.0);
+    EXPECT_EQ(strata::orient2(a, b, c), 12.0);   // the 3-4-5 right triangle: area 6, counter-clockwise
+    EXPECT_EQ(strata::orient2(a, c, b), -12.0);  // clockwise
+    EXPECT_EQ(strata::orient2(a, b, glm::dvec2(2.0, 0.0)), 0.0);  // on the line
+    EXPECT_EQ(strata::cross2(b - a, c - a), strata::orient2(a, b, c));
+    const glm::dvec2 p(0.1, 0.7), q(0.3, -0.2), r(-0.6, 0.25);
+    EXPECT_EQ(strata::cross2(p, q), -strata::cross2(q, p));
+    // Translating all three points changes nothing but rounding.
+    const glm::dvec2 t(1e3, -2e3);
+    EXPECT_NEAR(strata::orient2(p + t, q + t, r + t), strata::orient2(p, q, r), 1e-9);
+    static_assert(std::is_same<decltype(strata::cross2(glm::vec2(), glm::vec2())), float>::value,
+                  "float in, float out: callers keep the bits they computed inline");
+    EXPECT_EQ(strata::orient2(glm::ivec2(0, 0), glm::ivec2(2, 0), glm::ivec2(0, 2)), 4);  // integers exact
 }

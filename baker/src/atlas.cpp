@@ -6,6 +6,7 @@
 #include "distortion.h"
 #include "cancel.h"
 #include "parallel.h"
+#include "strata/plane.h"
 
 #include <Eigen/Sparse>
 #include <glm/geometric.hpp>
@@ -234,7 +235,7 @@ bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int
         for (int k = 0; k < 3; ++k) {
             t.v[k] = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
             const glm::dvec2 a = t.q[(k + 1) % 3] - t.q[k], b = t.q[(k + 2) % 3] - t.q[k];
-            t.w[k] = 0.5 * glm::dot(a, b) / (a.x * b.y - a.y * b.x);
+            t.w[k] = 0.5 * glm::dot(a, b) / cross2(a, b);
         }
         faces.push_back(t);
     }
@@ -303,7 +304,7 @@ bool flattenRigid(const Chart& c, const ControlMesh& mesh, const std::vector<int
     }
     for (const Face& t : faces) {
         const glm::dvec2 a = u[t.v[1]] - u[t.v[0]], bb = u[t.v[2]] - u[t.v[0]];
-        const double area = a.x * bb.y - a.y * bb.x;
+        const double area = cross2(a, bb);
         if (!(area > 0.0) || !std::isfinite(area))
             return false;
     }
@@ -371,7 +372,7 @@ bool selfOverlaps(const Chart& c, const ControlMesh& mesh, const std::vector<int
         i = j;
     }
     auto orient = [](const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& p) {
-        const double d = (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
+        const double d = orient2(a, b, p);
         return d > 0.0 ? 1 : d < 0.0 ? -1 : 0;
     };
     for (size_t i = 0; i < border.size(); ++i) {
@@ -1340,7 +1341,7 @@ Status layoutCharts(std::vector<Chart> charts, const ControlMesh& mesh, const At
     *fill = 0.0;
     for (size_t f = 0; f < nf; ++f) {
         const glm::vec2 a = uvs[uvIndices[3 * f]], b = uvs[uvIndices[3 * f + 1]], c = uvs[uvIndices[3 * f + 2]];
-        *fill += 0.5 * std::fabs(double((b - a).x * (c - a).y - (b - a).y * (c - a).x));
+        *fill += 0.5 * std::fabs(double(cross2(b - a, c - a)));
     }
     return Status::ok();
 }

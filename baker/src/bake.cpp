@@ -9,6 +9,7 @@
 #include "rasterize.h"
 #include "strata/baker/surface.h"
 #include "strata/normals.h"
+#include "strata/plane.h"
 
 #include <glm/geometric.hpp>
 
@@ -55,7 +56,7 @@ int chooseMapSize(const ControlMesh& control, double typicalEdge, int maxSize, s
         a3 += 0.5 * double(glm::length(glm::cross(p1 - p0, p2 - p0)));
         const glm::vec2 u0 = control.uvs[control.uvIndices[3 * f]], u1 = control.uvs[control.uvIndices[3 * f + 1]],
                         u2 = control.uvs[control.uvIndices[3 * f + 2]];
-        auv += 0.5 * std::fabs(double((u1 - u0).x * (u2 - u0).y - (u1 - u0).y * (u2 - u0).x));
+        auv += 0.5 * std::fabs(double(cross2(u1 - u0, u2 - u0)));
     }
     int size = 64;
     if (typicalEdge > 0.0 && auv > 0.0) {
@@ -108,7 +109,7 @@ Status checkUVs(const ControlMesh& control, int size)
                 bool in = true;
                 for (int k = 0; k < 3 && in; ++k) {
                     const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
-                    const double e = ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)) / glm::length(b - a);
+                    const double e = orient2(a, b, c) / glm::length(b - a);
                     in = e > 0.01;
                 }
                 if (!in)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "strata/control_mesh.h"
+#include "strata/plane.h"
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -47,7 +48,7 @@ public:
     {
         // J maps the flattening's plane to the face's own: J = Q W^-1.
         const glm::dvec2 w1 = w[1] - w[0], w2 = w[2] - w[0], q1 = q[1] - q[0], q2 = q[2] - q[0];
-        const double det = w1.x * w2.y - w1.y * w2.x;
+        const double det = cross2(w1, w2);
         if (!(det > 0.0))
             return false;
         const double i00 = w2.y / det, i01 = -w2.x / det, i10 = -w1.y / det, i11 = w1.x / det;
@@ -56,7 +57,7 @@ public:
         const double e = 0.5 * (a * a + b * b + c * c + d * d), g = std::fabs(a * d - b * c);
         const double root = std::sqrt(std::max(0.0, e * e - g * g));
         sigma_.push_back({std::sqrt(e + root), std::sqrt(std::max(0.0, e - root))});
-        area3_ += 0.5 * (q1.x * q2.y - q1.y * q2.x);
+        area3_ += 0.5 * cross2(q1, q2);
         area2_ += 0.5 * det;
         return true;
     }

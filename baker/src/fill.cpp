@@ -3,6 +3,7 @@
 #include "parallel.h"
 
 #include "mapping.h"
+#include "strata/plane.h"
 
 #include <glm/geometric.hpp>
 
@@ -39,7 +40,7 @@ std::vector<int32_t> chartOwners(const BakeSurface& s, int size, int rings, size
                 bool in = true;
                 for (int k = 0; k < 3 && in; ++k) {
                     const glm::dvec2 a = t[k], b = t[(k + 1) % 3];
-                    in = ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)) * area >= 0.0;
+                    in = orient2(a, b, c) * area >= 0.0;
                 }
                 int32_t& o = owner[size_t(y) * size_t(size) + size_t(x)];
                 if (in && o < 0)
@@ -95,10 +96,10 @@ size_t fillByLineIntersection(std::vector<float>* values, std::vector<uint8_t>* 
                 }
                 const glm::dvec2 c(double(x) + 0.5, double(y) + 0.5), e1 = t[1] - t[0], e2 = t[2] - t[0],
                                  r = c - t[0];
-                const double det = e1.x * e2.y - e1.y * e2.x;
+                const double det = cross2(e1, e2);
                 if (det == 0.0)
                     continue;
-                const double b1 = (r.x * e2.y - r.y * e2.x) / det, b2 = (e1.x * r.y - e1.y * r.x) / det;
+                const double b1 = cross2(r, e2) / det, b2 = cross2(e1, r) / det;
                 const double b0 = 1.0 - b1 - b2;
                 const glm::dvec3 p = b0 * v[0] + b1 * v[1] + b2 * v[2];
                 const glm::dvec3 dir = b0 * n[0] + b1 * n[1] + b2 * n[2];

@@ -2,6 +2,7 @@
 // the texture plane through the normal-volume mapping of its vertices.
 #include "rasterize.h"
 #include "parallel.h"
+#include "strata/plane.h"
 
 #include <glm/geometric.hpp>
 
@@ -53,7 +54,7 @@ inline double edgeFunction(const glm::dvec2& a, const glm::dvec2& b, const glm::
     const bool swap = (b.x < a.x) || (b.x == a.x && b.y < a.y);
     const glm::dvec2& s = swap ? b : a;
     const glm::dvec2& e = swap ? a : b;
-    const double v = (e.x - s.x) * (p.y - s.y) - (e.y - s.y) * (p.x - s.x);
+    const double v = orient2(s, e, p);
     // Ownership of points exactly on the edge, a property of the directed edge.
     const double dx = b.x - a.x, dy = b.y - a.y;
     *owns = dy > 0.0 || (dy == 0.0 && dx < 0.0);

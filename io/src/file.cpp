@@ -1,7 +1,5 @@
 #include "strata/io/file.h"
 
-#include <regex>
-
 #include "text.h"
 
 #include <filesystem>
@@ -145,15 +143,41 @@ bool isRegularFile(const std::filesystem::path& pathFile)
     return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
+namespace {
+
+// The digits at text[*at...], advancing *at; empty when there are none.
+std::string digitsAt(const std::string& text, size_t* at)
+{
+    const size_t from = *at;
+    while (*at < text.size() && text[*at] >= '0' && text[*at] <= '9')
+        ++*at;
+    return text.substr(from, *at - from);
+}
+
+}  // namespace
+
+// Plain string matching, not std::regex: GCC 12's <regex> trips
+// -Wmaybe-uninitialized under the sanitizers, and these run on hostile text.
 std::string plainJsonError(const std::string& what)
 {
-    std::smatch m;
-    if (std::regex_search(what, m, std::regex("parse error at line ([0-9]+), column ([0-9]+)")))
-        return "not valid JSON (line " + m[1].str() + ", column " + m[2].str() + ")";
-    if (std::regex_search(what, m, std::regex("type_error[^ ]* (.*)$")))
-        return "a value of the wrong type (" + printable(m[1].str(), 80) + ")";
-    if (std::regex_search(what, m, std::regex("\\[json\\.exception\\.[a-z_]+\\.[0-9]+\\] (.*)$")))
-        return printable(m[1].str(), 120);
+    const std::string lineKey = "parse error at line ", columnKey = ", column ";
+    size_t at = what.find(lineKey);
+    if (at != std::string::npos) {
+        at += lineKey.size();
+        const std::string line = digitsAt(what, &at);
+        if (!line.empty() && what.compare(at, columnKey.size(), columnKey) == 0) {
+            at += columnKey.size();
+            const std::string column = digitsAt(what, &at);
+            if (!column.empty())
+                return "not valid JSON (line " + line + ", column " + column + ")";
+        }
+    }
+    at = what.find("type_error");
+    if (at != std::string::npos && (at = what.find(' ', at)) != std::string::npos)
+        return "a value of the wrong type (" + printable(what.substr(at + 1), 80) + ")";
+    at = what.find("[json.exception.");
+    if (at != std::string::npos && (at = what.find("] ", at)) != std::string::npos)
+        return printable(what.substr(at + 2), 120);
     return printable(what, 120);
 }
 
@@ -165,9 +189,17 @@ std::string plainExrError(const std::string& what)
     if (what.find("magic number") != std::string::npos || what.find("is not an image file") != std::string::npos)
         return "not an OpenEXR file";
     // "Cannot read image file \"/long/path.exr\". <reason>": the reason.
-    std::smatch m;
-    if (std::regex_search(what, m, std::regex("^Cannot [a-z ]+ file \"[^\"]*\"\\. *(.*)$")) && m[1].length() > 0)
-        return printable(m[1].str(), 160);
+    if (what.rfind("Cannot ", 0) == 0) {
+        const size_t open = what.find(" file \"");
+        const size_t close = open == std::string::npos ? open : what.find("\".", open + 7);
+        if (close != std::string::npos) {
+            size_t reason = close + 2;
+            while (reason < what.size() && what[reason] == ' ')
+                ++reason;
+            if (reason < what.size())
+                return printable(what.substr(reason), 160);
+        }
+    }
     return printable(what, 160);
 }
 

@@ -14,7 +14,6 @@
 #include <functional>
 #include <cctype>
 #include <cstring>
-#include <regex>
 
 namespace strata {
 namespace io {
@@ -289,23 +288,42 @@ std::string plainGltfError(const std::string& err)
         line.pop_back();
     if (line.empty())
         return "not a valid glTF file";
-    std::smatch m;
     if (line.find("glTF Binary") != std::string::npos || line.find("Invalid magic") != std::string::npos ||
         line.find("Invalid glTF binary") != std::string::npos || line.find("Invalid binary glTF") != std::string::npos)
         return "not a complete .glb file (truncated, or not glTF at all)";
     if (line.find("json.exception") != std::string::npos)
         return plainJsonError(line);
-    if (std::regex_search(line, m, std::regex("^File not found : (.*)$")))
-        return "the external file \"" + m[1].str() + "\" it refers to is missing";
-    if (std::regex_search(line, m, std::regex("^File read error : ([^:]*)(: (.*))?$")))
-        return "cannot read the external file \"" + m[1].str() + "\" it refers to" +
-               (m[3].matched ? " (" + m[3].str() + ")" : "");
-    if (std::regex_search(line, m, std::regex("^'([^']+)' property is missing in (\\w+)")))
-        return withArticle(m[2].str()) + " has no \"" + m[1].str() + "\", which glTF requires";
-    if (std::regex_search(line, m, std::regex("^'([^']+)' property is (not .*)$")))
-        return "property \"" + m[1].str() + "\" is " + m[2].str();
-    if (std::regex_search(line, m, std::regex("^Failed to decode 'uri' : data:.* in (\\w+)")))
-        return withArticle(m[1].str()) + "'s data: URI is not valid base64";
+    // Plain string matching (no std::regex: see plainJsonError).
+    auto startsWith = [&](const char* prefix) { return line.rfind(prefix, 0) == 0; };
+    if (startsWith("File not found : "))
+        return "the external file \"" + line.substr(17) + "\" it refers to is missing";
+    if (startsWith("File read error : ")) {
+        const std::string rest = line.substr(18);
+        const size_t colon = rest.find(':');
+        std::string reason = colon == std::string::npos ? std::string() : rest.substr(colon + 1);
+        while (!reason.empty() && reason[0] == ' ')
+            reason.erase(0, 1);
+        return "cannot read the external file \"" + rest.substr(0, colon) + "\" it refers to" +
+               (reason.empty() ? std::string() : " (" + reason + ")");
+    }
+    if (startsWith("'")) {
+        const size_t quote = line.find('\'', 1);
+        const std::string name = quote == std::string::npos ? std::string() : line.substr(1, quote - 1);
+        const std::string missing = "' property is missing in ", is = "' property is not";
+        if (!name.empty() && line.compare(quote, missing.size(), missing) == 0) {
+            std::string type = line.substr(quote + missing.size());
+            type = type.substr(0, type.find_first_not_of(
+                                      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_"));
+            return withArticle(type) + " has no \"" + name + "\", which glTF requires";
+        }
+        if (!name.empty() && line.compare(quote, is.size(), is) == 0)
+            return "property \"" + name + "\" is " + line.substr(quote + is.size() - 3);
+    }
+    if (startsWith("Failed to decode 'uri' : data:")) {
+        const size_t in = line.rfind(" in ");
+        if (in != std::string::npos)
+            return withArticle(line.substr(in + 4)) + "'s data: URI is not valid base64";
+    }
     if (!line.empty())
         line[0] = char(std::tolower(static_cast<unsigned char>(line[0])));
     return line;

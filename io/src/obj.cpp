@@ -3,6 +3,7 @@
 
 #include "strata/io/file.h"
 #include "mesh_writers.h"
+#include "strata/plane.h"
 
 #include <filesystem>
 #include <cerrno>
@@ -58,13 +59,13 @@ size_t fanStart(const std::vector<glm::vec2>& uvs, const std::vector<uint32_t>& 
     double area = 0.0;  // shoelace
     for (size_t k = 0; k < n; ++k) {
         const glm::dvec2 a(uvs[ft[k]]), b(uvs[ft[(k + 1) % n]]);
-        area += a.x * b.y - a.y * b.x;
+        area += cross2(a, b);
     }
     for (size_t s = 0; s < n; ++s) {
         bool consistent = true;
         for (size_t k = 1; k + 1 < n && consistent; ++k) {
             const glm::dvec2 a(uvs[ft[s]]), b(uvs[ft[(s + k) % n]]), c(uvs[ft[(s + k + 1) % n]]);
-            const double t = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+            const double t = orient2(a, b, c);
             consistent = t * area > 0.0;
         }
         if (consistent)

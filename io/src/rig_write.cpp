@@ -16,6 +16,7 @@
 #include "weld.h"
 #include "strata/displacement_math.h"
 #include "strata/normals.h"
+#include "strata/plane.h"
 
 #include <meshoptimizer.h>
 #include <glm/geometric.hpp>
@@ -254,7 +255,7 @@ std::vector<uint8_t> usedTexels(const ControlMesh& mesh, int width, int height)
                 double nearest = 1e300;
                 for (int k = 0; k < 3; ++k) {
                     const glm::dvec2 a = t[k], b = t[(k + 1) % 3], ab = b - a;
-                    const double cross = ab.x * (p.y - a.y) - ab.y * (p.x - a.x);
+                    const double cross = cross2(ab, p - a);
                     inside = inside && cross * area >= 0.0;
                     const double len2 = glm::dot(ab, ab);
                     const double s = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
