@@ -332,9 +332,9 @@ void Scene::update(float dt)
             cpu_->setSkinningMethod(SkinningMethod::Linear);
             cpu_->setAnimationTime(settings.animation, start + settings.time);
         }
-    } else {
-        cpu_->setRestPose();
     }
+    // Unanimated: the surface stays in the bind pose it was made in (and that
+    // computeErrors sets), so the frame re-poses nothing.
     const glm::vec3* positions = cpu_->controlPositions().data();
     const glm::vec3* normals = cpu_->controlNormals().data();
     cpuFrameMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
