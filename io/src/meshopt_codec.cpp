@@ -254,6 +254,12 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         else if (filter != "NONE")
             return bad("bufferView " + std::to_string(v) + " uses filter " + printable(filter, 20));
         view.erase("extensions");
+        // An ATTRIBUTES view decodes to elements `stride` apart.  Writers
+        // that pad small elements (glTF Transform pads a SCALAR of bytes to
+        // 4) may leave byteStride off a view no vertex attribute reads; the
+        // elements are still that far apart.
+        if (mode == "ATTRIBUTES" && !view.contains("byteStride") && count > 1 && count * stride == dstLength)
+            view["byteStride"] = stride;
         view["buffer"] = 0;
         view["byteOffset"] = base + dstOffset;
     }

@@ -45,6 +45,11 @@ const char* const kPositionsToken = "~strata~position";
 const char* const kShapeToken = "~strata~shape~~~";
 const char* const kUVToken = "~strata~uvs~~~~~";
 
+/// Refuses a control mesh other than the one the layer was baked on, naming
+/// what changed (checkBinding false: only the record's fields are read).
+Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, const ControlMesh& mesh,
+                         bool checkBinding);
+
 /// What finishRig does with a layer that does not match its control mesh:
 /// refuse the file (loadRig), skip the comparison (sealLayer, whose file has
 /// placeholders yet), or drop the layer with a warning (a control mesh for a
@@ -77,9 +82,30 @@ struct SceneGeometry {
     size_t passThrough = 0;  // point and line primitives, kept untouched
     size_t missingUV = 0;    // triangle parts without the displacement UV set
     std::string firstMissingUV;
+    std::vector<uint32_t> fileTriangles;      // every triangle in file vertices, degenerate ones included
+    std::vector<uint32_t> fileTriangleParts;  // per file triangle: its part
 };
 
+/// Welds file vertices (scene space) into rig->mesh: fills sourceVertex,
+/// fileCorners, the parts' face ranges and, withUV, the mesh's UVs.
+void weldFileVertices(const std::vector<float>& pos, std::vector<glm::vec2>&& uv, const std::vector<uint32_t>& tri,
+                      const std::vector<uint32_t>& partOfTri, bool withUV, int texCoord, Rig* rig);
+
 Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out);
+
+// ---- Carrying the layer through other tools (rig_carry.cpp) ----
+
+/// The layer's `baked` control mesh, written by Strata's glTF Transform
+/// extension when a command renumbered or moved the control mesh (reorder,
+/// weld, quantize, meshopt, draco): rebuilds it, checks that the file's
+/// tagged triangles (_STRATA_VERTEX) are still its triangles and its
+/// vertices still near their places, and puts it in scene->rig in place of
+/// the file's.  *bindFix maps the baked mesh's bind space to the skinned
+/// parts' current one: each skin joint's inverse bind matrix is multiplied
+/// by it on the right (a command that moved the vertices into another
+/// space, as quantize does, changed the inverse bind matrices to match).
+Status carryBakedControl(const std::string& path, const tinygltf::Model& model, const tinygltf::Value& block,
+                         SceneGeometry* scene, glm::mat4* bindFix);
 
 // ---- The skeleton (rig_skeleton.cpp) ----
 

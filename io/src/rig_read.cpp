@@ -498,7 +498,7 @@ Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, 
 // The coded per-vertex values: a bufferView (versions 3 and 4) or an
 // accessor of unsigned bytes (version 5).
 Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& info, const std::string& path,
-                        const unsigned char** bytes, size_t* length)
+                        const unsigned char** bytes, size_t* length, std::vector<unsigned char>* gathered)
 {
     if (info.vertexAccessor < 0) {
         *bytes = viewBytes(model, info.vertexView);
@@ -516,10 +516,20 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
         return Status(StatusCode::InvalidData, what + " has no bufferView (the displacements are missing)");
     const unsigned char* b = viewBytes(model, acc.bufferView);
     const tinygltf::BufferView& view = model.bufferViews[size_t(acc.bufferView)];
-    if (!b || (view.byteStride != 0 && view.byteStride != 1) || acc.byteOffset > view.byteLength ||
-        acc.count > view.byteLength - acc.byteOffset)
+    const size_t stride = view.byteStride ? view.byteStride : 1;
+    const size_t avail = acc.byteOffset <= view.byteLength ? view.byteLength - acc.byteOffset : 0;
+    if (!b || acc.byteOffset > view.byteLength || (acc.count && (avail == 0 || acc.count - 1 > (avail - 1) / stride)))
         return Status(StatusCode::InvalidData, what + " reads past the end of its bufferView");
-    *bytes = b + acc.byteOffset;
+    if (stride == 1) {
+        *bytes = b + acc.byteOffset;
+        *length = acc.count;
+        return Status::ok();
+    }
+    // Strided (a meshopt-coded view padded to 4 bytes per value).
+    gathered->resize(acc.count);
+    for (size_t i = 0; i < acc.count; ++i)
+        (*gathered)[i] = b[acc.byteOffset + i * stride];
+    *bytes = gathered->data();
     *length = acc.count;
     return Status::ok();
 }
@@ -531,6 +541,16 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
     SceneGeometry scene;
     if (!(st = readSceneGeometry(path, *doc, &scene)))
         return st;
+    // A control mesh that Strata's glTF Transform extension carried through
+    // a command that renumbered or moved it: the baked mesh takes its place.
+    glm::mat4 bindFix(1.0f);
+    if (scene.blockMesh >= 0 && scene.blockIsExtension && check == LayerCheck::Enforce) {
+        bool extension = false;
+        const tinygltf::Value& block = *layerBlock(doc->model.meshes[size_t(scene.blockMesh)], &extension);
+        if (member(block, "baked") && !checkLayerBinding(block, path, scene.rig.mesh, true) &&
+            !(st = carryBakedControl(path, doc->model, block, &scene, &bindFix)))
+            return st;
+    }
     Rig rig = std::move(scene.rig);
     if (rig.mesh.triangles.empty())
         return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
@@ -538,6 +558,15 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         return Status(st.code(), path + ": " + st.message());
     if (!(st = loadSkeleton(path, doc->model, scene, &rig)))
         return st;
+    if (bindFix != glm::mat4(1.0f) && rig.skeleton.meshNode >= 0) {
+        // The skin's joints (not the rigid parts' extra joints after them)
+        // bind the baked vertices: a tool that moved the bind space moved
+        // the inverse bind matrices with it.
+        const int skin = doc->model.nodes[size_t(rig.skeleton.meshNode)].skin;
+        const size_t joints = skin >= 0 ? doc->model.skins[size_t(skin)].joints.size() : 0;
+        for (size_t j = 0; j < joints && j < rig.skeleton.skin.inverseBindMatrices.size(); ++j)
+            rig.skeleton.skin.inverseBindMatrices[j] = rig.skeleton.skin.inverseBindMatrices[j] * bindFix;
+    }
     if (scene.passThrough)
         rig.warnings.push_back(std::to_string(scene.passThrough) +
                                " point or line primitives are kept in the file but not refined");
@@ -574,7 +603,8 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
             DisplacementInfo& info = rig.displacement;
             const unsigned char* b = nullptr;
             size_t length = 0;
-            if (!(st = layerVertexBytes(model, info, path, &b, &length)))
+            std::vector<unsigned char> gathered;
+            if (!(st = layerVertexBytes(model, info, path, &b, &length, &gathered)))
                 return st;
             info.embedded.assign(b, b + length);
             // Refining costs per refined triangle, and zstd packs a field of

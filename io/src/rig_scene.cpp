@@ -154,6 +154,38 @@ Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitiv
 }
 
 
+// Welds file vertices into topological vertices (exact position match, over
+// every primitive: coincident vertices of different primitives join, so the
+// refined surface is watertight wherever the input is).
+void weldFileVertices(const std::vector<float>& pos, std::vector<glm::vec2>&& uv, const std::vector<uint32_t>& tri,
+                      const std::vector<uint32_t>& partOfTri, bool withUV, int texCoord, Rig* rigOut)
+{
+    Rig& rig = *rigOut;
+    const size_t nFile = pos.size() / 3;
+    weldByPosition(reinterpret_cast<const glm::vec3*>(pos.data()), nFile, &rig.sourceVertex, &rig.mesh.positions);
+    rig.mesh.triangles.clear();
+    rig.fileCorners.clear();
+    for (RigPart& part : rig.parts)
+        part.firstFace = part.faceCount = 0;
+    for (size_t t = 0; t < tri.size(); t += 3) {
+        const uint32_t a = rig.sourceVertex[tri[t]], b = rig.sourceVertex[tri[t + 1]], c = rig.sourceVertex[tri[t + 2]];
+        RigPart& part = rig.parts[partOfTri[t / 3]];
+        if (part.faceCount == 0)
+            part.firstFace = uint32_t(rig.mesh.triangles.size() / 3);
+        if (a == b || b == c || a == c)
+            continue;  // zero area after welding: no surface to refine (the file keeps it)
+        rig.mesh.triangles.insert(rig.mesh.triangles.end(), {a, b, c});
+        rig.fileCorners.insert(rig.fileCorners.end(), {tri[t], tri[t + 1], tri[t + 2]});
+        ++part.faceCount;
+    }
+    if (withUV) {
+        rig.mesh.uvs = std::move(uv);
+        rig.mesh.uvIndices = rig.fileCorners;
+        rig.fileTexCoord = texCoord;
+        rig.fileUVHash = uvHash(rig.mesh.uvs);
+    }
+}
+
 Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
 {
     const tinygltf::Model& model = doc.model;
@@ -261,28 +293,9 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     if (nFile == 0)
         return Status(StatusCode::InvalidData, path + ": the meshes have no vertices");
 
-    // Weld file vertices into topological vertices (exact position match, over
-    // every primitive: coincident vertices of different primitives join, so the
-    // refined surface is watertight wherever the input is).
-    weldByPosition(reinterpret_cast<const glm::vec3*>(pos.data()), nFile, &rig.sourceVertex, &rig.mesh.positions);
-    const bool withUV = out->missingUV == 0;
-    for (size_t t = 0; t < tri.size(); t += 3) {
-        const uint32_t a = rig.sourceVertex[tri[t]], b = rig.sourceVertex[tri[t + 1]], c = rig.sourceVertex[tri[t + 2]];
-        RigPart& part = rig.parts[partOfTri[t / 3]];
-        if (part.faceCount == 0)
-            part.firstFace = uint32_t(rig.mesh.triangles.size() / 3);
-        if (a == b || b == c || a == c)
-            continue;  // zero area after welding: no surface to refine (the file keeps it)
-        rig.mesh.triangles.insert(rig.mesh.triangles.end(), {a, b, c});
-        rig.fileCorners.insert(rig.fileCorners.end(), {tri[t], tri[t + 1], tri[t + 2]});
-        ++part.faceCount;
-    }
-    if (withUV) {
-        rig.mesh.uvs = std::move(uv);
-        rig.mesh.uvIndices = rig.fileCorners;
-        rig.fileTexCoord = texCoord;
-        rig.fileUVHash = uvHash(rig.mesh.uvs);
-    }
+    out->fileTriangles = tri;
+    out->fileTriangleParts = partOfTri;
+    weldFileVertices(pos, std::move(uv), tri, partOfTri, out->missingUV == 0, texCoord, &rig);
     return Status::ok();
 }
 

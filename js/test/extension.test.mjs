@@ -83,3 +83,67 @@ test('without the extension registered, glTF Transform drops the layer whole', a
   assert.equal(out.json.meshes[0].extensions, undefined);
   assert.ok(!(out.json.extensionsUsed || []).includes(STRATA_LAYERED_DISPLACEMENT));
 });
+
+// The triangle with indices, for the carrying tests.
+function indexedRigJson() {
+  const { json, resources } = rigJson();
+  const bin = new Uint8Array(resources['@glb.bin'].length + 8);
+  bin.set(resources['@glb.bin']);
+  new Uint16Array(bin.buffer, resources['@glb.bin'].length, 3).set([0, 1, 2]);
+  json.buffers[0].byteLength = bin.length;
+  json.bufferViews.push({ buffer: 0, byteOffset: resources['@glb.bin'].length, byteLength: 6 });
+  json.accessors.push({ bufferView: 4, componentType: 5123, count: 3, type: 'SCALAR' });
+  json.meshes[0].primitives[0].indices = 3;
+  delete json.meshes[0].extensions[STRATA_LAYERED_DISPLACEMENT].displacementGeometryTexture;
+  json.images = [];
+  json.bufferViews[3].byteLength = 8;
+  return { json, resources: { '@glb.bin': bin } };
+}
+
+test('a control mesh no command changed is written without tags or a baked copy', async () => {
+  const io = new NodeIO().registerExtensions([StrataLayeredDisplacement]);
+  const doc = await io.readJSON(indexedRigJson());
+  assert.ok(doc.getRoot().listMeshes()[0].listPrimitives()[0].getAttribute('_STRATA_VERTEX'), 'tagged on read');
+  const out = await io.writeJSON(doc, { format: 'glb' });
+  assert.deepEqual(Object.keys(out.json.meshes[0].primitives[0].attributes), ['POSITION']);
+  assert.equal(out.json.meshes[0].extensions[STRATA_LAYERED_DISPLACEMENT].baked, undefined);
+});
+
+test('a renumbered and moved control mesh keeps its tags and gains the baked mesh', async () => {
+  const io = new NodeIO().registerExtensions([StrataLayeredDisplacement]);
+  const doc = await io.readJSON(indexedRigJson());
+  // What reorder and quantize do: permute the vertices (2, 0, 1), move them a little.
+  const prim = doc.getRoot().listMeshes()[0].listPrimitives()[0];
+  const order = [2, 0, 1];
+  for (const semantic of prim.listSemantics()) {
+    const a = prim.getAttribute(semantic);
+    const moved = a.clone();
+    order.forEach((from, to) => moved.setElement(to, a.getElement(from, []).map((v) => (semantic === 'POSITION' ? v + 1e-4 : v))));
+    prim.setAttribute(semantic, moved);
+  }
+  prim.setIndices(prim.getIndices().clone().setArray(new Uint16Array([1, 2, 0])));
+  const out = await io.writeJSON(doc, { format: 'glb' });
+  const layer = out.json.meshes[0].extensions[STRATA_LAYERED_DISPLACEMENT];
+  assert.equal(layer.baked.parts.length, 1);
+  const read = (index) => {
+    const acc = out.json.accessors[index];
+    const view = out.json.bufferViews[acc.bufferView];
+    const bin = out.resources[out.json.buffers[view.buffer].uri || '@glb.bin'];
+    const Ctor = { 5126: Float32Array, 5123: Uint16Array, 5125: Uint32Array }[acc.componentType];
+    const size = { SCALAR: 1, VEC2: 2, VEC3: 3 }[acc.type];
+    const stride = view.byteStride || size * Ctor.BYTES_PER_ELEMENT;
+    const data = new DataView(bin.buffer, bin.byteOffset + (view.byteOffset || 0) + (acc.byteOffset || 0));
+    const get = { 5126: (o) => data.getFloat32(o, true), 5123: (o) => data.getUint16(o, true), 5125: (o) => data.getUint32(o, true) }[acc.componentType];
+    const values = [];
+    for (let i = 0; i < acc.count; ++i)
+      for (let k = 0; k < size; ++k) values.push(get(i * stride + k * Ctor.BYTES_PER_ELEMENT));
+    return values;
+  };
+  const part = layer.baked.parts[0];
+  assert.equal(part.mode, 4);
+  assert.deepEqual(read(part.POSITION), [0, 0, 0, 1, 0, 0, 0, 1, 0], 'the positions as read, exactly');
+  assert.deepEqual(read(part.indices), [0, 1, 2]);
+  // Each vertex's tag names the baked vertex it came from.
+  const tags = read(out.json.meshes[0].primitives[0].attributes._STRATA_VERTEX);
+  assert.deepEqual(tags, [2, 0, 0, 0, 1, 0]);
+});

@@ -60,6 +60,28 @@ function objVertices(file) {
   return Float64Array.from(v);
 }
 
+// A GLB's JSON and binary chunk, and a GLB made of them.
+function readGlb(file) {
+  const bytes = fs.readFileSync(file);
+  const jsonLength = bytes.readUInt32LE(12);
+  const json = JSON.parse(bytes.subarray(20, 20 + jsonLength).toString());
+  const bin = bytes.length > 28 + jsonLength ? bytes.subarray(28 + jsonLength, 28 + jsonLength + bytes.readUInt32LE(20 + jsonLength)) : Buffer.alloc(0);
+  return { json, bin };
+}
+function writeGlb(file, json, bin) {
+  let text = Buffer.from(JSON.stringify(json));
+  text = Buffer.concat([text, Buffer.alloc((4 - (text.length % 4)) % 4, 0x20)]);
+  const head = Buffer.alloc(12), jsonHead = Buffer.alloc(8), binHead = Buffer.alloc(8);
+  head.writeUInt32LE(0x46546c67, 0);
+  head.writeUInt32LE(2, 4);
+  head.writeUInt32LE(12 + 8 + text.length + 8 + bin.length, 8);
+  jsonHead.writeUInt32LE(text.length, 0);
+  jsonHead.writeUInt32LE(0x4e4f534a, 4);
+  binHead.writeUInt32LE(bin.length, 0);
+  binHead.writeUInt32LE(0x004e4942, 4);
+  fs.writeFileSync(file, Buffer.concat([head, jsonHead, text, binHead, bin]));
+}
+
 function diagonal(v) {
   const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   for (let i = 0; i < v.length; i += 3)
@@ -135,6 +157,15 @@ for (const [name, description, args] of rigs) {
   }
   const refV = objVertices(ref);
   const tolerance = 1e-5 * diagonal(refV);
+  // Animated rigs are also compared posed (0.7 s into the first animation):
+  // a command that quantises skin weights moves the posed surface by what
+  // it rounded away, and nothing else may move it.
+  const animated = name === 'penguin' || name === 'cesiumman';
+  const posedRef = path.join(work, `${name}_ref_posed.obj`);
+  if (animated && run(reconstruct, [rig, '--time', '0.7', '-o', posedRef]).code !== 0) {
+    console.error(`posed reconstruct of ${name} failed`);
+    process.exit(1);
+  }
   for (const [tool, how, fn] of tools) {
     const tag = `${name}_${tool.replace(/[^a-z0-9]+/gi, '_')}_${how}`;
     const out = path.join(work, `${tag}.glb`);
@@ -157,8 +188,36 @@ for (const [name, description, args] of rigs) {
       let max = v.length === refV.length ? 0 : Infinity;
       for (let i = 0; i < v.length && max < Infinity; i += 3)
         max = Math.max(max, Math.hypot(v[i] - refV[i], v[i + 1] - refV[i + 1], v[i + 2] - refV[i + 2]));
+      // A carried layer is still the extension's schema.
+      const layer = readGlb(out).json.meshes.map((m) => m.extensions && m.extensions.STRATA_layered_displacement).find(Boolean);
+      if (layer && !validateLayer(layer)) {
+        rows.push([name, tool, how, 'SCHEMA', JSON.stringify(validateLayer.errors).slice(0, 200)]);
+        ++wrong;
+        continue;
+      }
+      let posed = '';
+      if (max <= tolerance && animated) {
+        const posedOut = path.join(work, `${tag}_posed.obj`);
+        const p = run(reconstruct, [out, '--time', '0.7', '-o', posedOut]);
+        const a = objVertices(posedRef), b = p.code === 0 ? objVertices(posedOut) : new Float64Array(0);
+        // Up to one translation of the whole scene (center moves the root).
+        const shift = [0, 0, 0];
+        for (let i = 0; i < a.length && a.length === b.length; i += 3)
+          for (let k = 0; k < 3; ++k) shift[k] += (b[i + k] - a[i + k]) / (a.length / 3);
+        let worst = a.length === b.length ? 0 : Infinity;
+        for (let i = 0; i < a.length && worst < Infinity; i += 3)
+          worst = Math.max(worst, Math.hypot(a[i] + shift[0] - b[i], a[i + 1] + shift[1] - b[i + 1], a[i + 2] + shift[2] - b[i + 2]));
+        worst /= diagonal(a);
+        const moved = Math.hypot(...shift) / diagonal(a);
+        posed = `; posed at 0.7 s ${worst.toExponential(1)}${moved > 1e-6 ? ` after the scene's move by ${moved.toExponential(1)}` : ''}`;
+        if (!(worst <= 5e-3)) {
+          rows.push([name, tool, how, 'WRONG POSE', `posed at 0.7 s: max vertex distance ${worst.toExponential(2)} of the diagonal`]);
+          ++wrong;
+          continue;
+        }
+      }
       if (max <= tolerance) {
-        rows.push([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal`]);
+        rows.push([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal${posed}`]);
       } else {
         rows.push([name, tool, how, 'WRONG SURFACE', v.length === refV.length
           ? `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(2)} of the diagonal`
@@ -174,6 +233,42 @@ for (const [name, description, args] of rigs) {
         ++wrong;
       }
     }
+  }
+}
+
+// A carried file that is then damaged or edited is refused with the cause:
+// spot reordered with the config (so it carries \`baked\` and the tags),
+// then changed by hand.
+const tampers = [];
+{
+  const carried = path.join(work, 'spot_gltf_transform_reorder_config.glb');
+  const cases = [
+    ['the tags removed', /lost the _STRATA_VERTEX/, (json) => {
+      for (const m of json.meshes) for (const p of m.primitives) delete p.attributes._STRATA_VERTEX;
+    }],
+    ['the baked copy pointed at other data', /is not the one its "control" record describes/, (json) => {
+      const part = json.meshes[0].extensions.STRATA_layered_displacement.baked.parts[0];
+      part.POSITION = json.meshes[0].primitives[0].attributes.POSITION;
+    }],
+    ['a triangle dropped', /triangles but was baked with/, (json) => {
+      const acc = json.accessors[json.meshes[0].primitives[0].indices];
+      acc.count -= 3;
+    }],
+    ['the mesh moved by its node', /vertices moved up to/, (json) => {
+      json.nodes.find((n) => n.mesh === 0).translation = [0.5, 0, 0];
+    }],
+  ];
+  for (const [label, expect, edit] of cases) {
+    const { json, bin } = readGlb(carried);
+    edit(json);
+    const file = path.join(work, `tampered_${label.replace(/[^a-z0-9]+/gi, '_')}.glb`);
+    writeGlb(file, json, bin);
+    const r = run(reconstruct, [file, '-o', file.replace(/\.glb$/, '.obj')]);
+    const errors = r.stderr.split('\n').filter((l) => l.includes(': error: '));
+    const ok = r.code === 2 && errors.length === 1 && expect.test(errors[0]);
+    if (!ok) ++wrong;
+    tampers.push([label, ok ? 'refused' : `FAILED (exit ${r.code})`,
+                  (errors[0] || r.out.trim().split('\n').pop() || '').replace(/^strata-reconstruct: error: [^:]*: /, '')]);
   }
 }
 
@@ -270,14 +365,17 @@ for (const [tool, expected, fn] of openers) {
 const escape = (s) => s.replace(/\|/g, '\\|');
 let table = '| rig | tool | extension support | result | detail |\n|---|---|---|---|---|\n';
 for (const r of rows) table += `| ${r.map(escape).join(' | ')} |\n`;
+let tamperTable = '| spot, reordered with the config, then | result | Strata says |\n|---|---|---|\n';
+for (const r of tampers) tamperTable += `| ${r.map(escape).join(' | ')} |\n`;
 let readTable = '| input | accessors | Strata |\n|---|---|---|\n';
 for (const r of reads) readTable += `| ${r.map(escape).join(' | ')} |\n`;
 let openTable = `| tool | ${opens.map(([c, n]) => `\`--mesh-coding ${c}\` (spot: ${n} B)`).join(' | ')} |\n|---|---|---|---|\n`;
 for (const r of openRows) openTable += `| ${r.map(escape).join(' | ')} |\n`;
 console.log(table);
+console.log(tamperTable);
 console.log(readTable);
 console.log(openTable);
-console.log(`${rows.length + reads.length + openRows.length * codings.length - wrong} passed, ${wrong} failed`);
+console.log(`${rows.length + tampers.length + reads.length + openRows.length * codings.length - wrong} passed, ${wrong} failed`);
 if (markdown) {
   const described = rigs.map(([n, d]) => `\`${n}\` (${d})`).join(', ');
   const text = `# The rig through other tools
@@ -295,6 +393,19 @@ extension registered); "none" runs it as installed.  "tool cannot process
 it" is the tool's own refusal.
 
 ${table}
+Commands that renumber or move the control mesh (weld, unweld, reorder,
+meshopt, draco, quantize) keep the surface **with the config**: its
+extension tags every control vertex with its baked number and writes the
+baked control mesh beside the layer (docs/STRATA_layered_displacement.md,
+"Carrying the layer").  The rest pose is then the same bit for bit; posed,
+the surface moves only by the skin weights the command quantised ("posed
+at 0.7 s", a fraction of the diagonal, after any translation of the
+whole scene such as center's).  Commands that change the
+triangles (simplify, optimize where it simplifies) are refused.
+
+## A carried file, damaged or edited afterwards, is refused
+
+${tamperTable}
 ## Valid glTF from other tools is read
 
 \`gltf-transform optimize\` (meshopt, quantisation) of two characters and of
