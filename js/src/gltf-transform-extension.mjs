@@ -48,6 +48,9 @@ export class LayeredDisplacement extends ExtensionProperty {
   setMap(texture) { return this.setRef('map', texture); }
 }
 
+/** The map's image type while in a document (texture commands skip types they do not know). */
+const MAP_MIME_TYPE = 'application/x-strata-displacement';
+
 /** The attribute that numbers each control vertex in the baked mesh (low and high 16 bits). */
 export const STRATA_VERTEX = '_STRATA_VERTEX';
 
@@ -132,7 +135,12 @@ export class StrataLayeredDisplacement extends Extension {
         }
         const texture = definition.displacementGeometryTexture;
         if (texture && Number.isInteger(texture.image) && context.textures[texture.image]) {
-          layer.setMap(context.textures[texture.image]);
+          // The map is data, not a picture: texture commands (resize, webp,
+          // jpeg, ktx2) would resample or re-encode it lossily.  They skip
+          // textures of a type they do not know, so it has one until write.
+          const map = context.textures[texture.image];
+          layer._mapMimeType = map.getMimeType();
+          layer.setMap(map.setMimeType(MAP_MIME_TYPE));
           delete texture.image;
         }
         layer._baked = this._readBaked(context, definition);
@@ -274,6 +282,8 @@ export class StrataLayeredDisplacement extends Extension {
       if (map) {
         def.displacementGeometryTexture = def.displacementGeometryTexture || {};
         def.displacementGeometryTexture.image = context.imageIndexMap.get(map);
+        const imageDef = json.images[def.displacementGeometryTexture.image];
+        if (imageDef && imageDef.mimeType === MAP_MIME_TYPE) imageDef.mimeType = layer._mapMimeType || 'image/png';
       }
       if (layer._bakedDef) {
         const index = (a) => context.accessorIndexMap.get(a);

@@ -112,6 +112,8 @@ const transformCommands = [
   ['copy'], ['dedup'], ['prune'], ['resample'], ['sparse'], ['flatten'], ['center'], ['instance'],
   ['unweld'], ['weld'], ['reorder'], ['simplify'], ['optimize'], ['meshopt'], ['draco'], ['quantize'],
   ['quantize', '--pattern', 'TEXCOORD_*'], ['dequantize'],
+  // Texture commands (sharp, from npm): they leave the map, which is data, alone.
+  ['resize', '--width', '64', '--height', '64'], ['webp'], ['jpeg'], ['png'], ['avif'],
 ];
 const tools = [];
 for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
