@@ -338,6 +338,62 @@ TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
     EXPECT_LT(test::readText(dir + "/rig.glb").size(), test::readText(dir + "/png.glb").size());
 }
 
+// The writer in steps: the caller gives its own per-vertex values over the
+// control mesh as the file numbers it, and they are what the file holds; a
+// commit without them, or values for another mesh, is refused and writes
+// nothing.
+TEST(Rig, WriterCodesTheValuesItIsGiven)
+{
+    const std::string dir = test::tempDir("rig_writer");
+    Rig rig = exampleRig(128);
+    rig.mesh = examples::makeIcosphere(1);
+    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {128, 2}).isOk());
+    rig.displacement.recommendedLevel = 2;
+    DisplacementMap map;
+    map.width = map.height = 128;
+    map.texels.assign(128 * 128, 0.0f);
+    io::RigWriteOptions options;
+    options.vertexDisplacements = true;
+    options.compress = true;  // meshopt: the file's numbering may differ from rig.mesh's
+    const double step = 1e-4;
+
+    io::RigWriter writer;
+    ASSERT_TRUE(writer.begin(dir + "/rig.glb", rig, &map, options).isOk());
+    ASSERT_TRUE(writer.needsVertexValues());
+    EXPECT_EQ(writer.vertexLevel(), 2);
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, writer.fileMesh(), Scheme::Linear, 2).isOk());
+    ASSERT_EQ(writer.sampledValues().size(), plan->refinedVertexCount());
+    for (float v : writer.sampledValues())
+        EXPECT_EQ(v, 0.0f);  // the map is flat
+    // Not yet committable, and values of the wrong count are refused.
+    EXPECT_FALSE(writer.setVertexValues(std::vector<float>(3, 0.0f), step).isOk());
+    // A ramp over the refined vertices of the file's numbering.
+    std::vector<float> values(plan->refinedVertexCount());
+    for (size_t v = 0; v < values.size(); ++v)
+        values[v] = 0.01f * float(v % 17) - 0.05f;
+    const ControlMesh fileMesh = writer.fileMesh();
+    ASSERT_TRUE(writer.setVertexValues(values, step).isOk());
+    EXPECT_FALSE(writer.needsVertexValues());
+    ASSERT_TRUE(writer.commit().isOk());
+    Rig back;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &back).isOk());
+    // The file holds the mesh the values were given over, in its numbering.
+    EXPECT_EQ(back.mesh.triangles, fileMesh.triangles);
+    EXPECT_EQ(back.mesh.positions, fileMesh.positions);
+    ASSERT_EQ(back.displacement.vertexValues.size(), values.size());
+    for (size_t v = 0; v < values.size(); ++v)
+        ASSERT_NEAR(back.displacement.vertexValues[v], values[v], 0.5 * step + 1e-7) << v;
+
+    // Committing without the values writes nothing.
+    io::RigWriter incomplete;
+    ASSERT_TRUE(incomplete.begin(dir + "/incomplete.glb", rig, &map, options).isOk());
+    const Status st = incomplete.commit();
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("per-vertex displacements were not given"), std::string::npos) << st.message();
+    EXPECT_FALSE(std::filesystem::exists(dir + "/incomplete.glb"));
+}
+
 // The io API takes std::filesystem::path: a rig written to and read from a
 // folder and file name with spaces and non-ASCII letters (UTF-8).
 TEST(Rig, PathsAreFilesystemPaths)

@@ -968,11 +968,6 @@ void BakeJob::writeOutputs()
     // An atlas made only to bake through is left out of a vertex-coded
     // rig (nothing reads it there); outputs that are the map keep it.
     writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
-    if (writeOptions.vertexDisplacements)
-        writeOptions.refineVertexDisplacements = [this](const ControlMesh& mesh, int level,
-                                                        std::vector<float>* values, double* step) {
-            return refineStoredValues(mesh, level, values, step);
-        };
     outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
     settleLevel();
     for (const std::string& n : notes)
@@ -1375,7 +1370,18 @@ Status BakeJob::writeRig(const std::string& p, int level)
     rig.displacement.recommendedLevel = level;
     writeOptions.maxQuantizationStep = quantizationStep(level);
     notes.clear();
-    return io::saveRig(p, rig, &map, &notes, &writeOptions);
+    // The writer encodes the control mesh first; the stored values are then
+    // measured and fitted on the mesh as the file numbers it (its coding may
+    // move and renumber the cage), and handed back to be coded.
+    io::RigWriter writer;
+    Status st = writer.begin(p, rig, &map, writeOptions, &notes);
+    if (st && writer.needsVertexValues()) {
+        std::vector<float> values = writer.sampledValues();
+        double step = writer.quantizationStep();
+        if ((st = refineStoredValues(writer.fileMesh(), writer.vertexLevel(), &values, &step)))
+            st = writer.setVertexValues(values, step);
+    }
+    return st ? writer.commit() : st;
 }
 
 void BakeJob::settleLevel()

@@ -625,11 +625,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                 return overBudget(path + ": decoding its level-" + std::to_string(info.vertexLevel) +
                                       " per-vertex displacements (" + std::to_string(size_t(refined)) + " triangles)",
                                   need, maxBytes);
-            SubdivisionParents hierarchy;
-            if (!(st = buildSubdivisionParents(&hierarchy, rig.mesh, info.vertexLevel)))
-                return Status(st.code(), path + ": " + st.message());
-            if (!(st = decodeVertexDisplacements(hierarchy, info.embedded.data(), info.embedded.size(), info.factor,
-                                                 info.offset, path, &info.vertexValues)))
+            if (!(st = decodeVertexDisplacements(rig.mesh, info.vertexLevel, info.embedded.data(),
+                                                 info.embedded.size(), info.factor, info.offset, path,
+                                                 &info.vertexValues)))
                 return st;
         } else if (rig.displacement.image >= 0) {
             const tinygltf::Image& img = model.images[size_t(rig.displacement.image)];

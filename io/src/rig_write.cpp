@@ -440,9 +440,9 @@ Status encodeModel(const std::string& path, tinygltf::Model& model, bool compres
     return Status::ok();
 }
 
-Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, double maxStep,
-                                bool compressed, double positionError, bool draco, const RigWriteOptions& options,
-                                const std::string& path, DisplacementInfo* info)
+Status probeVertexMesh(const tinygltf::Model& model, const Rig& rig, const DisplacementMap& map, int level,
+                       bool compressed, double positionError, bool draco, const std::string& path,
+                       ControlMesh* fileMesh, std::vector<float>* sampled)
 {
     // Through the same writer as the final file (the meshopt index codec
     // rotates triangles, which renumbers refined vertices).
@@ -468,7 +468,6 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     for (size_t f = 0; f < mesh.faceCount(); ++f)
         for (int k = 0; k < 3; ++k)
             mesh.uvIndices[3 * f + size_t(k)] = rig.mesh.uvIndices[3 * size_t(sourceFace[f]) + size_t((k + rotation[f]) % 3)];
-    const int level = info->recommendedLevel;
     std::unique_ptr<Plan> plan;
     if (!(st = Plan::create(&plan, mesh, Scheme::Linear, level)) || !(st = plan->setDisplacement(map)))
         return st;
@@ -504,15 +503,19 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
             values[v] = k % 2 ? samples[k / 2] : 0.5f * (samples[k / 2 - 1] + samples[k / 2]);
         }
     }
-    double step = maxStep;
-    if (options.refineVertexDisplacements && !(st = options.refineVertexDisplacements(mesh, level, &values, &step)))
-        return st;
-    SubdivisionParents hierarchy;
-    if (!(st = buildSubdivisionParents(&hierarchy, mesh, level)))
-        return st;
+    *fileMesh = std::move(mesh);
+    *sampled = std::move(values);
+    return Status::ok();
+}
+
+// The coded values as the layer's accessor of bytes.
+Status embedVertexValues(tinygltf::Model& model, const ControlMesh& mesh, int level, const std::vector<float>& values,
+                         double step, const DisplacementMap& map, DisplacementInfo* info)
+{
     std::string bytes;
     float factor = 1.0f, offset = 0.0f;
-    if (!(st = encodeVertexDisplacements(hierarchy, values, step, &bytes, &factor, &offset)))
+    Status st = encodeVertexDisplacements(mesh, level, values, step, &bytes, &factor, &offset);
+    if (!st)
         return st;
     const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
     model.bufferViews[size_t(view)].target = 0;
@@ -520,7 +523,7 @@ Status embedVertexDisplacements(tinygltf::Model& model, const Rig& rig, const Di
     info->vertexAccessor =
         appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_SCALAR, bytes.size());
     info->vertexLevel = level;
-    info->vertexValues = std::move(values);
+    info->vertexValues = values;
     info->image = -1;
     info->uri.clear();
     info->encoding = "vertex";
@@ -600,9 +603,39 @@ void orderForCoding(Rig* rig)
 using namespace rigfile;
 
 
-Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const DisplacementMap* map, std::vector<std::string>* notes,
-               const RigWriteOptions* options)
+struct RigWriter::State {
+    std::string path;
+    tinygltf::Model model;
+    DisplacementInfo info;
+    std::vector<int> blockMeshes;
+    ControlMesh mesh;  // the control mesh as written
+    bool hasDisplacement = false;
+    bool compress = false;
+    double positionError = 0.0;
+    bool draco = false;
+    // Per-vertex values still to give: over fileMesh, at level.
+    bool needsValues = false;
+    ControlMesh fileMesh;
+    int level = -1;
+    std::vector<float> sampled;
+    double step = 0.0;
+    int mapWidth = 0, mapHeight = 0;
+};
+
+RigWriter::RigWriter() = default;
+RigWriter::~RigWriter() = default;
+
+bool RigWriter::needsVertexValues() const { return state_ && state_->needsValues; }
+const ControlMesh& RigWriter::fileMesh() const { return state_->fileMesh; }
+int RigWriter::vertexLevel() const { return state_ ? state_->level : -1; }
+const std::vector<float>& RigWriter::sampledValues() const { return state_->sampled; }
+double RigWriter::quantizationStep() const { return state_ ? state_->step : 0.0; }
+
+Status RigWriter::begin(const std::filesystem::path& pathFile, const Rig& input, const DisplacementMap* map,
+                        const RigWriteOptions& writeOptions, std::vector<std::string>* notes)
 {
+    state_.reset();
+    const RigWriteOptions* options = &writeOptions;
     const std::string path = pathFile.string();
     // A bare control mesh is written in the order that codes best (its
     // per-vertex values, when it has them, are computed on the file's order
@@ -637,6 +670,9 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
         return Status(st.code(), path + ": " + st.message());
     const ControlMesh& cm = rig.mesh;
     DisplacementInfo info = rig.displacement;
+    bool needsValues = false;
+    ControlMesh fileMesh;
+    std::vector<float> sampled;
     tinygltf::Model model;
     std::vector<int> blockMeshes;
     if (fromSource) {
@@ -699,6 +735,7 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
             return Status(StatusCode::InvalidArgument, path + ": a rig with a displacement map needs UVs");
         const double step = options ? options->maxQuantizationStep : 0.0;
         if (map && options && options->vertexDisplacements) {
+            needsValues = true;
             const bool compressed = extensionOf(path) == ".glb" && options->compress;
             // Draco where it reads back face for face (it may weld or drop
             // faces the cage has, an edge shorter than the error collapsing),
@@ -711,11 +748,9 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
                     continue;
                 for (int k = 0; k < 3 && !coded; ++k) {
                     const double error = allowed / double(1 << (2 * k));
-                    DisplacementInfo tried = info;
-                    st = embedVertexDisplacements(model, rig, *map, step, compressed, error, withDraco, *options,
-                                                  path, &tried);
+                    st = probeVertexMesh(model, rig, *map, info.recommendedLevel, compressed, error, withDraco, path,
+                                         &fileMesh, &sampled);
                     if (st) {
-                        info = std::move(tried);
                         positionError = error;
                         coded = true;
                         draco = withDraco;
@@ -738,20 +773,80 @@ Status saveRig(const std::filesystem::path& pathFile, const Rig& input, const Di
             info.vertexAccessor = appendAccessor(model, info.vertexView, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
                                                  TINYGLTF_TYPE_SCALAR, info.embedded.size());
         }
-        if (info.image < 0 && info.uri.empty() && info.vertexLevel < 0)
+        if (!needsValues && info.image < 0 && info.uri.empty() && info.vertexLevel < 0)
             return Status(StatusCode::InvalidArgument, path + ": the rig names no displacement map");
-        const tinygltf::Value block = layerBlockValue(info, cm);
-        for (int m : blockMeshes)
-            setLayer(&model, &model.meshes[size_t(m)], &block);
+    }
+    auto state = std::make_unique<State>();
+    state->path = path;
+    state->model = std::move(model);
+    state->info = std::move(info);
+    state->blockMeshes = std::move(blockMeshes);
+    state->mesh = cm;
+    state->hasDisplacement = rig.hasDisplacement;
+    state->compress = extensionOf(path) == ".glb" && options && options->compress;
+    state->positionError = positionError;
+    state->draco = draco;
+    state->needsValues = needsValues;
+    state->fileMesh = std::move(fileMesh);
+    state->level = needsValues ? state->info.recommendedLevel : -1;
+    state->sampled = std::move(sampled);
+    state->step = options ? options->maxQuantizationStep : 0.0;
+    state->mapWidth = map ? map->width : 0;
+    state->mapHeight = map ? map->height : 0;
+    state_ = std::move(state);
+    return Status::ok();
+}
+
+Status RigWriter::setVertexValues(const std::vector<float>& values, double step)
+{
+    if (!state_ || !state_->needsValues)
+        return Status(StatusCode::InvalidArgument, "RigWriter::setVertexValues: the rig takes no per-vertex values");
+    State& s = *state_;
+    DisplacementMap size;
+    size.width = s.mapWidth;
+    size.height = s.mapHeight;
+    Status st = embedVertexValues(s.model, s.fileMesh, s.level, values, step, size, &s.info);
+    if (!st)
+        return Status(st.code(), s.path + ": " + st.message());
+    s.needsValues = false;
+    return Status::ok();
+}
+
+Status RigWriter::commit()
+{
+    if (!state_)
+        return Status(StatusCode::InvalidArgument, "RigWriter::commit: begin did not succeed");
+    State& s = *state_;
+    if (s.needsValues)
+        return Status(StatusCode::InvalidArgument, s.path + ": the per-vertex displacements were not given");
+    Status st;
+    if (s.hasDisplacement) {
+        if (s.info.image < 0 && s.info.uri.empty() && s.info.vertexLevel < 0)
+            return Status(StatusCode::InvalidArgument, s.path + ": the rig names no displacement map");
+        const tinygltf::Value block = layerBlockValue(s.info, s.mesh);
+        for (int m : s.blockMeshes)
+            setLayer(&s.model, &s.model.meshes[size_t(m)], &block);
     }
     // Compact rigs: Draco- or meshopt-coded vertex data and indices (.glb).
     std::string bytes;
-    const bool binary = extensionOf(path) == ".glb";
-    if (!(st = encodeModel(path, model, binary && options && options->compress, binary, positionError, draco, &bytes)))
+    const bool binary = extensionOf(s.path) == ".glb";
+    if (!(st = encodeModel(s.path, s.model, binary && s.compress, binary, s.positionError, s.draco, &bytes)))
         return st;
-    if (rig.hasDisplacement && !(st = sealLayer(path, &bytes)))
+    if (s.hasDisplacement && !(st = sealLayer(s.path, &bytes)))
         return st;
-    return writeFileAtomic(path, bytes.data(), bytes.size());
+    st = writeFileAtomic(s.path, bytes.data(), bytes.size());
+    state_.reset();
+    return st;
+}
+
+Status saveRig(const std::filesystem::path& path, const Rig& rig, const DisplacementMap* map,
+               std::vector<std::string>* notes, const RigWriteOptions* options)
+{
+    RigWriter writer;
+    Status st = writer.begin(path, rig, map, options ? *options : RigWriteOptions(), notes);
+    if (st && writer.needsVertexValues())
+        st = writer.setVertexValues(writer.sampledValues(), writer.quantizationStep());
+    return st ? writer.commit() : st;
 }
 
 Status readPlainGlb(const std::filesystem::path& pathFile, std::string* bytes)

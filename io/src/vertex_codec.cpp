@@ -36,9 +36,12 @@ uint32_t getLength(const unsigned char* p)
 
 }  // namespace
 
-Status encodeVertexDisplacements(const SubdivisionParents& h, const std::vector<float>& values, double step,
+Status encodeVertexDisplacements(const ControlMesh& mesh, int level, const std::vector<float>& values, double step,
                                  std::string* bytes, float* factor, float* offset)
 {
+    SubdivisionParents h;
+    if (Status st = buildSubdivisionParents(&h, mesh, level); !st)
+        return st;
     const size_t n = h.levelCounts.back();
     if (values.size() != n)
         return Status(StatusCode::InvalidArgument, "vertex displacements: " + std::to_string(values.size()) +
@@ -78,9 +81,12 @@ Status encodeVertexDisplacements(const SubdivisionParents& h, const std::vector<
     return Status::ok();
 }
 
-Status decodeVertexDisplacements(const SubdivisionParents& h, const unsigned char* data, size_t size, float factor,
-                                 float offset, const std::string& what, std::vector<float>* values)
+Status decodeVertexDisplacements(const ControlMesh& mesh, int level, const unsigned char* data, size_t size,
+                                 float factor, float offset, const std::string& what, std::vector<float>* values)
 {
+    SubdivisionParents h;
+    if (Status st = buildSubdivisionParents(&h, mesh, level); !st)
+        return Status(st.code(), what + ": " + st.message());
     auto bad = [&](const std::string& why) {
         return Status(StatusCode::InvalidData, what + ": per-vertex displacements " + why);
     };

@@ -7,7 +7,7 @@
 #include "strata/rig.h"
 #include "strata/status.h"
 
-#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -95,7 +95,7 @@ struct RigWriteOptions {
     /// 16 bits over the map's range).  The baker passes its tolerance (the
     /// error reached, where larger), so the map takes only the bits the
     /// tolerance needs (8-bit PNG when 256 levels suffice); per-vertex values
-    /// may take another (refineVertexDisplacements).
+    /// may take another (RigWriter::setVertexValues).
     double maxQuantizationStep = 0.0;
     /// .glb only: code vertex attributes and triangle indices with
     /// EXT_meshopt_compression (three.js, Babylon.js, gltfpack and Strata
@@ -126,14 +126,6 @@ struct RigWriteOptions {
     /// image: a fraction of the bytes, exact at levels up to that one,
     /// interpolated past it.  strata-bake turns it on.
     bool vertexDisplacements = false;
-    /// With vertexDisplacements: called with the map's samples at the
-    /// refined vertices of `mesh` (the control mesh as a loader rebuilds it
-    /// from this file, in its numbering) before they are coded, to refine
-    /// them (the baker measures and fits each against the capture), and with
-    /// the quantisation step they will be coded with (maxQuantizationStep),
-    /// which it may change (the baker spends what the tolerance leaves).
-    std::function<Status(const ControlMesh& mesh, int level, std::vector<float>* values, double* step)>
-        refineVertexDisplacements;
     /// With vertexDisplacements: leave out the UVs the map was baked
     /// through when nothing else uses them (an atlas the baker made).  The
     /// per-vertex values are then the map's only form: seams no longer split
@@ -148,6 +140,46 @@ Status readPlainGlb(const std::filesystem::path& path, std::string* bytes);
 
 Status saveRig(const std::filesystem::path& path, const Rig& rig, const DisplacementMap* map = nullptr,
                std::vector<std::string>* notes = nullptr, const RigWriteOptions* options = nullptr);
+
+/// saveRig in steps, for a caller that fits the per-vertex displacements
+/// itself (the baker measures each against the capture):
+///   begin: everything but those values is encoded (with
+///          vertexDisplacements, the mesh coding is chosen where the cage
+///          reads back face for face);
+///   setVertexValues: the values, over fileMesh() (the control mesh as a
+///          loader rebuilds it from this file, in its numbering) at
+///          vertexLevel(), only when needsVertexValues();
+///   commit: the layer's record sealed from the encoded bytes, the file
+///          written atomically.
+/// saveRig is begin, setVertexValues(sampledValues(), quantizationStep())
+/// and commit.  The writer holds copies: the rig and map may go after begin.
+class RigWriter {
+public:
+    RigWriter();
+    ~RigWriter();
+    RigWriter(const RigWriter&) = delete;
+    RigWriter& operator=(const RigWriter&) = delete;
+
+    Status begin(const std::filesystem::path& path, const Rig& rig, const DisplacementMap* map,
+                 const RigWriteOptions& options, std::vector<std::string>* notes = nullptr);
+    bool needsVertexValues() const;
+    /// The control mesh as this file numbers it (valid while needsVertexValues).
+    const ControlMesh& fileMesh() const;
+    int vertexLevel() const;
+    /// The map's samples at fileMesh's refined vertices (a seam vertex takes
+    /// the median of its charts' samples).
+    const std::vector<float>& sampledValues() const;
+    /// RigWriteOptions::maxQuantizationStep.
+    double quantizationStep() const;
+    /// Codes `values` (one per refined vertex of fileMesh at vertexLevel)
+    /// to multiples of `step` (0: 16 bits over their range).
+    Status setVertexValues(const std::vector<float>& values, double step);
+    Status commit();
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 }  // namespace io
 }  // namespace strata
