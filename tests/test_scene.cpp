@@ -13,6 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
+#include <set>
+
 #include <glm/gtc/type_ptr.hpp>
 
 #include <cstring>
@@ -1084,4 +1086,58 @@ TEST(CApi, MatchesTheCppPathBitForBit)
     const test::CommandResult r =
         test::runCommand(std::string(STRATA_C_API_TEST_EXE) + " " + path + " " + dir + "/expected.bin");
     EXPECT_EQ(r.code, 0) << r.output;
+}
+
+// A meshopt-coded character: its skin and animation data are coded too
+// (losslessly), so only the images and the layer's values (coded already)
+// stay plain, and nothing is left plain without a note saying so.
+TEST(Scene, MeshoptCodesSkinAndAnimationData)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_meshopt_animation");
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(man, &rig, io::LoadOptions()).isOk());
+    io::RigWriteOptions coded;
+    coded.compress = true;
+    std::vector<std::string> notes;
+    ASSERT_TRUE(io::saveRig(dir + "/coded.glb", rig, nullptr, &notes, &coded).isOk());
+    for (const std::string& n : notes)
+        EXPECT_EQ(n.find("left some data plain"), std::string::npos) << n;
+    // The file as written (not decoded): which views are coded.
+    const std::string bytes = test::readText(dir + "/coded.glb");
+    uint32_t jsonLength = 0;
+    std::memcpy(&jsonLength, bytes.data() + 12, 4);
+    const json doc = json::parse(bytes.substr(20, jsonLength));
+    std::vector<int> imageViews;
+    for (const json& im : doc["images"])
+        imageViews.push_back(im.value("bufferView", -1));
+    size_t plainData = 0, animationViews = 0;
+    std::set<size_t> animationAccessorViews;
+    for (const json& an : doc["animations"])
+        for (const json& s : an["samplers"])
+            for (const char* k : {"input", "output"})
+                animationAccessorViews.insert(doc["accessors"][s[k].get<size_t>()]["bufferView"].get<size_t>());
+    for (size_t v = 0; v < doc["bufferViews"].size(); ++v) {
+        const bool isCoded = doc["bufferViews"][v].contains("extensions");
+        if (animationAccessorViews.count(v))
+            animationViews += isCoded;
+        if (!isCoded && std::find(imageViews.begin(), imageViews.end(), int(v)) == imageViews.end())
+            ++plainData;
+    }
+    EXPECT_EQ(plainData, 0u);
+    EXPECT_EQ(animationViews, animationAccessorViews.size());
+    ASSERT_FALSE(animationAccessorViews.empty());
+    // Lossless: the same skeleton and animations as the source.
+    Rig back;
+    const Status st = io::loadRig(dir + "/coded.glb", &back);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(back.skeleton.animations.size(), rig.skeleton.animations.size());
+    for (size_t a = 0; a < rig.skeleton.animations.size(); ++a) {
+        ASSERT_EQ(back.skeleton.animations[a].channels.size(), rig.skeleton.animations[a].channels.size());
+        for (size_t c = 0; c < rig.skeleton.animations[a].channels.size(); ++c) {
+            EXPECT_EQ(back.skeleton.animations[a].channels[c].times, rig.skeleton.animations[a].channels[c].times);
+            EXPECT_EQ(back.skeleton.animations[a].channels[c].values, rig.skeleton.animations[a].channels[c].values);
+        }
+    }
+    EXPECT_EQ(back.skeleton.skin.inverseBindMatrices, rig.skeleton.skin.inverseBindMatrices);
 }

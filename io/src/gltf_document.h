@@ -127,8 +127,10 @@ Status writeCompressedGlb(const std::string& path, tinygltf::Model& model, doubl
 /// writeCompressedGlb into memory.  The index codec may rotate each
 /// triangle's corners, which renumbers the refined vertices of the mesh a
 /// loader rebuilds, so whoever must know that numbering reads these bytes.
+/// `notes` (when not null) receives one line naming the bufferViews left
+/// plain and why, beyond images and the layer's values (coded already).
 Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out,
-                           double positionError = 0.0, bool draco = false);
+                           double positionError = 0.0, bool draco = false, std::vector<std::string>* notes = nullptr);
 
 /// A .glb that uses EXT_meshopt_compression or KHR_draco_mesh_compression,
 /// decoded to a plain .glb in `plain` (left empty when the input uses

@@ -362,7 +362,7 @@ Status ownViews(tinygltf::Model& model)
 }  // namespace
 
 Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std::string* out, double positionError,
-                           bool draco)
+                           bool draco, std::vector<std::string>* notes)
 {
     Status st = prepareForWriting(path, model);
     if (!st)
@@ -385,6 +385,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
     // triangle-list indices; each view must serve one kind of accessor only.
     const size_t nv = model.bufferViews.size();
     std::vector<int> kind(nv, 0);  // 0 keep, 1 attributes, 2 triangles, -1 mixed/other use
+    std::vector<const char*> plainWhy(nv, nullptr);  // why a view that holds data stays plain (null: coded or exempt)
     std::vector<size_t> count(nv, 0), stride(nv, 0);
     auto mark = [&](int accessor, int as) {
         if (accessor < 0 || size_t(accessor) >= model.accessors.size())
@@ -400,26 +401,68 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
         const bool fits = a.byteOffset == 0 && s > 0 && view.byteLength % s == 0 &&
                           (as == 1 ? s % 4 == 0 && s <= 256 : (s == 2 || s == 4) && a.count % 3 == 0) &&
                           view.byteLength / s == a.count;
-        if (!fits || (kind[v] != 0 && kind[v] != as))
+        if (!fits || (kind[v] != 0 && kind[v] != as)) {
             kind[v] = -1;
+            plainWhy[v] = !fits ? (as == 2 ? "indices of strips or fans, or not whole triangles"
+                                           : "interleaved or padded attributes")
+                                : "shared by indices and attributes";
+        }
         else if (kind[v] == 0) {
             kind[v] = as;
             count[v] = a.count;
             stride[v] = s;
         }
     };
-    // Any other use of a view (skins, animations, images) keeps it plain.
+    // Skin and animation data: a view whose accessors all have elements of
+    // whole 4-byte words is coded whole as attributes of that size
+    // (losslessly: no filter; its accessors keep their offsets in the
+    // decoded bytes).  The layer's bytes (zstd already) and images (PNG)
+    // stay as they are, and so does a view with any other use.
+    std::vector<size_t> dataElem(nv, 0);  // 0 none yet, SIZE_MAX not codable
     forEachAccessorReference(model, [&](int& a, AccessorUse use, const tinygltf::Primitive* p) {
-        if (use == AccessorUse::Attribute || use == AccessorUse::MorphTarget)
+        if (use == AccessorUse::Attribute || use == AccessorUse::MorphTarget) {
             mark(a, 1);
-        else if (use == AccessorUse::Indices)
+        } else if (use == AccessorUse::Indices) {
             mark(a, p->mode == TINYGLTF_MODE_TRIANGLES || p->mode == -1 ? 2 : -1);
-        else if (a >= 0 && size_t(a) < model.accessors.size() && model.accessors[size_t(a)].bufferView >= 0)
-            kind[size_t(model.accessors[size_t(a)].bufferView)] = -1;
+        } else if (a >= 0 && size_t(a) < model.accessors.size() && model.accessors[size_t(a)].bufferView >= 0 &&
+                   size_t(model.accessors[size_t(a)].bufferView) < nv) {
+            const tinygltf::Accessor& acc = model.accessors[size_t(a)];
+            const size_t v = size_t(acc.bufferView);
+            const int elem = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType)) *
+                             tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+            const bool whole = elem > 0 && elem % 4 == 0 && elem <= 256 && !acc.sparse.isSparse &&
+                               !model.bufferViews[v].byteStride && acc.byteOffset % size_t(elem) == 0;
+            dataElem[v] = !whole || (dataElem[v] != 0 && dataElem[v] != size_t(elem)) ? SIZE_MAX : size_t(elem);
+        }
     });
     for (const tinygltf::Image& im : model.images)
         if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
+            dataElem[size_t(im.bufferView)] = SIZE_MAX;
+    for (size_t v = 0; v < nv; ++v) {
+        if (dataElem[v] == 0)
+            continue;
+        const size_t length = model.bufferViews[v].byteLength;
+        if (kind[v] == 0 && dataElem[v] != SIZE_MAX && length % dataElem[v] == 0 && length > 0) {
+            kind[v] = 1;
+            stride[v] = dataElem[v];
+            count[v] = length / dataElem[v];
+        } else {
+            plainWhy[v] = kind[v] != 0 ? "shared by vertex data and skin or animation data"
+                                       : "skin or animation data of 1- or 2-byte elements, mixed sizes or interleaved";
+            kind[v] = -1;
+        }
+    }
+    for (const tinygltf::Image& im : model.images)
+        if (im.bufferView >= 0 && size_t(im.bufferView) < nv) {
             kind[size_t(im.bufferView)] = -1;
+            plainWhy[size_t(im.bufferView)] = nullptr;  // PNG or JPEG: coded already
+        }
+    for (const tinygltf::Mesh& mesh : model.meshes) {
+        const int layer = layerAccessor(mesh);  // zstd frames: coded already
+        if (layer >= 0 && size_t(layer) < model.accessors.size() && model.accessors[size_t(layer)].bufferView >= 0 &&
+            size_t(model.accessors[size_t(layer)].bufferView) < nv)
+            plainWhy[size_t(model.accessors[size_t(layer)].bufferView)] = nullptr;
+    }
 
     // Positions that may be lossy go through the EXPONENTIAL filter: a
     // mantissa shared by each vertex's three coordinates, which the vertex
@@ -519,12 +562,28 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
                 fallbackSize += view.byteLength;
                 continue;
             }
+            plainWhy[v] = "coding would not make it smaller";
         }
         while (bin.size() % 4 != view.byteOffset % 4)
             bin.push_back(0);
         const size_t at = bin.size();
         bin.insert(bin.end(), src, src + view.byteLength);
         view.byteOffset = at;
+    }
+    if (notes) {
+        // One line: what stayed plain, by reason, with its bytes.
+        std::map<std::string, std::pair<size_t, size_t>> plain;  // reason -> views, bytes
+        for (size_t v = 0; v < nv; ++v)
+            if (plainWhy[v]) {
+                ++plain[plainWhy[v]].first;
+                plain[plainWhy[v]].second += model.bufferViews[v].byteLength;
+            }
+        std::string line;
+        for (const auto& [why, n] : plain)
+            line += (line.empty() ? "" : "; ") + std::to_string(n.first) + (n.first == 1 ? " view" : " views") + " (" +
+                    std::to_string(n.second) + " B): " + why;
+        if (!line.empty())
+            notes->push_back("EXT_meshopt_compression left some data plain: " + line);
     }
     if (coded.empty())
         return plainGlb(path, model, out);

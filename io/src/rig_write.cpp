@@ -425,10 +425,10 @@ bool matchFaces(const ControlMesh& loaded, const ControlMesh& rig, double error,
 // `compressed`) or plain, .glb or pretty-printed .gltf.  The per-vertex
 // values' probe and the file itself go through it, so they agree.
 Status encodeModel(const std::string& path, tinygltf::Model& model, bool compressed, bool binary,
-                   double positionError, bool draco, std::string* out)
+                   double positionError, bool draco, std::string* out, std::vector<std::string>* notes = nullptr)
 {
     if (compressed)
-        return encodeCompressedGlb(path, model, out, positionError, draco);
+        return encodeCompressedGlb(path, model, out, positionError, draco, notes);
     Status st = prepareForWriting(path, model);
     if (!st)
         return st;
@@ -620,6 +620,7 @@ struct RigWriter::State {
     std::vector<float> sampled;
     double step = 0.0;
     int mapWidth = 0, mapHeight = 0;
+    std::vector<std::string>* notes = nullptr;  // the caller's, until commit
 };
 
 RigWriter::RigWriter() = default;
@@ -793,6 +794,7 @@ Status RigWriter::begin(const std::filesystem::path& pathFile, const Rig& input,
     state->step = options ? options->maxQuantizationStep : 0.0;
     state->mapWidth = map ? map->width : 0;
     state->mapHeight = map ? map->height : 0;
+    state->notes = notes;
     state_ = std::move(state);
     return Status::ok();
 }
@@ -830,7 +832,7 @@ Status RigWriter::commit()
     // Compact rigs: Draco- or meshopt-coded vertex data and indices (.glb).
     std::string bytes;
     const bool binary = extensionOf(s.path) == ".glb";
-    if (!(st = encodeModel(s.path, s.model, binary && s.compress, binary, s.positionError, s.draco, &bytes)))
+    if (!(st = encodeModel(s.path, s.model, binary && s.compress, binary, s.positionError, s.draco, &bytes, s.notes)))
         return st;
     if (s.hasDisplacement && !(st = sealLayer(s.path, &bytes)))
         return st;

@@ -152,7 +152,8 @@ Status saveRig(const std::filesystem::path& path, const Rig& rig, const Displace
 ///   commit: the layer's record sealed from the encoded bytes, the file
 ///          written atomically.
 /// saveRig is begin, setVertexValues(sampledValues(), quantizationStep())
-/// and commit.  The writer holds copies: the rig and map may go after begin.
+/// and commit.  The writer holds copies: the rig and map may go after begin;
+/// `notes` (lines for the user) is written to until commit.
 class RigWriter {
 public:
     RigWriter();
