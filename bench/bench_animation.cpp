@@ -67,9 +67,19 @@ void run(const std::string& name, const std::string& path)
     std::printf("------+---------------+-----------+---------+---------+------------+-------------+----------+-----------+"
                 "------------+----------------+---------------+------------+-------------+-----------\n");
     for (int level = 0; level <= 5; ++level) {
-        std::unique_ptr<Plan> plan;
-        if (!Plan::create(&plan, rig.mesh, Scheme::Linear, level).isOk())
+        // The rig at this level through strata::Surface, as an engine holds
+        // it (its own scheme and displacements); the stage columns time the
+        // surface's plan on the animator's control mesh.  One core, in tile
+        // order (the order an engine draws, with Surface::triangles(); its
+        // tables built before timing).
+        SurfaceOptions surfaceOptions;
+        surfaceOptions.level = level;
+        surfaceOptions.displace = rig.hasDisplacement && !rigNeedsMap(rig);  // a map-coded rig: the bare cage
+        surfaceOptions.layout = FrameLayout::Tiles;
+        std::unique_ptr<Surface> surface;
+        if (!Surface::create(&surface, rig, nullptr, surfaceOptions))
             return;
+        const Plan* plan = &surface->plan();
         const size_t n = plan->refinedVertexCount();
         std::vector<glm::vec3> out(n);
         const double sample = bench::medianMs([&] { animator.sample(0, nextTime()); });
@@ -89,18 +99,10 @@ void run(const std::string& name, const std::string& path)
                            animator.positions().size());
         });
         // What a renderer draws: the same frame plus shading normals of the
-        // displaced mesh (the comparison an engine developer makes).
-        // One core, through strata::Surface (what an engine calls) in tile
-        // order (the order an engine draws, with Surface::triangles(); its
-        // tables built before timing).
+        // displaced mesh (the comparison an engine developer makes), through
+        // the surface.
         std::vector<glm::vec3> shading(n);
-        SurfaceOptions surfaceOptions;
-        surfaceOptions.level = level;
-        surfaceOptions.displace = rig.hasDisplacement && !rigNeedsMap(rig);  // a map-coded rig: the bare cage
-        surfaceOptions.layout = FrameLayout::Tiles;
-        std::unique_ptr<Surface> surface;
-        if (!Surface::create(&surface, rig, nullptr, surfaceOptions) ||
-            !surface->evaluate(out.data(), shading.data(), n, 1))
+        if (!surface->evaluate(out.data(), shading.data(), n, 1))
             return;
         const double frameShaded = bench::medianMs([&] {
             surface->setAnimationTime(0, nextTime());

@@ -19,6 +19,7 @@
 #include "strata/gl/gpu_surface.h"
 #include "strata/io/rig_io.h"
 #include "strata/normals.h"
+#include "strata/surface.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -41,12 +42,7 @@ struct Case {
 
 void run(const Case& c, int width, int height, int maxLevel)
 {
-    Animator animator;
-    const bool animated = !c.rig.skeleton.empty() && !c.rig.skeleton.animations.empty() &&
-                          animator.init(c.rig.skeleton, c.rig.mesh).isOk();
-    std::vector<glm::vec3> restNormals(c.rig.mesh.vertexCount());
-    computeControlNormals(restNormals.data(), c.rig.mesh.positions.data(), restNormals.size(),
-                          c.rig.mesh.triangles.data(), c.rig.mesh.faceCount());
+    const bool animated = !c.rig.skeleton.empty() && !c.rig.skeleton.animations.empty();
     std::printf("\n%s: %zu control vertices, %s; %dx%d 4x MSAA target\n", c.name.c_str(), c.rig.mesh.vertexCount(),
                 animated ? ("animation \"" + c.rig.skeleton.animations[0].name + "\"").c_str() : "rest pose",
                 width, height);
@@ -59,11 +55,18 @@ void run(const Case& c, int width, int height, int maxLevel)
         return;
     float t = 0.0f;
     for (int level = 0; level <= maxLevel; ++level) {
-        std::unique_ptr<Plan> plan;
-        if (!Plan::create(&plan, c.rig.mesh, Scheme::Linear, level).isOk())
+        // The rig at this level as an engine holds it (its own scheme, its
+        // displacements, the animator); the GPU evaluates its plan.
+        std::unique_ptr<Surface> drawn;
+        SurfaceOptions surfaceOptions;
+        surfaceOptions.level = level;
+        surfaceOptions.layout = FrameLayout::Tiles;  // the CPU frame below, as bench_runtime's
+        surfaceOptions.displace = c.haveMap;          // the plain characters: their cage refined
+        if (Status made = Surface::create(&drawn, c.rig, c.haveMap ? &c.map : nullptr, surfaceOptions); !made) {
+            std::printf("%s\n", made.message().c_str());
             return;
-        if (c.haveMap)
-            plan->setDisplacement(c.map);
+        }
+        const Plan* plan = &drawn->plan();
         std::unique_ptr<gl::GpuSurface> gpu;
         const Status st = gl::GpuSurface::create(&gpu, *plan);
         if (!st) {
@@ -87,11 +90,9 @@ void run(const Case& c, int width, int height, int maxLevel)
             t += 1.0f / 60.0f;
             if (animated) {
                 const Animation& a = c.rig.skeleton.animations[0];
-                animator.pose(0, a.start + std::fmod(t, std::max(a.end - a.start, 1e-3f)));
+                drawn->setAnimationTime(0, a.start + std::fmod(t, std::max(a.end - a.start, 1e-3f)));
             }
         };
-        const glm::vec3* positions = animated ? animator.positions().data() : c.rig.mesh.positions.data();
-        const glm::vec3* normals = animated ? animator.normals().data() : restNormals.data();
         const size_t cn = c.rig.mesh.vertexCount();
         // GPU stages, each finished before the next.
         gpu->setTiming(true);
@@ -100,7 +101,7 @@ void run(const Case& c, int width, int height, int maxLevel)
         for (int f = 0; f < 8; ++f) {
             pose();
             const double t0 = bench::nowMs();
-            gpu->update(positions, normals, cn);
+            gpu->update(drawn->controlPositions().data(), drawn->controlNormals().data(), cn);
             glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
             glEnable(GL_DEPTH_TEST);
             gpu->draw(params);
@@ -120,21 +121,20 @@ void run(const Case& c, int width, int height, int maxLevel)
         const double frame = bench::medianMs(
             [&] {
                 pose();
-                gpu->update(positions, normals, cn);
+                gpu->update(drawn->controlPositions().data(), drawn->controlNormals().data(), cn);
                 glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
                 gpu->draw(params);
                 glFinish();
             },
             7, 20.0);
-        // The CPU path for the same frame: FrameEvaluator in tile order, one
-        // core (its tables made before timing), as bench_runtime's frame.
+        // The CPU path for the same frame: the surface's FrameEvaluator in
+        // tile order, one core (its tables made before timing).
         std::vector<glm::vec3> out(n), shading(n);
-        FrameEvaluator cpuFrame(*plan, FrameLayout::Tiles);
-        cpuFrame.evaluate(out.data(), shading.data(), nullptr, positions, normals, cn, 1);
+        drawn->evaluate(out.data(), shading.data(), n, 1);
         const double cpu = bench::medianMs(
             [&] {
                 pose();
-                cpuFrame.evaluate(out.data(), shading.data(), nullptr, positions, normals, cn, 1);
+                drawn->evaluate(out.data(), shading.data(), n, 1);
             },
             7, 20.0);
         (void)wall;

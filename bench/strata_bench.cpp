@@ -25,6 +25,7 @@
 #include "strata/io/rig_io.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
+#include "strata/surface.h"
 #ifdef STRATA_HAVE_GL
 #include "strata/gl/context.h"
 #include "strata/gl/gpu_surface.h"
@@ -395,37 +396,37 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         rows.push_back(r);
     }
     rows.push_back(strata);
-
+    // Regeneration at N = 0..6 on one core, through strata::Surface in the rig's own scheme.
     // Regeneration at N = 0..6 on one core (linear and the bake's scheme).
     Rig rig;
     io::loadRig(rigPath, &rig);
     DisplacementMap map;
     io::loadRigDisplacementMap(rigPath, rig, &map);
-    std::vector<glm::vec3> normals(rig.mesh.vertexCount());
-    computeControlNormals(normals.data(), rig.mesh.positions.data(), normals.size(), rig.mesh.triangles.data(),
-                          rig.mesh.faceCount());
     Json regen = Json::array();
     std::string regenMd = "| N | refined vertices | triangles | setup ms | regenerate ms (eq. 2) | + shading normals ms |"
                           " GPU (" + gpuName() + ") stencils + displace + normals ms |\n"
                           "|---|---|---|---|---|---|---|\n";
     for (int n = 0; n <= kMaxLevel; ++n) {
+        // Through strata::Surface, as an engine draws the rig (its own scheme).
         const double t0 = bench::nowMs();
-        std::unique_ptr<Plan> plan;
-        if (!Plan::create(&plan, rig.mesh, Scheme::Linear, n) || !applyRigDisplacement(plan.get(), rig, &map))
+        std::unique_ptr<Surface> drawn;
+        SurfaceOptions surfaceOptions;
+        surfaceOptions.level = n;
+        if (!Surface::create(&drawn, rig, &map, surfaceOptions))
             break;
         const double setup = bench::nowMs() - t0;
-        std::vector<glm::vec3> pos(plan->refinedVertexCount()), sn(pos.size());
-        const double eval = bench::medianMs([&] {
-            plan->evaluate(pos.data(), nullptr, 0, pos.size(), rig.mesh.positions.data(), normals.data(),
-                           normals.size());
-        }, 5, 20.0);
-        const double shade = bench::medianMs([&] { plan->computeShadingNormals(sn.data(), pos.data()); }, 5, 20.0);
+        const Plan* plan = &drawn->plan();
+        std::vector<glm::vec3> pos(drawn->vertexCount()), sn(pos.size());
+        const double eval = bench::medianMs([&] { drawn->evaluate(pos.data(), nullptr, pos.size()); }, 5, 20.0);
+        const double shade =
+            bench::medianMs([&] { drawn->evaluate(pos.data(), sn.data(), pos.size()); }, 5, 20.0) - eval;
+        const std::vector<glm::vec3>& normals = drawn->controlNormals();
         double gpu = -1.0;
 #ifdef STRATA_HAVE_GL
         std::unique_ptr<gl::GpuSurface> surface;
         if (gpuContext() && n <= 5 && gl::GpuSurface::create(&surface, *plan) && surface->setDisplacementMap(map)) {
             gpu = bench::medianMs([&] {
-                surface->update(rig.mesh.positions.data(), normals.data(), normals.size());
+                surface->update(drawn->controlPositions().data(), normals.data(), normals.size());
                 glFinish();
             }, 5, 20.0);
         }

@@ -16,7 +16,7 @@
 // A cell that exits 0 with another surface fails the run (exit 1).  A tool
 // that cannot open or write the file is recorded as such (it is the tool's
 // limit, not a wrong surface).  --markdown writes the table.
-import { execFileSync, spawnSync } from 'node:child_process';
+import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -43,6 +43,32 @@ fs.mkdirSync(work, { recursive: true });
 function run(cmd, args, opts = {}) {
   const r = spawnSync(cmd, args, { encoding: 'utf8', timeout: 300000, ...opts });
   return { code: r.status === null ? -1 : r.status, out: (r.stdout || '') + (r.stderr || ''), stderr: r.stderr || '' };
+}
+
+// run, without blocking: the cells of the matrix go on every core.
+function runAsync(cmd, args, opts = {}) {
+  return new Promise((resolve) => {
+    const child = spawn(cmd, args, { ...opts });
+    let stdout = '', stderr = '';
+    child.stdout.on('data', (d) => { stdout += d; });
+    child.stderr.on('data', (d) => { stderr += d; });
+    const timer = setTimeout(() => child.kill('SIGKILL'), 300000);
+    child.on('close', (code) => {
+      clearTimeout(timer);
+      resolve({ code: code === null ? -1 : code, out: stdout + stderr, stderr });
+    });
+    child.on('error', () => {
+      clearTimeout(timer);
+      resolve({ code: -1, out: stdout + stderr, stderr });
+    });
+  });
+}
+
+async function pool(jobs, width) {
+  let next = 0;
+  await Promise.all(Array.from({ length: Math.max(1, width) }, async () => {
+    while (next < jobs.length) await jobs[next++]();
+  }));
 }
 
 function have(cmd) {
@@ -106,7 +132,7 @@ const rigs = [
 
 // The tools: [name, with config, function(in, out) -> {code, out}].
 const gt = (args, withConfig) => (input, output) =>
-  run(gltfTransform, [args[0], input, output, ...args.slice(1), ...(withConfig ? ['--config', config] : [])],
+  runAsync(gltfTransform, [args[0], input, output, ...args.slice(1), ...(withConfig ? ['--config', config] : [])],
       { cwd: jsDir });
 const transformCommands = [
   ['copy'], ['dedup'], ['prune'], ['resample'], ['sparse'], ['flatten'], ['center'], ['instance'],
@@ -117,11 +143,11 @@ const transformCommands = [
 ];
 const tools = [];
 for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
-for (const c of [['copy'], ['prune'], ['weld'], ['meshopt'], ['draco'], ['optimize']])
+for (const c of transformCommands)
   tools.push([`gltf-transform ${c.join(' ')}`, 'none', gt(c, false)]);
-tools.push(['gltfpack', 'defaults', (input, output) => run('gltfpack', ['-i', input, '-o', output])]);
+tools.push(['gltfpack', 'defaults', (input, output) => runAsync('gltfpack', ['-i', input, '-o', output])]);
 tools.push(['Blender 3.4 import -> export', 'defaults', (input, output) =>
-  run('blender', ['-b', '--factory-startup', '--python', path.join(root, 'tools', 'blender_roundtrip.py'), '--',
+  runAsync('blender', ['-b', '--factory-startup', '--python', path.join(root, 'tools', 'blender_roundtrip.py'), '--',
                   input, output])]);
 
 const { default: Ajv2020 } = await import('ajv/dist/2020.js');
@@ -129,6 +155,7 @@ const validateLayer = new Ajv2020({ strict: false }).compile(JSON.parse(fs.readF
   path.join(root, 'docs', 'schema', 'mesh.STRATA_layered_displacement.schema.json'), 'utf8')));
 
 const rows = [];
+const jobs = [];  // one per cell, run concurrently once every rig is baked
 let wrong = 0;
 for (const [name, description, args] of rigs) {
   const rig = path.join(work, `${name}.glb`);
@@ -169,74 +196,80 @@ for (const [name, description, args] of rigs) {
     process.exit(1);
   }
   for (const [tool, how, fn] of tools) {
-    const tag = `${name}_${tool.replace(/[^a-z0-9]+/gi, '_')}_${how}`;
-    const out = path.join(work, `${tag}.glb`);
-    if ((tool.startsWith('gltfpack') && !have('gltfpack')) || (tool.startsWith('Blender') && !have('blender'))) {
-      rows.push([name, tool, how, 'MISSING TOOL', 'not installed (cmake/install-deps.sh installs it)']);
-      ++wrong;
-      continue;
-    }
-    const t = fn(rig, out);
-    if (t.code !== 0 || !fs.existsSync(out)) {
-      const why = t.out.split('\n').map((l) => l.trim()).filter((l) =>
-        /error|failed|requires|compressed/i.test(l)).pop() || `exit ${t.code}`;
-      rows.push([name, tool, how, 'tool cannot process it', why.slice(0, 160)]);
-      continue;
-    }
-    const recon = path.join(work, `${tag}.obj`);
-    const s = run(reconstruct, [out, '-o', recon]);
-    if (s.code === 0) {
-      const v = objVertices(recon);
-      let max = v.length === refV.length ? 0 : Infinity;
-      for (let i = 0; i < v.length && max < Infinity; i += 3)
-        max = Math.max(max, Math.hypot(v[i] - refV[i], v[i + 1] - refV[i + 1], v[i + 2] - refV[i + 2]));
-      // A carried layer is still the extension's schema.
-      const layer = readGlb(out).json.meshes.map((m) => m.extensions && m.extensions.STRATA_layered_displacement).find(Boolean);
-      if (layer && !validateLayer(layer)) {
-        rows.push([name, tool, how, 'SCHEMA', JSON.stringify(validateLayer.errors).slice(0, 200)]);
+    const slot = rows.length;
+    rows.push(null);
+    const put = (row) => { rows[slot] = row; };
+    jobs.push(async () => {
+      const tag = `${name}_${tool.replace(/[^a-z0-9]+/gi, '_')}_${how}`;
+      const out = path.join(work, `${tag}.glb`);
+      if ((tool.startsWith('gltfpack') && !have('gltfpack')) || (tool.startsWith('Blender') && !have('blender'))) {
+        put([name, tool, how, 'MISSING TOOL', 'not installed (cmake/install-deps.sh installs it)']);
         ++wrong;
-        continue;
+        return;
       }
-      let posed = '';
-      if (max <= tolerance && animated) {
-        const posedOut = path.join(work, `${tag}_posed.obj`);
-        const p = run(reconstruct, [out, '--time', '0.7', '-o', posedOut]);
-        const a = objVertices(posedRef), b = p.code === 0 ? objVertices(posedOut) : new Float64Array(0);
-        // Up to one translation of the whole scene (center moves the root).
-        const shift = [0, 0, 0];
-        for (let i = 0; i < a.length && a.length === b.length; i += 3)
-          for (let k = 0; k < 3; ++k) shift[k] += (b[i + k] - a[i + k]) / (a.length / 3);
-        let worst = a.length === b.length ? 0 : Infinity;
-        for (let i = 0; i < a.length && worst < Infinity; i += 3)
-          worst = Math.max(worst, Math.hypot(a[i] + shift[0] - b[i], a[i + 1] + shift[1] - b[i + 1], a[i + 2] + shift[2] - b[i + 2]));
-        worst /= diagonal(a);
-        const moved = Math.hypot(...shift) / diagonal(a);
-        posed = `; posed at 0.7 s ${worst.toExponential(1)}${moved > 1e-6 ? ` after the scene's move by ${moved.toExponential(1)}` : ''}`;
-        if (!(worst <= 5e-3)) {
-          rows.push([name, tool, how, 'WRONG POSE', `posed at 0.7 s: max vertex distance ${worst.toExponential(2)} of the diagonal`]);
+      const t = await fn(rig, out);
+      if (t.code !== 0 || !fs.existsSync(out)) {
+        const why = t.out.split('\n').map((l) => l.trim()).filter((l) =>
+          /error|failed|requires|compressed/i.test(l)).pop() || `exit ${t.code}`;
+        put([name, tool, how, 'tool cannot process it', why.slice(0, 160)]);
+        return;
+      }
+      const recon = path.join(work, `${tag}.obj`);
+      const s = await runAsync(reconstruct, [out, '-o', recon]);
+      if (s.code === 0) {
+        const v = objVertices(recon);
+        let max = v.length === refV.length ? 0 : Infinity;
+        for (let i = 0; i < v.length && max < Infinity; i += 3)
+          max = Math.max(max, Math.hypot(v[i] - refV[i], v[i + 1] - refV[i + 1], v[i + 2] - refV[i + 2]));
+        // A carried layer is still the extension's schema.
+        const layer = readGlb(out).json.meshes.map((m) => m.extensions && m.extensions.STRATA_layered_displacement).find(Boolean);
+        if (layer && !validateLayer(layer)) {
+          put([name, tool, how, 'SCHEMA', JSON.stringify(validateLayer.errors).slice(0, 200)]);
           ++wrong;
-          continue;
+          return;
+        }
+        let posed = '';
+        if (max <= tolerance && animated) {
+          const posedOut = path.join(work, `${tag}_posed.obj`);
+          const p = await runAsync(reconstruct, [out, '--time', '0.7', '-o', posedOut]);
+          const a = objVertices(posedRef), b = p.code === 0 ? objVertices(posedOut) : new Float64Array(0);
+          // Up to one translation of the whole scene (center moves the root).
+          const shift = [0, 0, 0];
+          for (let i = 0; i < a.length && a.length === b.length; i += 3)
+            for (let k = 0; k < 3; ++k) shift[k] += (b[i + k] - a[i + k]) / (a.length / 3);
+          let worst = a.length === b.length ? 0 : Infinity;
+          for (let i = 0; i < a.length && worst < Infinity; i += 3)
+            worst = Math.max(worst, Math.hypot(a[i] + shift[0] - b[i], a[i + 1] + shift[1] - b[i + 1], a[i + 2] + shift[2] - b[i + 2]));
+          worst /= diagonal(a);
+          const moved = Math.hypot(...shift) / diagonal(a);
+          posed = `; posed at 0.7 s ${worst.toExponential(1)}${moved > 1e-6 ? ` after the scene's move by ${moved.toExponential(1)}` : ''}`;
+          if (!(worst <= 5e-3)) {
+            put([name, tool, how, 'WRONG POSE', `posed at 0.7 s: max vertex distance ${worst.toExponential(2)} of the diagonal`]);
+            ++wrong;
+            return;
+          }
+        }
+        if (max <= tolerance) {
+          put([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal${posed}`]);
+        } else {
+          put([name, tool, how, 'WRONG SURFACE', v.length === refV.length
+            ? `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(2)} of the diagonal`
+            : `${v.length / 3} vertices, the rig's surface has ${refV.length / 3}`]);
+          ++wrong;
+        }
+      } else {
+        const errors = s.stderr.split('\n').filter((l) => l.includes(': error: '));
+        if (s.code === 2 && errors.length === 1) {
+          put([name, tool, how, 'refused', errors[0].replace(/^strata-reconstruct: error: [^:]*: /, '')]);
+        } else {
+          put([name, tool, how, 'BAD EXIT', `exit ${s.code}: ${s.stderr.trim().slice(0, 200)}`]);
+          ++wrong;
         }
       }
-      if (max <= tolerance) {
-        rows.push([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal${posed}`]);
-      } else {
-        rows.push([name, tool, how, 'WRONG SURFACE', v.length === refV.length
-          ? `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(2)} of the diagonal`
-          : `${v.length / 3} vertices, the rig's surface has ${refV.length / 3}`]);
-        ++wrong;
-      }
-    } else {
-      const errors = s.stderr.split('\n').filter((l) => l.includes(': error: '));
-      if (s.code === 2 && errors.length === 1) {
-        rows.push([name, tool, how, 'refused', errors[0].replace(/^strata-reconstruct: error: [^:]*: /, '')]);
-      } else {
-        rows.push([name, tool, how, 'BAD EXIT', `exit ${s.code}: ${s.stderr.trim().slice(0, 200)}`]);
-        ++wrong;
-      }
-    }
+    });
   }
 }
+await pool(jobs, os.cpus().length);
 
 // A carried file that is then damaged or edited is refused with the cause:
 // spot reordered with the config (so it carries \`baked\` and the tags),
