@@ -3,6 +3,10 @@
 // strata-bake and the Python module parse their arguments into a
 // BakeRequest and call bakeRig; nothing here prints.
 #include "strata/baker/bake_rig.h"
+#include "strata/baker/skin_transfer.h"
+#include "strata/surface.h"
+#include "strata/baker/texture_transfer.h"
+#include "strata/io/materials.h"
 
 #include "cancel.h"
 
@@ -457,6 +461,7 @@ public:
         searchMapSize();
         writeOutputs();
         measureWritten();
+        measureFrames();
         summarize();
         writeReport();
         finish();
@@ -498,6 +503,7 @@ private:
     void searchMapSize();
     void writeOutputs();
     void measureWritten();
+    void measureFrames();
     void summarize();
     void writeReport();
     void finish();
@@ -510,6 +516,9 @@ private:
     double quantizationStep(int level) const;
     Status refineStoredValues(const ControlMesh& mesh, int level, std::vector<float>* values, double* step);
     Status writeRig(const std::string& path, int level);
+    void loadCharacter();
+    void carryCharacter();
+    void carryColour();
     void settleLevel();
 
     template <typename... Args>
@@ -539,6 +548,14 @@ private:
     ControlMesh control;
     Rig controlRig;     // a glTF control keeps its whole document for the output
     Skeleton skeleton;  // carried through from a skinned glTF control rig
+    // --control auto on a skinned glTF: the capture as a character (its
+    // skeleton, animations, per-vertex weights), carried onto the cage.
+    Rig highRig;
+    bool character = false;
+    io::SceneMaterials captureMaterials;  // a textured capture's materials and decoded images
+    bool coloured = false;                // ... carried as one base colour texture in the cage's UVs
+    io::BaseColourTexture baseColour;
+    std::string colourNote;
     ControlMesh bare;   // the control mesh that atlas layouts start from
     int paperLevel = 0;
 
@@ -566,6 +583,14 @@ private:
     std::vector<std::string> notes;
     Stored stored;
     std::vector<LevelError> errors;
+    // A character from --control auto: the rig against its source, posed.
+    struct FrameError {
+        int animation = 0;
+        float time = 0.0f;
+        double rms = 0.0, max = 0.0;  // the larger side of each, model units
+    };
+    std::vector<FrameError> frames;
+    double framesMs = 0.0;
     nlohmann::json report;
     double loadMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
 };
@@ -597,6 +622,7 @@ void BakeJob::loadInputs()
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";
+        loadCharacter();
     } else {
         if (!(st = loadControlRig(controlPath, &controlRig, maxMemoryMB)))
             throw BakeError(st.message());
@@ -649,6 +675,166 @@ void BakeJob::loadInputs()
         controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
     }
     loadMs = msSince(t0);
+}
+
+// The rig written for a character against the character itself, posed as
+// it moves: for every animation, at 10 evenly spaced times, the layered
+// surface at the recommended level and the source's own mesh, each
+// sampled (vertices and face centroids) and measured to the other.
+void BakeJob::measureFrames()
+{
+    if (!character)
+        return;
+    const auto t0 = std::chrono::steady_clock::now();
+    Progress p(progress, "measuring the character's animations against its source");
+    Rig written;
+    DisplacementMap writtenMap;
+    Status st = io::loadRig(Outputs::staged(outPath), &written);
+    if (st && rigNeedsMap(written))
+        st = io::loadRigDisplacementMap(Outputs::staged(outPath), written, &writtenMap);
+    std::unique_ptr<Surface> layered, source;
+    SurfaceOptions plain;
+    plain.displace = false;
+    plain.level = 0;
+    if (st)
+        st = Surface::create(&layered, written, &writtenMap);
+    if (st)
+        st = Surface::create(&source, highRig, nullptr, plain);
+    if (!st)
+        throw BakeError(outPath + ": the character rig does not pose against its source: " + st.message());
+    std::vector<glm::vec3> a(layered->vertexCount()), b(source->vertexCount());
+    TriangleIndex ia, ib;
+    for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
+        const Animation& an = highRig.skeleton.animations[anim];
+        for (int k = 0; k < 10; ++k) {
+            const float t = an.start + (an.end - an.start) * float(k) / 9.0f;
+            if (!(st = layered->setAnimationTime(int(anim), t)) || !(st = source->setAnimationTime(int(anim), t)) ||
+                !(st = layered->evaluate(a.data(), nullptr, a.size(), options.threads)) ||
+                !(st = source->evaluate(b.data(), nullptr, b.size(), options.threads)))
+                throw BakeError(outPath + ": posing the character: " + st.message());
+            ia.build(a.data(), layered->triangles().data(), layered->triangleCount(), options.threads);
+            ib.build(b.data(), source->triangles().data(), source->triangleCount(), options.threads);
+            const DistanceStats ab = sampleDistance(surfaceSamples(a.data(), a.size(), layered->triangles().data(),
+                                                                   layered->triangleCount()),
+                                                    ib, options.threads);
+            const DistanceStats ba = sampleDistance(surfaceSamples(b.data(), b.size(), source->triangles().data(),
+                                                                   source->triangleCount()),
+                                                    ia, options.threads);
+            frames.push_back({int(anim), t, std::max(ab.rms, ba.rms), std::max(ab.max, ba.max)});
+        }
+    }
+    framesMs = msSince(t0);
+}
+
+// --control auto on a glTF capture: a skinned, animated character keeps
+// its skeleton, skin and animations on the cage (carryCharacter), in the
+// capture's own space (its bind space: the nodes place it as they placed
+// the capture).  What is not carried yet is named in one line.
+void BakeJob::loadCharacter()
+{
+    const std::string ext = io::extensionOf(highPath);
+    if (ext != ".glb" && ext != ".gltf")
+        return;
+    Status st = loadControlRig(highPath, &highRig, maxMemoryMB);
+    if (!st)
+        throw BakeError(st.message());
+    // The same scene reader welds both: the capture's vertices are the rig's.
+    if (highRig.mesh.positions.size() != high.positions.size())
+        throw BakeError(highPath + ": the capture and its character do not weld to the same vertices");
+    character = !highRig.skeleton.empty() && !highRig.skeleton.weights.weights.empty();
+    for (const std::string& w : highRig.warnings)
+        warn("%s: %s", highPath.c_str(), w.c_str());
+    std::vector<std::string> warnings;
+    if (highRig.source && io::loadSceneMaterials(highRig, &captureMaterials, &warnings)) {
+        for (const std::string& w : warnings)
+            warn("%s: %s", highPath.c_str(), w.c_str());
+        // Any material or texture: the colour is carried (a capture of
+        // glTF's default material alone has nothing to carry).
+        coloured = captureMaterials.materials.size() > 1;
+    }
+    if (!character && !highRig.skeleton.empty())
+        warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
+             highPath.c_str());
+}
+
+// The capture's skeleton on the cage: the same nodes, joints, inverse bind
+// matrices and animations, each cage vertex weighted as the capture is at
+// its nearest point.
+void BakeJob::carryCharacter()
+{
+    Skeleton carried = highRig.skeleton;
+    Status st = transferSkinWeights(control, high, highIndex, highRig.skeleton.weights, &carried.weights,
+                                    options.threads);
+    if (!st)
+        throw BakeError(highPath + ": " + st.message());
+    if (!(st = finalizeSkeleton(&carried, control.positions.size())))
+        throw BakeError(highPath + ": " + st.message());
+    rig.skeleton = std::move(carried);
+}
+
+// The capture's colour (every material's base colour factor and texture)
+// as one texture in the cage's UVs, at the resolution of its largest
+// texture (256 to 2048 texels a side).
+void BakeJob::carryColour()
+{
+    const io::SceneMaterials& sm = captureMaterials;
+    std::vector<int> faceMaterial(high.faceCount(), int(sm.materials.size()) - 1);
+    for (size_t p = 0; p < highRig.parts.size() && p < sm.partMaterial.size(); ++p)
+        for (uint32_t f = 0; f < highRig.parts[p].faceCount; ++f)
+            if (size_t(highRig.parts[p].firstFace + f) < faceMaterial.size())
+                faceMaterial[highRig.parts[p].firstFace + f] = sm.partMaterial[p];
+    int largest = 0;
+    for (const io::ImageRGBA& im : sm.images)
+        largest = std::max({largest, im.width, im.height});
+    int side = 256;
+    while (side < largest && side < 2048)
+        side *= 2;
+    const bool corners = highRig.fileCorners.size() == high.triangles.size();
+    const CaptureColour colour = [&](uint32_t face, double b1, double b2) {
+        const io::MaterialInfo& m = sm.materials[size_t(faceMaterial[face])];
+        glm::vec4 c = m.baseColor;
+        if (m.image < 0 || size_t(m.image) >= sm.images.size() || !corners)
+            return c;
+        const io::ImageRGBA& im = sm.images[size_t(m.image)];
+        if (im.width <= 0 || im.height <= 0)
+            return c;
+        const double w[3] = {1.0 - b1 - b2, b1, b2};
+        glm::dvec2 uv(0.0);
+        for (int k = 0; k < 3; ++k)
+            uv += w[k] * glm::dvec2(sm.fileUVs[highRig.fileCorners[3 * size_t(face) + size_t(k)]]);
+        // Bilinear, repeating (glTF's default sampler).
+        const double x = uv.x * im.width - 0.5, y = uv.y * im.height - 0.5;
+        const double fx = std::floor(x), fy = std::floor(y);
+        auto texel = [&](double tx, double ty) {
+            const long ix = long(tx) % im.width, iy = long(ty) % im.height;
+            const size_t i = 4 * (size_t(iy < 0 ? iy + im.height : iy) * size_t(im.width) +
+                                  size_t(ix < 0 ? ix + im.width : ix));
+            return glm::dvec4(im.rgba[i], im.rgba[i + 1], im.rgba[i + 2], im.rgba[i + 3]) / 255.0;
+        };
+        const double ax = x - fx, ay = y - fy;
+        const glm::dvec4 t = (1 - ax) * (1 - ay) * texel(fx, fy) + ax * (1 - ay) * texel(fx + 1, fy) +
+                             (1 - ax) * ay * texel(fx, fy + 1) + ax * ay * texel(fx + 1, fy + 1);
+        return c * glm::vec4(t);
+    };
+    ColorImage image;
+    Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);
+    if (!st)
+        throw BakeError(highPath + ": " + st.message());
+    baseColour.name = "base_colour";
+    baseColour.width = image.width;
+    baseColour.height = image.height;
+    baseColour.rgba = std::move(image.rgba);
+    // The other factors of the material most of the capture wears.
+    std::vector<size_t> uses(sm.materials.size(), 0);
+    for (int m : faceMaterial)
+        ++uses[size_t(m)];
+    const io::MaterialInfo& main = sm.materials[size_t(std::max_element(uses.begin(), uses.end()) - uses.begin())];
+    baseColour.doubleSided = main.doubleSided;
+    writeOptions.baseColour = &baseColour;
+    char note[200];
+    std::snprintf(note, sizeof(note), "%zu material%s carried as one %dx%d base colour texture in the cage's UVs",
+                  sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s", side, side);
+    colourNote = note;
 }
 
 // The normal-volume mapping joins a control mesh to a capture in one frame:
@@ -932,6 +1118,10 @@ void BakeJob::writeOutputs()
     rig = std::move(controlRig);
     rig.mesh = control;
     rig.skeleton = std::move(skeleton);
+    if (character)
+        carryCharacter();
+    if (coloured)
+        carryColour();
     rig.hasDisplacement = true;
     rig.displacement = DisplacementInfo();
     rig.displacement.scheme = options.scheme;
@@ -1055,6 +1245,11 @@ void BakeJob::summarize()
                     highStats.nonManifoldEdges);
     appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                 control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
+    if (character)
+        appendf(&result->summary, "  character     %zu joints, %zu animations and skin weights carried from the capture\n",
+                rig.skeleton.skin.joints.size(), rig.skeleton.animations.size());
+    if (!colourNote.empty())
+        appendf(&result->summary, "  colour        %s\n", colourNote.c_str());
     appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
     if (fitting) {
         const Fitted& f = fitted[int(options.scheme)];
@@ -1111,6 +1306,25 @@ void BakeJob::summarize()
                         100.0 * e.forwardRms / diag, 100.0 * e.forwardMax / diag, 100.0 * e.backwardRms / diag,
                         100.0 * e.backwardMax / diag);
     }
+    if (!frames.empty()) {
+        appendf(&result->summary, "  posed against the source (level %d, 10 times per animation; the larger side; "
+                                  "distance / diagonal)\n", recommended);
+        appendf(&result->summary, "    animation                | RMS mean  RMS worst | max worst\n");
+        for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
+            double mean = 0.0, worstRms = 0.0, worstMax = 0.0;
+            int n = 0;
+            for (const FrameError& f : frames)
+                if (f.animation == int(anim)) {
+                    mean += f.rms;
+                    worstRms = std::max(worstRms, f.rms);
+                    worstMax = std::max(worstMax, f.max);
+                    ++n;
+                }
+            appendf(&result->summary, "    %-24.24s | %8.4f%% %8.4f%% | %8.4f%%\n",
+                    highRig.skeleton.animations[anim].name.c_str(), 100.0 * mean / std::max(n, 1) / diag,
+                    100.0 * worstRms / diag, 100.0 * worstMax / diag);
+        }
+    }
 }
 
 void BakeJob::writeReport()
@@ -1150,6 +1364,12 @@ void BakeJob::writeReport()
     nlohmann::json tradeOff = nlohmann::json::array();
     for (const Trial& t : trials)
         tradeOff.push_back({{"size", t.size}, {"level", t.level}, {"rms", t.rms}});
+    if (!frames.empty()) {
+        nlohmann::json list = nlohmann::json::array();
+        for (const FrameError& f : frames)
+            list.push_back({{"animation", f.animation}, {"time", f.time}, {"rms", f.rms / diag}, {"max", f.max / diag}});
+        report["posed"] = {{"level", recommended}, {"frames", list}, {"ms", framesMs}};
+    }
     report["tolerance"] = tolerance;
     report["tradeOff"] = tradeOff;
     report["scheme"] = schemeName(options.scheme);

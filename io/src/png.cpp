@@ -8,7 +8,10 @@
 #include "strata/io/file.h"
 
 #include <stb/stb_image.h>
+#include <stb/stb_image_write.h>
 #include <zlib.h>
+
+#include <algorithm>
 
 #include <cstdlib>
 
@@ -53,7 +56,7 @@ void filterRow(int type, const uint8_t* row, const uint8_t* prev, size_t n, size
     }
 }
 
-// colourType 0 = grey, 2 = RGB; rows already laid out big-endian.  Each row
+// colourType 0 = grey, 2 = RGB, 6 = RGBA; rows already laid out big-endian.  Each row
 // takes the filter with the smallest sum of absolute residuals (libpng's
 // heuristic), which suits smooth displacement maps.
 Status encodePng(int width, int height, int bits, int colourType, int channels, const std::vector<uint8_t>& rowBytes,
@@ -151,6 +154,46 @@ Status writePngGray(const std::filesystem::path& pathFile, int width, int height
     if (Status st = grayRows(width, height, bits, samples, &bytes); !st)
         return Status(st.code(), path + ": " + st.message());
     return writePng(path, width, height, bits, 0, 1, bytes);
+}
+
+Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png)
+{
+    if (rgba.size() != size_t(std::max(width, 0)) * size_t(std::max(height, 0)) * 4)
+        return Status(StatusCode::InvalidArgument, "pixel count does not match the image size");
+    bool opaque = true;
+    for (size_t i = 3; i < rgba.size() && opaque; i += 4)
+        opaque = rgba[i] == 255;
+    if (!opaque)
+        return encodePng(width, height, 8, 6, 4, rgba, png);
+    std::vector<uint8_t> rgb(rgba.size() / 4 * 3);
+    for (size_t i = 0, j = 0; i < rgba.size(); i += 4, j += 3)
+        std::copy_n(&rgba[i], 3, &rgb[j]);
+    return encodePng(width, height, 8, 2, 3, rgb, png);
+}
+
+Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba, int quality, std::string* bytes,
+                         std::string* mimeType)
+{
+    if (width <= 0 || height <= 0 || rgba.size() != size_t(width) * size_t(height) * 4)
+        return Status(StatusCode::InvalidArgument, "pixel count does not match the image size");
+    bool opaque = true;
+    for (size_t i = 3; i < rgba.size() && opaque; i += 4)
+        opaque = rgba[i] == 255;
+    if (!opaque) {
+        *mimeType = "image/png";
+        return encodePngRgba(width, height, rgba, bytes);
+    }
+    std::string out;
+    const int ok = stbi_write_jpg_to_func(
+        [](void* context, void* data, int size) {
+            static_cast<std::string*>(context)->append(static_cast<const char*>(data), size_t(size));
+        },
+        &out, width, height, 4, rgba.data(), std::clamp(quality, 1, 100));
+    if (!ok || out.empty())
+        return Status(StatusCode::IoError, "JPEG encoding failed");
+    *bytes = std::move(out);
+    *mimeType = "image/jpeg";
+    return Status::ok();
 }
 
 Status writePngRgb(const std::filesystem::path& pathFile, int width, int height, const std::vector<uint8_t>& rgb)

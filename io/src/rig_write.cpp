@@ -534,6 +534,41 @@ Status embedVertexValues(tinygltf::Model& model, const ControlMesh& mesh, int le
     return Status::ok();
 }
 
+// The material of a bare control mesh: its base colour texture as an
+// embedded PNG, on every primitive of mesh 0.
+Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
+{
+    std::string bytes, mimeType;
+    Status st = encodeColourImage(colour.width, colour.height, colour.rgba, 90, &bytes, &mimeType);
+    if (!st)
+        return Status(st.code(), "the base colour texture: " + st.message());
+    const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
+    model.bufferViews[size_t(view)].target = 0;
+    tinygltf::Image image;
+    image.name = colour.name.empty() ? "base_colour" : colour.name;
+    image.mimeType = mimeType;
+    image.bufferView = view;
+    model.images.push_back(image);
+    tinygltf::Sampler sampler;
+    sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+    sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+    sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    model.samplers.push_back(sampler);
+    tinygltf::Texture texture;
+    texture.source = int(model.images.size() - 1);
+    texture.sampler = int(model.samplers.size() - 1);
+    model.textures.push_back(texture);
+    // The control mesh's own material (every primitive of mesh 0 wears it).
+    if (model.materials.empty())
+        model.materials.emplace_back();
+    tinygltf::Material& material = model.materials[0];
+    material.pbrMetallicRoughness.baseColorTexture.index = int(model.textures.size() - 1);
+    material.doubleSided = colour.doubleSided;
+    for (tinygltf::Primitive& p : model.meshes[0].primitives)
+        p.material = 0;
+    return Status::ok();
+}
+
 // Faces in vertex-cache order, vertices in first-use order (unreferenced
 // ones last, in their order): the order meshopt's codecs compress best, about
 // half the index bytes of an arbitrary order.  UV corners and skin weights
@@ -660,7 +695,7 @@ Status RigWriter::begin(const std::filesystem::path& pathFile, const Rig& input,
     bool draco = options && options->draco && options->vertexDisplacements && map && rig.hasDisplacement &&
                  !fromSource && positionError > 0.0 && rig.skeleton.empty();
     const bool omitUVs = options && options->vertexDisplacements && options->omitDisplacementUVs && map &&
-                         rig.hasDisplacement;
+                         rig.hasDisplacement && !options->baseColour;
     const std::string ext = extensionOf(path);
     if (ext != ".glb" && ext != ".gltf")
         return Status(StatusCode::InvalidArgument, path + ": a rig must be written as .glb or .gltf");
@@ -730,6 +765,8 @@ Status RigWriter::begin(const std::filesystem::path& pathFile, const Rig& input,
         buildGltfMesh(&model, view, "control_mesh", nullptr, &rig.skeleton);
         info.texCoord = omitUVs ? -1 : 0;
         blockMeshes.push_back(0);
+        if (options && options->baseColour && cm.hasUVs() && !(st = addBaseColour(model, *options->baseColour)))
+            return Status(st.code(), path + ": " + st.message());
     }
     if (rig.hasDisplacement) {
         if (!cm.hasUVs())

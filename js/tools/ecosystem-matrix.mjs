@@ -387,13 +387,13 @@ for (const coding of codings) {
 const openRows = [];
 for (const [tool, expected, fn] of openers) {
   const cells = [];
-  codings.forEach((coding, k) => {
+  for (const [k, coding] of codings.entries()) {
     const out = path.join(work, `open_${coding}_${tool.replace(/[^a-z0-9]+/gi, '_')}.glb`);
-    const r = fn(path.join(work, `spot_${coding}.glb`), out);
+    const r = await fn(path.join(work, `spot_${coding}.glb`), out);
     const opened = r.code === 0;
     if (opened !== expected[k]) ++wrong;
     cells.push(`${opened ? 'opens' : 'does not open'}${opened !== expected[k] ? ' (README says otherwise: FAILED)' : ''}`);
-  });
+  }
   openRows.push([tool, ...cells]);
 }
 

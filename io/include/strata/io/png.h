@@ -26,6 +26,13 @@ Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t
 /// otherwise buy gigabytes of decoder memory).
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
                      std::vector<uint16_t>* samples, int expectWidth = 0, int expectHeight = 0);
+/// Encodes an 8-bit colour PNG in memory from 4 bytes per pixel (RGB when
+/// every alpha is 255, else RGBA).
+Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png);
+/// A colour texture for glTF from 4 bytes per pixel: JPEG at `quality`
+/// (1..100) when every alpha is 255, else an RGBA PNG; *mimeType says which.
+Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba, int quality, std::string* bytes,
+                         std::string* mimeType);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
 Status writePngRgb(const std::filesystem::path& path, int width, int height, const std::vector<uint8_t>& rgb);
 

@@ -7,6 +7,7 @@
 #include "strata/rig.h"
 #include "strata/status.h"
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -90,6 +91,16 @@ Status loadRigQuantizedMap(const std::filesystem::path& rigPath, const Rig& rig,
 /// block refers to it; without, the
 /// block keeps rig.displacement's URI.  `notes` receives what could not be
 /// carried over, if anything.
+/// A bare control mesh's material: one base colour texture sampled through
+/// the control mesh's UVs (TEXCOORD_0, then always written), as the baker
+/// makes for an automatic cage of a textured character.
+struct BaseColourTexture {
+    std::string name;
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgba;  ///< 4 bytes per texel, row 0 first (v = 0); JPEG-coded when opaque
+    bool doubleSided = false;
+};
+
 struct RigWriteOptions {
     /// Largest quantisation step of the embedded map, in model units (0:
     /// 16 bits over the map's range).  The baker passes its tolerance (the
@@ -132,6 +143,9 @@ struct RigWriteOptions {
     /// vertices (fewer, better-coded vertices), and loadRigDisplacementMap
     /// refuses the rig.  A character's own texture UVs are always kept.
     bool omitDisplacementUVs = false;
+    /// A rig written as a bare control mesh (not from a source document):
+    /// its material, or null for none.
+    const BaseColourTexture* baseColour = nullptr;
 };
 
 /// The bytes of a .glb with any EXT_meshopt_compression decoded: a plain

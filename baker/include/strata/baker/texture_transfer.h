@@ -1,0 +1,41 @@
+// Strata baker: a captured character's colour carried into the automatic
+// cage's own UVs (--control auto on a textured glTF), so one texture maps
+// the layered surface as the source's textures mapped the capture.
+#pragma once
+
+#include "strata/baker/distance.h"
+#include "strata/control_mesh.h"
+#include "strata/displacement_map.h"
+#include "strata/status.h"
+
+#include <glm/vec4.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace strata {
+namespace baker {
+
+struct ColorImage {
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgba;  ///< 4 bytes per texel, row 0 first (v = 0)
+};
+
+/// The capture's colour at a point of its triangle `face` (barycentrics b1,
+/// b2 of corners 1 and 2), RGBA in [0, 1].
+using CaptureColour = std::function<glm::vec4(uint32_t face, double b1, double b2)>;
+
+/// A size x size image of the capture's colour in the cage's UVs.  Each
+/// texel centre inside a cage triangle's UVs stands for the point of the
+/// layered surface there: the cage point moved by the map's displacement
+/// along the blended vertex normals (paper eq. 2), whose nearest capture
+/// point (`capture`, the capture's index) gives the colour.  Texels outside
+/// every triangle take their nearest chart's colour (dilated), so filtering
+/// at chart borders never reads another colour.  Deterministic for any
+/// thread count.
+Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
+                      const CaptureColour& colour, int size, ColorImage* out, int threads = 1);
+
+}  // namespace baker
+}  // namespace strata

@@ -1,0 +1,111 @@
+// Colour into the cage's UVs.  A texel first finds its cage triangle (the
+// UV triangles rasterised once, the first triangle over a texel keeping
+// it), then its point on the capture, in parallel over texels.
+#include "strata/baker/texture_transfer.h"
+
+#include "parallel.h"
+#include "strata/baker/dilate.h"
+#include "strata/normals.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+namespace baker {
+
+Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
+                      const CaptureColour& colour, int size, ColorImage* out, int threads)
+{
+    if (!out || size <= 0 || size > 16384 || !cage.hasUVs() || !colour)
+        return Status(StatusCode::InvalidArgument, "transferColour: a cage with UVs, a colour and a size are needed");
+    const size_t texels = size_t(size) * size_t(size);
+    // Each texel's cage triangle and its barycentrics there.
+    std::vector<int32_t> faceOf(texels, -1);
+    std::vector<glm::vec3> baryOf(texels);
+    for (size_t f = 0; f < cage.faceCount(); ++f) {
+        glm::dvec2 t[3];
+        for (int k = 0; k < 3; ++k)
+            t[k] = glm::dvec2(cage.uvs[cage.uvIndices[3 * f + size_t(k)]]) * double(size);
+        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        if (!(std::fabs(area) > 0.0))
+            continue;
+        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}))));
+        const int x1 = std::min(size - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}))));
+        const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}))));
+        const int y1 = std::min(size - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}))));
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                const size_t i = size_t(y) * size_t(size) + size_t(x);
+                if (faceOf[i] >= 0)
+                    continue;
+                const glm::dvec2 p(x + 0.5, y + 0.5);
+                const double b1 = ((p.x - t[0].x) * (t[2].y - t[0].y) - (p.y - t[0].y) * (t[2].x - t[0].x)) / area;
+                const double b2 = ((t[1].x - t[0].x) * (p.y - t[0].y) - (t[1].y - t[0].y) * (p.x - t[0].x)) / area;
+                const double b0 = 1.0 - b1 - b2;
+                if (b0 < 0.0 || b1 < 0.0 || b2 < 0.0)
+                    continue;
+                faceOf[i] = int32_t(f);
+                baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
+            }
+    }
+    std::vector<glm::vec3> normals(cage.vertexCount());
+    computeControlNormals(normals.data(), cage.positions.data(), normals.size(), cage.triangles.data(),
+                          cage.faceCount());
+    std::vector<float> channel[4];
+    for (std::vector<float>& c : channel)
+        c.assign(texels, 0.0f);
+    parallelFor(texels, threads, [&](size_t begin, size_t end) {
+        int64_t hint = -1;
+        for (size_t i = begin; i < end; ++i) {
+            const int32_t f = faceOf[i];
+            if (f < 0)
+                continue;
+            const glm::vec3 b = baryOf[i];
+            glm::vec3 p(0.0f), n(0.0f);
+            glm::vec2 uv(0.0f);
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = cage.triangles[3 * size_t(f) + size_t(k)];
+                p += b[k] * cage.positions[v];
+                n += b[k] * normals[v];
+                uv += b[k] * cage.uvs[cage.uvIndices[3 * size_t(f) + size_t(k)]];
+            }
+            const float d = map.texels.empty() ? 0.0f : sampleDisplacement(map, uv);
+            const glm::dvec3 q(p + d * n);
+            uint32_t face = 0;
+            double b1 = 0.0, b2 = 0.0;
+            if (capture.nearest(q, &face, &b1, &b2, hint) < 0.0)
+                continue;
+            hint = int64_t(face);
+            const glm::vec4 c = glm::clamp(colour(face, b1, b2), glm::vec4(0.0f), glm::vec4(1.0f));
+            for (int k = 0; k < 4; ++k)
+                channel[k][i] = c[k];
+        }
+    });
+    // Gutters: each channel grown from the texels the triangles cover.
+    std::vector<uint8_t> covered(texels);
+    for (size_t i = 0; i < texels; ++i)
+        covered[i] = faceOf[i] >= 0;
+    ColorImage image;
+    image.width = image.height = size;
+    image.rgba.assign(texels * 4, 255);
+    for (int k = 0; k < 4; ++k) {
+        double mean = 0.0;
+        size_t n = 0;
+        for (size_t i = 0; i < texels; ++i)
+            if (covered[i]) {
+                mean += channel[k][i];
+                ++n;
+            }
+        std::vector<uint8_t> valid = covered;
+        dilate(&channel[k], &valid, size, 8, n ? float(mean / double(n)) : 1.0f, threads);
+        for (size_t i = 0; i < texels; ++i)
+            image.rgba[4 * i + size_t(k)] = uint8_t(std::lround(std::clamp(channel[k][i], 0.0f, 1.0f) * 255.0f));
+    }
+    *out = std::move(image);
+    return Status::ok();
+}
+
+}  // namespace baker
+}  // namespace strata
