@@ -36,16 +36,18 @@ const char* kUsage =
     "usage: strata-view FILE.{glb,gltf,obj} [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
     "                   [--time T] [--skinning linear|dq|segments] [--high HIGH.{obj,ply,...}]\n"
     "                   [--color shaded|displacement|error] [--no-displacement] [--scale S]\n"
-    "                   [--wireframe] [--cage] [--no-grid] [--yaw DEG] [--pitch DEG]\n"
+    "                   [--wireframe] [--cage] [--no-grid] [--yaw DEG] [--pitch DEG] [--camera TX,TY,TZ,D]\n"
     "                   [--no-materials] [--screenshot OUT.png [--headless] [--ui]] [--size WxH] [--version]\n"
     "  --time without --anim plays animation 0; a screenshot frames the posed model and leaves\n"
-    "  the panel out unless --ui (the displacement and error views draw their colour scale)\n";
+    "  the panel out unless --ui (the displacement and error views draw their colour scale);\n"
+    "  --camera gives the view instead (each screenshot prints the one it used)\n";
 
 struct Options {
     std::string file, high, screenshot, anim;
     int width = 1280, height = 800;
     bool headless = false, ui = false, haveTime = false;
     float yaw = 30.0f, pitch = 14.0f;
+    std::vector<float> camera;  // --camera TX,TY,TZ,DISTANCE (empty: frame the posed model)
     bool yawGiven = false;
 };
 
@@ -104,13 +106,22 @@ int runHeadless(viewer::Scene& scene, const Options& o)
     if (!scene.lastError().empty())
         throw cli::Error(scene.lastError());
     fb.bind();
-    scene.render(o.width, o.height);
+    scene.render(o.width, o.height);  // frames the model for this aspect
+    if (o.camera.size() == 4) {
+        // Another model's camera (a comparison of two renders at one view).
+        scene.camera.target = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
+        scene.camera.distance = o.camera[3];
+        scene.userCamera_ = true;
+        scene.render(o.width, o.height);
+    }
     std::vector<uint8_t> rgb;
     fb.readRGB(&rgb);
     if (!(st = writeScreenshot(o.screenshot, o.width, o.height, rgb)))
         throw cli::Error(st.message());
-    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices -> %s (%s)\n", o.file.c_str(), scene.currentLevel(),
-                 scene.vertexCount(), o.screenshot.c_str(), ctx->description().c_str());
+    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices -> %s (%s; --camera %g,%g,%g,%g)\n", o.file.c_str(),
+                 scene.currentLevel(), scene.vertexCount(), o.screenshot.c_str(), ctx->description().c_str(),
+                 double(scene.camera.target.x), double(scene.camera.target.y), double(scene.camera.target.z),
+                 double(scene.camera.distance));
     return 0;
 }
 
@@ -360,6 +371,17 @@ int main(int argc, char** argv)
                 s.grid = false;
             } else if (a == "--cage") {
                 s.cage = true;
+            } else if (a == "--camera") {
+                const std::string text = value();
+                o.camera.clear();
+                size_t at = 0;
+                while (at <= text.size() && o.camera.size() < 5) {
+                    const size_t comma = std::min(text.find(',', at), text.size());
+                    o.camera.push_back(cli::parseFloat(a, text.substr(at, comma - at)));
+                    at = comma + 1;
+                }
+                if (o.camera.size() != 4 || !(o.camera[3] > 0.0f))
+                    throw cli::Error("--camera expects TX,TY,TZ,DISTANCE (a positive distance), not " + text);
             } else if (a == "--yaw") {
                 o.yaw = cli::parseFloat(a, value());
             } else if (a == "--pitch") {

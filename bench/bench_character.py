@@ -1,0 +1,129 @@
+#!/usr/bin/env python3
+"""A character through --control auto, against its source, as it moves.
+
+    python3 bench/bench_character.py [--build build] [--work DIR] [--times 3]
+
+Bakes Fox and CesiumMan (tests/data) with `strata-bake --control auto`,
+then for every animation prints the bake's own per-frame geometry (RMS and
+maximum distance between the layered surface at the recommended level and
+the source's mesh, the larger side of each, over 10 evenly spaced times)
+and the texture: at `--times` of those times, the source and the rig are
+rendered headless by strata-view at one camera (the source's), and the two
+pictures compared by PSNR over the pixels either draws.
+"""
+import argparse
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import zlib
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def read_png(path):
+    """8-bit RGB/RGBA PNG (the viewer's screenshots) as (width, height, rows of RGB tuples)."""
+    data = open(path, "rb").read()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", path
+    pos, idat, width = 8, b"", 0
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert depth == 8 and colour in (2, 6), (path, depth, colour)
+            channels = 3 if colour == 2 else 4
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = zlib.decompress(idat)
+    stride = width * channels
+    rows, prev = [], bytearray(stride)
+    for y in range(height):
+        f = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - channels] if i >= channels else 0
+            b = prev[i]
+            c = prev[i - channels] if i >= channels else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(line))
+        prev = line
+    return width, height, channels, rows
+
+
+def psnr(a_path, b_path):
+    """PSNR (dB) of two renders over the pixels either draws (not the background)."""
+    wa, ha, ca, ra = read_png(a_path)
+    wb, hb, cb, rb = read_png(b_path)
+    assert (wa, ha) == (wb, hb)
+    background = ra[0][:3]
+    err, n = 0.0, 0
+    for y in range(ha):
+        for x in range(wa):
+            pa = ra[y][x * ca:x * ca + 3]
+            pb = rb[y][x * cb:x * cb + 3]
+            if pa == background and pb == background:
+                continue
+            err += sum((int(u) - int(v)) ** 2 for u, v in zip(pa, pb))
+            n += 3
+    return 10.0 * math.log10(255.0 ** 2 / (err / n)) if n and err else float("inf")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--work", default="")
+    ap.add_argument("--times", type=int, default=3)
+    args = ap.parse_args()
+    work = args.work or tempfile.mkdtemp(prefix="strata-character-")
+    os.makedirs(work, exist_ok=True)
+    bake = os.path.join(args.build, "tools", "strata-bake")
+    view = os.path.join(args.build, "viewer", "strata-view")
+    print("| character | animation | rig bytes | source bytes | level | RMS mean | RMS worst | max worst |"
+          " PSNR (dB) at " + ", ".join(f"{k}/{args.times - 1}" for k in range(args.times)) + " of it |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name in ("Fox", "CesiumMan"):
+        source = os.path.join(ROOT, "tests", "data", name + ".glb")
+        rig = os.path.join(work, name + ".glb")
+        report = os.path.join(work, name + ".json")
+        subprocess.run([bake, "--high", source, "--control", "auto", "-o", rig, "--report", report],
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        rep = json.load(open(report))
+        frames = rep["posed"]["frames"]
+        level = rep["posed"]["level"]
+        for anim in sorted({f["animation"] for f in frames}):
+            mine = [f for f in frames if f["animation"] == anim]
+            times = [mine[round(k * (len(mine) - 1) / max(args.times - 1, 1))]["time"] for k in range(args.times)]
+            scores = []
+            for k, t in enumerate(times):
+                a = os.path.join(work, f"{name}_{anim}_{k}_source.png")
+                b = os.path.join(work, f"{name}_{anim}_{k}_rig.png")
+                common = ["--anim", str(anim), "--time", f"{t:.6f}", "--headless", "--size", "480x480", "--no-grid"]
+                out = subprocess.run([view, source, "--no-displacement", "--level", "0", "--screenshot", a] + common,
+                                     check=True, capture_output=True, text=True).stderr
+                camera = out.rsplit("--camera ", 1)[1].split(")")[0]
+                subprocess.run([view, rig, "--screenshot", b, "--camera", camera] + common, check=True,
+                               capture_output=True, text=True)
+                scores.append(psnr(a, b))
+            rms = [f["rms"] for f in mine]
+            print(f"| {name} | {anim} | {os.path.getsize(rig):,} | {os.path.getsize(source):,} | {level} | "
+                  f"{100 * sum(rms) / len(rms):.3f}% | {100 * max(rms):.3f}% | {100 * max(f['max'] for f in mine):.2f}% | "
+                  + ", ".join(f"{s:.1f}" for s in scores) + " |")
+            sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
