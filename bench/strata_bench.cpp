@@ -82,10 +82,12 @@ Accuracy accuracy(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& 
         return a;
     baker::TriangleIndex index;
     index.build(p.data(), t.data(), t.size() / 3);
-    const baker::DistanceStats to =
-        baker::sampleDistance(baker::surfaceSamples(p.data(), p.size(), t.data(), t.size() / 3), highIndex, 2);
+    // Area-weighted both ways, as an independent tool measures.
+    const baker::DistanceStats to = baker::sampleDistance(
+        baker::areaSamples(p.data(), t.data(), t.size() / 3, p.size() + t.size() / 3), highIndex, 2);
     const baker::DistanceStats from = baker::sampleDistance(
-        baker::surfaceSamples(high.positions.data(), high.positions.size(), high.triangles.data(), high.faceCount()),
+        baker::areaSamples(high.positions.data(), high.triangles.data(), high.faceCount(),
+                           high.positions.size() + high.faceCount()),
         index, 2);
     a.toRms = to.rms / diag;
     a.fromRms = from.rms / diag;

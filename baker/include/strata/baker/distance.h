@@ -63,6 +63,19 @@ struct DistanceStats {
 /// One-sided distance from the samples to the indexed surface.
 DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads);
 
+/// Points spread over a mesh by area, `density` per unit area on average
+/// (each of equal weight, so an RMS over them is the area-weighted RMS an
+/// independent tool measures).  Each triangle's samples depend on that
+/// triangle alone (its corner positions seed them): a mesh measured in
+/// pieces gets the same samples as measured whole.  Deterministic.
+std::vector<glm::vec3> areaSamplesAtDensity(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount,
+                                            double density);
+/// About `count` such points over the whole mesh.
+std::vector<glm::vec3> areaSamples(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount,
+                                   size_t count);
+/// The mesh's area.
+double surfaceArea(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount);
+
 /// Points that sample a mesh densely: every vertex and every face centroid.
 std::vector<glm::vec3> surfaceSamples(const glm::vec3* positions, size_t vertexCount, const uint32_t* triangles,
                                       size_t faceCount);
