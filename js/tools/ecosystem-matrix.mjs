@@ -140,10 +140,12 @@ const transformCommands = [
   ['quantize', '--pattern', 'TEXCOORD_*'], ['dequantize'],
   // Texture commands (sharp, from npm): they leave the map, which is data, alone.
   ['resize', '--width', '64', '--height', '64'], ['webp'], ['jpeg'], ['png'], ['avif'],
+  // And the rest of the everyday commands that touch meshes or materials.
+  ['join'], ['tangents'], ['unwrap'], ['palette'], ['metalrough'], ['unlit'],
 ];
 const tools = [];
 for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
-for (const c of transformCommands)
+for (const c of transformCommands.slice(0, transformCommands.length - 6))
   tools.push([`gltf-transform ${c.join(' ')}`, 'none', gt(c, false)]);
 tools.push(['gltfpack', 'defaults', (input, output) => runAsync('gltfpack', ['-i', input, '-o', output])]);
 tools.push(['Blender 3.4 import -> export', 'defaults', (input, output) =>
