@@ -6,6 +6,7 @@
 #include "parallel.h"
 #include "strata/baker/dilate.h"
 #include "strata/normals.h"
+#include "strata/uv_raster.h"
 
 #include <glm/geometric.hpp>
 
@@ -25,30 +26,16 @@ Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const
     std::vector<int32_t> faceOf(texels, -1);
     std::vector<glm::vec3> baryOf(texels);
     for (size_t f = 0; f < cage.faceCount(); ++f) {
-        glm::dvec2 t[3];
+        glm::vec2 uv[3];
         for (int k = 0; k < 3; ++k)
-            t[k] = glm::dvec2(cage.uvs[cage.uvIndices[3 * f + size_t(k)]]) * double(size);
-        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
-        if (!(std::fabs(area) > 0.0))
-            continue;
-        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}))));
-        const int x1 = std::min(size - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}))));
-        const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}))));
-        const int y1 = std::min(size - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}))));
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
-                const size_t i = size_t(y) * size_t(size) + size_t(x);
-                if (faceOf[i] >= 0)
-                    continue;
-                const glm::dvec2 p(x + 0.5, y + 0.5);
-                const double b1 = ((p.x - t[0].x) * (t[2].y - t[0].y) - (p.y - t[0].y) * (t[2].x - t[0].x)) / area;
-                const double b2 = ((t[1].x - t[0].x) * (p.y - t[0].y) - (t[1].y - t[0].y) * (p.x - t[0].x)) / area;
-                const double b0 = 1.0 - b1 - b2;
-                if (b0 < 0.0 || b1 < 0.0 || b2 < 0.0)
-                    continue;
-                faceOf[i] = int32_t(f);
-                baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
-            }
+            uv[k] = cage.uvs[cage.uvIndices[3 * f + size_t(k)]];
+        forEachTexelInUVTriangle(uv, size, size, [&](int x, int y, double b0, double b1, double b2) {
+            const size_t i = size_t(y) * size_t(size) + size_t(x);
+            if (faceOf[i] >= 0)
+                return;  // the first triangle over a texel keeps it
+            faceOf[i] = int32_t(f);
+            baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
+        });
     }
     std::vector<glm::vec3> normals(cage.vertexCount());
     computeControlNormals(normals.data(), cage.positions.data(), normals.size(), cage.triangles.data(),

@@ -1,5 +1,6 @@
 // Applying a rig's displacement to a plan, whichever way the rig stores it.
 #include "strata/rig.h"
+#include "strata/uv_raster.h"
 
 #include "strata/vertex_displacements.h"
 
@@ -55,33 +56,17 @@ Status rasterizeVertexDisplacements(DisplacementMap* map, const Plan& plan, cons
     std::vector<uint32_t> uvIndex;
     plan.refinedUVs(&uvs, &uvIndex);
     for (size_t f = 0; f < plan.refinedFaceCount(); ++f) {
-        glm::dvec2 p[3];
+        glm::vec2 uv[3];
         double d[3];
         for (int k = 0; k < 3; ++k) {
-            const glm::vec2 uv = uvs[uvIndex[3 * f + size_t(k)]];
-            p[k] = glm::dvec2(double(uv.x) * w - 0.5, double(uv.y) * h - 0.5);  // texel-centre space
+            uv[k] = uvs[uvIndex[3 * f + size_t(k)]];
             d[k] = values[tri[3 * f + size_t(k)]];
         }
-        const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
-        if (!(std::fabs(area) > 0.0))
-            continue;
-        const int x0 = std::max(0, int(std::ceil(std::min({p[0].x, p[1].x, p[2].x}))));
-        const int x1 = std::min(w - 1, int(std::floor(std::max({p[0].x, p[1].x, p[2].x}))));
-        const int y0 = std::max(0, int(std::ceil(std::min({p[0].y, p[1].y, p[2].y}))));
-        const int y1 = std::min(h - 1, int(std::floor(std::max({p[0].y, p[1].y, p[2].y}))));
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
-                const glm::dvec2 q(x, y);
-                const double b1 = ((q.x - p[0].x) * (p[2].y - p[0].y) - (q.y - p[0].y) * (p[2].x - p[0].x)) / area;
-                const double b2 = ((p[1].x - p[0].x) * (q.y - p[0].y) - (p[1].y - p[0].y) * (q.x - p[0].x)) / area;
-                const double b0 = 1.0 - b1 - b2;
-                const double eps = -1e-9;
-                if (b0 < eps || b1 < eps || b2 < eps)
-                    continue;
-                const size_t i = size_t(y) * size_t(w) + size_t(x);
-                value[i] = float(b0 * d[0] + b1 * d[1] + b2 * d[2]);
-                covered[i] = 1;
-            }
+        forEachTexelInUVTriangle(uv, w, h, [&](int x, int y, double b0, double b1, double b2) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            value[i] = float(b0 * d[0] + b1 * d[1] + b2 * d[2]);
+            covered[i] = 1;
+        });
     }
     // Gutters: two rings of texels around every chart take the mean of their
     // covered neighbours, so bilinear reads at a chart's edge stay inside it.

@@ -1,0 +1,43 @@
+// Strata runtime: the texels a UV triangle covers, with their barycentrics.
+// One home for the loop that rasterises values into a map in a triangle's
+// UVs (the per-vertex displacements' map, the baker's colour transfer).
+#pragma once
+
+#include <glm/vec2.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+
+/// Calls f(x, y, b0, b1, b2) for every texel (x, y) of a width x height map
+/// whose centre lies in the triangle of UVs uv[0..2] (inclusive edges: a
+/// centre on an edge shared by two triangles is visited by both), with the
+/// centre's barycentrics.  A triangle of no area visits nothing.
+template <typename F>
+void forEachTexelInUVTriangle(const glm::vec2 uv[3], int width, int height, F&& f)
+{
+    glm::dvec2 p[3];
+    for (int k = 0; k < 3; ++k)  // texel-centre space: texel (x, y) at (x, y)
+        p[k] = glm::dvec2(double(uv[k].x) * width - 0.5, double(uv[k].y) * height - 0.5);
+    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+    if (!(std::fabs(area) > 0.0))
+        return;
+    const int x0 = std::max(0, int(std::ceil(std::min({p[0].x, p[1].x, p[2].x}))));
+    const int x1 = std::min(width - 1, int(std::floor(std::max({p[0].x, p[1].x, p[2].x}))));
+    const int y0 = std::max(0, int(std::ceil(std::min({p[0].y, p[1].y, p[2].y}))));
+    const int y1 = std::min(height - 1, int(std::floor(std::max({p[0].y, p[1].y, p[2].y}))));
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+            const glm::dvec2 q(x, y);
+            const double b1 = ((q.x - p[0].x) * (p[2].y - p[0].y) - (q.y - p[0].y) * (p[2].x - p[0].x)) / area;
+            const double b2 = ((p[1].x - p[0].x) * (q.y - p[0].y) - (p[1].y - p[0].y) * (q.x - p[0].x)) / area;
+            const double b0 = 1.0 - b1 - b2;
+            const double eps = -1e-9;
+            if (b0 < eps || b1 < eps || b2 < eps)
+                continue;
+            f(x, y, b0, b1, b2);
+        }
+}
+
+}  // namespace strata
