@@ -27,14 +27,12 @@ Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, co
     w.joints.assign(n * size_t(k), 0);
     w.weights.assign(n * size_t(k), 0.0f);
     std::vector<uint8_t> missed(n, 0);
-    parallelFor(n, threads, [&](size_t begin, size_t end) {
-      for (size_t v = begin; v < end; ++v) {
+    // One cage vertex: false when no weighted capture point is found.
+    auto weigh = [&](size_t v) {
         uint32_t face = 0;
         double b1 = 0.0, b2 = 0.0;
-        if (index.nearest(glm::dvec3(cage.positions[v]), &face, &b1, &b2) < 0.0 || face >= high.faceCount()) {
-            missed[v] = 1;
-            continue;
-        }
+        if (index.nearest(glm::dvec3(cage.positions[v]), &face, &b1, &b2) < 0.0 || face >= high.faceCount())
+            return false;
         const double bary[3] = {1.0 - b1 - b2, b1, b2};
         std::vector<std::pair<uint16_t, double>> sum;  // joint, weight
         for (int c = 0; c < 3; ++c) {
@@ -51,23 +49,25 @@ Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, co
                     it->second += bary[c] * double(wi);
             }
         }
-        std::sort(sum.begin(), sum.end(), [](const auto& a, const auto& b) {
-            return a.second != b.second ? a.second > b.second : a.first < b.first;
+        std::sort(sum.begin(), sum.end(), [](const auto& x, const auto& y) {
+            return x.second != y.second ? x.second > y.second : x.first < y.first;
         });
         if (sum.size() > size_t(k))
             sum.resize(size_t(k));
         double total = 0.0;
         for (const auto& e : sum)
             total += e.second;
-        if (!(total > 0.0)) {
-            missed[v] = 1;
-            continue;
-        }
+        if (!(total > 0.0))
+            return false;
         for (size_t i = 0; i < sum.size(); ++i) {
             w.joints[v * size_t(k) + i] = sum[i].first;
             w.weights[v * size_t(k) + i] = float(sum[i].second / total);
         }
-      }
+        return true;
+    };
+    parallelFor(n, threads, [&](size_t begin, size_t end) {
+        for (size_t v = begin; v < end; ++v)
+            missed[v] = !weigh(v);
     });
     const size_t misses = size_t(std::count(missed.begin(), missed.end(), uint8_t(1)));
     if (misses)
