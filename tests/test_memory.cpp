@@ -78,10 +78,14 @@ void expectRefusal(const CommandResult& r, const std::string& needle, const std:
     EXPECT_NE(r.output.find(needle), std::string::npos) << what << ": expected \"" << needle << "\"\n" << r.output;
 }
 
+// The rigs every test reads, baked once per process in SetUp (a failure
+// there fails the test; in SetUpTestSuite gtest would report it skipped).
 class Memory : public ::testing::Test {
 protected:
-    static void SetUpTestSuite()
+    void SetUp() override
     {
+        if (ready)
+            return;
         dir = strata::test::tempDir("memory");
         const std::string spotArgs = " --high " + q(data + "/spot_triangulated.obj") + " --control " +
                                      q(data + "/spot_control_mesh.obj");
@@ -91,10 +95,13 @@ protected:
                                            q(data + "/CesiumMan.glb") + " -o " + q(dir + "/cesium.glb"))
                       .code,
                   0);
+        ready = true;
     }
     static std::string dir;
+    static bool ready;
 };
 std::string Memory::dir;
+bool Memory::ready = false;
 
 // Each class of file that once bought gigabytes with a few bytes, under a
 // 2 GB address-space limit: refused in one line, nothing written.

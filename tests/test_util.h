@@ -169,9 +169,12 @@ inline size_t filesIn(const std::string& dir, bool withHidden = false)
 }
 
 /// A fresh empty directory under the build tree's temp area.
+/// A fresh folder for one test process: ctest runs the cases of a suite
+/// as parallel processes, so the name carries the process id (two cases
+/// asking for one name never empty each other's folder).
 inline std::string tempDir(const std::string& name)
 {
-    const std::string dir = std::string(STRATA_TEST_TMP) + "/" + name;
+    const std::string dir = std::string(STRATA_TEST_TMP) + "/" + name + "." + std::to_string(::getpid());
     std::string cmd = "rm -rf '" + dir + "' && mkdir -p '" + dir + "'";
     if (std::system(cmd.c_str()) != 0)
         ADD_FAILURE() << "cannot create " << dir;
