@@ -61,6 +61,17 @@ Rig exampleRig(int mapSize)
     return rig;
 }
 
+// exampleRig on a once-subdivided icosahedron, its atlas in a 128^2 map,
+// recommending `level`: the per-vertex tests' rig.
+Rig vertexExampleRig(int level)
+{
+    Rig rig = exampleRig(128);
+    rig.mesh = examples::makeIcosphere(1);
+    EXPECT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {128, 2}).isOk());
+    rig.displacement.recommendedLevel = level;
+    return rig;
+}
+
 // exampleRig at level 2 with a 64^2 map of stripes: texel i holds
 // offset + step * (i % 17).
 Rig stripedRig(DisplacementMap* map, float step, float offset)
@@ -275,10 +286,7 @@ TEST(Rig, RoundTripsThroughGlbAndGltf)
 TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
 {
     const std::string dir = test::tempDir("rig_vertex");
-    Rig rig = exampleRig(128);
-    rig.mesh = examples::makeIcosphere(1);
-    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {128, 2}).isOk());
-    rig.displacement.recommendedLevel = 3;
+    Rig rig = vertexExampleRig(3);
     DisplacementMap map;
     map.width = map.height = 128;
     for (int y = 0; y < 128; ++y)
@@ -345,10 +353,7 @@ TEST(Rig, StoresDisplacementsPerVertexWithinHalfAStep)
 TEST(Rig, WriterCodesTheValuesItIsGiven)
 {
     const std::string dir = test::tempDir("rig_writer");
-    Rig rig = exampleRig(128);
-    rig.mesh = examples::makeIcosphere(1);
-    ASSERT_TRUE(baker::buildTriangleAtlas(&rig.mesh, {128, 2}).isOk());
-    rig.displacement.recommendedLevel = 2;
+    Rig rig = vertexExampleRig(2);
     DisplacementMap map;
     map.width = map.height = 128;
     map.texels.assign(128 * 128, 0.0f);
