@@ -1233,10 +1233,15 @@ void BakeJob::summarize()
         else
             std::snprintf(what, sizeof(what), "as a plain glb (about %.1f KB: %zu vertices, %zu triangles%s)",
                           plain / 1024.0, hv, hf, extra > 0 ? ", with the rig's textures, animations and skins" : "");
-        if (rigBytes > plain)
+        if (rigBytes > plain && coloured)
+            warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is the %dx%d base colour "
+                 "texture re-baked into the cage's UVs",
+                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height);
+        else if (rigBytes > plain)
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); its control mesh has %zu triangles, "
-                 "and a coarser one (--control auto), or --mesh-coding meshopt or draco, makes a smaller rig",
-                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, control.faceCount());
+                 "and a coarser one (%s), or --mesh-coding meshopt or draco, makes a smaller rig",
+                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, control.faceCount(),
+                 controlPath == "auto" ? "--control-faces, or a looser --tolerance" : "--control auto");
     }
     if (compress && io::extensionOf(outPath) == ".glb")
         warn("%s: %s-coded, which Blender 3.4 (Debian's, without Draco) and gltfpack do not open; "
