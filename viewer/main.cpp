@@ -105,15 +105,15 @@ int runHeadless(viewer::Scene& scene, const Options& o)
     scene.update(0.0f);
     if (!scene.lastError().empty())
         throw cli::Error(scene.lastError());
-    fb.bind();
-    scene.render(o.width, o.height);  // frames the model for this aspect
     if (o.camera.size() == 4) {
-        // Another model's camera (a comparison of two renders at one view).
+        // Another model's camera (a comparison of two renders at one view):
+        // a user camera, which render does not reframe.
         scene.camera.target = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
         scene.camera.distance = o.camera[3];
         scene.userCamera_ = true;
-        scene.render(o.width, o.height);
     }
+    fb.bind();
+    scene.render(o.width, o.height);
     std::vector<uint8_t> rgb;
     fb.readRGB(&rgb);
     if (!(st = writeScreenshot(o.screenshot, o.width, o.height, rgb)))

@@ -512,6 +512,7 @@ private:
     void chooseScheme();
     void searchMapSize();
     void writeOutputs();
+    void loadWritten();
     void measureWritten();
     void measureFrames();
     void summarize();
@@ -601,6 +602,9 @@ private:
     };
     std::vector<FrameError> frames;
     double framesMs = 0.0;
+    Rig written_;                  // the rig as written, read back (loadWritten)
+    DisplacementMap writtenMap_;   // ... and its map, when map-coded
+    bool writtenLoaded_ = false;
     nlohmann::json report;
     double loadMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
 };
@@ -690,24 +694,19 @@ void BakeJob::loadInputs()
 // The rig written for a character against the character itself, posed as
 // it moves: for every animation, at 10 evenly spaced times, the layered
 // surface at the recommended level and the source's own mesh, each
-// sampled (vertices and face centroids) and measured to the other.
+// sampled by area and measured to the other.
 void BakeJob::measureFrames()
 {
     if (!character)
         return;
     const auto t0 = std::chrono::steady_clock::now();
     Progress p(progress, "measuring the character's animations against its source");
-    Rig written;
-    DisplacementMap writtenMap;
-    Status st = io::loadRig(Outputs::staged(outPath), &written);
-    if (st && rigNeedsMap(written))
-        st = io::loadRigDisplacementMap(Outputs::staged(outPath), written, &writtenMap);
+    loadWritten();
     std::unique_ptr<Surface> layered, source;
     SurfaceOptions plain;
     plain.displace = false;
     plain.level = 0;
-    if (st)
-        st = Surface::create(&layered, written, &writtenMap);
+    Status st = Surface::create(&layered, written_, &writtenMap_);
     if (st)
         st = Surface::create(&source, highRig, nullptr, plain);
     if (!st)
@@ -745,9 +744,16 @@ void BakeJob::loadCharacter()
     const std::string ext = io::extensionOf(highPath);
     if (ext != ".glb" && ext != ".gltf")
         return;
+    // The capture read as a rig (its skeleton, materials).  Where the rig
+    // reader refuses what the mesh reader took (two skins, for one), the
+    // shape is baked as before and the one line says what is not carried.
     Status st = loadControlRig(highPath, &highRig, maxMemoryMB);
-    if (!st)
-        throw BakeError(st.message());
+    if (!st) {
+        warn("%s: --control auto carries its shape only, not its skin, animations or colour: %s", highPath.c_str(),
+             st.message().c_str());
+        highRig = Rig();
+        return;
+    }
     // The same scene reader welds both: the capture's vertices are the rig's.
     if (highRig.mesh.positions.size() != high.positions.size())
         throw BakeError(highPath + ": the capture and its character do not weld to the same vertices");
@@ -1175,6 +1181,21 @@ void BakeJob::writeOutputs()
     writeMs = msSince(t0);
 }
 
+// The rig just written (staged) and, map-coded, its map: loaded once for
+// the measurements that read it back.
+void BakeJob::loadWritten()
+{
+    if (writtenLoaded_)
+        return;
+    const std::string staged = Outputs::staged(outPath);
+    Status st = io::loadRig(staged, &written_);
+    if (st && written_.displacement.vertexLevel < 0)
+        st = io::loadRigDisplacementMap(staged, written_, &writtenMap_);
+    if (!st)
+        throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
+    writtenLoaded_ = true;
+}
+
 void BakeJob::measureWritten()
 {
     Status st;
@@ -1185,20 +1206,16 @@ void BakeJob::measureWritten()
         errorTo = std::min(kMaxLevel, recommended + 1);
     }
     if (errorTo >= 0) {
-        Rig written;
-        DisplacementMap writtenMap;
-        const std::string staged = Outputs::staged(outPath);
+        loadWritten();
+        const Rig& written = written_;
         DisplacementField field;
-        if ((st = io::loadRig(staged, &written)))
-            st = written.displacement.vertexLevel >= 0
-                     ? DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
-                                                 written.displacement.vertexValues)
-                     : io::loadRigDisplacementMap(staged, written, &writtenMap);
-        if (!st)
+        if (written.displacement.vertexLevel >= 0 &&
+            !(st = DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
+                                             written.displacement.vertexValues)))
             throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
         const auto t0 = std::chrono::steady_clock::now();
         Progress p(progress, "measuring the closed-loop error");
-        if (!(st = closedLoopError(&errors, written.mesh, writtenMap, options.scheme, high, errorFrom, errorTo,
+        if (!(st = closedLoopError(&errors, written.mesh, writtenMap_, options.scheme, high, errorFrom, errorTo,
                                    options.threads, size_t(1) << 20,
                                    written.displacement.vertexLevel >= 0 ? &field : nullptr)))
             throw BakeError(st.message());

@@ -435,9 +435,6 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
             dataElem[v] = !whole || (dataElem[v] != 0 && dataElem[v] != size_t(elem)) ? SIZE_MAX : size_t(elem);
         }
     });
-    for (const tinygltf::Image& im : model.images)
-        if (im.bufferView >= 0 && size_t(im.bufferView) < nv)
-            dataElem[size_t(im.bufferView)] = SIZE_MAX;
     for (size_t v = 0; v < nv; ++v) {
         if (dataElem[v] == 0)
             continue;
@@ -452,7 +449,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
             kind[v] = -1;
         }
     }
-    for (const tinygltf::Image& im : model.images)
+    for (const tinygltf::Image& im : model.images)  // after the data views: an image view is never coded
         if (im.bufferView >= 0 && size_t(im.bufferView) < nv) {
             kind[size_t(im.bufferView)] = -1;
             plainWhy[size_t(im.bufferView)] = nullptr;  // PNG or JPEG: coded already

@@ -495,16 +495,17 @@ Status checkLayerBinding(const tinygltf::Value& block, const std::string& path, 
                          "optimize reorder and quantize it; the layer's values follow the baked mesh)" + advice);
 }
 
-// The coded per-vertex values: a bufferView (versions 3 and 4) or an
-// accessor of unsigned bytes (version 5).
+// The coded per-vertex values, copied into *out: a bufferView (versions 3
+// and 4) or an accessor of unsigned bytes (version 5), strided where a
+// meshopt-coded view padded each value to 4 bytes.
 Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& info, const std::string& path,
-                        const unsigned char** bytes, size_t* length, std::vector<unsigned char>* gathered)
+                        std::vector<unsigned char>* out)
 {
     if (info.vertexAccessor < 0) {
-        *bytes = viewBytes(model, info.vertexView);
-        *length = *bytes ? model.bufferViews[size_t(info.vertexView)].byteLength : 0;
-        if (!*bytes)
+        const unsigned char* b = viewBytes(model, info.vertexView);
+        if (!b)
             return Status(StatusCode::InvalidData, path + ": the displacements' bufferView is out of range");
+        out->assign(b, b + model.bufferViews[size_t(info.vertexView)].byteLength);
         return Status::ok();
     }
     const tinygltf::Accessor& acc = model.accessors[size_t(info.vertexAccessor)];
@@ -520,17 +521,9 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
     const size_t avail = acc.byteOffset <= view.byteLength ? view.byteLength - acc.byteOffset : 0;
     if (!b || acc.byteOffset > view.byteLength || (acc.count && (avail == 0 || acc.count - 1 > (avail - 1) / stride)))
         return Status(StatusCode::InvalidData, what + " reads past the end of its bufferView");
-    if (stride == 1) {
-        *bytes = b + acc.byteOffset;
-        *length = acc.count;
-        return Status::ok();
-    }
-    // Strided (a meshopt-coded view padded to 4 bytes per value).
-    gathered->resize(acc.count);
+    out->resize(acc.count);
     for (size_t i = 0; i < acc.count; ++i)
-        (*gathered)[i] = b[acc.byteOffset + i * stride];
-    *bytes = gathered->data();
-    *length = acc.count;
+        (*out)[i] = b[acc.byteOffset + i * stride];
     return Status::ok();
 }
 
@@ -601,12 +594,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
             return st;
         if (rig.displacement.vertexLevel >= 0) {
             DisplacementInfo& info = rig.displacement;
-            const unsigned char* b = nullptr;
-            size_t length = 0;
-            std::vector<unsigned char> gathered;
-            if (!(st = layerVertexBytes(model, info, path, &b, &length, &gathered)))
+            if (!(st = layerVertexBytes(model, info, path, &info.embedded)))
                 return st;
-            info.embedded.assign(b, b + length);
+            const size_t length = info.embedded.size();
             // Refining costs per refined triangle, and zstd packs a field of
             // zeros into almost nothing: a level that declares far more
             // triangles than its bytes could plausibly describe is refused

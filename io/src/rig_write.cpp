@@ -510,7 +510,7 @@ Status probeVertexMesh(const tinygltf::Model& model, const Rig& rig, const Displ
 
 // The coded values as the layer's accessor of bytes.
 Status embedVertexValues(tinygltf::Model& model, const ControlMesh& mesh, int level, const std::vector<float>& values,
-                         double step, const DisplacementMap& map, DisplacementInfo* info)
+                         double step, int mapWidth, int mapHeight, DisplacementInfo* info)
 {
     std::string bytes;
     float factor = 1.0f, offset = 0.0f;
@@ -527,8 +527,8 @@ Status embedVertexValues(tinygltf::Model& model, const ControlMesh& mesh, int le
     info->image = -1;
     info->uri.clear();
     info->encoding = "vertex";
-    info->width = map.width;
-    info->height = map.height;
+    info->width = mapWidth;
+    info->height = mapHeight;
     info->factor = factor;
     info->offset = offset;
     return Status::ok();
@@ -841,10 +841,7 @@ Status RigWriter::setVertexValues(const std::vector<float>& values, double step)
     if (!state_ || !state_->needsValues)
         return Status(StatusCode::InvalidArgument, "RigWriter::setVertexValues: the rig takes no per-vertex values");
     State& s = *state_;
-    DisplacementMap size;
-    size.width = s.mapWidth;
-    size.height = s.mapHeight;
-    Status st = embedVertexValues(s.model, s.fileMesh, s.level, values, step, size, &s.info);
+    Status st = embedVertexValues(s.model, s.fileMesh, s.level, values, step, s.mapWidth, s.mapHeight, &s.info);
     if (!st)
         return Status(st.code(), s.path + ": " + st.message());
     s.needsValues = false;

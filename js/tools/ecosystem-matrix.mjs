@@ -168,8 +168,7 @@ for (const [name, description, args] of rigs) {
   }
   // The layer as written validates against the extension's JSON schema.
   {
-    const bytes = fs.readFileSync(rig);
-    const json = JSON.parse(bytes.subarray(20, 20 + bytes.readUInt32LE(12)).toString());
+    const { json } = readGlb(rig);
     for (const mesh of json.meshes.filter((m) => m.extensions && m.extensions.STRATA_layered_displacement))
       if (!validateLayer(mesh.extensions.STRATA_layered_displacement)) {
         console.error(`${name}: the layer does not validate against the schema: ${JSON.stringify(validateLayer.errors)}`);
@@ -348,9 +347,7 @@ const reads = [];
     const optimized = optimize ? path.join(work, `${path.basename(input, '.glb')}_optimized.glb`) : input;
     const o = optimize ? run(gltfTransform, ['optimize', input, optimized, '--texture-compress', 'false'], { cwd: jsDir })
                        : { code: 0, out: '' };
-    const text = fs.existsSync(optimized) ? fs.readFileSync(optimized) : Buffer.alloc(0);
-    const jsonLength = text.length > 20 ? text.readUInt32LE(12) : 0;
-    const json = jsonLength ? JSON.parse(text.subarray(20, 20 + jsonLength).toString()) : { accessors: [] };
+    const json = fs.existsSync(optimized) && fs.statSync(optimized).size > 20 ? readGlb(optimized).json : { accessors: [] };
     const noView = json.accessors.filter((a) => a.bufferView === undefined).length;
     const sparseCount = json.accessors.filter((a) => a.sparse).length;
     const b = o.code === 0 ? run(bake, ['--high', optimized, '--control', optimized, '--error-levels', 'none', '-o',

@@ -92,16 +92,14 @@ window.ready = true;
 const types = { '.js': 'text/javascript', '.glb': 'model/gltf-binary', '.html': 'text/html' };
 const server = http.createServer((req, res) => {
   const url = decodeURIComponent(req.url.split('?')[0]);
-  let file = null;
-  if (url === '/') file = null;
-  else if (url.startsWith('/three/')) file = path.join(jsDir, 'node_modules', 'three', url.slice('/three/'.length));
-  else file = path.join(work, path.basename(url));
   if (url === '/') {
     res.writeHead(200, { 'content-type': 'text/html' });
     res.end(page);
     return;
   }
-  if (!file || !fs.existsSync(file)) {
+  const file = url.startsWith('/three/') ? path.join(jsDir, 'node_modules', 'three', url.slice('/three/'.length))
+                                         : path.join(work, path.basename(url));
+  if (!fs.existsSync(file)) {
     res.writeHead(404);
     res.end();
     return;
