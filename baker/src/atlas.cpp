@@ -939,6 +939,8 @@ void makeCharts(const ControlMesh& mesh, const ChartMesh& geometry, int threads,
         seeds[f] = f;
     std::stable_sort(seeds.begin(), seeds.end(), [&](uint32_t a, uint32_t b) { return faceArea[a] > faceArea[b]; });
     for (uint32_t seed : seeds) {
+        if (cancelRequested())  // a cancelled bake: the caller discards the charts
+            return;
         if (chartOf[seed] != UINT32_MAX)
             continue;
         const uint32_t id = uint32_t(charts.size());
@@ -1072,6 +1074,8 @@ void makeCharts(const ControlMesh& mesh, const ChartMesh& geometry, int threads,
         uint32_t face, from, to;
     };
     for (int pass = 0; pass < 8; ++pass) {
+        if (cancelRequested())
+            return;
         std::vector<Move> moves, undone;
         for (uint32_t f = 0; f < nf; ++f) {
             const uint32_t a = chartOf[f], b = moveTarget(f);
@@ -1404,10 +1408,14 @@ Status buildChartAtlas(ControlMesh* mesh, const AtlasOptions& options, ChartAtla
         bool bound = false;
         makeCharts(*mesh, geometry, options.threads, kMaxChartShare, &made.sets[0].charts, &made.sets[0].maxDistortion,
                    &bound);
-        if (bound) {
+        if (bound && !cancelRequested()) {
             made.sets.emplace_back();
             makeCharts(*mesh, geometry, options.threads, 1.0, &made.sets[1].charts, &made.sets[1].maxDistortion,
                        &bound);
+        }
+        if (cancelRequested()) {  // makeCharts stopped part way: nothing of it is kept
+            store.impl.reset();
+            return Status(StatusCode::Cancelled, "cancelled");
         }
     }
     ChartCache::Impl& charts = *store.impl;
