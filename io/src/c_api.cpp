@@ -3,6 +3,7 @@
 // numbers equal theirs bit for bit.  No exception crosses the boundary.
 #include "strata/strata.h"
 
+#include "strata/io/render_mesh.h"
 #include "strata/io/rig_io.h"
 #include "strata/rig.h"
 #include "strata/surface.h"
@@ -28,6 +29,11 @@ struct StrataSurface {
     // Surface::evaluate keeps scratch between frames: concurrent evaluate
     // calls on one handle are serialised.
     mutable std::mutex frameMutex;
+};
+
+struct StrataRenderMesh {
+    io::RenderMesh layout;
+    std::vector<glm::vec3> positions, normals;  // the refined frame, before gather
 };
 
 namespace {
@@ -164,6 +170,23 @@ const char* strata_rig_animation_name(const StrataRig* rig, size_t index)
                                                               : nullptr;
 }
 
+int strata_rig_joint_node(const StrataRig* rig, size_t joint)
+{
+    return rig && joint < rig->rig.skeleton.skin.joints.size() ? rig->rig.skeleton.skin.joints[joint] : -1;
+}
+
+StrataStatus strata_rig_joint_inverse_bind(const StrataRig* rig, size_t joint, float* matrix)
+{
+    if (!rig || !matrix)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_rig_joint_inverse_bind: null argument");
+    const Skin& skin = rig->rig.skeleton.skin;
+    if (joint >= skin.inverseBindMatrices.size())
+        return fail(STRATA_INVALID_ARGUMENT, "strata_rig_joint_inverse_bind: joint " + std::to_string(joint) +
+                                                 " of " + std::to_string(skin.inverseBindMatrices.size()));
+    std::memcpy(matrix, &skin.inverseBindMatrices[joint][0][0], 16 * sizeof(float));
+    return STRATA_OK;
+}
+
 StrataStatus strata_surface_create(const StrataRig* rig, int level, StrataSurface** out)
 {
     if (!rig || !out)
@@ -290,6 +313,127 @@ StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positi
         Surface& s = *surface->surface;
         return fromStatus(s.evaluate(reinterpret_cast<glm::vec3*>(positions), reinterpret_cast<glm::vec3*>(normals),
                                      s.vertexCount()));
+    });
+}
+
+StrataStatus strata_render_mesh_create(const StrataRig* rig, const StrataSurface* surface, StrataRenderMesh** out)
+{
+    if (!rig || !surface || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_create: null argument");
+    *out = nullptr;
+    return guarded([&] {
+        auto m = std::make_unique<StrataRenderMesh>();
+        if (Status st = io::buildRenderMesh(rig->rig, surface->surface->plan(), &m->layout); !st)
+            return fromStatus(st);
+        if (m->layout.refinedVertexCount != surface->surface->vertexCount())
+            return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_create: the surface is not laid out in the "
+                                                 "plan's vertex order");
+        *out = m.release();
+        return STRATA_OK;
+    });
+}
+
+void strata_render_mesh_destroy(StrataRenderMesh* mesh)
+{
+    delete mesh;
+}
+
+size_t strata_render_mesh_vertex_count(const StrataRenderMesh* mesh)
+{
+    return mesh ? mesh->layout.vertexCount() : 0;
+}
+
+size_t strata_render_mesh_index_count(const StrataRenderMesh* mesh)
+{
+    return mesh ? mesh->layout.indices.size() : 0;
+}
+
+StrataStatus strata_render_mesh_indices(const StrataRenderMesh* mesh, uint32_t* dst)
+{
+    if (!mesh || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_indices: null argument");
+    std::memcpy(dst, mesh->layout.indices.data(), mesh->layout.indices.size() * sizeof(uint32_t));
+    return STRATA_OK;
+}
+
+StrataStatus strata_render_mesh_refined_vertices(const StrataRenderMesh* mesh, uint32_t* dst)
+{
+    if (!mesh || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_refined_vertices: null argument");
+    std::memcpy(dst, mesh->layout.refinedVertex.data(), mesh->layout.refinedVertex.size() * sizeof(uint32_t));
+    return STRATA_OK;
+}
+
+size_t strata_render_mesh_part_count(const StrataRenderMesh* mesh)
+{
+    return mesh ? mesh->layout.parts.size() : 0;
+}
+
+StrataStatus strata_render_mesh_part(const StrataRenderMesh* mesh, size_t index, StrataRenderPart* out)
+{
+    if (!mesh || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_part: null argument");
+    if (index >= mesh->layout.parts.size())
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_part: part " + std::to_string(index) + " of " +
+                                                 std::to_string(mesh->layout.parts.size()));
+    const io::RenderPart& p = mesh->layout.parts[index];
+    out->first_index = p.firstIndex;
+    out->index_count = p.indexCount;
+    out->mesh = p.mesh;
+    out->primitive = p.primitive;
+    out->material = p.material;
+    return STRATA_OK;
+}
+
+size_t strata_render_mesh_attribute_count(const StrataRenderMesh* mesh)
+{
+    return mesh ? mesh->layout.attributes.size() : 0;
+}
+
+const char* strata_render_mesh_attribute_name(const StrataRenderMesh* mesh, size_t index)
+{
+    return mesh && index < mesh->layout.attributes.size() ? mesh->layout.attributes[index].name.c_str() : nullptr;
+}
+
+int strata_render_mesh_attribute_components(const StrataRenderMesh* mesh, size_t index)
+{
+    return mesh && index < mesh->layout.attributes.size() ? mesh->layout.attributes[index].components : 0;
+}
+
+StrataStatus strata_render_mesh_attribute(const StrataRenderMesh* mesh, size_t index, float* dst)
+{
+    if (!mesh || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_attribute: null argument");
+    if (index >= mesh->layout.attributes.size())
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_attribute: attribute " + std::to_string(index) +
+                                                 " of " + std::to_string(mesh->layout.attributes.size()));
+    const std::vector<float>& v = mesh->layout.attributes[index].values;
+    std::memcpy(dst, v.data(), v.size() * sizeof(float));
+    return STRATA_OK;
+}
+
+StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSurface* surface, float* positions,
+                                         float* normals)
+{
+    if (!mesh || !surface || !positions)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: null argument");
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        Surface& s = *surface->surface;
+        const size_t n = s.vertexCount();
+        if (n != mesh->layout.refinedVertexCount)
+            return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the surface has " + std::to_string(n) +
+                                                     " vertices, the render mesh was made for " +
+                                                     std::to_string(mesh->layout.refinedVertexCount));
+        mesh->positions.resize(n);
+        if (normals)
+            mesh->normals.resize(n);
+        if (Status st = s.evaluate(mesh->positions.data(), normals ? mesh->normals.data() : nullptr, n); !st)
+            return fromStatus(st);
+        mesh->layout.gather(mesh->positions.data(), reinterpret_cast<glm::vec3*>(positions));
+        if (normals)
+            mesh->layout.gather(mesh->normals.data(), reinterpret_cast<glm::vec3*>(normals));
+        return STRATA_OK;
     });
 }
 

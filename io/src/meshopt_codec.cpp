@@ -1,7 +1,7 @@
 // EXT_meshopt_compression (libmeshoptimizer): rigs are written with their
 // vertex attributes and triangle indices meshopt-coded, and any .glb that
 // uses the extension (a Strata rig, gltfpack -c/-cc output) or
-// KHR_draco_mesh_compression (draco_codec.cpp) is decoded back to a plain
+// KHR_draco_mesh_compression (draco_decode.cpp) is decoded back to a plain
 // document before tinygltf, which knows neither, parses it.
 #include "gltf_document.h"
 

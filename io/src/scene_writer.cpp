@@ -8,6 +8,7 @@
 #include "gltf_accessor.h"
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
+#include "refined_attributes.h"
 
 #include <filesystem>
 #include <glm/geometric.hpp>
@@ -64,11 +65,6 @@ int refinedInfluences(const Rig& rig, const SampleLocation& s, size_t jointLimit
         weights[k] = k < n && sum > 0.0f ? acc[k].first / sum : 0.0f;
     }
     return n;
-}
-
-bool isRefinedAttribute(const std::string& name)
-{
-    return name.rfind("TEXCOORD_", 0) == 0 || name.rfind("COLOR_", 0) == 0 || (!name.empty() && name[0] == '_');
 }
 
 }  // namespace
@@ -160,25 +156,14 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
                 droppedTangents += name == "TANGENT";
                 continue;
             }
-            if (acc < 0 || size_t(acc) >= model.accessors.size())
-                return Status(StatusCode::InvalidData, what + ": " + name + " has no accessor");
-            const int type = model.accessors[size_t(acc)].type;
-            const int comps = tinygltf::GetNumComponentsInType(uint32_t(type));
-            std::vector<float> src;
-            if (comps <= 0 || !(st = readFloatAccessor(model, acc, comps, name, &src)))
-                return Status(st ? StatusCode::InvalidData : st.code(), what + ": " + (st ? name : st.message()));
-            if (src.size() != size_t(part.vertexCount) * size_t(comps))
-                return Status(StatusCode::InvalidData, what + ": " + name + " does not have one element per vertex");
+            const int comps = attributeComponents(model, acc);
+            if (comps <= 0)
+                return Status(StatusCode::InvalidData, what + ": " + name + " has no valid accessor");
             std::vector<float> out(nv * size_t(comps), 0.0f);
-            for (size_t i = 0; i < nv; ++i)
-                for (uint32_t k = fv.offsets[cornerValue[i]]; k < fv.offsets[cornerValue[i] + 1]; ++k) {
-                    const uint32_t file = fv.sources[k];
-                    if (file < part.firstVertex || file >= part.firstVertex + part.vertexCount)
-                        continue;
-                    for (int c = 0; c < comps; ++c)
-                        out[i * size_t(comps) + size_t(c)] +=
-                            fv.weights[k] * src[size_t(file - part.firstVertex) * size_t(comps) + size_t(c)];
-                }
+            if (!(st = refinePartAttribute(model, part, fv, cornerValue.data(), nv, acc, name, comps, out.data(),
+                                           size_t(comps))))
+                return Status(st.code(), what + ": " + st.message());
+            const int type = model.accessors[size_t(acc)].type;
             view = appendBufferView(model, out.data(), out.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER);
             attributes[name] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, type, nv);
         }

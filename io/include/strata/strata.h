@@ -61,6 +61,11 @@ size_t strata_rig_joint_count(const StrataRig* rig);
 size_t strata_rig_animation_count(const StrataRig* rig);
 /** Name of animation `index` (valid while the rig lives), or NULL. */
 const char* strata_rig_animation_name(const StrataRig* rig, size_t index);
+/** The glTF node of skin joint `joint` (-1 when out of range): an engine
+ *  that animates the nodes itself poses with world(node) * inverse bind. */
+int strata_rig_joint_node(const StrataRig* rig, size_t joint);
+/** Joint `joint`'s inverse bind matrix: 16 floats, column-major. */
+StrataStatus strata_rig_joint_inverse_bind(const StrataRig* rig, size_t joint, float* matrix);
 
 /* ---- Surfaces: one refinement of a control mesh, evaluated per frame ---- */
 
@@ -100,6 +105,46 @@ StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const 
  *  render-ready frame of FrameEvaluator, whose tables the first call makes.
  *  Calls on one surface from several threads are serialised. */
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals);
+
+/* ---- Render meshes: a surface laid out for drawing ----
+ * One vertex per (refined vertex, refined corner value), so material UVs
+ * and colours split where the glTF parts' do.  The first
+ * strata_surface_vertex_count() vertices are the refined vertices in the
+ * order strata_surface_evaluate writes them (and strata-reconstruct writes
+ * .obj and .ply); copies at seams follow.  Each part (a glTF primitive) is
+ * a contiguous range of the indices. */
+
+typedef struct StrataRenderMesh StrataRenderMesh;
+typedef struct StrataRenderPart {
+    uint32_t first_index, index_count;
+    int32_t mesh, primitive; /* glTF mesh and primitive; -1 when not from glTF */
+    int32_t material;        /* glTF material; -1 for the default one */
+} StrataRenderPart;
+
+/** The layout of `surface`, a surface of `rig` (attributes come from the
+ *  rig's glTF document; the handle keeps no pointer to either). */
+StrataStatus strata_render_mesh_create(const StrataRig* rig, const StrataSurface* surface, StrataRenderMesh** out);
+void strata_render_mesh_destroy(StrataRenderMesh* mesh);
+size_t strata_render_mesh_vertex_count(const StrataRenderMesh* mesh);
+size_t strata_render_mesh_index_count(const StrataRenderMesh* mesh);
+/** Copies the triangles' indices (index_count values). */
+StrataStatus strata_render_mesh_indices(const StrataRenderMesh* mesh, uint32_t* dst);
+/** Copies each render vertex's refined vertex (vertex_count values). */
+StrataStatus strata_render_mesh_refined_vertices(const StrataRenderMesh* mesh, uint32_t* dst);
+size_t strata_render_mesh_part_count(const StrataRenderMesh* mesh);
+StrataStatus strata_render_mesh_part(const StrataRenderMesh* mesh, size_t index, StrataRenderPart* out);
+/** Refined per-corner attributes (TEXCOORD_n, COLOR_n, _CUSTOM). */
+size_t strata_render_mesh_attribute_count(const StrataRenderMesh* mesh);
+/** Name of attribute `index` (valid while the mesh lives), or NULL. */
+const char* strata_render_mesh_attribute_name(const StrataRenderMesh* mesh, size_t index);
+int strata_render_mesh_attribute_components(const StrataRenderMesh* mesh, size_t index);
+/** Copies attribute `index`: components floats per render vertex. */
+StrataStatus strata_render_mesh_attribute(const StrataRenderMesh* mesh, size_t index, float* dst);
+/** strata_surface_evaluate into the render vertices: 3 floats each of
+ *  positions and (unless NULL) normals per render vertex.  `surface` is the
+ *  one the mesh was made for (its vertex count is checked). */
+StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSurface* surface, float* positions,
+                                         float* normals);
 
 #ifdef __cplusplus
 }

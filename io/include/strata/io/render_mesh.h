@@ -1,0 +1,61 @@
+// Strata io: the refined surface laid out as a renderer draws it.
+//
+// A rig's refined vertices carry one position each, but the glTF parts it
+// came from carry per-corner attributes (material UVs, colours) that differ
+// across seams and between parts.  A renderer needs one vertex per
+// (refined vertex, refined corner value): RenderMesh is that layout, made
+// once per surface, and gather() places each frame's positions and normals
+// into it.  Its first refinedVertexCount vertices are the refined vertices
+// themselves, in the plan's order (what strata-reconstruct writes to .obj
+// and .ply), each with the corner value of its first triangle; the copies a
+// seam needs follow.  The indices keep the plan's triangle order, so each
+// part's triangles are one contiguous range.  The WebAssembly runtime's
+// three.js plugin draws through it; scene_writer refines the same
+// attributes per part.
+#pragma once
+
+#include "strata/plan.h"
+#include "strata/rig.h"
+#include "strata/status.h"
+
+#include <glm/vec3.hpp>
+
+#include <string>
+#include <vector>
+
+namespace strata {
+namespace io {
+
+struct RenderPart {
+    uint32_t firstIndex = 0, indexCount = 0;  ///< its range of RenderMesh::indices
+    int mesh = -1, primitive = -1;            ///< glTF mesh and primitive (-1: not from glTF)
+    int material = -1;                        ///< glTF material, -1 for the default one
+};
+
+/// A per-corner attribute of the source primitives (TEXCOORD_n, COLOR_n,
+/// custom _NAME), refined linearly inside each control face; zero on
+/// parts that do not have it.
+struct RenderAttribute {
+    std::string name;
+    int components = 0;
+    std::vector<float> values;  ///< components per render vertex
+};
+
+struct RenderMesh {
+    size_t refinedVertexCount = 0;
+    std::vector<uint32_t> refinedVertex;  ///< per render vertex: its refined vertex
+    std::vector<uint32_t> indices;        ///< 3 per refined triangle, into the render vertices
+    std::vector<RenderPart> parts;
+    std::vector<RenderAttribute> attributes;
+
+    size_t vertexCount() const { return refinedVertex.size(); }
+    /// Copies per-refined-vertex values (plan order) to the render vertices.
+    void gather(const glm::vec3* refined, glm::vec3* out) const;
+};
+
+/// The layout of `plan` (a refinement of rig.mesh, as Surface::plan()).  A
+/// rig not loaded from glTF is one part without attributes.
+Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out);
+
+}  // namespace io
+}  // namespace strata

@@ -1,0 +1,184 @@
+#include "strata/io/render_mesh.h"
+
+#include "gltf_accessor.h"
+#include "gltf_document.h"
+#include "refined_attributes.h"
+
+#include <map>
+#include <unordered_map>
+
+namespace strata {
+namespace io {
+
+bool isRefinedAttribute(const std::string& name)
+{
+    return name.rfind("TEXCOORD_", 0) == 0 || name.rfind("COLOR_", 0) == 0 || (!name.empty() && name[0] == '_');
+}
+
+int attributeComponents(const tinygltf::Model& model, int accessor)
+{
+    if (accessor < 0 || size_t(accessor) >= model.accessors.size())
+        return 0;
+    return std::max(0, tinygltf::GetNumComponentsInType(uint32_t(model.accessors[size_t(accessor)].type)));
+}
+
+Status refinePartAttribute(const tinygltf::Model& model, const RigPart& part, const FaceVaryingRefinement& fv,
+                           const uint32_t* cornerValue, size_t count, int accessor, const std::string& name,
+                           int components, float* out, size_t stride)
+{
+    std::vector<float> src;
+    if (components <= 0)
+        return Status(StatusCode::InvalidData, name + " is not a vector attribute");
+    if (Status st = readFloatAccessor(model, accessor, components, name, &src); !st)
+        return st;
+    if (src.size() != size_t(part.vertexCount) * size_t(components))
+        return Status(StatusCode::InvalidData, name + " does not have one element per vertex");
+    const size_t comps = size_t(components);
+    for (size_t i = 0; i < count; ++i) {
+        float* o = out + i * stride;
+        for (size_t c = 0; c < comps; ++c)
+            o[c] = 0.0f;
+        for (uint32_t k = fv.offsets[cornerValue[i]]; k < fv.offsets[cornerValue[i] + 1]; ++k) {
+            const uint32_t file = fv.sources[k];
+            if (file < part.firstVertex || file >= part.firstVertex + part.vertexCount)
+                continue;
+            const float* s = &src[size_t(file - part.firstVertex) * comps];
+            for (size_t c = 0; c < comps; ++c)
+                o[c] += fv.weights[k] * s[c];
+        }
+    }
+    return Status::ok();
+}
+
+void RenderMesh::gather(const glm::vec3* refined, glm::vec3* out) const
+{
+    const size_t n = refinedVertex.size();
+    for (size_t i = 0; i < n; ++i)
+        out[i] = refined[refinedVertex[i]];
+}
+
+Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
+{
+    RenderMesh rm;
+    const size_t n = plan.refinedVertexCount();
+    const std::vector<uint32_t>& tris = plan.refinedTriangles();
+    rm.refinedVertexCount = n;
+    const bool fromGltf = rig.source && !rig.parts.empty() && rig.fileCorners.size() == rig.mesh.triangles.size();
+    if (!fromGltf) {
+        rm.refinedVertex.resize(n);
+        for (size_t v = 0; v < n; ++v)
+            rm.refinedVertex[v] = uint32_t(v);
+        rm.indices = tris;
+        RenderPart part;
+        part.indexCount = uint32_t(tris.size());
+        rm.parts.push_back(part);
+        *out = std::move(rm);
+        return Status::ok();
+    }
+    FaceVaryingRefinement fv;
+    if (Status st = refineFaceVarying(&fv, rig.mesh, rig.fileCorners.data(), rig.sourceVertex.size(), plan.level());
+        !st)
+        return st;
+    const size_t perFace = size_t(1) << (2 * plan.level());
+    if (fv.corners.size() != tris.size())
+        return Status(StatusCode::InvalidData, "the face-varying refinement does not match the plan");
+    // Each refined vertex first takes the corner value of its first corner;
+    // a corner with another value gets (or finds) a copy.
+    std::vector<uint32_t> cornerValue(n, ~0u);
+    std::unordered_map<uint64_t, uint32_t> copies;
+    rm.refinedVertex.resize(n);
+    for (size_t v = 0; v < n; ++v)
+        rm.refinedVertex[v] = uint32_t(v);
+    rm.indices.resize(tris.size());
+    for (size_t c = 0; c < tris.size(); ++c) {
+        const uint32_t v = tris[c], u = fv.corners[c];
+        if (cornerValue[v] == ~0u || cornerValue[v] == u) {
+            cornerValue[v] = u;
+            rm.indices[c] = v;
+            continue;
+        }
+        auto it = copies.emplace((uint64_t(v) << 32) | u, uint32_t(rm.refinedVertex.size()));
+        if (it.second) {
+            rm.refinedVertex.push_back(v);
+            cornerValue.push_back(u);
+        }
+        rm.indices[c] = it.first->second;
+    }
+    for (uint32_t& u : cornerValue)
+        if (u == ~0u)
+            u = 0;  // a refined vertex of no triangle (never drawn)
+
+    // Parts, and which render vertices each part's triangles use.
+    const tinygltf::Model& model = rig.source->model;
+    std::map<std::string, size_t> attributeOf;
+    std::vector<uint32_t> partOf(rm.refinedVertex.size(), ~0u);
+    size_t covered = 0;
+    for (size_t p = 0; p < rig.parts.size(); ++p) {
+        const RigPart& part = rig.parts[p];
+        RenderPart rp;
+        rp.firstIndex = uint32_t(size_t(part.firstFace) * perFace * 3);
+        rp.indexCount = uint32_t(size_t(part.faceCount) * perFace * 3);
+        rp.mesh = part.mesh;
+        rp.primitive = part.primitive;
+        rp.material = part.material;
+        covered += part.faceCount;
+        if (size_t(rp.firstIndex) + rp.indexCount > rm.indices.size())
+            return Status(StatusCode::InvalidData, part.name + ": its faces lie outside the control mesh");
+        for (size_t i = rp.firstIndex; i < size_t(rp.firstIndex) + rp.indexCount; ++i)
+            if (partOf[rm.indices[i]] == ~0u)
+                partOf[rm.indices[i]] = uint32_t(p);
+        rm.parts.push_back(rp);
+        const tinygltf::Primitive& prim = model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+        for (const auto& [name, accessor] : prim.attributes)
+            if (isRefinedAttribute(name) && !attributeOf.count(name)) {
+                const int comps = attributeComponents(model, accessor);
+                if (comps <= 0)
+                    return Status(StatusCode::InvalidData, part.name + ": " + name + " has no valid accessor");
+                attributeOf[name] = rm.attributes.size();
+                RenderAttribute a;
+                a.name = name;
+                a.components = comps;
+                a.values.assign(rm.refinedVertex.size() * size_t(comps), 0.0f);
+                rm.attributes.push_back(std::move(a));
+            }
+    }
+    if (covered != rig.mesh.faceCount())
+        return Status(StatusCode::InvalidData, "the rig's parts do not cover its control mesh");
+    // Each attribute, part by part, over the render vertices the part uses.
+    for (size_t p = 0; p < rig.parts.size(); ++p) {
+        const RigPart& part = rig.parts[p];
+        std::vector<uint32_t> mine, values;
+        for (size_t i = 0; i < partOf.size(); ++i)
+            if (partOf[i] == p) {
+                mine.push_back(uint32_t(i));
+                values.push_back(cornerValue[i]);
+            }
+        if (mine.empty())
+            continue;
+        const tinygltf::Primitive& prim = model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+        for (const auto& [name, accessor] : prim.attributes) {
+            if (!isRefinedAttribute(name))
+                continue;
+            RenderAttribute& a = rm.attributes[attributeOf[name]];
+            if (attributeComponents(model, accessor) != a.components)
+                return Status(StatusCode::InvalidData, part.name + ": " + name + " has " +
+                                                           std::to_string(attributeComponents(model, accessor)) +
+                                                           " components, another part's has " +
+                                                           std::to_string(a.components));
+            const size_t comps = size_t(a.components);
+            std::vector<float> refined(mine.size() * comps);
+            if (Status st = refinePartAttribute(model, part, fv, values.data(), values.size(), accessor, name,
+                                                a.components, refined.data(), comps);
+                !st)
+                return Status(st.code(), part.name + ": " + st.message());
+            for (size_t k = 0; k < mine.size(); ++k)
+                for (size_t c = 0; c < comps; ++c)
+                    a.values[size_t(mine[k]) * comps + c] = refined[k * comps + c];
+        }
+    }
+    *out = std::move(rm);
+    return Status::ok();
+}
+
+}  // namespace io
+}  // namespace strata
