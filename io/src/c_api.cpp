@@ -270,6 +270,16 @@ StrataStatus strata_surface_triangles(const StrataSurface* surface, uint32_t* ds
     return STRATA_OK;
 }
 
+StrataStatus strata_surface_set_bind_pose(StrataSurface* surface)
+{
+    if (!surface)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_set_bind_pose: null argument");
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        return fromStatus(surface->surface->setRestPose());
+    });
+}
+
 StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int animation, float time)
 {
     if (!surface)

@@ -106,7 +106,11 @@ export class StrataRuntime {
     try {
       this.u8().set(data, src);
       const status = m._strata_rig_load_memory(src, data.length, binary ? 1 : 0, out);
-      this.check(status, name);
+      if (status !== 0) {
+        // The runtime names bytes in memory "rig.glb (memory)": use the caller's name.
+        const message = m.UTF8ToString(m._strata_last_error()).replace(/^rig\.(glb|gltf) \(memory\)/, name);
+        throw new StrataError(message.startsWith(name) ? message : `${name}: ${message}`, STATUS[status]);
+      }
       return new StrataRig(this, this.u32(out, 1)[0]);
     } finally {
       this.free(src);
@@ -171,7 +175,11 @@ export class StrataSurface {
     return r.withScratch(Uint32Array, this.triangleCount * 3, (ptr) =>
       r.check(r.module._strata_surface_triangles(this.handle, ptr)));
   }
-  /// The rig's animation `animation` at `time` seconds (-1: the rest pose).
+  /// The bind pose: the control positions as stored.
+  setBindPose() {
+    this.runtime.check(this.runtime.module._strata_surface_set_bind_pose(this.handle));
+  }
+  /// The rig's animation `animation` at `time` seconds (-1: the nodes' rest pose).
   setAnimationTime(animation, time) {
     this.runtime.check(this.runtime.module._strata_surface_set_animation_time(this.handle, animation, time));
   }

@@ -91,6 +91,8 @@ size_t strata_surface_triangle_count(const StrataSurface* surface);
 /** Copies the refined triangles: 3 * triangle_count indices. */
 StrataStatus strata_surface_triangles(const StrataSurface* surface, uint32_t* dst);
 
+/** The bind pose: the control positions as stored (a new surface's pose). */
+StrataStatus strata_surface_set_bind_pose(StrataSurface* surface);
 /** Poses a rig's surface from its own animation (index) at `time` seconds
  *  (linear blend skinning).  animation -1: the skeleton's rest pose. */
 StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int animation, float time);

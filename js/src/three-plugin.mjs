@@ -1,0 +1,286 @@
+// Strata's layered displacement in three.js: a GLTFLoader plugin.
+//
+//   import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+//   import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
+//   import { StrataLoaderPlugin } from 'strata-layered/three';
+//
+//   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);   // and a DRACOLoader
+//   loader.register((parser) => new StrataLoaderPlugin(parser, { level: 'recommended' }));
+//   const gltf = await loader.loadAsync('rig.glb');
+//   scene.add(gltf.scene);                        // the refined, displaced surface
+//   const mixer = new THREE.AnimationMixer(gltf.scene);
+//   mixer.clipAction(gltf.animations[0]).play();  // drives it, as it drives any glTF
+//
+// For every file that carries the layer (the STRATA_layered_displacement
+// extension, or a format-version 1-4 rig's extras), the loaded scene holds a
+// StrataSurfaceMesh in place of the control meshes: the same C++ runtime as
+// the native tools (WebAssembly, runtime.mjs) refines the cage to the level,
+// displaces it and skins it with the matrices of the nodes three.js animates.
+// The cage meshes stay in the scene, hidden (StrataSurfaceMesh.cage).  The
+// first `refinedVertexCount` vertices of the surface's `position` attribute
+// are the refined vertices in the order strata-reconstruct writes them to
+// .obj and .ply; the copies a UV seam needs follow (`refinedVertex` maps every
+// vertex to its refined one).
+//
+// A file whose layer no longer matches its control mesh (a tool changed the
+// mesh after the bake) is refused: loadAsync rejects with the runtime's
+// one-line cause, never a wrong surface.  Options:
+//   level:    a number 0..6 or 'recommended' (default)
+//   runtime:  a StrataRuntime (or its promise); default StrataRuntime.load()
+//   name:     the file's name in error messages (default 'the glTF file')
+import {
+  BufferAttribute, BufferGeometry, DynamicDrawUsage, Matrix4, Mesh, MeshStandardMaterial, Sphere,
+} from 'three';
+import { StrataError, StrataRuntime } from './runtime.mjs';
+
+export const STRATA_LAYERED_DISPLACEMENT = 'STRATA_layered_displacement';
+
+// A .glb rebuilt from what GLTFLoader kept of it: its JSON text and BIN chunk.
+function glbBytes(json, body) {
+  const text = new TextEncoder().encode(json);
+  const jsonLength = (text.length + 3) & ~3;
+  const binLength = body ? (body.byteLength + 3) & ~3 : 0;
+  const total = 12 + 8 + jsonLength + (body ? 8 + binLength : 0);
+  const out = new Uint8Array(total);
+  const view = new DataView(out.buffer);
+  view.setUint32(0, 0x46546c67, true);
+  view.setUint32(4, 2, true);
+  view.setUint32(8, total, true);
+  view.setUint32(12, jsonLength, true);
+  view.setUint32(16, 0x4e4f534a, true);
+  out.set(text, 20);
+  out.fill(0x20, 20 + text.length, 20 + jsonLength);
+  if (body) {
+    const at = 20 + jsonLength;
+    view.setUint32(at, binLength, true);
+    view.setUint32(at + 4, 0x004e4942, true);
+    out.set(new Uint8Array(body), at + 8);
+  }
+  return out;
+}
+
+function base64(bytes) {
+  let s = '';
+  for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+  return btoa(s);
+}
+
+// The file as the runtime reads it: a .glb as it was, a .gltf with its
+// external buffers and images embedded (the runtime reads no other file).
+async function fileBytes(parser) {
+  const binary = parser.extensions && parser.extensions.KHR_binary_glTF;
+  const json = JSON.parse(JSON.stringify(parser.json));
+  const external = (uri) => typeof uri === 'string' && !uri.startsWith('data:');
+  if (binary && !(json.buffers || []).some((b) => external(b.uri)) && !(json.images || []).some((i) => external(i.uri)))
+    return glbBytes(binary.content, binary.body);
+  const path = parser.options.path || '';
+  const fetchBytes = async (uri) => {
+    const url = new URL(uri, new URL(path, globalThis.location ? globalThis.location.href : 'file:///'));
+    const response = await fetch(url);
+    if (!response.ok) throw new StrataError(`${uri}: HTTP ${response.status}`, 'i/o error');
+    return new Uint8Array(await response.arrayBuffer());
+  };
+  for (const [i, b] of (json.buffers || []).entries())
+    if (external(b.uri) || (b.uri === undefined && binary))
+      b.uri = `data:application/octet-stream;base64,${base64(new Uint8Array(await parser.loadBuffer(i)))}`;
+  for (const image of json.images || [])
+    if (external(image.uri))
+      image.uri = `data:${image.mimeType || 'application/octet-stream'};base64,${base64(await fetchBytes(image.uri))}`;
+  return new TextEncoder().encode(JSON.stringify(json));
+}
+
+function carriesLayer(json) {
+  if ((json.extensionsUsed || []).includes(STRATA_LAYERED_DISPLACEMENT)) return true;
+  return (json.meshes || []).some((m) => m.extras && typeof m.extras === 'object' && m.extras.strata);
+}
+
+const ATTRIBUTE_NAMES = { TEXCOORD_0: 'uv', TEXCOORD_1: 'uv1', TEXCOORD_2: 'uv2', TEXCOORD_3: 'uv3', COLOR_0: 'color' };
+
+/// The refined, displaced, skinned surface of a rig: a Mesh whose geometry
+/// the runtime rewrites whenever the nodes it is skinned to move (checked
+/// as the scene updates its matrices, so an AnimationMixer drives it with no
+/// further call), with one material group per glTF primitive.
+export class StrataSurfaceMesh extends Mesh {
+  constructor(runtime, rig, nodes, materials, cage, level) {
+    super(new BufferGeometry(), materials);
+    this.isStrataSurfaceMesh = true;
+    this.name = 'Strata surface';
+    this.runtime = runtime;
+    this.rig = rig;
+    this.nodes = nodes;        // Object3D per skin joint
+    this.cage = cage;          // the control meshes, hidden
+    this.frustumCulled = false;
+    this.inverseBind = [];
+    for (let j = 0; j < rig.jointCount; ++j) this.inverseBind.push(new Matrix4().fromArray(rig.inverseBindMatrix(j)));
+    this.jointMatrices = new Float32Array(rig.jointCount * 16);
+    this.lastJointMatrices = null;
+    this.surface = null;
+    this.renderMesh = null;
+    this.setLevel(level);
+  }
+
+  /// Rebuilds the surface at `level` (a number, or 'recommended').
+  setLevel(level) {
+    const wanted = level === 'recommended' || level === undefined || level === null ? -1 : Number(level);
+    const surface = this.rig.createSurface(wanted);
+    let renderMesh;
+    try {
+      renderMesh = surface.createRenderMesh(this.rig);
+    } catch (e) {
+      surface.dispose();
+      throw e;
+    }
+    if (this.renderMesh) this.renderMesh.dispose();
+    if (this.surface) this.surface.dispose();
+    this.surface = surface;
+    this.renderMesh = renderMesh;
+    this.level = wanted < 0 ? this.rig.recommendedLevel : wanted;
+
+    const n = renderMesh.vertexCount;
+    const geometry = new BufferGeometry();
+    const positions = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
+    const normals = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
+    geometry.setAttribute('position', positions);
+    geometry.setAttribute('normal', normals);
+    for (const a of renderMesh.attributes()) {
+      const name = ATTRIBUTE_NAMES[a.name] || a.name.toLowerCase();
+      geometry.setAttribute(name, new BufferAttribute(a.array, a.components));
+    }
+    geometry.setIndex(new BufferAttribute(renderMesh.indices(), 1));
+    const parts = renderMesh.parts();
+    parts.forEach((p, i) => geometry.addGroup(p.firstIndex, p.indexCount, Array.isArray(this.material) ? i : 0));
+    this.refinedVertexCount = surface.vertexCount;
+    this.refinedVertex = renderMesh.refinedVertices();
+    this.parts = parts;
+    const old = this.geometry;
+    this.geometry = geometry;
+    old.dispose();
+    this.lastJointMatrices = null;
+    this.update(true);
+    geometry.computeBoundingBox();
+    geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new Sphere());
+    return this;
+  }
+
+  /// Poses the surface from its nodes' current world matrices (relative
+  /// to its parent, the glTF scene) and rewrites the geometry if they moved.
+  /// `force`: rewrite anyway.
+  update(force = false) {
+    if (!this.surface) return;
+    const joints = this.rig.jointCount;
+    if (joints > 0) {
+      const toScene = new Matrix4();
+      if (this.parent) toScene.copy(this.parent.matrixWorld).invert();
+      const m = new Matrix4();
+      for (let j = 0; j < joints; ++j) {
+        m.multiplyMatrices(toScene, this.nodes[j].matrixWorld).multiply(this.inverseBind[j]);
+        this.jointMatrices.set(m.elements, 16 * j);
+      }
+      if (!force && this.lastJointMatrices && this.lastJointMatrices.every((v, i) => v === this.jointMatrices[i]))
+        return;
+      this.lastJointMatrices = Float32Array.from(this.jointMatrices);
+      this.surface.setJointMatrices(this.jointMatrices);
+    } else if (!force) {
+      return;
+    }
+    const g = this.geometry;
+    this.renderMesh.evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
+    g.attributes.position.needsUpdate = true;
+    g.attributes.normal.needsUpdate = true;
+  }
+
+  /// Poses from the rig's own animation at `time` seconds (-1: the nodes'
+  /// rest pose), as strata-reconstruct --anim/--time does (bit for bit),
+  /// instead of from the nodes, until the nodes move again.
+  setAnimationTime(animation, time) {
+    this.surface.setAnimationTime(animation, time);
+    this.rewrite();
+  }
+
+  /// The bind pose (the control positions as stored, what
+  /// strata-reconstruct writes without --anim), until the nodes move again.
+  setBindPose() {
+    this.surface.setBindPose();
+    this.rewrite();
+  }
+
+  rewrite() {
+    const g = this.geometry;
+    this.renderMesh.evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
+    g.attributes.position.needsUpdate = true;
+    g.attributes.normal.needsUpdate = true;
+    this.lastJointMatrices = null;
+  }
+
+  updateMatrixWorld(force) {
+    super.updateMatrixWorld(force);
+    // The scene's update reaches this mesh after its siblings (it is added
+    // last), so the nodes' matrices are this frame's.
+    this.update();
+  }
+
+  dispose() {
+    if (this.renderMesh) this.renderMesh.dispose();
+    if (this.surface) this.surface.dispose();
+    if (this.rig) this.rig.dispose();
+    this.geometry.dispose();
+    this.renderMesh = this.surface = this.rig = null;
+  }
+}
+
+export class StrataLoaderPlugin {
+  constructor(parser, options = {}) {
+    this.name = STRATA_LAYERED_DISPLACEMENT;
+    this.parser = parser;
+    this.options = options;
+  }
+
+  async afterRoot(result) {
+    const parser = this.parser;
+    if (!carriesLayer(parser.json)) return;
+    const runtime = await (this.options.runtime || StrataRuntime.load());
+    const name = this.options.name || 'the glTF file';
+    let rig;
+    try {
+      rig = runtime.loadRig(await fileBytes(parser), name);
+    } catch (e) {
+      throw e instanceof StrataError ? e : new StrataError(String(e && e.message || e), 'invalid data');
+    }
+    try {
+      // The three.js mesh of every glTF primitive, and the node of every joint.
+      const primitiveMesh = new Map();
+      result.scene.traverse((o) => {
+        const a = parser.associations.get(o);
+        if (o.isMesh && a && a.meshes !== undefined && a.primitives !== undefined)
+          primitiveMesh.set(`${a.meshes}/${a.primitives}`, o);
+      });
+      const nodes = [];
+      for (let j = 0; j < rig.jointCount; ++j) nodes.push(await parser.getDependency('node', rig.jointNode(j)));
+      // Materials per part, as three.js set them up for the cage.
+      const surfaceProbe = rig.createSurface(0);
+      const probe = surfaceProbe.createRenderMesh(rig);
+      const parts = probe.parts();
+      probe.dispose();
+      surfaceProbe.dispose();
+      const cage = [];
+      const materials = parts.map((p) => {
+        const mesh = primitiveMesh.get(`${p.mesh}/${p.primitive}`);
+        if (mesh) cage.push(mesh);
+        return mesh ? mesh.material : new MeshStandardMaterial();
+      });
+      const surface = new StrataSurfaceMesh(runtime, rig, nodes, materials.length === 1 ? materials[0] : materials,
+        cage, this.options.level ?? 'recommended');
+      for (const c of cage) c.visible = false;
+      result.scene.add(surface);
+      result.scene.updateMatrixWorld(true);
+      surface.update(true);
+      result.userData = result.userData || {};
+      result.userData.strata = surface;
+    } catch (e) {
+      rig.dispose();
+      throw e;
+    }
+  }
+}
+
+export { StrataRuntime, StrataError };

@@ -1,0 +1,191 @@
+// The layered character in a real browser: headless Chromium loads rigs
+// through three's GLTFLoader and Strata's plugin (WebAssembly), reads the
+// refined positions back from the geometry three.js draws, and compares
+// them with strata-reconstruct's, in the bind pose and at t = 1 s of the
+// first animation:
+//   - posed from the rig's own animation (setAnimationTime): bit for bit;
+//   - posed by three's AnimationMixer (the nodes' matrices): within 1e-6 of
+//     the diagonal;
+//   - a bare-cage rig (smooth scheme) and both characters, each level the
+//     rig recommends and one above.
+// Needs the native tools (STRATA_BUILD_DIR, default ../build) and the WASM
+// module (npm test builds it first).
+import assert from 'node:assert/strict';
+import { spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { after, before, test } from 'node:test';
+import { importMap, launchChromium, openPage, root, serve } from '../tools/browser.mjs';
+
+const build = path.resolve(process.env.STRATA_BUILD_DIR || path.join(root, 'build'));
+const tool = (name) => path.join(build, 'tools', name);
+const work = fs.mkdtempSync(path.join(os.tmpdir(), 'strata-browser-'));
+const data = path.join(root, 'tests', 'data');
+
+function run(exe, args) {
+  const r = spawnSync(exe, args, { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`${path.basename(exe)} ${args.join(' ')} failed:\n${r.stderr}`);
+  return r.stdout;
+}
+
+function readPly(file) {
+  const b = fs.readFileSync(file);
+  const h = b.indexOf('end_header\n') + 'end_header\n'.length;
+  const head = b.subarray(0, h).toString();
+  const n = Number(/element vertex (\d+)/.exec(head)[1]);
+  const props = (head.split('element face')[0].match(/property float/g) || []).length;
+  const f = new Float32Array(b.buffer.slice(b.byteOffset + h, b.byteOffset + h + n * props * 4));
+  const p = new Float32Array(n * 3);
+  for (let i = 0; i < n; ++i) for (let c = 0; c < 3; ++c) p[3 * i + c] = f[props * i + c];
+  return p;
+}
+
+function compare(actual, expected) {
+  assert.equal(actual.length, expected.length, 'vertex count');
+  let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity], worst = 0, same = 0;
+  for (let i = 0; i < expected.length; ++i) {
+    lo[i % 3] = Math.min(lo[i % 3], expected[i]);
+    hi[i % 3] = Math.max(hi[i % 3], expected[i]);
+    worst = Math.max(worst, Math.abs(actual[i] - expected[i]));
+    if (Object.is(actual[i], expected[i])) ++same;
+  }
+  const diagonal = Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  return { relative: worst / diagonal, identical: same === expected.length };
+}
+
+const page = `<!doctype html><html><body>
+<script type="importmap">${importMap}</script>
+<script type="module">
+import * as THREE from 'three';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
+import { StrataLoaderPlugin } from 'strata-layered/three';
+const b64 = (f) => { const u = new Uint8Array(f.buffer, f.byteOffset, f.byteLength); let s = '';
+  for (let i = 0; i < u.length; i += 0x8000) s += String.fromCharCode.apply(null, u.subarray(i, i + 0x8000)); return btoa(s); };
+const refined = (mesh) => b64(mesh.geometry.attributes.position.array.slice(0, 3 * mesh.refinedVertexCount));
+window.probe = async (url, level, time) => {
+  const draco = new DRACOLoader().setDecoderPath('/js/node_modules/three/examples/jsm/libs/draco/');
+  const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder).setDRACOLoader(draco);
+  loader.register((parser) => new StrataLoaderPlugin(parser, { level }));
+  const gltf = await loader.loadAsync(url);
+  const mesh = gltf.userData.strata;
+  const scene = new THREE.Scene();
+  scene.add(gltf.scene);
+  scene.updateMatrixWorld(true);
+  const out = { level: mesh.level, vertices: mesh.geometry.attributes.position.count, refined: mesh.refinedVertexCount,
+                rest: refined(mesh), cageHidden: mesh.cage.every((c) => !c.visible), drawn: 0 };
+  scene.traverse((o) => { if (o.isMesh && o.visible) out.drawn++; });
+  mesh.setBindPose();
+  out.bind = refined(mesh);
+  if (gltf.animations.length) {
+    mesh.setAnimationTime(-1, 0);
+    out.ownRest = refined(mesh);
+  } else {
+    out.ownRest = out.rest;
+  }
+  if (gltf.animations.length) {
+    const mixer = new THREE.AnimationMixer(gltf.scene);
+    mixer.clipAction(gltf.animations[0]).play();
+    mixer.setTime(time);
+    scene.updateMatrixWorld(true);
+    out.mixer = refined(mesh);
+    mesh.setAnimationTime(0, time);
+    out.own = refined(mesh);
+  }
+  return out;
+};
+window.refuse = async (url) => {
+  const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
+  loader.register((parser) => new StrataLoaderPlugin(parser, { name: url }));
+  try { await loader.loadAsync(url); return 'loaded'; } catch (e) { return e.message; }
+};
+window.ready = true;
+</script></body></html>`;
+
+let server, browser, tab;
+const rigs = [];
+
+before(async () => {
+  for (const t of ['strata-bake', 'strata-reconstruct'])
+    if (!fs.existsSync(tool(t))) throw new Error(`${tool(t)} is missing: build Strata first (STRATA_BUILD_DIR)`);
+  if (!fs.existsSync(path.join(root, 'js', 'dist', 'strata.wasm')))
+    throw new Error('js/dist/strata.wasm is missing: run npm run build:wasm');
+  run(tool('strata-bake'), ['--high', path.join(data, 'spot_triangulated.obj'), '--control',
+    path.join(data, 'spot_control_mesh.obj'), '-o', path.join(work, 'spot.glb')]);
+  rigs.push({ name: 'spot', scheme: 'smooth' });
+  for (const name of ['Fox', 'CesiumMan']) {
+    run(tool('strata-bake'), ['--high', path.join(data, `${name}.glb`), '--control', 'auto', '-o',
+      path.join(work, `${name}.glb`)]);
+    rigs.push({ name, animated: true });
+  }
+  server = await serve({ '/work/': work }, { '/page.html': page });
+  browser = await launchChromium();
+  tab = await openPage(browser, `${server.url}/page.html`);
+  await tab.waitForFunction('window.ready === true', { timeout: 60000 });
+});
+
+after(async () => {
+  if (browser) await browser.close();
+  if (server) await server.close();
+  fs.rmSync(work, { recursive: true, force: true });
+});
+
+const decode = (s) => { const b = Buffer.from(s, 'base64'); return new Float32Array(b.buffer, b.byteOffset, b.length / 4); };
+
+test('three.js draws the surface strata-reconstruct writes, bind pose and posed', async () => {
+  for (const rig of rigs) {
+    const file = path.join(work, `${rig.name}.glb`);
+    const recommended = (await tab.evaluate((u) => window.probe(u, 'recommended', 0), `/work/${rig.name}.glb`)).level;
+    for (const level of [recommended, recommended + 1]) {
+      const got = await tab.evaluate((u, l) => window.probe(u, l, 1.0), `/work/${rig.name}.glb`, level);
+      assert.deepEqual(tab.errors, []);
+      assert.equal(got.level, level);
+      assert.ok(got.cageHidden, `${rig.name}: the cage is still drawn`);
+      assert.equal(got.drawn, 1, `${rig.name}: ${got.drawn} meshes drawn, expected the surface alone`);
+      const rest = path.join(work, `${rig.name}_${level}_rest.ply`);
+      run(tool('strata-reconstruct'), [file, '--level', String(level), '-o', rest]);
+      const bind = compare(decode(got.bind), readPly(rest));
+      assert.ok(bind.identical, `${rig.name} L${level} bind pose: ${bind.relative} of the diagonal`);
+      // As loaded, three's nodes at rest pose the surface: the rig's own
+      // rest pose (strata's animation -1) up to rounding.
+      const r = compare(decode(got.rest), decode(got.ownRest));
+      assert.ok(r.relative <= 1e-6, `${rig.name} L${level} rest: ${r.relative} of the diagonal`);
+      if (!rig.animated) {
+        console.log(`${rig.name} L${level}: ${got.refined} refined vertices, bit-identical`);
+        continue;
+      }
+      const posed = path.join(work, `${rig.name}_${level}_t1.ply`);
+      run(tool('strata-reconstruct'), [file, '--level', String(level), '--anim', '0', '--time', '1', '-o', posed]);
+      const expected = readPly(posed);
+      const own = compare(decode(got.own), expected);
+      assert.ok(own.identical, `${rig.name} L${level} at 1 s, own animation: ${own.relative} of the diagonal`);
+      const mixer = compare(decode(got.mixer), expected);
+      assert.ok(mixer.relative <= 1e-6, `${rig.name} L${level} at 1 s, AnimationMixer: ${mixer.relative} of the diagonal`);
+      console.log(`${rig.name} L${level}: ${got.refined} refined vertices (${got.vertices} drawn); rest ` +
+        `${r.relative.toExponential(2)}, posed by the mixer ${mixer.relative.toExponential(2)} of the diagonal, ` +
+        'by its own animation bit-identical');
+    }
+  }
+});
+
+test('a rig whose layer no longer matches its mesh is refused with the cause', async () => {
+  // Another rig's layer on spot's mesh: the triangle count differs.
+  const spot = fs.readFileSync(path.join(work, 'spot.glb'));
+  const json = JSON.parse(spot.subarray(20, 20 + spot.readUInt32LE(12)).toString());
+  const block = json.meshes[0].extensions.STRATA_layered_displacement;
+  block.control.triangles += 1;
+  const text = Buffer.from(JSON.stringify(json).padEnd(Math.ceil(JSON.stringify(json).length / 4) * 4, ' '));
+  const bin = spot.subarray(20 + spot.readUInt32LE(12));
+  const out = Buffer.alloc(20 + text.length + bin.length);
+  out.writeUInt32LE(0x46546c67, 0); out.writeUInt32LE(2, 4); out.writeUInt32LE(out.length, 8);
+  out.writeUInt32LE(text.length, 12); out.writeUInt32LE(0x4e4f534a, 16);
+  text.copy(out, 20); bin.copy(out, 20 + text.length);
+  fs.writeFileSync(path.join(work, 'tampered.glb'), out);
+  const message = await tab.evaluate((u) => window.refuse(u), '/work/tampered.glb');
+  assert.notEqual(message, 'loaded');
+  assert.match(message, /triangles/);
+  assert.ok(!message.includes('\n'), message);
+  console.log(`tampered rig refused: ${message}`);
+});
