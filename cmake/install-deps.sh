@@ -10,7 +10,7 @@ packages=(
   libtinygltf-dev nlohmann-json3-dev libstb-dev zlib1g-dev libgtest-dev libmeshoptimizer-dev libdraco-dev libzstd-dev libeigen3-dev
   pybind11-dev python3-dev python3-numpy python3-pytest python3-venv python3-distributed
   libegl-dev libegl1-mesa-dev libgl1-mesa-dri libosmesa6-dev xvfb xauth libimgui-dev
-  draco gltfpack blender chromium
+  draco gltfpack blender chromium emscripten
   nodejs npm
 )
 

@@ -314,6 +314,21 @@ StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const 
     });
 }
 
+StrataStatus strata_surface_displacements(const StrataSurface* surface, float* dst)
+{
+    if (!surface || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_displacements: null argument");
+    const Surface& s = *surface->surface;
+    const std::vector<float>& d = s.plan().displacements();
+    const std::vector<uint32_t>& order = s.vertexOrder();
+    const size_t n = s.vertexCount();
+    for (size_t i = 0; i < n; ++i) {
+        const size_t v = i < order.size() ? order[i] : i;
+        dst[i] = v < d.size() ? d[v] : 0.0f;
+    }
+    return STRATA_OK;
+}
+
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals)
 {
     if (!surface || !positions)

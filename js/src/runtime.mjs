@@ -206,6 +206,12 @@ export class StrataSurface {
     normals.set(r.f32(this.frame + n * 4, n));
     return { positions, normals };
   }
+  /// Each refined vertex's displacement along its normal (model units).
+  displacements() {
+    const r = this.runtime;
+    return r.withScratch(Float32Array, this.vertexCount, (ptr) =>
+      r.check(r.module._strata_surface_displacements(this.handle, ptr)));
+  }
   /// This surface laid out for drawing (StrataRenderMesh).
   createRenderMesh(rig) {
     const r = this.runtime;

@@ -33,8 +33,8 @@ export const importMap = JSON.stringify({
 });
 
 /// Serves js/ at /js/ and each { prefix: folder } given; `pages` maps a
-/// path to HTML text.  Resolves to { url, close, bytesServed }.
-export async function serve(folders = {}, pages = {}) {
+/// path to HTML text; port 0 takes a free one.  Resolves to { url, close, bytesServed }.
+export async function serve(folders = {}, pages = {}, { port = 0 } = {}) {
   const mounts = { '/js/': jsDir, ...folders };
   let bytesServed = 0;
   const server = http.createServer((req, res) => {
@@ -60,7 +60,10 @@ export async function serve(folders = {}, pages = {}) {
     res.writeHead(200, { 'content-type': types[path.extname(file)] || 'application/octet-stream' });
     fs.createReadStream(file).pipe(res);
   });
-  await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
+  await new Promise((resolve, reject) => {
+    server.once('error', reject);
+    server.listen(port, '127.0.0.1', resolve);
+  });
   return {
     url: `http://127.0.0.1:${server.address().port}`,
     close: () => new Promise((resolve) => server.close(resolve)),

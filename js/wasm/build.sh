@@ -16,18 +16,27 @@ if ! command -v emcmake >/dev/null; then
   exit 1
 fi
 
+sudo=""
+[ "$(id -u)" = 0 ] || sudo="sudo"
+# apt-get source needs deb-src lines; Debian's images ship only deb ones.
+enable_sources() {
+  if [ -f /etc/apt/sources.list.d/debian.sources ] && ! grep -q "deb-src" /etc/apt/sources.list.d/debian.sources; then
+    $sudo sed -i 's/^Types: deb$/Types: deb deb-src/' /etc/apt/sources.list.d/debian.sources
+  elif [ -f /etc/apt/sources.list ] && ! grep -qs "^deb-src" /etc/apt/sources.list /etc/apt/sources.list.d/*.list; then
+    sed -n 's/^deb /deb-src /p' /etc/apt/sources.list | $sudo tee /etc/apt/sources.list.d/strata-deb-src.list >/dev/null
+  fi
+  $sudo apt-get update -qq >/dev/null
+}
+
 fetch() {  # fetch PACKAGE FOLDER: Debian's source of PACKAGE unpacked as deps/FOLDER
   local package="$1" folder="$2"
   [ -d "$build/deps/$folder" ] && return 0
   local work="$build/deps/.fetch-$package"
   rm -rf "$work" && mkdir -p "$work"
   if ! (cd "$work" && apt-get source --download-only "$package" >/dev/null 2>&1); then
-    if [ "$(id -u)" = 0 ] && ! grep -qs "deb-src" /etc/apt/sources.list /etc/apt/sources.list.d/*; then
-      sed -i 's/^Types: deb$/Types: deb deb-src/' /etc/apt/sources.list.d/debian.sources
-      apt-get update >/dev/null
-    fi
+    enable_sources
     (cd "$work" && apt-get source --download-only "$package" >/dev/null) || {
-      echo "strata: could not fetch Debian's source of $package (enable deb-src in apt's sources)" >&2
+      echo "strata: could not fetch Debian's source of $package (apt-get source; enable deb-src lines)" >&2
       exit 1
     }
   fi

@@ -102,6 +102,11 @@ StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const flo
 /** Poses from control positions the engine deformed itself (3 floats each). */
 StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const float* positions, size_t count);
 
+/** The displacement of each refined vertex along its normal, in model
+ *  units, in strata_surface_evaluate's order (vertex_count floats; zeros
+ *  for a surface without displacement): for false colour and statistics. */
+StrataStatus strata_surface_displacements(const StrataSurface* surface, float* dst);
+
 /** Displaced refined positions (3 floats per vertex) and, unless NULL,
  *  shading normals (3 floats per vertex) of the current pose: the
  *  render-ready frame of FrameEvaluator, whose tables the first call makes.

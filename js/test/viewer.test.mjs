@@ -1,0 +1,117 @@
+// The web viewer in headless Chromium (WebGL2 on SwiftShader): it opens a
+// rig from ?rig=, draws it (the canvas is not blank), changes level, shows
+// the cage, wireframe and false colour, plays an animation, and names the
+// cause when a file is refused.  STRATA_SCREENSHOTS=DIR saves its
+// screenshots there (docs/images holds the ones the README shows).
+import assert from 'node:assert/strict';
+import { spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { after, before, test } from 'node:test';
+import { launchChromium, openPage, root, serve } from '../tools/browser.mjs';
+
+const build = path.resolve(process.env.STRATA_BUILD_DIR || path.join(root, 'build'));
+const work = fs.mkdtempSync(path.join(os.tmpdir(), 'strata-viewer-'));
+const data = path.join(root, 'tests', 'data');
+const shots = process.env.STRATA_SCREENSHOTS ? path.resolve(process.env.STRATA_SCREENSHOTS) : null;
+
+function bake(args) {
+  const r = spawnSync(path.join(build, 'tools', 'strata-bake'), args, { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`strata-bake ${args.join(' ')} failed:\n${r.stderr}`);
+}
+
+let server, browser;
+before(async () => {
+  bake(['--high', path.join(data, 'spot_triangulated.obj'), '--control', path.join(data, 'spot_control_mesh.obj'),
+    '-o', path.join(work, 'spot.glb')]);
+  bake(['--high', path.join(data, 'CesiumMan.glb'), '--control', 'auto', '-o', path.join(work, 'CesiumMan.glb')]);
+  fs.writeFileSync(path.join(work, 'broken.glb'), 'glTF this is not a rig');
+  server = await serve({ '/work/': work });
+  browser = await launchChromium();
+});
+after(async () => {
+  if (browser) await browser.close();
+  if (server) await server.close();
+  fs.rmSync(work, { recursive: true, force: true });
+});
+
+async function open(rig) {
+  const tab = await openPage(browser, `${server.url}/js/viewer/index.html?rig=/work/${rig}`);
+  await tab.waitForFunction('window.strataViewer && window.strataViewer.ready === true', { timeout: 120000 });
+  return tab;
+}
+
+// Distinct colours in the canvas: a blank or single-colour frame has one or two.
+async function colours(tab) {
+  return tab.evaluate(() => {
+    const c = document.querySelector('canvas');
+    const g = document.createElement('canvas');
+    g.width = 96; g.height = 72;
+    const ctx = g.getContext('2d');
+    ctx.drawImage(c, 0, 0, g.width, g.height);
+    const d = ctx.getImageData(0, 0, g.width, g.height).data;
+    const seen = new Set();
+    for (let i = 0; i < d.length; i += 4) seen.add((d[i] >> 3) << 10 | (d[i + 1] >> 3) << 5 | (d[i + 2] >> 3));
+    return seen.size;
+  });
+}
+
+async function shot(tab, name) {
+  await new Promise((r) => setTimeout(r, 300));
+  if (shots) {
+    fs.mkdirSync(shots, { recursive: true });
+    await tab.screenshot({ path: path.join(shots, name) });
+  }
+}
+
+test('the viewer draws a rig, changes level and shows its layers', async () => {
+  const tab = await open('spot.glb');
+  assert.equal(await tab.evaluate(() => window.strataViewer.error || ''), '');
+  const info = await tab.evaluate(() => ({ level: window.strataViewer.surface.level, stats: document.getElementById('stats').textContent }));
+  assert.equal(info.level, 3);
+  assert.match(info.stats, /level 3 \(recommended 3\): 11906 vertices/);
+  assert.match(info.stats, /deviation from level 4/);
+  assert.ok(await colours(tab) > 20, 'the canvas is blank');
+  await shot(tab, 'web-viewer-spot.png');
+  const level = await tab.evaluate(() => {
+    const s = document.getElementById('level');
+    s.value = '1';
+    s.dispatchEvent(new Event('input'));
+    return window.strataViewer.surface.refinedVertexCount;
+  });
+  assert.equal(level, 188 + 558);  // level 1 of a closed 188-vertex, 372-triangle cage: V + E
+  await tab.evaluate(() => {
+    const s = document.getElementById('level');
+    s.value = '3';
+    s.dispatchEvent(new Event('input'));
+    document.getElementById('falseColour').click();
+    document.getElementById('cage').click();
+  });
+  assert.ok(await colours(tab) > 20);
+  await shot(tab, 'web-viewer-false-colour.png');
+  assert.deepEqual(tab.errors, []);
+  await tab.close();
+});
+
+test('the viewer plays a character', async () => {
+  const tab = await open('CesiumMan.glb');
+  assert.equal(await tab.evaluate(() => window.strataViewer.error || ''), '');
+  const a = await tab.evaluate(() => window.strataViewer.surface.geometry.attributes.position.array.slice(0, 300));
+  await new Promise((r) => setTimeout(r, 700));
+  const b = await tab.evaluate(() => window.strataViewer.surface.geometry.attributes.position.array.slice(0, 300));
+  const moved = Object.keys(a).some((k) => a[k] !== b[k]);
+  assert.ok(moved, 'the animation does not move the surface');
+  await tab.evaluate(() => document.getElementById('wireframe').click());
+  assert.ok(await colours(tab) > 10);
+  await shot(tab, 'web-viewer-cesiumman.png');
+  assert.deepEqual(tab.errors, []);
+  await tab.close();
+});
+
+test('the viewer names the cause of a refused file', async () => {
+  const tab = await open('broken.glb');
+  const text = await tab.evaluate(() => document.getElementById('message').textContent);
+  assert.match(text, /broken\.glb/);
+  await tab.close();
+});
