@@ -101,8 +101,9 @@ const ATTRIBUTE_NAMES = { TEXCOORD_0: 'uv', TEXCOORD_1: 'uv1', TEXCOORD_2: 'uv2'
 /// as the scene updates its matrices, so an AnimationMixer drives it with no
 /// further call), with one material group per glTF primitive.
 export class StrataSurfaceMesh extends Mesh {
-  constructor(runtime, rig, nodes, materials, cage, level) {
-    super(new BufferGeometry(), materials);
+  /// materialFor(part): the material of a part ({ mesh, primitive, material }).
+  constructor(runtime, rig, nodes, materialFor, cage, level) {
+    super(new BufferGeometry());
     this.isStrataSurfaceMesh = true;
     this.name = 'Strata surface';
     this.runtime = runtime;
@@ -117,6 +118,9 @@ export class StrataSurfaceMesh extends Mesh {
     this.surface = null;
     this.renderMesh = null;
     this.setLevel(level);
+    // Parts are the glTF primitives: the same at every level.
+    const materials = this.parts.map(materialFor);
+    this.material = materials.length === 1 ? materials[0] : materials;
   }
 
   /// Rebuilds the surface at `level` (a number, or 'recommended').
@@ -148,7 +152,7 @@ export class StrataSurfaceMesh extends Mesh {
     }
     geometry.setIndex(new BufferAttribute(renderMesh.indices(), 1));
     const parts = renderMesh.parts();
-    parts.forEach((p, i) => geometry.addGroup(p.firstIndex, p.indexCount, Array.isArray(this.material) ? i : 0));
+    parts.forEach((p, i) => geometry.addGroup(p.firstIndex, p.indexCount, i));
     this.refinedVertexCount = surface.vertexCount;
     this.refinedVertex = renderMesh.refinedVertices();
     this.parts = parts;
@@ -257,19 +261,13 @@ export class StrataLoaderPlugin {
       const nodes = [];
       for (let j = 0; j < rig.jointCount; ++j) nodes.push(await parser.getDependency('node', rig.jointNode(j)));
       // Materials per part, as three.js set them up for the cage.
-      const surfaceProbe = rig.createSurface(0);
-      const probe = surfaceProbe.createRenderMesh(rig);
-      const parts = probe.parts();
-      probe.dispose();
-      surfaceProbe.dispose();
       const cage = [];
-      const materials = parts.map((p) => {
-        const mesh = primitiveMesh.get(`${p.mesh}/${p.primitive}`);
-        if (mesh) cage.push(mesh);
+      const materialFor = (part) => {
+        const mesh = primitiveMesh.get(`${part.mesh}/${part.primitive}`);
+        if (mesh && !cage.includes(mesh)) cage.push(mesh);
         return mesh ? mesh.material : new MeshStandardMaterial();
-      });
-      const surface = new StrataSurfaceMesh(runtime, rig, nodes, materials.length === 1 ? materials[0] : materials,
-        cage, this.options.level ?? 'recommended');
+      };
+      const surface = new StrataSurfaceMesh(runtime, rig, nodes, materialFor, cage, this.options.level ?? 'recommended');
       for (const c of cage) c.visible = false;
       result.scene.add(surface);
       result.scene.updateMatrixWorld(true);
