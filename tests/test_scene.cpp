@@ -6,6 +6,7 @@
 #include "strata/frame.h"
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
+#include "strata/io/render_mesh.h"
 #include "strata/io/rig_io.h"
 #include "test_rigs.h"
 #include "test_util.h"
@@ -1140,4 +1141,91 @@ TEST(Scene, MeshoptCodesSkinAndAnimationData)
         }
     }
     EXPECT_EQ(back.skeleton.skin.inverseBindMatrices, rig.skeleton.skin.inverseBindMatrices);
+}
+
+// The render mesh of a character (CesiumMan: UV seams): the refined vertices
+// first in the plan's order, a copy for each other corner value, triangles
+// on the same refined vertices as the plan's, one contiguous index range per
+// part, and at level 0 each corner's TEXCOORD_0 exactly the file's.  At level
+// 1 an edge's midpoint carries the mean of its ends' UVs (linear refinement
+// of the face-varying values).
+TEST(Scene, RenderMeshSplitsAtSeamsAndKeepsThePlanOrder)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(man, &rig, io::LoadOptions()).isOk());
+    tinygltf::Model m;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, man)) << err;
+    ASSERT_EQ(rig.parts.size(), 1u);
+    const std::vector<float> fileUV = accessorData<float>(m, m.meshes[0].primitives[0].attributes.at("TEXCOORD_0"), 2);
+    for (int level : {0, 1}) {
+        SCOPED_TRACE(level);
+        SurfaceOptions options;
+        options.level = level;
+        options.displace = false;
+        std::unique_ptr<Surface> surface;
+        ASSERT_TRUE(Surface::create(&surface, rig, nullptr, options).isOk());
+        const Plan& plan = surface->plan();
+        io::RenderMesh rm;
+        ASSERT_TRUE(io::buildRenderMesh(rig, plan, &rm).isOk());
+        const size_t n = plan.refinedVertexCount();
+        ASSERT_EQ(rm.refinedVertexCount, n);
+        ASSERT_GT(rm.vertexCount(), n);  // the seams split vertices
+        for (size_t v = 0; v < n; ++v)
+            ASSERT_EQ(rm.refinedVertex[v], v);
+        const std::vector<uint32_t>& tris = plan.refinedTriangles();
+        ASSERT_EQ(rm.indices.size(), tris.size());
+        for (size_t c = 0; c < tris.size(); ++c)
+            ASSERT_EQ(rm.refinedVertex[rm.indices[c]], tris[c]);
+        ASSERT_EQ(rm.parts.size(), 1u);
+        EXPECT_EQ(rm.parts[0].firstIndex, 0u);
+        EXPECT_EQ(rm.parts[0].indexCount, tris.size());
+        EXPECT_EQ(rm.parts[0].mesh, 0);
+        EXPECT_EQ(rm.parts[0].material, m.meshes[0].primitives[0].material);
+        ASSERT_EQ(rm.attributes.size(), 1u);
+        const io::RenderAttribute& uv = rm.attributes[0];
+        EXPECT_EQ(uv.name, "TEXCOORD_0");
+        ASSERT_EQ(uv.components, 2);
+        ASSERT_EQ(uv.values.size(), 2 * rm.vertexCount());
+        if (level == 0) {
+            for (size_t c = 0; c < tris.size(); ++c) {
+                const uint32_t file = rig.fileCorners[c];
+                EXPECT_EQ(uv.values[2 * rm.indices[c]], fileUV[2 * file]);
+                EXPECT_EQ(uv.values[2 * rm.indices[c] + 1], fileUV[2 * file + 1]);
+            }
+        } else {
+            // Each level-1 triangle of control face f: its corners are
+            // corners or edge midpoints of f, whose UVs (in f's seam-side)
+            // are those of f's corners or their means.
+            const size_t faces = rig.mesh.faceCount();
+            size_t checked = 0;
+            for (size_t f = 0; f < faces; ++f) {
+                glm::vec2 corner[3];
+                for (int k = 0; k < 3; ++k) {
+                    const uint32_t file = rig.fileCorners[3 * f + size_t(k)];
+                    corner[k] = glm::vec2(fileUV[2 * file], fileUV[2 * file + 1]);
+                }
+                const glm::vec2 allowed[6] = {corner[0], corner[1], corner[2], 0.5f * (corner[0] + corner[1]),
+                                              0.5f * (corner[1] + corner[2]), 0.5f * (corner[2] + corner[0])};
+                for (size_t c = 12 * f; c < 12 * (f + 1); ++c) {
+                    const glm::vec2 got(uv.values[2 * rm.indices[c]], uv.values[2 * rm.indices[c] + 1]);
+                    float best = 1e30f;
+                    for (const glm::vec2& a : allowed)
+                        best = std::min(best, glm::length(got - a));
+                    EXPECT_LT(best, 1e-6f) << "face " << f;
+                    ++checked;
+                }
+            }
+            EXPECT_EQ(checked, tris.size());
+        }
+        // gather places per-refined-vertex values at every render vertex.
+        std::vector<glm::vec3> refined(n), drawn(rm.vertexCount());
+        for (size_t v = 0; v < n; ++v)
+            refined[v] = glm::vec3(float(v), 0.0f, 1.0f);
+        rm.gather(refined.data(), drawn.data());
+        for (size_t i = 0; i < drawn.size(); ++i)
+            ASSERT_EQ(drawn[i].x, float(rm.refinedVertex[i]));
+    }
 }

@@ -80,6 +80,62 @@ static int sameBits(const float* got, FILE* expected, size_t n)
     return ok;
 }
 
+/* The render mesh of a posed surface: the refined vertices first, in
+ * strata_surface_evaluate's order; every vertex placed where its refined
+ * vertex is; the parts cover the indices; joints name their nodes. */
+static void renderMesh(const StrataRig* rig, StrataSurface* s, const float* posed, uint32_t count)
+{
+    StrataRenderMesh* m = NULL;
+    CHECK(strata_render_mesh_create(rig, s, &m) == STRATA_OK);
+    if (!m)
+        return;
+    const size_t n = strata_render_mesh_vertex_count(m), indices = strata_render_mesh_index_count(m);
+    CHECK(n >= count);
+    CHECK(indices == 3 * strata_surface_triangle_count(s));
+    uint32_t* refined = (uint32_t*)malloc(n * sizeof(uint32_t));
+    uint32_t* idx = (uint32_t*)malloc(indices * sizeof(uint32_t));
+    float* xyz = (float*)malloc(n * 3 * sizeof(float));
+    CHECK(strata_render_mesh_refined_vertices(m, refined) == STRATA_OK);
+    CHECK(strata_render_mesh_indices(m, idx) == STRATA_OK);
+    CHECK(strata_render_mesh_evaluate(m, s, xyz, NULL) == STRATA_OK);
+    for (size_t i = 0; i < n; ++i) {
+        CHECK(refined[i] < count);
+        if (i < count)
+            CHECK(refined[i] == i);
+        CHECK(memcmp(xyz + 3 * i, posed + 3 * (size_t)refined[i], 3 * sizeof(float)) == 0);
+    }
+    for (size_t i = 0; i < indices; ++i)
+        CHECK(idx[i] < n);
+    size_t covered = 0;
+    for (size_t k = 0; k < strata_render_mesh_part_count(m); ++k) {
+        StrataRenderPart part;
+        CHECK(strata_render_mesh_part(m, k, &part) == STRATA_OK);
+        CHECK(part.first_index == covered);
+        covered += part.index_count;
+        CHECK(part.mesh >= 0 && part.primitive >= 0);
+    }
+    CHECK(covered == indices);
+    StrataRenderPart none;
+    CHECK(strata_render_mesh_part(m, 99, &none) == STRATA_INVALID_ARGUMENT);
+    float* d = (float*)malloc(count * sizeof(float));
+    CHECK(strata_surface_displacements(s, d) == STRATA_OK);
+    for (uint32_t i = 0; i < count; ++i)
+        CHECK(isfinite(d[i]));
+    float ibm[16];
+    for (size_t j = 0; j < strata_rig_joint_count(rig); ++j) {
+        CHECK(strata_rig_joint_node(rig, j) >= 0);
+        CHECK(strata_rig_joint_inverse_bind(rig, j, ibm) == STRATA_OK);
+        CHECK(isfinite(ibm[0]) && ibm[15] != 0.0f);
+    }
+    CHECK(strata_rig_joint_node(rig, 99) == -1);
+    CHECK(strata_rig_joint_inverse_bind(rig, 99, ibm) == STRATA_INVALID_ARGUMENT);
+    free(d);
+    free(refined);
+    free(idx);
+    free(xyz);
+    strata_render_mesh_destroy(m);
+}
+
 static void againstCpp(const char* rigPath, const char* expectedPath)
 {
     FILE* expected = fopen(expectedPath, "rb");
@@ -104,13 +160,20 @@ static void againstCpp(const char* rigPath, const char* expectedPath)
     if (s) {
         float* p = (float*)malloc(count * 3 * sizeof(float));
         float* nrm = (float*)malloc(count * 3 * sizeof(float));
+        float* bind = (float*)malloc(count * 3 * sizeof(float));
         CHECK(strata_surface_evaluate(s, p, nrm) == STRATA_OK); /* bind pose */
+        memcpy(bind, p, count * 3 * sizeof(float));
         CHECK(sameBits(p, expected, 3 * count));
         CHECK(sameBits(nrm, expected, 3 * count));
         CHECK(strata_surface_set_animation_time(s, 0, 0.5f) == STRATA_OK); /* posed */
         CHECK(strata_surface_evaluate(s, p, nrm) == STRATA_OK);
         CHECK(sameBits(p, expected, 3 * count));
         CHECK(sameBits(nrm, expected, 3 * count));
+        renderMesh(rig, s, p, count);
+        CHECK(strata_surface_set_bind_pose(s) == STRATA_OK); /* back to the bind pose, bit for bit */
+        CHECK(strata_surface_evaluate(s, p, NULL) == STRATA_OK);
+        CHECK(memcmp(p, bind, count * 3 * sizeof(float)) == 0);
+        free(bind);
         free(p);
         free(nrm);
         strata_surface_destroy(s);
