@@ -5,7 +5,7 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git ccache
   libosd-dev libopenmesh-dev libglfw3-dev libglm-dev libopenexr-dev
   libtinygltf-dev nlohmann-json3-dev libstb-dev zlib1g-dev libgtest-dev libmeshoptimizer-dev libdraco-dev libzstd-dev libeigen3-dev
   pybind11-dev python3-dev python3-numpy python3-pytest python3-venv python3-distributed

@@ -137,7 +137,7 @@ std::string optionText(const py::handle& v)
         return py::str(v).cast<std::string>();
     if (py::hasattr(v, "__fspath__"))
         return py::str(v.attr("__fspath__")()).cast<std::string>();
-    throw StrataError("a value of type " + py::str(v.get_type().attr("__name__")).cast<std::string>() +
+    throw StrataError("a value of type " + py::str(py::type::of(v).attr("__name__")).cast<std::string>() +
                       " is not an option value");
 }
 

@@ -7,6 +7,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash cmake/install-deps.sh
 build="${STRATA_BUILD_DIR:-build}"
+# A compiler cache: the wheel pip builds in python.pip_install compiles the
+# same sources with the same flags as this build, and gets its objects.
+if command -v ccache >/dev/null 2>&1; then
+  export CMAKE_C_COMPILER_LAUNCHER="${CMAKE_C_COMPILER_LAUNCHER:-ccache}"
+  export CMAKE_CXX_COMPILER_LAUNCHER="${CMAKE_CXX_COMPILER_LAUNCHER:-ccache}"
+fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE="${STRATA_BUILD_TYPE:-Release}" \
   -DSTRATA_WERROR="${STRATA_WERROR:-OFF}" -DSTRATA_SANITIZE="${STRATA_SANITIZE:-}" \
   -DSTRATA_BUILD_BENCH="${STRATA_BENCH:-ON}" -DSTRATA_BUILD_TESTS=ON >/dev/null

@@ -7,7 +7,13 @@ set -euo pipefail
 src="$1" work="$2" data="$3"
 rm -rf "$work"
 /usr/bin/python3 -m venv "$work/venv"
-"$work/venv/bin/pip" install -q --disable-pip-version-check "$src"
+# The wheel's CMake build compiles as the main build does (the compiler CMake
+# picks by default, not Python's sysconfig one; warnings as errors where that
+# is on), so a compiler cache (tools/test.sh sets ccache as the launcher when
+# present) serves it the main build's objects.
+export CC="${CC:-cc}" CXX="${CXX:-c++}"
+"$work/venv/bin/pip" install -q --disable-pip-version-check \
+  --config-settings=cmake.define.STRATA_WERROR="${STRATA_WERROR:-OFF}" "$src"
 cd "$work"
 "$work/venv/bin/python" - "$data" <<'PY'
 import sys, strata
