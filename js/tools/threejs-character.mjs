@@ -11,15 +11,10 @@
 // from Debian (cmake/install-deps.sh).
 import { spawnSync } from 'node:child_process';
 import fs from 'node:fs';
-import http from 'node:http';
 import os from 'node:os';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-import puppeteer from 'puppeteer-core';
+import { chromiumPath, importMap, launchChromium, openPage, root, serve } from './browser.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const jsDir = path.resolve(here, '..');
-const root = path.resolve(jsDir, '..');
 const option = (name, fallback) => {
   const i = process.argv.indexOf(name);
   return i >= 0 && i + 1 < process.argv.length ? process.argv[i + 1] : fallback;
@@ -28,10 +23,10 @@ const build = path.resolve(option('--build', path.join(root, 'build')));
 const work = path.resolve(option('--work', fs.mkdtempSync(path.join(os.tmpdir(), 'strata-threejs-'))));
 fs.mkdirSync(work, { recursive: true });
 
-const chromium = ['/usr/bin/chromium', '/usr/bin/chromium-browser', '/usr/bin/google-chrome']
-  .find((p) => fs.existsSync(p));
-if (!chromium) {
-  console.error('no Chromium (cmake/install-deps.sh installs Debian\'s chromium)');
+try {
+  chromiumPath();
+} catch (e) {
+  console.error(e.message);
   process.exit(1);
 }
 
@@ -48,7 +43,7 @@ for (const name of characters) {
 }
 
 const page = `<!doctype html><html><body>
-<script type="importmap">{"imports": {"three": "/three/build/three.module.js", "three/addons/": "/three/examples/jsm/"}}</script>
+<script type="importmap">${importMap}</script>
 <script type="module">
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
@@ -89,38 +84,15 @@ window.inspect = async (url) => {
 window.ready = true;
 </script></body></html>`;
 
-const types = { '.js': 'text/javascript', '.glb': 'model/gltf-binary', '.html': 'text/html' };
-const server = http.createServer((req, res) => {
-  const url = decodeURIComponent(req.url.split('?')[0]);
-  if (url === '/') {
-    res.writeHead(200, { 'content-type': 'text/html' });
-    res.end(page);
-    return;
-  }
-  const file = url.startsWith('/three/') ? path.join(jsDir, 'node_modules', 'three', url.slice('/three/'.length))
-                                         : path.join(work, path.basename(url));
-  if (!fs.existsSync(file)) {
-    res.writeHead(404);
-    res.end();
-    return;
-  }
-  res.writeHead(200, { 'content-type': types[path.extname(file)] || 'application/octet-stream' });
-  fs.createReadStream(file).pipe(res);
-});
-await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
-const base = `http://127.0.0.1:${server.address().port}`;
-
-const browser = await puppeteer.launch({ executablePath: chromium, headless: true,
-  args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage'] });
+const server = await serve({ '/work/': work }, { '/': page });
+const browser = await launchChromium();
 let failed = 0;
 try {
-  const tab = await browser.newPage();
-  tab.on('pageerror', (e) => console.error(`page error: ${e.message}`));
-  await tab.goto(base + '/');
+  const tab = await openPage(browser, `${server.url}/`);
   await tab.waitForFunction('window.ready === true', { timeout: 60000 });
   for (const name of characters) {
-    const source = await tab.evaluate((u) => window.inspect(u), `/${name}_source.glb`);
-    const rig = await tab.evaluate((u) => window.inspect(u), `/${name}.glb`);
+    const source = await tab.evaluate((u) => window.inspect(u), `/work/${name}_source.glb`);
+    const rig = await tab.evaluate((u) => window.inspect(u), `/work/${name}.glb`);
     const diag = Math.hypot(...source.max.map((v, k) => v - source.min[k]));
     const off = Math.max(Math.hypot(...rig.min.map((v, k) => v - source.min[k])),
       Math.hypot(...rig.max.map((v, k) => v - source.max[k]))) / diag;
@@ -137,8 +109,12 @@ try {
         `posed at ${rig.time.toFixed(2)} s within ${(100 * off).toFixed(2)}% of the source's box`);
     }
   }
+  for (const e of tab.errors) {
+    ++failed;
+    console.log(e);
+  }
 } finally {
   await browser.close();
-  server.close();
+  await server.close();
 }
 process.exit(failed ? 1 : 0);
