@@ -7,7 +7,8 @@
 //   - posed by three's AnimationMixer (the nodes' matrices): within 1e-6 of
 //     the diagonal;
 //   - a bare-cage rig (smooth scheme; also as format version 4, the layer
-//     in extras) and both characters (CesiumMan also re-coded by glTF
+//     in extras, and as .gltf with its buffers embedded or in a .bin beside
+//     it) and both characters (CesiumMan also re-coded by glTF
 //     Transform's meshopt with Strata's extension), each level the rig
 //     recommends and one above.
 // Needs the native tools (STRATA_BUILD_DIR, default ../build) and the WASM
@@ -163,6 +164,15 @@ before(async () => {
   rigs.push({ name: 'spot', scheme: 'smooth' });
   rewriteGlb(path.join(work, 'spot.glb'), path.join(work, 'spot_v4.glb'), toVersionFour);
   rigs.push({ name: 'spot_v4', scheme: 'smooth' });
+  // As .gltf: buffers embedded (strata-bake -o X.gltf), and beside it in a
+  // .bin (glTF Transform's copy), which the plugin fetches and hands over.
+  run(tool('strata-bake'), ['--high', path.join(data, 'spot_triangulated.obj'), '--control',
+    path.join(data, 'spot_control_mesh.obj'), '-o', path.join(work, 'spot_embedded.gltf')]);
+  rigs.push({ name: 'spot_embedded', ext: '.gltf', scheme: 'smooth' });
+  fs.mkdirSync(path.join(work, 'external'));
+  run(path.join(root, 'js', 'node_modules', '.bin', 'gltf-transform'), ['copy', path.join(work, 'spot.glb'),
+    path.join(work, 'external', 'spot_external.gltf'), '--config', path.join(root, 'js', 'gltf-transform.config.mjs')]);
+  rigs.push({ name: 'external/spot_external', ext: '.gltf', scheme: 'smooth' });
   for (const name of ['Fox', 'CesiumMan']) {
     run(tool('strata-bake'), ['--high', path.join(data, `${name}.glb`), '--control', 'auto', '-o',
       path.join(work, `${name}.glb`)]);
@@ -192,15 +202,17 @@ const decode = (s) => { const b = Buffer.from(s, 'base64'); return new Float32Ar
 
 test('three.js draws the surface strata-reconstruct writes, bind pose and posed', async () => {
   for (const rig of rigs) {
-    const file = path.join(work, `${rig.name}.glb`);
-    const recommended = (await tab.evaluate((u) => window.probe(u, 'recommended', 0), `/work/${rig.name}.glb`)).level;
+    const ext = rig.ext || '.glb';
+    const file = path.join(work, `${rig.name}${ext}`);
+    const url = `/work/${rig.name}${ext}`;
+    const recommended = (await tab.evaluate((u) => window.probe(u, 'recommended', 0), url)).level;
     for (const level of [recommended, recommended + 1]) {
-      const got = await tab.evaluate((u, l) => window.probe(u, l, 1.0), `/work/${rig.name}.glb`, level);
+      const got = await tab.evaluate((u, l) => window.probe(u, l, 1.0), url, level);
       assert.deepEqual(tab.errors, []);
       assert.equal(got.level, level);
       assert.ok(got.cageHidden, `${rig.name}: the cage is still drawn`);
       assert.equal(got.drawn, 1, `${rig.name}: ${got.drawn} meshes drawn, expected the surface alone`);
-      const rest = path.join(work, `${rig.name}_${level}_rest.ply`);
+      const rest = path.join(work, `${rig.name.replace('/', '_')}_${level}_rest.ply`);
       run(tool('strata-reconstruct'), [file, '--level', String(level), '-o', rest]);
       const bind = compare(decode(got.bind), readPly(rest));
       assert.ok(bind.identical, `${rig.name} L${level} bind pose: ${bind.relative} of the diagonal`);
@@ -212,7 +224,7 @@ test('three.js draws the surface strata-reconstruct writes, bind pose and posed'
         console.log(`${rig.name} L${level}: ${got.refined} refined vertices, bit-identical`);
         continue;
       }
-      const posed = path.join(work, `${rig.name}_${level}_t1.ply`);
+      const posed = path.join(work, `${rig.name.replace('/', '_')}_${level}_t1.ply`);
       run(tool('strata-reconstruct'), [file, '--level', String(level), '--anim', '0', '--time', '1', '-o', posed]);
       const expected = readPly(posed);
       const own = compare(decode(got.own), expected);
