@@ -65,6 +65,15 @@ async function shot(tab, name) {
   }
 }
 
+// The last frame is drawn (more than `least` colours), saved, and nothing
+// went wrong on the page.
+async function finish(tab, least, name) {
+  assert.ok(await colours(tab) > least, 'the canvas is blank');
+  await shot(tab, name);
+  assert.deepEqual(tab.errors, []);
+  await tab.close();
+}
+
 test('the viewer draws a rig, changes level and shows its layers', async () => {
   const tab = await open('spot.glb');
   assert.equal(await tab.evaluate(() => window.strataViewer.error || ''), '');
@@ -88,10 +97,7 @@ test('the viewer draws a rig, changes level and shows its layers', async () => {
     document.getElementById('falseColour').click();
     document.getElementById('cage').click();
   });
-  assert.ok(await colours(tab) > 20);
-  await shot(tab, 'web-viewer-false-colour.png');
-  assert.deepEqual(tab.errors, []);
-  await tab.close();
+  await finish(tab, 20, 'web-viewer-false-colour.png');
 });
 
 test('the viewer plays a character', async () => {
@@ -103,10 +109,7 @@ test('the viewer plays a character', async () => {
   const moved = Object.keys(a).some((k) => a[k] !== b[k]);
   assert.ok(moved, 'the animation does not move the surface');
   await tab.evaluate(() => document.getElementById('wireframe').click());
-  assert.ok(await colours(tab) > 10);
-  await shot(tab, 'web-viewer-cesiumman.png');
-  assert.deepEqual(tab.errors, []);
-  await tab.close();
+  await finish(tab, 10, 'web-viewer-cesiumman.png');
 });
 
 test('the viewer names the cause of a refused file', async () => {
