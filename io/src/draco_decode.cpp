@@ -22,11 +22,9 @@ namespace io {
 
 namespace {
 
-constexpr const char* kDraco = "KHR_draco_mesh_compression";
-
 const tinygltf::Value* dracoBlock(const tinygltf::Primitive& p)
 {
-    const auto it = p.extensions.find(kDraco);
+    const auto it = p.extensions.find(kDracoExtension);
     return it == p.extensions.end() ? nullptr : &it->second;
 }
 
@@ -67,15 +65,15 @@ int dracoView(const tinygltf::Primitive& p)
 
 void setDracoView(tinygltf::Primitive* p, int view)
 {
-    tinygltf::Value::Object block = p->extensions[kDraco].Get<tinygltf::Value::Object>();
+    tinygltf::Value::Object block = p->extensions[kDracoExtension].Get<tinygltf::Value::Object>();
     block["bufferView"] = tinygltf::Value(view);
-    p->extensions[kDraco] = tinygltf::Value(block);
+    p->extensions[kDracoExtension] = tinygltf::Value(block);
 }
 
 Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, const std::string& path)
 {
     using Json = nlohmann::json;
-    auto bad = [&](const std::string& what) { return Status(StatusCode::InvalidData, path + ": " + kDraco + ": " + what); };
+    auto bad = [&](const std::string& what) { return Status(StatusCode::InvalidData, path + ": " + kDracoExtension + ": " + what); };
     auto index = [](const Json& o, const char* name, size_t limit, size_t* out) {
         if (!o.is_object() || !o.contains(name) || !o[name].is_number_unsigned())
             return false;
@@ -110,11 +108,11 @@ Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, con
         for (size_t pi = 0; pi < mesh["primitives"].size(); ++pi) {
             Json& prim = mesh["primitives"][pi];
             if (!prim.is_object() || !prim.contains("extensions") || !prim["extensions"].is_object() ||
-                !prim["extensions"].contains(kDraco))
+                !prim["extensions"].contains(kDracoExtension))
                 continue;
             any = true;
             const std::string where = "mesh " + std::to_string(m) + " primitive " + std::to_string(pi);
-            const Json block = prim["extensions"][kDraco];
+            const Json block = prim["extensions"][kDracoExtension];
             size_t v = 0;
             if (!index(block, "bufferView", views.size(), &v) || !block.contains("attributes") ||
                 !block["attributes"].is_object() || !prim.contains("attributes") || !prim["attributes"].is_object())
@@ -217,7 +215,7 @@ Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, con
                     acc.erase("byteOffset");
                 }
             }
-            prim["extensions"].erase(kDraco);
+            prim["extensions"].erase(kDracoExtension);
             if (prim["extensions"].empty())
                 prim.erase("extensions");
         }
@@ -225,7 +223,7 @@ Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, con
     if (!any)
         return Status::ok();
     doc["buffers"][0]["byteLength"] = bin->size();
-    dropExtension(doc, kDraco);
+    dropExtension(doc, kDracoExtension);
     return Status::ok();
 }
 

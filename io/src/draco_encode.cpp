@@ -18,8 +18,6 @@ namespace io {
 
 namespace {
 
-constexpr const char* kDraco = "KHR_draco_mesh_compression";
-
 bool hasAttributesOnly(const tinygltf::Primitive& p)
 {
     for (const auto& [name, a] : p.attributes)
@@ -55,7 +53,7 @@ Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_
     for (tinygltf::Mesh& mesh : model.meshes)
         for (tinygltf::Primitive& prim : mesh.primitives) {
             if ((prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) || prim.indices < 0 || !prim.targets.empty() ||
-                prim.extensions.count(kDraco) != 0 || !hasAttributesOnly(prim))
+                prim.extensions.count(kDracoExtension) != 0 || !hasAttributesOnly(prim))
                 continue;
             bool alone = uses[size_t(prim.indices)] == 1;
             for (const auto& [name, a] : prim.attributes)
@@ -149,13 +147,13 @@ Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_
             tinygltf::Value::Object block;
             block["bufferView"] = tinygltf::Value(appendData(model, bytes));
             block["attributes"] = tinygltf::Value(attributes);
-            prim.extensions[kDraco] = tinygltf::Value(block);
+            prim.extensions[kDracoExtension] = tinygltf::Value(block);
             ++coded;
         }
     if (coded)
         for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
-            if (std::find(list->begin(), list->end(), kDraco) == list->end())
-                list->push_back(kDraco);
+            if (std::find(list->begin(), list->end(), kDracoExtension) == list->end())
+                list->push_back(kDracoExtension);
     if (codedCount)
         *codedCount = coded;
     return Status::ok();

@@ -342,7 +342,7 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     // EXT_meshopt_compression and KHR_draco_mesh_compression are decoded
     // first: tinygltf knows neither.
     std::string plain;
-    if (!binary && std::string(reinterpret_cast<const char*>(data), size).find("KHR_draco_mesh_compression") !=
+    if (!binary && std::string(reinterpret_cast<const char*>(data), size).find(kDracoExtension) !=
                        std::string::npos)
         return Status(StatusCode::Unsupported, path + ": Draco-compressed meshes are read from .glb only; "
                                                    "convert with gltf-transform or gltfpack first");
@@ -375,7 +375,7 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
     if (Status st = densifyAccessors(doc->model, size, path, maxBytes); !st)
         return st;
     for (const std::string& e : doc->model.extensionsRequired)
-        if (e == "EXT_meshopt_compression")  // only .gltf gets here
+        if (e == kMeshoptExtension)  // only .gltf gets here
             return Status(StatusCode::Unsupported, path + ": meshopt-compressed meshes are read from .glb only; "
                                                        "decompress with gltfpack -noq or gltf-transform first");
 
@@ -493,7 +493,7 @@ bool onlyKnownExtensions(const tinygltf::Model& model)
     for (const std::string& e : model.extensionsUsed)
         if (e.rfind("KHR_materials_", 0) != 0 && e != "KHR_texture_transform" && e != "KHR_lights_punctual" &&
             e != "KHR_mesh_quantization" && e != "KHR_texture_basisu" && e != "EXT_texture_webp" &&
-            e != "KHR_draco_mesh_compression" && e != kLayerExtension)
+            e != kDracoExtension && e != kLayerExtension)
             return false;
     return true;
 }

@@ -24,6 +24,10 @@ struct SourceDocument {
 
 namespace io {
 
+/// The glTF extension names the readers and writers of compressed meshes share.
+constexpr const char* kDracoExtension = "KHR_draco_mesh_compression";
+constexpr const char* kMeshoptExtension = "EXT_meshopt_compression";
+
 /// Whether `path`, every symbolic link resolved, lies inside `folder` (also
 /// resolved; "" is the working directory): confinement by file, not spelling.
 bool resolvesInsideFolder(const std::string& path, const std::string& folder);

@@ -21,8 +21,6 @@ namespace strata {
 namespace io {
 namespace {
 
-constexpr const char* kExtension = "EXT_meshopt_compression";
-constexpr const char* kDraco = "KHR_draco_mesh_compression";
 using Json = nlohmann::json;
 
 uint32_t read32(const unsigned char* p)
@@ -80,7 +78,7 @@ bool splitGlb(const unsigned char* data, size_t size, std::string* json, const u
     return true;
 }
 
-bool usesExtension(const Json& doc, const char* name = kExtension)
+bool usesExtension(const Json& doc, const char* name = kMeshoptExtension)
 {
     if (!doc.is_object() || !doc.contains("extensionsUsed") || !doc["extensionsUsed"].is_array())
         return false;
@@ -127,12 +125,12 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
     size_t binSize = 0;
     if (!splitGlb(data, size, &jsonText, &bin, &binSize))
         return Status::ok();  // not a glb: tinygltf reports it
-    if (jsonText.find(kExtension) == std::string::npos && jsonText.find(kDraco) == std::string::npos)
+    if (jsonText.find(kMeshoptExtension) == std::string::npos && jsonText.find(kDracoExtension) == std::string::npos)
         return Status::ok();
     Json doc = Json::parse(jsonText, nullptr, /*allow_exceptions=*/false);
     if (doc.is_discarded())
         return Status::ok();
-    const bool meshopt = usesExtension(doc), draco = usesExtension(doc, kDraco);
+    const bool meshopt = usesExtension(doc), draco = usesExtension(doc, kDracoExtension);
     if (!meshopt && !draco)
         return Status::ok();
     if (!meshopt) {
@@ -144,7 +142,7 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         return Status::ok();
     }
     auto bad = [&](const std::string& what) {
-        return Status(StatusCode::InvalidData, path + ": " + kExtension + ": " + what);
+        return Status(StatusCode::InvalidData, path + ": " + kMeshoptExtension + ": " + what);
     };
     if (!doc.contains("buffers") || !doc["buffers"].is_array() || !doc.contains("bufferViews") ||
         !doc["bufferViews"].is_array())
@@ -161,7 +159,7 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         if (b == 0 && !buf.contains("uri"))
             continue;
         const bool isFallback = buf.contains("extensions") && buf["extensions"].is_object() &&
-                                buf["extensions"].contains(kExtension);
+                                buf["extensions"].contains(kMeshoptExtension);
         if (!isFallback)
             return bad("buffer " + std::to_string(b) + " is not the BIN chunk nor a fallback (external buffers are not read here)");
         fallback[b] = true;
@@ -174,10 +172,10 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
     for (size_t v = 0; v < views.size(); ++v) {
         const Json& view = views[v];
         if (!view.is_object() || !view.contains("extensions") || !view["extensions"].is_object() ||
-            !view["extensions"].contains(kExtension))
+            !view["extensions"].contains(kMeshoptExtension))
             continue;
         bool ok = true;
-        const Json& ext = view["extensions"][kExtension];
+        const Json& ext = view["extensions"][kMeshoptExtension];
         const size_t buffer = sizeField(view, "buffer", 0, &ok), dstLength = sizeField(view, "byteLength", 0, &ok),
                      srcLength = sizeField(ext, "byteLength", 0, &ok);
         if (!ok || buffer >= buffers.size())
@@ -213,13 +211,13 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         if (!ok || buffer >= buffers.size())
             return bad("bufferView " + std::to_string(v) + " has no valid buffer");
         const bool compressed = view.contains("extensions") && view["extensions"].is_object() &&
-                                view["extensions"].contains(kExtension);
+                                view["extensions"].contains(kMeshoptExtension);
         if (!compressed) {
             if (fallback[buffer])
                 return bad("bufferView " + std::to_string(v) + " reads a fallback buffer without being compressed");
             continue;
         }
-        const Json& ext = view["extensions"][kExtension];
+        const Json& ext = view["extensions"][kMeshoptExtension];
         const size_t src = sizeField(ext, "buffer", 0, &ok), srcOffset = sizeField(ext, "byteOffset", 0, &ok),
                      srcLength = sizeField(ext, "byteLength", 0, &ok), stride = sizeField(ext, "byteStride", 0, &ok),
                      count = sizeField(ext, "count", 0, &ok);
@@ -272,7 +270,7 @@ Status decodeCompressedGlb(const unsigned char* data, size_t size, const std::st
         if (!st)
             return st;
     }
-    dropExtension(doc, kExtension);
+    dropExtension(doc, kMeshoptExtension);
     *plain = assembleGlb(doc.dump(), out);
     return Status::ok();
 }
@@ -585,7 +583,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
     if (coded.empty())
         return plainGlb(path, model, out);
     model.buffers[0].data = bin;
-    for (const char* e : {kExtension})
+    for (const char* e : {kMeshoptExtension})
         if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), e) == model.extensionsUsed.end()) {
             model.extensionsUsed.push_back(e);
             model.extensionsRequired.push_back(e);
@@ -605,7 +603,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
     Json doc = Json::parse(jsonText);
     Json fallbackBuffer = Json::object();
     fallbackBuffer["byteLength"] = fallbackSize;
-    fallbackBuffer["extensions"][kExtension]["fallback"] = true;
+    fallbackBuffer["extensions"][kMeshoptExtension]["fallback"] = true;
     doc["buffers"].push_back(fallbackBuffer);
     const size_t fallbackIndex = doc["buffers"].size() - 1;
     for (const Coded& c : coded) {
@@ -623,7 +621,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
         view["buffer"] = fallbackIndex;
         view["byteOffset"] = c.fallbackOffset;
         view["byteLength"] = length;
-        view["extensions"][kExtension] = ext;
+        view["extensions"][kMeshoptExtension] = ext;
     }
     const std::vector<unsigned char> binBytes(binPtr, binPtr + binSize);
     *out = assembleGlb(doc.dump(), binBytes);

@@ -5,6 +5,7 @@
 #include "refined_attributes.h"
 
 #include <map>
+#include <numeric>
 #include <unordered_map>
 
 namespace strata {
@@ -63,11 +64,10 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
     const size_t n = plan.refinedVertexCount();
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
     rm.refinedVertexCount = n;
+    rm.refinedVertex.resize(n);
+    std::iota(rm.refinedVertex.begin(), rm.refinedVertex.end(), 0u);
     const bool fromGltf = rig.source && !rig.parts.empty() && rig.fileCorners.size() == rig.mesh.triangles.size();
     if (!fromGltf) {
-        rm.refinedVertex.resize(n);
-        for (size_t v = 0; v < n; ++v)
-            rm.refinedVertex[v] = uint32_t(v);
         rm.indices = tris;
         RenderPart part;
         part.indexCount = uint32_t(tris.size());
@@ -86,9 +86,6 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
     // a corner with another value gets (or finds) a copy.
     std::vector<uint32_t> cornerValue(n, ~0u);
     std::unordered_map<uint64_t, uint32_t> copies;
-    rm.refinedVertex.resize(n);
-    for (size_t v = 0; v < n; ++v)
-        rm.refinedVertex[v] = uint32_t(v);
     rm.indices.resize(tris.size());
     for (size_t c = 0; c < tris.size(); ++c) {
         const uint32_t v = tris[c], u = fv.corners[c];
@@ -144,15 +141,18 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
     }
     if (covered != rig.mesh.faceCount())
         return Status(StatusCode::InvalidData, "the rig's parts do not cover its control mesh");
-    // Each attribute, part by part, over the render vertices the part uses.
+    // The render vertices each part uses (one pass), and their corner values.
+    std::vector<std::vector<uint32_t>> used(rig.parts.size()), usedValues(rig.parts.size());
+    for (size_t i = 0; i < partOf.size(); ++i)
+        if (partOf[i] != ~0u) {
+            used[partOf[i]].push_back(uint32_t(i));
+            usedValues[partOf[i]].push_back(cornerValue[i]);
+        }
+    // Each attribute, part by part, over those vertices.
     for (size_t p = 0; p < rig.parts.size(); ++p) {
         const RigPart& part = rig.parts[p];
-        std::vector<uint32_t> mine, values;
-        for (size_t i = 0; i < partOf.size(); ++i)
-            if (partOf[i] == p) {
-                mine.push_back(uint32_t(i));
-                values.push_back(cornerValue[i]);
-            }
+        const std::vector<uint32_t>& mine = used[p];
+        const std::vector<uint32_t>& values = usedValues[p];
         if (mine.empty())
             continue;
         const tinygltf::Primitive& prim = model.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
