@@ -168,9 +168,10 @@ inline size_t filesIn(const std::string& dir, bool withHidden = false)
     return n;
 }
 
-/// A fresh empty folder under the build tree's temp area, for one test process: ctest runs the cases of a suite
-/// as parallel processes, so the name carries the process id (two cases
-/// asking for one name never empty each other's folder).
+/// A fresh empty folder under the build tree's temp area, for one test
+/// process: ctest runs the cases of a suite as parallel processes, so the
+/// name carries the process id (two cases asking for one name never empty
+/// each other's folder).
 inline std::string tempDir(const std::string& name)
 {
     const std::string dir = std::string(STRATA_TEST_TMP) + "/" + name + "." + std::to_string(::getpid());
