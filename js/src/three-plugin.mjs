@@ -113,8 +113,13 @@ export class StrataSurfaceMesh extends Mesh {
     this.frustumCulled = false;
     this.inverseBind = [];
     for (let j = 0; j < rig.jointCount; ++j) this.inverseBind.push(new Matrix4().fromArray(rig.inverseBindMatrix(j)));
+    // Per-frame scratch, made once: the skin matrices, those last applied,
+    // and whether the surface shows the nodes' pose (not the rig's own).
     this.jointMatrices = new Float32Array(rig.jointCount * 16);
-    this.lastJointMatrices = null;
+    this.lastJointMatrices = new Float32Array(rig.jointCount * 16);
+    this.posedByNodes = false;
+    this.toScene = new Matrix4();
+    this.jointScratch = new Matrix4();
     this.surface = null;
     this.renderMesh = null;
     this.setLevel(level);
@@ -159,7 +164,7 @@ export class StrataSurfaceMesh extends Mesh {
     const old = this.geometry;
     this.geometry = geometry;
     old.dispose();
-    this.lastJointMatrices = null;
+    this.posedByNodes = false;
     this.update(true);
     geometry.computeBoundingBox();
     geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new Sphere());
@@ -167,30 +172,26 @@ export class StrataSurfaceMesh extends Mesh {
   }
 
   /// Poses the surface from its nodes' current world matrices (relative
-  /// to its parent, the glTF scene) and rewrites the geometry if they moved.
-  /// `force`: rewrite anyway.
+  /// to its parent, the glTF scene) and rewrites the geometry if they moved
+  /// since it was last posed by them.  `force`: rewrite anyway.
   update(force = false) {
     if (!this.surface) return;
-    const joints = this.rig.jointCount;
-    if (joints > 0) {
-      const toScene = new Matrix4();
-      if (this.parent) toScene.copy(this.parent.matrixWorld).invert();
-      const m = new Matrix4();
-      for (let j = 0; j < joints; ++j) {
-        m.multiplyMatrices(toScene, this.nodes[j].matrixWorld).multiply(this.inverseBind[j]);
+    if (this.rig.jointCount > 0) {
+      this.toScene.identity();
+      if (this.parent) this.toScene.copy(this.parent.matrixWorld).invert();
+      const m = this.jointScratch;
+      for (let j = 0; j < this.rig.jointCount; ++j) {
+        m.multiplyMatrices(this.toScene, this.nodes[j].matrixWorld).multiply(this.inverseBind[j]);
         this.jointMatrices.set(m.elements, 16 * j);
       }
-      if (!force && this.lastJointMatrices && this.lastJointMatrices.every((v, i) => v === this.jointMatrices[i]))
-        return;
-      this.lastJointMatrices = Float32Array.from(this.jointMatrices);
+      if (!force && this.posedByNodes && this.lastJointMatrices.every((v, i) => v === this.jointMatrices[i])) return;
+      this.lastJointMatrices.set(this.jointMatrices);
       this.surface.setJointMatrices(this.jointMatrices);
-    } else if (!force) {
-      return;
+      this.writeFrame();
+      this.posedByNodes = true;
+    } else if (force) {
+      this.writeFrame();
     }
-    const g = this.geometry;
-    this.renderMesh.evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
-    g.attributes.position.needsUpdate = true;
-    g.attributes.normal.needsUpdate = true;
   }
 
   /// Poses from the rig's own animation at `time` seconds (-1: the nodes'
@@ -198,22 +199,24 @@ export class StrataSurfaceMesh extends Mesh {
   /// instead of from the nodes, until the nodes move again.
   setAnimationTime(animation, time) {
     this.surface.setAnimationTime(animation, time);
-    this.rewrite();
+    this.writeFrame();
+    this.posedByNodes = false;
   }
 
   /// The bind pose (the control positions as stored, what
   /// strata-reconstruct writes without --anim), until the nodes move again.
   setBindPose() {
     this.surface.setBindPose();
-    this.rewrite();
+    this.writeFrame();
+    this.posedByNodes = false;
   }
 
-  rewrite() {
+  // The surface's current pose into the geometry.
+  writeFrame() {
     const g = this.geometry;
     this.renderMesh.evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
     g.attributes.position.needsUpdate = true;
     g.attributes.normal.needsUpdate = true;
-    this.lastJointMatrices = null;
   }
 
   updateMatrixWorld(force) {

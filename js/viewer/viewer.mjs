@@ -99,30 +99,21 @@ function deviation(fine, coarse, triangles, diagonal) {
   for (let i = 0; i < fine.length; i += 3) {
     p.set(fine[i], fine[i + 1], fine[i + 2]);
     const c = cellOf(p.x, p.y, p.z);
+    // The triangles of the cells at Chebyshev distance r from c, nearest kept.
     let best = Infinity;
-    for (let ring = 0; ring <= cells && best === Infinity; ++ring) {
-      for (let x = c[0] - ring; x <= c[0] + ring; ++x) for (let y = c[1] - ring; y <= c[1] + ring; ++y)
-        for (let z = c[2] - ring; z <= c[2] + ring; ++z) {
-          if (Math.max(Math.abs(x - c[0]), Math.abs(y - c[1]), Math.abs(z - c[2])) !== ring) continue;
-          const list = grid.get((x * cells + y) * cells + z);
-          if (!list) continue;
-          for (const t of list) {
-            const q = closestOnTriangle(p, v(triangles[t]), v(triangles[t + 1]), v(triangles[t + 2]));
-            best = Math.min(best, q.distanceTo(p));
-          }
-        }
-      if (best !== Infinity) {
-        // One more ring: a nearer triangle may sit in the next cells.
-        const r = ring + 1;
-        for (let x = c[0] - r; x <= c[0] + r; ++x) for (let y = c[1] - r; y <= c[1] + r; ++y)
-          for (let z = c[2] - r; z <= c[2] + r; ++z) {
+    const ring = (r) => {
+      for (let x = Math.max(0, c[0] - r); x <= Math.min(cells - 1, c[0] + r); ++x)
+        for (let y = Math.max(0, c[1] - r); y <= Math.min(cells - 1, c[1] + r); ++y)
+          for (let z = Math.max(0, c[2] - r); z <= Math.min(cells - 1, c[2] + r); ++z) {
             if (Math.max(Math.abs(x - c[0]), Math.abs(y - c[1]), Math.abs(z - c[2])) !== r) continue;
             const list = grid.get((x * cells + y) * cells + z);
             if (list) for (const t of list)
               best = Math.min(best, closestOnTriangle(p, v(triangles[t]), v(triangles[t + 1]), v(triangles[t + 2])).distanceTo(p));
           }
-      }
-    }
+    };
+    let r = 0;
+    while (best === Infinity && r <= cells) ring(r++);
+    ring(r);  // one more ring: a nearer triangle may sit in the next cells
     sum += best * best;
     worst = Math.max(worst, best);
   }
