@@ -15,6 +15,8 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <sstream>
+#include <cstdio>
 
 #include <nlohmann/json.hpp>
 
@@ -235,7 +237,37 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
 // --control auto without --control-faces: the cage's face count follows
 // from the tolerance, the fewest faces that reach it (a loose one keeps the
 // first, 200-face try), else the most accurate tried (a tolerance no cage
-// up to a fifth of the capture's faces reaches).
+// up to a fifth of the capture's faces reaches: the second try goes
+// straight to that fifth).
+namespace {
+
+// The summary's "cage faces" lines: one per try of the face-count search.
+struct TryLine {
+    size_t faces = 0;
+    double rms = 0.0;  // percent of the diagonal
+    bool chosen = false;
+};
+std::vector<TryLine> tryLines(const std::string& summary)
+{
+    std::vector<TryLine> out;
+    const size_t at = summary.find("  cage faces ");
+    if (at == std::string::npos)
+        return out;
+    std::istringstream lines(summary.substr(summary.find('\n', at) + 1));
+    std::string line;
+    while (std::getline(lines, line)) {
+        TryLine t;
+        char tail[64] = {0};
+        if (std::sscanf(line.c_str(), " %zu: %lf%%%63[^\n]", &t.faces, &t.rms, tail) < 2)
+            break;
+        t.chosen = std::string(tail).find("<- chosen") != std::string::npos;
+        out.push_back(t);
+    }
+    return out;
+}
+
+}  // namespace
+
 TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
 {
     const std::string dir = strata::test::tempDir("bake_cli_auto_faces");
@@ -269,43 +301,56 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     request.tolerance = 1e-6;
     st = strata::baker::bakeRig(request, &tight);
     ASSERT_TRUE(st.isOk()) << st.message();
-    for (const char* tried : {"200: ", "400: ", "800: "})
+    for (const char* tried : {"200: ", "1024: "})
         EXPECT_NE(tight.summary.find(tried), std::string::npos) << tried << tight.summary;
-    EXPECT_EQ(tight.summary.find("1600: "), std::string::npos) << "at most a fifth of the capture's 5120 faces";
+    EXPECT_EQ(tryLines(tight.summary).size(), 2u) << "at most a fifth of the capture's 5120 faces" << tight.summary;
     EXPECT_LT(tight.rms, loose.rms);
     EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "only the inputs and the two rigs";  // high, control, 2 rigs
 }
 
-// Between a count that misses the tolerance and twice it that meets it, the
-// search tries their geometric mean once, and keeps it when it meets it.
-// (Here 400 faces bake at a level below 200's, so 800 is the first count
-// that beats 200.)
-TEST(BakeCli, AutomaticCageFaceCountIsRefinedBetweenItsBrackets)
+// After the first try, each count is predicted where a power law of the
+// face count through the tries crosses the tolerance.  The search settles
+// in a few tries, and keeps the fewest faces that met the tolerance: every
+// count tried below it missed it.
+TEST(BakeCli, AutomaticCageFaceCountIsPredictedAndSettles)
 {
     const std::string dir = strata::test::tempDir("bake_cli_auto_refine");
     strata::baker::BakeRequest request = automaticCageRequest(dir);
-    double rms[3];
-    for (int k = 0; k < 3; ++k) {
-        request.controlFaces = size_t(200) << k;
+    double rms[2];
+    for (int k = 0; k < 2; ++k) {
+        request.controlFaces = size_t(200) << (2 * k);
         request.output = dir + "/fixed" + std::to_string(k) + ".glb";
         strata::baker::BakeResult fixed;
         ASSERT_TRUE(strata::baker::bakeRig(request, &fixed).isOk());
         rms[k] = fixed.rms;
     }
-    ASSERT_LT(rms[2], std::min(rms[0], rms[1]));
+    ASSERT_LT(rms[1], rms[0]);
     request.controlFaces = 0;
-    request.tolerance = 0.5 * (rms[2] + std::min(rms[0], rms[1]));
+    request.tolerance = 0.5 * (rms[0] + rms[1]);  // 200 faces miss it, 800 meet it
     request.output = dir + "/auto.glb";
     strata::baker::BakeResult result;
     ASSERT_TRUE(strata::baker::bakeRig(request, &result).isOk());
-    for (const char* tried : {"200: ", "400: ", "800: ", "566: "})
-        EXPECT_NE(result.summary.find(tried), std::string::npos) << tried << result.summary;
-    EXPECT_LE(result.rms, request.tolerance);
-    // The middle try is the one chosen exactly when it met the tolerance.
-    const size_t at = result.summary.find("566: ");
-    const std::string line = result.summary.substr(at, result.summary.find('\n', at) - at);
-    const bool met = std::stod(line.substr(5)) <= 100.0 * request.tolerance;
-    EXPECT_EQ(line.find("<- chosen") != std::string::npos, met) << result.summary;
+    EXPECT_LE(result.rms, request.tolerance) << result.summary;
+    const std::vector<TryLine> tries = tryLines(result.summary);
+    ASSERT_GE(tries.size(), 2u) << result.summary;
+    EXPECT_LE(tries.size(), 4u) << "the doubling search took 4 tries here" << result.summary;
+    EXPECT_EQ(tries[0].faces, 200u);
+    EXPECT_GT(tries[0].rms, 100.0 * request.tolerance);
+    const TryLine* chosen = nullptr;
+    for (const TryLine& t : tries)
+        if (t.chosen)
+            chosen = &t;
+    ASSERT_NE(chosen, nullptr) << result.summary;
+    EXPECT_LE(chosen->rms, 100.0 * request.tolerance);
+    for (const TryLine& t : tries) {
+        if (t.faces < chosen->faces) {
+            EXPECT_GT(t.rms, 100.0 * request.tolerance) << t.faces << result.summary;
+        } else if (&t != chosen) {
+            EXPECT_GT(t.faces, chosen->faces) << result.summary;
+        }
+    }
+    EXPECT_NE(result.summary.find("control       "), std::string::npos);
+    EXPECT_NE(result.summary.find(std::to_string(chosen->faces) + " triangles"), std::string::npos) << result.summary;
 }
 
 // A loose tolerance is met with the fewest stored values: the search

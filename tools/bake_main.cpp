@@ -8,9 +8,13 @@
 #include "strata/baker/bake_rig.h"
 
 #include <algorithm>
+#include <chrono>
+#include <mutex>
 #include <cstdio>
 #include <string>
 #include <thread>
+
+#include <unistd.h>
 
 using namespace strata;
 
@@ -64,14 +68,39 @@ int main(int argc, char** argv)
         baker::BakeRequest request;
         if (!parseArgs(argc, argv, &request))
             return 0;
-        const baker::BakeProgress progress = [](const char* stage, double seconds) {
+        // One line per stage (a log reads them as they are); on a terminal,
+        // below them, the percentage done and an ETA, rewritten in place.
+        const bool terminal = ::isatty(2) == 1;
+        const auto start = std::chrono::steady_clock::now();
+        std::mutex lines;
+        double done = 0.0;
+        auto status = [&]() {
+            if (!terminal || !(done > 0.0))
+                return;
+            const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            std::fprintf(stderr, "\r\033[Kstrata-bake: %3.0f%% done, about %.0f s left", 100.0 * done,
+                         elapsed * (1.0 - done) / done);
+            std::fflush(stderr);
+        };
+        const baker::BakeProgress progress = [&](const char* stage, double seconds) {
+            std::lock_guard<std::mutex> lock(lines);
+            if (terminal)
+                std::fputs("\r\033[K", stderr);
             if (seconds < 0.0)
                 std::fprintf(stderr, "strata-bake: %s...\n", stage);
             else
                 std::fprintf(stderr, "strata-bake: %s done in %.1f s\n", stage, seconds);
+            status();
+        };
+        const baker::BakeFraction fraction = [&](double f) {
+            std::lock_guard<std::mutex> lock(lines);
+            done = f;
+            status();
         };
         baker::BakeResult result;
-        const Status st = baker::bakeRig(request, &result, &progress);
+        const Status st = baker::bakeRig(request, &result, &progress, &fraction);
+        if (terminal && done > 0.0)
+            std::fputs("\r\033[K", stderr);
         for (const std::string& w : result.warnings)
             std::fprintf(stderr, "strata-bake: warning: %s\n", cli::printable(w).c_str());
         if (!st)

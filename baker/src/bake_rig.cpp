@@ -211,7 +211,42 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
     return rgb;
 }
 
-Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress);
+// What the tries of --control auto's face-count search share, so that each
+// later try redoes none of it: the capture as loaded, the scheme the first
+// try measured, and the map size of the tries that met the tolerance (a
+// coarser cage needs no finer map: its error is the cage's, and doubling
+// the map up to the size cap only to find that out cost a failing try of
+// the 100k scan 28 s).
+struct SearchShared {
+    bool loaded = false;
+    TriangleMesh high;
+    HighMeshStats highStats;
+    bool schemeKnown = false;
+    Scheme scheme = Scheme::Linear;
+    std::string schemeReason;
+    int sizeCap = 0;  // 0: none yet
+    int mapSize = 0;  // the last try's
+};
+
+// The part of the whole bake's progress that one bake covers: [base,
+// base + span) of the fraction reported (a try of the face-count search is
+// a part; a plain bake the whole).
+struct FractionSpan {
+    const BakeFraction* report = nullptr;
+    double base = 0.0, span = 1.0;
+    double last = 0.0;  // what was reported, so the fraction never goes back
+    void at(double fraction)
+    {
+        const double f = std::clamp(base + span * fraction, last, 1.0);
+        if (report && *report && f > last) {
+            last = f;
+            (*report)(f);
+        }
+    }
+};
+
+Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
+                SearchShared* shared = nullptr, FractionSpan* fraction = nullptr);
 
 // The output path's checks, made before any work: not a symbolic link, not
 // one of the inputs, a .glb or .gltf.
@@ -277,32 +312,42 @@ void replaceAll(std::string* text, const std::string& from, const std::string& t
 }  // namespace
 
 // An automatic control mesh's face count follows from the tolerance: the
-// fewest faces (in steps of 2x from a fiftieth of the capture's, at least
-// 200, at most a fifth, then once at the geometric mean of the two counts
-// that bracket the tolerance) whose bake reaches it in the closed loop, or
-// the most accurate tried when none does.  Each try is a whole bake into a
-// scratch folder.  When the request asks for the rig alone (a .glb, no
-// report, map images or error range of its own) the chosen try is that
-// bake: its rig is copied into place and its summary kept.  Otherwise the
-// chosen count is baked again to the real outputs.
-Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
+// fewest faces whose bake reaches it in the closed loop, or the most
+// accurate tried when none does.  The first try is at a fiftieth of the
+// capture's faces (at least 200); each next one is predicted where the
+// error, a power of the face count through the tries nearest the
+// tolerance (the power 1 until two tries give it), crosses the tolerance,
+// with 10% to spare, between 200 and a fifth of the capture.  The search
+// stops when the answer is settled: the fewest that met and the most that
+// missed are within 15% of each other, or the prediction saves under 15%
+// of the faces that met.  Each try is a whole bake into a scratch folder;
+// the tries share the capture as loaded, the scheme the first measured and
+// the map size of those that met.  When the request asks for the rig alone
+// (a .glb, no report, map images or error range of its own) the chosen
+// try is that bake: its rig is copied into place and its summary kept.
+// Otherwise the chosen count is baked again to the real outputs.
+Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
+               const BakeFraction* fraction)
 {
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
     if (!request.output.empty())
         if (Status checked = checkOutput(request); !checked)
             return checked;
+    FractionSpan whole;
+    whole.report = fraction;
     if (request.control != "auto" || request.controlFaces != 0 || !(request.tolerance > 0.0) ||
         request.high.empty() || request.output.empty())
-        return bakeOnce(request, result, progress);
+        return bakeOnce(request, result, progress, nullptr, &whole);
     namespace fs = std::filesystem;
     std::error_code ec;
     const fs::path scratch = fs::temp_directory_path(ec) / ("strata-faces-" + std::to_string(::getpid()) + "-" +
                                                            std::to_string(std::hash<std::string>()(request.output)));
     if (ec || !fs::create_directories(scratch, ec) || ec)
-        return bakeOnce(request, result, progress);
+        return bakeOnce(request, result, progress, nullptr, &whole);
     if (Status checked = checkOutput(request); !checked)
         return checked;
+    const auto searchStart = std::chrono::steady_clock::now();
     const bool reusable = io::extensionOf(request.output) == ".glb" && request.report.empty() && !request.exr &&
                           !request.layers && request.pngBits == 0 && request.errorFrom == -2 &&
                           request.errorTo == -2;
@@ -313,6 +358,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         BakeResult result;
     };
     std::vector<Try> tries;
+    SearchShared shared;
     Status st;
     auto attempt = [&](size_t faces) {
         BakeRequest r = request;
@@ -331,36 +377,26 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         const auto t0 = std::chrono::steady_clock::now();
         if (progress && *progress)
             (*progress)(stage.c_str(), -1.0);
-        st = bakeOnce(r, &out, nullptr);
+        // Progress counts on three tries (two more than the first; the
+        // rig-alone request takes the chosen try as the bake), or one more
+        // than made, until the search stops.
+        const double expected = double(std::max<size_t>(3, tries.size() + 1)) + (reusable ? 0.0 : 1.0);
+        FractionSpan part = whole;
+        part.base = whole.last;
+        part.span = (1.0 - whole.last) / (expected - double(tries.size()));
+        st = bakeOnce(r, &out, nullptr, &shared, &part);
+        whole.last = part.last;
         if (progress && *progress)
             (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         std::error_code size;
         const double bytes = double(fs::file_size(r.output, size));
         const bool ok = bool(st);
         tries.push_back({faces, ok ? out.rms : -1.0, size ? 0.0 : bytes, r.output, std::move(out)});
-        return ok && tries.back().rms >= 0.0 && tries.back().rms <= request.tolerance;
+        const bool met = ok && tries.back().rms >= 0.0 && tries.back().rms <= request.tolerance;
+        if (met)
+            shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
+        return met;
     };
-    // The capture's face count, from a first try at the usual count.
-    size_t first = 0;
-    {
-        TriangleMesh probe;
-        HighMeshStats stats;
-        if (!loadHighMesh(request.high, &probe, &stats, request.maxMemoryMB))
-            return bakeOnce(request, result, progress);  // it reports the problem
-        first = std::max<size_t>(200, probe.faceCount() / 50);
-        const size_t most = std::max(first, probe.faceCount() / 5);
-        if (attempt(first)) {
-            for (size_t n = first / 2; n >= 200 && attempt(n); n /= 2) {
-            }
-        } else if (st) {
-            for (size_t n = 2 * first; n <= most && st && !attempt(n); n *= 2) {
-            }
-        }
-    }
-    if ((!st && tries.size() == 1) || st.code() == StatusCode::Cancelled) {
-        fs::remove_all(scratch, ec);
-        return st;  // the first try failed (or the bake was cancelled): its message is the bake's
-    }
     auto fewestThatMet = [&]() -> const Try* {
         const Try* met = nullptr;
         for (const Try& t : tries)
@@ -368,26 +404,63 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                 met = &t;
         return met;
     };
-    // Between the fewest faces that met the tolerance and the most that did
-    // not (a factor of 2 apart), one more try at their geometric mean: the
-    // rig's bytes follow the face count about linearly.
-    {
+    // The capture, loaded once for every try (its face count sets the first).
+    if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB)) {
+        fs::remove_all(scratch, ec);
+        return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
+    }
+    shared.loaded = true;
+    const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
+    const size_t most = std::max(first, shared.high.faceCount() / 5);
+    attempt(first);
+    if (!st) {
+        fs::remove_all(scratch, ec);
+        return st;  // the first try failed (or the bake was cancelled): its message is the bake's
+    }
+    for (int more = 0; more < 5; ++more) {
         const Try* met = fewestThatMet();
+        // The most faces that missed, below the fewest that met.
         const Try* missed = nullptr;
         for (const Try& t : tries)
-            if (met && t.rms > request.tolerance && t.faces < met->faces && (!missed || t.faces > missed->faces))
+            if (!(t.rms >= 0.0 && t.rms <= request.tolerance) && (!met || t.faces < met->faces) &&
+                (!missed || t.faces > missed->faces))
                 missed = &t;
-        if (met && missed) {
-            const size_t middle = size_t(std::lround(std::sqrt(double(met->faces) * double(missed->faces))));
-            if (middle > missed->faces && middle < met->faces) {
-                const Status before = st;
-                attempt(middle);
-                if (st.code() == StatusCode::Cancelled) {
-                    fs::remove_all(scratch, ec);
-                    return st;
-                }
-                st = before;  // a failed extra try leaves the choice to the others
-            }
+        if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
+            break;
+        double power = 1.0;
+        if (met && missed && missed->rms > met->rms)
+            power = std::clamp(std::log(missed->rms / met->rms) / std::log(double(met->faces) / double(missed->faces)),
+                               0.5, 3.0);
+        const Try& anchor = met ? *met : *missed;
+        size_t next = 0;
+        if (anchor.rms > 0.0) {
+            const double predicted = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / power) * 1.1;
+            next = size_t(std::lround(predicted));
+        } else {
+            next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
+        }
+        if (met) {
+            if (double(next) > 0.85 * double(met->faces))
+                break;  // settled: the saving would be small
+            next = std::max<size_t>(next, std::max<size_t>(200, met->faces / 4));
+            if (missed && next <= missed->faces)
+                next = size_t(std::lround(std::sqrt(double(met->faces) * double(missed->faces))));
+            if (next >= met->faces || (missed && next <= missed->faces))
+                break;
+        } else {
+            if (anchor.faces >= most)
+                break;  // the most faces tried: the closest is chosen
+            next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), most);
+        }
+        const Status before = st;
+        attempt(next);
+        if (st.code() == StatusCode::Cancelled) {
+            fs::remove_all(scratch, ec);
+            return st;
+        }
+        if (!st) {
+            st = before;  // a failed extra try leaves the choice to the others
+            break;
         }
     }
     // The fewest faces that met the tolerance, else the smallest error.
@@ -421,10 +494,20 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     if (!reused) {
         BakeRequest r = request;
         r.controlFaces = chosen ? chosen->faces : first;
-        if (!(st = bakeOnce(r, result, progress)))
+        FractionSpan last = whole;
+        last.base = whole.last;
+        last.span = 1.0 - whole.last;
+        if (!(st = bakeOnce(r, result, progress, &shared, &last)))
             return st;
     }
-    std::string line = "  cage faces    from the tolerance (closed-loop RMS / diagonal, rig bytes):";
+    whole.at(1.0);
+    // The search's whole time: the summary's time line is the chosen bake's.
+    char took[160];
+    std::snprintf(took, sizeof(took), "%zu tr%s in %.1f s%s", tries.size(), tries.size() == 1 ? "y" : "ies",
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - searchStart).count(),
+                  reused ? ", the chosen one kept as the bake" : ", then the chosen count baked to the outputs");
+    std::string line = "  cage faces    from the tolerance, " + std::string(took) +
+                       " (closed-loop RMS / diagonal, rig bytes):";
     for (const Try& t : tries) {
         appendf(&line, "\n                  %zu: ", t.faces);
         if (t.rms >= 0.0)
@@ -454,8 +537,9 @@ double fileSize(const std::string& path)
 // failure is a BakeError; the outputs stay staged until finish().
 class BakeJob {
 public:
-    BakeJob(const BakeRequest& r, BakeResult* out, const BakeProgress* stages)
-        : request(r), result(out), progress(stages), highPath(r.high), controlPath(r.control), outPath(r.output),
+    BakeJob(const BakeRequest& r, BakeResult* out, const BakeProgress* stages, SearchShared* searchShared,
+            FractionSpan* fractionSpan)
+        : request(r), result(out), progress(stages), shared(searchShared), fraction(fractionSpan), highPath(r.high), controlPath(r.control), outPath(r.output),
           reportPath(r.report), uvMode(r.uv), skeletonPath(r.skeleton), mapCoding(r.mapCoding),
           controlFaces(r.controlFaces), options(r.options), asFloat(r.floatExr), writeExr(r.exr),
           writeLayers(r.layers), schemeGiven(r.schemeGiven), compress(r.compress && r.meshCoding != "plain"), pngBits(r.pngBits),
@@ -465,16 +549,21 @@ public:
 
     void run()
     {
-        loadInputs();
-        prepare();
-        chooseScheme();
-        searchMapSize();
-        writeOutputs();
-        measureWritten();
-        measureFrames();
-        summarize();
-        writeReport();
-        finish();
+        // Each phase and its share of a default bake's time (the 100k
+        // scan onto an automatic cage: the scheme's probes and fits are
+        // the largest part, the summary and report nothing).
+        static const std::pair<void (BakeJob::*)(), double> phases[] = {
+            {&BakeJob::loadInputs, 0.12},     {&BakeJob::prepare, 0.05},      {&BakeJob::chooseScheme, 0.38},
+            {&BakeJob::searchMapSize, 0.15},  {&BakeJob::writeOutputs, 0.15}, {&BakeJob::measureWritten, 0.08},
+            {&BakeJob::measureFrames, 0.04},  {&BakeJob::summarize, 0.01},    {&BakeJob::writeReport, 0.01},
+            {&BakeJob::finish, 0.01}};
+        double done = 0.0;
+        for (const auto& [phase, weight] : phases) {
+            (this->*phase)();
+            done += weight;
+            if (fraction)
+                fraction->at(done);
+        }
     }
 
 private:
@@ -543,6 +632,8 @@ private:
     const BakeRequest& request;
     BakeResult* result;
     const BakeProgress* progress;
+    SearchShared* shared;    // a face-count search's tries, or null
+    FractionSpan* fraction;  // where this bake's progress goes, or null
     // The request's fields under the names the pipeline uses.
     std::string highPath, controlPath, outPath, reportPath, uvMode, skeletonPath, mapCoding;
     size_t controlFaces;
@@ -624,9 +715,19 @@ void BakeJob::loadInputs()
     base = outPath.substr(0, outPath.size() - ext.size());
 
     const auto t0 = std::chrono::steady_clock::now();
-    Status st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB);
-    if (!st)
-        throw BakeError(st.message());
+    Status st;
+    if (shared && shared->loaded) {
+        high = shared->high;
+        highStats = shared->highStats;
+    } else {
+        if (!(st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB)))
+            throw BakeError(st.message());
+        if (shared) {
+            shared->high = high;
+            shared->highStats = highStats;
+            shared->loaded = true;
+        }
+    }
     if (controlPath == "auto") {
         if (controlFaces == 0)
             controlFaces = std::max<size_t>(200, high.faceCount() / 50);
@@ -944,6 +1045,10 @@ void BakeJob::prepare()
         sizeReason = "forced by --size";
     recommended = paperLevel;
     sizeCap = forced ? size : std::min(options.maxSize, 4096);
+    if (!forced && shared && shared->sizeCap > 0) {
+        sizeCap = std::min(sizeCap, shared->sizeCap);
+        size = std::min(size, sizeCap);
+    }
 }
 
 void BakeJob::chooseScheme()
@@ -951,7 +1056,10 @@ void BakeJob::chooseScheme()
     Status st;
     schemeReason = schemeGiven ? "--scheme" : "";
     const auto schemeStart = std::chrono::steady_clock::now();
-    if (!schemeGiven && !forced && tolerance > 0.0) {
+    if (!schemeGiven && shared && shared->schemeKnown) {
+        options.scheme = shared->scheme;
+        schemeReason = shared->schemeReason;
+    } else if (!schemeGiven && !forced && tolerance > 0.0) {
         // Which surface carries the map better for this pair, measured at
         // the paper's level and twice the first size (up to 512^2), so
         // that the map's resolution, which the smaller displacements of
@@ -1000,6 +1108,12 @@ void BakeJob::chooseScheme()
             std::snprintf(buf, sizeof(buf), "measured: linear %.4g%%, smooth %.4g%% RMS at level %d", 100.0 * rms[0],
                           100.0 * rms[1], paperLevel);
         schemeReason = buf;
+        if (shared) {
+            appendf(&schemeReason, " on the first cage tried (%zu faces)", control.faceCount());
+            shared->scheme = options.scheme;
+            shared->schemeReason = schemeReason;
+            shared->schemeKnown = true;
+        }
     }
     useFit(options.scheme, &bare);
     useFit(options.scheme, &control);
@@ -1098,6 +1212,8 @@ void BakeJob::searchMapSize()
     }
     searchMs = msSince(searchStart);
     rep.sizeReason = sizeReason;
+    if (shared)
+        shared->mapSize = size;
     if (uvMode == "auto") {
         // Either atlas gives each UV to one vertex of one chart (or
         // triangle): the UVs are the vertices a file with them holds.
@@ -1174,6 +1290,16 @@ void BakeJob::writeOutputs()
     // An atlas made only to bake through is left out of a vertex-coded
     // rig (nothing reads it there); outputs that are the map keep it.
     writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
+    // Stored values measured and fitted on the capture come 1.4-2.1x closer
+    // than the map's samples (the real pairs), so where the map's trial one
+    // level coarser comes within 2x of the tolerance, that level is
+    // written first and settleLevel goes finer only if it misses: its
+    // values are a quarter of the finer level's, and writing the finer one
+    // first (measured, fitted, quantised, each in the closed loop) was
+    // half of an automatic cage's bake.
+    if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && recommended > 0)
+        if (const Trial* coarser = trialAt(recommended - 1); coarser && coarser->rms <= 2.0 * tolerance)
+            --recommended;
     outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
     settleLevel();
     for (const std::string& n : notes)
@@ -1731,14 +1857,15 @@ void BakeJob::settleLevel()
     rep.sizeReason = sizeReason += buf;
 }
 
-Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress)
+Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress, SearchShared* shared,
+                FractionSpan* fraction)
 {
     if (!result)
         return Status(StatusCode::InvalidArgument, "bakeRig: no result");
     *result = BakeResult();
     CancelScope scope(request.cancel);
     try {
-        BakeJob job(request, result, progress);
+        BakeJob job(request, result, progress, shared, fraction);
         job.run();
         return Status::ok();
     } catch (const BakeCancelled&) {

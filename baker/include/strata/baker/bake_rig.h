@@ -27,7 +27,7 @@ struct BakeRequest {
     std::string high;        ///< captured mesh: .obj .ply .stl .off .glb .gltf
     std::string control;     ///< control mesh or rig (.obj .glb .gltf), or "auto"
     std::string output;      ///< RIG.glb or RIG.gltf
-    size_t controlFaces = 0; ///< "auto" control: face count (0: from the tolerance, the fewest of 200.. a fifth of the capture's, in steps of 2x from a fiftieth and once between, that reach it)
+    size_t controlFaces = 0; ///< "auto" control: face count (0: from the tolerance, the fewest of 200.. a fifth of the capture's that reach it, predicted from a first try at a fiftieth)
     std::string uv;          ///< "keep", "auto", or "" (keep the control's UVs when they can carry a map)
     BakeOptions options;     ///< map size (0: from the tolerance), scheme, overlap policy, threads
     bool schemeGiven = false;  ///< options.scheme was chosen; else the bake measures both
@@ -72,11 +72,19 @@ struct BakeResult {
 /// again when it ends (seconds >= 0).  Called from a helper thread.
 using BakeProgress = std::function<void(const char* stage, double seconds)>;
 
+/// Called as each phase of the bake ends, from the bake's own thread, with
+/// an estimate of the fraction done (0..1, never decreasing): each phase
+/// weighs what it took on the 100k scan, and --control auto's search
+/// counts on three tries until it knows better.  For a percentage and an
+/// ETA (elapsed * (1 - f) / f).
+using BakeFraction = std::function<void(double fraction)>;
+
 /// Runs the bake.  Outputs are staged beside their targets and renamed into
 /// place only when everything succeeded: a failure leaves no file behind
 /// and never touches one that existed before.  Errors are one line naming
 /// the file and the problem.
-Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress = nullptr);
+Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress = nullptr,
+               const BakeFraction* fraction = nullptr);
 
 }  // namespace baker
 }  // namespace strata
