@@ -1044,3 +1044,56 @@ TEST(Atlas, RealCagesMeetTheAtlasTargets)
         EXPECT_LE(double(corners.size()), 1.3 * double(cage.positions.size())) << name;
     }
 }
+
+// The face-count search's simplifier: a smaller count continues the last
+// one's collapses (the same greedy order, with the quadrics accumulated so
+// far) and gives the mesh a decimation of the whole capture to that count
+// gives, but for collapses of equal cost taken in another order (this
+// sphere's relief is symmetric); a larger count starts over and gives the
+// same mesh exactly.
+TEST(Simplifier, ContinuingGivesTheDirectDecimation)
+{
+    ControlMesh sphere = strata::examples::makeIcosphere(5);
+    for (glm::vec3& p : sphere.positions)
+        p *= strata::examples::headRadius(p);
+    strata::baker::TriangleMesh high;
+    high.positions = sphere.positions;
+    high.triangles = sphere.triangles;
+    // RMS distance from the capture's vertices to a cage.
+    auto rmsToCage = [&](const ControlMesh& cage) {
+        strata::baker::TriangleIndex index;
+        index.build(cage.positions.data(), cage.triangles.data(), cage.faceCount());
+        double sum = 0.0;
+        for (const glm::vec3& p : high.positions) {
+            const double d = index.nearest(glm::dvec3(p));
+            sum += d * d;
+        }
+        return std::sqrt(sum / double(high.positions.size()));
+    };
+    strata::baker::Simplifier simplifier(high);
+    size_t last = ~size_t(0);
+    for (size_t faces : {2000u, 1200u, 700u, 1500u, 300u}) {
+        SCOPED_TRACE(faces);
+        ControlMesh continued, direct;
+        ASSERT_TRUE(simplifier.simplify(faces, &continued).isOk());
+        ASSERT_TRUE(strata::baker::decimateToControlMesh(high, faces, &direct).isOk());
+        EXPECT_EQ(direct.faceCount(), faces);
+        EXPECT_EQ(continued.faceCount(), direct.faceCount());
+        EXPECT_EQ(continued.positions.size(), direct.positions.size());
+        if (faces > last) {  // started over
+            EXPECT_EQ(continued.triangles, direct.triangles);
+            EXPECT_EQ(continued.positions, direct.positions);
+        } else {
+            // Half-edge collapses keep capture vertices: most are the same ones.
+            std::set<std::array<float, 3>> kept;
+            for (const glm::vec3& p : direct.positions)
+                kept.insert({p.x, p.y, p.z});
+            size_t common = 0;
+            for (const glm::vec3& p : continued.positions)
+                common += kept.count({p.x, p.y, p.z});
+            EXPECT_GE(double(common), 0.85 * double(direct.positions.size()));
+            EXPECT_LE(rmsToCage(continued), 1.1 * rmsToCage(direct));
+        }
+        last = faces;
+    }
+}

@@ -1,5 +1,6 @@
 // The bake pipeline (paper 2.1-2.3, 3.2): map vertices, rasterise, dilate.
 #include "strata/baker/bake.h"
+#include "plans.h"
 #include "parallel.h"
 
 #include "strata/baker/dilate.h"
@@ -402,7 +403,9 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
                     subIndex[v] = -1;
             }
             std::unique_ptr<Plan> plan;
-            Status st = Plan::create(&plan, sub, scheme, level);
+            // A whole mesh borrows the last smooth plan's stencils; a chunk's
+            // topology is its own.
+            Status st = whole ? createPlan(&plan, sub, scheme, level) : Plan::create(&plan, sub, scheme, level);
             if (st && field) {
                 // The field is indexed by the whole mesh's faces.
                 std::vector<float> d(plan->refinedVertexCount(), 0.0f);
@@ -479,7 +482,7 @@ Status evaluateBareSurface(std::unique_ptr<Plan>* plan, std::vector<glm::vec3>* 
                            std::vector<glm::vec3>* direction, const ControlMesh& mesh, Scheme scheme, int level,
                            size_t valueCount, const char* what)
 {
-    Status st = Plan::create(plan, mesh, scheme, level);
+    Status st = createPlan(plan, mesh, scheme, level);
     if (!st)
         return st;
     const size_t n = (*plan)->refinedVertexCount();

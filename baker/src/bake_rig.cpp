@@ -226,6 +226,7 @@ struct SearchShared {
     std::string schemeReason;
     int sizeCap = 0;  // 0: none yet
     int mapSize = 0;  // the last try's
+    std::unique_ptr<Simplifier> simplifier;  // of `high`: a smaller count continues the last one's collapses
 };
 
 // The part of the whole bake's progress that one bake covers: [base,
@@ -319,8 +320,10 @@ void replaceAll(std::string* text, const std::string& from, const std::string& t
 // tolerance (the power 1 until two tries give it), crosses the tolerance,
 // with 10% to spare, between 200 and a fifth of the capture.  The search
 // stops when the answer is settled: the fewest that met and the most that
-// missed are within 15% of each other, or the prediction saves under 15%
-// of the faces that met.  Each try is a whole bake into a scratch folder;
+// missed are within 15% of each other, the prediction saves under 15% of
+// the faces that met, or, none met, it lies past 1.5 times the fifth (the
+// tolerance is out of reach: the closest tried is chosen; with one try,
+// the steepest power allowed, 3, decides that).  Each try is a whole bake into a scratch folder;
 // the tries share the capture as loaded, the scheme the first measured and
 // the map size of those that met.  When the request asks for the rig alone
 // (a .glb, no report, map images or error range of its own) the chosen
@@ -427,15 +430,33 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                 missed = &t;
         if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
             break;
+        // The power through the tries nearest the tolerance: the fewest that
+        // met and the most that missed, or, none met, the two most faces.
+        const Try* finer = met;
+        const Try* coarser = missed;
+        if (!met) {
+            finer = missed;
+            coarser = nullptr;
+            for (const Try& t : tries)
+                if (t.faces < missed->faces && t.rms > 0.0 && (!coarser || t.faces > coarser->faces))
+                    coarser = &t;
+        }
         double power = 1.0;
-        if (met && missed && missed->rms > met->rms)
-            power = std::clamp(std::log(missed->rms / met->rms) / std::log(double(met->faces) / double(missed->faces)),
+        bool measured = false;
+        if (finer && coarser && coarser->faces < finer->faces && coarser->rms > finer->rms && finer->rms > 0.0) {
+            power = std::clamp(std::log(coarser->rms / finer->rms) / std::log(double(finer->faces) / double(coarser->faces)),
                                0.5, 3.0);
+            measured = true;
+        }
         const Try& anchor = met ? *met : *missed;
         size_t next = 0;
+        double reach = 0.0;  // the fewest faces the tolerance may need, for the out-of-reach test
         if (anchor.rms > 0.0) {
             const double predicted = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / power) * 1.1;
             next = size_t(std::lround(predicted));
+            // Until two tries measure the power, the steepest one allowed.
+            reach = measured ? predicted
+                             : double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / 3.0) * 1.1;
         } else {
             next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
         }
@@ -448,8 +469,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             if (next >= met->faces || (missed && next <= missed->faces))
                 break;
         } else {
-            if (anchor.faces >= most)
-                break;  // the most faces tried: the closest is chosen
+            // The most faces tried, or a tolerance out of reach of them by
+            // the prediction: the closest tried is chosen.
+            if (anchor.faces >= most || reach > 1.5 * double(most))
+                break;
             next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), most);
         }
         const Status before = st;
@@ -531,6 +554,9 @@ double fileSize(const std::string& path)
     return ec ? 0.0 : double(bytes);
 }
 
+// Where the summary's time line goes until every phase has run.
+constexpr const char* kTimePlaceholder = "  time          (measured when the bake ends)";
+
 // One bake: its state, shared by the phases that run() calls in turn (load,
 // prepare the cage and atlas, choose the scheme, search the map size, write,
 // measure what was written, summarise, report, commit).  Every user-facing
@@ -558,12 +584,35 @@ public:
             {&BakeJob::measureFrames, 0.04},  {&BakeJob::summarize, 0.01},    {&BakeJob::writeReport, 0.01},
             {&BakeJob::finish, 0.01}};
         double done = 0.0;
+        const auto start = std::chrono::steady_clock::now();
         for (const auto& [phase, weight] : phases) {
+            const auto t0 = std::chrono::steady_clock::now();
             (this->*phase)();
+            if (phase == &BakeJob::prepare)
+                prepareMs = msSince(t0);
             done += weight;
             if (fraction)
                 fraction->at(done);
         }
+        // The summary's time line, now that every phase has run: its parts
+        // add up to the bake's whole wall time.
+        const double totalMs = msSince(start);
+        const double partsMs = loadMs + prepareMs + schemeMs + searchMs + writeMs + errorMs + framesMs;
+        std::string line;
+        appendf(&line,
+                "  time          %.1f s in all: load %.0f ms, atlas and capture index %.0f ms, scheme %.0f ms (cage "
+                "fits %.0f ms of it), map size and level %.0f ms (its last bake: mapping %.0f ms, raster %.0f ms, "
+                "dilation %.0f ms), write %.0f ms, closed loop %.0f ms%s, summary, report and commit %.0f ms",
+                totalMs / 1000.0, loadMs, prepareMs, schemeMs, fitMs, searchMs, rep.times.mapping, rep.times.rasterize,
+                rep.times.dilate, writeMs, errorMs, framesMs > 0.0 ? ", posed frames" : "",
+                std::max(0.0, totalMs - partsMs));
+        if (framesMs > 0.0) {
+            const size_t comma = line.rfind(", summary");
+            line.insert(comma, " " + std::to_string(int(std::lround(framesMs))) + " ms");
+        }
+        const size_t at = result->summary.find(kTimePlaceholder);
+        if (at != std::string::npos)
+            result->summary.replace(at, std::strlen(kTimePlaceholder), line);
     }
 
 private:
@@ -697,6 +746,7 @@ private:
     DisplacementMap writtenMap_;   // ... and its map, when map-coded
     bool writtenLoaded_ = false;
     nlohmann::json report;
+    double prepareMs = 0.0;
     double loadMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
 };
 
@@ -732,7 +782,10 @@ void BakeJob::loadInputs()
         if (controlFaces == 0)
             controlFaces = std::max<size_t>(200, high.faceCount() / 50);
         Progress p(progress, "simplifying the high-resolution mesh");
-        if (!(st = decimateToControlMesh(high, controlFaces, &control)))
+        if (shared && shared->loaded && !shared->simplifier)
+            shared->simplifier = std::make_unique<Simplifier>(shared->high);
+        if (!(st = shared && shared->simplifier ? shared->simplifier->simplify(controlFaces, &control)
+                                                : decimateToControlMesh(high, controlFaces, &control)))
             throw BakeError(highPath + ": " + st.message());
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
@@ -1461,11 +1514,7 @@ void BakeJob::summarize()
                 rep.lineFilledTexels);
     appendf(&result->summary, "  distances     dmin %.4g, dmax %.4g (%.3g%% .. %.3g%% of the diagonal %.4g)\n", rep.dmin, rep.dmax,
                 100.0 * rep.dmin / diag, 100.0 * rep.dmax / diag, diag);
-    appendf(&result->summary, "  time          load %.0f ms, mapping %.0f ms, raster %.0f ms, dilation %.0f ms, write %.0f ms, "
-                "closed loop %.0f ms\n",
-                loadMs, rep.times.mapping, rep.times.rasterize, rep.times.dilate, writeMs, errorMs);
-    appendf(&result->summary, "  choices       scheme %.0f ms (cage fits %.0f ms of it), map size and level %.0f ms\n",
-            schemeMs, fitMs, searchMs);
+    appendf(&result->summary, "%s\n", kTimePlaceholder);  // run() writes it once every phase has run
     appendf(&result->summary, "  outputs      ");
     for (const std::string& p : outputs.written)
         appendf(&result->summary, " %s (%.0f KB)", p.c_str(), fileSize(p) / 1024.0);

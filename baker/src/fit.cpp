@@ -18,6 +18,7 @@
 // coordinates together.  Every pass is a gather, so the result is the same
 // for any thread count.
 #include "strata/baker/fit.h"
+#include "plans.h"
 
 #include "parallel.h"
 
@@ -281,7 +282,7 @@ Status fitControlMesh(ControlMesh* control, const TriangleMesh& high, const Tria
     if (options.level < 0 || options.level > kMaxLevel || options.iterations < 0 || !(options.smoothness >= 0.0))
         return Status(StatusCode::InvalidArgument, "fitControlMesh: level, iterations or smoothness out of range");
     std::unique_ptr<Plan> plan;
-    if (Status st = Plan::create(&plan, *control, options.scheme, options.level); !st)
+    if (Status st = createPlan(&plan, *control, options.scheme, options.level); !st)
         return st;
     const int threads = std::max(1, options.threads);
     const size_t n = control->positions.size();

@@ -186,38 +186,59 @@ struct QuietOpenMesh {
 
 }  // namespace
 
-Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out)
+struct Simplifier::State {
+    using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
+    OMesh om;
+    std::unique_ptr<Decimater> decimater;
+    OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
+    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
+    size_t faces = 0;  // the live faces after the last simplify
+};
+
+Simplifier::Simplifier(const TriangleMesh& high) : high_(high) {}
+Simplifier::~Simplifier() = default;
+
+Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
 {
     QuietOpenMesh quiet;
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
-    OMesh om;
-    // Deleting (isolated vertices, collapsed elements) needs status flags.
-    om.request_vertex_status();
-    om.request_edge_status();
-    om.request_face_status();
-    std::vector<OMesh::VertexHandle> vh;
-    vh.reserve(high.positions.size());
-    for (const glm::vec3& p : high.positions)
-        vh.push_back(om.add_vertex(OMesh::Point(p.x, p.y, p.z)));
-    // Complex (non-manifold) faces are refused by OpenMesh and simply not added.
-    for (size_t f = 0; f < high.faceCount(); ++f)
-        om.add_face(vh[high.triangles[3 * f]], vh[high.triangles[3 * f + 1]], vh[high.triangles[3 * f + 2]]);
-    om.delete_isolated_vertices();
+    if (!state_ || targetFaces > state_->faces) {
+        auto state = std::make_unique<State>();
+        OMesh& om = state->om;
+        // Deleting (isolated vertices, collapsed elements) needs status flags.
+        om.request_vertex_status();
+        om.request_edge_status();
+        om.request_face_status();
+        std::vector<OMesh::VertexHandle> vh;
+        vh.reserve(high_.positions.size());
+        for (const glm::vec3& p : high_.positions)
+            vh.push_back(om.add_vertex(OMesh::Point(p.x, p.y, p.z)));
+        // Complex (non-manifold) faces are refused by OpenMesh and simply not added.
+        for (size_t f = 0; f < high_.faceCount(); ++f)
+            om.add_face(vh[high_.triangles[3 * f]], vh[high_.triangles[3 * f + 1]], vh[high_.triangles[3 * f + 2]]);
+        om.delete_isolated_vertices();
+        om.garbage_collection();
+        if (om.n_faces() == 0)
+            return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
+        state->decimater = std::make_unique<State::Decimater>(om);
+        State::Decimater& decimater = *state->decimater;
+        decimater.add(state->quadric);
+        decimater.add(state->flipping);
+        decimater.module(state->flipping).set_max_normal_deviation(60.0);
+        if (!decimater.initialize())
+            return Status(StatusCode::InvalidData, "OpenMesh's decimater could not be initialised");
+        state->faces = om.n_faces();
+        state_ = std::move(state);
+    }
+    // The decimater counts the faces it starts from with the deleted ones
+    // (n_faces() before a garbage collection): those are added to the target.
+    state_->decimater->decimate_to_faces(0, targetFaces + (state_->om.n_faces() - state_->faces));
+    // The mesh the decimater works on keeps its deleted elements (a later,
+    // smaller count continues from it); a copy is compacted and read.
+    OMesh om = state_->om;
     om.garbage_collection();
-    if (om.n_faces() == 0)
-        return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
-    using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
-    Decimater decimater(om);
-    OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
-    OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
-    decimater.add(quadric);
-    decimater.add(flipping);
-    decimater.module(flipping).set_max_normal_deviation(60.0);
-    if (!decimater.initialize())
-        return Status(StatusCode::InvalidData, "OpenMesh's decimater could not be initialised");
-    decimater.decimate_to_faces(0, targetFaces);
-    om.garbage_collection();
+    state_->faces = om.n_faces();
 
     ControlMesh cm;
     for (auto v : om.vertices()) {
@@ -232,6 +253,11 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
         return Status(st.code(), "the simplified control mesh is unusable: " + st.message());
     *out = std::move(cm);
     return Status::ok();
+}
+
+Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out)
+{
+    return Simplifier(high).simplify(targetFaces, out);
 }
 
 size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount)

@@ -1,6 +1,7 @@
 // The surface the baker maps onto, built with the runtime's own code
 // (computeControlNormals, Plan) so that what is baked is what is drawn.
 #include "strata/baker/surface.h"
+#include "plans.h"
 
 #include "strata/normals.h"
 
@@ -36,7 +37,7 @@ Status buildBakeSurface(BakeSurface* out, const ControlMesh& control, Scheme sch
         s.uvIndices = control.uvIndices;
     } else {
         std::unique_ptr<Plan> plan;
-        if (!(st = Plan::create(&plan, control, Scheme::Smooth, denseLevel)))
+        if (!(st = createPlan(&plan, control, Scheme::Smooth, denseLevel)))
             return st;
         const size_t n = plan->refinedVertexCount();
         s.positions.resize(n);

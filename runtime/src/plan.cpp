@@ -258,6 +258,12 @@ Plan::~Plan() = default;
 
 Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level)
 {
+    return create(out, mesh, scheme, level, nullptr);
+}
+
+Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level,
+                    const Plan* sameTopology)
+{
     if (!out)
         return Status(StatusCode::InvalidArgument, "Plan::create: null output");
     if (level < 0 || level > kMaxLevel)
@@ -273,7 +279,7 @@ Status Plan::create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme 
     plan->level_ = level;
     plan->controlVertexCount_ = mesh.positions.size();
     plan->controlTopology_ = strata::controlTopologyHash(mesh.triangles.data(), mesh.faceCount(), mesh.vertexCount());
-    st = plan->build(mesh);
+    st = plan->build(mesh, sameTopology);
     if (!st)
         return st;
     *out = std::move(plan);
@@ -741,7 +747,7 @@ Status Plan::buildLimit(const ControlMesh& mesh)
     return Status::ok();
 }
 
-Status Plan::build(const ControlMesh& mesh)
+Status Plan::build(const ControlMesh& mesh, const Plan* sameTopology)
 {
     // One sharp refiner for the topology alone (buildUVs refines the UVs).
     TopologyInput input;
@@ -763,7 +769,20 @@ Status Plan::build(const ControlMesh& mesh)
     if (!st)
         return st;
     displacements_.assign(b.firstFace.size(), 0.0f);
-    return scheme_ == Scheme::Smooth ? buildLimit(mesh) : Status::ok();
+    if (scheme_ != Scheme::Smooth)
+        return Status::ok();
+    // The limit stencils follow from the topology and level alone (the
+    // refined vertices' locations are the topology's): a plan of the same
+    // ones lends its own.
+    if (sameTopology && sameTopology->scheme_ == scheme_ && sameTopology->level_ == level_ &&
+        sameTopology->controlVertexCount_ == controlVertexCount_ && sameTopology->controlTopology_ == controlTopology_ &&
+        sameTopology->controlTriangles_ == controlTriangles_ && sameTopology->samples_.size() == samples_.size()) {
+        limitOffsets_ = sameTopology->limitOffsets_;
+        limitIndices_ = sameTopology->limitIndices_;
+        limitWeights_ = sameTopology->limitWeights_;
+        return Status::ok();
+    }
+    return buildLimit(mesh);
 }
 
 Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& map, float scale)

@@ -83,6 +83,13 @@ public:
     /// \param mesh   the control mesh (validated here; the plan keeps no reference)
     /// \param level  0..kMaxLevel
     static Status create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level);
+    /// The same, where `sameTopology` is a plan of this control topology,
+    /// scheme and level (other positions or UVs): it lends its smooth-scheme
+    /// limit stencils, the costly part (OpenSubdiv's limit stencil table),
+    /// which are copied instead of computed.  Ignored (null, or another
+    /// topology, scheme or level) the plan is built as create() builds it.
+    static Status create(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme scheme, int level,
+                         const Plan* sameTopology);
 
     ~Plan();
     Plan(const Plan&) = delete;
@@ -189,7 +196,7 @@ public:
 
 private:
     Plan() = default;
-    Status build(const ControlMesh& mesh);
+    Status build(const ControlMesh& mesh, const Plan* sameTopology);
     // The parts of build(), sharing one sharp refiner and each refined
     // vertex's first face and corner (Build, in plan.cpp).
     struct Build;

@@ -7,6 +7,7 @@
 #include "strata/rig.h"
 #include "strata/status.h"
 
+#include <memory>
 #include <string>
 
 namespace strata {
@@ -40,6 +41,27 @@ Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB = 20
 /// Decimater (with normal-flip protection) down to about targetFaces
 /// triangles, as the paper suggests (section 2).  No UVs.
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out);
+
+/// decimateToControlMesh for several face counts of one capture (the tries
+/// of --control auto's face-count search): a count at or below the last
+/// one continues the same collapses, with the quadrics they accumulated, so
+/// it costs the collapses between the two counts instead of a new
+/// decimation of the whole capture (the same greedy order, so the same mesh
+/// but where collapses of equal cost are taken in another order); a larger
+/// count starts over.  `high` must outlive the simplifier.
+class Simplifier {
+public:
+    explicit Simplifier(const TriangleMesh& high);
+    ~Simplifier();
+    Simplifier(const Simplifier&) = delete;
+    Simplifier& operator=(const Simplifier&) = delete;
+    Status simplify(size_t targetFaces, ControlMesh* out);
+
+private:
+    struct State;  // OpenMesh's mesh and decimater (mesh_input.cpp)
+    const TriangleMesh& high_;
+    std::unique_ptr<State> state_;
+};
 
 /// Number of edges used by exactly one triangle (0 for a closed mesh).
 size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount);
