@@ -16,6 +16,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numeric>
@@ -190,3 +191,55 @@ TEST(Topology, ObjFaceRepeatingAVertexIsDroppedAndCounted)
     checkRefines(m, "repeated vertex");
 }
 #endif  // STRATA_HAVE_IO
+
+// groupEdges, the one home of edge adjacency: a tetrahedron's six edges
+// each with two opposite corners; a fin's edge with three; an open
+// triangle's three edges with one; edges in (lower, higher) order and
+// every corner once; sparse vertex numbers grouped the same way.
+TEST(Topology, EdgeGroupsOfClosedOpenAndNonManifoldMeshes)
+{
+    const std::vector<uint32_t> tet = {0, 2, 1, 0, 1, 3, 1, 2, 3, 2, 0, 3};
+    const EdgeGroups g = groupEdges(tet.data(), 4);
+    ASSERT_EQ(g.edgeCount(), 6u);
+    std::vector<uint32_t> seen;
+    std::pair<uint32_t, uint32_t> previous(0, 0);
+    for (size_t e = 0; e < g.edgeCount(); ++e) {
+        ASSERT_EQ(g.faceCountOf(e), 2u);
+        const uint32_t c0 = g.cornersOf(e)[0], c1 = g.cornersOf(e)[1];
+        EXPECT_LT(c0, c1);
+        // The two corners run the edge in opposite directions.
+        EXPECT_EQ(tet[c0], tet[c1 / 3 * 3 + (c1 % 3 + 1) % 3]);
+        EXPECT_EQ(tet[c1], tet[c0 / 3 * 3 + (c0 % 3 + 1) % 3]);
+        const std::pair<uint32_t, uint32_t> key(std::min(tet[c0], tet[c1]), std::max(tet[c0], tet[c1]));
+        if (e > 0) {
+            EXPECT_LT(previous, key);
+        }
+        previous = key;
+        seen.insert(seen.end(), {c0, c1});
+    }
+    std::sort(seen.begin(), seen.end());
+    std::vector<uint32_t> all(12);
+    std::iota(all.begin(), all.end(), 0u);
+    EXPECT_EQ(seen, all);
+
+    const std::vector<uint32_t> fin = {0, 1, 2, 1, 0, 3, 0, 1, 4};
+    const EdgeGroups f = groupEdges(fin.data(), 3);
+    size_t three = 0, one = 0;
+    for (size_t e = 0; e < f.edgeCount(); ++e) {
+        three += f.faceCountOf(e) == 3;
+        one += f.faceCountOf(e) == 1;
+    }
+    EXPECT_EQ(three, 1u);
+    EXPECT_EQ(one, 6u);
+    EXPECT_EQ(f.edgeCount(), 7u);
+
+    const std::vector<uint32_t> sparse = {7, 4000000000u, 123456789u};
+    const EdgeGroups s = groupEdges(sparse.data(), 1);
+    ASSERT_EQ(s.edgeCount(), 3u);
+    for (size_t e = 0; e < 3; ++e)
+        EXPECT_EQ(s.faceCountOf(e), 1u);
+    const MeshTopologyStats stats = computeTopologyStats(sparse.data(), 1);
+    EXPECT_EQ(stats.vertices, 3u);
+    EXPECT_EQ(stats.boundaryEdges, 3u);
+    EXPECT_EQ(groupEdges(nullptr, 0).edgeCount(), 0u);
+}

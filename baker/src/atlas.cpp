@@ -353,24 +353,18 @@ void projectChart(Chart* c, const ControlMesh& mesh, const glm::dvec3& n, std::v
 // meet: a conformal map can be fold-free and still lap over itself.
 bool selfOverlaps(const Chart& c, const ControlMesh& mesh, const std::vector<int32_t>& local)
 {
-    std::vector<uint64_t> edges;  // undirected, as (lower << 32) | higher local vertex
-    edges.reserve(3 * c.faces.size());
+    std::vector<uint32_t> triangles;  // the chart's faces in its local vertex numbers
+    triangles.reserve(3 * c.faces.size());
     for (uint32_t f : c.faces)
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t a = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]);
-            const uint32_t b = uint32_t(local[mesh.triangles[3 * size_t(f) + size_t((k + 1) % 3)]]);
-            edges.push_back((uint64_t(std::min(a, b)) << 32) | std::max(a, b));
-        }
-    std::sort(edges.begin(), edges.end());
+        for (int k = 0; k < 3; ++k)
+            triangles.push_back(uint32_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]]));
+    const EdgeGroups edges = groupEdges(triangles.data(), c.faces.size());
     std::vector<std::array<uint32_t, 2>> border;  // the edges of one face only
-    for (size_t i = 0; i < edges.size();) {
-        size_t j = i;
-        while (j < edges.size() && edges[j] == edges[i])
-            ++j;
-        if (j - i == 1)
-            border.push_back({uint32_t(edges[i] >> 32), uint32_t(edges[i] & 0xffffffffu)});
-        i = j;
-    }
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        if (edges.faceCountOf(e) == 1) {
+            const uint32_t corner = edges.cornersOf(e)[0];
+            border.push_back({triangles[corner], triangles[corner / 3 * 3 + (corner % 3 + 1) % 3]});
+        }
     auto orient = [](const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& p) {
         const double d = orient2(a, b, p);
         return d > 0.0 ? 1 : d < 0.0 ? -1 : 0;
@@ -821,20 +815,10 @@ struct ChartMesh {
         for (double a : faceArea)
             totalArea += a;
         neighbour.assign(nf, {UINT32_MAX, UINT32_MAX, UINT32_MAX});
-        std::vector<std::pair<uint64_t, uint32_t>> edges(3 * nf);  // (undirected key, face * 3 + corner)
-        for (size_t f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k) {
-                const uint32_t a = mesh.triangles[3 * f + size_t(k)], b = mesh.triangles[3 * f + size_t((k + 1) % 3)];
-                const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-                edges[3 * f + size_t(k)] = {key, uint32_t(3 * f + size_t(k))};
-            }
-        std::sort(edges.begin(), edges.end());
-        for (size_t i = 0; i < edges.size();) {
-            size_t j = i;
-            while (j < edges.size() && edges[j].first == edges[i].first)
-                ++j;
-            if (j - i == 2) {
-                const uint32_t e0 = edges[i].second, e1 = edges[i + 1].second;
+        const EdgeGroups edges = groupEdges(mesh.triangles.data(), nf);
+        for (size_t e = 0; e < edges.edgeCount(); ++e)
+            if (edges.faceCountOf(e) == 2) {
+                const uint32_t e0 = edges.cornersOf(e)[0], e1 = edges.cornersOf(e)[1];
                 const uint32_t f0 = e0 / 3, f1 = e1 / 3;
                 const bool opposite = mesh.triangles[e0] != mesh.triangles[e1];  // start vertices differ
                 if (f0 != f1 && opposite) {
@@ -842,8 +826,6 @@ struct ChartMesh {
                     neighbour[f1][e1 % 3] = f0;
                 }
             }
-            i = j;
-        }
         buildVertexFaces(&vertexFaceOffsets, &vertexFaces, mesh.triangles.data(), nf, mesh.positions.size());
     }
 };

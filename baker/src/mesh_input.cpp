@@ -262,48 +262,23 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
 
 size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount)
 {
-    std::vector<uint64_t> edges;
-    edges.reserve(3 * faceCount);
-    for (size_t f = 0; f < faceCount; ++f)
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t a = triangles[3 * f + size_t(k)], b = triangles[3 * f + size_t((k + 1) % 3)];
-            edges.push_back(uint64_t(std::min(a, b)) << 32 | std::max(a, b));
-        }
-    std::sort(edges.begin(), edges.end());
+    const EdgeGroups edges = groupEdges(triangles, faceCount);
     size_t boundary = 0;
-    for (size_t i = 0; i < edges.size();) {
-        size_t j = i;
-        while (j < edges.size() && edges[j] == edges[i])
-            ++j;
-        boundary += j - i == 1;
-        i = j;
-    }
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        boundary += edges.faceCountOf(e) == 1;
     return boundary;
 }
 
 size_t closeBoundaryLoops(ControlMesh* mesh)
 {
-    const size_t nf = mesh->faceCount();
     // Directed boundary edges a -> b, as their one face has them.
-    std::vector<std::pair<uint64_t, uint32_t>> edges;  // (undirected key, face * 3 + corner)
-    edges.reserve(3 * nf);
-    for (size_t f = 0; f < nf; ++f)
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t a = mesh->triangles[3 * f + size_t(k)], b = mesh->triangles[3 * f + size_t((k + 1) % 3)];
-            edges.push_back({uint64_t(std::min(a, b)) << 32 | std::max(a, b), uint32_t(3 * f + size_t(k))});
-        }
-    std::sort(edges.begin(), edges.end());
+    const EdgeGroups edges = groupEdges(mesh->triangles.data(), mesh->faceCount());
     std::vector<std::pair<uint32_t, uint32_t>> boundary;  // (a, b)
-    for (size_t i = 0; i < edges.size();) {
-        size_t j = i;
-        while (j < edges.size() && edges[j].first == edges[i].first)
-            ++j;
-        if (j - i == 1) {
-            const uint32_t c = edges[i].second;
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        if (edges.faceCountOf(e) == 1) {
+            const uint32_t c = edges.cornersOf(e)[0];
             boundary.push_back({mesh->triangles[c], mesh->triangles[c / 3 * 3 + (c % 3 + 1) % 3]});
         }
-        i = j;
-    }
     if (boundary.empty())
         return 0;
     std::sort(boundary.begin(), boundary.end());

@@ -6,64 +6,88 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace strata {
 
+EdgeGroups groupEdges(const uint32_t* triangles, size_t faceCount)
+{
+    EdgeGroups out;
+    const size_t nc = 3 * faceCount;
+    uint32_t maxIndex = 0;
+    for (size_t i = 0; i < nc; ++i)
+        maxIndex = std::max(maxIndex, triangles[i]);
+    auto lower = [&](size_t c) {
+        const size_t f = c / 3, k = c % 3;
+        return std::min(triangles[3 * f + k], triangles[3 * f + (k + 1) % 3]);
+    };
+    auto higher = [&](size_t c) {
+        const size_t f = c / 3, k = c % 3;
+        return std::max(triangles[3 * f + k], triangles[3 * f + (k + 1) % 3]);
+    };
+    out.corners.resize(nc);
+    if (nc > 0 && size_t(maxIndex) + 1 > 4 * nc + 1024) {
+        // Sparse vertex numbers (far more than corners): one sort of the keys.
+        std::vector<std::pair<uint64_t, uint32_t>> keys(nc);
+        for (size_t c = 0; c < nc; ++c)
+            keys[c] = {uint64_t(lower(c)) << 32 | higher(c), uint32_t(c)};
+        std::sort(keys.begin(), keys.end());
+        for (size_t c = 0; c < nc; ++c)
+            out.corners[c] = keys[c].second;
+    } else if (nc > 0) {
+        // Corners grouped by their edge's lower vertex (a counting sort,
+        // linear in the corners), then each group's few corners sorted by
+        // the higher vertex: cheap on million-triangle meshes where sorting
+        // 64-bit keys was not.
+        std::vector<uint32_t> start(size_t(maxIndex) + 2, 0);
+        for (size_t c = 0; c < nc; ++c)
+            ++start[size_t(lower(c)) + 1];
+        for (size_t g = 0; g + 1 < start.size(); ++g)
+            start[g + 1] += start[g];
+        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+        for (size_t c = 0; c < nc; ++c)
+            out.corners[fill[lower(c)]++] = uint32_t(c);
+        for (size_t g = 0; g + 1 < start.size(); ++g)
+            std::sort(out.corners.begin() + start[g], out.corners.begin() + start[g + 1],
+                      [&](uint32_t x, uint32_t y) { return std::make_pair(higher(x), x) < std::make_pair(higher(y), y); });
+    }
+    out.offsets.reserve(nc / 2 + 2);
+    for (size_t i = 0; i < nc;) {
+        out.offsets.push_back(uint32_t(i));
+        size_t j = i + 1;
+        while (j < nc && lower(out.corners[j]) == lower(out.corners[i]) &&
+               higher(out.corners[j]) == higher(out.corners[i]))
+            ++j;
+        i = j;
+    }
+    out.offsets.push_back(uint32_t(nc));
+    return out;
+}
+
 MeshTopologyStats computeTopologyStats(const uint32_t* triangles, size_t faceCount)
 {
-    // Undirected edges grouped by their smaller vertex (a counting sort, linear
-    // in the corners), then each group's larger vertices sorted in place:
-    // groups hold a handful of edges, so this is cheap on million-triangle
-    // meshes where sorting 64-bit keys was not.
     MeshTopologyStats s;
+    const EdgeGroups edges = groupEdges(triangles, faceCount);
+    s.edges = edges.edgeCount();
+    for (size_t e = 0; e < s.edges; ++e) {
+        const uint32_t n = edges.faceCountOf(e);
+        s.boundaryEdges += n == 1;
+        s.nonManifoldEdges += n > 2;
+    }
     uint32_t maxIndex = 0;
     for (size_t i = 0; i < faceCount * 3; ++i)
         maxIndex = std::max(maxIndex, triangles[i]);
-    const size_t groups = faceCount ? size_t(maxIndex) + 1 : 0;
-    if (groups > 4 * faceCount + 1024) {
-        // Sparse indices (far more vertex numbers than corners): the same
-        // counts over the used vertices renumbered densely.
-        std::vector<uint32_t> used(triangles, triangles + faceCount * 3), dense(faceCount * 3);
+    if (size_t(maxIndex) + 1 <= 4 * faceCount * 3 + 1024) {
+        std::vector<bool> used(faceCount ? size_t(maxIndex) + 1 : 0, false);
+        for (size_t i = 0; i < faceCount * 3; ++i)
+            used[triangles[i]] = true;
+        s.vertices = size_t(std::count(used.begin(), used.end(), true));
+    } else {  // sparse vertex numbers
+        std::vector<uint32_t> used(triangles, triangles + faceCount * 3);
         std::sort(used.begin(), used.end());
-        used.erase(std::unique(used.begin(), used.end()), used.end());
-        for (size_t i = 0; i < dense.size(); ++i)
-            dense[i] = uint32_t(std::lower_bound(used.begin(), used.end(), triangles[i]) - used.begin());
-        return computeTopologyStats(dense.data(), faceCount);
+        s.vertices = size_t(std::unique(used.begin(), used.end()) - used.begin());
     }
-    std::vector<uint32_t> start(groups + 1, 0), other(faceCount * 3);
-    for (size_t f = 0; f < faceCount; ++f)
-        for (int c = 0; c < 3; ++c)
-            ++start[std::min(triangles[3 * f + c], triangles[3 * f + (c + 1) % 3]) + 1];
-    for (size_t g = 0; g < groups; ++g)
-        start[g + 1] += start[g];
-    {
-        std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-        for (size_t f = 0; f < faceCount; ++f)
-            for (int c = 0; c < 3; ++c) {
-                const uint32_t a = triangles[3 * f + c], b = triangles[3 * f + (c + 1) % 3];
-                other[fill[std::min(a, b)]++] = std::max(a, b);
-            }
-    }
-    for (size_t g = 0; g < groups; ++g) {
-        uint32_t* begin = other.data() + start[g];
-        uint32_t* end = other.data() + start[g + 1];
-        std::sort(begin, end);
-        for (uint32_t* i = begin; i < end;) {
-            uint32_t* j = i;
-            while (j < end && *j == *i)
-                ++j;
-            ++s.edges;
-            if (j - i == 1)
-                ++s.boundaryEdges;
-            else if (j - i > 2)
-                ++s.nonManifoldEdges;
-            i = j;
-        }
-    }
-    std::vector<bool> used(faceCount ? size_t(maxIndex) + 1 : 0, false);
-    for (size_t i = 0; i < faceCount * 3; ++i)
-        used[triangles[i]] = true;
-    s.vertices = size_t(std::count(used.begin(), used.end(), true));
     s.eulerCharacteristic = long(s.vertices) - long(s.edges) + long(faceCount);
     return s;
 }

@@ -53,6 +53,27 @@ ControlMeshFingerprint fingerprintControlMesh(const ControlMesh& mesh);
 /// The order-sensitive topology hash alone (ControlMeshFingerprint::topology).
 uint64_t controlTopologyHash(const uint32_t* triangles, size_t faceCount, size_t vertexCount);
 
+/// The undirected edges of an indexed triangle list with the corners whose
+/// edge each is: the one home of edge adjacency (boundary and non-manifold
+/// edges, face neighbours, border loops).  Corner c = 3 * face + k stands
+/// for the edge from the face's k-th vertex to its (k+1)-th.  Every corner
+/// is listed once, grouped by edge; edges come in order of their lower
+/// vertex, then their higher one, and corners ascend within an edge.
+struct EdgeGroups {
+    std::vector<uint32_t> corners;  ///< 3 per face, grouped by edge
+    std::vector<uint32_t> offsets;  ///< edgeCount() + 1: edge e is corners [offsets[e], offsets[e + 1])
+    size_t edgeCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    /// The corners of edge e, and how many faces use it (1: a boundary edge,
+    /// 2: an interior one, more: non-manifold).
+    const uint32_t* cornersOf(size_t e) const { return corners.data() + offsets[e]; }
+    uint32_t faceCountOf(size_t e) const { return offsets[e + 1] - offsets[e]; }
+};
+
+/// Groups the corners of faceCount triangles by undirected edge, in time
+/// linear in the corners (a counting sort on each edge's lower vertex; the
+/// handful of edges at a vertex sorted in place).
+EdgeGroups groupEdges(const uint32_t* triangles, size_t faceCount);
+
 /// Counts used by tests and tools: edges, boundary edges, non-manifold edges.
 struct MeshTopologyStats {
     size_t vertices = 0;          ///< vertices referenced by at least one face
