@@ -236,9 +236,8 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
 
 // --control auto without --control-faces: the cage's face count follows
 // from the tolerance, the fewest faces that reach it (a loose one keeps the
-// first, 200-face try), else the most accurate tried (a tolerance no cage
-// up to a fifth of the capture's faces reaches: the second try goes
-// straight to that fifth).
+// first, 200-face try), else the most accurate tried (a tolerance out of
+// reach of a fifth of the capture's faces stops the search early).
 namespace {
 
 // The summary's "cage faces" lines: one per try of the face-count search.
@@ -301,10 +300,26 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     request.tolerance = 1e-6;
     st = strata::baker::bakeRig(request, &tight);
     ASSERT_TRUE(st.isOk()) << st.message();
-    for (const char* tried : {"200: ", "1024: "})
-        EXPECT_NE(tight.summary.find(tried), std::string::npos) << tried << tight.summary;
-    EXPECT_EQ(tryLines(tight.summary).size(), 2u) << "at most a fifth of the capture's 5120 faces" << tight.summary;
-    EXPECT_LT(tight.rms, loose.rms);
+    // Out of reach (even an error falling with the cube of the face count
+    // would need more than a fifth of the capture's 5120 faces): a few
+    // tries, none past that fifth, the closest kept, and the summary's
+    // first line says the tolerance is missed.
+    const std::vector<TryLine> tries = tryLines(tight.summary);
+    ASSERT_GE(tries.size(), 1u) << tight.summary;
+    EXPECT_LE(tries.size(), 3u) << tight.summary;
+    double closest = 1e300;
+    for (const TryLine& t : tries) {
+        EXPECT_LE(t.faces, 1024u);
+        closest = std::min(closest, t.rms);
+    }
+    for (const TryLine& t : tries) {
+        if (t.chosen) {
+            EXPECT_EQ(t.rms, closest) << tight.summary;
+        }
+    }
+    const std::string first = tight.summary.substr(0, tight.summary.find('\n'));
+    EXPECT_NE(first.find("MISSES --tolerance"), std::string::npos) << first;
+    EXPECT_LE(tight.rms, loose.rms);
     EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "only the inputs and the two rigs";  // high, control, 2 rigs
 }
 

@@ -1,5 +1,6 @@
 // The bake pipeline (paper 2.1-2.3, 3.2): map vertices, rasterise, dilate.
 #include "strata/baker/bake.h"
+#include "strata/uv_raster.h"
 #include "plans.h"
 #include "parallel.h"
 
@@ -101,7 +102,7 @@ Status checkUVs(const ControlMesh& control, int size)
         }
         if (!(area > 0.0))
             continue;
-        const TexelRect r = texelRect(t, size);
+        const TexelRect r = texelRect(t, size, size);
         for (int y = r.y0; y <= r.y1; ++y)
             for (int x = r.x0; x <= r.x1; ++x) {
                 const glm::dvec2 c(x + 0.5, y + 0.5);

@@ -212,8 +212,8 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
 }
 
 // What the tries of --control auto's face-count search share, so that each
-// later try redoes none of it: the capture as loaded, the scheme the first
-// try measured, and the map size of the tries that met the tolerance (a
+// later try redoes none of it: the capture as loaded, the scheme measured
+// on a cage of about its face count, and the map size of the tries that met the tolerance (a
 // coarser cage needs no finer map: its error is the cage's, and doubling
 // the map up to the size cap only to find that out cost a failing try of
 // the 100k scan 28 s).
@@ -224,6 +224,14 @@ struct SearchShared {
     bool schemeKnown = false;
     Scheme scheme = Scheme::Linear;
     std::string schemeReason;
+    size_t schemeFaces = 0;  // the cage it was measured on
+    // A try reuses the measured scheme on a cage within a factor 1.5 of
+    // that one's face count; further off it measures again (on CesiumMan
+    // the smooth scheme won on 200 faces and the linear one on 800).
+    bool schemeFits(size_t faces) const
+    {
+        return schemeKnown && 2 * faces >= schemeFaces * 4 / 3 && 2 * faces <= 3 * schemeFaces;
+    }
     int sizeCap = 0;  // 0: none yet
     int mapSize = 0;  // the last try's
     std::unique_ptr<Simplifier> simplifier;  // of `high`: a smaller count continues the last one's collapses
@@ -318,13 +326,15 @@ void replaceAll(std::string* text, const std::string& from, const std::string& t
 // capture's faces (at least 200); each next one is predicted where the
 // error, a power of the face count through the tries nearest the
 // tolerance (the power 1 until two tries give it), crosses the tolerance,
-// with 10% to spare, between 200 and a fifth of the capture.  The search
+// with 10% to spare, between 200 and a fifth of the capture (and, going
+// up, at most twice the faces until two tries measure the power).  The search
 // stops when the answer is settled: the fewest that met and the most that
 // missed are within 15% of each other, the prediction saves under 15% of
-// the faces that met, or, none met, it lies past 1.5 times the fifth (the
-// tolerance is out of reach: the closest tried is chosen; with one try,
-// the steepest power allowed, 3, decides that).  Each try is a whole bake into a scratch folder;
-// the tries share the capture as loaded, the scheme the first measured and
+// the faces that met, or, none met, even the steepest power allowed (3)
+// puts it past 1.5 times the fifth (the tolerance is out of reach: the
+// closest tried is chosen).  Each try is a whole bake into a scratch folder;
+// the tries share the capture as loaded, the scheme measured on a cage of
+// about their face count (within 1.5x) and
 // the map size of those that met.  When the request asks for the rig alone
 // (a .glb, no report, map images or error range of its own) the chosen
 // try is that bake: its rig is copied into place and its summary kept.
@@ -454,9 +464,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (anchor.rms > 0.0) {
             const double predicted = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / power) * 1.1;
             next = size_t(std::lround(predicted));
-            // Until two tries measure the power, the steepest one allowed.
-            reach = measured ? predicted
-                             : double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / 3.0) * 1.1;
+            // By the steepest power allowed: the error is no power law
+            // across a change of level or scheme (CesiumMan's fell 3.2x
+            // from 400 faces to 800 after 1.26x from 200 to 400).
+            reach = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / 3.0) * 1.1;
         } else {
             next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
         }
@@ -473,7 +484,10 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             // the prediction: the closest tried is chosen.
             if (anchor.faces >= most || reach > 1.5 * double(most))
                 break;
-            next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), most);
+            // Up at most 2x until two tries measure the power (from one
+            // miss the power 1 overshot the penguin's count 8x), 4x after.
+            const size_t step = (measured ? 4 : 2) * anchor.faces;
+            next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), std::min(most, step));
         }
         const Status before = st;
         attempt(next);
@@ -1109,7 +1123,7 @@ void BakeJob::chooseScheme()
     Status st;
     schemeReason = schemeGiven ? "--scheme" : "";
     const auto schemeStart = std::chrono::steady_clock::now();
-    if (!schemeGiven && shared && shared->schemeKnown) {
+    if (!schemeGiven && shared && shared->schemeFits(control.faceCount())) {
         options.scheme = shared->scheme;
         schemeReason = shared->schemeReason;
     } else if (!schemeGiven && !forced && tolerance > 0.0) {
@@ -1162,9 +1176,10 @@ void BakeJob::chooseScheme()
                           100.0 * rms[1], paperLevel);
         schemeReason = buf;
         if (shared) {
-            appendf(&schemeReason, " on the first cage tried (%zu faces)", control.faceCount());
+            appendf(&schemeReason, " on a cage of %zu faces", control.faceCount());
             shared->scheme = options.scheme;
             shared->schemeReason = schemeReason;
+            shared->schemeFaces = control.faceCount();
             shared->schemeKnown = true;
         }
     }

@@ -1,5 +1,6 @@
 // Backward evaluation for texels the forward mapping missed (see fill.h).
 #include "strata/baker/fill.h"
+#include "strata/uv_raster.h"
 #include "parallel.h"
 
 #include "mapping.h"
@@ -13,16 +14,6 @@
 namespace strata {
 namespace baker {
 
-TexelRect texelRect(const glm::dvec2 t[3], int size)
-{
-    TexelRect r;
-    r.x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}))));
-    r.x1 = std::min(size - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}))));
-    r.y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}))));
-    r.y1 = std::min(size - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}))));
-    return r;
-}
-
 std::vector<int32_t> chartOwners(const BakeSurface& s, int size, int rings, size_t* chartTexels)
 {
     std::vector<int32_t> owner(size_t(size) * size_t(size), -1);
@@ -33,7 +24,7 @@ std::vector<int32_t> chartOwners(const BakeSurface& s, int size, int rings, size
         const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
         if (area == 0.0)
             continue;
-        const TexelRect r = texelRect(t, size);
+        const TexelRect r = texelRect(t, size, size);
         for (int y = r.y0; y <= r.y1; ++y)
             for (int x = r.x0; x <= r.x1; ++x) {
                 const glm::dvec2 c(x + 0.5, y + 0.5);

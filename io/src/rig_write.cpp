@@ -3,6 +3,7 @@
 // the displacement layer added as STRATA_layered_displacement, and its
 // fingerprint of the control mesh sealed from the file as it reads back.
 #include "strata/io/rig_io.h"
+#include "strata/uv_raster.h"
 
 #include "rig_internal.h"
 
@@ -241,12 +242,9 @@ std::vector<uint8_t> usedTexels(const ControlMesh& mesh, int width, int height)
             t[k] = glm::dvec2(double(uv.x) * width, double(uv.y) * height);
         }
         const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
-        const int x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
-        const int x1 = std::min(width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
-        const int y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
-        const int y1 = std::min(height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
+        const TexelRect r = texelRect(t, width, height, reach);
+        for (int y = r.y0; y <= r.y1; ++y)
+            for (int x = r.x0; x <= r.x1; ++x) {
                 uint8_t& u = used[size_t(y) * size_t(width) + size_t(x)];
                 if (u)
                     continue;

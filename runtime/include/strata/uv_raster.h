@@ -1,6 +1,9 @@
 // Strata runtime: the texels a UV triangle covers, with their barycentrics.
-// One home for the loop that rasterises values into a map in a triangle's
-// UVs (the per-vertex displacements' map, the baker's colour transfer).
+// One home for the loop over a triangle's texels: its rectangle
+// (texelRect: the baker's UV overlap check, chart owners and the rig
+// writer's map coverage) and the texels with their barycentrics
+// (forEachTexelInUVTriangle: the per-vertex displacements' map, the
+// baker's colour transfer).
 #pragma once
 
 #include <glm/vec2.hpp>
@@ -9,6 +12,23 @@
 #include <cmath>
 
 namespace strata {
+
+/// Texels (x0..x1, y0..y1, inclusive, clamped to the map) whose squares the
+/// bounding box of a triangle in texel units (texel (x, y) spans [x, x + 1]
+/// x [y, y + 1]) touches, widened by `reach` texels.  Empty (x0 > x1 or
+/// y0 > y1) when it misses the map.
+struct TexelRect {
+    int x0, x1, y0, y1;
+};
+inline TexelRect texelRect(const glm::dvec2 t[3], int width, int height, double reach = 0.0)
+{
+    TexelRect r;
+    r.x0 = std::max(0, int(std::floor(std::min({t[0].x, t[1].x, t[2].x}) - reach)));
+    r.x1 = std::min(width - 1, int(std::ceil(std::max({t[0].x, t[1].x, t[2].x}) + reach)));
+    r.y0 = std::max(0, int(std::floor(std::min({t[0].y, t[1].y, t[2].y}) - reach)));
+    r.y1 = std::min(height - 1, int(std::ceil(std::max({t[0].y, t[1].y, t[2].y}) + reach)));
+    return r;
+}
 
 /// Calls f(x, y, b0, b1, b2) for every texel (x, y) of a width x height map
 /// whose centre lies in the triangle of UVs uv[0..2] (inclusive edges: a

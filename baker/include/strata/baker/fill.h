@@ -18,13 +18,6 @@
 namespace strata {
 namespace baker {
 
-/// The texels (inclusive, clamped to the map) whose squares a texel-space
-/// triangle's bounding box touches.
-struct TexelRect {
-    int x0, x1, y0, y1;
-};
-TexelRect texelRect(const glm::dvec2 t[3], int size);
-
 /// The bake-surface face whose UV triangle holds each texel centre (-1
 /// outside every chart), then grown outward by `rings` texels so gutter
 /// texels know which chart's plane to extend.  chartTexels receives the
