@@ -134,9 +134,7 @@ struct CliCase {
 // pipeline case is also given as a multiple of it.
 double baselineMs()
 {
-    ControlMesh sphere = examples::makeIcosphere(5);
-    for (glm::vec3& p : sphere.positions)
-        p *= examples::headRadius(p);
+    const ControlMesh sphere = examples::makeHead(5);
     baker::TriangleMesh mesh;
     mesh.positions = sphere.positions;
     mesh.triangles = sphere.triangles;
@@ -297,9 +295,7 @@ int main(int argc, char** argv)
     const std::string generated = "/tmp/strata_bench_generated_1m.ply";
     const std::string quarter = "/tmp/strata_bench_generated_330k.ply";
     for (int level : {7, 8}) {
-        ControlMesh sphere = examples::makeIcosphere(level);
-        for (glm::vec3& p : sphere.positions)
-            p *= examples::headRadius(p);
+        const ControlMesh sphere = examples::makeHead(level);
         io::MeshView view;
         view.positions = sphere.positions.data();
         view.vertexCount = sphere.positions.size();

@@ -68,6 +68,14 @@ float bump(const glm::vec3& dir, const glm::vec3& centre, float width, float hei
 
 }  // namespace
 
+ControlMesh makeHead(int subdivisions)
+{
+    ControlMesh head = makeIcosphere(subdivisions);
+    for (glm::vec3& p : head.positions)
+        p *= headRadius(p);
+    return head;
+}
+
 float headRadius(const glm::vec3& d)
 {
     // An egg-shaped cranium, longer front-to-back, narrower at the jaw.

@@ -33,6 +33,10 @@ using RadiusFunction = std::function<float(const glm::vec3& unitDirection)>;
 /// ears, chin) with fine surface ripples, about unit size, facing +z, up +y.
 float headRadius(const glm::vec3& unitDirection);
 
+/// The built-in example's "capture": makeIcosphere(subdivisions) with every
+/// vertex moved out to headRadius (20 * 4^subdivisions triangles).
+ControlMesh makeHead(int subdivisions);
+
 /// Closed-form displacement map of a star-shaped surface over a control mesh
 /// with UVs: for each texel covered by a UV triangle (plus `gutter` texels
 /// around it), the surface point p and direction n of paper eq. 2 are

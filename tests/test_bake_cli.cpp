@@ -46,10 +46,7 @@ void writeObj(const std::string& path, const strata::ControlMesh& mesh)
 void writeInputs(const std::string& dir)
 {
     using namespace strata;
-    ControlMesh high = examples::makeIcosphere(4);
-    for (glm::vec3& p : high.positions)
-        p *= examples::headRadius(p);
-    writeObj(dir + "/high.obj", high);
+    writeObj(dir + "/high.obj", examples::makeHead(4));
     writeObj(dir + "/control.obj", examples::makeIcosphere(1));
 }
 

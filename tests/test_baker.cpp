@@ -1053,9 +1053,7 @@ TEST(Atlas, RealCagesMeetTheAtlasTargets)
 // same mesh exactly.
 TEST(Simplifier, ContinuingGivesTheDirectDecimation)
 {
-    ControlMesh sphere = strata::examples::makeIcosphere(4);
-    for (glm::vec3& p : sphere.positions)
-        p *= strata::examples::headRadius(p);
+    const ControlMesh sphere = strata::examples::makeHead(4);
     strata::baker::TriangleMesh high;
     high.positions = sphere.positions;
     high.triangles = sphere.triangles;

@@ -73,9 +73,7 @@ int main(int argc, char** argv)
 
         auto t0 = std::chrono::steady_clock::now();
         // The "capture": the head surface sampled by an 81920-triangle mesh.
-        ControlMesh capture = examples::makeIcosphere(6);
-        for (glm::vec3& p : capture.positions)
-            p *= examples::headRadius(p);
+        const ControlMesh capture = examples::makeHead(6);
         baker::TriangleMesh high;
         high.positions = capture.positions;
         high.triangles = capture.triangles;
