@@ -152,51 +152,9 @@ double baselineMs()
 
 double baseline = std::nan("");
 
-void runCliBake(const CliCase& c)
-{
-    const std::string out = "/tmp/strata_bench_cli_" + std::to_string(::getpid()) + ".glb";
-    std::vector<std::string> args = c.args;
-    args.insert(args.end(), {"-o", out});
-    std::vector<char*> argv{const_cast<char*>(STRATA_BAKE_EXE)};
-    for (std::string& a : args)
-        argv.push_back(a.data());
-    argv.push_back(nullptr);
-    std::fflush(stdout);
-    const double t0 = bench::nowMs();
-    const pid_t pid = fork();
-    if (pid == 0) {
-        const int null = ::open("/dev/null", O_WRONLY);
-        ::dup2(null, 1);
-        ::dup2(null, 2);
-        execv(STRATA_BAKE_EXE, argv.data());
-        _exit(127);
-    }
-    int status = 0;
-    struct rusage usage;
-    wait4(pid, &status, 0, &usage);
-    const double ms = bench::nowMs() - t0;
-    struct stat st;
-    const double kb = ::stat(out.c_str(), &st) == 0 ? double(st.st_size) / 1024.0 : 0.0;
-    std::remove(out.c_str());
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        std::printf("%-40s | failed\n", c.name.c_str());
-        return;
-    }
-    std::printf("%-40s | %8.0f | %10.1f | %7.0f | %6.0f | < %.0f ms%s\n", c.name.c_str(), ms, ms / baseline,
-                double(usage.ru_maxrss) / 1024.0, kb, c.boundMs, ms < c.boundMs ? "" : "  (missed)");
-    jsonRows.field("case", c.name)
-        .field("threads", double(std::thread::hardware_concurrency()))
-        .field("total_ms", ms)
-        .field("baseline_ms", baseline)
-        .field("ratio_to_baseline", ms / baseline)
-        .field("bound_ms", c.boundMs)
-        .field("peak_mb", double(usage.ru_maxrss) / 1024.0)
-        .field("rig_kb", kb)
-        .endRow();
-}
-
-// Runs a tool quietly; true when it exits 0.
-bool runQuietly(std::vector<std::string> args)
+// Runs a tool with its output discarded; true when it exits 0.  `usage`,
+// when given, receives the child's resource use (its peak RSS).
+bool runQuietly(std::vector<std::string> args, struct rusage* usage = nullptr)
 {
     std::vector<char*> argv;
     for (std::string& a : args)
@@ -212,8 +170,39 @@ bool runQuietly(std::vector<std::string> args)
         _exit(127);
     }
     int status = 0;
-    waitpid(pid, &status, 0);
+    struct rusage ignored;
+    wait4(pid, &status, 0, usage ? usage : &ignored);
     return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+void runCliBake(const CliCase& c)
+{
+    const std::string out = "/tmp/strata_bench_cli_" + std::to_string(::getpid()) + ".glb";
+    std::vector<std::string> args{STRATA_BAKE_EXE};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    args.insert(args.end(), {"-o", out});
+    struct rusage usage;
+    const double t0 = bench::nowMs();
+    const bool ok = runQuietly(args, &usage);
+    const double ms = bench::nowMs() - t0;
+    struct stat st;
+    const double kb = ::stat(out.c_str(), &st) == 0 ? double(st.st_size) / 1024.0 : 0.0;
+    std::remove(out.c_str());
+    if (!ok) {
+        std::printf("%-40s | failed\n", c.name.c_str());
+        return;
+    }
+    std::printf("%-40s | %8.0f | %10.1f | %7.0f | %6.0f | < %.0f ms%s\n", c.name.c_str(), ms, ms / baseline,
+                double(usage.ru_maxrss) / 1024.0, kb, c.boundMs, ms < c.boundMs ? "" : "  (missed)");
+    jsonRows.field("case", c.name)
+        .field("threads", double(std::thread::hardware_concurrency()))
+        .field("total_ms", ms)
+        .field("baseline_ms", baseline)
+        .field("ratio_to_baseline", ms / baseline)
+        .field("bound_ms", c.boundMs)
+        .field("peak_mb", double(usage.ru_maxrss) / 1024.0)
+        .field("rig_kb", kb)
+        .endRow();
 }
 
 // A detailed character to bake onto itself, in place of BrainStem (61k
@@ -295,13 +284,7 @@ int main(int argc, char** argv)
     const std::string generated = "/tmp/strata_bench_generated_1m.ply";
     const std::string quarter = "/tmp/strata_bench_generated_330k.ply";
     for (int level : {7, 8}) {
-        const ControlMesh sphere = examples::makeHead(level);
-        io::MeshView view;
-        view.positions = sphere.positions.data();
-        view.vertexCount = sphere.positions.size();
-        view.triangles = sphere.triangles.data();
-        view.faceCount = sphere.faceCount();
-        if (!io::writeMesh(level == 8 ? generated : quarter, view).isOk())
+        if (!writeMeshFile(level == 8 ? generated : quarter, examples::makeHead(level)))
             return 1;
     }
     cases.push_back({"generated 330k / 5120", quarter, "", true});

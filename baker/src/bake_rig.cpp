@@ -218,8 +218,7 @@ std::vector<uint8_t> layerImage(const std::vector<uint16_t>& layers)
 // the map up to the size cap only to find that out cost a failing try of
 // the 100k scan 28 s).
 struct SearchShared {
-    bool loaded = false;
-    TriangleMesh high;
+    TriangleMesh high;  // loaded by bakeRig before the first try
     HighMeshStats highStats;
     bool schemeKnown = false;
     Scheme scheme = Scheme::Linear;
@@ -230,7 +229,7 @@ struct SearchShared {
     // the smooth scheme won on 200 faces and the linear one on 800).
     bool schemeFits(size_t faces) const
     {
-        return schemeKnown && 2 * faces >= schemeFaces * 4 / 3 && 2 * faces <= 3 * schemeFaces;
+        return schemeKnown && 3 * faces >= 2 * schemeFaces && 2 * faces <= 3 * schemeFaces;
     }
     int sizeCap = 0;  // 0: none yet
     int mapSize = 0;  // the last try's
@@ -422,7 +421,6 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         fs::remove_all(scratch, ec);
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
     }
-    shared.loaded = true;
     const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
     const size_t most = std::max(first, shared.high.faceCount() / 5);
     attempt(first);
@@ -600,10 +598,7 @@ public:
         double done = 0.0;
         const auto start = std::chrono::steady_clock::now();
         for (const auto& [phase, weight] : phases) {
-            const auto t0 = std::chrono::steady_clock::now();
             (this->*phase)();
-            if (phase == &BakeJob::prepare)
-                prepareMs = msSince(t0);
             done += weight;
             if (fraction)
                 fraction->at(done);
@@ -616,14 +611,12 @@ public:
         appendf(&line,
                 "  time          %.1f s in all: load %.0f ms, atlas and capture index %.0f ms, scheme %.0f ms (cage "
                 "fits %.0f ms of it), map size and level %.0f ms (its last bake: mapping %.0f ms, raster %.0f ms, "
-                "dilation %.0f ms), write %.0f ms, closed loop %.0f ms%s, summary, report and commit %.0f ms",
+                "dilation %.0f ms), write %.0f ms, closed loop %.0f ms",
                 totalMs / 1000.0, loadMs, prepareMs, schemeMs, fitMs, searchMs, rep.times.mapping, rep.times.rasterize,
-                rep.times.dilate, writeMs, errorMs, framesMs > 0.0 ? ", posed frames" : "",
-                std::max(0.0, totalMs - partsMs));
-        if (framesMs > 0.0) {
-            const size_t comma = line.rfind(", summary");
-            line.insert(comma, " " + std::to_string(int(std::lround(framesMs))) + " ms");
-        }
+                rep.times.dilate, writeMs, errorMs);
+        if (framesMs > 0.0)
+            appendf(&line, ", posed frames %.0f ms", framesMs);
+        appendf(&line, ", summary, report and commit %.0f ms", std::max(0.0, totalMs - partsMs));
         const size_t at = result->summary.find(kTimePlaceholder);
         if (at != std::string::npos)
             result->summary.replace(at, std::strlen(kTimePlaceholder), line);
@@ -760,8 +753,7 @@ private:
     DisplacementMap writtenMap_;   // ... and its map, when map-coded
     bool writtenLoaded_ = false;
     nlohmann::json report;
-    double prepareMs = 0.0;
-    double loadMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
+    double loadMs = 0.0, prepareMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
 };
 
 void BakeJob::loadInputs()
@@ -780,26 +772,20 @@ void BakeJob::loadInputs()
 
     const auto t0 = std::chrono::steady_clock::now();
     Status st;
-    if (shared && shared->loaded) {
+    if (shared) {
         high = shared->high;
         highStats = shared->highStats;
-    } else {
-        if (!(st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB)))
-            throw BakeError(st.message());
-        if (shared) {
-            shared->high = high;
-            shared->highStats = highStats;
-            shared->loaded = true;
-        }
+    } else if (!(st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB))) {
+        throw BakeError(st.message());
     }
     if (controlPath == "auto") {
         if (controlFaces == 0)
             controlFaces = std::max<size_t>(200, high.faceCount() / 50);
         Progress p(progress, "simplifying the high-resolution mesh");
-        if (shared && shared->loaded && !shared->simplifier)
+        if (shared && !shared->simplifier)
             shared->simplifier = std::make_unique<Simplifier>(shared->high);
-        if (!(st = shared && shared->simplifier ? shared->simplifier->simplify(controlFaces, &control)
-                                                : decimateToControlMesh(high, controlFaces, &control)))
+        if (!(st = shared ? shared->simplifier->simplify(controlFaces, &control)
+                          : decimateToControlMesh(high, controlFaces, &control)))
             throw BakeError(highPath + ": " + st.message());
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
@@ -1051,6 +1037,7 @@ void BakeJob::checkOneFrame() const
 
 void BakeJob::prepare()
 {
+    const auto t0 = std::chrono::steady_clock::now();
     Status st;
     // UVs, map size and recommended level.  Unless --size forces a size,
     // the map starts at the paper's texel ~ high-res edge rule and doubles
@@ -1116,6 +1103,7 @@ void BakeJob::prepare()
         sizeCap = std::min(sizeCap, shared->sizeCap);
         size = std::min(size, sizeCap);
     }
+    prepareMs = msSince(t0);
 }
 
 void BakeJob::chooseScheme()

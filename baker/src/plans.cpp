@@ -26,8 +26,7 @@ Status createPlan(std::unique_ptr<Plan>* out, const ControlMesh& mesh, Scheme sc
     if (!st)
         return st;
     const Plan& made = **out;
-    if (!lender || lender->level() != level || lender->controlTopologyHash() != made.controlTopologyHash() ||
-        lender->controlTriangles() != made.controlTriangles()) {
+    if (!lender || !lender->sameRefinement(made)) {
         // Kept as its own plan (the caller's may change its displacements);
         // it borrows the stencils just made.
         std::unique_ptr<Plan> kept;

@@ -774,15 +774,19 @@ Status Plan::build(const ControlMesh& mesh, const Plan* sameTopology)
     // The limit stencils follow from the topology and level alone (the
     // refined vertices' locations are the topology's): a plan of the same
     // ones lends its own.
-    if (sameTopology && sameTopology->scheme_ == scheme_ && sameTopology->level_ == level_ &&
-        sameTopology->controlVertexCount_ == controlVertexCount_ && sameTopology->controlTopology_ == controlTopology_ &&
-        sameTopology->controlTriangles_ == controlTriangles_ && sameTopology->samples_.size() == samples_.size()) {
+    if (sameTopology && sameRefinement(*sameTopology)) {
         limitOffsets_ = sameTopology->limitOffsets_;
         limitIndices_ = sameTopology->limitIndices_;
         limitWeights_ = sameTopology->limitWeights_;
         return Status::ok();
     }
     return buildLimit(mesh);
+}
+
+bool Plan::sameRefinement(const Plan& other) const
+{
+    return scheme_ == other.scheme_ && level_ == other.level_ && controlVertexCount_ == other.controlVertexCount_ &&
+           controlTopology_ == other.controlTopology_ && controlTriangles_ == other.controlTriangles_;
 }
 
 Status sampleDisplacements(float* dst, const Plan& plan, const DisplacementMap& map, float scale)

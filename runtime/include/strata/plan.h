@@ -101,6 +101,11 @@ public:
     /// controlTopologyHash of the control mesh the plan was built from: a
     /// rig's displacements apply only to a plan of the same topology.
     uint64_t controlTopologyHash() const { return controlTopology_; }
+    /// Whether `other` refines the same control topology (vertex count and
+    /// triangles) with the same scheme to the same level: it has the same
+    /// refined vertices, stencils and sample locations (create()'s
+    /// sameTopology lends its limit stencils then).
+    bool sameRefinement(const Plan& other) const;
 
     /// Refined topology: refinedVertexCount() vertices, 3 indices per face,
     /// counter-clockwise like the control mesh.  4^level faces per control face.
