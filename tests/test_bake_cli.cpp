@@ -278,8 +278,9 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     EXPECT_EQ(loose.summary.find("400: "), std::string::npos) << loose.summary;
     EXPECT_LE(loose.rms, 0.01);
     EXPECT_NE(loose.summary.find("control       102 vertices, 200 triangles"), std::string::npos) << loose.summary;
-    // The chosen try is the bake: its rig, copied into place, is the one a
-    // bake at that face count writes, and nothing names the scratch folder.
+    // The chosen try is the bake: its rig, baked in memory and delivered,
+    // is the one a bake at that face count writes, and nothing names a
+    // scratch folder.
     EXPECT_EQ(loose.summary.find("strata-faces"), std::string::npos) << loose.summary;
     EXPECT_EQ(loose.report.find("strata-faces"), std::string::npos);
     EXPECT_NE(loose.summary.find(dir + "/loose.glb"), std::string::npos) << loose.summary;
@@ -318,6 +319,39 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     EXPECT_NE(first.find("MISSES --tolerance"), std::string::npos) << first;
     EXPECT_LE(tight.rms, loose.rms);
     EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "only the inputs and the two rigs";  // high, control, 2 rigs
+}
+
+// The search's tries are bakes in memory: the chosen one is delivered
+// (written, summarised, reported) without a second bake, whatever file
+// kind and report the request asks for, and nothing else is written.
+TEST(BakeCli, TheFaceCountSearchDeliversTheChosenBake)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_auto_deliver");
+    strata::baker::BakeRequest request = automaticCageRequest(dir);
+    request.output = dir + "/rig.gltf";
+    request.report = dir + "/report.json";
+    request.tolerance = 0.01;
+    strata::baker::BakeResult result;
+    const strata::Status st = strata::baker::bakeRig(request, &result);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_NE(result.summary.find("the chosen one delivered"), std::string::npos) << result.summary;
+    ASSERT_EQ(result.written.size(), 2u);
+    EXPECT_EQ(result.written[0], dir + "/rig.gltf");
+    EXPECT_EQ(result.written[1], dir + "/report.json");
+    EXPECT_EQ(filesIn(dir, /*withHidden=*/true), 4u) << "the inputs, the rig and its report";
+    const nlohmann::json report = nlohmann::json::parse(strata::test::readText(dir + "/report.json"));
+    ASSERT_TRUE(report.contains("cageFaces")) << report.dump(1);
+    size_t chosen = 0, chosenBytes = 0;
+    for (const nlohmann::json& t : report["cageFaces"])
+        if (t["chosen"].get<bool>()) {
+            chosen = t["faces"].get<size_t>();
+            chosenBytes = size_t(t["bytes"].get<double>());
+        }
+    EXPECT_EQ(chosen, report["control"]["triangles"].get<size_t>());
+    EXPECT_EQ(chosenBytes, strata::test::readText(dir + "/rig.gltf").size());
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.gltf", &rig).isOk());
+    EXPECT_EQ(rig.mesh.faceCount(), chosen);
 }
 
 // After the first try, each count is predicted where a power law of the

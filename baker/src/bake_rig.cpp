@@ -253,9 +253,6 @@ struct FractionSpan {
     }
 };
 
-Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
-                SearchShared* shared = nullptr, FractionSpan* fraction = nullptr);
-
 // The output path's checks, made before any work: not a symbolic link, not
 // one of the inputs, a .glb or .gltf.
 Status checkOutput(const BakeRequest& request)
@@ -308,253 +305,7 @@ Status checkOutput(const BakeRequest& request)
     return Status::ok();
 }
 
-// Replaces every occurrence of `from` in text by `to`.
-void replaceAll(std::string* text, const std::string& from, const std::string& to)
-{
-    if (from.empty())
-        return;
-    for (size_t at = text->find(from); at != std::string::npos; at = text->find(from, at + to.size()))
-        text->replace(at, from.size(), to);
-}
-
 }  // namespace
-
-// An automatic control mesh's face count follows from the tolerance: the
-// fewest faces whose bake reaches it in the closed loop, or the most
-// accurate tried when none does.  The first try is at a fiftieth of the
-// capture's faces (at least 200); each next one is predicted where the
-// error, a power of the face count through the tries nearest the
-// tolerance (the power 1 until two tries give it), crosses the tolerance,
-// with 10% to spare, between 200 and a fifth of the capture (and, going
-// up, at most twice the faces until two tries measure the power).  The search
-// stops when the answer is settled: the fewest that met and the most that
-// missed are within 15% of each other, the prediction saves under 15% of
-// the faces that met, or, none met, even the steepest power allowed (3)
-// puts it past 1.5 times the fifth (the tolerance is out of reach: the
-// closest tried is chosen).  Each try is a whole bake into a scratch folder;
-// the tries share the capture as loaded, the scheme measured on a cage of
-// about their face count (within 1.5x) and
-// the map size of those that met.  When the request asks for the rig alone
-// (a .glb, no report, map images or error range of its own) the chosen
-// try is that bake: its rig is copied into place and its summary kept.
-// Otherwise the chosen count is baked again to the real outputs.
-Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
-               const BakeFraction* fraction)
-{
-    if (!result)
-        return Status(StatusCode::InvalidArgument, "bakeRig: no result");
-    if (!request.output.empty())
-        if (Status checked = checkOutput(request); !checked)
-            return checked;
-    FractionSpan whole;
-    whole.report = fraction;
-    if (request.control != "auto" || request.controlFaces != 0 || !(request.tolerance > 0.0) ||
-        request.high.empty() || request.output.empty())
-        return bakeOnce(request, result, progress, nullptr, &whole);
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    const fs::path scratch = fs::temp_directory_path(ec) / ("strata-faces-" + std::to_string(::getpid()) + "-" +
-                                                           std::to_string(std::hash<std::string>()(request.output)));
-    if (ec || !fs::create_directories(scratch, ec) || ec)
-        return bakeOnce(request, result, progress, nullptr, &whole);
-    if (Status checked = checkOutput(request); !checked)
-        return checked;
-    const auto searchStart = std::chrono::steady_clock::now();
-    const bool reusable = io::extensionOf(request.output) == ".glb" && request.report.empty() && !request.exr &&
-                          !request.layers && request.pngBits == 0 && request.errorFrom == -2 &&
-                          request.errorTo == -2;
-    struct Try {
-        size_t faces;
-        double rms, bytes;
-        std::string output;
-        BakeResult result;
-    };
-    std::vector<Try> tries;
-    SearchShared shared;
-    Status st;
-    auto attempt = [&](size_t faces) {
-        BakeRequest r = request;
-        r.controlFaces = faces;
-        // Each try in its own folder, under the output's own file name.
-        const fs::path folder = scratch / std::to_string(faces);
-        std::error_code made;
-        fs::create_directories(folder, made);
-        r.output = (folder / fs::path(request.output).filename()).string();
-        r.report.clear();
-        r.exr = r.layers = false;
-        r.pngBits = 0;
-        r.errorFrom = r.errorTo = -2;
-        BakeResult out;
-        const std::string stage = "baking onto an automatic cage of " + std::to_string(faces) + " faces";
-        const auto t0 = std::chrono::steady_clock::now();
-        if (progress && *progress)
-            (*progress)(stage.c_str(), -1.0);
-        // Progress counts on three tries (two more than the first; the
-        // rig-alone request takes the chosen try as the bake), or one more
-        // than made, until the search stops.
-        const double expected = double(std::max<size_t>(3, tries.size() + 1)) + (reusable ? 0.0 : 1.0);
-        FractionSpan part = whole;
-        part.base = whole.last;
-        part.span = (1.0 - whole.last) / (expected - double(tries.size()));
-        st = bakeOnce(r, &out, nullptr, &shared, &part);
-        whole.last = part.last;
-        if (progress && *progress)
-            (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        std::error_code size;
-        const double bytes = double(fs::file_size(r.output, size));
-        const bool ok = bool(st);
-        tries.push_back({faces, ok ? out.rms : -1.0, size ? 0.0 : bytes, r.output, std::move(out)});
-        const bool met = ok && tries.back().rms >= 0.0 && tries.back().rms <= request.tolerance;
-        if (met)
-            shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
-        return met;
-    };
-    auto fewestThatMet = [&]() -> const Try* {
-        const Try* met = nullptr;
-        for (const Try& t : tries)
-            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
-                met = &t;
-        return met;
-    };
-    // The capture, loaded once for every try (its face count sets the first).
-    if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB)) {
-        fs::remove_all(scratch, ec);
-        return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
-    }
-    const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
-    const size_t most = std::max(first, shared.high.faceCount() / 5);
-    attempt(first);
-    if (!st) {
-        fs::remove_all(scratch, ec);
-        return st;  // the first try failed (or the bake was cancelled): its message is the bake's
-    }
-    for (int more = 0; more < 5; ++more) {
-        const Try* met = fewestThatMet();
-        // The most faces that missed, below the fewest that met.
-        const Try* missed = nullptr;
-        for (const Try& t : tries)
-            if (!(t.rms >= 0.0 && t.rms <= request.tolerance) && (!met || t.faces < met->faces) &&
-                (!missed || t.faces > missed->faces))
-                missed = &t;
-        if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
-            break;
-        // The power through the tries nearest the tolerance: the fewest that
-        // met and the most that missed, or, none met, the two most faces.
-        const Try* finer = met;
-        const Try* coarser = missed;
-        if (!met) {
-            finer = missed;
-            coarser = nullptr;
-            for (const Try& t : tries)
-                if (t.faces < missed->faces && t.rms > 0.0 && (!coarser || t.faces > coarser->faces))
-                    coarser = &t;
-        }
-        double power = 1.0;
-        bool measured = false;
-        if (finer && coarser && coarser->faces < finer->faces && coarser->rms > finer->rms && finer->rms > 0.0) {
-            power = std::clamp(std::log(coarser->rms / finer->rms) / std::log(double(finer->faces) / double(coarser->faces)),
-                               0.5, 3.0);
-            measured = true;
-        }
-        const Try& anchor = met ? *met : *missed;
-        size_t next = 0;
-        double reach = 0.0;  // the fewest faces the tolerance may need, for the out-of-reach test
-        if (anchor.rms > 0.0) {
-            const double predicted = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / power) * 1.1;
-            next = size_t(std::lround(predicted));
-            // By the steepest power allowed: the error is no power law
-            // across a change of level or scheme (CesiumMan's fell 3.2x
-            // from 400 faces to 800 after 1.26x from 200 to 400).
-            reach = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / 3.0) * 1.1;
-        } else {
-            next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
-        }
-        if (met) {
-            if (double(next) > 0.85 * double(met->faces))
-                break;  // settled: the saving would be small
-            next = std::max<size_t>(next, std::max<size_t>(200, met->faces / 4));
-            if (missed && next <= missed->faces)
-                next = size_t(std::lround(std::sqrt(double(met->faces) * double(missed->faces))));
-            if (next >= met->faces || (missed && next <= missed->faces))
-                break;
-        } else {
-            // The most faces tried, or a tolerance out of reach of them by
-            // the prediction: the closest tried is chosen.
-            if (anchor.faces >= most || reach > 1.5 * double(most))
-                break;
-            // Up at most 2x until two tries measure the power (from one
-            // miss the power 1 overshot the penguin's count 8x), 4x after.
-            const size_t step = (measured ? 4 : 2) * anchor.faces;
-            next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), std::min(most, step));
-        }
-        const Status before = st;
-        attempt(next);
-        if (st.code() == StatusCode::Cancelled) {
-            fs::remove_all(scratch, ec);
-            return st;
-        }
-        if (!st) {
-            st = before;  // a failed extra try leaves the choice to the others
-            break;
-        }
-    }
-    // The fewest faces that met the tolerance, else the smallest error.
-    const Try* chosen = fewestThatMet();
-    if (!chosen)
-        for (const Try& t : tries)
-            if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
-                chosen = &t;
-    bool reused = false;
-    if (reusable && chosen && chosen->rms >= 0.0) {
-        std::vector<uint8_t> bytes;
-        if (io::readFile(chosen->output, &bytes) && !bytes.empty()) {
-            std::error_code made;
-            if (!io::directoryOf(request.output).empty())
-                fs::create_directories(io::directoryOf(request.output), made);
-            if (!(st = io::writeFileAtomic(request.output, bytes.data(), bytes.size()))) {
-                fs::remove_all(scratch, ec);
-                return st;
-            }
-            *result = chosen->result;
-            for (std::string* text : {&result->summary, &result->report})
-                replaceAll(text, chosen->output, request.output);
-            for (std::string& w : result->written)
-                replaceAll(&w, chosen->output, request.output);
-            for (std::string& w : result->warnings)
-                replaceAll(&w, chosen->output, request.output);
-            reused = true;
-        }
-    }
-    fs::remove_all(scratch, ec);
-    if (!reused) {
-        BakeRequest r = request;
-        r.controlFaces = chosen ? chosen->faces : first;
-        FractionSpan last = whole;
-        last.base = whole.last;
-        last.span = 1.0 - whole.last;
-        if (!(st = bakeOnce(r, result, progress, &shared, &last)))
-            return st;
-    }
-    whole.at(1.0);
-    // The search's whole time: the summary's time line is the chosen bake's.
-    char took[160];
-    std::snprintf(took, sizeof(took), "%zu tr%s in %.1f s%s", tries.size(), tries.size() == 1 ? "y" : "ies",
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - searchStart).count(),
-                  reused ? ", the chosen one kept as the bake" : ", then the chosen count baked to the outputs");
-    std::string line = "  cage faces    from the tolerance, " + std::string(took) +
-                       " (closed-loop RMS / diagonal, rig bytes):";
-    for (const Try& t : tries) {
-        appendf(&line, "\n                  %zu: ", t.faces);
-        if (t.rms >= 0.0)
-            appendf(&line, "%.4f%%, %.1f KB%s", 100.0 * t.rms, t.bytes / 1024.0, &t == chosen ? "  <- chosen" : "");
-        else
-            line += "failed";
-    }
-    // After the summary's first lines (what was baked onto what).
-    const size_t at = result->summary.find("  control ");
-    result->summary.insert(at == std::string::npos ? result->summary.size() : at, line + "\n");
-    return Status::ok();
-}
 
 namespace {
 
@@ -569,57 +320,97 @@ double fileSize(const std::string& path)
 // Where the summary's time line goes until every phase has run.
 constexpr const char* kTimePlaceholder = "  time          (measured when the bake ends)";
 
-// One bake: its state, shared by the phases that run() calls in turn (load,
-// prepare the cage and atlas, choose the scheme, search the map size, write,
-// measure what was written, summarise, report, commit).  Every user-facing
-// failure is a BakeError; the outputs stay staged until finish().
+// One bake: its state, shared by the phases that make() and deliver() call
+// in turn.  make() bakes the rig in memory (load, prepare the cage and
+// atlas, choose the scheme, search the map size, encode the rig and settle
+// its level, measure the encoded rig, pose a character against its
+// source); nothing is written.  deliver() then writes the files (staged),
+// summarises, reports and commits.  The face-count search bakes its tries
+// and delivers only the one it chooses.  Every user-facing failure is a
+// BakeError.
 class BakeJob {
 public:
-    BakeJob(const BakeRequest& r, BakeResult* out, const BakeProgress* stages, SearchShared* searchShared,
-            FractionSpan* fractionSpan)
-        : request(r), result(out), progress(stages), shared(searchShared), fraction(fractionSpan), highPath(r.high), controlPath(r.control), outPath(r.output),
-          reportPath(r.report), uvMode(r.uv), skeletonPath(r.skeleton), mapCoding(r.mapCoding),
-          controlFaces(r.controlFaces), options(r.options), asFloat(r.floatExr), writeExr(r.exr),
-          writeLayers(r.layers), schemeGiven(r.schemeGiven), compress(r.compress && r.meshCoding != "plain"), pngBits(r.pngBits),
-          errorFrom(r.errorFrom), errorTo(r.errorTo), tolerance(r.tolerance), maxMemoryMB(r.maxMemoryMB)
+    BakeJob(const BakeRequest& r, const BakeProgress* stages, SearchShared* searchShared, FractionSpan* fractionSpan)
+        : request(r), progress(stages), shared(searchShared), fraction(fractionSpan), uvMode(r.uv),
+          controlFaces(r.controlFaces), options(r.options), errorFrom(r.errorFrom), errorTo(r.errorTo)
     {
     }
 
-    void run()
+    // Each phase and its share of a default bake's time (the 100k scan
+    // onto an automatic cage: the scheme's probes and fits are the largest
+    // part, the summary and report nothing).
+    void make()
     {
-        // Each phase and its share of a default bake's time (the 100k
-        // scan onto an automatic cage: the scheme's probes and fits are
-        // the largest part, the summary and report nothing).
         static const std::pair<void (BakeJob::*)(), double> phases[] = {
-            {&BakeJob::loadInputs, 0.12},     {&BakeJob::prepare, 0.05},      {&BakeJob::chooseScheme, 0.38},
-            {&BakeJob::searchMapSize, 0.15},  {&BakeJob::writeOutputs, 0.15}, {&BakeJob::measureWritten, 0.08},
-            {&BakeJob::measureFrames, 0.04},  {&BakeJob::summarize, 0.01},    {&BakeJob::writeReport, 0.01},
-            {&BakeJob::finish, 0.01}};
-        double done = 0.0;
-        const auto start = std::chrono::steady_clock::now();
-        for (const auto& [phase, weight] : phases) {
-            (this->*phase)();
-            done += weight;
-            if (fraction)
-                fraction->at(done);
-        }
+            {&BakeJob::loadInputs, 0.12},   {&BakeJob::prepare, 0.05},    {&BakeJob::chooseScheme, 0.38},
+            {&BakeJob::searchMapSize, 0.15}, {&BakeJob::encodeRig, 0.14},  {&BakeJob::measureWritten, 0.08},
+            {&BakeJob::measureFrames, 0.04}};
+        start_ = std::chrono::steady_clock::now();
+        runPhases(phases, std::size(phases));
+        bakeMs_ = msSince(start_);
+    }
+
+    // Writes, summarises, reports and commits; `searchNote` (the
+    // face-count search's lines) goes into the summary after its first
+    // lines, and `searchReport` into the report.
+    void deliver(BakeResult* out, const std::string& searchNote = std::string(),
+                 const nlohmann::json& searchReport = nlohmann::json())
+    {
+        static const std::pair<void (BakeJob::*)(), double> phases[] = {{&BakeJob::writeOutputs, 0.01},
+                                                                         {&BakeJob::summarize, 0.01},
+                                                                         {&BakeJob::writeReport, 0.01},
+                                                                         {&BakeJob::finish, 0.01}};
+        searchNote_ = searchNote;
+        searchReport_ = searchReport;
+        const auto t0 = std::chrono::steady_clock::now();
+        runPhases(phases, std::size(phases));
         // The summary's time line, now that every phase has run: its parts
         // add up to the bake's whole wall time.
-        const double totalMs = msSince(start);
-        const double partsMs = loadMs + prepareMs + schemeMs + searchMs + writeMs + errorMs + framesMs;
+        const double totalMs = bakeMs_ + msSince(t0);
+        const double partsMs = loadMs + prepareMs + schemeMs + searchMs + encodeMs + errorMs + framesMs + writeMs;
         std::string line;
         appendf(&line,
                 "  time          %.1f s in all: load %.0f ms, atlas and capture index %.0f ms, scheme %.0f ms (cage "
                 "fits %.0f ms of it), map size and level %.0f ms (its last bake: mapping %.0f ms, raster %.0f ms, "
-                "dilation %.0f ms), write %.0f ms, closed loop %.0f ms",
+                "dilation %.0f ms), encode %.0f ms, closed loop %.0f ms",
                 totalMs / 1000.0, loadMs, prepareMs, schemeMs, fitMs, searchMs, rep.times.mapping, rep.times.rasterize,
-                rep.times.dilate, writeMs, errorMs);
+                rep.times.dilate, encodeMs, errorMs);
         if (framesMs > 0.0)
             appendf(&line, ", posed frames %.0f ms", framesMs);
-        appendf(&line, ", summary, report and commit %.0f ms", std::max(0.0, totalMs - partsMs));
-        const size_t at = result->summary.find(kTimePlaceholder);
+        appendf(&line, ", write %.0f ms, summary, report and commit %.0f ms", writeMs,
+                std::max(0.0, totalMs - partsMs));
+        const size_t at = own_.summary.find(kTimePlaceholder);
         if (at != std::string::npos)
-            result->summary.replace(at, std::strlen(kTimePlaceholder), line);
+            own_.summary.replace(at, std::strlen(kTimePlaceholder), line);
+        *out = std::move(own_);
+    }
+
+    // The encoded rig and its closed-loop RMS / diagonal at the level it
+    // recommends (-1: not measured): what the face-count search compares.
+    size_t rigBytes() const { return rigBytes_.size(); }
+    double rms() const
+    {
+        for (const LevelError& e : errors)
+            if (e.level == recommended)
+                return e.rms() / rep.diagonal;
+        return -1.0;
+    }
+    // Where the progress of the phases still to run goes (null: nowhere).
+    void reportTo(FractionSpan* span) { fraction = span; }
+
+    // Frees what only make() needs (the capture, its index, the fits, the
+    // atlas charts), for a try the search keeps to compare.
+    void releaseInputs()
+    {
+        high = TriangleMesh();
+        highIndex = TriangleIndex();
+        for (Fitted& f : fitted)
+            f.positions = std::vector<glm::vec3>();  // their stats stay for the summary
+        chartCache = ChartCache();
+        previous = Snapshot();
+        written_ = Rig();
+        writtenMap_ = DisplacementMap();
+        bare = ControlMesh();
     }
 
 private:
@@ -656,6 +447,7 @@ private:
     void prepare();
     void chooseScheme();
     void searchMapSize();
+    void encodeRig();
     void writeOutputs();
     void loadWritten();
     void measureWritten();
@@ -671,11 +463,21 @@ private:
     const Trial* trialAt(int level) const;
     double quantizationStep(int level) const;
     Status refineStoredValues(const ControlMesh& mesh, int level, std::vector<float>* values, double* step);
-    Status writeRig(const std::string& path, int level);
+    Status encodeAt(int level, std::string* bytes);
+    void runPhases(const std::pair<void (BakeJob::*)(), double>* phases, size_t count);
     void loadCharacter();
     void carryCharacter();
     void carryColour();
     void settleLevel();
+
+    // A failure's message, naming the rig where it does not yet.
+    std::string namingOutput(const Status& st) const
+    {
+        return st.message().compare(0, request.output.size(), request.output) == 0
+                   ? st.message()
+                   : request.output + ": " + st.message();
+    }
+    std::string pngPath() const { return base + (request.pngBits == 8 ? ".png8.png" : ".png16.png"); }
 
     template <typename... Args>
     void warn(const char* format, Args... args)
@@ -685,18 +487,23 @@ private:
         result->warnings.push_back(w);
     }
 
-    const BakeRequest& request;
-    BakeResult* result;
+    const BakeRequest request;  // a copy: a search's tries outlive the request it made
+    BakeResult own_;
+    BakeResult* result = &own_;  // filled as the phases run; deliver() hands it over
     const BakeProgress* progress;
     SearchShared* shared;    // a face-count search's tries, or null
     FractionSpan* fraction;  // where this bake's progress goes, or null
-    // The request's fields under the names the pipeline uses.
-    std::string highPath, controlPath, outPath, reportPath, uvMode, skeletonPath, mapCoding;
+    // What the bake resolves from the request: the UVs ("keep" or "auto"),
+    // an automatic cage's face count, and the options as chosen (map size,
+    // scheme).
+    std::string uvMode;
     size_t controlFaces;
     BakeOptions options;
-    bool asFloat, writeExr, writeLayers, schemeGiven, compress;
-    int pngBits, errorFrom, errorTo;
-    double tolerance, maxMemoryMB;
+    int errorFrom, errorTo;  // the closed loop's levels (-2: around the recommended one, once chosen)
+    std::string searchNote_;
+    nlohmann::json searchReport_;
+    std::chrono::steady_clock::time_point start_;
+    double bakeMs_ = 0.0;
     std::string base;  // the output path without its extension
 
     // The inputs.
@@ -753,32 +560,44 @@ private:
     DisplacementMap writtenMap_;   // ... and its map, when map-coded
     bool writtenLoaded_ = false;
     nlohmann::json report;
-    double loadMs = 0.0, prepareMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, writeMs = 0.0, errorMs = 0.0;
+    std::string rigBytes_;  // the rig file, encoded
+    double loadMs = 0.0, prepareMs = 0.0, fitMs = 0.0, schemeMs = 0.0, searchMs = 0.0, encodeMs = 0.0, errorMs = 0.0,
+           writeMs = 0.0;
+    double done_ = 0.0;  // the fraction of the phases' weight run
 };
+
+void BakeJob::runPhases(const std::pair<void (BakeJob::*)(), double>* phases, size_t count)
+{
+    for (size_t i = 0; i < count; ++i) {
+        (this->*phases[i].first)();
+        done_ += phases[i].second;
+        if (fraction)
+            fraction->at(done_);
+    }
+}
 
 void BakeJob::loadInputs()
 {
-    if (highPath.empty() || controlPath.empty() || outPath.empty())
+    if (request.high.empty() || request.control.empty() || request.output.empty())
         throw BakeError("--high, --control and -o are required (see --help)");
-    if (mapCoding != "vertex" && mapCoding != "png")
-        throw BakeError("map coding must be vertex or png, not " + mapCoding);
+    if (request.mapCoding != "vertex" && request.mapCoding != "png")
+        throw BakeError("map coding must be vertex or png, not " + request.mapCoding);
     if (request.meshCoding != "plain" && request.meshCoding != "draco" && request.meshCoding != "meshopt")
         throw BakeError("mesh coding must be plain, meshopt or draco, not " + request.meshCoding);
     if (Status checked = checkOutput(request); !checked)
         throw BakeError(checked.message());
-    Outputs::removeStale(io::directoryOf(outPath));
-    const std::string ext = io::extensionOf(outPath);
-    base = outPath.substr(0, outPath.size() - ext.size());
+    const std::string ext = io::extensionOf(request.output);
+    base = request.output.substr(0, request.output.size() - ext.size());
 
     const auto t0 = std::chrono::steady_clock::now();
     Status st;
     if (shared) {
         high = shared->high;
         highStats = shared->highStats;
-    } else if (!(st = loadHighMesh(highPath, &high, &highStats, maxMemoryMB))) {
+    } else if (!(st = loadHighMesh(request.high, &high, &highStats, request.maxMemoryMB))) {
         throw BakeError(st.message());
     }
-    if (controlPath == "auto") {
+    if (request.control == "auto") {
         if (controlFaces == 0)
             controlFaces = std::max<size_t>(200, high.faceCount() / 50);
         Progress p(progress, "simplifying the high-resolution mesh");
@@ -786,16 +605,16 @@ void BakeJob::loadInputs()
             shared->simplifier = std::make_unique<Simplifier>(shared->high);
         if (!(st = shared ? shared->simplifier->simplify(controlFaces, &control)
                           : decimateToControlMesh(high, controlFaces, &control)))
-            throw BakeError(highPath + ": " + st.message());
+            throw BakeError(request.high + ": " + st.message());
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";
         loadCharacter();
     } else {
-        if (!(st = loadControlRig(controlPath, &controlRig, maxMemoryMB)))
+        if (!(st = loadControlRig(request.control, &controlRig, request.maxMemoryMB)))
             throw BakeError(st.message());
         for (const std::string& w : controlRig.warnings)
-            warn("%s: %s", controlPath.c_str(), w.c_str());
+            warn("%s: %s", request.control.c_str(), w.c_str());
         control = controlRig.mesh;
         skeleton = controlRig.skeleton;
         checkOneFrame();
@@ -810,36 +629,36 @@ void BakeJob::loadInputs()
                 if (!(st = checkUVs(probe, 1024))) {
                     warn("%s: its UVs cannot carry the map (%s); generating an atlas in a new UV set (--uv keep "
                          "insists)",
-                         controlPath.c_str(), st.message().c_str());
+                         request.control.c_str(), st.message().c_str());
                     uvMode = "auto";
                 }
             }
         }
         if (uvMode == "keep" && !control.hasUVs())
-            throw BakeError(controlPath + ": the control mesh has no UVs (use --uv auto to generate them)");
+            throw BakeError(request.control + ": the control mesh has no UVs (use --uv auto to generate them)");
         // A closed capture over a control mesh left open (a wrist, a
         // neck): the capture's cap has nothing to be displaced from, so
         // the holes are closed with fans (a plain, unskinned mesh whose
         // UVs are laid out anew only; --keep-holes keeps them open).
-        if (request.closeHoles && uvMode == "auto" && skeleton.empty() && skeletonPath.empty() &&
+        if (request.closeHoles && uvMode == "auto" && skeleton.empty() && request.skeleton.empty() &&
             !controlRig.source && countBoundaryEdges(control.triangles.data(), control.faceCount()) > 0 &&
             countBoundaryEdges(high.triangles.data(), high.faceCount()) == 0) {
             const size_t before = control.faceCount();
             if (const size_t loops = closeBoundaryLoops(&control))
                 warn("%s: the capture is closed where the control mesh is open: %zu boundary loop%s closed with "
                      "%zu triangles (--keep-holes keeps them open)",
-                     controlPath.c_str(), loops, loops == 1 ? "" : "s", control.faceCount() - before);
+                     request.control.c_str(), loops, loops == 1 ? "" : "s", control.faceCount() - before);
         }
     }
-    if (!skeletonPath.empty()) {
+    if (!request.skeleton.empty()) {
         // The paper's joint file: its point-to-line binding becomes
         // standard skin weights, so the rig plays in any glTF viewer.
         if (!skeleton.empty())
-            warn("%s: its skin is replaced by %s", controlPath.c_str(), skeletonPath.c_str());
-        if (!(st = io::loadJointFile(skeletonPath, &skeleton)))
+            warn("%s: its skin is replaced by %s", request.control.c_str(), request.skeleton.c_str());
+        if (!(st = io::loadJointFile(request.skeleton, &skeleton)))
             throw BakeError(st.message());
         if (!(st = bindSkeletonWeights(&skeleton, control)))
-            throw BakeError(skeletonPath + ": " + st.message());
+            throw BakeError(request.skeleton + ": " + st.message());
         controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
     }
     loadMs = msSince(t0);
@@ -864,7 +683,7 @@ void BakeJob::measureFrames()
     if (st)
         st = Surface::create(&source, highRig, nullptr, plain);
     if (!st)
-        throw BakeError(outPath + ": the character rig does not pose against its source: " + st.message());
+        throw BakeError(request.output + ": the character rig does not pose against its source: " + st.message());
     std::vector<glm::vec3> a(layered->vertexCount()), b(source->vertexCount());
     TriangleIndex ia, ib;
     for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
@@ -874,7 +693,7 @@ void BakeJob::measureFrames()
             if (!(st = layered->setAnimationTime(int(anim), t)) || !(st = source->setAnimationTime(int(anim), t)) ||
                 !(st = layered->evaluate(a.data(), nullptr, a.size(), options.threads)) ||
                 !(st = source->evaluate(b.data(), nullptr, b.size(), options.threads)))
-                throw BakeError(outPath + ": posing the character: " + st.message());
+                throw BakeError(request.output + ": posing the character: " + st.message());
             ia.build(a.data(), layered->triangles().data(), layered->triangleCount(), options.threads);
             ib.build(b.data(), source->triangles().data(), source->triangleCount(), options.threads);
             const DistanceStats ab = sampleDistance(
@@ -895,36 +714,36 @@ void BakeJob::measureFrames()
 // the capture).  What is not carried yet is named in one line.
 void BakeJob::loadCharacter()
 {
-    const std::string ext = io::extensionOf(highPath);
+    const std::string ext = io::extensionOf(request.high);
     if (ext != ".glb" && ext != ".gltf")
         return;
     // The capture read as a rig (its skeleton, materials).  Where the rig
     // reader refuses what the mesh reader took (two skins, for one), the
     // shape is baked as before and the one line says what is not carried.
-    Status st = loadControlRig(highPath, &highRig, maxMemoryMB);
+    Status st = loadControlRig(request.high, &highRig, request.maxMemoryMB);
     if (!st) {
-        warn("%s: --control auto carries its shape only, not its skin, animations or colour: %s", highPath.c_str(),
+        warn("%s: --control auto carries its shape only, not its skin, animations or colour: %s", request.high.c_str(),
              st.message().c_str());
         highRig = Rig();
         return;
     }
     // The same scene reader welds both: the capture's vertices are the rig's.
     if (highRig.mesh.positions.size() != high.positions.size())
-        throw BakeError(highPath + ": the capture and its character do not weld to the same vertices");
+        throw BakeError(request.high + ": the capture and its character do not weld to the same vertices");
     character = !highRig.skeleton.empty() && !highRig.skeleton.weights.weights.empty();
     for (const std::string& w : highRig.warnings)
-        warn("%s: %s", highPath.c_str(), w.c_str());
+        warn("%s: %s", request.high.c_str(), w.c_str());
     std::vector<std::string> warnings;
     if (highRig.source && io::loadSceneMaterials(highRig, &captureMaterials, &warnings)) {
         for (const std::string& w : warnings)
-            warn("%s: %s", highPath.c_str(), w.c_str());
+            warn("%s: %s", request.high.c_str(), w.c_str());
         // Any material or texture: the colour is carried (a capture of
         // glTF's default material alone has nothing to carry).
         coloured = captureMaterials.materials.size() > 1;
     }
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
-             highPath.c_str());
+             request.high.c_str());
 }
 
 // The capture's skeleton on the cage: the same nodes, joints, inverse bind
@@ -936,9 +755,9 @@ void BakeJob::carryCharacter()
     Status st = transferSkinWeights(control, high, highIndex, highRig.skeleton.weights, &carried.weights,
                                     options.threads);
     if (!st)
-        throw BakeError(highPath + ": " + st.message());
+        throw BakeError(request.high + ": " + st.message());
     if (!(st = finalizeSkeleton(&carried, control.positions.size())))
-        throw BakeError(highPath + ": " + st.message());
+        throw BakeError(request.high + ": " + st.message());
     rig.skeleton = std::move(carried);
 }
 
@@ -989,7 +808,7 @@ void BakeJob::carryColour()
     ColorImage image;
     Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);
     if (!st)
-        throw BakeError(highPath + ": " + st.message());
+        throw BakeError(request.high + ": " + st.message());
     baseColour.name = "base_colour";
     baseColour.width = image.width;
     baseColour.height = image.height;
@@ -1020,7 +839,7 @@ void BakeJob::checkOneFrame() const
     }
     const double diagonal = glm::length(hi - lo);
     if (!(diagonal > 0.0) || !std::isfinite(diagonal))
-        throw BakeError(highPath + ": the high-resolution mesh has no extent (every vertex at one point)");
+        throw BakeError(request.high + ": the high-resolution mesh has no extent (every vertex at one point)");
     constexpr double kReach = 4.0;  // capture diagonals
     for (size_t i = 0; i < control.positions.size(); ++i) {
         const glm::dvec3 p(control.positions[i]);
@@ -1029,7 +848,7 @@ void BakeJob::checkOneFrame() const
             char where[160];
             std::snprintf(where, sizeof(where), "control vertex %zu at (%.6g, %.6g, %.6g) lies %.3g diagonals of the capture from it",
                           i, p.x, p.y, p.z, away / diagonal);
-            throw BakeError((controlPath == "auto" ? highPath : controlPath) + ": " + where +
+            throw BakeError((request.control == "auto" ? request.high : request.control) + ": " + where +
                             ": the control mesh and the capture are not in one frame (a stray vertex, or other units?)");
         }
     }
@@ -1052,7 +871,7 @@ void BakeJob::prepare()
     // from finer texels (without the orders every default rig of the paper
     // run came out byte for byte the same, nefertiti's within 0.1%, and
     // the 100k scan's layouts took half the time).
-    atlas.growIntoGaps = writeExr || pngBits != 0 || writeLayers;
+    atlas.growIntoGaps = request.exr || request.pngBits != 0 || request.layers;
     atlas.tryOrders = atlas.growIntoGaps;
     // So is one chart over the whole map where the charts miss the atlas
     // targets (a file's vertices and texels inside charts).
@@ -1069,9 +888,9 @@ void BakeJob::prepare()
     // weights were bound to these positions) are never moved, nor is a
     // user's cage whose map is asked for as an image (--exr, --png8/16):
     // a pipeline applies that map to the cage it has.
-    const bool mapForPipelines = writeExr || pngBits != 0;
+    const bool mapForPipelines = request.exr || request.pngBits != 0;
     const bool fittable = request.fitCage && !controlRig.source && skeleton.empty();
-    fitting = fittable && (controlPath == "auto" || !mapForPipelines);
+    fitting = fittable && (request.control == "auto" || !mapForPipelines);
     fitSkippedForMaps = fittable && !fitting;
     fitOptions.level = std::clamp(paperLevel, 1, 3);
     fitOptions.threads = options.threads;
@@ -1089,11 +908,11 @@ void BakeJob::prepare()
     } else {
         std::string uvNote;
         if (fitUVsToUnitSquare(&control, &uvNote))
-            warn("%s: %s", controlPath.c_str(), uvNote.c_str());
+            warn("%s: %s", request.control.c_str(), uvNote.c_str());
         if (!forced)
             size = chooseMapSize(control, typicalEdge, options.maxSize, &sizeReason);
         if (!(st = checkUVs(control, std::max(size, 1024))))
-            throw BakeError(controlPath + ": " + st.message());
+            throw BakeError(request.control + ": " + st.message());
     }
     if (forced)
         sizeReason = "forced by --size";
@@ -1109,12 +928,12 @@ void BakeJob::prepare()
 void BakeJob::chooseScheme()
 {
     Status st;
-    schemeReason = schemeGiven ? "--scheme" : "";
+    schemeReason = request.schemeGiven ? "--scheme" : "";
     const auto schemeStart = std::chrono::steady_clock::now();
-    if (!schemeGiven && shared && shared->schemeFits(control.faceCount())) {
+    if (!request.schemeGiven && shared && shared->schemeFits(control.faceCount())) {
         options.scheme = shared->scheme;
         schemeReason = shared->schemeReason;
-    } else if (!schemeGiven && !forced && tolerance > 0.0) {
+    } else if (!request.schemeGiven && !forced && request.tolerance > 0.0) {
         // Which surface carries the map better for this pair, measured at
         // the paper's level and twice the first size (up to 512^2), so
         // that the map's resolution, which the smaller displacements of
@@ -1137,7 +956,7 @@ void BakeJob::chooseScheme()
         double rms[2] = {0.0, -1.0};
         for (Scheme candidate : {Scheme::Linear, Scheme::Smooth}) {
             if (candidate == Scheme::Smooth &&
-                (rms[0] <= 0.25 * tolerance || (paperLevel <= 2 && rms[0] <= tolerance)))
+                (rms[0] <= 0.25 * request.tolerance || (paperLevel <= 2 && rms[0] <= request.tolerance)))
                 break;
             BakeOptions probe = options;
             probe.size = uvMode == "auto" ? atlas.mapSize : probeSize;
@@ -1151,7 +970,7 @@ void BakeJob::chooseScheme()
             if (!(st = bake(&probeMap, nullptr, &probeReport, candidateMesh, high, probe)) ||
                 !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
                                               options.threads)))
-                throw BakeError(highPath + ": " + st.message());
+                throw BakeError(request.high + ": " + st.message());
             rms[int(candidate)] = errs[0].rms() / probeReport.diagonal;
         }
         options.scheme = rms[1] >= 0.0 && rms[1] * 1.25 < rms[0] ? Scheme::Smooth : Scheme::Linear;
@@ -1204,9 +1023,9 @@ void BakeJob::searchMapSize()
         {
             Progress p(progress, "baking");
             if (!(st = bake(&map, &layers, &rep, control, high, options)))
-                throw BakeError(highPath + ": " + st.message());
+                throw BakeError(request.high + ": " + st.message());
         }
-        if (forced || tolerance <= 0.0)
+        if (forced || request.tolerance <= 0.0)
             break;
         // The paper's level and every level below it (a loose tolerance
         // is met with fewer refined vertices, hence fewer stored values;
@@ -1228,13 +1047,13 @@ void BakeJob::searchMapSize()
                 best = rms;
                 bestLevel = e.level;
             }
-            if (met < 0 && rms <= tolerance)
+            if (met < 0 && rms <= request.tolerance)
                 met = e.level;
         }
         if (met >= 0) {
             recommended = met;
             char buf[96];
-            std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * tolerance, met);
+            std::snprintf(buf, sizeof(buf), "; reaches --tolerance %.4g%% at level %d", 100.0 * request.tolerance, met);
             sizeReason += buf;
             break;
         }
@@ -1294,15 +1113,12 @@ void BakeJob::searchMapSize()
     }
 }
 
-void BakeJob::writeOutputs()
+// The rig in memory: the control mesh, a character's skin and colour, the
+// layer's record and the stored values, at the level the closed loop
+// settles on.
+void BakeJob::encodeRig()
 {
-    // Outputs.
     const auto t0 = std::chrono::steady_clock::now();
-    std::error_code mkdirError;
-    if (!io::directoryOf(outPath).empty())
-        std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
-    if (mkdirError)
-        throw BakeError(io::directoryOf(outPath) + ": cannot create the output folder (" + mkdirError.message() + ")");
     rig = std::move(controlRig);
     rig.mesh = control;
     rig.skeleton = std::move(skeleton);
@@ -1314,67 +1130,91 @@ void BakeJob::writeOutputs()
     rig.displacement = DisplacementInfo();
     rig.displacement.scheme = options.scheme;
     rig.displacement.recommendedLevel = recommended;
-    if (writeExr)
-        outputs.write(base + ".exr", [&](const std::string& p) {
-            return io::writeDisplacementExr(p, map, asFloat ? io::ExrPixelType::Float : io::ExrPixelType::Half,
-                                            options.threads);
-        });
-    if (pngBits) {
-        std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
-        for (size_t i = 0; i < q.size(); ++i)
-            q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << pngBits)));
-        const std::string png = base + (pngBits == 8 ? ".png8.png" : ".png16.png");
-        outputs.write(png, [&](const std::string& p) { return io::writePngGray(p, map.width, map.height, pngBits, q); });
-        rig.displacement.quantized.uri = io::stemOf(png) + ".png";
-        rig.displacement.quantized.bits = pngBits;
+    if (request.pngBits) {
+        // The quantised PNG (written beside the rig by writeOutputs), named
+        // in the rig.
+        rig.displacement.quantized.uri = io::stemOf(pngPath()) + ".png";
+        rig.displacement.quantized.bits = request.pngBits;
         rig.displacement.quantized.dmin = rep.dmin;
         rig.displacement.quantized.dmax = rep.dmax;
     }
-    if (writeLayers)
-        outputs.write(base + "_layers.png", [&](const std::string& p) {
-            return io::writePngRgb(p, map.width, map.height, layerImage(layers));
-        });
-    writeOptions.compress = compress;
+    writeOptions.compress = request.compress && request.meshCoding != "plain";
     writeOptions.draco = request.meshCoding == "draco";
     // A bare cage's positions are stored to four times the tolerance: the
     // stored values are measured and fitted on the decoded cage, so its
     // error along the normals is taken up by them (on the real pairs the
     // closed loop moved by under 1% against a quarter of it).  Where an
     // edge would collapse at that error, the writer takes a finer one.
-    writeOptions.maxPositionError = tolerance > 0.0 ? 4.0 * tolerance * rep.diagonal : 0.0;
-    writeOptions.vertexDisplacements = mapCoding == "vertex";
+    writeOptions.maxPositionError = request.tolerance > 0.0 ? 4.0 * request.tolerance * rep.diagonal : 0.0;
+    writeOptions.vertexDisplacements = request.mapCoding == "vertex";
     // An atlas made only to bake through is left out of a vertex-coded
     // rig (nothing reads it there); outputs that are the map keep it.
-    writeOptions.omitDisplacementUVs = uvMode == "auto" && !writeExr && !pngBits && !writeLayers;
+    writeOptions.omitDisplacementUVs = uvMode == "auto" && !request.exr && !request.pngBits && !request.layers;
     // Stored values measured and fitted on the capture come 1.4-2.1x closer
     // than the map's samples (the real pairs), so where the map's trial one
     // level coarser comes within 2x of the tolerance, that level is
-    // written first and settleLevel goes finer only if it misses: its
-    // values are a quarter of the finer level's, and writing the finer one
+    // encoded first and settleLevel goes finer only if it misses: its
+    // values are a quarter of the finer level's, and encoding the finer one
     // first (measured, fitted, quantised, each in the closed loop) was
     // half of an automatic cage's bake.
-    if (writeOptions.vertexDisplacements && !forced && tolerance > 0.0 && recommended > 0)
-        if (const Trial* coarser = trialAt(recommended - 1); coarser && coarser->rms <= 2.0 * tolerance)
+    if (writeOptions.vertexDisplacements && !forced && request.tolerance > 0.0 && recommended > 0)
+        if (const Trial* coarser = trialAt(recommended - 1); coarser && coarser->rms <= 2.0 * request.tolerance)
             --recommended;
-    outputs.write(outPath, [&](const std::string& p) { return writeRig(p, recommended); });
+    if (Status st = encodeAt(recommended, &rigBytes_); !st)
+        throw BakeError(namingOutput(st));
     settleLevel();
     for (const std::string& n : notes)
-        warn("%s: %s", outPath.c_str(), n.c_str());
+        warn("%s: %s", request.output.c_str(), n.c_str());
+    encodeMs = msSince(t0);
+}
+
+// The files, staged beside their targets until finish() commits them: the
+// map images asked for, then the rig.
+void BakeJob::writeOutputs()
+{
+    const auto t0 = std::chrono::steady_clock::now();
+    std::error_code mkdirError;
+    if (!io::directoryOf(request.output).empty())
+        std::filesystem::create_directories(io::directoryOf(request.output), mkdirError);
+    if (mkdirError)
+        throw BakeError(io::directoryOf(request.output) + ": cannot create the output folder (" +
+                        mkdirError.message() + ")");
+    Outputs::removeStale(io::directoryOf(request.output));
+    if (request.exr)
+        outputs.write(base + ".exr", [&](const std::string& p) {
+            return io::writeDisplacementExr(p, map, request.floatExr ? io::ExrPixelType::Float : io::ExrPixelType::Half,
+                                            options.threads);
+        });
+    if (request.pngBits) {
+        std::vector<uint16_t> q(map.texels.size());  // paper eq. 12 at 2^n levels
+        for (size_t i = 0; i < q.size(); ++i)
+            q[i] = uint16_t(shared::strata_quantize(map.texels[i], rep.dmin, rep.dmax, float(1 << request.pngBits)));
+        outputs.write(pngPath(), [&](const std::string& p) {
+            return io::writePngGray(p, map.width, map.height, request.pngBits, q);
+        });
+    }
+    if (request.layers)
+        outputs.write(base + "_layers.png", [&](const std::string& p) {
+            return io::writePngRgb(p, map.width, map.height, layerImage(layers));
+        });
+    outputs.write(request.output, [&](const std::string& p) {
+        return io::writeFileAtomic(p, rigBytes_.data(), rigBytes_.size());
+    });
     writeMs = msSince(t0);
 }
 
-// The rig just written (staged) and, map-coded, its map: loaded once for
-// the measurements that read it back.
+// The rig as encoded, read back as a loader reads the file and, map-coded,
+// its map: loaded once for the measurements that read it back.
 void BakeJob::loadWritten()
 {
     if (writtenLoaded_)
         return;
-    const std::string staged = Outputs::staged(outPath);
-    Status st = io::loadRig(staged, &written_);
+    Status st = io::loadRigFromMemory(reinterpret_cast<const unsigned char*>(rigBytes_.data()), rigBytes_.size(),
+                                      io::extensionOf(request.output) == ".glb", request.output, &written_);
     if (st && written_.displacement.vertexLevel < 0)
-        st = io::loadRigDisplacementMap(staged, written_, &writtenMap_);
+        st = io::loadRigDisplacementMap(request.output, written_, &writtenMap_);
     if (!st)
-        throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
+        throw BakeError(request.output + ": the rig just encoded does not load back: " + st.message());
     writtenLoaded_ = true;
 }
 
@@ -1394,7 +1234,7 @@ void BakeJob::measureWritten()
         if (written.displacement.vertexLevel >= 0 &&
             !(st = DisplacementField::create(&field, written.mesh, written.displacement.vertexLevel,
                                              written.displacement.vertexValues)))
-            throw BakeError(outPath + ": the rig just written does not load back: " + st.message());
+            throw BakeError(request.output + ": the rig just encoded does not load back: " + st.message());
         const auto t0 = std::chrono::steady_clock::now();
         Progress p(progress, "measuring the closed-loop error");
         if (!(st = closedLoopError(&errors, written.mesh, writtenMap_, options.scheme, high, errorFrom, errorTo,
@@ -1416,16 +1256,16 @@ void BakeJob::summarize()
         // file it is (textures, animations and skins included); a mesh file
         // as a plain glb of its triangles, plus whatever textures,
         // animations and skins the rig carries from its control.
-        const size_t hv = high.positions.size(), hf = high.faceCount();
-        const std::string highExt = io::extensionOf(highPath);
+        const size_t hv = rep.highVertices, hf = rep.highTriangles;
+        const std::string highExt = io::extensionOf(request.high);
         const bool gltfCapture = highExt == ".glb" || highExt == ".gltf";
         const double extra = double(io::characterBytes(rig));
         std::error_code sizeError;
-        const double highBytes = gltfCapture ? double(std::filesystem::file_size(highPath, sizeError)) : 0.0;
+        const double highBytes = gltfCapture ? double(std::filesystem::file_size(request.high, sizeError)) : 0.0;
         const double plain = gltfCapture && !sizeError ? highBytes
                                          : 12.0 * double(hv) + 3.0 * double(hf) * (hv <= 65535 ? 2.0 : 4.0) + 600.0 +
                                                extra;
-        const double rigBytes = fileSize(outPath);
+        const double rigBytes = fileSize(request.output);
         char what[160];
         if (gltfCapture && !sizeError)
             std::snprintf(what, sizeof(what), "as the file it is");
@@ -1435,34 +1275,34 @@ void BakeJob::summarize()
         if (rigBytes > plain && coloured)
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is the %dx%d base colour "
                  "texture re-baked into the cage's UVs",
-                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height);
+                 request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height);
         else if (rigBytes > plain)
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); its control mesh has %zu triangles, "
                  "and a coarser one (%s), or --mesh-coding meshopt or draco, makes a smaller rig",
-                 outPath.c_str(), rigBytes / 1024.0, what, plain / 1024.0, control.faceCount(),
-                 controlPath == "auto" ? "--control-faces, or a looser --tolerance" : "--control auto");
+                 request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, control.faceCount(),
+                 request.control == "auto" ? "--control-faces, or a looser --tolerance" : "--control auto");
     }
-    if (compress && io::extensionOf(outPath) == ".glb")
+    if (writeOptions.compress && io::extensionOf(request.output) == ".glb")
         warn("%s: %s-coded, which Blender 3.4 (Debian's, without Draco) and gltfpack do not open; "
              "--mesh-coding plain writes a rig they do",
-             outPath.c_str(), request.meshCoding == "draco" ? "Draco" : "meshopt");
+             request.output.c_str(), request.meshCoding == "draco" ? "Draco" : "meshopt");
     const double diag = rep.diagonal;
     // The promise first: the closed loop at the recommended level (area-
     // weighted both ways, the larger side) against --tolerance.
     std::string promise;
     for (const LevelError& e : errors)
-        if (e.level == recommended && tolerance > 0.0 && diag > 0.0) {
+        if (e.level == recommended && request.tolerance > 0.0 && diag > 0.0) {
             const double reached = std::max(e.forwardRms, e.backwardRms) / diag;
             char buf[200];
-            if (reached > tolerance)
-                std::snprintf(buf, sizeof(buf), "; MISSES --tolerance %.4g%%: %.4g%% RMS at level %d", 100.0 * tolerance,
+            if (reached > request.tolerance)
+                std::snprintf(buf, sizeof(buf), "; MISSES --tolerance %.4g%%: %.4g%% RMS at level %d", 100.0 * request.tolerance,
                               100.0 * reached, recommended);
             else
                 std::snprintf(buf, sizeof(buf), "; %.4g%% RMS at level %d, within --tolerance %.4g%%", 100.0 * reached,
-                              recommended, 100.0 * tolerance);
+                              recommended, 100.0 * request.tolerance);
             promise = buf;
         }
-    appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)%s\n", highPath.c_str(), controlPath.c_str(),
+    appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)%s\n", request.high.c_str(), request.control.c_str(),
                  schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str(), promise.c_str());
     appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
                 rep.highTriangles, rep.typicalEdge);
@@ -1472,6 +1312,7 @@ void BakeJob::summarize()
                     "triangles, %zu non-manifold edges\n",
                     highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
                     highStats.nonManifoldEdges);
+    result->summary += searchNote_;
     appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                 control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
     if (character)
@@ -1504,7 +1345,7 @@ void BakeJob::summarize()
                                                    "(--exr keeps it)" : "");
     if (!trials.empty()) {
         appendf(&result->summary, "  trade-off     (map, level: RMS / diagonal, the larger direction; tolerance %.4g%%)\n",
-                     100.0 * tolerance);
+                     100.0 * request.tolerance);
         for (const Trial& t : trials)
             appendf(&result->summary, "                %5d, %d: %.4f%%%s\n", t.size, t.level, 100.0 * t.rms,
                          t.size == map.width && t.level == recommended ? "  <- chosen" : "");
@@ -1555,7 +1396,7 @@ void BakeJob::summarize()
 void BakeJob::writeReport()
 {
     const double diag = rep.diagonal, bound = std::sqrt(3.0) / 2.0 * rep.typicalEdge;
-    report["high"] = {{"path", highPath},
+    report["high"] = {{"path", request.high},
                       {"vertices", rep.highVertices},
                       {"triangles", rep.highTriangles},
                       {"medianEdge", rep.typicalEdge},
@@ -1564,7 +1405,7 @@ void BakeJob::writeReport()
                       {"duplicateVertices", highStats.duplicateVertices},
                       {"degenerateTriangles", highStats.degenerateTriangles},
                       {"nonManifoldEdges", highStats.nonManifoldEdges}};
-    report["control"] = {{"path", controlPath},
+    report["control"] = {{"path", request.control},
                          {"vertices", control.positions.size()},
                          {"triangles", control.faceCount()},
                          {"uv", uvMode}};
@@ -1595,13 +1436,14 @@ void BakeJob::writeReport()
             list.push_back({{"animation", f.animation}, {"time", f.time}, {"rms", f.rms / diag}, {"max", f.max / diag}});
         report["posed"] = {{"level", recommended}, {"frames", list}, {"ms", framesMs}};
     }
-    report["tolerance"] = tolerance;
+    report["tolerance"] = request.tolerance;
     report["tradeOff"] = tradeOff;
     report["scheme"] = schemeName(options.scheme);
     report["recommendedLevel"] = recommended;
     report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
                         {"dilate", rep.times.dilate}, {"fit", fitMs}, {"schemeChoice", schemeMs},
-                        {"sizeSearch", searchMs}, {"write", writeMs}, {"closedLoop", errorMs}};
+                        {"sizeSearch", searchMs}, {"write", encodeMs + writeMs}, {"encode", encodeMs},
+                        {"closedLoop", errorMs}};
     if (fitting) {
         const Fitted& f = fitted[int(options.scheme)];
         report["fit"] = {{"moved", f.stats.maxMove > 0.0},
@@ -1623,10 +1465,12 @@ void BakeJob::writeReport()
                           {"forwardRms", e.forwardRms / diag}, {"forwardMax", e.forwardMax / diag},
                           {"backwardRms", e.backwardRms / diag}, {"backwardMax", e.backwardMax / diag}});
     report["closedLoop"] = levels;
+    if (!searchReport_.is_null())
+        report["cageFaces"] = searchReport_;
     const std::string text = report.dump(2) + "\n";
     result->report = text;
-    if (!reportPath.empty() && reportPath != "-")
-        outputs.write(reportPath, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
+    if (!request.report.empty() && request.report != "-")
+        outputs.write(request.report, [&](const std::string& p) { return io::writeFileAtomic(p, text.data(), text.size()); });
 }
 
 void BakeJob::finish()
@@ -1650,7 +1494,7 @@ const std::vector<glm::vec3>& BakeJob::fittedPositions(Scheme scheme)
         fitOptions.scheme = scheme;
         Status st;
         if (!(st = fitControlMesh(&moved, high, highIndex, fitOptions, &f.stats)))
-            throw BakeError(highPath + ": fitting the control mesh: " + st.message());
+            throw BakeError(request.high + ": fitting the control mesh: " + st.message());
         f.positions = std::move(moved.positions);
         f.done = true;
         fitMs += msSince(tf);
@@ -1690,10 +1534,10 @@ void BakeJob::checkMemory(int mapSize) const
 {
     const double needMB = (32.0 * double(mapSize) * double(mapSize) + 200.0 * double(high.faceCount())) /
                           (1024.0 * 1024.0);
-    if (needMB > maxMemoryMB)
-        throw BakeError(outPath + ": a " + std::to_string(mapSize) + "^2 map over " +
+    if (needMB > request.maxMemoryMB)
+        throw BakeError(request.output + ": a " + std::to_string(mapSize) + "^2 map over " +
                          std::to_string(high.faceCount()) + " triangles needs about " +
-                         std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(maxMemoryMB)) +
+                         std::to_string(long(needMB)) + " MB, over the " + std::to_string(long(request.maxMemoryMB)) +
                          " MB budget (raise it with --max-memory MB)");
 }
 
@@ -1713,8 +1557,8 @@ const BakeJob::Trial* BakeJob::trialAt(int level) const
 double BakeJob::quantizationStep(int level) const
 {
     const Trial* t = trialAt(level);
-    const double achieved = t ? std::max(tolerance, t->rms) : tolerance;
-    return tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
+    const double achieved = t ? std::max(request.tolerance, t->rms) : request.tolerance;
+    return request.tolerance > 0.0 ? achieved * rep.diagonal : 0.0;
 }
 
 // Stored per vertex, each value is measured against the capture along its
@@ -1776,9 +1620,9 @@ Status BakeJob::refineStoredValues(const ControlMesh& mesh, int level, std::vect
     // gives for 7% (it overestimates: on spot a step adding 5% by it added
     // 2%), else the rule's, which follows the map's trial at the level.
     stored.step = *step;
-    const double goal = tolerance * rep.diagonal;
+    const double goal = request.tolerance * rep.diagonal;
     const bool within = stored.rms < 0.9 * goal, missed = stored.rms > goal;
-    if (tolerance > 0.0 && (within || missed)) {
+    if (request.tolerance > 0.0 && (within || missed)) {
         const double planned = within ? 0.9 * goal : 1.07 * stored.rms;
         const double allowed = within ? 0.95 * goal : 1.1 * stored.rms;
         const double spend = std::sqrt(12.0 * (planned * planned - stored.rms * stored.rms));
@@ -1810,7 +1654,7 @@ Status BakeJob::refineStoredValues(const ControlMesh& mesh, int level, std::vect
     return Status::ok();
 }
 
-Status BakeJob::writeRig(const std::string& p, int level)
+Status BakeJob::encodeAt(int level, std::string* bytes)
 {
     rig.displacement.recommendedLevel = level;
     writeOptions.maxQuantizationStep = quantizationStep(level);
@@ -1819,19 +1663,19 @@ Status BakeJob::writeRig(const std::string& p, int level)
     // measured and fitted on the mesh as the file numbers it (its coding may
     // move and renumber the cage), and handed back to be coded.
     io::RigWriter writer;
-    Status st = writer.begin(p, rig, &map, writeOptions, &notes);
+    Status st = writer.begin(request.output, rig, &map, writeOptions, &notes);
     if (st && writer.needsVertexValues()) {
         std::vector<float> values = writer.sampledValues();
         double step = writer.quantizationStep();
         if ((st = refineStoredValues(writer.fileMesh(), writer.vertexLevel(), &values, &step)))
             st = writer.setVertexValues(values, step);
     }
-    return st ? writer.commit() : st;
+    return st ? writer.commit(bytes) : st;
 }
 
 void BakeJob::settleLevel()
 {
-    if (!writeOptions.vertexDisplacements || forced || !(tolerance > 0.0) || stored.rms < 0.0)
+    if (!writeOptions.vertexDisplacements || forced || !(request.tolerance > 0.0) || stored.rms < 0.0)
         return;
     // The map's trials chose the level from values sampled from the
     // map; the stored ones are measured and fitted on the capture and
@@ -1842,15 +1686,12 @@ void BakeJob::settleLevel()
     // it where they miss by more than 2x, kept there only where it
     // comes at least 10% closer (the level is the only knob left; an
     // automatic cage has its face count).
-    const int finest = controlPath != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
-    const double goal = tolerance * rep.diagonal;
-    const std::string dir = io::directoryOf(outPath), staged = Outputs::staged(outPath);
-    const std::string alternative = Outputs::staged((dir.empty() ? "" : dir + "/") + "level-" +
-                                                    io::stemOf(outPath) + io::extensionOf(outPath));
+    const int finest = request.control != "auto" ? std::min(kMaxLevel, paperLevel + 1) : paperLevel;
+    const double goal = request.tolerance * rep.diagonal;
     const int first = recommended;
     const double firstRms = stored.rms;
-    // Writes `level` beside the chosen rig; it replaces that rig
-    // where keep(its RMS, the chosen one's) says so.
+    // Encodes `level`; it replaces the chosen rig where keep(its RMS, the
+    // chosen one's) says so.
     auto tryLevel = [&](int level, const std::function<bool(double, double)>& keep) {
         if (!trialAt(level)) {  // its map trial sets the quantisation step
             std::vector<LevelError> e;
@@ -1862,13 +1703,13 @@ void BakeJob::settleLevel()
         }
         const Stored kept = stored;
         const std::vector<std::string> keptNotes = notes;
-        if (Status st = writeRig(alternative, level); !st) {
-            std::remove(alternative.c_str());
-            throw BakeError(outPath + ": " + st.message());
-        }
-        if (keep(stored.rms, kept.rms) && std::rename(alternative.c_str(), staged.c_str()) == 0)
+        std::string bytes;
+        if (Status st = encodeAt(level, &bytes); !st)
+            throw BakeError(namingOutput(st));
+        if (keep(stored.rms, kept.rms)) {
+            rigBytes_ = std::move(bytes);
             return true;
-        std::remove(alternative.c_str());
+        }
         stored = kept;
         notes = keptNotes;
         rig.displacement.recommendedLevel = recommended;
@@ -1879,7 +1720,7 @@ void BakeJob::settleLevel()
     // than the map's on the real pairs).
     auto withinReach = [&](int level) {
         const Trial* t = trialAt(level);
-        return !t || t->rms <= 3.0 * tolerance;
+        return !t || t->rms <= 3.0 * request.tolerance;
     };
     if (stored.rms <= goal) {
         while (recommended > 0 && withinReach(recommended - 1) &&
@@ -1909,16 +1750,12 @@ void BakeJob::settleLevel()
     rep.sizeReason = sizeReason += buf;
 }
 
-Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress, SearchShared* shared,
-                FractionSpan* fraction)
+// Runs `body` (a job's phases), the bake's failures turned into a Status.
+template <typename F>
+Status guarded(const BakeRequest& request, F&& body)
 {
-    if (!result)
-        return Status(StatusCode::InvalidArgument, "bakeRig: no result");
-    *result = BakeResult();
-    CancelScope scope(request.cancel);
     try {
-        BakeJob job(request, result, progress, shared, fraction);
-        job.run();
+        body();
         return Status::ok();
     } catch (const BakeCancelled&) {
         return cancelledStatus(request);
@@ -1929,7 +1766,221 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
     }
 }
 
+// One bake, delivered.
+Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
+                SearchShared* shared = nullptr, FractionSpan* fraction = nullptr)
+{
+    *result = BakeResult();
+    CancelScope scope(request.cancel);
+    return guarded(request, [&] {
+        BakeJob job(request, progress, shared, fraction);
+        job.make();
+        job.deliver(result);
+    });
+}
+
 }  // namespace
+
+// An automatic control mesh's face count follows from the tolerance: the
+// fewest faces whose bake reaches it in the closed loop, or the most
+// accurate tried when none does.  The first try is at a fiftieth of the
+// capture's faces (at least 200); each next one is predicted where the
+// error, a power of the face count through the tries nearest the
+// tolerance (the power 1 until two tries give it), crosses the tolerance,
+// with 10% to spare, between 200 and a fifth of the capture (and, going
+// up, at most twice the faces until two tries measure the power).  The
+// search stops when the answer is settled: the fewest that met and the
+// most that missed are within 15% of each other, the prediction saves
+// under 15% of the faces that met, or, none met, even the steepest power
+// allowed (3) puts it past 1.5 times the fifth (the tolerance is out of
+// reach: the closest tried is chosen).  Each try is a whole bake in
+// memory; the tries share the capture as loaded, the scheme measured on a
+// cage of about their face count (within 1.5x) and the map size of those
+// that met.  The chosen try is delivered: written, summarised and
+// reported.  Only a request for map images (--exr, --png8/16, --layers),
+// whose atlas and fit differ, bakes the chosen count again.
+Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgress* progress,
+               const BakeFraction* fraction)
+{
+    if (!result)
+        return Status(StatusCode::InvalidArgument, "bakeRig: no result");
+    if (!request.output.empty())
+        if (Status checked = checkOutput(request); !checked)
+            return checked;
+    FractionSpan whole;
+    whole.report = fraction;
+    if (request.control != "auto" || request.controlFaces != 0 || !(request.tolerance > 0.0) ||
+        request.high.empty() || request.output.empty())
+        return bakeOnce(request, result, progress, nullptr, &whole);
+    const auto searchStart = std::chrono::steady_clock::now();
+    *result = BakeResult();
+    CancelScope scope(request.cancel);
+    // The map images change the bake (the atlas grows into its gaps, the
+    // packer tries its orders): the tries bake without them.
+    const bool reusable = !request.exr && !request.layers && request.pngBits == 0;
+    struct Try {
+        size_t faces;
+        double rms, bytes;
+        std::unique_ptr<BakeJob> job;  // its inputs released
+    };
+    std::vector<Try> tries;
+    SearchShared shared;
+    auto attempt = [&](size_t faces) {
+        BakeRequest r = request;
+        r.controlFaces = faces;
+        r.exr = r.layers = false;
+        r.pngBits = 0;
+        const std::string stage = "baking onto an automatic cage of " + std::to_string(faces) + " faces";
+        const auto t0 = std::chrono::steady_clock::now();
+        if (progress && *progress)
+            (*progress)(stage.c_str(), -1.0);
+        // Progress counts on three tries (two more than the first; a
+        // request for map images bakes the chosen count again), or one
+        // more than made, until the search stops.
+        const double expected = double(std::max<size_t>(3, tries.size() + 1)) + (reusable ? 0.0 : 1.0);
+        FractionSpan part = whole;
+        part.base = whole.last;
+        part.span = (1.0 - whole.last) / (expected - double(tries.size()));
+        auto job = std::make_unique<BakeJob>(r, nullptr, &shared, &part);
+        const Status st = guarded(request, [&] { job->make(); });
+        whole.last = part.last;
+        if (progress && *progress)
+            (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        if (!st)
+            return st;
+        const double rms = job->rms();
+        job->reportTo(nullptr);  // `part` ends here
+        job->releaseInputs();
+        tries.push_back({faces, rms, double(job->rigBytes()), std::move(job)});
+        if (rms >= 0.0 && rms <= request.tolerance)
+            shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
+        return st;
+    };
+    auto fewestThatMet = [&]() -> const Try* {
+        const Try* met = nullptr;
+        for (const Try& t : tries)
+            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
+                met = &t;
+        return met;
+    };
+    // The capture, loaded once for every try (its face count sets the first).
+    if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
+        return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
+    const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
+    const size_t most = std::max(first, shared.high.faceCount() / 5);
+    if (Status st = attempt(first); !st)
+        return st;  // the first try failed (or the bake was cancelled): its message is the bake's
+    for (int more = 0; more < 5; ++more) {
+        const Try* met = fewestThatMet();
+        // The most faces that missed, below the fewest that met.
+        const Try* missed = nullptr;
+        for (const Try& t : tries)
+            if (!(t.rms >= 0.0 && t.rms <= request.tolerance) && (!met || t.faces < met->faces) &&
+                (!missed || t.faces > missed->faces))
+                missed = &t;
+        if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
+            break;
+        // The power through the tries nearest the tolerance: the fewest that
+        // met and the most that missed, or, none met, the two most faces.
+        const Try* finer = met;
+        const Try* coarser = missed;
+        if (!met) {
+            finer = missed;
+            coarser = nullptr;
+            for (const Try& t : tries)
+                if (t.faces < missed->faces && t.rms > 0.0 && (!coarser || t.faces > coarser->faces))
+                    coarser = &t;
+        }
+        double power = 1.0;
+        bool measured = false;
+        if (finer && coarser && coarser->faces < finer->faces && coarser->rms > finer->rms && finer->rms > 0.0) {
+            power = std::clamp(std::log(coarser->rms / finer->rms) / std::log(double(finer->faces) / double(coarser->faces)),
+                               0.5, 3.0);
+            measured = true;
+        }
+        const Try& anchor = met ? *met : *missed;
+        size_t next = 0;
+        double reach = 0.0;  // the fewest faces the tolerance may need, for the out-of-reach test
+        if (anchor.rms > 0.0) {
+            const double predicted = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / power) * 1.1;
+            next = size_t(std::lround(predicted));
+            // By the steepest power allowed: the error is no power law
+            // across a change of level or scheme (CesiumMan's fell 3.2x
+            // from 400 faces to 800 after 1.26x from 200 to 400).
+            reach = double(anchor.faces) * std::pow(anchor.rms / request.tolerance, 1.0 / 3.0) * 1.1;
+        } else {
+            next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
+        }
+        if (met) {
+            if (double(next) > 0.85 * double(met->faces))
+                break;  // settled: the saving would be small
+            next = std::max<size_t>(next, std::max<size_t>(200, met->faces / 4));
+            if (missed && next <= missed->faces)
+                next = size_t(std::lround(std::sqrt(double(met->faces) * double(missed->faces))));
+            if (next >= met->faces || (missed && next <= missed->faces))
+                break;
+        } else {
+            // The most faces tried, or a tolerance out of reach of them by
+            // the prediction: the closest tried is chosen.
+            if (anchor.faces >= most || reach > 1.5 * double(most))
+                break;
+            // Up at most 2x until two tries measure the power (from one
+            // miss the power 1 overshot the penguin's count 8x), 4x after.
+            const size_t step = (measured ? 4 : 2) * anchor.faces;
+            next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), std::min(most, step));
+        }
+        if (Status tried = attempt(next); tried.code() == StatusCode::Cancelled)
+            return tried;
+        else if (!tried)
+            break;  // a failed extra try leaves the choice to the others
+    }
+    // The fewest faces that met the tolerance, else the smallest error.
+    Try* chosen = const_cast<Try*>(fewestThatMet());
+    if (!chosen)
+        for (Try& t : tries)
+            if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
+                chosen = &t;
+    if (!chosen)
+        chosen = &tries.front();
+    // The search's lines for the summary and the report.
+    char took[160];
+    std::snprintf(took, sizeof(took), "%zu tr%s in %.1f s%s", tries.size(), tries.size() == 1 ? "y" : "ies",
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - searchStart).count(),
+                  reusable ? ", the chosen one delivered" : ", then the chosen count baked again with the map images");
+    std::string note = "  cage faces    from the tolerance, " + std::string(took) +
+                       " (closed-loop RMS / diagonal, rig bytes):";
+    nlohmann::json searchReport = nlohmann::json::array();
+    for (const Try& t : tries) {
+        appendf(&note, "\n                  %zu: ", t.faces);
+        if (t.rms >= 0.0)
+            appendf(&note, "%.4f%%, %.1f KB%s", 100.0 * t.rms, t.bytes / 1024.0, &t == chosen ? "  <- chosen" : "");
+        else
+            note += "not measured";
+        searchReport.push_back({{"faces", t.faces}, {"rms", t.rms}, {"bytes", t.bytes}, {"chosen", &t == chosen}});
+    }
+    note += "\n";
+    const size_t faces = chosen->faces;
+    for (Try& t : tries)
+        if (&t != chosen)
+            t.job.reset();
+    if (reusable)
+        return guarded(request, [&] {
+            chosen->job->deliver(result, note, searchReport);
+            whole.at(1.0);
+        });
+    BakeRequest r = request;
+    r.controlFaces = faces;
+    FractionSpan last = whole;
+    last.base = whole.last;
+    last.span = 1.0 - whole.last;
+    chosen->job.reset();
+    return guarded(request, [&] {
+        BakeJob job(r, progress, &shared, &last);
+        job.make();
+        job.deliver(result, note, searchReport);
+        whole.at(1.0);
+    });
+}
 
 }  // namespace baker
 }  // namespace strata

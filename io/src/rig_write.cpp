@@ -850,6 +850,18 @@ Status RigWriter::commit()
 {
     if (!state_)
         return Status(StatusCode::InvalidArgument, "RigWriter::commit: begin did not succeed");
+    const std::string path = state_->path;
+    std::string bytes;
+    Status st = commit(&bytes);
+    return st ? writeFileAtomic(path, bytes.data(), bytes.size()) : st;
+}
+
+Status RigWriter::commit(std::string* out)
+{
+    if (!state_)
+        return Status(StatusCode::InvalidArgument, "RigWriter::commit: begin did not succeed");
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "RigWriter::commit: no output");
     State& s = *state_;
     if (s.needsValues)
         return Status(StatusCode::InvalidArgument, s.path + ": the per-vertex displacements were not given");
@@ -868,9 +880,9 @@ Status RigWriter::commit()
         return st;
     if (s.hasDisplacement && !(st = sealLayer(s.path, &bytes)))
         return st;
-    st = writeFileAtomic(s.path, bytes.data(), bytes.size());
+    *out = std::move(bytes);
     state_.reset();
-    return st;
+    return Status::ok();
 }
 
 Status saveRig(const std::filesystem::path& path, const Rig& rig, const DisplacementMap* map,

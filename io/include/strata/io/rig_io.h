@@ -164,7 +164,7 @@ Status saveRig(const std::filesystem::path& path, const Rig& rig, const Displace
 ///          loader rebuilds it from this file, in its numbering) at
 ///          vertexLevel(), only when needsVertexValues();
 ///   commit: the layer's record sealed from the encoded bytes, the file
-///          written atomically.
+///          written atomically (or its bytes returned).
 /// saveRig is begin, setVertexValues(sampledValues(), quantizationStep())
 /// and commit.  The writer holds copies: the rig and map may go after begin;
 /// `notes` (lines for the user) is written to until commit.
@@ -190,6 +190,10 @@ public:
     /// to multiples of `step` (0: 16 bits over their range).
     Status setVertexValues(const std::vector<float>& values, double step);
     Status commit();
+    /// commit() into `bytes` (the file's whole content) instead of the file:
+    /// nothing is written.  The path given to begin still names the file
+    /// in messages and chooses .glb or .gltf.
+    Status commit(std::string* bytes);
 
 private:
     struct State;
