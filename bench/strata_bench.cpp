@@ -72,8 +72,8 @@ struct Accuracy {
     double toRms = -1, fromRms = -1;
 };
 
-// Both directions between a candidate surface and the original, sampled at
-// every vertex and face centroid.
+// Both directions between a candidate surface and the original, by
+// area-weighted sampling of both.
 Accuracy accuracy(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& t, const baker::TriangleMesh& high,
                   const baker::TriangleIndex& highIndex, double diag)
 {
@@ -167,7 +167,7 @@ struct Curve {
 std::string tradeoffSvg(const std::string& title, const std::vector<Curve>& curves)
 {
     const double W = 640, H = 420, left = 70, right = 170, top = 40, bottom = 50;
-    double x0 = 1e-5, x1 = 1e-2, y0 = 1e3, y1 = 1e6;  // 0.001%..1%, 1 KB..1 MB
+    double x0 = 1e-5, x1 = 1e-2, y0 = 1e2, y1 = 1e6;  // 0.001%..1%, 100 B..1 MB
     auto X = [&](double rms) {
         return left + (std::log10(std::clamp(rms, x0, x1)) - std::log10(x0)) / (std::log10(x1) - std::log10(x0)) *
                           (W - left - right);
@@ -186,11 +186,11 @@ std::string tradeoffSvg(const std::string& title, const std::vector<Curve>& curv
           << "\" stroke=\"#ddd\"/>\n<text x=\"" << x - 18 << "\" y=\"" << H - bottom + 16 << "\">"
           << std::pow(10.0, e + 2) << "%</text>\n";
     }
-    for (double e = 3; e <= 6; e += 1) {  // y grid: decades of bytes
+    for (double e = 2; e <= 6; e += 1) {  // y grid: decades of bytes
         const double y = Y(std::pow(10.0, e));
         o << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << W - right << "\" y2=\"" << y
           << "\" stroke=\"#ddd\"/>\n<text x=\"" << 8 << "\" y=\"" << y + 4 << "\">"
-          << (e == 3 ? "1 KB" : e == 4 ? "10 KB" : e == 5 ? "100 KB" : "1 MB") << "</text>\n";
+          << (e == 2 ? "100 B" : e == 3 ? "1 KB" : e == 4 ? "10 KB" : e == 5 ? "100 KB" : "1 MB") << "</text>\n";
     }
     o << "<text x=\"" << left + 120 << "\" y=\"" << H - 12 << "\">RMS distance to the original / diagonal</text>\n";
     int row = 0;
@@ -289,6 +289,215 @@ std::string atlasRow(const Pair& pair, const std::string& dir, const std::string
                   split <= 1.3 * vertices ? "yes" : "no", distortionText, rms >= 0.0 ? pct(rms).c_str() : "-", level,
                   kb(exrBytes).c_str(), kb(glbBytes).c_str());
     return line;
+}
+
+// The bytes a curve spends at `rms`: log-log between the two points that
+// bracket it; -1 outside the curve's range.
+double bytesAt(std::vector<std::pair<double, double>> points, double rms)
+{
+    std::sort(points.begin(), points.end());
+    for (size_t i = 1; i < points.size(); ++i) {
+        const auto [r0, b0] = points[i - 1];
+        const auto [r1, b1] = points[i];
+        if (rms < r0 || rms > r1 || !(r0 > 0.0) || !(b0 > 0.0) || !(b1 > 0.0))
+            continue;
+        const double t = r1 > r0 ? std::log(rms / r0) / std::log(r1 / r0) : 0.0;
+        return std::exp(std::log(b0) + t * (std::log(b1) - std::log(b0)));
+    }
+    return -1.0;
+}
+
+// A rig as a user's engine draws it: rebuilt by strata-reconstruct at its
+// recommended level, then measured like every other representation.
+Accuracy rigAccuracy(const std::string& rig, const std::string& dir, const baker::TriangleMesh& high,
+                     const baker::TriangleIndex& highIndex, double diag)
+{
+    const std::string mesh = dir + "/sweep_reconstructed.ply";
+    if (shell(std::string(STRATA_RECONSTRUCT_EXE) + " '" + rig + "' --static -o '" + mesh + "'") != 0)
+        return Accuracy();
+    baker::TriangleMesh drawn;
+    if (!baker::loadHighMesh(mesh, &drawn, nullptr))
+        return Accuracy();
+    return accuracy(drawn.positions, drawn.triangles, high, highIndex, diag);
+}
+
+// The size/error trade-off of one pair: Strata at tolerances 0.2%..0.005%
+// (--control auto with the default coding and with a Draco-coded cage, and
+// onto the pair's own cage), Draco of the original at qp 8..14,
+// decimate-then-Draco at 0.5..50% of the faces (qp 11) and gltfpack.  Every
+// point is measured the same way, by area-weighted sampling of both
+// surfaces (Strata's rebuilt from its file).  Appends the tables and the
+// verdict against decimate-then-Draco to `md`; writes OUT/tradeoff_NAME.svg.
+Json sweepPair(const Pair& pair, const std::string& dir, const baker::TriangleMesh& high,
+               const baker::TriangleIndex& highIndex, double diag, const std::string& out, const std::string& bakeExe,
+               std::string* md)
+{
+    enum { kAuto, kAutoDraco, kCage, kDraco, kDecimated, kDecimatedGlb, kGltfpack };
+    std::vector<Curve> curves = {{"Strata auto (default)", "#d62728", {}},
+                                 {"Strata auto, Draco cage", "#ff7f0e", {}},
+                                 {"Strata, its cage", "#8c564b", {}},
+                                 {"Draco qp 8-14", "#1f77b4", {}},
+                                 {"decimate + Draco .drc", "#2ca02c", {}},
+                                 {"decimate + Draco glb", "#17becf", {}},
+                                 {"gltfpack -cc", "#9467bd", {}}};
+    // gltf-transform from the project's npm tools (js/), where installed.
+    const std::string gltfTransformPath = std::string(STRATA_SOURCE_DIR) + "/js/node_modules/.bin/gltf-transform";
+    const std::string gltfTransform = fileBytes(gltfTransformPath) > 0.0 ? "'" + gltfTransformPath + "'" : "";
+    Json sweep = Json::array();
+    const double tolerances[] = {0.002, 0.001, 0.0005, 0.0002, 0.0001, 0.00005};
+    struct Config {
+        int curve;
+        const char* name;
+        std::string flags;
+    };
+    std::vector<Config> configs = {{kAuto, "strata auto", "--control auto"},
+                                   {kAutoDraco, "strata auto draco", "--control auto --mesh-coding draco"}};
+    if (pair.control != "auto")
+        configs.push_back({kCage, "strata cage", "--control '" + pair.control + "' " + pair.flags});
+    for (const Config& c : configs) {
+        for (double tol : tolerances) {
+            const std::string rig = dir + "/sweep.glb", report = dir + "/sweep.json";
+            char tolText[32];
+            std::snprintf(tolText, sizeof(tolText), "%g", tol);
+            const double t0 = bench::nowMs();
+            if (shell(bakeExe + " --high '" + pair.high + "' " + c.flags + " --threads 2 --tolerance " + tolText +
+                      " -o '" + rig + "' --report '" + report + "'") != 0)
+                continue;
+            const double seconds = (bench::nowMs() - t0) / 1000.0;
+            Json sr;
+            std::ifstream(report) >> sr;
+            const int level = sr["recommendedLevel"].get<int>();
+            double bakeRms = -1.0;
+            for (const Json& e : sr["closedLoop"])
+                if (e["level"].get<int>() == level)
+                    bakeRms = std::max(e["forwardRms"].get<double>(), e["backwardRms"].get<double>());
+            const Accuracy a = rigAccuracy(rig, dir, high, highIndex, diag);
+            if (a.rms < 0.0)
+                continue;
+            const double bytes = fileBytes(rig);
+            curves[size_t(c.curve)].points.push_back({a.rms, bytes});
+            sweep.push_back({{"curve", c.name}, {"tolerance", tol}, {"level", level}, {"bytes", bytes},
+                             {"rms", a.rms}, {"max", a.max}, {"bakeRms", bakeRms},
+                             {"cageFaces", sr["control"]["triangles"].get<size_t>()}, {"seconds", seconds}});
+            std::printf("  %s %s: %.0f B, %.4f%% (bake says %.4f%%), %.1f s\n", c.name, pct(tol).c_str(), bytes,
+                        100.0 * a.rms, 100.0 * bakeRms, seconds);
+            std::fflush(stdout);
+        }
+    }
+    const bool haveDraco = have("draco_encoder") && have("draco_decoder");
+    if (haveDraco) {
+        for (int qp = 8; qp <= 14; ++qp) {
+            double bytes = 0;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (draco(dir, "sweep_draco", high.positions, high.triangles, qp, &bytes, &p, &t)) {
+                const double rms = accuracy(p, t, high, highIndex, diag).rms;
+                curves[kDraco].points.push_back({rms, bytes});
+                sweep.push_back({{"curve", "draco"}, {"qp", qp}, {"bytes", bytes}, {"rms", rms}});
+            }
+        }
+        for (double fraction : {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5}) {
+            ControlMesh dec;
+            const size_t faces = std::max<size_t>(8, size_t(fraction * double(high.faceCount())));
+            if (!baker::decimateToControlMesh(high, faces, &dec))
+                continue;
+            double bytes = 0;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (draco(dir, "sweep_decimated", dec.positions, dec.triangles, 11, &bytes, &p, &t)) {
+                const double rms = accuracy(p, t, high, highIndex, diag).rms;
+                curves[kDecimated].points.push_back({rms, bytes});
+                sweep.push_back({{"curve", "decimate+draco"}, {"fraction", fraction}, {"bytes", bytes}, {"rms", rms}});
+            }
+            // The same decimation as the file a user ships: a glb that
+            // gltf-transform Draco-codes at qp 11.
+            if (!gltfTransform.empty() && writeGlb(dir + "/sweep_decimated.glb", dec.positions, dec.triangles) &&
+                shell(gltfTransform + " draco '" + dir + "/sweep_decimated.glb' '" + dir +
+                      "/sweep_decimated_draco.glb' --quantize-position 11") == 0 &&
+                io::loadGltfTriangles(dir + "/sweep_decimated_draco.glb", &p, &t)) {
+                const double glbBytes = fileBytes(dir + "/sweep_decimated_draco.glb");
+                const double rms = accuracy(p, t, high, highIndex, diag).rms;
+                curves[kDecimatedGlb].points.push_back({rms, glbBytes});
+                sweep.push_back(
+                    {{"curve", "decimate+draco glb"}, {"fraction", fraction}, {"bytes", glbBytes}, {"rms", rms}});
+            }
+        }
+    }
+    if (have("gltfpack")) {
+        writeGlb(dir + "/original.glb", high.positions, high.triangles);
+        for (const char* q : {"-cc", "-cc -vp 10", "-cc -vp 12"}) {
+            if (shell("gltfpack -i '" + dir + "/original.glb' -o '" + dir + "/sweep_gltfpack.glb' " + q) != 0)
+                continue;
+            std::vector<glm::vec3> p;
+            std::vector<uint32_t> t;
+            if (!io::loadGltfTriangles(dir + "/sweep_gltfpack.glb", &p, &t))
+                continue;
+            const double bytes = fileBytes(dir + "/sweep_gltfpack.glb");
+            const double rms = accuracy(p, t, high, highIndex, diag).rms;
+            curves[kGltfpack].points.push_back({rms, bytes});
+            sweep.push_back({{"curve", "gltfpack"}, {"flags", q}, {"bytes", bytes}, {"rms", rms}});
+        }
+    }
+    std::ofstream(out + "/tradeoff_" + pair.name + ".svg") << tradeoffSvg(pair.name + ": bytes against RMS error", curves);
+    *md += "\nSize against error (plot: `tradeoff_" + pair.name +
+           ".svg`; every RMS measured by area-weighted sampling of both surfaces, Strata's rebuilt from the file "
+           "by strata-reconstruct at its recommended level):\n\n| curve | setting | bytes | RMS | bake's own RMS |\n"
+           "|---|---|---|---|---|\n";
+    for (const Json& e : sweep) {
+        std::string setting = e.contains("tolerance")  ? "tolerance " + pct(e["tolerance"].get<double>()) + ", " +
+                                                              std::to_string(e["cageFaces"].get<size_t>()) +
+                                                              " cage faces, level " + std::to_string(e["level"].get<int>())
+                              : e.contains("qp")       ? "qp " + std::to_string(e["qp"].get<int>())
+                              : e.contains("fraction") ? std::to_string(e["fraction"].get<double>() * 100.0).substr(0, 3) +
+                                                             "% of the faces, qp 11"
+                                                       : e["flags"].get<std::string>();
+        *md += "| " + e["curve"].get<std::string>() + " | " + setting + " | " + kb(e["bytes"].get<double>()) + " | " +
+               pct(e["rms"].get<double>()) + " | " + (e.contains("bakeRms") ? pct(e["bakeRms"].get<double>()) : "") +
+               " |\n";
+    }
+    // The verdict: each --control auto point against decimate-then-Draco at
+    // the same RMS, as the raw .drc bitstream and as a Draco glb: at or
+    // below where no decimated point is both smaller and at least as
+    // close, and the decimated curve interpolated to the same RMS is no
+    // smaller.
+    auto verdict = [&](int curve, double rms, double bytes, double* at) {
+        *at = bytesAt(curves[size_t(curve)].points, rms);
+        for (const auto& [r, b] : curves[size_t(curve)].points)
+            if (r <= rms && b < bytes)
+                return false;
+        return *at < 0.0 || bytes <= *at;
+    };
+    if (!curves[kDecimated].points.empty()) {
+        *md += "\n`--control auto` against decimate-then-Draco (qp 11) at the same RMS (\"-\": that RMS is outside the "
+               "decimated curve's range; a decimated point both smaller and at least as close still loses it):\n\n"
+               "| coding | tolerance | RMS | Strata bytes | decimate+Draco .drc | verdict | decimate+Draco glb | verdict |\n"
+               "|---|---|---|---|---|---|---|---|\n";
+        for (Json& e : sweep) {
+            const std::string curve = e["curve"].get<std::string>();
+            if (curve != "strata auto" && curve != "strata auto draco")
+                continue;
+            const double rms = e["rms"].get<double>(), bytes = e["bytes"].get<double>();
+            double drc = -1.0, glb = -1.0;
+            const bool beatsDrc = verdict(kDecimated, rms, bytes, &drc);
+            const bool beatsGlb = verdict(kDecimatedGlb, rms, bytes, &glb);
+            const bool haveGlb = !curves[kDecimatedGlb].points.empty();
+            char line[400];
+            std::snprintf(line, sizeof(line), "| %s | %s | %s | %s | %s | %s | %s | %s |\n",
+                          curve == "strata auto" ? "default (plain)" : "`--mesh-coding draco`",
+                          pct(e["tolerance"].get<double>()).c_str(), pct(rms).c_str(), kb(bytes).c_str(),
+                          drc > 0.0 ? kb(drc).c_str() : "-", beatsDrc ? "at or below" : "**loses**",
+                          !haveGlb ? "not measured" : glb > 0.0 ? kb(glb).c_str() : "-",
+                          !haveGlb ? "" : beatsGlb ? "at or below" : "**loses**");
+            *md += line;
+            e["decimatedDrcBytesAtRms"] = drc;
+            e["beatsDecimatedDrc"] = beatsDrc;
+            if (haveGlb) {
+                e["decimatedGlbBytesAtRms"] = glb;
+                e["beatsDecimatedGlb"] = beatsGlb;
+            }
+        }
+    }
+    return sweep;
 }
 
 Json runPair(const Pair& pair, const std::string& out, const std::string& bakeExe, std::string* md,
@@ -444,85 +653,8 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
         regenMd += line;
     }
 
-    // The size/error trade-off: Strata at several tolerances, Draco of the
-    // original at qp 8..14, decimate-then-Draco at 1..50% of the faces, and
-    // gltfpack (measured, decoded by Strata's own loader).
-    std::vector<Curve> curves = {{"Strata", "#d62728", {}},
-                                 {"Draco qp 8-14", "#1f77b4", {}},
-                                 {"decimate + Draco", "#2ca02c", {}},
-                                 {"gltfpack -cc", "#9467bd", {}}};
-    Json sweep = Json::array();
-    for (double tol : {0.002, 0.001, 0.0005, 0.0002, 0.0001, 0.00005}) {
-        const std::string sweepRig = dir + "/sweep.glb";
-        char tolText[32];
-        std::snprintf(tolText, sizeof(tolText), "%g", tol);
-        if (shell(bakeExe + " --high '" + pair.high + "' --control '" + pair.control + "' " + pair.flags +
-                  " --threads 2 --tolerance " + tolText + " -o '" + sweepRig + "' --report '" + dir +
-                  "/sweep.json'") != 0)
-            continue;
-        Json sr;
-        std::ifstream(dir + "/sweep.json") >> sr;
-        const int l = sr["recommendedLevel"].get<int>();
-        for (const Json& e : sr["closedLoop"])
-            if (e["level"].get<int>() == l) {
-                const double rms = std::max(e["forwardRms"].get<double>(), e["backwardRms"].get<double>());
-                curves[0].points.push_back({rms, fileBytes(sweepRig)});
-                sweep.push_back({{"curve", "strata"}, {"tolerance", tol}, {"level", l}, {"bytes", fileBytes(sweepRig)},
-                                 {"rms", rms}});
-            }
-    }
-    if (haveDraco) {
-        for (int qp = 8; qp <= 14; ++qp) {
-            double bytes = 0;
-            std::vector<glm::vec3> p;
-            std::vector<uint32_t> t;
-            if (draco(dir, "sweep_draco", high.positions, high.triangles, qp, &bytes, &p, &t)) {
-                const double rms = accuracy(p, t, high, highIndex, diag).rms;
-                curves[1].points.push_back({rms, bytes});
-                sweep.push_back({{"curve", "draco"}, {"qp", qp}, {"bytes", bytes}, {"rms", rms}});
-            }
-        }
-        for (double fraction : {0.01, 0.02, 0.05, 0.1, 0.2, 0.5}) {
-            ControlMesh dec;
-            const size_t faces = std::max<size_t>(8, size_t(fraction * double(high.faceCount())));
-            if (!baker::decimateToControlMesh(high, faces, &dec))
-                continue;
-            double bytes = 0;
-            std::vector<glm::vec3> p;
-            std::vector<uint32_t> t;
-            if (draco(dir, "sweep_decimated", dec.positions, dec.triangles, 11, &bytes, &p, &t)) {
-                const double rms = accuracy(p, t, high, highIndex, diag).rms;
-                curves[2].points.push_back({rms, bytes});
-                sweep.push_back({{"curve", "decimate+draco"}, {"fraction", fraction}, {"bytes", bytes}, {"rms", rms}});
-            }
-        }
-    }
-    if (have("gltfpack")) {
-        for (const char* q : {"-cc", "-cc -vp 10", "-cc -vp 12"}) {
-            if (shell("gltfpack -i '" + dir + "/original.glb' -o '" + dir + "/sweep_gltfpack.glb' " + q) != 0)
-                continue;
-            std::vector<glm::vec3> p;
-            std::vector<uint32_t> t;
-            if (!io::loadGltfTriangles(dir + "/sweep_gltfpack.glb", &p, &t))
-                continue;
-            const double bytes = fileBytes(dir + "/sweep_gltfpack.glb");
-            const double rms = accuracy(p, t, high, highIndex, diag).rms;
-            curves[3].points.push_back({rms, bytes});
-            sweep.push_back({{"curve", "gltfpack"}, {"flags", q}, {"bytes", bytes}, {"rms", rms}});
-        }
-    }
-    std::ofstream(out + "/tradeoff_" + pair.name + ".svg") << tradeoffSvg(pair.name + ": bytes against RMS error", curves);
-    std::string sweepMd = "\nSize against error (plot: `tradeoff_" + pair.name + ".svg`):\n\n| curve | setting | bytes | RMS |\n|---|---|---|---|\n";
-    for (const Json& e : sweep) {
-        std::string setting = e.contains("tolerance")  ? "tolerance " + pct(e["tolerance"].get<double>()) +
-                                                              ", level " + std::to_string(e["level"].get<int>())
-                              : e.contains("qp")       ? "qp " + std::to_string(e["qp"].get<int>())
-                              : e.contains("fraction") ? std::to_string(int(100.0 * e["fraction"].get<double>() + 0.5)) +
-                                                             "% of the faces, qp 11"
-                                                       : e["flags"].get<std::string>();
-        sweepMd += "| " + e["curve"].get<std::string>() + " | " + setting + " | " + kb(e["bytes"].get<double>()) +
-                   " | " + pct(e["rms"].get<double>()) + " |\n";
-    }
+    std::string sweepMd;
+    const Json sweep = sweepPair(pair, dir, high, highIndex, diag, out, bakeExe, &sweepMd);
 
     // Markdown and JSON.
     const Json& tm = report["timeMs"];
@@ -570,11 +702,15 @@ Json runPair(const Pair& pair, const std::string& out, const std::string& bakeEx
 int main(int argc, char** argv)
 {
     std::string out = "report";
-    bool paper = false;
+    std::string mode;
+    std::string only;  // tradeoff: a comma-separated list of pairs, or all
+    const char* usage = "usage: strata-bench paper|tradeoff [--out DIR] [--pairs NAME,NAME]\n";
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        if (a == "paper")
-            paper = true;
+        if (a == "paper" || a == "tradeoff")
+            mode = a;
+        else if (a == "--pairs" && i + 1 < argc)
+            only = "," + std::string(argv[++i]) + ",";
         else if (a == "--version") {
             std::printf("strata-bench %s\n", STRATA_VERSION);
             return 0;
@@ -582,12 +718,12 @@ int main(int argc, char** argv)
         else if (a == "--out" && i + 1 < argc)
             out = argv[++i];
         else {
-            std::fprintf(stderr, "usage: strata-bench paper [--out DIR]\n");
+            std::fprintf(stderr, "%s", usage);
             return 2;
         }
     }
-    if (!paper) {
-        std::fprintf(stderr, "usage: strata-bench paper [--out DIR]\n");
+    if (mode.empty()) {
+        std::fprintf(stderr, "%s", usage);
         return 2;
     }
     shell("mkdir -p '" + out + "/example'");
@@ -614,9 +750,49 @@ int main(int argc, char** argv)
         pairs.push_back({"hand", data + "/hand_closed.obj", data + "/hand_lowres.obj", ""});
         pairs.push_back({"nefertiti", data + "/nefertiti-lowres.obj", "auto", ""});
     }
+    if (!only.empty())
+        pairs.erase(std::remove_if(pairs.begin(), pairs.end(),
+                                   [&](const Pair& p) { return only.find("," + p.name + ",") == std::string::npos; }),
+                    pairs.end());
+    if (mode == "tradeoff") {
+        // The size/error sweeps alone (issue 29: --control auto against
+        // decimate-then-Draco on every real pair).
+        std::string md = "# Strata: bytes against error\n\nMade by `strata-bench tradeoff --out " + out + "`.\n";
+        Json all = Json::array();
+        for (const Pair& p : pairs) {
+            std::printf("== %s\n", p.name.c_str());
+            std::fflush(stdout);
+            const std::string dir = out + "/" + p.name;
+            shell("mkdir -p '" + dir + "'");
+            baker::TriangleMesh high;
+            if (!baker::loadHighMesh(p.high, &high, nullptr))
+                continue;
+            glm::vec3 lo(1e30f), hi(-1e30f);
+            for (const glm::vec3& q : high.positions) {
+                lo = glm::min(lo, q);
+                hi = glm::max(hi, q);
+            }
+            const double diag = glm::length(glm::dvec3(hi) - glm::dvec3(lo));
+            baker::TriangleIndex highIndex;
+            highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount(), 2);
+            char head[256];
+            std::snprintf(head, sizeof(head), "\n### %s\n\n%zu triangles, diagonal %.4g.\n", p.name.c_str(),
+                          high.faceCount(), diag);
+            md += head;
+            Json j;
+            j["name"] = p.name;
+            j["diagonal"] = diag;
+            j["tradeoff"] = sweepPair(p, dir, high, highIndex, diag, out, bakeExe, &md);
+            all.push_back(j);
+        }
+        std::ofstream(out + "/TRADEOFF.md") << md;
+        std::ofstream(out + "/tradeoff.json") << all.dump(2) << "\n";
+        std::printf("%s", md.c_str());
+        return 0;
+    }
     std::string md = "# Strata evidence report\n\nMade by `strata-bench paper --out " + out +
-                     "`.  Sizes are file bytes; errors are surface distances to the original, sampled at every "
-                     "vertex and face centroid in both directions, relative to the bounding-box diagonal.\n";
+                     "`.  Sizes are file bytes; errors are surface distances to the original, area-weighted samples "
+                     "of both surfaces in both directions (the larger), relative to the bounding-box diagonal.\n";
     Json all = Json::array();
     std::string atlasMd;
     for (const Pair& p : pairs)

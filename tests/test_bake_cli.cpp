@@ -354,6 +354,40 @@ TEST(BakeCli, TheFaceCountSearchDeliversTheChosenBake)
     EXPECT_EQ(rig.mesh.faceCount(), chosen);
 }
 
+// A try that meets the tolerance spends what it leaves on coarser
+// quantisation steps, so the next count is predicted from the error before
+// quantisation (with 10% to spare, the power 1 until two tries measure
+// it): at a loose tolerance the search goes below its first try (a
+// fiftieth of the capture's faces), and what it chooses still meets it.
+TEST(BakeCli, ALooseToleranceTakesFewerFacesThanTheFirstTry)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_auto_loose");
+    writeObj(dir + "/high.obj", strata::examples::makeHead(5));  // 20480 faces: the first try has 409
+    strata::baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = "auto";
+    request.output = dir + "/rig.glb";
+    request.report = "-";
+    request.tolerance = 0.002;
+    strata::baker::BakeResult result;
+    const strata::Status st = strata::baker::bakeRig(request, &result);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    const nlohmann::json tries = nlohmann::json::parse(result.report)["cageFaces"];
+    ASSERT_GE(tries.size(), 2u) << result.summary;
+    const double first = tries[0]["rms"].get<double>(), shape = tries[0]["rmsBeforeQuantisation"].get<double>();
+    EXPECT_EQ(tries[0]["faces"].get<size_t>(), 409u);
+    EXPECT_LE(first, request.tolerance) << result.summary;
+    EXPECT_LT(shape, first) << "quantisation adds to the error";
+    const size_t predicted = std::max<size_t>(200, size_t(std::lround(409.0 * shape / request.tolerance * 1.1)));
+    EXPECT_EQ(tries[1]["faces"].get<size_t>(), predicted) << result.summary;
+    size_t chosen = 0;
+    for (const nlohmann::json& t : tries)
+        if (t["chosen"].get<bool>())
+            chosen = t["faces"].get<size_t>();
+    EXPECT_LT(chosen, 409u) << result.summary;
+    EXPECT_LE(result.rms, request.tolerance) << result.summary;
+}
+
 // After the first try, each count is predicted where a power law of the
 // face count through the tries crosses the tolerance.  The search settles
 // in a few tries, and keeps the fewest faces that met the tolerance: every
