@@ -398,6 +398,8 @@ public:
     // Where the progress of the phases still to run goes (null: nowhere).
     void reportTo(FractionSpan* span) { fraction = span; }
 
+    size_t cageFaces() const { return control.faceCount(); }
+
     // The stored values' closed-loop RMS / diagonal before they were
     // quantised (rms() where no values are stored per vertex).
     double rmsBeforeQuantisation() const { return stored.rms >= 0.0 ? stored.rms / rep.diagonal : rms(); }
@@ -1789,10 +1791,11 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
 // fewest faces whose bake reaches it in the closed loop, or the most
 // accurate tried when none does.  The first try is at a fiftieth of the
 // capture's faces (at least 200); each next one is predicted where the
-// error, a power of the face count through the tries nearest the
-// tolerance (the power 1 until two tries give it), crosses the tolerance,
-// with 10% to spare, between 200 and a fifth of the capture (and, going
-// up, at most twice the faces until two tries measure the power).  The
+// error before quantisation, a power of the face count through the tries
+// nearest the tolerance (until two tries give it, 1 going up and 2 going
+// down), crosses the tolerance, with 10% to spare, between 200 and a fifth
+// of the capture (and, going up, at most twice the faces until two tries
+// measure the power).  The
 // search stops when the answer is settled: the fewest that met and the
 // most that missed are within 15% of each other, the prediction saves
 // under 15% of the faces that met, or, none met, even the steepest power
@@ -1823,7 +1826,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     // packer tries its orders): the tries bake without them.
     const bool reusable = !request.exr && !request.layers && request.pngBits == 0;
     struct Try {
-        size_t faces;
+        size_t faces;  // the cage's (the decimation may stop a face short of the count asked)
+        size_t asked;
         double rms, bytes;
         double shape;  // the closed-loop RMS / diagonal before quantisation: what the face count buys
         std::unique_ptr<BakeJob> job;  // its inputs released
@@ -1856,7 +1860,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         const double rms = job->rms(), shape = job->rmsBeforeQuantisation();
         job->reportTo(nullptr);  // `part` ends here
         job->releaseInputs();
-        tries.push_back({faces, rms, double(job->rigBytes()), shape, std::move(job)});
+        tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, std::move(job)});
         if (rms >= 0.0 && rms <= request.tolerance)
             shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
         return st;
@@ -1900,7 +1904,13 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                 if (t.faces < missed->faces && t.shape > 0.0 && (!coarser || t.faces > coarser->faces))
                     coarser = &t;
         }
-        double power = 1.0;
+        // Unmeasured, the power is 1 going up (from one miss a steeper one
+        // undershoots, and each step up is capped) and 2 going down from a
+        // try that met: the error falls faster than the face count rises
+        // where the level is capped by the capture's density (the 100k
+        // scan's fell as the power 2.2 from 1,011 faces to 1,998, and the
+        // power 1 sent the second try to 1,011, a miss, and a third).
+        double power = met && !missed ? 2.0 : 1.0;
         bool measured = false;
         if (finer && coarser && coarser->faces < finer->faces && coarser->shape > finer->shape && finer->shape > 0.0) {
             power = std::clamp(std::log(coarser->shape / finer->shape) / std::log(double(finer->faces) / double(coarser->faces)),
@@ -1966,13 +1976,14 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         else
             note += "not measured";
         searchReport.push_back({{"faces", t.faces},
+                                {"asked", t.asked},
                                 {"rms", t.rms},
                                 {"rmsBeforeQuantisation", t.shape},
                                 {"bytes", t.bytes},
                                 {"chosen", &t == chosen}});
     }
     note += "\n";
-    const size_t faces = chosen->faces;
+    const size_t faces = chosen->asked;
     for (Try& t : tries)
         if (&t != chosen)
             t.job.reset();
