@@ -405,7 +405,9 @@ public:
     double rmsBeforeQuantisation() const { return stored.rms >= 0.0 ? stored.rms / rep.diagonal : rms(); }
 
     // Frees what only make() needs (the capture, its index, the fits, the
-    // atlas charts), for a try the search keeps to compare.
+    // atlas charts, the map's texels), for a try the search keeps to
+    // compare: its delivery then writes the rig alone (the search bakes
+    // its tries without map images).
     void releaseInputs()
     {
         high = TriangleMesh();
@@ -416,7 +418,10 @@ public:
         previous = Snapshot();
         written_ = Rig();
         writtenMap_ = DisplacementMap();
+        writtenLoaded_ = false;
         bare = ControlMesh();
+        map.texels = std::vector<float>();  // its size stays for the summary
+        layers = std::vector<uint16_t>();
     }
 
 private:
@@ -1890,7 +1895,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
             break;
         // The power through the tries nearest the tolerance: the fewest that
-        // met and the most that missed, or, none met, the two most faces.
+        // met and the most that missed; none missed, the two fewest that
+        // met; none met, the two most faces.
         // Fitted to the errors before quantisation: a try that meets the
         // tolerance spends what it leaves on coarser steps (up to 90% of
         // it), which says nothing of what fewer faces would reach (at 0.2%
@@ -1903,6 +1909,12 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             for (const Try& t : tries)
                 if (t.faces < missed->faces && t.shape > 0.0 && (!coarser || t.faces > coarser->faces))
                     coarser = &t;
+        } else if (!missed) {
+            coarser = met;
+            finer = nullptr;
+            for (const Try& t : tries)
+                if (t.faces > met->faces && t.shape > 0.0 && (!finer || t.faces < finer->faces))
+                    finer = &t;
         }
         // Unmeasured, the power is 1 going up (from one miss a steeper one
         // undershoots, and each step up is capped) and 2 going down from a
