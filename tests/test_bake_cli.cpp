@@ -306,8 +306,10 @@ TEST(BakeCli, AutomaticCageFaceCountFollowsTheTolerance)
     ASSERT_GE(tries.size(), 1u) << tight.summary;
     EXPECT_LE(tries.size(), 3u) << tight.summary;
     double closest = 1e300;
+    std::set<size_t> counts;
     for (const TryLine& t : tries) {
         EXPECT_LE(t.faces, 1024u);
+        EXPECT_TRUE(counts.insert(t.faces).second) << "a count tried twice\n" << tight.summary;
         closest = std::min(closest, t.rms);
     }
     for (const TryLine& t : tries) {

@@ -1953,13 +1953,16 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         } else {
             // The most faces tried, or a tolerance out of reach of them by
             // the prediction: the closest tried is chosen.
-            if (anchor.faces >= most || reach > 1.5 * double(most))
+            if (anchor.asked >= most || reach > 1.5 * double(most))
                 break;
             // Up at most 2x until two tries measure the power (from one
             // miss the power 1 overshot the penguin's count 8x), 4x after.
             const size_t step = (measured ? 4 : 2) * anchor.faces;
             next = std::clamp<size_t>(next, size_t(1.15 * double(anchor.faces)), std::min(most, step));
         }
+        // A count asked before would bake the same cage again.
+        if (std::any_of(tries.begin(), tries.end(), [&](const Try& t) { return t.asked == next; }))
+            break;
         if (Status tried = attempt(next); tried.code() == StatusCode::Cancelled)
             return tried;
         else if (!tried)
