@@ -15,6 +15,12 @@
 // qp 8..14, decimate-then-Draco at 1..50%, gltfpack) as a table and an SVG
 // plot per pair (DIR/tradeoff_NAME.svg).
 // Writes DIR/RESULTS.md and DIR/results.json.
+//
+// strata-bench tradeoff --out DIR [--pairs NAME,NAME]: the size/error sweeps
+// alone, with --control auto (default coding and a Draco-coded cage) against
+// decimate-then-Draco on every pair, every point measured by area-weighted
+// sampling and a verdict per tolerance (issue 29).  Writes DIR/TRADEOFF.md,
+// DIR/tradeoff.json and the plots.
 #include "bench_common.h"
 #include "procedural.h"
 #include "strata/baker/bake.h"
@@ -460,16 +466,24 @@ Json sweepPair(const Pair& pair, const std::string& dir, const baker::TriangleMe
     // below where no decimated point is both smaller and at least as
     // close, and the decimated curve interpolated to the same RMS is no
     // smaller.
+    // The .drc curve ends at the whole capture: Draco of the original at qp 11.
+    std::vector<std::pair<double, double>> wholeDrc = curves[kDecimated].points;
+    for (const Json& e : sweep)
+        if (e["curve"] == "draco" && e["qp"].get<int>() == 11)
+            wholeDrc.push_back({e["rms"].get<double>(), e["bytes"].get<double>()});
     auto verdict = [&](int curve, double rms, double bytes, double* at) {
-        *at = bytesAt(curves[size_t(curve)].points, rms);
-        for (const auto& [r, b] : curves[size_t(curve)].points)
+        const std::vector<std::pair<double, double>>& points =
+            curve == kDecimated ? wholeDrc : curves[size_t(curve)].points;
+        *at = bytesAt(points, rms);
+        for (const auto& [r, b] : points)
             if (r <= rms && b < bytes)
                 return false;
         return *at < 0.0 || bytes <= *at;
     };
     if (!curves[kDecimated].points.empty()) {
-        *md += "\n`--control auto` against decimate-then-Draco (qp 11) at the same RMS (\"-\": that RMS is outside the "
-               "decimated curve's range; a decimated point both smaller and at least as close still loses it):\n\n"
+        *md += "\n`--control auto` against decimate-then-Draco (qp 11) at the same RMS (the .drc curve ends at the whole "
+               "capture, Draco of the original at qp 11; \"-\": that RMS is outside the decimated curve's range; a "
+               "decimated point both smaller and at least as close still loses it):\n\n"
                "| coding | tolerance | RMS | Strata bytes | decimate+Draco .drc | verdict | decimate+Draco glb | verdict |\n"
                "|---|---|---|---|---|---|---|---|\n";
         for (Json& e : sweep) {
