@@ -829,6 +829,66 @@ TEST(BakeCli, SmoothSchemeIsMeasuredOnLooseCagesOnly)
     }
 }
 
+// A cube cage over a bumpy cube: the Loop limit of the cube is a rounded
+// blob, so the smooth scheme, measured first on the cage fitted for the
+// linear one, comes out more than 4 times farther and is not fitted for
+// itself (the costly part of its probe); the linear scheme is chosen.
+TEST(BakeCli, AHopelessSmoothSchemeIsNotFitted)
+{
+    using namespace strata;
+    const std::string dir = strata::test::tempDir("bake_cli_scheme_cube");
+    // Six faces of a unit cube, each a 24 x 24 grid bumped along its normal.
+    ControlMesh high, cube;
+    const int n = 24;
+    for (int axis = 0; axis < 3; ++axis)
+        for (int side = 0; side < 2; ++side) {
+            const uint32_t base = uint32_t(high.positions.size());
+            for (int j = 0; j <= n; ++j)
+                for (int i = 0; i <= n; ++i) {
+                    const float u = float(i) / float(n), v = float(j) / float(n);
+                    const float bump = 0.01f * std::sin(6.2831853f * u) * std::sin(6.2831853f * v);
+                    glm::vec3 p;
+                    p[axis] = side ? 1.0f + bump : -bump;
+                    p[(axis + 1) % 3] = side ? u : v;
+                    p[(axis + 2) % 3] = side ? v : u;
+                    high.positions.push_back(p);
+                }
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i) {
+                    const uint32_t a = base + uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1) + 1,
+                                   d = a + uint32_t(n + 1);
+                    high.triangles.insert(high.triangles.end(), {a, b, c, a, c, d});
+                }
+        }
+    // The same faces, 1 x 1 each (the grids' corners), for the cage.
+    for (int axis = 0; axis < 3; ++axis)
+        for (int side = 0; side < 2; ++side) {
+            const uint32_t base = uint32_t(cube.positions.size());
+            for (int j = 0; j <= 1; ++j)
+                for (int i = 0; i <= 1; ++i) {
+                    glm::vec3 p;
+                    p[axis] = side ? 1.0f : 0.0f;
+                    p[(axis + 1) % 3] = float(side ? i : j);
+                    p[(axis + 2) % 3] = float(side ? j : i);
+                    cube.positions.push_back(p);
+                }
+            cube.triangles.insert(cube.triangles.end(), {base, base + 1, base + 3, base, base + 3, base + 2});
+        }
+    writeObj(dir + "/high.obj", high);
+    writeObj(dir + "/cube.obj", cube);
+    baker::BakeRequest request;
+    request.high = dir + "/high.obj";
+    request.control = dir + "/cube.obj";
+    request.output = dir + "/rig.glb";
+    request.tolerance = 1e-5;
+    baker::BakeResult result;
+    const Status st = baker::bakeRig(request, &result);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    const std::string reason = result.summary.substr(0, result.summary.find('\n'));
+    EXPECT_EQ(result.scheme, Scheme::Linear) << reason;
+    EXPECT_NE(reason.find("not fitted for itself"), std::string::npos) << reason;
+}
+
 // --control auto on a skinned, textured, animated glTF character: the rig
 // keeps the character.  Its skeleton (the same joints and inverse bind
 // matrices), every animation, a skin on every cage vertex and the colour
