@@ -335,6 +335,8 @@ public:
           controlFaces(r.controlFaces), options(r.options), errorFrom(r.errorFrom), errorTo(r.errorTo)
     {
     }
+    BakeJob(const BakeJob&) = delete;  // `result` points into the job itself
+    BakeJob& operator=(const BakeJob&) = delete;
 
     // Each phase and its share of a default bake's time (the 100k scan
     // onto an automatic cage: the scheme's probes and fits are the largest
