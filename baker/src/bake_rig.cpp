@@ -1252,7 +1252,7 @@ void BakeJob::loadWritten()
 void BakeJob::measureWritten()
 {
     Status st;
-    // Closed loop: reconstruct from the rig just written, as the runtime
+    // Closed loop: reconstruct from the rig as encoded, as the runtime
     // will, at the levels around the recommended one unless asked.
     if (errorFrom == -2) {
         errorFrom = std::max(0, recommended - 1);

@@ -3,8 +3,9 @@
 // bakeRig() owns the pipeline strata-bake runs: read the capture and the
 // control mesh (or simplify the capture when the control is "auto"), lay
 // out UVs, choose the map size, level and scheme from the tolerance by
-// measuring the closed loop, bake the map, write the rig (and any extra
-// outputs) atomically, and measure the written rig.  Tools and the Python
+// measuring the closed loop, bake the map, encode the rig and measure it as
+// a loader reads it (all in memory), then write it (and any extra outputs)
+// atomically.  Tools and the Python
 // module parse their arguments into a BakeRequest, call it and print the
 // result; nothing here prints.
 #pragma once
