@@ -1920,7 +1920,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         // Fitted to the errors before quantisation: a try that meets the
         // tolerance spends what it leaves on coarser steps (up to 90% of
         // it), which says nothing of what fewer faces would reach (at 0.2%
-        // nefertiti's 1,400 faces came to 0.163% quantised, 0.08% before).
+        // nefertiti's 1,400 faces came to 0.163% quantised, 0.068% before).
         const Try* finer = met;
         const Try* coarser = missed;
         if (!met) {
