@@ -347,9 +347,9 @@ public:
             {&BakeJob::loadInputs, 0.12},   {&BakeJob::prepare, 0.05},    {&BakeJob::chooseScheme, 0.38},
             {&BakeJob::searchMapSize, 0.15}, {&BakeJob::encodeRig, 0.14},  {&BakeJob::measureWritten, 0.08},
             {&BakeJob::measureFrames, 0.04}};
-        start_ = std::chrono::steady_clock::now();
+        const auto start = std::chrono::steady_clock::now();
         runPhases(phases, std::size(phases));
-        bakeMs_ = msSince(start_);
+        bakeMs_ = msSince(start);
     }
 
     // Writes, summarises, reports and commits; `searchNote` (the
@@ -515,8 +515,7 @@ private:
     int errorFrom, errorTo;  // the closed loop's levels (-2: around the recommended one, once chosen)
     std::string searchNote_;
     nlohmann::json searchReport_;
-    std::chrono::steady_clock::time_point start_;
-    double bakeMs_ = 0.0;
+    double bakeMs_ = 0.0;  // make()'s wall time
     std::string base;  // the output path without its extension
 
     // The inputs.
@@ -1855,10 +1854,27 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         size_t asked;
         double rms, bytes;
         double shape;  // the closed-loop RMS / diagonal before quantisation: what the face count buys
-        std::unique_ptr<BakeJob> job;  // its inputs released
+        std::unique_ptr<BakeJob> job;  // the choice's bake, its inputs released (the others' are freed)
     };
     std::vector<Try> tries;
     SearchShared shared;
+    auto fewestThatMet = [&]() -> Try* {
+        Try* met = nullptr;
+        for (Try& t : tries)
+            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
+                met = &t;
+        return met;
+    };
+    // The fewest faces that met the tolerance, else the smallest error
+    // (else, none measured, the first try).
+    auto choice = [&]() -> Try* {
+        Try* chosen = fewestThatMet();
+        if (!chosen)
+            for (Try& t : tries)
+                if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
+                    chosen = &t;
+        return chosen ? chosen : &tries.front();
+    };
     auto attempt = [&](size_t faces) {
         BakeRequest r = request;
         r.controlFaces = faces;
@@ -1888,14 +1904,15 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, std::move(job)});
         if (rms >= 0.0 && rms <= request.tolerance)
             shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
+        // Only the choice can be delivered, and a try that is not the
+        // choice never becomes it (a later try can only take its place):
+        // the others' bakes are freed now, and every one where the chosen
+        // count is baked again with the map images.
+        const Try* kept = reusable ? choice() : nullptr;
+        for (Try& t : tries)
+            if (&t != kept)
+                t.job.reset();
         return st;
-    };
-    auto fewestThatMet = [&]() -> const Try* {
-        const Try* met = nullptr;
-        for (const Try& t : tries)
-            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
-                met = &t;
-        return met;
     };
     // The capture, loaded once for every try (its face count sets the first).
     if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
@@ -1988,14 +2005,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         else if (!tried)
             break;  // a failed extra try leaves the choice to the others
     }
-    // The fewest faces that met the tolerance, else the smallest error.
-    Try* chosen = const_cast<Try*>(fewestThatMet());
-    if (!chosen)
-        for (Try& t : tries)
-            if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
-                chosen = &t;
-    if (!chosen)
-        chosen = &tries.front();
+    Try* chosen = choice();
     // The search's lines for the summary and the report.
     char took[160];
     std::snprintf(took, sizeof(took), "%zu tr%s in %.1f s%s", tries.size(), tries.size() == 1 ? "y" : "ies",
@@ -2018,21 +2028,16 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                                 {"chosen", &t == chosen}});
     }
     note += "\n";
-    const size_t faces = chosen->asked;
-    for (Try& t : tries)
-        if (&t != chosen)
-            t.job.reset();
     if (reusable)
         return guarded(request, [&] {
             chosen->job->deliver(result, note, searchReport);
             whole.at(1.0);
         });
     BakeRequest r = request;
-    r.controlFaces = faces;
+    r.controlFaces = chosen->asked;
     FractionSpan last = whole;
     last.base = whole.last;
     last.span = 1.0 - whole.last;
-    chosen->job.reset();
     return guarded(request, [&] {
         BakeJob job(r, progress, &shared, &last);
         job.make();
