@@ -489,21 +489,14 @@ Status Plan::buildLinear(Build& build)
 // Numbered: control values, edge runs, face interiors.
 namespace {
 
-// Slot of grid point (i, j) (b1 = i / R, b2 = j / R) in a row-major
-// triangular grid of R + 1 rows.
-inline size_t gridSlot(uint32_t i, uint32_t j, uint32_t R)
-{
-    return size_t(j) * (R + 1) - size_t(j) * (j - 1) / 2 + i;
-}
-
 // The grid of one face's linearly refined values from its corner values.
 void refineGrid(std::vector<glm::vec2>* grid, const glm::vec2 corner[3], int level)
 {
     const uint32_t R = 1u << level;
     glm::vec2* g = grid->data();
-    g[gridSlot(0, 0, R)] = corner[0];
-    g[gridSlot(R, 0, R)] = corner[1];
-    g[gridSlot(0, R, R)] = corner[2];
+    g[tileSlot(0, 0, R)] = corner[0];
+    g[tileSlot(R, 0, R)] = corner[1];
+    g[tileSlot(0, R, R)] = corner[2];
     for (int k = 1; k <= level; ++k) {
         const uint32_t s = R >> k;  // this level's step; the parent grid's is 2 s
         for (uint32_t j = 0; j <= R; j += s)
@@ -513,16 +506,16 @@ void refineGrid(std::vector<glm::vec2>* grid, const glm::vec2 corner[3], int lev
                     continue;  // a coarser point
                 size_t a, b;
                 if (oi && !oj) {
-                    a = gridSlot(i - s, j, R);
-                    b = gridSlot(i + s, j, R);
+                    a = tileSlot(i - s, j, R);
+                    b = tileSlot(i + s, j, R);
                 } else if (!oi) {
-                    a = gridSlot(i, j - s, R);
-                    b = gridSlot(i, j + s, R);
+                    a = tileSlot(i, j - s, R);
+                    b = tileSlot(i, j + s, R);
                 } else {
-                    a = gridSlot(i - s, j + s, R);
-                    b = gridSlot(i + s, j - s, R);
+                    a = tileSlot(i - s, j + s, R);
+                    b = tileSlot(i + s, j - s, R);
                 }
-                g[gridSlot(i, j, R)] = 0.5f * g[a] + 0.5f * g[b];
+                g[tileSlot(i, j, R)] = 0.5f * g[a] + 0.5f * g[b];
             }
     }
 }
@@ -572,7 +565,7 @@ void Plan::sampleUVs(std::vector<glm::vec2>* out) const
         refineGrid(&grid, corner, level_);
         for (uint32_t k = start[f]; k < start[f + 1]; ++k) {
             const glm::vec2 b = samples_[order[k]].bary * float(R);  // exact: dyadic
-            (*out)[order[k]] = grid[gridSlot(uint32_t(b.x), uint32_t(b.y), R)];
+            (*out)[order[k]] = grid[tileSlot(uint32_t(b.x), uint32_t(b.y), R)];
         }
     }
 }
@@ -625,7 +618,7 @@ void Plan::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* ind
     // pattern, the same for every face).
     std::vector<uint32_t> pattern(3 * childFaces);
     for (size_t c = 0; c < pattern.size(); ++c)
-        pattern[c] = uint32_t(gridSlot(childCorners_[c] & 0xffffu, childCorners_[c] >> 16, R));
+        pattern[c] = uint32_t(tileSlot(childCorners_[c] & 0xffffu, childCorners_[c] >> 16, R));
 
     std::vector<glm::vec2> grid(gridPoints);
     std::vector<uint32_t> ids(gridPoints);
@@ -655,7 +648,7 @@ void Plan::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* ind
                     const uint32_t step = a < b ? t : R - t;
                     id = uint32_t(edgeBase + size_t(edgeRun[3 * f + size_t(edge)]) * run + step - 1);
                 }
-                const size_t slot = gridSlot(i, j, R);
+                const size_t slot = tileSlot(i, j, R);
                 ids[slot] = id;
                 (*values)[id] = grid[slot];
             }
@@ -857,26 +850,29 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
                     controlCount);
 }
 
-Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
-                      const float* displacements, const glm::vec3* controlPositions, const glm::vec3* controlNormals,
-                      size_t controlCount) const
+Status Plan::checkEvaluate(const glm::vec3* dstPositions, const float* displacements, const glm::vec3* controlPositions,
+                           const glm::vec3* controlNormals, size_t controlCount) const
 {
-    if (begin > end || end > samples_.size())
-        return Status(StatusCode::InvalidArgument, "evaluate: range [" + std::to_string(begin) + ", " +
-                                                       std::to_string(end) + ") exceeds the " +
-                                                       std::to_string(samples_.size()) + " refined vertices");
     if (controlCount != controlVertexCount_)
         return Status(StatusCode::InvalidArgument, "evaluate: got " + std::to_string(controlCount) +
                                                        " control vertices, the plan was built for " +
                                                        std::to_string(controlVertexCount_));
     if (!dstPositions || !controlPositions || !displacements || (scheme_ == Scheme::Linear && !controlNormals))
         return Status(StatusCode::InvalidArgument, "evaluate: null buffer");
+    return Status::ok();
+}
 
-    const float* d = displacements;
+// The one expression of eq. 2 for both entry points: refined vertex
+// vertexAt(k) into slot k, for k in [0, count).
+template <typename VertexAt>
+void Plan::evaluateEach(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t count, const VertexAt& vertexAt,
+                        const float* d, const glm::vec3* controlPositions, const glm::vec3* controlNormals) const
+{
     if (scheme_ == Scheme::Linear) {
         const SampleLocation* at = samples_.data();
         const uint32_t* tri = controlTriangles_.data();
-        for (size_t v = begin; v < end; ++v) {
+        for (size_t k = 0; k < count; ++k) {
+            const size_t v = vertexAt(k);
             const SampleLocation& s = at[v];
             glm::vec3 p, n;
             if (s.face != kNoControlFace) {
@@ -888,25 +884,83 @@ Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t 
                 p = controlPositions[v];
                 n = controlNormals[v];
             }
-            dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
+            dstPositions[k] = shared::strata_displace(p, n, d[v]);
             if (dstDirections)
-                dstDirections[v - begin] = n;
+                dstDirections[k] = n;
         }
-        return Status::ok();
+        return;
     }
-
-    for (size_t v = begin; v < end; ++v) {
+    for (size_t k = 0; k < count; ++k) {
+        const size_t v = vertexAt(k);
         glm::vec3 p(0.0f), du(0.0f), dv(0.0f);
-        for (uint32_t k = limitOffsets_[v], e = limitOffsets_[v + 1]; k < e; ++k) {
-            const glm::vec3 c = controlPositions[limitIndices_[k]];
-            p += limitWeights_[3 * k + 0] * c;
-            du += limitWeights_[3 * k + 1] * c;
-            dv += limitWeights_[3 * k + 2] * c;
+        for (uint32_t e = limitOffsets_[v], end = limitOffsets_[v + 1]; e < end; ++e) {
+            const glm::vec3 c = controlPositions[limitIndices_[e]];
+            p += limitWeights_[3 * e + 0] * c;
+            du += limitWeights_[3 * e + 1] * c;
+            dv += limitWeights_[3 * e + 2] * c;
         }
         const glm::vec3 n = shared::strata_limit_normal(du, dv);
-        dstPositions[v - begin] = shared::strata_displace(p, n, d[v]);
+        dstPositions[k] = shared::strata_displace(p, n, d[v]);
         if (dstDirections)
-            dstDirections[v - begin] = n;
+            dstDirections[k] = n;
+    }
+}
+
+Status Plan::evaluate(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t begin, size_t end,
+                      const float* displacements, const glm::vec3* controlPositions, const glm::vec3* controlNormals,
+                      size_t controlCount) const
+{
+    if (begin > end || end > samples_.size())
+        return Status(StatusCode::InvalidArgument, "evaluate: range [" + std::to_string(begin) + ", " +
+                                                       std::to_string(end) + ") exceeds the " +
+                                                       std::to_string(samples_.size()) + " refined vertices");
+    if (Status st = checkEvaluate(dstPositions, displacements, controlPositions, controlNormals, controlCount); !st)
+        return st;
+    evaluateEach(dstPositions, dstDirections, end - begin, [begin](size_t k) { return begin + k; }, displacements,
+                 controlPositions, controlNormals);
+    return Status::ok();
+}
+
+Status Plan::evaluateVertices(glm::vec3* dstPositions, glm::vec3* dstDirections, const uint32_t* vertices, size_t count,
+                              const float* displacements, const glm::vec3* controlPositions,
+                              const glm::vec3* controlNormals, size_t controlCount) const
+{
+    if (count > 0 && !vertices)
+        return Status(StatusCode::InvalidArgument, "evaluate: null vertex list");
+    if (Status st = checkEvaluate(dstPositions, displacements, controlPositions, controlNormals, controlCount); !st)
+        return st;
+    const size_t nv = samples_.size();
+    for (size_t k = 0; k < count; ++k)
+        if (vertices[k] >= nv)
+            return Status(StatusCode::InvalidArgument, "evaluate: vertex " + std::to_string(vertices[k]) +
+                                                           " exceeds the " + std::to_string(nv) + " refined vertices");
+    evaluateEach(dstPositions, dstDirections, count, [vertices](size_t k) { return size_t(vertices[k]); },
+                 displacements, controlPositions, controlNormals);
+    return Status::ok();
+}
+
+Status Plan::tileVertices(std::vector<uint32_t>* out) const
+{
+    const uint32_t R = 1u << level_;
+    const size_t nf0 = controlTriangles_.size() / 3, childFaces = size_t(1) << (2 * level_);
+    const size_t slots = size_t(R + 1) * (R + 2) / 2;
+    if (triangles_.size() != 3 * nf0 * childFaces || childCorners_.size() != 3 * childFaces)
+        return Status(StatusCode::InvalidData, "the refined faces are not a grid per control face");
+    out->assign(nf0 * slots, kNoControlFace);
+    for (size_t f = 0; f < nf0; ++f) {
+        uint32_t* tile = out->data() + f * slots;
+        const uint32_t* children = &triangles_[3 * f * childFaces];
+        for (size_t c = 0; c < 3 * childFaces; ++c) {
+            const uint32_t p = childCorners_[c];
+            uint32_t& slot = tile[tileSlot(p & 0xffffu, p >> 16, R)];
+            if (slot != kNoControlFace && slot != children[c])
+                return Status(StatusCode::InvalidData, "control face " + std::to_string(f) +
+                                                           " has two refined vertices at one grid point");
+            slot = children[c];
+        }
+        for (size_t k = 0; k < slots; ++k)
+            if (tile[k] == kNoControlFace)
+                return Status(StatusCode::InvalidData, "control face " + std::to_string(f) + " misses a grid point");
     }
     return Status::ok();
 }

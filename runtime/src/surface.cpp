@@ -187,4 +187,58 @@ Status Surface::evaluate(glm::vec3* positions, glm::vec3* normals, size_t count,
                             controlPositions_.size(), threads < 1 ? 1 : threads);
 }
 
+const AdaptiveFrame& Surface::adaptiveFrame()
+{
+    if (!adaptive_)
+        adaptive_ = std::make_unique<AdaptiveFrame>(*plan_);
+    return *adaptive_;
+}
+
+Status Surface::setFaceLevels(const uint8_t* levels, size_t count)
+{
+    adaptiveFrame();
+    return adaptive_->setLevels(levels, count);
+}
+
+const FaceLevelErrors& Surface::faceLevelErrors()
+{
+    if (!levelErrors_) {
+        levelErrors_ = std::make_unique<FaceLevelErrors>();
+        std::vector<glm::vec3> restNormals(mesh_.positions.size(), glm::vec3(0.0f));
+        computeControlNormals(restNormals.data(), mesh_.positions.data(), mesh_.positions.size(), mesh_.triangles.data(),
+                              mesh_.faceCount());
+        // A plan that is no grid per face (never from Plan::create) has no
+        // levels to choose: the errors stay empty and every face is drawn at
+        // the finest level.
+        if (!measureFaceLevelErrors(levelErrors_.get(), *plan_, nullptr, mesh_.positions.data(), restNormals.data(),
+                                    mesh_.positions.size()))
+            *levelErrors_ = FaceLevelErrors();
+    }
+    return *levelErrors_;
+}
+
+Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
+{
+    const FaceLevelErrors& errors = faceLevelErrors();
+    if (errors.faceCount != mesh_.faceCount())
+        return Status(StatusCode::InvalidData, "the surface's refined faces are not a grid per control face");
+    chosen_.resize(errors.faceCount);
+    const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
+    if (Status st = strata::chooseFaceLevels(chosen_.data(), errors, view, pixelError, controlPositions_.data(),
+                                             controlPositions_.size(), mesh_.triangles.data(), scale);
+        !st)
+        return st;
+    return setFaceLevels(chosen_.data(), chosen_.size());
+}
+
+Status Surface::evaluateAdaptive(glm::vec3* positions, glm::vec3* normals, size_t count, int threads)
+{
+    const AdaptiveFrame& frame = adaptiveFrame();
+    if (count != frame.vertexCount())
+        return Status(StatusCode::InvalidArgument, "buffers of " + std::to_string(count) + " vertices for an adaptive frame of " +
+                                                       std::to_string(frame.vertexCount()) + " vertices");
+    return adaptive_->evaluate(positions, normals, nullptr, controlPositions_.data(), controlNormals_.data(),
+                               controlPositions_.size(), threads < 1 ? 1 : threads);
+}
+
 }  // namespace strata

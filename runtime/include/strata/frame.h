@@ -47,6 +47,10 @@
 
 namespace strata {
 
+namespace detail {
+class WorkerPool;
+}
+
 /// The order of a frame's vertices.
 enum class FrameLayout {
     Plan,   ///< the plan's refined vertex order: Plan::refinedTriangles() indexes it
@@ -88,7 +92,6 @@ public:
 
 private:
     struct Scratch;
-    class Pool;
     template <typename Body>
     void parallel(int threads, size_t n, const Body& body);
     void buildTables();
@@ -124,7 +127,7 @@ private:
     std::vector<uint16_t> ownedSlots_;   // tile layout: per frame vertex, its slot in its tile
     std::vector<uint32_t> order_, triangles_;  // vertexOrder(), triangles() (tile layout, or built on request)
     std::vector<Scratch> scratch_;
-    std::unique_ptr<Pool> pool_;  // worker threads, kept between frames
+    std::unique_ptr<detail::WorkerPool> pool_;  // worker threads, kept between frames
 
     // The generic path: each refined vertex's faces, ascending, and face normals.
     std::vector<uint32_t> offsets_, faces_;

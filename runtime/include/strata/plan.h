@@ -54,6 +54,14 @@ struct SampleLocation {
     glm::vec2 bary;
 };
 
+/// Slot of grid point (i, j) of a control face refined to R = 2^level per
+/// edge (barycentrics b1 = i / R, b2 = j / R, b0 = 1 - b1 - b2) in a tile of
+/// (R + 1)(R + 2) / 2 slots: row j = 0 first, i ascending within a row.
+inline size_t tileSlot(uint32_t i, uint32_t j, uint32_t R)
+{
+    return size_t(j) * (R + 1) - size_t(j) * (j - 1) / 2 + i;
+}
+
 /// SampleLocation::face of a refined vertex that descends from a control
 /// vertex no face references: it stays where its control vertex is and is
 /// never displaced.
@@ -163,6 +171,21 @@ public:
                     const float* displacements, const glm::vec3* controlPositions, const glm::vec3* controlNormals,
                     size_t controlCount) const;
 
+    /// evaluate() of the listed refined vertices: dstPositions[k] (and
+    /// dstDirections[k]) for vertex vertices[k], with the caller's
+    /// displacements (refinedVertexCount() values).  The same expression
+    /// as evaluate(), bit for bit: an adaptive frame (adaptive.h) pays only
+    /// for the vertices it draws.
+    Status evaluateVertices(glm::vec3* dstPositions, glm::vec3* dstDirections, const uint32_t* vertices, size_t count,
+                            const float* displacements, const glm::vec3* controlPositions,
+                            const glm::vec3* controlNormals, size_t controlCount) const;
+
+    /// Each control face's refined vertices as its grid: refinedVertex of
+    /// face f, slot tileSlot(i, j, 2^level) at out[f * slots + slot], slots =
+    /// (R + 1)(R + 2) / 2.  Vertices on a control edge or corner appear in
+    /// every tile that shares it.
+    Status tileVertices(std::vector<uint32_t>* out) const;
+
     /// Per-frame reconstruction of refined vertices [begin, end):
     ///   dstPositions[i - begin] = surface(i) + d_i * direction(i)   (eq. 2)
     /// \param dstPositions    end - begin positions (caller-owned)
@@ -209,6 +232,11 @@ private:
     Status buildLinear(Build& b);
     Status buildUVs(Build& b);
     Status buildLimit(const ControlMesh& mesh);
+    Status checkEvaluate(const glm::vec3* dstPositions, const float* displacements, const glm::vec3* controlPositions,
+                         const glm::vec3* controlNormals, size_t controlCount) const;
+    template <typename VertexAt>
+    void evaluateEach(glm::vec3* dstPositions, glm::vec3* dstDirections, size_t count, const VertexAt& vertexAt,
+                      const float* d, const glm::vec3* controlPositions, const glm::vec3* controlNormals) const;
 
     Scheme scheme_ = Scheme::Linear;
     int level_ = 0;

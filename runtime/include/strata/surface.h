@@ -23,6 +23,7 @@
 //     surface->evaluate(positions, normals, surface->vertexCount());
 #pragma once
 
+#include "strata/adaptive.h"
 #include "strata/animation.h"
 #include "strata/displacement_map.h"
 #include "strata/frame.h"
@@ -123,6 +124,26 @@ public:
     /// re-entrant: serialise calls on one surface.
     Status evaluate(glm::vec3* positions, glm::vec3* normals, size_t count, int threads = 1);
 
+    /// Adaptive level of detail (adaptive.h): each control face at its own
+    /// level up to level(), stitched without cracks.  The frame's vertices
+    /// and triangles follow the last setFaceLevels or chooseFaceLevels.
+    /// \param levels  one per control face, each 0..level()
+    Status setFaceLevels(const uint8_t* levels, size_t count);
+    /// Levels for a view of the current pose: per face the smallest level
+    /// within `pixelError` pixels of level() (errors measured once, in the
+    /// rest pose, at the first call; a skinned pose's stretch scales them).
+    Status chooseFaceLevels(const ViewSpec& view, float pixelError);
+    /// The errors chooseFaceLevels projects (measured on first use).
+    const FaceLevelErrors& faceLevelErrors();
+    /// The adaptive frame's topology: vertexCount(), triangles(),
+    /// vertices() (each frame vertex's refined vertex in plan()), levels().
+    /// Empty until setFaceLevels or chooseFaceLevels.
+    const AdaptiveFrame& adaptiveFrame();
+    /// The current pose's adaptive frame: `count` = adaptiveFrame().vertexCount()
+    /// positions and (normals not null) shading normals of the adaptive
+    /// triangles; allocates nothing once warmed up.
+    Status evaluateAdaptive(glm::vec3* positions, glm::vec3* normals, size_t count, int threads = 1);
+
     /// The current pose's control positions and normals.
     const std::vector<glm::vec3>& controlPositions() const { return controlPositions_; }
     const std::vector<glm::vec3>& controlNormals() const { return controlNormals_; }
@@ -143,6 +164,9 @@ private:
     std::unique_ptr<Plan> plan_;
     std::unique_ptr<Animator> animator_;  // refers to mesh_ and skeleton_
     std::unique_ptr<FrameEvaluator> frame_;
+    std::unique_ptr<AdaptiveFrame> adaptive_;
+    std::unique_ptr<FaceLevelErrors> levelErrors_;
+    std::vector<uint8_t> chosen_;
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::mat4> skinMatrices_;
 };

@@ -1,0 +1,197 @@
+// Strata runtime: adaptive, error-bounded level of detail, crack-free.
+//
+// A plan refines every control face to one level L.  An adaptive frame
+// draws each control face f at its own level l_f <= L instead, out of the
+// same plan: the refined grids are nested (grid point (i, j) of level l is
+// grid point (i, j) * 2^(L - l) of level L, with the same displacement), so
+// a coarser face is a subset of the plan's vertices and costs only those.
+//
+// Cracks.  The edge between faces f and g is drawn at level min(l_f, l_g)
+// (min over every face of a non-manifold edge; a border edge at its face's
+// level).  The finer face's grid points on that edge that the coarser level
+// lacks are snapped along the edge to the nearest kept point (a tie to the
+// one nearer the edge's first corner in the face's order), and its
+// triangles that collapse are dropped: the strip along the edge becomes a
+// fan onto the coarse edge's vertices, which both faces then share.  This
+// is micromesh's edge decimation, for any difference of levels.  A closed
+// manifold control mesh gives a closed manifold frame for every assignment
+// of levels.
+//
+// Levels from a view.  FaceLevelErrors holds, per control face and level,
+// how far the level's surface (the piecewise-linear interpolation of its
+// displaced grid) strays from level L's: measured once, at load, in the
+// rest pose.  chooseFaceLevels projects it at each face's nearest distance
+// to the eye (a sphere around the posed face that holds its displaced
+// surface) and takes the smallest level within the pixel tolerance.
+//
+//     strata::AdaptiveFrame frame(plan);
+//     frame.setLevels(levels.data(), levels.size());       // when the levels change
+//     frame.evaluate(positions, normals, displacements, cp, cn, n, threads);
+//     // draw frame.triangles() over frame.vertexCount() vertices
+#pragma once
+
+#include "strata/control_mesh.h"
+#include "strata/plan.h"
+#include "strata/status.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace strata {
+
+namespace detail {
+class WorkerPool;
+}
+
+/// A perspective view: the eye, the point it looks at, the vertical field
+/// of view and the viewport's height in pixels.
+struct ViewSpec {
+    glm::vec3 eye{0.0f, 0.0f, 1.0f};
+    glm::vec3 target{0.0f};
+    float fovYDegrees = 45.0f;
+    float heightPx = 1080.0f;
+    /// Pixels per model unit at distance 1: heightPx / (2 tan(fovY / 2)).
+    float pixelsPerUnitAtDistanceOne() const;
+    /// Whether the numbers describe a view (finite, eye != target, fovY in
+    /// (0, 180), height > 0).
+    bool valid() const;
+};
+
+/// Per control face and level 0..finest: the largest distance, in model
+/// units, between the displaced surface at that level and at `finest`,
+/// measured at the finest level's vertices (each against the drawn triangle
+/// it lies in).  Non-increasing in the level; 0 at `finest`.  And the same
+/// with one edge drawn coarser (stitched): a face's strip along a much
+/// coarser neighbour strays further than either face alone.
+struct FaceLevelErrors {
+    int finest = 0;
+    size_t faceCount = 0;
+    std::vector<float> error;   ///< faceCount * (finest + 1): error[f * (finest + 1) + l]
+    /// faceCount * 3 * pairs, pairs = finest (finest + 1) / 2: face f at
+    /// level l with its edge k at level e < l, at stitchedAt().
+    std::vector<float> stitched;
+    std::vector<float> reach;   ///< per face: the largest distance from its control corners' centroid to its displaced surface
+    EdgeGroups edges;           ///< the control faces' edges (chooseFaceLevels' neighbours)
+    float at(size_t face, int level) const { return error[face * size_t(finest + 1) + size_t(level)]; }
+    float stitchedAt(size_t face, int edge, int level, int edgeLevel) const
+    {
+        const size_t pairs = size_t(finest) * size_t(finest + 1) / 2;
+        return stitched[(face * 3 + size_t(edge)) * pairs + size_t(level) * size_t(level - 1) / 2 + size_t(edgeLevel)];
+    }
+    size_t bytes() const
+    {
+        return (error.capacity() + stitched.capacity() + reach.capacity()) * sizeof(float) +
+               (edges.corners.capacity() + edges.offsets.capacity()) * sizeof(uint32_t);
+    }
+};
+
+/// Measures the errors of every level of `plan` (its level is the finest)
+/// in the pose of controlPositions/controlNormals (the rest pose at load),
+/// with the given displacements (refinedVertexCount() values; the plan's
+/// own when null).
+Status measureFaceLevelErrors(FaceLevelErrors* out, const Plan& plan, const float* displacements,
+                              const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
+                              int threads = 1);
+
+/// The level of each control face for a view.  First, per face, the
+/// smallest level whose error, projected at the face's nearest distance to
+/// the eye, is within `pixelError` pixels (a face whose bounding sphere
+/// holds the eye gets the finest level).  Then, while a face's strip along
+/// a coarser neighbour strays past the tolerance, the neighbour goes up a
+/// level.  controlPositions: the current pose; `poseScale` (>= 1 for a
+/// pose that stretches, the largest singular value of the skin matrices:
+/// skinScale()) multiplies both errors and reaches.
+/// \param levels  errors.faceCount values (caller-owned)
+Status chooseFaceLevels(uint8_t* levels, const FaceLevelErrors& errors, const ViewSpec& view, float pixelError,
+                        const glm::vec3* controlPositions, size_t controlCount, const uint32_t* controlTriangles,
+                        float poseScale = 1.0f);
+
+/// The largest singular value of the upper 3x3 of any of `count` matrices
+/// (1 for none): how much a skinned pose can stretch a distance.
+float skinScale(const float* matrices4x4, size_t count);
+
+/// The triangles of a control face at level `level` whose three edges are
+/// drawn at edgeLevels[k] <= level (edge k from corner k to corner k + 1), as
+/// slots of the finest tile (tileSlot(i, j, 2^finest)), counter-clockwise.
+/// What AdaptiveFrame draws per face, and a GPU's index template per
+/// (level, edge levels).
+void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3]);
+
+class AdaptiveFrame {
+public:
+    /// For `plan` (its level is the finest; the plan must outlive the frame).
+    explicit AdaptiveFrame(const Plan& plan);
+    ~AdaptiveFrame();
+    AdaptiveFrame(const AdaptiveFrame&) = delete;
+    AdaptiveFrame& operator=(const AdaptiveFrame&) = delete;
+
+    /// Sets each control face's level (count = control faces, each <= the
+    /// plan's level) and builds the frame's vertices and triangles.  Costs
+    /// time in the vertices drawn; allocates only to grow past the largest
+    /// frame so far (and the first time a (level, edge levels) combination
+    /// appears).
+    Status setLevels(const uint8_t* levels, size_t count);
+    const std::vector<uint8_t>& levels() const { return levels_; }
+
+    /// The frame's vertices and triangles (3 per triangle, counter-clockwise,
+    /// indexing the frame's vertices) for the current levels.
+    size_t vertexCount() const { return vertices_.size(); }
+    size_t triangleCount() const { return triangles_.size() / 3; }
+    const std::vector<uint32_t>& triangles() const { return triangles_; }
+    /// Per frame vertex, its refined vertex in the plan (to place per-vertex
+    /// attributes, and what the frame evaluates).
+    const std::vector<uint32_t>& vertices() const { return vertices_; }
+    /// Per triangle, its control face (to place face-varying UVs: the
+    /// corner's grid point is cornerSlots()).
+    const std::vector<uint32_t>& triangleFaces() const { return triangleFaces_; }
+    /// Per triangle corner, its slot in its control face's finest tile.
+    const std::vector<uint16_t>& cornerSlots() const { return cornerSlots_; }
+
+    /// Displaced positions (and shading normals when normals is not null:
+    /// the area-weighted sum of the incident frame triangles' normals,
+    /// normalised) of vertexCount() vertices.  displacements: the plan's own
+    /// when null.  Arguments as Plan::evaluate.  Bit-identical for any thread
+    /// count; allocates nothing once warmed up (the first frame, or the
+    /// first with more threads).
+    Status evaluate(glm::vec3* positions, glm::vec3* normals, const float* displacements,
+                    const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
+                    int threads = 1);
+
+    /// The largest distance, in pixels of `view`, between the finest
+    /// surface and this frame: at every finest-level vertex of a control
+    /// face, its projected position against the projection of the frame
+    /// triangle's point at the same grid place (the surface as drawn there).
+    /// Points behind the eye are skipped.
+    /// \param framePositions  vertexCount() positions from evaluate()
+    /// \param finePositions   the plan's refinedVertexCount() positions in the same pose
+    float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view) const;
+
+    size_t bytes() const;
+
+private:
+    template <typename Body>
+    void parallel(int threads, size_t n, const Body& body);
+    const std::vector<uint16_t>& tileTemplate(int level, const int edgeLevels[3]);
+
+    const Plan& plan_;
+    int finest_ = 0;
+    size_t slots_ = 0;
+    std::vector<uint32_t> tiles_;         // per control face, its finest tile's refined vertices
+    std::vector<uint16_t> slotI_, slotJ_; // the finest tile's grid point per slot
+    std::vector<uint32_t> edgeOf_;        // per face corner (3 f + k): its undirected edge
+    std::vector<uint8_t> edgeLevels_;     // per edge: its level for the current face levels
+    std::vector<std::vector<uint16_t>> templates_;  // by (level, e0, e1, e2); built on first use
+    std::vector<uint8_t> levels_;
+    std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
+    std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
+    std::vector<uint16_t> cornerSlots_;
+    std::vector<uint32_t> incidence_, incidenceOffsets_;  // each vertex's triangles, ascending
+    std::vector<glm::vec3> faceNormals_;
+    std::unique_ptr<detail::WorkerPool> pool_;
+};
+
+}  // namespace strata

@@ -1,0 +1,523 @@
+// Adaptive level of detail out of one plan (adaptive.h).
+#include "strata/adaptive.h"
+
+#include "strata/control_mesh.h"
+
+#include "worker_pool.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace strata {
+
+namespace {
+
+constexpr uint32_t kNone = 0xffffffffu;
+
+inline glm::vec3 unitOrZero(glm::vec3 n)
+{
+    const float len = glm::length(n);
+    return len > 0.0f ? n / len : glm::vec3(0.0f);
+}
+
+// The grid point of each slot of a tile of resolution R.
+void slotPoints(std::vector<uint16_t>* is, std::vector<uint16_t>* js, uint32_t R)
+{
+    const size_t slots = size_t(R + 1) * (R + 2) / 2;
+    is->resize(slots);
+    js->resize(slots);
+    for (uint32_t j = 0; j <= R; ++j)
+        for (uint32_t i = 0; i + j <= R; ++i) {
+            const size_t k = tileSlot(i, j, R);
+            (*is)[k] = uint16_t(i);
+            (*js)[k] = uint16_t(j);
+        }
+}
+
+// Calls fn(i, j, w, area) for every grid point (i, j) of a tile of
+// resolution R inside or on the counter-clockwise grid triangle (gi, gj):
+// w are its barycentric weights times `area` (twice the triangle's area).
+template <typename Fn>
+void rasterGrid(const int gi[3], const int gj[3], int R, const Fn& fn)
+{
+    const int area = (gi[1] - gi[0]) * (gj[2] - gj[0]) - (gj[1] - gj[0]) * (gi[2] - gi[0]);
+    if (area <= 0)
+        return;
+    const int i0 = std::min({gi[0], gi[1], gi[2]}), i1 = std::max({gi[0], gi[1], gi[2]});
+    const int j0 = std::min({gj[0], gj[1], gj[2]}), j1 = std::max({gj[0], gj[1], gj[2]});
+    for (int j = j0; j <= j1; ++j)
+        for (int i = i0; i <= i1 && i + j <= R; ++i) {
+            int w[3];
+            bool inside = true;
+            for (int k = 0; k < 3 && inside; ++k) {
+                const int a = (k + 1) % 3, b = (k + 2) % 3;
+                w[k] = (gi[b] - gi[a]) * (j - gj[a]) - (gj[b] - gj[a]) * (i - gi[a]);
+                inside = w[k] >= 0;
+            }
+            if (inside)
+                fn(i, j, w, area);
+        }
+}
+
+// The orthonormal camera frame of a view and its projection to pixels.
+struct Camera {
+    glm::vec3 eye, forward, right, up;
+    float k;  // pixels per unit at distance 1
+    explicit Camera(const ViewSpec& v) : eye(v.eye), k(v.pixelsPerUnitAtDistanceOne())
+    {
+        forward = glm::normalize(v.target - v.eye);
+        const glm::vec3 worldUp = std::fabs(forward.y) > 0.999f ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+        right = glm::normalize(glm::cross(forward, worldUp));
+        up = glm::cross(right, forward);
+    }
+    // Pixel coordinates of p, false behind the eye.
+    bool project(glm::vec3 p, float* x, float* y) const
+    {
+        const glm::vec3 q = p - eye;
+        const float z = glm::dot(q, forward);
+        if (!(z > 0.0f))
+            return false;
+        *x = k * glm::dot(q, right) / z;
+        *y = k * glm::dot(q, up) / z;
+        return true;
+    }
+};
+
+}  // namespace
+
+float ViewSpec::pixelsPerUnitAtDistanceOne() const
+{
+    const float halfFov = 0.5f * fovYDegrees * 3.14159265358979f / 180.0f;
+    return heightPx / (2.0f * std::tan(halfFov));
+}
+
+bool ViewSpec::valid() const
+{
+    auto finite = [](glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
+    return finite(eye) && finite(target) && glm::length(target - eye) > 0.0f && std::isfinite(fovYDegrees) &&
+           fovYDegrees > 0.0f && fovYDegrees < 180.0f && std::isfinite(heightPx) && heightPx > 0.0f;
+}
+
+void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
+{
+    out->clear();
+    const uint32_t R = 1u << level, fineR = 1u << finest, step = 1u << (finest - level);
+    // Snaps t (steps from the edge's first corner, 0..R) to the nearest
+    // point of an edge drawn at edgeLevel; a tie goes to the first corner.
+    auto snap = [&](uint32_t t, int edgeLevel) {
+        const uint32_t m = 1u << (level - edgeLevel);
+        return m == 1 ? t : (t + m / 2 - 1) / m * m;
+    };
+    auto point = [&](uint32_t i, uint32_t j) {
+        if (j == 0 && i != 0 && i != R)  // edge 0: corner 0 -> 1, t = i
+            i = snap(i, edgeLevels[0]);
+        else if (i + j == R && i != 0 && j != 0)  // edge 1: corner 1 -> 2, t = j
+            j = snap(j, edgeLevels[1]), i = R - j;
+        else if (i == 0 && j != 0 && j != R)  // edge 2: corner 2 -> 0, t = R - j
+            j = R - snap(R - j, edgeLevels[2]);
+        return uint16_t(tileSlot(i * step, j * step, fineR));
+    };
+    auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
+        if (a == b || b == c || c == a)
+            return;  // collapsed onto a coarser edge
+        out->push_back(a);
+        out->push_back(b);
+        out->push_back(c);
+    };
+    for (uint32_t j = 0; j < R; ++j)
+        for (uint32_t i = 0; i + j < R; ++i) {
+            emit(point(i, j), point(i + 1, j), point(i, j + 1));
+            if (i + j + 1 < R)
+                emit(point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+        }
+}
+
+Status measureFaceLevelErrors(FaceLevelErrors* out, const Plan& plan, const float* displacements,
+                              const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
+                              int threads)
+{
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "measureFaceLevelErrors: null output");
+    std::vector<uint32_t> tiles;
+    if (Status st = plan.tileVertices(&tiles); !st)
+        return st;
+    const size_t nv = plan.refinedVertexCount();
+    std::vector<glm::vec3> p(nv);
+    if (Status st = plan.evaluate(p.data(), nullptr, 0, nv, displacements ? displacements : plan.displacements().data(),
+                                  controlPositions, controlNormals, controlCount);
+        !st)
+        return st;
+    const int L = plan.level();
+    const uint32_t R = 1u << L;
+    const size_t slots = size_t(R + 1) * (R + 2) / 2, pairs = size_t(L) * size_t(L + 1) / 2;
+    const std::vector<uint32_t>& control = plan.controlTriangles();
+    const size_t nf = control.size() / 3;
+    FaceLevelErrors e;
+    e.finest = L;
+    e.faceCount = nf;
+    e.error.assign(nf * size_t(L + 1), 0.0f);
+    e.stitched.assign(nf * 3 * pairs, 0.0f);
+    e.reach.assign(nf, 0.0f);
+    e.edges = groupEdges(control.data(), nf);
+    std::vector<uint16_t> si, sj;
+    slotPoints(&si, &sj, R);
+
+    // The templates measured: each level with all edges at it, and with
+    // one edge at each coarser level.
+    std::vector<std::vector<uint16_t>> uniform(size_t(L + 1)), stitched(3 * pairs);
+    for (int l = 0; l <= L; ++l) {
+        const int same[3] = {l, l, l};
+        adaptiveTileTriangles(&uniform[size_t(l)], L, l, same);
+        for (int k = 0; k < 3; ++k)
+            for (int c = 0; c < l; ++c) {
+                int edges[3] = {l, l, l};
+                edges[k] = c;
+                adaptiveTileTriangles(&stitched[size_t(k) * pairs + size_t(l) * size_t(l - 1) / 2 + size_t(c)], L, l,
+                                      edges);
+            }
+    }
+    // The largest distance from the finest vertices to a template's triangles.
+    auto templateError = [&](const std::vector<uint16_t>& t, const uint32_t* tile) {
+        float worst = 0.0f;
+        for (size_t k = 0; k < t.size(); k += 3) {
+            const int gi[3] = {si[t[k]], si[t[k + 1]], si[t[k + 2]]}, gj[3] = {sj[t[k]], sj[t[k + 1]], sj[t[k + 2]]};
+            const glm::vec3 q[3] = {p[tile[t[k]]], p[tile[t[k + 1]]], p[tile[t[k + 2]]]};
+            rasterGrid(gi, gj, int(R), [&](int i, int j, const int w[3], int area) {
+                const glm::vec3 drawn = (float(w[0]) * q[0] + float(w[1]) * q[1] + float(w[2]) * q[2]) / float(area);
+                worst = std::max(worst, glm::length(p[tile[tileSlot(uint32_t(i), uint32_t(j), R)]] - drawn));
+            });
+        }
+        return worst;
+    };
+
+    auto faces = [&](size_t begin, size_t end, int) {
+        for (size_t f = begin; f < end; ++f) {
+            const uint32_t* tile = &tiles[f * slots];
+            const uint32_t* c = &control[3 * f];
+            const glm::vec3 centroid = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
+            float reach = 0.0f;
+            for (size_t k = 0; k < slots; ++k)
+                reach = std::max(reach, glm::length(p[tile[k]] - centroid));
+            e.reach[f] = reach;
+            float* err = &e.error[f * size_t(L + 1)];
+            for (int l = L - 1; l >= 0; --l)
+                err[l] = std::max(templateError(uniform[size_t(l)], tile), err[l + 1]);
+            for (size_t k = 0; k < 3 * pairs; ++k)
+                e.stitched[f * 3 * pairs + k] = templateError(stitched[k], tile);
+        }
+    };
+    if (threads > 1) {
+        detail::WorkerPool pool(threads);
+        pool.run(nf, faces);
+    } else {
+        faces(0, nf, 0);
+    }
+    *out = std::move(e);
+    return Status::ok();
+}
+
+float skinScale(const float* m, size_t count)
+{
+    float worst = 1.0f;
+    for (size_t n = 0; n < count; ++n, m += 16) {
+        // Largest eigenvalue of A^T A (A: the upper 3x3, column-major) by
+        // the closed form for symmetric 3x3 matrices.
+        double a[3][3];
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) {
+                double s = 0.0;
+                for (int k = 0; k < 3; ++k)
+                    s += double(m[4 * r + k]) * double(m[4 * c + k]);
+                a[r][c] = s;
+            }
+        const double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        const double q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+        double top;
+        if (p1 <= 1e-30 * (q * q + 1e-300)) {
+            top = std::max(a[0][0], std::max(a[1][1], a[2][2]));
+        } else {
+            const double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) + (a[2][2] - q) * (a[2][2] - q) + 2.0 * p1;
+            const double p = std::sqrt(p2 / 6.0);
+            double b[3][3];
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c)
+                    b[r][c] = (a[r][c] - (r == c ? q : 0.0)) / p;
+            const double det = b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1]) -
+                               b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0]) +
+                               b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0]);
+            const double r = std::max(-1.0, std::min(1.0, det / 2.0));
+            top = q + 2.0 * p * std::cos(std::acos(r) / 3.0);
+        }
+        const float sigma = float(std::sqrt(std::max(0.0, top)));
+        if (std::isfinite(sigma))
+            worst = std::max(worst, sigma);
+    }
+    return worst;
+}
+
+Status chooseFaceLevels(uint8_t* levels, const FaceLevelErrors& errors, const ViewSpec& view, float pixelError,
+                        const glm::vec3* controlPositions, size_t controlCount, const uint32_t* controlTriangles,
+                        float poseScale)
+{
+    if (!levels || (errors.faceCount > 0 && (!controlPositions || !controlTriangles)))
+        return Status(StatusCode::InvalidArgument, "chooseFaceLevels: null buffer");
+    if (!view.valid())
+        return Status(StatusCode::InvalidArgument, "the view is not a view (eye and target must differ, the field of view "
+                                                   "lie in (0, 180) degrees and the height be positive)");
+    if (!(pixelError > 0.0f) || !std::isfinite(pixelError))
+        return Status(StatusCode::InvalidArgument, "the pixel tolerance must be a positive number");
+    if (!(poseScale >= 1.0f) || !std::isfinite(poseScale))
+        poseScale = 1.0f;
+    const Camera cam(view);
+    const int L = errors.finest;
+    const size_t nf = errors.faceCount;
+    // Pixels per model unit of error at face f (0: not seen; infinite: the
+    // eye is inside its sphere).
+    auto gain = [&](size_t f) {
+        const uint32_t* c = &controlTriangles[3 * f];
+        const glm::vec3 centre = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
+        const float r = errors.reach[f] * poseScale;
+        const glm::vec3 q = centre - cam.eye;
+        const float d = glm::length(q);
+        if (!(d > r))
+            return std::numeric_limits<float>::infinity();
+        // The angle off the view axis of the sphere's nearest point: an
+        // error there moves 1 / cos^2 as many pixels as on the axis.
+        const float offAxis = std::acos(std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d)));
+        const float nearest = std::max(0.0f, offAxis - std::asin(r / d));
+        if (nearest >= 1.5707f)  // wholly behind the eye
+            return 0.0f;
+        const float cosine = std::cos(nearest);
+        return cam.k * poseScale / ((d - r) * std::max(cosine * cosine, 0.25f));
+    };
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t* c = &controlTriangles[3 * f];
+        if (c[0] >= controlCount || c[1] >= controlCount || c[2] >= controlCount)
+            return Status(StatusCode::InvalidArgument, "chooseFaceLevels: control face " + std::to_string(f) +
+                                                           " indexes past the control vertices");
+        const float g = gain(f);
+        int level = L;
+        for (int l = 0; l < L; ++l)
+            if (errors.at(f, l) * g <= pixelError) {
+                level = l;
+                break;
+            }
+        levels[f] = uint8_t(level);
+    }
+    // Stitching: a face's strip along a coarser edge may stray further than
+    // the face or its neighbour alone.  Raise the coarser side until every
+    // strip is within the tolerance (levels only rise, so this ends).
+    const EdgeGroups& edges = errors.edges;
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (size_t e = 0; e < edges.edgeCount(); ++e) {
+            const uint32_t* corners = edges.cornersOf(e);
+            const uint32_t n = edges.faceCountOf(e);
+            if (n < 2)
+                continue;
+            int lo = L, hi = 0;
+            for (uint32_t k = 0; k < n; ++k) {
+                lo = std::min(lo, int(levels[corners[k] / 3]));
+                hi = std::max(hi, int(levels[corners[k] / 3]));
+            }
+            if (lo == hi)
+                continue;
+            bool strays = false;
+            for (uint32_t k = 0; k < n && !strays; ++k) {
+                const size_t f = corners[k] / 3;
+                const int l = levels[f];
+                strays = l > lo && errors.stitchedAt(f, int(corners[k] % 3), l, lo) * gain(f) > pixelError;
+            }
+            if (!strays)
+                continue;
+            for (uint32_t k = 0; k < n; ++k)
+                if (levels[corners[k] / 3] == lo)
+                    levels[corners[k] / 3] = uint8_t(lo + 1);
+            changed = true;
+        }
+    }
+    return Status::ok();
+}
+
+AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level())
+{
+    const uint32_t R = 1u << finest_;
+    slots_ = size_t(R + 1) * (R + 2) / 2;
+    if (!plan.tileVertices(&tiles_))
+        tiles_.clear();
+    slotPoints(&slotI_, &slotJ_, R);
+    const std::vector<uint32_t>& control = plan.controlTriangles();
+    const size_t nf = control.size() / 3;
+    const EdgeGroups edges = groupEdges(control.data(), nf);
+    edgeOf_.assign(3 * nf, 0);
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        for (uint32_t k = 0; k < edges.faceCountOf(e); ++k)
+            edgeOf_[edges.cornersOf(e)[k]] = uint32_t(e);
+    edgeLevels_.assign(edges.edgeCount(), 0);
+    const size_t combos = size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1);
+    templates_.resize(combos);
+    remap_.assign(plan.refinedVertexCount(), kNone);
+}
+
+AdaptiveFrame::~AdaptiveFrame() = default;
+
+const std::vector<uint16_t>& AdaptiveFrame::tileTemplate(int level, const int e[3])
+{
+    const size_t n = size_t(finest_ + 1);
+    std::vector<uint16_t>& t = templates_[((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2])];
+    if (t.empty())
+        adaptiveTileTriangles(&t, finest_, level, e);
+    return t;
+}
+
+Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
+{
+    const std::vector<uint32_t>& control = plan_.controlTriangles();
+    const size_t nf = control.size() / 3;
+    if (tiles_.size() != nf * slots_)
+        return Status(StatusCode::InvalidData, "the plan's refined faces are not a grid per control face");
+    if (count != nf || (nf > 0 && !levels))
+        return Status(StatusCode::InvalidArgument, std::to_string(levels ? count : 0) + " face levels for " +
+                                                       std::to_string(nf) + " control faces");
+    for (size_t f = 0; f < nf; ++f)
+        if (levels[f] > finest_)
+            return Status(StatusCode::InvalidArgument, "control face " + std::to_string(f) + " asks for level " +
+                                                           std::to_string(levels[f]) + ", past the plan's level " +
+                                                           std::to_string(finest_));
+    levels_.assign(levels, levels + nf);
+    std::fill(edgeLevels_.begin(), edgeLevels_.end(), uint8_t(finest_));
+    for (size_t c = 0; c < 3 * nf; ++c)
+        edgeLevels_[edgeOf_[c]] = std::min(edgeLevels_[edgeOf_[c]], levels[c / 3]);
+
+    vertices_.clear();
+    triangles_.clear();
+    triangleFaces_.clear();
+    cornerSlots_.clear();
+    for (size_t f = 0; f < nf; ++f) {
+        const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
+        const std::vector<uint16_t>& t = tileTemplate(levels[f], e);
+        const uint32_t* tile = &tiles_[f * slots_];
+        for (size_t k = 0; k < t.size(); ++k) {
+            const uint32_t v = tile[t[k]];
+            if (remap_[v] == kNone) {
+                remap_[v] = uint32_t(vertices_.size());
+                vertices_.push_back(v);
+            }
+            triangles_.push_back(remap_[v]);
+            cornerSlots_.push_back(t[k]);
+        }
+        triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
+    }
+    for (uint32_t v : vertices_)
+        remap_[v] = kNone;
+
+    // Each vertex's triangles, ascending: the normals' gather.
+    const size_t n = vertices_.size(), nt = triangles_.size() / 3;
+    incidenceOffsets_.assign(n + 1, 0);
+    for (uint32_t v : triangles_)
+        ++incidenceOffsets_[v + 1];
+    for (size_t v = 0; v < n; ++v)
+        incidenceOffsets_[v + 1] += incidenceOffsets_[v];
+    incidence_.resize(triangles_.size());
+    // Filled with each vertex's end as its cursor, then shifted back.
+    for (size_t t = 0; t < nt; ++t)
+        for (int k = 0; k < 3; ++k)
+            incidence_[incidenceOffsets_[triangles_[3 * t + size_t(k)]]++] = uint32_t(t);
+    for (size_t v = n; v > 0; --v)
+        incidenceOffsets_[v] = incidenceOffsets_[v - 1];
+    incidenceOffsets_[0] = 0;
+    faceNormals_.resize(nt);
+    return Status::ok();
+}
+
+template <typename Body>
+void AdaptiveFrame::parallel(int threads, size_t n, const Body& body)
+{
+    if (threads <= 1) {
+        body(size_t(0), n, 0);
+        return;
+    }
+    if (!pool_ || pool_->size() != threads)
+        pool_ = std::make_unique<detail::WorkerPool>(threads);
+    pool_->run(n, body);
+}
+
+Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const float* displacements,
+                               const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
+                               int threads)
+{
+    if (!positions && !vertices_.empty())
+        return Status(StatusCode::InvalidArgument, "AdaptiveFrame::evaluate: no position buffer");
+    const float* d = displacements ? displacements : plan_.displacements().data();
+    // The arguments once; every chunk below then passes the same checks.
+    glm::vec3 unused;
+    if (Status st = plan_.evaluateVertices(positions ? positions : &unused, nullptr, nullptr, 0, d, controlPositions,
+                                           controlNormals, controlCount);
+        !st)
+        return st;
+    parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
+        (void)plan_.evaluateVertices(positions + b, nullptr, vertices_.data() + b, e - b, d, controlPositions,
+                                     controlNormals, controlCount);
+    });
+    if (!normals)
+        return Status::ok();
+    const uint32_t* tri = triangles_.data();
+    parallel(threads, faceNormals_.size(), [&](size_t b, size_t e, int) {
+        for (size_t f = b; f < e; ++f) {
+            const glm::vec3 a = positions[tri[3 * f]];
+            faceNormals_[f] = glm::cross(positions[tri[3 * f + 1]] - a, positions[tri[3 * f + 2]] - a);
+        }
+    });
+    parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
+        for (size_t v = b; v < e; ++v) {
+            glm::vec3 sum(0.0f);
+            for (uint32_t k = incidenceOffsets_[v], end = incidenceOffsets_[v + 1]; k < end; ++k)
+                sum += faceNormals_[incidence_[k]];
+            normals[v] = unitOrZero(sum);
+        }
+    });
+    return Status::ok();
+}
+
+float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions,
+                                        const ViewSpec& view) const
+{
+    if (!view.valid() || !framePositions || !finePositions)
+        return 0.0f;
+    const Camera cam(view);
+    const int R = 1 << finest_;
+    float worst = 0.0f;
+    const size_t nt = triangles_.size() / 3;
+    for (size_t t = 0; t < nt; ++t) {
+        const uint32_t* tile = &tiles_[size_t(triangleFaces_[t]) * slots_];
+        const uint16_t* cs = &cornerSlots_[3 * t];
+        const int gi[3] = {slotI_[cs[0]], slotI_[cs[1]], slotI_[cs[2]]}, gj[3] = {slotJ_[cs[0]], slotJ_[cs[1]], slotJ_[cs[2]]};
+        const uint32_t* v = &triangles_[3 * t];
+        const glm::vec3 p[3] = {framePositions[v[0]], framePositions[v[1]], framePositions[v[2]]};
+        rasterGrid(gi, gj, R, [&](int i, int j, const int w[3], int area) {
+            const glm::vec3 drawn = (float(w[0]) * p[0] + float(w[1]) * p[1] + float(w[2]) * p[2]) / float(area);
+            const glm::vec3 fine = finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]];
+            float xa, ya, xb, yb;
+            if (cam.project(drawn, &xa, &ya) && cam.project(fine, &xb, &yb))
+                worst = std::max(worst, std::hypot(xa - xb, ya - yb));
+        });
+    }
+    return worst;
+}
+
+size_t AdaptiveFrame::bytes() const
+{
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    size_t t = 0;
+    for (const std::vector<uint16_t>& v : templates_)
+        t += bytes(v);
+    return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) + bytes(remap_) + bytes(vertices_) +
+           bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) + bytes(incidence_) +
+           bytes(incidenceOffsets_) + bytes(faceNormals_);
+}
+
+}  // namespace strata

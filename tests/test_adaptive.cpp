@@ -1,0 +1,299 @@
+// Adaptive level of detail (adaptive.h): stitched tiles, crack-free frames
+// at random level mixes in both schemes and animated, the uniform surface
+// as a special case, and levels chosen from a view within their tolerance.
+#include "strata/adaptive.h"
+#include "strata/surface.h"
+
+#include "test_rigs.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+#include <set>
+#include <utility>
+
+namespace strata {
+namespace {
+
+// Every (level, edge levels) template of a finest level tiles its control
+// face exactly: counter-clockwise triangles of positive area summing to the
+// face, interior edges shared by two triangles in opposite directions, and
+// each border edge cut into exactly its edge level's 2^e segments.
+void expectTemplateTiles(int finest, int level, const int e[3])
+{
+    std::vector<uint16_t> t;
+    adaptiveTileTriangles(&t, finest, level, e);
+    const int R = 1 << finest;
+    std::vector<int> si, sj;
+    for (int j = 0; j <= R; ++j)
+        for (int i = 0; i + j <= R; ++i) {
+            si.push_back(i);
+            sj.push_back(j);
+        }
+    std::vector<std::pair<int, int>> at(si.size());
+    for (size_t k = 0; k < si.size(); ++k)
+        at[tileSlot(uint32_t(si[k]), uint32_t(sj[k]), uint32_t(R))] = {si[k], sj[k]};
+    const std::string label = "finest " + std::to_string(finest) + " level " + std::to_string(level) + " edges " +
+                              std::to_string(e[0]) + std::to_string(e[1]) + std::to_string(e[2]);
+    long area = 0;
+    std::map<std::pair<int, int>, int> directed;
+    ASSERT_EQ(t.size() % 3, 0u);
+    for (size_t k = 0; k < t.size(); k += 3) {
+        const auto a = at[t[k]], b = at[t[k + 1]], c = at[t[k + 2]];
+        const long twice = long(b.first - a.first) * (c.second - a.second) - long(b.second - a.second) * (c.first - a.first);
+        ASSERT_GT(twice, 0) << label;
+        area += twice;
+        for (int m = 0; m < 3; ++m)
+            ++directed[{t[k + size_t(m)], t[k + size_t(m + 1) % 3]}];
+    }
+    EXPECT_EQ(area, long(R) * R) << label;  // twice the face's area in grid units
+    // Border edges: on the face's three sides; every other edge twice, once each way.
+    auto side = [&](int slot) {
+        const auto p = at[size_t(slot)];
+        return std::array<bool, 3>{p.second == 0, p.first + p.second == R, p.first == 0};
+    };
+    std::array<int, 3> segments{0, 0, 0};
+    for (const auto& [edge, count] : directed) {
+        EXPECT_EQ(count, 1) << label;
+        const bool twin = directed.count({edge.second, edge.first}) > 0;
+        const auto sa = side(edge.first), sb = side(edge.second);
+        int border = -1;
+        for (int m = 0; m < 3; ++m)
+            if (sa[size_t(m)] && sb[size_t(m)])
+                border = m;
+        if (border >= 0) {
+            EXPECT_FALSE(twin) << label;
+            ++segments[size_t(border)];
+            // A border segment joins two neighbours of its edge's level.
+            const int step = (1 << (finest - e[border]));
+            const auto pa = at[size_t(edge.first)], pb = at[size_t(edge.second)];
+            const int along = border == 0 ? pb.first - pa.first : border == 1 ? pb.second - pa.second : pa.second - pb.second;
+            EXPECT_EQ(along, step) << label << " border " << border;
+        } else {
+            EXPECT_TRUE(twin) << label;
+        }
+    }
+    for (int m = 0; m < 3; ++m)
+        EXPECT_EQ(segments[size_t(m)], 1 << e[m]) << label << " border " << m;
+}
+
+TEST(Adaptive, EveryTileTemplateTilesItsFace)
+{
+    for (int finest = 0; finest <= 4; ++finest)
+        for (int level = 0; level <= finest; ++level)
+            for (int a = 0; a <= level; ++a)
+                for (int b = 0; b <= level; ++b)
+                    for (int c = 0; c <= level; ++c) {
+                        const int e[3] = {a, b, c};
+                        expectTemplateTiles(finest, level, e);
+                    }
+    // The finest levels a plan takes, at their extreme mixes.
+    for (int level : {5, 6}) {
+        for (const std::array<int, 3>& e : std::vector<std::array<int, 3>>{{0, 0, 0}, {level, 0, 3}, {1, level, level}, {level, level, level}}) {
+            expectTemplateTiles(6, level, e.data());
+        }
+    }
+}
+
+// The bending example rig in either scheme.
+void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
+{
+    test::makeBendingExampleRig(rig, map);
+    rig->displacement.scheme = scheme;
+}
+
+// The frame's triangles close up: no border edge, no non-manifold edge, the
+// sphere's Euler characteristic, every vertex used, no triangle repeats a
+// vertex, and each vertex where the uniform finest frame puts it.
+void expectClosedFrame(Surface& s, const std::string& label)
+{
+    const AdaptiveFrame& frame = s.adaptiveFrame();
+    const std::vector<uint32_t>& tri = frame.triangles();
+    const MeshTopologyStats st = computeTopologyStats(tri.data(), frame.triangleCount());
+    EXPECT_EQ(st.boundaryEdges, 0u) << label;
+    EXPECT_EQ(st.nonManifoldEdges, 0u) << label;
+    EXPECT_EQ(st.eulerCharacteristic, 2) << label;
+    EXPECT_EQ(st.vertices, frame.vertexCount()) << label;
+    for (size_t t = 0; t < tri.size(); t += 3)
+        ASSERT_TRUE(tri[t] != tri[t + 1] && tri[t + 1] != tri[t + 2] && tri[t] != tri[t + 2]) << label;
+
+    std::vector<glm::vec3> p(frame.vertexCount()), n(frame.vertexCount());
+    ASSERT_TRUE(s.evaluateAdaptive(p.data(), n.data(), p.size(), 2).isOk());
+    std::vector<glm::vec3> fine(s.vertexCount());
+    ASSERT_TRUE(s.plan()
+                    .evaluate(fine.data(), nullptr, 0, fine.size(), s.controlPositions().data(),
+                              s.controlNormals().data(), s.controlVertexCount())
+                    .isOk());
+    for (size_t v = 0; v < p.size(); ++v) {
+        ASSERT_EQ(p[v], fine[frame.vertices()[v]]) << label << " vertex " << v;
+        ASSERT_NEAR(glm::length(n[v]), 1.0f, 1e-5f) << label;
+    }
+    // Shading normals face out of the closed surface, like its triangles.
+    glm::vec3 centre(0.0f);
+    for (const glm::vec3& q : p)
+        centre += q / float(p.size());
+    size_t outward = 0;
+    for (size_t v = 0; v < p.size(); ++v)
+        outward += glm::dot(n[v], p[v] - centre) > 0.0f;
+    EXPECT_GT(outward, p.size() * 99 / 100) << label;
+}
+
+TEST(Adaptive, RandomLevelMixesAreClosedInBothSchemesAnimated)
+{
+    std::mt19937 rng(7);
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        std::unique_ptr<Surface> s;
+        ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+        ASSERT_EQ(s->level(), 4);
+        const size_t nf = rig.mesh.faceCount();
+        std::vector<uint8_t> levels(nf);
+        for (int trial = 0; trial < 12; ++trial) {
+            // Uniform draws, then mixes of two far-apart levels, the hardest stitching.
+            std::uniform_int_distribution<int> any(0, 4), pick(0, 1);
+            for (uint8_t& l : levels)
+                l = uint8_t(trial < 6 ? any(rng) : (pick(rng) ? 4 : trial % 2));
+            ASSERT_TRUE(s->setFaceLevels(levels.data(), nf).isOk());
+            ASSERT_TRUE(s->setAnimationTime(0, 0.1f * float(trial)).isOk());
+            expectClosedFrame(*s, std::string(schemeName(scheme)) + " trial " + std::to_string(trial));
+        }
+    }
+}
+
+TEST(Adaptive, OneLevelEverywhereIsTheUniformSurfaceOfThatLevel)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        std::unique_ptr<Surface> fine;
+        ASSERT_TRUE(Surface::create(&fine, rig, &map).isOk());
+        ASSERT_TRUE(fine->setAnimationTime(0, 0.7f).isOk());
+        for (int level = 0; level <= 4; ++level) {
+            const std::string label = std::string(schemeName(scheme)) + " level " + std::to_string(level);
+            SurfaceOptions o;
+            o.level = level;
+            std::unique_ptr<Surface> uniform;
+            ASSERT_TRUE(Surface::create(&uniform, rig, &map, o).isOk());
+            ASSERT_TRUE(uniform->setAnimationTime(0, 0.7f).isOk());
+            std::vector<glm::vec3> up(uniform->vertexCount()), un(up.size());
+            ASSERT_TRUE(uniform->evaluate(up.data(), un.data(), up.size()).isOk());
+
+            std::vector<uint8_t> levels(rig.mesh.faceCount(), uint8_t(level));
+            ASSERT_TRUE(fine->setFaceLevels(levels.data(), levels.size()).isOk());
+            const AdaptiveFrame& frame = fine->adaptiveFrame();
+            std::vector<glm::vec3> ap(frame.vertexCount()), an(ap.size());
+            ASSERT_TRUE(fine->evaluateAdaptive(ap.data(), an.data(), ap.size()).isOk());
+            EXPECT_EQ(frame.vertexCount(), uniform->vertexCount()) << label;
+            EXPECT_EQ(frame.triangleCount(), uniform->triangleCount()) << label;
+
+            // Same points: each adaptive vertex is a uniform vertex at the
+            // same place on the same face, with the same position and, on a
+            // closed mesh, the same normal (up to the order of the sums).
+            std::map<std::tuple<uint32_t, float, float>, size_t> uniformAt;
+            const auto& us = uniform->plan().sampleLocations();
+            for (size_t v = 0; v < us.size(); ++v)
+                uniformAt[{us[v].face, us[v].bary.x, us[v].bary.y}] = v;
+            const auto& fs = fine->plan().sampleLocations();
+            for (size_t v = 0; v < ap.size(); ++v) {
+                const SampleLocation& loc = fs[frame.vertices()[v]];
+                const auto it = uniformAt.find({loc.face, loc.bary.x, loc.bary.y});
+                ASSERT_NE(it, uniformAt.end()) << label;
+                if (scheme == Scheme::Linear) {
+                    ASSERT_EQ(ap[v], up[it->second]) << label;
+                } else {  // limit stencils of another level: the same point to rounding
+                    ASSERT_LT(glm::length(ap[v] - up[it->second]), 2e-6f) << label;
+                }
+                ASSERT_LT(glm::length(an[v] - un[it->second]), 2e-5f) << label;
+            }
+        }
+    }
+}
+
+TEST(Adaptive, LevelErrorsShrinkToZeroAtTheFinestLevel)
+{
+    Rig rig;
+    DisplacementMap map;
+    makeRig(&rig, &map, Scheme::Linear);
+    std::unique_ptr<Surface> s;
+    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+    const FaceLevelErrors& e = s->faceLevelErrors();
+    ASSERT_EQ(e.faceCount, rig.mesh.faceCount());
+    ASSERT_EQ(e.finest, 4);
+    float coarsest = 0.0f;
+    for (size_t f = 0; f < e.faceCount; ++f) {
+        EXPECT_EQ(e.at(f, 4), 0.0f);
+        for (int l = 0; l < 4; ++l)
+            EXPECT_GE(e.at(f, l), e.at(f, l + 1));
+        coarsest = std::max(coarsest, e.at(f, 0));
+        EXPECT_GT(e.reach[f], 0.0f);
+    }
+    // The head's bumps are a few percent of its unit radius: level 0 (the
+    // flat icosphere face) misses them by that much.
+    EXPECT_GT(coarsest, 0.01f);
+    EXPECT_LT(coarsest, 0.5f);
+}
+
+TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        std::unique_ptr<Surface> s;
+        ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+        ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+        std::vector<glm::vec3> fine(s->vertexCount());
+        ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
+        size_t previous = ~size_t(0);
+        for (float distance : {3.0f, 8.0f, 30.0f, 100.0f}) {
+            ViewSpec view;
+            view.eye = glm::vec3(0.3f, 0.2f, distance);
+            view.target = glm::vec3(0.0f);
+            view.fovYDegrees = 40.0f;
+            view.heightPx = 1080.0f;
+            const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(distance);
+            ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk()) << label;
+            const AdaptiveFrame& frame = s->adaptiveFrame();
+            std::vector<glm::vec3> p(frame.vertexCount());
+            ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
+            EXPECT_LE(frame.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
+            EXPECT_LE(frame.vertexCount(), previous) << label;
+            previous = frame.vertexCount();
+            expectClosedFrame(*s, label);
+        }
+        // Far away, far fewer vertices than the finest level.
+        EXPECT_LT(previous, s->vertexCount() / 4) << schemeName(scheme);
+    }
+}
+
+TEST(Adaptive, BadLevelsAndViewsAreRefused)
+{
+    Rig rig;
+    DisplacementMap map;
+    makeRig(&rig, &map, Scheme::Linear);
+    std::unique_ptr<Surface> s;
+    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+    std::vector<uint8_t> levels(rig.mesh.faceCount(), 2);
+    EXPECT_FALSE(s->setFaceLevels(levels.data(), levels.size() - 1).isOk());
+    levels[3] = 5;
+    const Status st = s->setFaceLevels(levels.data(), levels.size());
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("past the plan's level 4"), std::string::npos) << st.message();
+    ViewSpec view;
+    view.eye = view.target = glm::vec3(1.0f);
+    EXPECT_FALSE(s->chooseFaceLevels(view, 1.0f).isOk());
+    view.eye = glm::vec3(0.0f, 0.0f, 5.0f);
+    EXPECT_FALSE(s->chooseFaceLevels(view, 0.0f).isOk());
+    EXPECT_FALSE(s->chooseFaceLevels(view, std::nanf("")).isOk());
+    view.fovYDegrees = 180.0f;
+    EXPECT_FALSE(s->chooseFaceLevels(view, 1.0f).isOk());
+    std::vector<glm::vec3> p(3);
+    EXPECT_FALSE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
+}
+
+}  // namespace
+}  // namespace strata
