@@ -8,7 +8,6 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
-#include <functional>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -50,23 +49,32 @@ public:
         // its own, so which thread runs it changes no result).
         const size_t chunks = std::min(n, size_t(size()) * 8);
         next_.store(0, std::memory_order_relaxed);
-        const std::function<void(int)> task = [&](int t) {
-            for (size_t c; (c = next_.fetch_add(1, std::memory_order_relaxed)) < chunks;)
-                body(n * c / chunks, n * (c + 1) / chunks, t);
+        // The pass as a plain function and its context on this stack: a
+        // std::function here would allocate on every pass.
+        struct Pass {
+            const Body* body;
+            size_t n, chunks;
+            std::atomic<size_t>* next;
+        } pass{&body, n, chunks, &next_};
+        task_ = [](void* context, int t) {
+            const Pass& p = *static_cast<const Pass*>(context);
+            for (size_t c; (c = p.next->fetch_add(1, std::memory_order_relaxed)) < p.chunks;)
+                (*p.body)(p.n * c / p.chunks, p.n * (c + 1) / p.chunks, t);
         };
-        task_ = &task;
+        context_ = &pass;
         pending_.store(size() - 1, std::memory_order_relaxed);
         {
             std::lock_guard<std::mutex> lock(mutex_);
             generation_.fetch_add(1, std::memory_order_release);
         }
         wake_.notify_all();
-        task(0);
+        task_(context_, 0);
         if (!spinUntil([this] { return pending_.load(std::memory_order_acquire) == 0; })) {
             std::unique_lock<std::mutex> lock(mutex_);
             done_.wait(lock, [this] { return pending_.load(std::memory_order_acquire) == 0; });
         }
         task_ = nullptr;
+        context_ = nullptr;
     }
 
 private:
@@ -99,7 +107,7 @@ private:
                     return;
             }
             seen = generation_.load(std::memory_order_acquire);
-            (*task_)(t);
+            task_(context_, t);
             if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
                 std::lock_guard<std::mutex> lock(mutex_);  // the caller may be about to sleep
                 done_.notify_one();
@@ -109,7 +117,8 @@ private:
 
     std::mutex mutex_;
     std::condition_variable wake_, done_;
-    const std::function<void(int)>* task_ = nullptr;  // published by generation_
+    void (*task_)(void*, int) = nullptr;  // the running pass and its context, published by generation_
+    void* context_ = nullptr;
     std::atomic<uint64_t> generation_{0};
     std::atomic<int> pending_{0};
     std::atomic<size_t> next_{0};  // the next chunk of the running pass
