@@ -2,6 +2,9 @@
 // at random level mixes in both schemes and animated, the uniform surface
 // as a special case, and levels chosen from a view within their tolerance.
 #include "strata/adaptive.h"
+#include "strata/baker/distance.h"
+#include "strata/io/mesh_io.h"
+#include "strata/normals.h"
 #include "strata/surface.h"
 
 #include "test_rigs.h"
@@ -231,6 +234,18 @@ TEST(Adaptive, LevelErrorsShrinkToZeroAtTheFinestLevel)
         coarsest = std::max(coarsest, e.at(f, 0));
         EXPECT_GT(e.reach[f], 0.0f);
     }
+    // Level 1 with all three edges at level 0 snaps every midpoint to a
+    // corner: the level 0 triangle, with level 0's error.
+    LevelChooser chooser;
+    std::vector<glm::vec3> restNormals(rig.mesh.vertexCount());
+    computeControlNormals(restNormals.data(), rig.mesh.positions.data(), rig.mesh.vertexCount(), rig.mesh.triangles.data(),
+                          rig.mesh.faceCount());
+    ASSERT_TRUE(chooser.init(s->plan(), nullptr, rig.mesh.positions.data(), restNormals.data(), rig.mesh.vertexCount()).isOk());
+    const int coarse[3] = {0, 0, 0}, same[3] = {2, 2, 2};
+    for (size_t f = 0; f < e.faceCount; ++f) {
+        EXPECT_EQ(chooser.stitchedError(f, 1, coarse), e.at(f, 0));
+        EXPECT_EQ(chooser.stitchedError(f, 2, same), e.at(f, 2));
+    }
     // The head's bumps are a few percent of its unit radius: level 0 (the
     // flat icosphere face) misses them by that much.
     EXPECT_GT(coarsest, 0.01f);
@@ -293,6 +308,74 @@ TEST(Adaptive, BadLevelsAndViewsAreRefused)
     EXPECT_FALSE(s->chooseFaceLevels(view, 1.0f).isOk());
     std::vector<glm::vec3> p(3);
     EXPECT_FALSE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
+}
+
+// strata-reconstruct --view, checked from its files alone: the adaptive
+// mesh is closed and manifold, and every vertex of the finest surface in
+// the same pose lies within the pixel tolerance of it (nearest distance,
+// seen at the vertex's depth), with fewer vertices than the finest level.
+TEST(Adaptive, ReconstructViewWritesAClosedMeshWithinItsTolerance)
+{
+    const std::string dir = test::tempDir("adaptive_view");
+    Rig rig;
+    DisplacementMap map;
+    makeRig(&rig, &map, Scheme::Linear);
+    rig.displacement.uri = "bend.exr";
+    ASSERT_TRUE(io::writeDisplacementExr(dir + "/bend.exr", map).isOk());
+    ASSERT_TRUE(io::saveRig(dir + "/bend.glb", rig).isOk());
+    const std::string exe = STRATA_RECONSTRUCT_EXE, in = "'" + dir + "/bend.glb' --anim bend --time 0.5 ";
+    test::CommandResult r = test::runCommand(exe + " " + in + "-o '" + dir + "/fine.obj'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    ControlMesh fine;
+    ASSERT_TRUE(io::readObj(dir + "/fine.obj", &fine).isOk());
+
+    for (float distance : {2.5f, 12.0f}) {
+        for (float tolerance : {1.0f, 4.0f}) {
+            const std::string label = "distance " + std::to_string(distance) + ", " + std::to_string(tolerance) + " px";
+            const glm::vec3 eye(0.5f, 0.4f, distance);
+            char viewArg[128];
+            std::snprintf(viewArg, sizeof(viewArg), "%g,%g,%g:0,0.2,0:40:1080", double(eye.x), double(eye.y), double(eye.z));
+            const std::string out = dir + "/view.obj";
+            r = test::runCommand(exe + " " + in + "--view " + viewArg + " --pixel-error " + std::to_string(tolerance) +
+                                 " -o '" + out + "'");
+            ASSERT_EQ(r.code, 0) << r.output;
+            EXPECT_NE(r.output.find("largest deviation from level 4 on screen"), std::string::npos) << r.output;
+            ControlMesh adaptive;
+            ASSERT_TRUE(io::readObj(out, &adaptive).isOk());
+            const MeshTopologyStats st = computeTopologyStats(adaptive.triangles.data(), adaptive.faceCount());
+            EXPECT_EQ(st.boundaryEdges, 0u) << label;
+            EXPECT_EQ(st.nonManifoldEdges, 0u) << label;
+            EXPECT_EQ(st.eulerCharacteristic, 2) << label;
+            EXPECT_LT(adaptive.vertexCount(), fine.vertexCount()) << label;
+
+            baker::TriangleIndex index;
+            index.build(adaptive.positions.data(), adaptive.triangles.data(), adaptive.faceCount());
+            ViewSpec view;
+            view.eye = eye;
+            view.target = glm::vec3(0.0f, 0.2f, 0.0f);
+            view.fovYDegrees = 40.0f;
+            const glm::vec3 forward = glm::normalize(view.target - view.eye);
+            float worst = 0.0f;
+            for (const glm::vec3& p : fine.positions) {
+                const double d = index.nearest(glm::dvec3(p));
+                worst = std::max(worst, float(d) * view.pixelsPerUnitAtDistanceOne() / glm::dot(p - eye, forward));
+            }
+            EXPECT_LE(worst, tolerance) << label;
+        }
+    }
+
+    struct Case {
+        std::string args, needle;
+    };
+    for (const Case& c : {Case{"--view 0,0,3:0,0,0:40", "--view expects"}, Case{"--view 0,0,3:0,0,3:40:1080", "must differ"},
+                          Case{"--view 0,0,3:0,0,0:200:1080", "field of view"}, Case{"--pixel-error 1", "needs --view"},
+                          Case{"--view 0,0,3:0,0,0:40:1080 --pixel-error 0", "--pixel-error"},
+                          Case{"--view 0,0,3:0,0,0:40:1080 --frames 0:1:2", "--time instead"}}) {
+        r = test::runCommand(exe + " '" + dir + "/bend.glb' " + c.args + " -o '" + dir + "/bad.obj'");
+        EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+        EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.args << "\n" << r.output;
+        EXPECT_FALSE(test::fileExists(dir + "/bad.obj")) << c.args;
+    }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 //       [--anim NAME|INDEX] [--time SECONDS] [--frames START:END:FPS]
 //       [--skinning linear|dq|segments] [--skeleton JOINTS.json] [--scale S]
 //       [--no-displacement]
+//       [--view EX,EY,EZ:TX,TY,TZ:FOVY_DEGREES:HEIGHT_PX [--pixel-error P]]
 //       -o OUT.{obj,ply,glb,gltf}
 // With --frames, OUT gets a 4-digit frame number before its extension.
 //
@@ -29,10 +30,14 @@ static const char* kUsage =
     "usage: strata-reconstruct RIG.{glb,gltf}|CONTROL.obj [--level N] [--scheme linear|smooth] [--anim NAME|INDEX]\n"
     "                          [--time SECONDS] [--frames START:END:FPS] [--skinning linear|dq|segments]\n"
     "                          [--skeleton JOINTS.json] [--scale S] [--no-displacement] [--static]\n"
+    "                          [--view EX,EY,EZ:TX,TY,TZ:FOVY_DEGREES:HEIGHT_PX [--pixel-error P]]\n"
     "                          [--max-memory MB] -o OUT.{obj,ply,glb,gltf} [--version]\n"
     "  -o OUT.glb of a rig made from glTF writes its whole scene at level N: materials, skin,\n"
     "     skeleton and animations kept, so the detailed character plays in any glTF viewer;\n"
     "     --static (or --anim/--time) writes one posed mesh instead\n"
+    "  --view: the adaptive mesh for that camera (eye, target, vertical field of view, viewport\n"
+    "     height): each control face at the lowest level within --pixel-error pixels (default 1)\n"
+    "     of level N on screen, stitched without cracks; in model space, posed as --anim/--time\n"
     "  --skinning segments: the paper's point-to-line deformer (eq. 6) from the joints alone\n"
     "  --skeleton: a joint file (JSON) that replaces the rig's skin; implies --skinning segments\n";
 
@@ -49,6 +54,9 @@ int main(int argc, char** argv)
         bool frames = false, haveTime = false;
         float frameStart = 0.0f, frameEnd = 0.0f, fps = 30.0f;
         SkinningMethod method = SkinningMethod::Linear;
+        bool haveView = false, havePixelError = false;
+        ViewSpec view;
+        float pixelError = 1.0f;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
             auto value = [&] { return cli::flagValue(argc, argv, &i); };
@@ -93,6 +101,29 @@ int main(int argc, char** argv)
                 skeletonPath = value();
             } else if (a == "--scale") {
                 scale = cli::parseFloat(a, value());
+            } else if (a == "--view") {
+                const std::string v = value();
+                glm::vec3 e, t;
+                float fov, height;
+                char tail;
+                if (std::sscanf(v.c_str(), "%f,%f,%f:%f,%f,%f:%f:%f%c", &e.x, &e.y, &e.z, &t.x, &t.y, &t.z, &fov, &height,
+                                &tail) != 8)
+                    throw cli::Error("--view expects EX,EY,EZ:TX,TY,TZ:FOVY_DEGREES:HEIGHT_PX, got \"" +
+                                     cli::printable(v, 80) + "\"");
+                view.eye = e;
+                view.target = t;
+                view.fovYDegrees = fov;
+                view.heightPx = height;
+                if (!view.valid() || height > 1e6f)
+                    throw cli::Error("--view " + cli::printable(v, 80) +
+                                     ": the eye must differ from the target, the field of view lie in (0, 180) degrees "
+                                     "and the height in (0, 1e6] pixels");
+                haveView = true;
+            } else if (a == "--pixel-error") {
+                pixelError = cli::parseFloat(a, value());
+                if (!(pixelError > 0.0f) || pixelError > 1e6f)
+                    throw cli::Error("--pixel-error expects a number of pixels in (0, 1e6]");
+                havePixelError = true;
             } else if (a == "--no-displacement") {
                 displace = false;
             } else if (a == "-o" || a == "--output") {
@@ -107,6 +138,10 @@ int main(int argc, char** argv)
         }
         if (rigPath.empty() || outPath.empty())
             throw cli::Error("an input rig and -o OUTPUT are required (see --help)");
+        if (havePixelError && !haveView)
+            throw cli::Error("--pixel-error needs --view (the camera the error is measured in)");
+        if (haveView && frames)
+            throw cli::Error("--view writes one frame: pass --time instead of --frames");
 
         Rig rig;
         Status st;
@@ -173,7 +208,7 @@ int main(int argc, char** argv)
             const Scheme s = Surface::schemeFor(rig, options);
             const bool posedOut = !rig.skeleton.empty() && (!anim.empty() || haveTime || frames);
             const std::string ext = io::extensionOf(outPath);
-            const bool sceneOut = !frames && !posedOut && !staticMesh && rig.source && skeletonPath.empty() &&
+            const bool sceneOut = !frames && !posedOut && !staticMesh && !haveView && rig.source && skeletonPath.empty() &&
                                   (ext == ".glb" || ext == ".gltf");
             const double texels = rig.hasDisplacement && displace && rigNeedsMap(rig)
                                       ? double(rig.displacement.width) * double(rig.displacement.height)
@@ -222,7 +257,7 @@ int main(int argc, char** argv)
             throw cli::Error(rigPath + ": " + st.message());
         const auto t1 = std::chrono::steady_clock::now();
         const std::string outExt = io::extensionOf(outPath);
-        const bool scene = !frames && !posed && !staticMesh && rig.source && skeletonPath.empty() &&
+        const bool scene = !frames && !posed && !staticMesh && !haveView && rig.source && skeletonPath.empty() &&
                            (outExt == ".glb" || outExt == ".gltf");
         std::error_code mkdirError;
         if (!io::directoryOf(outPath).empty())
@@ -254,6 +289,31 @@ int main(int argc, char** argv)
                                      culprit + "; nothing written");
                 }
         };
+        if (haveView) {
+            checkFinite(posed ? &pose : nullptr);
+            const auto v0 = std::chrono::steady_clock::now();
+            io::AdaptiveView adaptive;
+            if (!(st = io::reconstructView(&adaptive, rec, view, pixelError)))
+                throw cli::Error(rigPath + ": --view: " + st.message());
+            const auto v1 = std::chrono::steady_clock::now();
+            if (!(st = io::writeAdaptiveView(outPath, rec, adaptive)))
+                throw cli::Error(st.message());
+            std::string levels;
+            for (size_t l = 0; l < adaptive.facesPerLevel.size(); ++l)
+                if (adaptive.facesPerLevel[l])
+                    levels += (levels.empty() ? "" : ", ") + std::to_string(adaptive.facesPerLevel[l]) + " at " +
+                              std::to_string(l);
+            const AdaptiveFrame& frame = rec.surface->adaptiveFrame();
+            std::fprintf(stderr,
+                         "strata-reconstruct: %s adaptive to level %d (%s) within %g px: %zu vertices, %zu triangles "
+                         "(level %d everywhere: %zu vertices); control faces %s; largest deviation from level %d on "
+                         "screen %.3f px; %.1f ms -> %s\n",
+                         rigPath.c_str(), level, schemeName(scheme), double(pixelError), frame.vertexCount(),
+                         frame.triangleCount(), level, rec.positions.size(), levels.c_str(), level,
+                         double(adaptive.maxPixelError), std::chrono::duration<double, std::milli>(v1 - v0).count(),
+                         outPath.c_str());
+            return 0;
+        }
         if (!frames) {
             checkFinite(posed ? &pose : nullptr);
             std::vector<std::string> notes;

@@ -61,6 +61,69 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     return reconstruct(out, rig, map, options, pose);
 }
 
+Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError)
+{
+    if (!out || !rec.surface)
+        return Status(StatusCode::InvalidArgument, "reconstructView: no reconstruction");
+    Surface& s = *rec.surface;
+    if (Status st = s.chooseFaceLevels(view, pixelError); !st)
+        return st;
+    const AdaptiveFrame& frame = s.adaptiveFrame();
+    AdaptiveView a;
+    a.positions.resize(frame.vertexCount());
+    a.normals.resize(frame.vertexCount());
+    if (Status st = s.evaluateAdaptive(a.positions.data(), a.normals.data(), a.positions.size()); !st)
+        return st;
+    if (rec.positions.size() == s.vertexCount())
+        a.maxPixelError = frame.maxScreenDeviation(a.positions.data(), rec.positions.data(), view);
+    a.facesPerLevel.assign(size_t(s.level()) + 1, 0);
+    for (uint8_t l : frame.levels())
+        ++a.facesPerLevel[l];
+    *out = std::move(a);
+    return Status::ok();
+}
+
+Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view)
+{
+    if (!rec.surface)
+        return Status(StatusCode::InvalidArgument, "writeAdaptiveView: no reconstruction");
+    const AdaptiveFrame& frame = rec.surface->adaptiveFrame();
+    if (view.positions.size() != frame.vertexCount())
+        return Status(StatusCode::InvalidArgument, "writeAdaptiveView: the view is not the surface's current frame");
+    MeshView mesh;
+    mesh.positions = view.positions.data();
+    mesh.normals = view.normals.size() == view.positions.size() ? view.normals.data() : nullptr;
+    mesh.vertexCount = view.positions.size();
+    mesh.triangles = frame.triangles().data();
+    mesh.faceCount = frame.triangleCount();
+    // UVs per corner: its grid point in its control face's UV triangle,
+    // as the plan refines UVs (linearly inside each face).
+    const ControlMesh& control = rec.surface->controlMesh();
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> uvIndices;
+    if (!control.uvIndices.empty()) {
+        const uint32_t R = 1u << rec.surface->level();
+        std::vector<glm::vec2> grid(size_t(R + 1) * (R + 2) / 2);
+        for (uint32_t j = 0; j <= R; ++j)
+            for (uint32_t i = 0; i + j <= R; ++i)
+                grid[tileSlot(i, j, R)] = glm::vec2(float(i), float(j)) / float(R);
+        const std::vector<uint32_t>& faces = frame.triangleFaces();
+        const std::vector<uint16_t>& slots = frame.cornerSlots();
+        uvs.resize(slots.size());
+        uvIndices.resize(slots.size());
+        for (size_t c = 0; c < slots.size(); ++c) {
+            const uint32_t* uv = &control.uvIndices[3 * size_t(faces[c / 3])];
+            const glm::vec2 b = grid[slots[c]];
+            uvs[c] = (1.0f - b.x - b.y) * control.uvs[uv[0]] + b.x * control.uvs[uv[1]] + b.y * control.uvs[uv[2]];
+            uvIndices[c] = uint32_t(c);
+        }
+        mesh.uvs = uvs.data();
+        mesh.uvCount = uvs.size();
+        mesh.uvIndices = uvIndices.data();
+    }
+    return writeMesh(path, mesh);
+}
+
 double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const std::string& outputExt, bool scene,
                                double mapTexels)
 {

@@ -136,78 +136,90 @@ void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, co
         }
 }
 
-Status measureFaceLevelErrors(FaceLevelErrors* out, const Plan& plan, const float* displacements,
-                              const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
-                              int threads)
+LevelChooser::LevelChooser() = default;
+LevelChooser::~LevelChooser() = default;
+
+float LevelChooser::templateError(const std::vector<uint16_t>& t, size_t face) const
 {
-    if (!out)
-        return Status(StatusCode::InvalidArgument, "measureFaceLevelErrors: null output");
+    const uint32_t R = 1u << errors_.finest;
+    const uint32_t* tile = &tiles_[face * slots_];
+    const glm::vec3* p = rest_.data();
+    float worst = 0.0f;
+    for (size_t k = 0; k < t.size(); k += 3) {
+        const int gi[3] = {slotI_[t[k]], slotI_[t[k + 1]], slotI_[t[k + 2]]};
+        const int gj[3] = {slotJ_[t[k]], slotJ_[t[k + 1]], slotJ_[t[k + 2]]};
+        const glm::vec3 q[3] = {p[tile[t[k]]], p[tile[t[k + 1]]], p[tile[t[k + 2]]]};
+        rasterGrid(gi, gj, int(R), [&](int i, int j, const int w[3], int area) {
+            const glm::vec3 drawn = (float(w[0]) * q[0] + float(w[1]) * q[1] + float(w[2]) * q[2]) / float(area);
+            worst = std::max(worst, glm::length(p[tile[tileSlot(uint32_t(i), uint32_t(j), R)]] - drawn));
+        });
+    }
+    return worst;
+}
+
+const std::vector<uint16_t>& LevelChooser::tileTemplate(int level, const int e[3])
+{
+    const size_t n = size_t(errors_.finest + 1);
+    std::vector<uint16_t>& t = templates_[((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2])];
+    if (t.empty())
+        adaptiveTileTriangles(&t, errors_.finest, level, e);
+    return t;
+}
+
+Status LevelChooser::init(const Plan& plan, const float* displacements, const glm::vec3* controlPositions,
+                          const glm::vec3* controlNormals, size_t controlCount, int threads)
+{
     std::vector<uint32_t> tiles;
     if (Status st = plan.tileVertices(&tiles); !st)
         return st;
     const size_t nv = plan.refinedVertexCount();
-    std::vector<glm::vec3> p(nv);
-    if (Status st = plan.evaluate(p.data(), nullptr, 0, nv, displacements ? displacements : plan.displacements().data(),
+    std::vector<glm::vec3> rest(nv);
+    if (Status st = plan.evaluate(rest.data(), nullptr, 0, nv, displacements ? displacements : plan.displacements().data(),
                                   controlPositions, controlNormals, controlCount);
         !st)
         return st;
     const int L = plan.level();
     const uint32_t R = 1u << L;
-    const size_t slots = size_t(R + 1) * (R + 2) / 2, pairs = size_t(L) * size_t(L + 1) / 2;
-    const std::vector<uint32_t>& control = plan.controlTriangles();
-    const size_t nf = control.size() / 3;
-    FaceLevelErrors e;
+    tiles_ = std::move(tiles);
+    rest_ = std::move(rest);
+    slots_ = size_t(R + 1) * (R + 2) / 2;
+    controlTriangles_ = plan.controlTriangles();
+    controlCount_ = plan.controlVertexCount();
+    const size_t nf = controlTriangles_.size() / 3;
+    slotPoints(&slotI_, &slotJ_, R);
+    edges_ = groupEdges(controlTriangles_.data(), nf);
+    edgeOf_.assign(3 * nf, 0);
+    for (size_t e = 0; e < edges_.edgeCount(); ++e)
+        for (uint32_t k = 0; k < edges_.faceCountOf(e); ++k)
+            edgeOf_[edges_.cornersOf(e)[k]] = uint32_t(e);
+    edgeLevels_.assign(edges_.edgeCount(), 0);
+    templates_.assign(size_t(L + 1) * size_t(L + 1) * size_t(L + 1) * size_t(L + 1), {});
+    stitched_.clear();
+    gains_.assign(nf, 0.0f);
+
+    FaceLevelErrors& e = errors_;
     e.finest = L;
     e.faceCount = nf;
     e.error.assign(nf * size_t(L + 1), 0.0f);
-    e.stitched.assign(nf * 3 * pairs, 0.0f);
     e.reach.assign(nf, 0.0f);
-    e.edges = groupEdges(control.data(), nf);
-    std::vector<uint16_t> si, sj;
-    slotPoints(&si, &sj, R);
-
-    // The templates measured: each level with all edges at it, and with
-    // one edge at each coarser level.
-    std::vector<std::vector<uint16_t>> uniform(size_t(L + 1)), stitched(3 * pairs);
     for (int l = 0; l <= L; ++l) {
         const int same[3] = {l, l, l};
-        adaptiveTileTriangles(&uniform[size_t(l)], L, l, same);
-        for (int k = 0; k < 3; ++k)
-            for (int c = 0; c < l; ++c) {
-                int edges[3] = {l, l, l};
-                edges[k] = c;
-                adaptiveTileTriangles(&stitched[size_t(k) * pairs + size_t(l) * size_t(l - 1) / 2 + size_t(c)], L, l,
-                                      edges);
-            }
+        tileTemplate(l, same);
     }
-    // The largest distance from the finest vertices to a template's triangles.
-    auto templateError = [&](const std::vector<uint16_t>& t, const uint32_t* tile) {
-        float worst = 0.0f;
-        for (size_t k = 0; k < t.size(); k += 3) {
-            const int gi[3] = {si[t[k]], si[t[k + 1]], si[t[k + 2]]}, gj[3] = {sj[t[k]], sj[t[k + 1]], sj[t[k + 2]]};
-            const glm::vec3 q[3] = {p[tile[t[k]]], p[tile[t[k + 1]]], p[tile[t[k + 2]]]};
-            rasterGrid(gi, gj, int(R), [&](int i, int j, const int w[3], int area) {
-                const glm::vec3 drawn = (float(w[0]) * q[0] + float(w[1]) * q[1] + float(w[2]) * q[2]) / float(area);
-                worst = std::max(worst, glm::length(p[tile[tileSlot(uint32_t(i), uint32_t(j), R)]] - drawn));
-            });
-        }
-        return worst;
-    };
-
     auto faces = [&](size_t begin, size_t end, int) {
         for (size_t f = begin; f < end; ++f) {
-            const uint32_t* tile = &tiles[f * slots];
-            const uint32_t* c = &control[3 * f];
+            const uint32_t* tile = &tiles_[f * slots_];
+            const uint32_t* c = &controlTriangles_[3 * f];
             const glm::vec3 centroid = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
             float reach = 0.0f;
-            for (size_t k = 0; k < slots; ++k)
-                reach = std::max(reach, glm::length(p[tile[k]] - centroid));
+            for (size_t k = 0; k < slots_; ++k)
+                reach = std::max(reach, glm::length(rest_[tile[k]] - centroid));
             e.reach[f] = reach;
             float* err = &e.error[f * size_t(L + 1)];
+            const size_t n = size_t(L + 1);
             for (int l = L - 1; l >= 0; --l)
-                err[l] = std::max(templateError(uniform[size_t(l)], tile), err[l + 1]);
-            for (size_t k = 0; k < 3 * pairs; ++k)
-                e.stitched[f * 3 * pairs + k] = templateError(stitched[k], tile);
+                err[l] = std::max(templateError(templates_[((size_t(l) * n + size_t(l)) * n + size_t(l)) * n + size_t(l)], f),
+                                  err[l + 1]);
         }
     };
     if (threads > 1) {
@@ -216,8 +228,32 @@ Status measureFaceLevelErrors(FaceLevelErrors* out, const Plan& plan, const floa
     } else {
         faces(0, nf, 0);
     }
-    *out = std::move(e);
     return Status::ok();
+}
+
+float LevelChooser::stitchedError(size_t face, int level, const int e[3])
+{
+    if (e[0] >= level && e[1] >= level && e[2] >= level)
+        return errors_.at(face, level);
+    const uint64_t key = uint64_t(face) << 12 | uint64_t(level) << 9 | uint64_t(e[0]) << 6 | uint64_t(e[1]) << 3 |
+                         uint64_t(e[2]);
+    const auto found = stitched_.find(key);
+    if (found != stitched_.end())
+        return found->second;
+    const float error = templateError(tileTemplate(level, e), face);
+    stitched_.emplace(key, error);
+    return error;
+}
+
+size_t LevelChooser::bytes() const
+{
+    auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    size_t t = 0;
+    for (const std::vector<uint16_t>& v : templates_)
+        t += bytes(v);
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(rest_) + bytes(tiles_) + bytes(controlTriangles_) +
+           bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) + bytes(edgeOf_) +
+           bytes(edgeLevels_) + bytes(gains_) + stitched_.size() * (sizeof(uint64_t) + sizeof(float) + 2 * sizeof(void*));
 }
 
 float skinScale(const float* m, size_t count)
@@ -259,12 +295,16 @@ float skinScale(const float* m, size_t count)
     return worst;
 }
 
-Status chooseFaceLevels(uint8_t* levels, const FaceLevelErrors& errors, const ViewSpec& view, float pixelError,
-                        const glm::vec3* controlPositions, size_t controlCount, const uint32_t* controlTriangles,
-                        float poseScale)
+Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
+                            size_t controlCount, float poseScale)
 {
-    if (!levels || (errors.faceCount > 0 && (!controlPositions || !controlTriangles)))
-        return Status(StatusCode::InvalidArgument, "chooseFaceLevels: null buffer");
+    const int L = errors_.finest;
+    const size_t nf = errors_.faceCount;
+    if (!levels || (nf > 0 && !controlPositions))
+        return Status(StatusCode::InvalidArgument, "LevelChooser::choose: null buffer");
+    if (controlCount != controlCount_)
+        return Status(StatusCode::InvalidArgument, std::to_string(controlCount) + " control positions for " +
+                                                       std::to_string(controlCount_) + " control vertices");
     if (!view.valid())
         return Status(StatusCode::InvalidArgument, "the view is not a view (eye and target must differ, the field of view "
                                                    "lie in (0, 180) degrees and the height be positive)");
@@ -273,70 +313,61 @@ Status chooseFaceLevels(uint8_t* levels, const FaceLevelErrors& errors, const Vi
     if (!(poseScale >= 1.0f) || !std::isfinite(poseScale))
         poseScale = 1.0f;
     const Camera cam(view);
-    const int L = errors.finest;
-    const size_t nf = errors.faceCount;
-    // Pixels per model unit of error at face f (0: not seen; infinite: the
-    // eye is inside its sphere).
-    auto gain = [&](size_t f) {
-        const uint32_t* c = &controlTriangles[3 * f];
+    // Pixels per model unit of error at each face: at the nearest point of
+    // a sphere around it, and at the largest angle off the view axis within
+    // the sphere (an error there moves up to 1 / cos^2 as many pixels as on
+    // the axis).  Infinite when the eye is inside the sphere, 0 when the
+    // sphere is wholly behind the eye.
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t* c = &controlTriangles_[3 * f];
         const glm::vec3 centre = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
-        const float r = errors.reach[f] * poseScale;
+        const float r = errors_.reach[f] * poseScale;
         const glm::vec3 q = centre - cam.eye;
         const float d = glm::length(q);
-        if (!(d > r))
-            return std::numeric_limits<float>::infinity();
-        // The angle off the view axis of the sphere's nearest point: an
-        // error there moves 1 / cos^2 as many pixels as on the axis.
-        const float offAxis = std::acos(std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d)));
-        const float nearest = std::max(0.0f, offAxis - std::asin(r / d));
-        if (nearest >= 1.5707f)  // wholly behind the eye
-            return 0.0f;
-        const float cosine = std::cos(nearest);
-        return cam.k * poseScale / ((d - r) * std::max(cosine * cosine, 0.25f));
-    };
-    for (size_t f = 0; f < nf; ++f) {
-        const uint32_t* c = &controlTriangles[3 * f];
-        if (c[0] >= controlCount || c[1] >= controlCount || c[2] >= controlCount)
-            return Status(StatusCode::InvalidArgument, "chooseFaceLevels: control face " + std::to_string(f) +
-                                                           " indexes past the control vertices");
-        const float g = gain(f);
+        float g;
+        if (!(d > r)) {
+            g = std::numeric_limits<float>::infinity();
+        } else {
+            const float axis = std::acos(std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d)));
+            const float spread = std::asin(std::min(1.0f, r / d));
+            if (axis - spread >= 1.5707f) {
+                g = 0.0f;
+            } else {
+                const float cosine = std::cos(std::min(axis + spread, 1.0472f));  // past 60 degrees: off any screen
+                g = cam.k * poseScale / ((d - r) * cosine * cosine);
+            }
+        }
+        gains_[f] = g;
         int level = L;
         for (int l = 0; l < L; ++l)
-            if (errors.at(f, l) * g <= pixelError) {
+            if (errors_.at(f, l) * g <= pixelError) {
                 level = l;
                 break;
             }
         levels[f] = uint8_t(level);
     }
-    // Stitching: a face's strip along a coarser edge may stray further than
-    // the face or its neighbour alone.  Raise the coarser side until every
-    // strip is within the tolerance (levels only rise, so this ends).
-    const EdgeGroups& edges = errors.edges;
+    // Stitching: where a face meets coarser edges its strips (and corners,
+    // where two coarse edges meet) may stray further than the face or its
+    // neighbours alone.  While one does, the coarsest neighbour across its
+    // coarsest edge goes up a level (levels only rise, so this ends).
     for (bool changed = true; changed;) {
         changed = false;
-        for (size_t e = 0; e < edges.edgeCount(); ++e) {
-            const uint32_t* corners = edges.cornersOf(e);
-            const uint32_t n = edges.faceCountOf(e);
-            if (n < 2)
+        std::fill(edgeLevels_.begin(), edgeLevels_.end(), uint8_t(L));
+        for (size_t c = 0; c < 3 * nf; ++c)
+            edgeLevels_[edgeOf_[c]] = std::min(edgeLevels_[edgeOf_[c]], levels[c / 3]);
+        for (size_t f = 0; f < nf; ++f) {
+            const int l = levels[f];
+            const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
+            if ((e[0] >= l && e[1] >= l && e[2] >= l) || stitchedError(f, l, e) * gains_[f] <= pixelError)
                 continue;
-            int lo = L, hi = 0;
-            for (uint32_t k = 0; k < n; ++k) {
-                lo = std::min(lo, int(levels[corners[k] / 3]));
-                hi = std::max(hi, int(levels[corners[k] / 3]));
+            const int k = e[0] <= e[1] && e[0] <= e[2] ? 0 : e[1] <= e[2] ? 1 : 2;
+            const uint32_t edge = edgeOf_[3 * f + size_t(k)];
+            for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m) {
+                uint8_t& other = levels[edges_.cornersOf(edge)[m] / 3];
+                if (other == e[k])
+                    other = uint8_t(e[k] + 1);
             }
-            if (lo == hi)
-                continue;
-            bool strays = false;
-            for (uint32_t k = 0; k < n && !strays; ++k) {
-                const size_t f = corners[k] / 3;
-                const int l = levels[f];
-                strays = l > lo && errors.stitchedAt(f, int(corners[k] % 3), l, lo) * gain(f) > pixelError;
-            }
-            if (!strays)
-                continue;
-            for (uint32_t k = 0; k < n; ++k)
-                if (levels[corners[k] / 3] == lo)
-                    levels[corners[k] / 3] = uint8_t(lo + 1);
+            edgeLevels_[edge] = uint8_t(e[k] + 1);  // at least; recomputed next pass
             changed = true;
         }
     }
@@ -502,8 +533,10 @@ float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const g
             const glm::vec3 drawn = (float(w[0]) * p[0] + float(w[1]) * p[1] + float(w[2]) * p[2]) / float(area);
             const glm::vec3 fine = finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]];
             float xa, ya, xb, yb;
-            if (cam.project(drawn, &xa, &ya) && cam.project(fine, &xb, &yb))
-                worst = std::max(worst, std::hypot(xa - xb, ya - yb));
+            if (cam.project(drawn, &xa, &ya) && cam.project(fine, &xb, &yb)) {
+                const float depth = glm::dot(fine - cam.eye, cam.forward);
+                worst = std::max({worst, std::hypot(xa - xb, ya - yb), glm::length(fine - drawn) * cam.k / depth});
+            }
         });
     }
     return worst;

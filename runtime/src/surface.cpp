@@ -202,19 +202,17 @@ Status Surface::setFaceLevels(const uint8_t* levels, size_t count)
 
 const FaceLevelErrors& Surface::faceLevelErrors()
 {
-    if (!levelErrors_) {
-        levelErrors_ = std::make_unique<FaceLevelErrors>();
+    if (!chooser_) {
+        chooser_ = std::make_unique<LevelChooser>();
         std::vector<glm::vec3> restNormals(mesh_.positions.size(), glm::vec3(0.0f));
         computeControlNormals(restNormals.data(), mesh_.positions.data(), mesh_.positions.size(), mesh_.triangles.data(),
                               mesh_.faceCount());
         // A plan that is no grid per face (never from Plan::create) has no
-        // levels to choose: the errors stay empty and every face is drawn at
-        // the finest level.
-        if (!measureFaceLevelErrors(levelErrors_.get(), *plan_, nullptr, mesh_.positions.data(), restNormals.data(),
-                                    mesh_.positions.size()))
-            *levelErrors_ = FaceLevelErrors();
+        // levels to choose: the errors stay empty, and choosing is refused.
+        if (!chooser_->init(*plan_, nullptr, mesh_.positions.data(), restNormals.data(), mesh_.positions.size()))
+            chooser_ = std::make_unique<LevelChooser>();
     }
-    return *levelErrors_;
+    return chooser_->errors();
 }
 
 Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
@@ -224,8 +222,8 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
         return Status(StatusCode::InvalidData, "the surface's refined faces are not a grid per control face");
     chosen_.resize(errors.faceCount);
     const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
-    if (Status st = strata::chooseFaceLevels(chosen_.data(), errors, view, pixelError, controlPositions_.data(),
-                                             controlPositions_.size(), mesh_.triangles.data(), scale);
+    if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
+                                     scale);
         !st)
         return st;
     return setFaceLevels(chosen_.data(), chosen_.size());

@@ -20,9 +20,11 @@
 // Levels from a view.  FaceLevelErrors holds, per control face and level,
 // how far the level's surface (the piecewise-linear interpolation of its
 // displaced grid) strays from level L's: measured once, at load, in the
-// rest pose.  chooseFaceLevels projects it at each face's nearest distance
-// to the eye (a sphere around the posed face that holds its displaced
-// surface) and takes the smallest level within the pixel tolerance.
+// rest pose.  LevelChooser projects it at each face's nearest distance to
+// the eye (a sphere around the posed face that holds its displaced
+// surface) and takes the smallest level within the pixel tolerance,
+// counting an error in any direction (along the line of sight too); then it
+// raises neighbours where a stitched tile strays.
 //
 //     strata::AdaptiveFrame frame(plan);
 //     frame.setLevels(levels.data(), levels.size());       // when the levels change
@@ -39,6 +41,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <unordered_map>
 #include <vector>
 
 namespace strata {
@@ -64,51 +67,68 @@ struct ViewSpec {
 /// Per control face and level 0..finest: the largest distance, in model
 /// units, between the displaced surface at that level and at `finest`,
 /// measured at the finest level's vertices (each against the drawn triangle
-/// it lies in).  Non-increasing in the level; 0 at `finest`.  And the same
-/// with one edge drawn coarser (stitched): a face's strip along a much
-/// coarser neighbour strays further than either face alone.
+/// it lies in).  Non-increasing in the level; 0 at `finest`.
 struct FaceLevelErrors {
     int finest = 0;
     size_t faceCount = 0;
     std::vector<float> error;   ///< faceCount * (finest + 1): error[f * (finest + 1) + l]
-    /// faceCount * 3 * pairs, pairs = finest (finest + 1) / 2: face f at
-    /// level l with its edge k at level e < l, at stitchedAt().
-    std::vector<float> stitched;
     std::vector<float> reach;   ///< per face: the largest distance from its control corners' centroid to its displaced surface
-    EdgeGroups edges;           ///< the control faces' edges (chooseFaceLevels' neighbours)
     float at(size_t face, int level) const { return error[face * size_t(finest + 1) + size_t(level)]; }
-    float stitchedAt(size_t face, int edge, int level, int edgeLevel) const
-    {
-        const size_t pairs = size_t(finest) * size_t(finest + 1) / 2;
-        return stitched[(face * 3 + size_t(edge)) * pairs + size_t(level) * size_t(level - 1) / 2 + size_t(edgeLevel)];
-    }
-    size_t bytes() const
-    {
-        return (error.capacity() + stitched.capacity() + reach.capacity()) * sizeof(float) +
-               (edges.corners.capacity() + edges.offsets.capacity()) * sizeof(uint32_t);
-    }
 };
 
-/// Measures the errors of every level of `plan` (its level is the finest)
-/// in the pose of controlPositions/controlNormals (the rest pose at load),
-/// with the given displacements (refinedVertexCount() values; the plan's
-/// own when null).
-Status measureFaceLevelErrors(FaceLevelErrors* out, const Plan& plan, const float* displacements,
-                              const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
-                              int threads = 1);
+/// Chooses each control face's level for a view.
+///
+/// init() measures FaceLevelErrors once (in the rest pose, at load) and
+/// keeps the finest surface's rest positions.  choose() first takes, per
+/// face, the smallest level whose error, projected at the face's nearest
+/// distance to the eye, is within the pixel tolerance (a face whose
+/// bounding sphere holds the eye gets the finest level).  Then, while a
+/// face's stitched tile (its strips along coarser edges, and the corners
+/// where two meet) strays past the tolerance, the coarsest neighbour across
+/// its coarsest edge goes up a level: that error is measured exactly for
+/// the tile as drawn, once per face and combination, and remembered.
+class LevelChooser {
+public:
+    LevelChooser();
+    ~LevelChooser();
+    LevelChooser(const LevelChooser&) = delete;
+    LevelChooser& operator=(const LevelChooser&) = delete;
 
-/// The level of each control face for a view.  First, per face, the
-/// smallest level whose error, projected at the face's nearest distance to
-/// the eye, is within `pixelError` pixels (a face whose bounding sphere
-/// holds the eye gets the finest level).  Then, while a face's strip along
-/// a coarser neighbour strays past the tolerance, the neighbour goes up a
-/// level.  controlPositions: the current pose; `poseScale` (>= 1 for a
-/// pose that stretches, the largest singular value of the skin matrices:
-/// skinScale()) multiplies both errors and reaches.
-/// \param levels  errors.faceCount values (caller-owned)
-Status chooseFaceLevels(uint8_t* levels, const FaceLevelErrors& errors, const ViewSpec& view, float pixelError,
-                        const glm::vec3* controlPositions, size_t controlCount, const uint32_t* controlTriangles,
-                        float poseScale = 1.0f);
+    /// For `plan` (its level is the finest) with these displacements (the
+    /// plan's own when null), in the pose of controlPositions/Normals.
+    Status init(const Plan& plan, const float* displacements, const glm::vec3* controlPositions,
+                const glm::vec3* controlNormals, size_t controlCount, int threads = 1);
+    const FaceLevelErrors& errors() const { return errors_; }
+
+    /// levels: errors().faceCount values (caller-owned).  controlPositions:
+    /// the current pose; `poseScale` (>= 1 for a pose that stretches, the
+    /// largest singular value of the skin matrices: skinScale()) multiplies
+    /// errors and reaches.
+    Status choose(uint8_t* levels, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
+                  size_t controlCount, float poseScale = 1.0f);
+
+    /// The error (model units, rest pose) of face `face` drawn at `level`
+    /// with its edges at edgeLevels (each <= level), as stitched.
+    float stitchedError(size_t face, int level, const int edgeLevels[3]);
+
+    size_t bytes() const;
+
+private:
+    float templateError(const std::vector<uint16_t>& t, size_t face) const;
+    const std::vector<uint16_t>& tileTemplate(int level, const int edgeLevels[3]);
+
+    FaceLevelErrors errors_;
+    std::vector<glm::vec3> rest_;          // the finest surface, rest pose
+    std::vector<uint32_t> tiles_, controlTriangles_;
+    size_t slots_ = 0, controlCount_ = 0;
+    std::vector<uint16_t> slotI_, slotJ_;
+    EdgeGroups edges_;
+    std::vector<uint32_t> edgeOf_;
+    std::vector<uint8_t> edgeLevels_;
+    std::vector<std::vector<uint16_t>> templates_;
+    std::unordered_map<uint64_t, float> stitched_;
+    std::vector<float> gains_;
+};
 
 /// The largest singular value of the upper 3x3 of any of `count` matrices
 /// (1 for none): how much a skinned pose can stretch a distance.
@@ -161,11 +181,13 @@ public:
                     const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t controlCount,
                     int threads = 1);
 
-    /// The largest distance, in pixels of `view`, between the finest
-    /// surface and this frame: at every finest-level vertex of a control
-    /// face, its projected position against the projection of the frame
-    /// triangle's point at the same grid place (the surface as drawn there).
-    /// Points behind the eye are skipped.
+    /// The largest deviation, in pixels of `view`, of this frame from the
+    /// finest surface.  At every finest-level vertex of a control face, the
+    /// frame triangle's point at the same grid place (the surface as drawn
+    /// there) against the vertex: the larger of the distance between their
+    /// projections and their distance in space seen at the vertex's depth
+    /// (a deviation along the line of sight moves no pixel but changes
+    /// depth and shading).  Points behind the eye are skipped.
     /// \param framePositions  vertexCount() positions from evaluate()
     /// \param finePositions   the plan's refinedVertexCount() positions in the same pose
     float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view) const;

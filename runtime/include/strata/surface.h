@@ -101,6 +101,8 @@ public:
     void refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* indices) const;
 
     size_t controlVertexCount() const { return mesh_.vertexCount(); }
+    /// The control mesh as stored (bind pose, with its UVs).
+    const ControlMesh& controlMesh() const { return mesh_; }
     /// Skin joints (0 when the rig is not skinned): setJointMatrices' count.
     size_t jointCount() const { return skeleton_.skin.joints.size(); }
     size_t animationCount() const { return skeleton_.animations.size(); }
@@ -165,7 +167,7 @@ private:
     std::unique_ptr<Animator> animator_;  // refers to mesh_ and skeleton_
     std::unique_ptr<FrameEvaluator> frame_;
     std::unique_ptr<AdaptiveFrame> adaptive_;
-    std::unique_ptr<FaceLevelErrors> levelErrors_;
+    std::unique_ptr<LevelChooser> chooser_;
     std::vector<uint8_t> chosen_;
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::mat4> skinMatrices_;

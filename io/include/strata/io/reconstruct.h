@@ -45,6 +45,20 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
 /// Re-evaluates an existing reconstruction at another pose (same surface).
 Status reconstructPose(Reconstruction* rec, const Pose& pose);
 
+/// The adaptive frame of a reconstruction's surface for one view, in the
+/// reconstruction's pose (Surface::chooseFaceLevels at its level as the
+/// finest), and how far it strays from the finest surface on screen.
+struct AdaptiveView {
+    std::vector<glm::vec3> positions, normals;  ///< surface->adaptiveFrame().vertexCount() each
+    float maxPixelError = 0.0f;                 ///< AdaptiveFrame::maxScreenDeviation against rec.positions
+    std::vector<size_t> facesPerLevel;          ///< control faces at each level 0..finest
+};
+Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError);
+
+/// Writes an adaptive view (positions, shading normals, UVs per corner when
+/// the rig has them) by extension.
+Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view);
+
 /// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
 Status writeReconstruction(const std::filesystem::path& path, const Reconstruction& rec);
 
