@@ -14,6 +14,9 @@
 #include "strata/frame.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
+#include "strata/baker/bake_rig.h"
+#include "strata/io/rig_io.h"
+#include "strata/surface.h"
 
 #include <opensubdiv/osd/bufferDescriptor.h>
 #include <opensubdiv/osd/cpuEvaluator.h>
@@ -24,7 +27,9 @@
 #include <string>
 #include <thread>
 #include <algorithm>
+#include <filesystem>
 #include <sys/stat.h>
+#include <unistd.h>
 
 using namespace strata;
 
@@ -216,6 +221,168 @@ void runTable(const char* name, ControlMesh mesh, int maxLevel, Scheme scheme, i
     }
 }
 
+// Adaptive against uniform level of detail (issue 32): per rig, three
+// camera distances where the posed model's bounding sphere fills 100%, 30%
+// and 10% of a 1080-pixel-tall view (45 degrees), at a 1-pixel tolerance.
+// Uniform is the lowest single level whose measured deviation from the
+// finest level is within the tolerance there; adaptive is the view-chosen
+// levels.  Frame: positions and shading normals on one thread (uniform: the
+// tiled FrameEvaluator of that level's own plan, the fastest uniform path).
+void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, int animation, float time)
+{
+    std::unique_ptr<Surface> fine;
+    Status st = Surface::create(&fine, rig, map);
+    if (st && animation >= 0)
+        st = fine->setAnimationTime(animation, time);
+    if (!st) {
+        std::printf("%s: %s\n", name, st.message().c_str());
+        return;
+    }
+    const int L = fine->level();
+    std::vector<glm::vec3> finePositions(fine->vertexCount());
+    if (!fine->plan()
+             .evaluate(finePositions.data(), nullptr, 0, finePositions.size(), fine->controlPositions().data(),
+                       fine->controlNormals().data(), fine->controlVertexCount())
+             .isOk())
+        return;
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : finePositions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre = 0.5f * (lo + hi);
+    float radius = 0.0f;
+    for (const glm::vec3& p : finePositions)
+        radius = std::max(radius, glm::length(p - centre));
+    const double loadStart = bench::nowMs();
+    fine->faceLevelErrors();
+    const double loadMs = bench::nowMs() - loadStart;
+
+    std::printf("\n%s: %zu control faces, finest level %d (%s, %zu vertices); errors measured at load in %.1f ms\n", name,
+                rig.mesh.faceCount(), L, schemeName(fine->scheme()), fine->vertexCount(), loadMs);
+    std::printf("fill | mode     | levels      | vertices | triangles | frame ms | choose ms | max px error | vertices / uniform | frame / uniform\n");
+    std::printf("-----|----------|-------------|----------|-----------|----------|-----------|--------------|--------------------|----------------\n");
+    const float pixelError = 1.0f;
+    for (float fill : {1.0f, 0.3f, 0.1f}) {
+        ViewSpec view;
+        view.fovYDegrees = 45.0f;
+        view.heightPx = 1080.0f;
+        const float distance = 2.0f * radius * view.pixelsPerUnitAtDistanceOne() / (fill * view.heightPx);
+        view.target = centre;
+        view.eye = centre + distance * glm::normalize(glm::vec3(0.35f, 0.25f, 1.0f));
+
+        // Uniform: the lowest level within the tolerance everywhere.
+        int uniformLevel = L;
+        float uniformError = 0.0f;
+        std::vector<uint8_t> levels(rig.mesh.faceCount());
+        for (int l = 0; l <= L; ++l) {
+            std::fill(levels.begin(), levels.end(), uint8_t(l));
+            fine->setFaceLevels(levels.data(), levels.size());
+            std::vector<glm::vec3> p(fine->adaptiveFrame().vertexCount());
+            fine->evaluateAdaptive(p.data(), nullptr, p.size());
+            const float e = fine->adaptiveFrame().maxScreenDeviation(p.data(), finePositions.data(), view);
+            if (e <= pixelError || l == L) {
+                uniformLevel = l;
+                uniformError = e;
+                break;
+            }
+        }
+        SurfaceOptions o;
+        o.level = uniformLevel;
+        std::unique_ptr<Surface> uniform;
+        if (!Surface::create(&uniform, rig, map, o).isOk() ||
+            (animation >= 0 && !uniform->setAnimationTime(animation, time).isOk()))
+            return;
+        std::vector<glm::vec3> up(uniform->vertexCount()), un(up.size());
+        const double uniformMs = bench::medianMs([&] { uniform->evaluate(up.data(), un.data(), up.size()); });
+
+        const double chooseMs = bench::medianMs([&] { fine->chooseFaceLevels(view, pixelError); }, 5, 20.0);
+        const AdaptiveFrame& frame = fine->adaptiveFrame();
+        std::vector<glm::vec3> ap(frame.vertexCount()), an(ap.size());
+        const double adaptiveMs = bench::medianMs([&] { fine->evaluateAdaptive(ap.data(), an.data(), ap.size()); });
+        const float adaptiveError = frame.maxScreenDeviation(ap.data(), finePositions.data(), view);
+        int lmin = L, lmax = 0;
+        for (uint8_t l : frame.levels()) {
+            lmin = std::min(lmin, int(l));
+            lmax = std::max(lmax, int(l));
+        }
+        char range[32];
+        std::snprintf(range, sizeof(range), "%d..%d", lmin, lmax);
+        std::printf("%3.0f%% | uniform  | %-11d | %8zu | %9zu | %8.3f | %9s | %12.3f | %18s | %15s\n", 100.0 * fill,
+                    uniformLevel, uniform->vertexCount(), uniform->triangleCount(), uniformMs, "-", double(uniformError),
+                    "1", "1");
+        std::printf("%3.0f%% | adaptive | %-11s | %8zu | %9zu | %8.3f | %9.3f | %12.3f | %18.3f | %15.3f\n", 100.0 * fill,
+                    range, frame.vertexCount(), frame.triangleCount(), adaptiveMs, chooseMs, double(adaptiveError),
+                    double(frame.vertexCount()) / double(uniform->vertexCount()), adaptiveMs / uniformMs);
+        std::fflush(stdout);
+        for (int adaptive = 0; adaptive < 2; ++adaptive) {
+            jsonRows.field("table", "adaptive")
+                .field("mode", adaptive ? "adaptive" : "uniform")
+                .field("mesh", name)
+                .field("fill", double(fill))
+                .field("pixel_tolerance", double(pixelError))
+                .field("finest_level", L)
+                .field("level_min", adaptive ? lmin : uniformLevel)
+                .field("level_max", adaptive ? lmax : uniformLevel)
+                .field("vertices", double(adaptive ? frame.vertexCount() : uniform->vertexCount()))
+                .field("triangles", double(adaptive ? frame.triangleCount() : uniform->triangleCount()))
+                .field("frame_ms", adaptive ? adaptiveMs : uniformMs)
+                .field("choose_ms", adaptive ? chooseMs : 0.0)
+                .field("max_pixel_error", double(adaptive ? adaptiveError : uniformError))
+                .field("uniform_frame_ms", uniformMs)
+                .field("load_errors_ms", loadMs)
+                .endRow();
+        }
+    }
+}
+
+// A rig baked by strata-bake's pipeline into a scratch folder, loaded back.
+bool bakeForBench(const std::string& high, const std::string& stem, Rig* rig, DisplacementMap* map)
+{
+    const std::string dir = (std::filesystem::temp_directory_path() / ("strata_bench_runtime_" + std::to_string(::getpid()))).string();
+    std::filesystem::create_directories(dir);
+    baker::BakeRequest request;
+    request.high = high;
+    request.control = "auto";
+    request.output = dir + "/" + stem + ".glb";
+    baker::BakeResult result;
+    const Status st = baker::bakeRig(request, &result);
+    bool ok = st.isOk() && io::loadRig(request.output, rig).isOk() &&
+              (!rigNeedsMap(*rig) || io::loadRigDisplacementMap(request.output, *rig, map).isOk());
+    if (!st)
+        std::printf("%s: bake failed: %s\n", stem.c_str(), st.message().c_str());
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+    return ok;
+}
+
+void runAdaptiveTables()
+{
+    std::printf("\nAdaptive against uniform level of detail, 1-pixel tolerance, 1080-pixel-tall view (one thread)\n");
+    {
+        Rig rig;
+        DisplacementMap map;
+        rig.mesh = examples::makeIcosphere(1);
+        if (baker::buildTriangleAtlas(&rig.mesh, {1024, 2}).isOk() &&
+            examples::bakeRadialSurface(&map, rig.mesh, 1024, 2, examples::headRadius).isOk()) {
+            rig.hasDisplacement = true;
+            rig.displacement.encoding = "exr";
+            rig.displacement.width = rig.displacement.height = 1024;
+            rig.displacement.recommendedLevel = 5;
+            runAdaptive("example", rig, &map, -1, 0.0f);
+        }
+    }
+    const std::string data = STRATA_SHARED_DATA;
+    Rig rig;
+    DisplacementMap map;
+    if (bakeForBench(data + "/CesiumMan.glb", "cesium", &rig, &map))
+        runAdaptive("CesiumMan", rig, &map, 0, 1.0f);
+    Rig scan;
+    DisplacementMap scanMap;
+    if (bakeForBench(data + "/nefertiti-lowres.obj", "nefertiti", &scan, &scanMap))
+        runAdaptive("nefertiti", scan, &scanMap, -1, 0.0f);
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
@@ -223,6 +390,7 @@ int main(int argc, char** argv)
     int maxLevel = kMaxLevel, maxSmooth = 5;
     int threads = int(std::max(2u, std::thread::hardware_concurrency()));
     std::string jsonPath;
+    bool adaptiveOnly = false, adaptive = true;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--max-level") && i + 1 < argc)
             maxLevel = std::atoi(argv[++i]);
@@ -230,15 +398,28 @@ int main(int argc, char** argv)
             maxSmooth = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--json") && i + 1 < argc)
             jsonPath = argv[++i];
+        else if (!std::strcmp(argv[i], "--adaptive-only"))
+            adaptiveOnly = true;
+        else if (!std::strcmp(argv[i], "--no-adaptive"))
+            adaptive = false;
         else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc)
             threads = std::max(1, std::atoi(argv[++i]));
         else {
-            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N] [--threads N] [--json FILE]\n");
+            std::fprintf(stderr, "usage: bench_runtime [--max-level N] [--max-smooth-level N] [--threads N] [--adaptive-only | --no-adaptive]\n"
+                                 "                     [--json FILE]\n");
             return 2;
         }
     }
     std::printf("bench_runtime: median of 7 runs per cell (setup: of 3, the first in the JSON); evaluate = positions + "
                 "directions + displacement\n");
+    if (adaptiveOnly) {
+        runAdaptiveTables();
+        if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
+            std::fprintf(stderr, "bench_runtime: cannot write %s\n", jsonPath.c_str());
+            return 1;
+        }
+        return 0;
+    }
     const ControlMesh cube = makeCube(13);
     runTable("cube 13x13 per side", cube, maxLevel, Scheme::Linear, threads);
     ControlMesh spot;
@@ -252,6 +433,8 @@ int main(int argc, char** argv)
     runTable("cube 13x13 per side", cube, std::min(maxLevel, maxSmooth), Scheme::Smooth, threads);
     if (haveSpot)
         runTable("spot", spot, std::min(maxLevel, maxSmooth), Scheme::Smooth, threads);
+    if (adaptive)
+        runAdaptiveTables();
     if (!jsonPath.empty() && !jsonRows.write(jsonPath)) {
         std::fprintf(stderr, "bench_runtime: cannot write %s\n", jsonPath.c_str());
         return 1;
