@@ -2,6 +2,7 @@
 #include "strata/adaptive.h"
 
 #include "strata/control_mesh.h"
+#include "strata/displacement_math.h"
 
 #include "worker_pool.h"
 
@@ -396,13 +397,31 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
 
 AdaptiveFrame::~AdaptiveFrame() = default;
 
-const std::vector<uint16_t>& AdaptiveFrame::tileTemplate(int level, const int e[3])
+size_t AdaptiveFrame::templateFor(int level, const int e[3])
 {
     const size_t n = size_t(finest_ + 1);
-    std::vector<uint16_t>& t = templates_[((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2])];
-    if (t.empty())
-        adaptiveTileTriangles(&t, finest_, level, e);
-    return t;
+    const size_t key = ((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2]);
+    TileTemplate& t = templates_[key];
+    if (t.fine.empty()) {
+        adaptiveTileTriangles(&t.fine, finest_, level, e);
+        // The same triangles in the level's own slots, and each slot's
+        // triangles (ascending), for the tile pass.
+        const uint32_t step = 1u << (finest_ - level), R = 1u << level;
+        const size_t slots = size_t(R + 1) * (R + 2) / 2;
+        t.local.resize(t.fine.size());
+        for (size_t k = 0; k < t.fine.size(); ++k)
+            t.local[k] = uint16_t(tileSlot(slotI_[t.fine[k]] / step, slotJ_[t.fine[k]] / step, R));
+        t.offsets.assign(slots + 1, 0);
+        for (uint16_t v : t.local)
+            ++t.offsets[v + 1u];
+        for (size_t k = 0; k < slots; ++k)
+            t.offsets[k + 1] = uint16_t(t.offsets[k + 1] + t.offsets[k]);
+        t.incident.resize(t.local.size());
+        std::vector<uint16_t> cursor(t.offsets.begin(), t.offsets.end() - 1);
+        for (size_t k = 0; k < t.local.size(); ++k)
+            t.incident[cursor[t.local[k]]++] = uint16_t(k / 3);
+    }
+    return key;
 }
 
 Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
@@ -428,9 +447,24 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     triangles_.clear();
     triangleFaces_.clear();
     cornerSlots_.clear();
+    tileTemplate_.resize(nf);
+    tileFirst_.resize(nf + 1);
+    tileVertex_.clear();
+    tilePartial_.clear();
+    partialVertex_.clear();
+    size_t partials = 0;
     for (size_t f = 0; f < nf; ++f) {
+        const int l = levels[f];
         const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
-        const std::vector<uint16_t>& t = tileTemplate(levels[f], e);
+        const size_t key = templateFor(l, e);
+        const std::vector<uint16_t>& t = templates_[key].fine;
+        const std::vector<uint16_t>& local = templates_[key].local;
+        tileTemplate_[f] = uint32_t(key);
+        const uint32_t R = 1u << l, step = 1u << (finest_ - l);
+        const size_t levelSlots = size_t(R + 1) * (R + 2) / 2, base = tileVertex_.size();
+        tileFirst_[f] = uint32_t(base);
+        tileVertex_.resize(base + levelSlots, kNone);
+        tilePartial_.resize(base + levelSlots, kNone);
         const uint32_t* tile = &tiles_[f * slots_];
         for (size_t k = 0; k < t.size(); ++k) {
             const uint32_t v = tile[t[k]];
@@ -440,28 +474,55 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
             }
             triangles_.push_back(remap_[v]);
             cornerSlots_.push_back(t[k]);
+            uint32_t& slot = tileVertex_[base + local[k]];
+            if (slot == kNone) {
+                slot = remap_[v];
+                const uint32_t i = slotI_[t[k]] / step, j = slotJ_[t[k]] / step;
+                if (i == 0 || j == 0 || i + j == R) {  // on the control face's border: shared
+                    tilePartial_[base + local[k]] = uint32_t(partials++);
+                    partialVertex_.push_back(remap_[v]);
+                }
+            }
         }
         triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
     }
+    tileFirst_[nf] = uint32_t(tileVertex_.size());
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
 
-    // Each vertex's triangles, ascending: the normals' gather.
-    const size_t n = vertices_.size(), nt = triangles_.size() / 3;
-    incidenceOffsets_.assign(n + 1, 0);
-    for (uint32_t v : triangles_)
-        ++incidenceOffsets_[v + 1];
+    // Each border vertex's partial sums, in tile order (a stable counting sort).
+    const size_t n = vertices_.size();
+    borderOffsets_.assign(n + 1, 0);
+    for (uint32_t v : partialVertex_)
+        ++borderOffsets_[v + 1];
     for (size_t v = 0; v < n; ++v)
-        incidenceOffsets_[v + 1] += incidenceOffsets_[v];
-    incidence_.resize(triangles_.size());
-    // Filled with each vertex's end as its cursor, then shifted back.
-    for (size_t t = 0; t < nt; ++t)
-        for (int k = 0; k < 3; ++k)
-            incidence_[incidenceOffsets_[triangles_[3 * t + size_t(k)]]++] = uint32_t(t);
+        borderOffsets_[v + 1] += borderOffsets_[v];
+    borderEntries_.resize(partials);
+    for (size_t k = 0; k < partials; ++k)  // each vertex's end as its cursor, shifted back below
+        borderEntries_[borderOffsets_[partialVertex_[k]]++] = uint32_t(k);
     for (size_t v = n; v > 0; --v)
-        incidenceOffsets_[v] = incidenceOffsets_[v - 1];
-    incidenceOffsets_[0] = 0;
-    faceNormals_.resize(nt);
+        borderOffsets_[v] = borderOffsets_[v - 1];
+    borderOffsets_[0] = 0;
+    borderVertices_.clear();
+    for (size_t v = 0; v < n; ++v)
+        if (borderOffsets_[v + 1] > borderOffsets_[v])
+            borderVertices_.push_back(uint32_t(v));
+    partials_.resize(partials);
+
+    // Linear scheme: each frame vertex's control corners, weights and
+    // displacement side by side, so a frame streams them.
+    linear_.clear();
+    if (plan_.scheme() == Scheme::Linear) {
+        const std::vector<SampleLocation>& samples = plan_.sampleLocations();
+        const std::vector<float>& d = plan_.displacements();
+        linear_.resize(n);
+        for (size_t k = 0; k < n; ++k) {
+            const SampleLocation& at = samples[vertices_[k]];
+            LinearVertex& lv = linear_[k];
+            const uint32_t* c = &control[3 * size_t(at.face)];
+            lv = {{c[0], c[1], c[2]}, at.bary.x, at.bary.y, d[vertices_[k]]};
+        }
+    }
     return Status::ok();
 }
 
@@ -490,24 +551,80 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
                                            controlNormals, controlCount);
         !st)
         return st;
-    parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
-        (void)plan_.evaluateVertices(positions + b, nullptr, vertices_.data() + b, e - b, d, controlPositions,
-                                     controlNormals, controlCount);
-    });
+    if (!linear_.empty()) {
+        // Plan::evaluate's expression, bit for bit, over the streamed corners.
+        const bool own = d == plan_.displacements().data();
+        parallel(threads, linear_.size(), [&](size_t b, size_t e, int) {
+            for (size_t k = b; k < e; ++k) {
+                const LinearVertex& v = linear_[k];
+                const float w1 = v.w1, w2 = v.w2, w0 = 1.0f - w1 - w2;
+                const glm::vec3 p = w0 * controlPositions[v.c[0]] + w1 * controlPositions[v.c[1]] +
+                                    w2 * controlPositions[v.c[2]];
+                const glm::vec3 n = w0 * controlNormals[v.c[0]] + w1 * controlNormals[v.c[1]] + w2 * controlNormals[v.c[2]];
+                positions[k] = shared::strata_displace(p, n, own ? v.d : d[vertices_[k]]);
+            }
+        });
+    } else {
+        parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
+            (void)plan_.evaluateVertices(positions + b, nullptr, vertices_.data() + b, e - b, d, controlPositions,
+                                         controlNormals, controlCount);
+        });
+    }
     if (!normals)
         return Status::ok();
-    const uint32_t* tri = triangles_.data();
-    parallel(threads, faceNormals_.size(), [&](size_t b, size_t e, int) {
+
+    // Normals per tile: each tile gathers its slots' positions, computes its
+    // triangles' normals, and sums each slot's (in a template's incidence
+    // lists: no read-modify-write chains).  A slot inside the control face
+    // is then final; one on its border leaves a partial sum that the border
+    // pass adds up in tile order.
+    const size_t nf = levels_.size();
+    const int pool = threads <= 1 ? 1 : threads;
+    if (scratch_.size() < size_t(pool)) {
+        const size_t most = size_t((1u << finest_) + 1) * ((1u << finest_) + 2) / 2;
+        scratch_.resize(size_t(pool));
+        for (Scratch& s : scratch_) {
+            s.positions.resize(most);
+            s.faces.resize(size_t(1) << (2 * finest_));
+        }
+    }
+    parallel(threads, nf, [&](size_t b, size_t e, int t) {
+        glm::vec3* local = scratch_[size_t(t)].positions.data();
+        glm::vec3* faces = scratch_[size_t(t)].faces.data();
         for (size_t f = b; f < e; ++f) {
-            const glm::vec3 a = positions[tri[3 * f]];
-            faceNormals_[f] = glm::cross(positions[tri[3 * f + 1]] - a, positions[tri[3 * f + 2]] - a);
+            const uint32_t base = tileFirst_[f], slots = tileFirst_[f + 1] - base;
+            const uint32_t* vertex = &tileVertex_[base];
+            const uint32_t* partial = &tilePartial_[base];
+            for (uint32_t k = 0; k < slots; ++k)
+                local[k] = vertex[k] == kNone ? glm::vec3(0.0f) : positions[vertex[k]];
+            const TileTemplate& tt = templates_[tileTemplate_[f]];
+            const uint16_t* tri = tt.local.data();
+            const size_t nt = tt.local.size() / 3;
+            for (size_t k = 0; k < nt; ++k) {
+                const glm::vec3 pa = local[tri[3 * k]];
+                faces[k] = glm::cross(local[tri[3 * k + 1]] - pa, local[tri[3 * k + 2]] - pa);
+            }
+            const uint16_t* offsets = tt.offsets.data();
+            const uint16_t* incident = tt.incident.data();
+            for (uint32_t k = 0; k < slots; ++k) {
+                if (vertex[k] == kNone)
+                    continue;
+                glm::vec3 sum(0.0f);
+                for (uint32_t m = offsets[k], end = offsets[k + 1]; m < end; ++m)
+                    sum += faces[incident[m]];
+                if (partial[k] != kNone)
+                    partials_[partial[k]] = sum;
+                else
+                    normals[vertex[k]] = unitOrZero(sum);
+            }
         }
     });
-    parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
-        for (size_t v = b; v < e; ++v) {
+    parallel(threads, borderVertices_.size(), [&](size_t b, size_t e, int) {
+        for (size_t k = b; k < e; ++k) {
+            const uint32_t v = borderVertices_[k];
             glm::vec3 sum(0.0f);
-            for (uint32_t k = incidenceOffsets_[v], end = incidenceOffsets_[v + 1]; k < end; ++k)
-                sum += faceNormals_[incidence_[k]];
+            for (uint32_t m = borderOffsets_[v], end = borderOffsets_[v + 1]; m < end; ++m)
+                sum += partials_[borderEntries_[m]];
             normals[v] = unitOrZero(sum);
         }
     });
@@ -546,11 +663,14 @@ size_t AdaptiveFrame::bytes() const
 {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     size_t t = 0;
-    for (const std::vector<uint16_t>& v : templates_)
-        t += bytes(v);
-    return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) + bytes(remap_) + bytes(vertices_) +
-           bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) + bytes(incidence_) +
-           bytes(incidenceOffsets_) + bytes(faceNormals_);
+    for (const TileTemplate& v : templates_)
+        t += bytes(v.fine) + bytes(v.local) + bytes(v.offsets) + bytes(v.incident);
+    for (const Scratch& v : scratch_)
+        t += bytes(v.positions) + bytes(v.faces);
+    return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) +
+           bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
+           bytes(tileTemplate_) + bytes(tileFirst_) + bytes(tileVertex_) + bytes(tilePartial_) + bytes(partialVertex_) +
+           bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) + bytes(partials_) + bytes(linear_);
 }
 
 }  // namespace strata

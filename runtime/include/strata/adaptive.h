@@ -197,7 +197,7 @@ public:
 private:
     template <typename Body>
     void parallel(int threads, size_t n, const Body& body);
-    const std::vector<uint16_t>& tileTemplate(int level, const int edgeLevels[3]);
+    size_t templateFor(int level, const int edgeLevels[3]);
 
     const Plan& plan_;
     int finest_ = 0;
@@ -206,13 +206,32 @@ private:
     std::vector<uint16_t> slotI_, slotJ_; // the finest tile's grid point per slot
     std::vector<uint32_t> edgeOf_;        // per face corner (3 f + k): its undirected edge
     std::vector<uint8_t> edgeLevels_;     // per edge: its level for the current face levels
-    std::vector<std::vector<uint16_t>> templates_;  // by (level, e0, e1, e2); built on first use
+    // By (level, e0, e1, e2), built on first use: the triangles in the
+    // finest tile's slots and in the level's own, and each of the level's
+    // slots' triangles.
+    struct TileTemplate {
+        std::vector<uint16_t> fine, local, offsets, incident;
+    };
+    std::vector<TileTemplate> templates_;
     std::vector<uint8_t> levels_;
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
     std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
     std::vector<uint16_t> cornerSlots_;
-    std::vector<uint32_t> incidence_, incidenceOffsets_;  // each vertex's triangles, ascending
-    std::vector<glm::vec3> faceNormals_;
+    // The tile pass: per face its template and first slot; per slot of its
+    // level its frame vertex and, on the face's border, its partial sum
+    // (~0: none); each border vertex's partial sums in tile order.
+    std::vector<uint32_t> tileTemplate_, tileFirst_, tileVertex_, tilePartial_, partialVertex_;
+    std::vector<uint32_t> borderVertices_, borderOffsets_, borderEntries_;
+    std::vector<glm::vec3> partials_;
+    struct Scratch {
+        std::vector<glm::vec3> positions, faces;  // one tile's slots and triangles
+    };
+    std::vector<Scratch> scratch_;  // per thread
+    struct LinearVertex {
+        uint32_t c[3];
+        float w1, w2, d;
+    };
+    std::vector<LinearVertex> linear_;   // linear scheme: per frame vertex
     std::unique_ptr<detail::WorkerPool> pool_;
 };
 
