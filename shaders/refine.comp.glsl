@@ -9,6 +9,11 @@ layout(std430, binding = 2) readonly buffer StencilOffsets { uint stencilOffsets
 layout(std430, binding = 3) readonly buffer StencilIndices { uint stencilIndices[]; };
 layout(std430, binding = 4) readonly buffer StencilWeights { float stencilWeights[]; };
 layout(std430, binding = 5) writeonly buffer Surface { vec4 surface[]; };  // per vertex: point, direction
+#ifdef STRATA_ADAPTIVE
+// An adaptive frame (adaptive.h): invocation k evaluates the plan's refined
+// vertex frameVertices[k] into slot k.
+layout(std430, binding = 13) readonly buffer FrameVertices { uint frameVertices[]; };
+#endif
 
 uniform uint u_vertexCount;
 
@@ -19,9 +24,14 @@ vec3 controlPosition(uint i)
 
 void main()
 {
-    uint v = gl_GlobalInvocationID.x;
-    if (v >= u_vertexCount)
+    uint slot = gl_GlobalInvocationID.x;
+    if (slot >= u_vertexCount)
         return;
+#ifdef STRATA_ADAPTIVE
+    uint v = frameVertices[slot];
+#else
+    uint v = slot;
+#endif
     uint begin = stencilOffsets[v], end = stencilOffsets[v + 1u];
 #ifdef STRATA_SMOOTH
     // Limit position and its two tangents; the direction is the unit normal.
@@ -43,6 +53,6 @@ void main()
         n += w * vec3(controlNormals[3u * i], controlNormals[3u * i + 1u], controlNormals[3u * i + 2u]);
     }
 #endif
-    surface[2u * v] = vec4(p, 1.0);
-    surface[2u * v + 1u] = vec4(n, 0.0);
+    surface[2u * slot] = vec4(p, 1.0);
+    surface[2u * slot + 1u] = vec4(n, 0.0);
 }

@@ -9,7 +9,10 @@
 #include "strata/gl/shaders.h"
 #include "strata/normals.h"
 #include "strata/plan.h"
+#include "strata/surface.h"
 #include "test_rigs.h"
+
+#include <random>
 
 using strata::test::maxDistance;
 
@@ -256,4 +259,62 @@ void main()
     for (size_t v = 0; v < n; ++v)
         worst = std::max(worst, std::fabs(d[v] - plan->displacements()[v]));
     EXPECT_LE(worst, 1e-6f * rig.diagonal);
+}
+
+// The adaptive frame on the GPU (Evaluator::setAdaptive/updateAdaptive):
+// positions and shading normals of the frame's vertices match the CPU's
+// AdaptiveFrame at random level mixes, both schemes, animated, and a new
+// mix of levels reuses or grows the buffers.
+TEST(Gpu, AdaptiveFramesMatchTheCpuAtRandomLevelMixes)
+{
+    ASSERT_NE(context(), nullptr);
+    std::mt19937 rng(11);
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        test::makeBendingExampleRig(&rig, &map);
+        rig.displacement.scheme = scheme;
+        std::unique_ptr<Surface> s;
+        ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+        std::unique_ptr<gl::Evaluator> gpu;
+        Status st = gl::Evaluator::create(&gpu, s->plan());
+        ASSERT_TRUE(st.isOk()) << st.message();
+        ASSERT_TRUE(gpu->setDisplacements(s->plan().displacements().data(), s->vertexCount()).isOk());
+        float diagonal = 0.0f;
+        {
+            glm::vec3 lo(1e30f), hi(-1e30f);
+            for (const glm::vec3& p : rig.mesh.positions) {
+                lo = glm::min(lo, p);
+                hi = glm::max(hi, p);
+            }
+            diagonal = glm::length(hi - lo);
+        }
+        std::vector<uint8_t> levels(rig.mesh.faceCount());
+        for (int trial = 0; trial < 4; ++trial) {
+            std::uniform_int_distribution<int> any(0, s->level());
+            for (uint8_t& l : levels)
+                l = uint8_t(trial == 0 ? s->level() : any(rng));
+            ASSERT_TRUE(s->setFaceLevels(levels.data(), levels.size()).isOk());
+            ASSERT_TRUE(s->setAnimationTime(0, 0.3f * float(trial)).isOk());
+            const AdaptiveFrame& frame = s->adaptiveFrame();
+            std::vector<glm::vec3> p(frame.vertexCount()), n(p.size()), gp, gn;
+            ASSERT_TRUE(s->evaluateAdaptive(p.data(), n.data(), p.size()).isOk());
+            ASSERT_TRUE(gpu->setAdaptive(frame).isOk());
+            ASSERT_TRUE(gpu->updateAdaptive(s->controlPositions().data(), s->controlNormals().data(),
+                                            s->controlVertexCount())
+                            .isOk());
+            ASSERT_TRUE(gpu->readAdaptivePositions(&gp).isOk());
+            ASSERT_TRUE(gpu->readAdaptiveNormals(&gn).isOk());
+            ASSERT_EQ(gp.size(), p.size());
+            const std::string label = std::string(schemeName(scheme)) + " trial " + std::to_string(trial);
+            EXPECT_LE(maxDistance(p, gp) / diagonal, 1e-5f) << label;
+            EXPECT_LE(maxDistance(n, gn), 1e-4f) << label;
+            EXPECT_EQ(gpu->adaptiveTriangleCount(), frame.triangleCount()) << label;
+            // The indirect command draws every triangle of the frame.
+            GLuint command[5] = {};
+            glGetNamedBufferSubData(gpu->adaptiveBuffer(gl::AdaptiveBuffer::Indirect), 0, sizeof(command), command);
+            EXPECT_EQ(command[0], 3 * frame.triangleCount()) << label;
+            EXPECT_EQ(command[1], 1u) << label;
+        }
+    }
 }

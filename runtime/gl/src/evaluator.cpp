@@ -105,8 +105,12 @@ Evaluator::~Evaluator()
         if (b)
             glDeleteBuffers(1, &b);
     glDeleteTextures(1, &texture_);
-    for (GLuint p : {refine_, displace_, normals_})
-        glDeleteProgram(p);
+    for (GLuint& b : adaptive_)
+        if (b)
+            glDeleteBuffers(1, &b);
+    for (GLuint p : {refine_, displace_, normals_, adaptiveRefine_, adaptiveDisplace_})
+        if (p)
+            glDeleteProgram(p);
 }
 
 Status Evaluator::setDisplacementMap(const DisplacementMap& map)
@@ -171,6 +175,24 @@ void Evaluator::bindSampling(GLuint program) const
 
 Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
 {
+    return runPasses(controlPositions, controlNormals, count, false);
+}
+
+Status Evaluator::updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
+{
+    if (!adaptiveRefine_)
+        return Status(StatusCode::InvalidArgument, "GPU evaluator: no adaptive frame set (setAdaptive)");
+    return runPasses(controlPositions, controlNormals, count, true);
+}
+
+namespace {
+// Indices into Evaluator::adaptive_ past the AdaptiveBuffer ones.
+constexpr int kAdaptiveSurface = 5, kAdaptiveFanOffsets = 6, kAdaptiveFanEntries = 7;
+}  // namespace
+
+Status Evaluator::runPasses(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count,
+                            bool adaptive)
+{
     if (count != controlCount_)
         return Status(StatusCode::InvalidArgument, "GPU evaluator: got " + std::to_string(count) +
                                                        " control vertices, the plan has " +
@@ -194,22 +216,38 @@ Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* con
         glNamedBufferSubData(buffers_[kControlNormals], 0, GLsizeiptr(count * 12), controlNormals);
     stamp(1);
     bindBuffers();
-    const GLuint n = GLuint(vertexCount_);
-    glUseProgram(refine_);
-    glUniform1ui(glGetUniformLocation(refine_, "u_vertexCount"), n);
-    glDispatchCompute(groups(vertexCount_), 1, 1);
+    size_t vertices = vertexCount_;
+    GLuint refine = refine_, displace = displace_;
+    if (adaptive) {
+        // The frame's own outputs at the binding points the passes write.
+        vertices = adaptiveVertices_;
+        refine = adaptiveRefine_;
+        displace = adaptiveDisplace_;
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSurface, adaptive_[kAdaptiveSurface]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kDisplaced, adaptive_[int(AdaptiveBuffer::Displaced)]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kNormals, adaptive_[int(AdaptiveBuffer::Normals)]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kTriangles, adaptive_[int(AdaptiveBuffer::Triangles)]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kFanOffsets, adaptive_[kAdaptiveFanOffsets]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kFanEntries, adaptive_[kAdaptiveFanEntries]);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kFrameVertices, adaptive_[int(AdaptiveBuffer::FrameVertices)]);
+    }
+    const GLuint n = GLuint(vertices);
+    glUseProgram(refine);
+    glUniform1ui(glGetUniformLocation(refine, "u_vertexCount"), n);
+    glDispatchCompute(groups(vertices), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    bindSampling(displace_);
-    glUseProgram(displace_);
-    glUniform1ui(glGetUniformLocation(displace_, "u_vertexCount"), n);
-    glDispatchCompute(groups(vertexCount_), 1, 1);
+    bindSampling(displace);
+    glUseProgram(displace);
+    glUniform1ui(glGetUniformLocation(displace, "u_vertexCount"), n);
+    glDispatchCompute(groups(vertices), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     stamp(2);
     if (shadingNormals_) {
         glUseProgram(normals_);
         glUniform1ui(glGetUniformLocation(normals_, "u_vertexCount"), n);
-        glDispatchCompute(groups(vertexCount_), 1, 1);
-        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT);
+        glDispatchCompute(groups(vertices), 1, 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_VERTEX_ATTRIB_ARRAY_BARRIER_BIT | GL_ELEMENT_ARRAY_BARRIER_BIT |
+                        GL_COMMAND_BARRIER_BIT);
     }
     stamp(3);
     if (timing_) {
@@ -218,7 +256,64 @@ Status Evaluator::update(const glm::vec3* controlPositions, const glm::vec3* con
         timings_.stencilMs = ms(1, 2);
         timings_.normalsMs = ms(2, 3);
     }
+    if (adaptive)
+        bindBuffers();  // the plan's own buffers back at their binding points
     glUseProgram(0);
+    return Status::ok();
+}
+
+Status Evaluator::setAdaptive(const AdaptiveFrame& frame)
+{
+    if (!adaptiveRefine_) {
+        const std::string defines = std::string("#define STRATA_ADAPTIVE 1\n") + (smooth_ ? "#define STRATA_SMOOTH 1\n" : "");
+        Status st = buildProgram(&adaptiveRefine_, "refine.comp (adaptive)",
+                                 {{GL_COMPUTE_SHADER, shaderSource(ShaderId::Refine, defines)}});
+        if (st.isOk())
+            st = buildProgram(&adaptiveDisplace_, "displace.comp (adaptive)",
+                              {{GL_COMPUTE_SHADER, shaderSource(ShaderId::Displace, "#define STRATA_ADAPTIVE 1\n")}});
+        if (!st.isOk())
+            return st;
+    }
+    const size_t n = frame.vertexCount(), nt = frame.triangleCount();
+    for (uint32_t v : frame.vertices())
+        if (v >= vertexCount_)
+            return Status(StatusCode::InvalidArgument, "the adaptive frame is not of this evaluator's plan");
+    std::vector<uint32_t> fanOffsets, fanEntries;
+    buildVertexFans(&fanOffsets, &fanEntries, frame.triangles().data(), nt, n);
+    struct {
+        GLuint count, instances, firstIndex;
+        GLint baseVertex;
+        GLuint baseInstance;
+    } command{GLuint(3 * nt), 1, 0, 0, 0};
+    // Storage grows to the largest frame so far (immutable storage: a new
+    // buffer when it must grow), then takes each frame's data in place.
+    auto put = [&](int index, const void* data, size_t bytes) {
+        if (adaptiveCapacity_[index] < bytes || !adaptive_[index]) {
+            if (adaptive_[index]) {
+                gpuBytes_ -= adaptiveCapacity_[index];
+                glDeleteBuffers(1, &adaptive_[index]);
+            }
+            const size_t capacity = std::max<size_t>(bytes + bytes / 4, 64);
+            glCreateBuffers(1, &adaptive_[index]);
+            glNamedBufferStorage(adaptive_[index], GLsizeiptr(capacity), nullptr, GL_DYNAMIC_STORAGE_BIT);
+            adaptiveCapacity_[index] = capacity;
+            gpuBytes_ += capacity;
+        }
+        if (data && bytes)
+            glNamedBufferSubData(adaptive_[index], 0, GLsizeiptr(bytes), data);
+    };
+    put(int(AdaptiveBuffer::Displaced), nullptr, n * 16);
+    put(int(AdaptiveBuffer::Normals), nullptr, n * 16);
+    put(int(AdaptiveBuffer::Triangles), frame.triangles().data(), frame.triangles().size() * 4);
+    put(int(AdaptiveBuffer::FrameVertices), frame.vertices().data(), n * 4);
+    put(int(AdaptiveBuffer::Indirect), &command, sizeof(command));
+    put(kAdaptiveSurface, nullptr, n * 32);
+    put(kAdaptiveFanOffsets, fanOffsets.data(), fanOffsets.size() * 4);
+    put(kAdaptiveFanEntries, fanEntries.data(), fanEntries.size() * 4);
+    adaptiveVertices_ = n;
+    adaptiveTriangles_ = nt;
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error while uploading the adaptive frame");
     return Status::ok();
 }
 
@@ -247,6 +342,16 @@ Status Evaluator::readPositions(std::vector<glm::vec3>* out) const
 Status Evaluator::readNormals(std::vector<glm::vec3>* out) const
 {
     return readVec4(buffers_[kNormals], vertexCount_, out, "normals");
+}
+
+Status Evaluator::readAdaptivePositions(std::vector<glm::vec3>* out) const
+{
+    return readVec4(adaptive_[int(AdaptiveBuffer::Displaced)], adaptiveVertices_, out, "adaptive positions");
+}
+
+Status Evaluator::readAdaptiveNormals(std::vector<glm::vec3>* out) const
+{
+    return readVec4(adaptive_[int(AdaptiveBuffer::Normals)], adaptiveVertices_, out, "adaptive normals");
 }
 
 }  // namespace gl

@@ -21,6 +21,7 @@
 // GpuSurface (viewer/draw) is one user of this class.
 #pragma once
 
+#include "strata/adaptive.h"
 #include "strata/displacement_map.h"
 #include "strata/gl/gl.h"
 #include "strata/plan.h"
@@ -48,8 +49,14 @@ enum class SampleFilter { Shared = 0, Hardware = 1 };
 enum Binding : GLuint {
     kControlPositions = 0, kControlNormals = 1, kStencilOffsets = 2, kStencilIndices = 3, kStencilWeights = 4,
     kSurface = 5, kDisplaced = 6, kSampleUVs = 7, kTriangles = 8, kFanOffsets = 9, kFanEntries = 10,
-    kNormals = 11, kVertexDisplacements = 15
+    kNormals = 11, kFrameVertices = 13, kVertexDisplacements = 15
 };
+
+/// The adaptive frame's own buffers (Evaluator::adaptiveBuffer): displaced
+/// positions and shading normals as vec4 per frame vertex, the frame's
+/// triangles as uint triples (also its element buffer), each frame
+/// vertex's refined vertex, and one DrawElementsIndirectCommand.
+enum class AdaptiveBuffer { Displaced, Normals, Triangles, FrameVertices, Indirect };
 
 /// Stage times of the last update(), in milliseconds: only filled while
 /// timing is on, which finishes each stage before the next (the wall clock
@@ -101,6 +108,21 @@ public:
     Status readPositions(std::vector<glm::vec3>* out) const;
     Status readNormals(std::vector<glm::vec3>* out) const;
 
+    /// Adaptive level of detail (adaptive.h) on the GPU: the frame's
+    /// vertices and triangles go up when its levels change; then
+    /// updateAdaptive() evaluates only the frame's vertices (the same
+    /// stencils, displacements and passes as update(), indexed through the
+    /// frame's vertex list) and the shading normals of its triangles, and a
+    /// draw reads them with glDrawElementsIndirect on the indirect buffer.
+    /// `frame` must come from this evaluator's plan.
+    Status setAdaptive(const AdaptiveFrame& frame);
+    Status updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
+    size_t adaptiveVertexCount() const { return adaptiveVertices_; }
+    size_t adaptiveTriangleCount() const { return adaptiveTriangles_; }
+    GLuint adaptiveBuffer(AdaptiveBuffer b) const { return adaptive_[int(b)]; }
+    Status readAdaptivePositions(std::vector<glm::vec3>* out) const;
+    Status readAdaptiveNormals(std::vector<glm::vec3>* out) const;
+
     void setTiming(bool on) { timing_ = on; }
     const EvaluatorTimings& timings() const { return timings_; }
     size_t vertexCount() const { return vertexCount_; }
@@ -121,6 +143,13 @@ private:
     GLuint texture_ = 0;
     GLuint refine_ = 0, displace_ = 0, normals_ = 0;
     EvaluatorTimings timings_;
+    Status runPasses(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count, bool adaptive);
+    // The adaptive frame: programs, buffers by AdaptiveBuffer then surface
+    // (point, direction per vertex), fan offsets and entries; capacities.
+    GLuint adaptiveRefine_ = 0, adaptiveDisplace_ = 0;
+    GLuint adaptive_[8] = {};
+    size_t adaptiveCapacity_[8] = {};
+    size_t adaptiveVertices_ = 0, adaptiveTriangles_ = 0;
 };
 
 }  // namespace gl
