@@ -22,6 +22,11 @@ uniform float u_alphaCutoff;
 
 out vec4 o_color;
 
+#ifdef STRATA_ADAPTIVE_DRAW
+// Each adaptive triangle's control face level, the "error" colour mode's value.
+layout(std430, binding = 12) readonly buffer TriangleLevels { float triangleLevels[]; };
+#endif
+
 vec3 ramp(float t)
 {
     // Blue -> cyan -> green -> yellow -> red, as the paper's Fig. 6 maps.
@@ -52,8 +57,14 @@ void main()
     }
     if (u_colorMode == 1)
         base = ramp((v_displacement - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
-    else if (u_colorMode == 2)
-        base = ramp((v_error - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
+    else if (u_colorMode == 2) {
+#ifdef STRATA_ADAPTIVE_DRAW
+        float value = triangleLevels[gl_PrimitiveID];
+#else
+        float value = v_error;
+#endif
+        base = ramp((value - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
+    }
     vec3 key = normalize(vec3(0.5, 0.8, 0.6));
     vec3 fill = normalize(vec3(-0.6, 0.2, -0.4));
     float diffuse = max(dot(n, key), 0.0) * 0.75 + max(dot(n, fill), 0.0) * 0.2;

@@ -10,6 +10,12 @@ layout(std430, binding = 8) readonly buffer Triangles { uint triangles[]; };
 layout(std430, binding = 12) readonly buffer Errors { float errors[]; };
 layout(std430, binding = 14) readonly buffer CornerUVs { vec2 cornerUVs[]; };
 uniform int u_corners;
+#ifdef STRATA_ADAPTIVE_DRAW
+// An adaptive frame (adaptive.h): gl_VertexID is a frame vertex, already
+// displaced by the evaluator; frameVertices gives its refined vertex.
+layout(std430, binding = 6) readonly buffer Displaced { vec4 displaced[]; };
+layout(std430, binding = 13) readonly buffer FrameVertices { uint frameVertices[]; };
+#endif
 
 layout(location = 0) in vec2 a_uv;
 layout(location = 1) in float a_error;
@@ -25,6 +31,16 @@ out vec2 v_materialUV;
 
 void main()
 {
+#ifdef STRATA_ADAPTIVE_DRAW
+    uint slot = uint(gl_VertexID), refined = frameVertices[slot];
+    v_position = displaced[slot].xyz;
+    v_normal = normals[slot].xyz;
+    v_displacement = strata_vertex_displacement(refined, sampleUVs[refined]);
+    v_error = 0.0;  // the fragment shader reads its triangle's level
+    v_materialUV = vec2(0.0);
+    gl_Position = u_viewProjection * vec4(v_position, 1.0);
+    return;
+#endif
     uint v = uint(gl_VertexID);
     vec2 uv = a_uv;
     float error = a_error;

@@ -5,6 +5,7 @@
 #include "strata/animation.h"
 #include "strata/gl/context.h"
 #include "strata/gl/evaluator.h"
+#include "strata/gl/framebuffer.h"
 #include "strata/gl/gpu_surface.h"
 #include "strata/gl/shaders.h"
 #include "strata/normals.h"
@@ -13,6 +14,7 @@
 #include "test_rigs.h"
 
 #include <random>
+#include <set>
 
 using strata::test::maxDistance;
 
@@ -317,4 +319,73 @@ TEST(Gpu, AdaptiveFramesMatchTheCpuAtRandomLevelMixes)
             EXPECT_EQ(command[1], 1u) << label;
         }
     }
+}
+
+// The adaptive draw (GpuSurface::drawAdaptive, one glDrawElementsIndirect)
+// covers the same pixels as the uniform finest draw, and its level false
+// colour shows several levels when the faces have several.
+TEST(Gpu, AdaptiveDrawCoversWhatTheUniformDrawCovers)
+{
+    ASSERT_NE(context(), nullptr);
+    Rig rig;
+    DisplacementMap map;
+    test::makeBendingExampleRig(&rig, &map);
+    std::unique_ptr<Surface> s;
+    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+    ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+    std::unique_ptr<gl::GpuSurface> gpu;
+    ASSERT_TRUE(gl::GpuSurface::create(&gpu, s->plan()).isOk());
+    ASSERT_TRUE(gpu->setDisplacements(s->plan().displacements().data(), s->vertexCount()).isOk());
+    ViewSpec view;
+    view.eye = glm::vec3(0.4f, 0.3f, 4.0f);
+    view.heightPx = 256.0f;
+    ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk());
+    ASSERT_TRUE(gpu->setAdaptive(s->adaptiveFrame()).isOk());
+    gl::Framebuffer fb;
+    ASSERT_TRUE(fb.create(256, 256, 1).isOk());
+    gl::DrawParams params;
+    params.eye = view.eye;
+    params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), 1.0f, 0.1f, 100.0f) *
+                            glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+    auto render = [&](bool adaptive, gl::ColorMode mode, std::vector<uint8_t>* rgb) {
+        fb.bind();
+        glViewport(0, 0, 256, 256);
+        glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        glEnable(GL_DEPTH_TEST);
+        params.colorMode = mode;
+        params.colorRange = glm::vec2(0.0f, float(s->level()));
+        const glm::vec3* cp = s->controlPositions().data();
+        const glm::vec3* cn = s->controlNormals().data();
+        if (adaptive) {
+            ASSERT_TRUE(gpu->updateAdaptive(cp, cn, s->controlVertexCount()).isOk());
+            gpu->drawAdaptive(params);
+        } else {
+            ASSERT_TRUE(gpu->update(cp, cn, s->controlVertexCount()).isOk());
+            gpu->draw(params);
+        }
+        fb.readRGB(rgb);
+        ASSERT_EQ(glGetError(), GLenum(GL_NO_ERROR));
+    };
+    std::vector<uint8_t> uniform, adaptive, levels;
+    render(false, gl::ColorMode::Shaded, &uniform);
+    render(true, gl::ColorMode::Shaded, &adaptive);
+    render(true, gl::ColorMode::Error, &levels);
+    size_t covered[2] = {0, 0}, differ = 0;
+    std::set<uint32_t> colours;
+    for (size_t i = 0; i < uniform.size(); i += 3) {
+        const bool u = uniform[i] | uniform[i + 1] | uniform[i + 2], a = adaptive[i] | adaptive[i + 1] | adaptive[i + 2];
+        covered[0] += u;
+        covered[1] += a;
+        differ += u != a;
+        if (levels[i] | levels[i + 1] | levels[i + 2])
+            colours.insert(uint32_t(levels[i]) << 16 | uint32_t(levels[i + 1]) << 8 | levels[i + 2]);
+    }
+    EXPECT_GT(covered[0], size_t(256 * 256 / 10));
+    // Within the 1-pixel tolerance the silhouettes differ by at most a
+    // pixel along the outline.
+    EXPECT_LT(differ, covered[0] / 20) << covered[0] << " " << covered[1];
+    std::set<int> faceLevels(s->adaptiveFrame().levels().begin(), s->adaptiveFrame().levels().end());
+    EXPECT_GT(faceLevels.size(), 1u);
+    EXPECT_GT(colours.size(), 1u);
 }

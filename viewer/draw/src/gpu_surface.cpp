@@ -66,10 +66,13 @@ Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bo
 
 GpuSurface::~GpuSurface()
 {
-    for (GLuint b : {errors_, feedback_, cornerUVs_})
+    for (GLuint b : {errors_, feedback_, cornerUVs_, triangleLevels_})
         if (b)
             glDeleteBuffers(1, &b);
     glDeleteVertexArrays(1, &vao_);
+    glDeleteVertexArrays(1, &adaptiveVao_);
+    if (adaptiveProgram_)
+        glDeleteProgram(adaptiveProgram_);
     glDeleteVertexArrays(1, &cornerVao_);
     for (GpuMaterial& m : materials_)
         glDeleteTextures(1, &m.texture);
@@ -182,6 +185,102 @@ void GpuSurface::drawMaterials(GLuint prog)
     glBindTextureUnit(1, 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+}
+
+Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
+{
+    if (!adaptiveProgram_) {
+        const std::string defines = "#define STRATA_ADAPTIVE_DRAW 1\n";
+        const std::string vertex = samplingPrelude(defines) + embedded::surfaceVert;
+        const std::string fragment = std::string("#version 450 core\n") + defines + embedded::surfaceFrag;
+        if (Status st = buildProgram(&adaptiveProgram_, "surface (adaptive)",
+                                     {{GL_VERTEX_SHADER, vertex}, {GL_FRAGMENT_SHADER, fragment}});
+            !st)
+            return st;
+        glCreateVertexArrays(1, &adaptiveVao_);
+    }
+    if (Status st = evaluator_->setAdaptive(frame); !st)
+        return st;
+    // Each triangle's control face level, for the false colour.
+    std::vector<float> levels(frame.triangleCount());
+    for (size_t t = 0; t < levels.size(); ++t)
+        levels[t] = float(frame.levels()[frame.triangleFaces()[t]]);
+    const size_t bytes = std::max<size_t>(levels.size(), 1) * 4;
+    if (triangleLevelsCapacity_ < bytes) {
+        if (triangleLevels_)
+            glDeleteBuffers(1, &triangleLevels_);
+        ownBytes_ = ownBytes_ - triangleLevelsCapacity_ + bytes + bytes / 4;
+        triangleLevelsCapacity_ = bytes + bytes / 4;
+        glCreateBuffers(1, &triangleLevels_);
+        glNamedBufferStorage(triangleLevels_, GLsizeiptr(triangleLevelsCapacity_), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    }
+    glNamedBufferSubData(triangleLevels_, 0, GLsizeiptr(levels.size() * 4), levels.data());
+    glVertexArrayElementBuffer(adaptiveVao_, evaluator_->adaptiveBuffer(AdaptiveBuffer::Triangles));
+    if (glGetError() != GL_NO_ERROR)
+        return Status(StatusCode::Unsupported, "OpenGL reported an error while setting up the adaptive draw");
+    return Status::ok();
+}
+
+Status GpuSurface::updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
+{
+    Status st = evaluator_->updateAdaptive(controlPositions, controlNormals, count);
+    if (st && timing_) {
+        const EvaluatorTimings& t = evaluator_->timings();
+        timings_.uploadMs = t.uploadMs;
+        timings_.stencilMs = t.stencilMs;
+        timings_.normalsMs = t.normalsMs;
+    }
+    return st;
+}
+
+void GpuSurface::drawAdaptive(const DrawParams& p)
+{
+    if (!adaptiveProgram_ || !evaluator_->adaptiveBuffer(AdaptiveBuffer::Indirect))
+        return;
+    std::chrono::steady_clock::time_point start;
+    if (timing_) {
+        glFinish();
+        start = std::chrono::steady_clock::now();
+    }
+    const GLuint prog = adaptiveProgram_;
+    evaluator_->bindSampling(prog);
+    glUseProgram(prog);
+    Evaluator& e = *evaluator_;
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kDisplaced, e.adaptiveBuffer(AdaptiveBuffer::Displaced));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kNormals, e.adaptiveBuffer(AdaptiveBuffer::Normals));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kFrameVertices, e.adaptiveBuffer(AdaptiveBuffer::FrameVertices));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, e.buffer(kSampleUVs));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, triangleLevels_);
+    glUniformMatrix4fv(glGetUniformLocation(prog, "u_viewProjection"), 1, GL_FALSE, glm::value_ptr(p.viewProjection));
+    glUniform1i(glGetUniformLocation(prog, "u_haveNormals"), e.shadingNormals() ? 1 : 0);
+    glUniform3fv(glGetUniformLocation(prog, "u_eye"), 1, glm::value_ptr(p.eye));
+    glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
+    glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
+    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(p.colorMode));
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+    glBindVertexArray(adaptiveVao_);
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, e.adaptiveBuffer(AdaptiveBuffer::Indirect));
+    if (p.wireframe) {
+        glEnable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(1.0f, 1.0f);
+    }
+    glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr);
+    if (p.wireframe) {
+        glDisable(GL_POLYGON_OFFSET_FILL);
+        glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+        glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(ColorMode::Flat));
+        glUniform3f(glGetUniformLocation(prog, "u_baseColor"), 0.12f, 0.12f, 0.14f);
+        glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr);
+        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    }
+    glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+    glBindVertexArray(0);
+    glUseProgram(0);
+    if (timing_) {
+        glFinish();
+        timings_.drawMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    }
 }
 
 Status GpuSurface::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)

@@ -97,6 +97,15 @@ public:
     Status update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
     void draw(const DrawParams& params);
 
+    /// Adaptive level of detail (adaptive.h): the frame goes up when its
+    /// levels change (setAdaptive), each pose is evaluated over the frame's
+    /// vertices (updateAdaptive) and drawn with one glDrawElementsIndirect
+    /// (drawAdaptive).  ColorMode::Error then shows each control face's
+    /// level in false colour over DrawParams::colorRange (0..finest).
+    Status setAdaptive(const AdaptiveFrame& frame);
+    Status updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
+    void drawAdaptive(const DrawParams& params);
+
     /// Displaced positions as the vertex shader computes them.
     Status readPositions(std::vector<glm::vec3>* out);
     /// Shading normals from the normal pass.
@@ -125,6 +134,8 @@ private:
     GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0;  // buffers of the draw pass only
     GLuint vao_ = 0, cornerVao_ = 0;
     GLuint surface_ = 0, feedbackProgram_ = 0;
+    GLuint adaptiveProgram_ = 0, adaptiveVao_ = 0, triangleLevels_ = 0;  // the adaptive draw
+    size_t triangleLevelsCapacity_ = 0;
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };
