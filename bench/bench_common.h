@@ -76,16 +76,22 @@ public:
         rows_.push_back("{" + current_ + "}");
         current_.clear();
     }
-    /// Writes the rows as a JSON array; false when the file cannot be written.
+    /// The rows as a JSON array.
+    std::string text() const
+    {
+        std::string t = "[\n";
+        for (size_t i = 0; i < rows_.size(); ++i)
+            t += "  " + rows_[i] + (i + 1 < rows_.size() ? ",\n" : "\n");
+        return t + "]";
+    }
+    /// Writes text() to a file; false when it cannot be written.
     bool write(const std::string& path) const
     {
         FILE* f = std::fopen(path.c_str(), "w");
         if (!f)
             return false;
-        std::fputs("[\n", f);
-        for (size_t i = 0; i < rows_.size(); ++i)
-            std::fprintf(f, "  %s%s\n", rows_[i].c_str(), i + 1 < rows_.size() ? "," : "");
-        std::fputs("]\n", f);
+        const std::string t = text() + "\n";
+        std::fputs(t.c_str(), f);
         return std::fclose(f) == 0;
     }
 

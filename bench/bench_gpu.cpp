@@ -6,6 +6,13 @@
 // levels 0..5 (6 with --max 6).
 //
 //   bench_gpu [--size WxH] [--max-level N]
+//   bench_gpu --adaptive [--level N] [--size WxH] [--json FILE]
+//
+// --adaptive: one displaced, animated character of about a million refined
+// vertices (a 500-face geodesic head, the example's head map, two joints
+// bending it; level 6), uniform against adaptive (1-pixel tolerance, the
+// model filling 100%, 30% and 10% of the view's height), stage by stage, as
+// JSON on stdout (and into FILE).  tools/gpu/ packs this for a GPU machine.
 //
 // Headless through EGL: llvmpipe on a machine without a GPU, the vendor's
 // driver where there is one (the context line says which).
@@ -22,6 +29,10 @@
 #include "strata/surface.h"
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include <map>
+#include <tuple>
 
 #include <algorithm>
 #include <cstdio>
@@ -145,23 +156,278 @@ void run(const Case& c, int width, int height, int maxLevel)
     }
 }
 
+// A geodesic sphere: each icosahedron face cut into f^2 triangles, welded,
+// on the unit sphere (20 f^2 faces).
+ControlMesh geodesicSphere(int f)
+{
+    const ControlMesh ico = examples::makeIcosphere(0);
+    ControlMesh m;
+    std::map<std::tuple<long, long, long>, uint32_t> welded;
+    auto vertex = [&](glm::vec3 p) {
+        p = glm::normalize(p);
+        const auto key = std::make_tuple(std::lround(p.x * 1e5f), std::lround(p.y * 1e5f), std::lround(p.z * 1e5f));
+        const auto it = welded.find(key);
+        if (it != welded.end())
+            return it->second;
+        m.positions.push_back(p);
+        return welded[key] = uint32_t(m.positions.size() - 1);
+    };
+    for (size_t t = 0; t < ico.faceCount(); ++t) {
+        const glm::vec3 a = ico.positions[ico.triangles[3 * t]], b = ico.positions[ico.triangles[3 * t + 1]],
+                        c = ico.positions[ico.triangles[3 * t + 2]];
+        std::vector<uint32_t> id(size_t(f + 1) * size_t(f + 1));
+        for (int i = 0; i <= f; ++i)
+            for (int j = 0; i + j <= f; ++j)
+                id[size_t(i) * size_t(f + 1) + size_t(j)] =
+                    vertex(a + (b - a) * (float(i) / float(f)) + (c - a) * (float(j) / float(f)));
+        auto at = [&](int i, int j) { return id[size_t(i) * size_t(f + 1) + size_t(j)]; };
+        for (int i = 0; i < f; ++i)
+            for (int j = 0; i + j < f; ++j) {
+                m.triangles.insert(m.triangles.end(), {at(i, j), at(i + 1, j), at(i, j + 1)});
+                if (i + j + 1 < f)
+                    m.triangles.insert(m.triangles.end(), {at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)});
+            }
+    }
+    return m;
+}
+
+// The displaced, animated million-vertex character of --adaptive.
+bool makeBigCharacter(Rig* rig, DisplacementMap* map)
+{
+    rig->mesh = geodesicSphere(5);
+    if (!baker::buildTriangleAtlas(&rig->mesh, {2048, 2}).isOk() ||
+        !examples::bakeRadialSurface(map, rig->mesh, 2048, 2, examples::headRadius).isOk())
+        return false;
+    rig->hasDisplacement = true;
+    rig->displacement.encoding = "exr";
+    rig->displacement.width = rig->displacement.height = 2048;
+    rig->displacement.recommendedLevel = 6;
+    Skeleton& s = rig->skeleton;
+    s.nodes.resize(2);
+    s.nodes[0].name = "neck";
+    s.nodes[1].name = "head";
+    s.nodes[1].parent = 0;
+    s.nodes[1].rest.translation = glm::vec3(0.0f, 0.3f, 0.0f);
+    s.skin.joints = {0, 1};
+    s.skin.inverseBindMatrices = {glm::mat4(1.0f), glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -0.3f, 0.0f))};
+    s.weights.influences = 4;
+    for (const glm::vec3& p : rig->mesh.positions) {
+        const float w = glm::clamp(p.y + 0.3f, 0.0f, 1.0f);
+        s.weights.joints.insert(s.weights.joints.end(), {0, 1, 0, 0});
+        s.weights.weights.insert(s.weights.weights.end(), {1.0f - w, w, 0.0f, 0.0f});
+    }
+    Animation nod;
+    nod.name = "nod";
+    AnimationChannel c;
+    c.node = 1;
+    c.path = AnimationPath::Rotation;
+    c.times = {0.0f, 1.0f, 2.0f};
+    for (const glm::quat& q : {glm::quat(1, 0, 0, 0), glm::angleAxis(0.5f, glm::vec3(1.0f, 0.0f, 0.0f)), glm::quat(1, 0, 0, 0)})
+        c.values.insert(c.values.end(), {q.x, q.y, q.z, q.w});
+    nod.channels.push_back(c);
+    nod.end = 2.0f;
+    s.animations.push_back(nod);
+    return finalizeSkeleton(&s, rig->mesh.vertexCount()).isOk();
+}
+
+// Uniform against adaptive on the GPU, stage by stage, as JSON rows.
+int runAdaptive(int width, int height, int level, const std::string& jsonPath, const std::string& device)
+{
+    Rig rig;
+    DisplacementMap map;
+    if (!makeBigCharacter(&rig, &map)) {
+        std::fprintf(stderr, "bench_gpu: could not make the character\n");
+        return 1;
+    }
+    rig.displacement.recommendedLevel = level;
+    std::unique_ptr<Surface> surface;
+    Status st = Surface::create(&surface, rig, &map);
+    if (!st) {
+        std::fprintf(stderr, "bench_gpu: %s\n", st.message().c_str());
+        return 1;
+    }
+    std::unique_ptr<gl::GpuSurface> gpu;
+    if (!(st = gl::GpuSurface::create(&gpu, surface->plan())) ||
+        !(st = gpu->setDisplacements(surface->plan().displacements().data(), surface->vertexCount()))) {
+        std::fprintf(stderr, "bench_gpu: %s\n", st.message().c_str());
+        return 1;
+    }
+    gl::Framebuffer fb;
+    if (!(st = fb.create(width, height))) {
+        std::fprintf(stderr, "bench_gpu: %s\n", st.message().c_str());
+        return 1;
+    }
+    const size_t cn = surface->controlVertexCount(), n = surface->vertexCount();
+    std::printf("bench_gpu --adaptive: %zu control faces, level %d, %zu refined vertices; %dx%d 4x MSAA target; %s\n",
+                rig.mesh.faceCount(), level, n, width, height, device.c_str());
+    std::printf("mode     | fill | vertices  | triangles | choose ms | set ms | upload ms | stencils ms | normals ms | "
+                "draw ms | GPU frame ms | CPU frame ms\n");
+    bench::JsonRows rows;
+    float t = 0.0f;
+    auto pose = [&] {
+        t += 1.0f / 60.0f;
+        surface->setAnimationTime(0, std::fmod(t, 2.0f));
+    };
+    pose();
+    // The posed model's bounding sphere, for the three fills.
+    std::vector<glm::vec3> finePositions(n), shading(n);
+    surface->evaluate(finePositions.data(), shading.data(), n, 1);
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : finePositions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre = 0.5f * (lo + hi);
+    float radius = 0.0f;
+    for (const glm::vec3& p : finePositions)
+        radius = std::max(radius, glm::length(p - centre));
+    surface->faceLevelErrors();  // measured at load, not in a frame
+
+    for (float fill : {1.0f, 0.3f, 0.1f}) {
+        ViewSpec view;
+        view.fovYDegrees = 45.0f;
+        view.heightPx = float(height);
+        const float distance = 2.0f * radius * view.pixelsPerUnitAtDistanceOne() / (fill * view.heightPx);
+        view.target = centre;
+        view.eye = centre + distance * glm::normalize(glm::vec3(0.35f, 0.25f, 1.0f));
+        gl::DrawParams params;
+        params.eye = view.eye;
+        params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height),
+                                                 0.05f * distance, 10.0f * distance) *
+                                glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+        for (int adaptive = 0; adaptive < 2; ++adaptive) {
+            double chooseMs = 0.0, setMs = 0.0;
+            size_t vertices = n, triangles = surface->triangleCount();
+            if (adaptive) {
+                const double c0 = bench::nowMs();
+                surface->chooseFaceLevels(view, 1.0f);
+                const double c1 = bench::nowMs();
+                gpu->setAdaptive(surface->adaptiveFrame());
+                glFinish();
+                const double c2 = bench::nowMs();
+                chooseMs = c1 - c0;
+                setMs = c2 - c1;
+                vertices = surface->adaptiveFrame().vertexCount();
+                triangles = surface->adaptiveFrame().triangleCount();
+            }
+            auto frame = [&] {
+                const glm::vec3* cp = surface->controlPositions().data();
+                const glm::vec3* nn = surface->controlNormals().data();
+                if (adaptive)
+                    gpu->updateAdaptive(cp, nn, cn);
+                else
+                    gpu->update(cp, nn, cn);
+                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+                glEnable(GL_DEPTH_TEST);
+                if (adaptive)
+                    gpu->drawAdaptive(params);
+                else
+                    gpu->draw(params);
+            };
+            fb.bind();
+            glViewport(0, 0, width, height);
+            gpu->setTiming(true);
+            std::vector<double> up, sten, nrm, drw;
+            for (int f = 0; f < 6; ++f) {
+                pose();
+                frame();
+                if (f == 0)
+                    continue;
+                const gl::GpuTimings& g = gpu->timings();
+                up.push_back(g.uploadMs);
+                sten.push_back(g.stencilMs);
+                nrm.push_back(g.normalsMs);
+                drw.push_back(g.drawMs);
+            }
+            gpu->setTiming(false);
+            const double wall = bench::medianMs(
+                [&] {
+                    pose();
+                    frame();
+                    glFinish();
+                },
+                5, 20.0);
+            std::vector<glm::vec3> cpuPositions(vertices), cpuNormals(vertices);
+            const double cpu = bench::medianMs(
+                [&] {
+                    pose();
+                    if (adaptive)
+                        surface->evaluateAdaptive(cpuPositions.data(), cpuNormals.data(), vertices, 1);
+                    else
+                        surface->evaluate(cpuPositions.data(), cpuNormals.data(), vertices, 1);
+                },
+                5, 20.0);
+            const char* mode = adaptive ? "adaptive" : "uniform";
+            std::printf("%-8s | %3.0f%% | %9zu | %9zu | %9.3f | %6.3f | %9.3f | %11.3f | %10.3f | %7.3f | %12.3f | %12.3f\n",
+                        mode, 100.0 * fill, vertices, triangles, chooseMs, setMs, bench::median(up),
+                        bench::median(sten), bench::median(nrm), bench::median(drw), wall, cpu);
+            std::fflush(stdout);
+            rows.field("table", "gpu_adaptive")
+                .field("device", device)
+                .field("mode", mode)
+                .field("fill", double(fill))
+                .field("level", level)
+                .field("vertices", double(vertices))
+                .field("triangles", double(triangles))
+                .field("choose_ms", chooseMs)
+                .field("set_adaptive_ms", setMs)
+                .field("upload_ms", bench::median(up))
+                .field("stencils_displace_ms", bench::median(sten))
+                .field("normals_ms", bench::median(nrm))
+                .field("draw_ms", bench::median(drw))
+                .field("gpu_frame_ms", wall)
+                .field("cpu_frame_ms", cpu)
+                .field("width", width)
+                .field("height", height)
+                .endRow();
+        }
+    }
+    std::printf("%s\n", rows.text().c_str());
+    if (!jsonPath.empty() && !rows.write(jsonPath)) {
+        std::fprintf(stderr, "bench_gpu: cannot write %s\n", jsonPath.c_str());
+        return 1;
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv)
 {
-    int width = 1280, height = 720, maxLevel = 5;
+    int width = 1280, height = 720, maxLevel = 5, adaptiveLevel = 6;
+    bool adaptive = false, sizeGiven = false;
+    std::string jsonPath;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--size") && i + 1 < argc)
-            std::sscanf(argv[++i], "%dx%d", &width, &height);
+            sizeGiven = std::sscanf(argv[++i], "%dx%d", &width, &height) == 2;
         else if (!std::strcmp(argv[i], "--max-level") && i + 1 < argc)
             maxLevel = std::clamp(std::atoi(argv[++i]), 0, kMaxLevel);
+        else if (!std::strcmp(argv[i], "--adaptive"))
+            adaptive = true;
+        else if (!std::strcmp(argv[i], "--level") && i + 1 < argc)
+            adaptiveLevel = std::clamp(std::atoi(argv[++i]), 1, kMaxLevel);
+        else if (!std::strcmp(argv[i], "--json") && i + 1 < argc)
+            jsonPath = argv[++i];
+        else {
+            std::fprintf(stderr, "usage: bench_gpu [--size WxH] [--max-level N]\n"
+                                 "       bench_gpu --adaptive [--level N] [--size WxH] [--json FILE]\n");
+            return 2;
+        }
     }
+    if (adaptive && !sizeGiven) {  // the view the level of detail is measured for
+        width = 1920;
+        height = 1080;
+    }
+    width = std::clamp(width, 16, 8192);
+    height = std::clamp(height, 16, 8192);
     std::unique_ptr<gl::HeadlessContext> ctx;
     const Status st = gl::HeadlessContext::create(&ctx);
     if (!st) {
         std::fprintf(stderr, "bench_gpu: %s\n", st.message().c_str());
         return 1;
     }
+    if (adaptive)
+        return runAdaptive(width, height, adaptiveLevel, jsonPath, ctx->description());
     std::printf("bench_gpu: %s\n", ctx->description().c_str());
 
     Case example;
