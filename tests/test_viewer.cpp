@@ -7,6 +7,8 @@
 
 #include <cstdlib>
 
+#include <cstring>
+
 using namespace strata;
 
 namespace {
@@ -106,6 +108,35 @@ TEST(Viewer, BuiltInExampleScreenshotsShowTheDetail)
     // The false-colour view is not the shaded one.
     const Image colour = shoot(rig, "--level 4 --yaw 0 --pitch 0 --color displacement", dir + "/colour.png");
     EXPECT_GT(meanDifference(l4, colour, c.x0, c.y0, c.x1, c.y1), 10.0);
+}
+
+// --adaptive: the same silhouette as the uniform finest level, far fewer
+// vertices (printed), several levels in false colour, and with level colours
+// off a shaded image close to the uniform one.
+TEST(Viewer, AdaptiveModeDrawsTheSameHeadWithFewerVertices)
+{
+    const std::string dir = test::tempDir("viewer_adaptive");
+    const std::string rig = test::writeExampleRig(dir, "head");
+    // The adaptive draw has no materials yet: both in the plain base colour.
+    const Image uniform = shoot(rig, "--level 4 --yaw 0 --pitch 0 --no-materials", dir + "/uniform.png");
+    const Image shaded =
+        shoot(rig, "--level 4 --yaw 0 --pitch 0 --no-materials --adaptive --no-level-colours", dir + "/shaded.png");
+    const test::CommandResult r =
+        test::runCommand(std::string(STRATA_VIEW_EXE) + " '" + rig + "' --headless --no-grid --size 320x240 --level 4 "
+                         "--yaw 0 --pitch 0 --adaptive --pixel-error 2 --screenshot '" + dir + "/levels.png'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const size_t at = r.output.find("adaptive within 2.00 px: ");
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const long vertices = std::atol(r.output.c_str() + at + std::strlen("adaptive within 2.00 px: "));
+    EXPECT_GT(vertices, 0) << r.output;
+    EXPECT_LT(vertices, 2562 * 4) << r.output;  // level 4 everywhere: 20 * 4^5 / 2 + 2 = 10242
+    Image levels;
+    ASSERT_TRUE(io::readPngRgb(dir + "/levels.png", &levels.width, &levels.height, &levels.rgb).isOk());
+    expectInFrame(shaded, "adaptive shaded");
+    const Coverage cu = coverage(uniform), ca = coverage(shaded);
+    EXPECT_NEAR(ca.fraction, cu.fraction, 0.01);
+    EXPECT_LT(meanDifference(uniform, shaded, cu.x0, cu.y0, cu.x1, cu.y1), 4.0);
+    EXPECT_GT(meanDifference(shaded, levels, cu.x0, cu.y0, cu.x1, cu.y1), 10.0);
 }
 
 TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)

@@ -37,10 +37,13 @@ const char* kUsage =
     "                   [--time T] [--skinning linear|dq|segments] [--high HIGH.{obj,ply,...}]\n"
     "                   [--color shaded|displacement|error] [--no-displacement] [--scale S]\n"
     "                   [--wireframe] [--cage] [--no-grid] [--yaw DEG] [--pitch DEG] [--camera TX,TY,TZ,D]\n"
-    "                   [--no-materials] [--screenshot OUT.png [--headless] [--ui]] [--size WxH] [--version]\n"
+    "                   [--no-materials] [--adaptive [--pixel-error P] [--no-level-colours]]\n"
+    "                   [--screenshot OUT.png [--headless] [--ui]] [--size WxH] [--version]\n"
     "  --time without --anim plays animation 0; a screenshot frames the posed model and leaves\n"
     "  the panel out unless --ui (the displacement and error views draw their colour scale);\n"
-    "  --camera gives the view instead (each screenshot prints the one it used)\n";
+    "  --camera gives the view instead (each screenshot prints the one it used)\n"
+    "  --adaptive: each control face at the lowest level within P pixels (default 1) of --level\n"
+    "     for the view, stitched without cracks, levels in false colour\n";
 
 struct Options {
     std::string file, high, screenshot, anim;
@@ -118,8 +121,13 @@ int runHeadless(viewer::Scene& scene, const Options& o)
     fb.readRGB(&rgb);
     if (!(st = writeScreenshot(o.screenshot, o.width, o.height, rgb)))
         throw cli::Error(st.message());
-    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices -> %s (%s; --camera %g,%g,%g,%g)\n", o.file.c_str(),
-                 scene.currentLevel(), scene.vertexCount(), o.screenshot.c_str(), ctx->description().c_str(),
+    std::string adaptive;
+    if (scene.settings.adaptive)
+        adaptive = " adaptive within " + std::to_string(scene.settings.pixelError).substr(0, 4) + " px: " +
+                   std::to_string(scene.adaptiveVertexCount()) + " vertices, levels " +
+                   std::to_string(scene.adaptiveLevelMin()) + ".." + std::to_string(scene.adaptiveLevelMax()) + ";";
+    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices;%s -> %s (%s; --camera %g,%g,%g,%g)\n", o.file.c_str(),
+                 scene.currentLevel(), scene.vertexCount(), adaptive.c_str(), o.screenshot.c_str(), ctx->description().c_str(),
                  double(scene.camera.target.x), double(scene.camera.target.y), double(scene.camera.target.z),
                  double(scene.camera.distance));
     return 0;
@@ -146,7 +154,17 @@ void drawPanel(viewer::Scene& scene, double frameMs)
         ImGui::TextWrapped("CPU skin %.3f ms; GPU stencils %.3f, normals %.3f, draw %.3f ms", scene.cpuFrameMs(),
                     scene.gpuTimings().stencilMs, scene.gpuTimings().normalsMs, scene.gpuTimings().drawMs);
         ImGui::Separator();
-        ImGui::SliderInt("level", &s.level, 0, kMaxLevel);
+        ImGui::SliderInt(s.adaptive ? "finest level" : "level", &s.level, 0, kMaxLevel);
+        ImGui::Checkbox("adaptive", &s.adaptive);
+        if (s.adaptive) {
+            ImGui::SameLine();
+            ImGui::Checkbox("level colours", &s.levelColours);
+            ImGui::SliderFloat("pixel tolerance", &s.pixelError, 0.25f, 16.0f, "%.2f px", ImGuiSliderFlags_Logarithmic);
+            ImGui::Text("adaptive: %zu vertices (uniform %zu), levels %d..%d", scene.adaptiveVertexCount(),
+                        scene.vertexCount(), scene.adaptiveLevelMin(), scene.adaptiveLevelMax());
+            ImGui::Text("level choice %.3f ms; blue level 0 .. red level %d", scene.adaptiveChooseMs(),
+                        scene.currentLevel());
+        }
         int scheme = int(s.scheme);
         if (ImGui::Combo("scheme", &scheme, "linear (paper)\0smooth (limit)\0"))
             s.scheme = Scheme(scheme);
@@ -361,6 +379,14 @@ int main(int argc, char** argv)
                 s.colorMode = cli::parseChoice<gl::ColorMode>(a, value(), {{"shaded", gl::ColorMode::Shaded},
                                                                           {"displacement", gl::ColorMode::Displacement},
                                                                           {"error", gl::ColorMode::Error}});
+            } else if (a == "--adaptive") {
+                s.adaptive = true;
+            } else if (a == "--pixel-error") {
+                s.pixelError = cli::parseFloat(a, value());
+                if (!(s.pixelError > 0.0f) || s.pixelError > 1e6f)
+                    throw cli::Error("--pixel-error expects a number of pixels in (0, 1e6]");
+            } else if (a == "--no-level-colours") {
+                s.levelColours = false;
             } else if (a == "--no-displacement") {
                 s.displacement = false;
             } else if (a == "--scale") {

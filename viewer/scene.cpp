@@ -357,9 +357,12 @@ void Scene::update(float dt)
         buildLines();
     }
     surface_->setDisplacementScale(settings.displacement ? settings.scale : 0.0f);
-    Status st = surface_->update(positions, normals, rig_->mesh.vertexCount());
-    if (!st)
-        lastError_ = st.message();
+    // The adaptive frame is evaluated in render(), once the view is known.
+    if (!settings.adaptive) {
+        Status st = surface_->update(positions, normals, rig_->mesh.vertexCount());
+        if (!st)
+            lastError_ = st.message();
+    }
     if (settings.cage && lineBuffer_ && cageCount_ > 0) {
         // Posed cage edges.
         for (size_t k = 0; k < cageEdges_.size(); ++k)
@@ -399,7 +402,10 @@ void Scene::render(int width, int height)
         p.colorRange = glm::vec2(dMin_ * settings.scale, dMax_ * settings.scale);
     else if (settings.colorMode == gl::ColorMode::Error)
         p.colorRange = glm::vec2(0.0f, std::max(errorMax_, 1e-12f));
-    surface_->draw(p);
+    if (settings.adaptive)
+        renderAdaptive(eye, height, &p);
+    else
+        surface_->draw(p);
     if (lineProgram_) {
         glUseProgram(lineProgram_);
         glUniformMatrix4fv(glGetUniformLocation(lineProgram_, "u_viewProjection"), 1, GL_FALSE,
@@ -421,6 +427,42 @@ void Scene::render(int width, int height)
     if (settings.colorMode == gl::ColorMode::Displacement ||
         (settings.colorMode == gl::ColorMode::Error && hasHigh()))
         drawColorScale(width, height);
+}
+
+// The adaptive frame for this view: levels chosen for the current pose,
+// the GPU frame set up again only when they change, evaluated and drawn.
+void Scene::renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* p)
+{
+    ViewSpec view;
+    view.eye = eye;
+    view.target = camera.target;
+    view.fovYDegrees = glm::degrees(camera.fovY);
+    view.heightPx = float(std::max(height, 1));
+    const auto t0 = std::chrono::steady_clock::now();
+    Status st = cpu_->chooseFaceLevels(view, std::max(settings.pixelError, 0.01f));
+    adaptiveChooseMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const AdaptiveFrame& frame = cpu_->adaptiveFrame();
+    if (st && frame.levels() != drawnLevels_) {
+        st = surface_->setAdaptive(frame);
+        drawnLevels_ = frame.levels();
+    }
+    if (st)
+        st = surface_->updateAdaptive(cpu_->controlPositions().data(), cpu_->controlNormals().data(),
+                                      cpu_->controlVertexCount());
+    if (!st) {
+        lastError_ = "adaptive: " + st.message();
+        settings.adaptive = false;
+        return;
+    }
+    adaptiveVertices_ = frame.vertexCount();
+    adaptiveTriangles_ = frame.triangleCount();
+    adaptiveLevels_[0] = frame.levels().empty() ? 0 : *std::min_element(frame.levels().begin(), frame.levels().end());
+    adaptiveLevels_[1] = frame.levels().empty() ? 0 : *std::max_element(frame.levels().begin(), frame.levels().end());
+    if (settings.levelColours) {
+        p->colorMode = gl::ColorMode::Error;
+        p->colorRange = glm::vec2(0.0f, float(std::max(cpu_->level(), 1)));
+    }
+    surface_->drawAdaptive(*p);
 }
 
 // The false-colour ramp as a bar at the right edge, blue (low) at the bottom

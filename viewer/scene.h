@@ -31,6 +31,11 @@ struct Settings {
     bool wireframe = false, cage = false, grid = true;
     bool materials = true;  ///< draw each primitive's material (else flat grey)
     gl::ColorMode colorMode = gl::ColorMode::Shaded;
+    /// Adaptive level of detail (adaptive.h): each control face at the
+    /// lowest level within pixelError pixels of `level` for the current view.
+    bool adaptive = false;
+    float pixelError = 1.0f;
+    bool levelColours = true;  ///< adaptive: each face's level in false colour
 };
 
 struct Camera {
@@ -81,6 +86,13 @@ public:
     bool hasHigh() const { return !highPositions_.empty(); }
     float animationLength() const;
     double cpuFrameMs() const { return cpuFrameMs_; }
+    /// The adaptive frame drawn last (settings.adaptive): its vertices and
+    /// triangles, its lowest and highest level, and the level choice's time.
+    size_t adaptiveVertexCount() const { return adaptiveVertices_; }
+    size_t adaptiveTriangleCount() const { return adaptiveTriangles_; }
+    int adaptiveLevelMin() const { return adaptiveLevels_[0]; }
+    int adaptiveLevelMax() const { return adaptiveLevels_[1]; }
+    double adaptiveChooseMs() const { return adaptiveChooseMs_; }
     const gl::GpuTimings& gpuTimings() const;
     void setTiming(bool on);
 
@@ -109,6 +121,11 @@ private:
     float dMin_ = 0.0f, dMax_ = 0.0f, errorMax_ = 0.0f, radius_ = 1.0f, aspect_ = 1.6f;
     glm::vec3 lo_{0.0f}, hi_{0.0f};
     double cpuFrameMs_ = 0.0;
+    void renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* params);
+    std::vector<uint8_t> drawnLevels_;  ///< the levels the GPU frame was last set up with
+    size_t adaptiveVertices_ = 0, adaptiveTriangles_ = 0;
+    int adaptiveLevels_[2] = {0, 0};
+    double adaptiveChooseMs_ = 0.0;
     std::vector<glm::vec3> highPositions_;
     std::vector<uint32_t> highTriangles_;
 
