@@ -4,6 +4,7 @@
 #include "strata/control_mesh.h"
 #include "strata/displacement_math.h"
 
+#include "simd.h"
 #include "worker_pool.h"
 
 #include <glm/geometric.hpp>
@@ -18,12 +19,6 @@ namespace strata {
 namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
-
-inline glm::vec3 unitOrZero(glm::vec3 n)
-{
-    const float len = glm::length(n);
-    return len > 0.0f ? n / len : glm::vec3(0.0f);
-}
 
 // The grid point of each slot of a tile of resolution R.
 void slotPoints(std::vector<uint16_t>* is, std::vector<uint16_t>* js, uint32_t R)
@@ -103,23 +98,37 @@ bool ViewSpec::valid() const
            fovYDegrees > 0.0f && fovYDegrees < 180.0f && std::isfinite(heightPx) && heightPx > 0.0f;
 }
 
-void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
+namespace {
+
+// Where grid point (i, j) of a tile at `level` is drawn when its edges are
+// at edgeLevels: a point on an edge drawn coarser snaps along it to the
+// nearest point that edge keeps (a tie to the one nearer the edge's first
+// corner in the face's order); corners and inner points stay.
+void snapPoint(uint32_t* i, uint32_t* j, int level, const int edgeLevels[3])
 {
-    out->clear();
-    const uint32_t R = 1u << level, fineR = 1u << finest, step = 1u << (finest - level);
-    // Snaps t (steps from the edge's first corner, 0..R) to the nearest
-    // point of an edge drawn at edgeLevel; a tie goes to the first corner.
+    const uint32_t R = 1u << level;
     auto snap = [&](uint32_t t, int edgeLevel) {
         const uint32_t m = 1u << (level - edgeLevel);
         return m == 1 ? t : (t + m / 2 - 1) / m * m;
     };
+    if (*j == 0 && *i != 0 && *i != R) {  // edge 0: corner 0 -> 1, t = i
+        *i = snap(*i, edgeLevels[0]);
+    } else if (*i + *j == R && *i != 0 && *j != 0) {  // edge 1: corner 1 -> 2, t = j
+        *j = snap(*j, edgeLevels[1]);
+        *i = R - *j;
+    } else if (*i == 0 && *j != 0 && *j != R) {  // edge 2: corner 2 -> 0, t = R - j
+        *j = R - snap(R - *j, edgeLevels[2]);
+    }
+}
+
+}  // namespace
+
+void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
+{
+    out->clear();
+    const uint32_t R = 1u << level, fineR = 1u << finest, step = 1u << (finest - level);
     auto point = [&](uint32_t i, uint32_t j) {
-        if (j == 0 && i != 0 && i != R)  // edge 0: corner 0 -> 1, t = i
-            i = snap(i, edgeLevels[0]);
-        else if (i + j == R && i != 0 && j != 0)  // edge 1: corner 1 -> 2, t = j
-            j = snap(j, edgeLevels[1]), i = R - j;
-        else if (i == 0 && j != 0 && j != R)  // edge 2: corner 2 -> 0, t = R - j
-            j = R - snap(R - j, edgeLevels[2]);
+        snapPoint(&i, &j, level, edgeLevels);
         return uint16_t(tileSlot(i * step, j * step, fineR));
     };
     auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
@@ -375,6 +384,126 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
     return Status::ok();
 }
 
+// The tile pass's working arrays (structure of arrays, rows padded to
+// whole vectors): the grid's positions and sums, per slot; the up and down
+// triangles' normals, per row with a zero before and after (row -1 and row
+// R are zero rows).
+void AdaptiveFrame::Scratch::resize(int finest)
+{
+    const size_t R = size_t(1) << finest, width = (R + 2 + 7) / 8 * 8 + 8;
+    rowWidth = width;
+    for (std::vector<float>* v : {&px, &py, &pz, &sx, &sy, &sz})
+        v->assign((R + 1) * width, 0.0f);
+    for (int a = 0; a < 3; ++a) {
+        up[a].assign((R + 2) * width, 0.0f);
+        down[a].assign((R + 2) * width, 0.0f);
+    }
+}
+
+namespace {
+
+STRATA_KERNEL_INLINE void crossRowSoA(size_t n, const float* __restrict ax, const float* __restrict ay,
+                                      const float* __restrict az, const float* __restrict bx, const float* __restrict by,
+                                      const float* __restrict bz, const float* __restrict cx, const float* __restrict cy,
+                                      const float* __restrict cz, float* __restrict ox, float* __restrict oy,
+                                      float* __restrict oz)
+{
+    for (size_t i = 0; i < n; ++i) {
+        const float ux = bx[i] - ax[i], uy = by[i] - ay[i], uz = bz[i] - az[i];
+        const float vx = cx[i] - ax[i], vy = cy[i] - ay[i], vz = cz[i] - az[i];
+        ox[i] = uy * vz - uz * vy;
+        oy[i] = uz * vx - ux * vz;
+        oz[i] = ux * vy - uy * vx;
+    }
+}
+
+// Slot (i, j) sums up(i, j), up(i - 1, j), up(i, j - 1), down(i - 1, j),
+// down(i - 1, j - 1) and down(i, j - 1): in the padded rows (entry x of a
+// row is triangle x - 1) entries i + 1 and i of rows j and j - 1.
+STRATA_KERNEL_INLINE void sumRowSoA(size_t n, const float* __restrict u, const float* __restrict uBelow,
+                                    const float* __restrict d, const float* __restrict dBelow, float* __restrict out)
+{
+    for (size_t i = 0; i < n; ++i)
+        out[i] = u[i + 1] + u[i] + uBelow[i + 1] + d[i] + dBelow[i] + dBelow[i + 1];
+}
+
+}  // namespace
+
+STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex,
+                                                           const uint32_t* partial, const uint16_t* snapped,
+                                                           size_t snappedCount, const uint16_t* snapTo,
+                                                           const glm::vec3* positions, glm::vec3* normals,
+                                                           glm::vec3* partials, Scratch& s)
+{
+    const size_t R = size_t(1) << level, W = s.rowWidth;
+    const size_t slots = (R + 1) * (R + 2) / 2;
+    float* px = s.px.data();
+    float* py = s.py.data();
+    float* pz = s.pz.data();
+    // Positions, by slot (row j starts at tileSlot(0, j, R)).
+    for (size_t k = 0; k < slots; ++k) {
+        const glm::vec3 p = positions[source[k]];
+        px[k] = p.x;
+        py[k] = p.y;
+        pz[k] = p.z;
+    }
+    // Triangle normals row by row, into padded rows (entry i + 1: triangle i).
+    // Row r of the buffers is grid row r - 1 (buffer row 0: the zero row -1).
+    for (size_t j = 0; j < R; ++j) {
+        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), r1 = tileSlot(0, uint32_t(j + 1), uint32_t(R));
+        const size_t nu = R - j, nd = R - j - 1, row = (j + 1) * W + 1;
+        crossRowSoA(nu, px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
+                    s.up[0].data() + row, s.up[1].data() + row, s.up[2].data() + row);
+        crossRowSoA(nd, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
+                    pz + r1, s.down[0].data() + row, s.down[1].data() + row, s.down[2].data() + row);
+        for (int a = 0; a < 3; ++a) {  // the zeros after the row (earlier tiles may have left values)
+            std::fill(s.up[a].data() + row + nu, s.up[a].data() + row + R + 1, 0.0f);
+            std::fill(s.down[a].data() + row + nd, s.down[a].data() + row + R + 1, 0.0f);
+        }
+    }
+    for (int a = 0; a < 3; ++a) {  // grid row R has no triangles
+        std::fill(s.up[a].data() + (R + 1) * W, s.up[a].data() + (R + 2) * W, 0.0f);
+        std::fill(s.down[a].data() + (R + 1) * W, s.down[a].data() + (R + 2) * W, 0.0f);
+    }
+    float* sum[3] = {s.sx.data(), s.sy.data(), s.sz.data()};
+    for (size_t j = 0; j <= R; ++j) {
+        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), row = (j + 1) * W, below = j * W;
+        for (int a = 0; a < 3; ++a)
+            sumRowSoA(R - j + 1, s.up[a].data() + row, s.up[a].data() + below, s.down[a].data() + row,
+                      s.down[a].data() + below, sum[a] + r0);
+    }
+    // A snapped point's triangles are its target's in the stitched tile.
+    for (size_t k = 0; k < snappedCount; ++k) {
+        const uint16_t from = snapped[k], to = snapTo[from];
+        for (int a = 0; a < 3; ++a)
+            sum[a][to] += sum[a][from];
+    }
+    // The border's partial sums (rows 0 and the two slanted sides), then
+    // every slot normalised at once (vectorised), then the inner vertices.
+    auto keep = [&](size_t k) {
+        if (partial[k] != kNone)
+            partials[partial[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+    };
+    for (size_t i = 0; i <= R; ++i)
+        keep(i);
+    for (size_t j = 1; j <= R; ++j) {
+        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R));
+        keep(r0);
+        if (j < R)
+            keep(r0 + R - j);
+    }
+    for (size_t k = 0; k < slots; ++k) {
+        const float x = sum[0][k], y = sum[1][k], z = sum[2][k];
+        const float len = std::sqrt(x * x + y * y + z * z), inv = len > 0.0f ? 1.0f / len : 0.0f;
+        sum[0][k] = x * inv;
+        sum[1][k] = y * inv;
+        sum[2][k] = z * inv;
+    }
+    for (size_t k = 0; k < slots; ++k)
+        if (vertex[k] != kNone && partial[k] == kNone)
+            normals[vertex[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+}
+
 AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level())
 {
     const uint32_t R = 1u << finest_;
@@ -420,6 +549,19 @@ size_t AdaptiveFrame::templateFor(int level, const int e[3])
         std::vector<uint16_t> cursor(t.offsets.begin(), t.offsets.end() - 1);
         for (size_t k = 0; k < t.local.size(); ++k)
             t.incident[cursor[t.local[k]]++] = uint16_t(k / 3);
+        // The points snapped onto another (the tile pass reads their
+        // target's position and adds their sums into the target's).
+        t.snapTo.resize(slots);
+        t.snapped.clear();
+        for (uint32_t j = 0; j <= R; ++j)
+            for (uint32_t i = 0; i + j <= R; ++i) {
+                uint32_t si = i, sj = j;
+                snapPoint(&si, &sj, level, e);
+                const uint16_t from = uint16_t(tileSlot(i, j, R)), to = uint16_t(tileSlot(si, sj, R));
+                t.snapTo[from] = to;
+                if (from != to)
+                    t.snapped.push_back(from);
+            }
     }
     return key;
 }
@@ -451,6 +593,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     tileFirst_.resize(nf + 1);
     tileVertex_.clear();
     tilePartial_.clear();
+    tileSource_.clear();
     partialVertex_.clear();
     size_t partials = 0;
     for (size_t f = 0; f < nf; ++f) {
@@ -465,6 +608,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
         tileFirst_[f] = uint32_t(base);
         tileVertex_.resize(base + levelSlots, kNone);
         tilePartial_.resize(base + levelSlots, kNone);
+        tileSource_.resize(base + levelSlots, kNone);
         const uint32_t* tile = &tiles_[f * slots_];
         for (size_t k = 0; k < t.size(); ++k) {
             const uint32_t v = tile[t[k]];
@@ -485,6 +629,10 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
             }
         }
         triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
+        // Every slot's position source: its own vertex, or its snap target's.
+        const std::vector<uint16_t>& snapTo = templates_[key].snapTo;
+        for (size_t k = 0; k < levelSlots; ++k)
+            tileSource_[base + k] = tileVertex_[base + snapTo[k]];
     }
     tileFirst_[nf] = uint32_t(tileVertex_.size());
     for (uint32_t v : vertices_)
@@ -573,50 +721,26 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
     if (!normals)
         return Status::ok();
 
-    // Normals per tile: each tile gathers its slots' positions, computes its
-    // triangles' normals, and sums each slot's (in a template's incidence
-    // lists: no read-modify-write chains).  A slot inside the control face
-    // is then final; one on its border leaves a partial sum that the border
-    // pass adds up in tile order.
+    // Normals per tile, on the tile's whole regular grid at its level:
+    // a snapped point takes its target's position, so the grid's triangles
+    // are the stitched tile's (a collapsed one has zero area), and its sum
+    // goes to the target.  A slot inside the control face is then final;
+    // one on its border leaves a partial sum that the border pass adds up
+    // in tile order.
     const size_t nf = levels_.size();
     const int pool = threads <= 1 ? 1 : threads;
     if (scratch_.size() < size_t(pool)) {
-        const size_t most = size_t((1u << finest_) + 1) * ((1u << finest_) + 2) / 2;
         scratch_.resize(size_t(pool));
-        for (Scratch& s : scratch_) {
-            s.positions.resize(most);
-            s.faces.resize(size_t(1) << (2 * finest_));
-        }
+        for (Scratch& s : scratch_)
+            s.resize(finest_);
     }
     parallel(threads, nf, [&](size_t b, size_t e, int t) {
-        glm::vec3* local = scratch_[size_t(t)].positions.data();
-        glm::vec3* faces = scratch_[size_t(t)].faces.data();
+        Scratch& s = scratch_[size_t(t)];
         for (size_t f = b; f < e; ++f) {
-            const uint32_t base = tileFirst_[f], slots = tileFirst_[f + 1] - base;
-            const uint32_t* vertex = &tileVertex_[base];
-            const uint32_t* partial = &tilePartial_[base];
-            for (uint32_t k = 0; k < slots; ++k)
-                local[k] = vertex[k] == kNone ? glm::vec3(0.0f) : positions[vertex[k]];
+            const uint32_t base = tileFirst_[f];
             const TileTemplate& tt = templates_[tileTemplate_[f]];
-            const uint16_t* tri = tt.local.data();
-            const size_t nt = tt.local.size() / 3;
-            for (size_t k = 0; k < nt; ++k) {
-                const glm::vec3 pa = local[tri[3 * k]];
-                faces[k] = glm::cross(local[tri[3 * k + 1]] - pa, local[tri[3 * k + 2]] - pa);
-            }
-            const uint16_t* offsets = tt.offsets.data();
-            const uint16_t* incident = tt.incident.data();
-            for (uint32_t k = 0; k < slots; ++k) {
-                if (vertex[k] == kNone)
-                    continue;
-                glm::vec3 sum(0.0f);
-                for (uint32_t m = offsets[k], end = offsets[k + 1]; m < end; ++m)
-                    sum += faces[incident[m]];
-                if (partial[k] != kNone)
-                    partials_[partial[k]] = sum;
-                else
-                    normals[vertex[k]] = unitOrZero(sum);
-            }
+            shadeAdaptiveTile(levels_[f], &tileSource_[base], &tileVertex_[base], &tilePartial_[base], tt.snapped.data(),
+                              tt.snapped.size(), tt.snapTo.data(), positions, normals, partials_.data(), s);
         }
     });
     parallel(threads, borderVertices_.size(), [&](size_t b, size_t e, int) {
@@ -625,7 +749,8 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
             glm::vec3 sum(0.0f);
             for (uint32_t m = borderOffsets_[v], end = borderOffsets_[v + 1]; m < end; ++m)
                 sum += partials_[borderEntries_[m]];
-            normals[v] = unitOrZero(sum);
+            const float len = glm::length(sum);
+            normals[v] = sum * (len > 0.0f ? 1.0f / len : 0.0f);
         }
     });
     return Status::ok();
@@ -666,10 +791,10 @@ size_t AdaptiveFrame::bytes() const
     for (const TileTemplate& v : templates_)
         t += bytes(v.fine) + bytes(v.local) + bytes(v.offsets) + bytes(v.incident);
     for (const Scratch& v : scratch_)
-        t += bytes(v.positions) + bytes(v.faces);
+        t += 6 * bytes(v.px) + 6 * bytes(v.up[0]);
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
-           bytes(tileTemplate_) + bytes(tileFirst_) + bytes(tileVertex_) + bytes(tilePartial_) + bytes(partialVertex_) +
+           bytes(tileTemplate_) + bytes(tileFirst_) + bytes(tileVertex_) + bytes(tilePartial_) + bytes(tileSource_) + bytes(partialVertex_) +
            bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) + bytes(partials_) + bytes(linear_);
 }
 

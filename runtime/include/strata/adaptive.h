@@ -211,6 +211,8 @@ private:
     // slots' triangles.
     struct TileTemplate {
         std::vector<uint16_t> fine, local, offsets, incident;
+        std::vector<uint16_t> snapTo;   // per slot of the level: where it is drawn
+        std::vector<uint16_t> snapped;  // the slots drawn elsewhere
     };
     std::vector<TileTemplate> templates_;
     std::vector<uint8_t> levels_;
@@ -221,12 +223,19 @@ private:
     // level its frame vertex and, on the face's border, its partial sum
     // (~0: none); each border vertex's partial sums in tile order.
     std::vector<uint32_t> tileTemplate_, tileFirst_, tileVertex_, tilePartial_, partialVertex_;
+    std::vector<uint32_t> tileSource_;  // per slot: the frame vertex whose position it takes
     std::vector<uint32_t> borderVertices_, borderOffsets_, borderEntries_;
     std::vector<glm::vec3> partials_;
     struct Scratch {
-        std::vector<glm::vec3> positions, faces;  // one tile's slots and triangles
+        std::vector<float> px, py, pz, sx, sy, sz;  // per slot
+        std::vector<float> up[3], down[3];          // per padded row of triangles
+        size_t rowWidth = 0;
+        void resize(int finest);
     };
     std::vector<Scratch> scratch_;  // per thread
+    static void shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex, const uint32_t* partial,
+                                  const uint16_t* snapped, size_t snappedCount, const uint16_t* snapTo,
+                                  const glm::vec3* positions, glm::vec3* normals, glm::vec3* partials, Scratch& s);
     struct LinearVertex {
         uint32_t c[3];
         float w1, w2, d;
