@@ -226,6 +226,9 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
                                      scale);
         !st)
         return st;
+    // The same levels as drawn: the frame's topology stands.
+    if (adaptive_ && adaptive_->levels() == chosen_)
+        return Status::ok();
     return setFaceLevels(chosen_.data(), chosen_.size());
 }
 
