@@ -384,10 +384,10 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
     return Status::ok();
 }
 
-// The tile pass's working arrays (structure of arrays, rows padded to
-// whole vectors): the grid's positions and sums, per slot; the up and down
-// triangles' normals, per row with a zero before and after (row -1 and row
-// R are zero rows).
+// The tile pass's working arrays (structure of arrays): the grid's
+// positions and sums, per slot; the up and down triangles' normals, per row
+// with a zero before (never written) and one after (written per tile); row
+// -1 is a zero row, never written.
 void AdaptiveFrame::Scratch::resize(int finest)
 {
     const size_t R = size_t(1) << finest, width = (R + 2 + 7) / 8 * 8 + 8;
@@ -427,15 +427,16 @@ STRATA_KERNEL_INLINE void sumRowSoA(size_t n, const float* __restrict u, const f
         out[i] = u[i + 1] + u[i] + uBelow[i + 1] + d[i] + dBelow[i] + dBelow[i + 1];
 }
 
-}  // namespace
 
-STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex,
-                                                           const uint32_t* partial, const uint16_t* snapped,
-                                                           size_t snappedCount, const uint16_t* snapTo,
-                                                           const glm::vec3* positions, glm::vec3* normals,
-                                                           glm::vec3* partials, Scratch& s)
+// One tile at resolution R (kR: fixed at compile time, so a small tile's
+// short rows unroll; 0: the general loop).
+template <size_t kR, typename Scratch>
+STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, const uint32_t* vertex,
+                                    const uint32_t* partial, const uint16_t* snapped, size_t snappedCount,
+                                    const uint16_t* snapTo, const glm::vec3* positions, glm::vec3* normals,
+                                    glm::vec3* partials, Scratch& s)
 {
-    const size_t R = size_t(1) << level, W = s.rowWidth;
+    const size_t R = kR ? kR : rRuntime, W = s.rowWidth;
     const size_t slots = (R + 1) * (R + 2) / 2;
     float* px = s.px.data();
     float* py = s.py.data();
@@ -456,14 +457,14 @@ STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint
                     s.up[0].data() + row, s.up[1].data() + row, s.up[2].data() + row);
         crossRowSoA(nd, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
                     pz + r1, s.down[0].data() + row, s.down[1].data() + row, s.down[2].data() + row);
-        for (int a = 0; a < 3; ++a) {  // the zeros after the row (earlier tiles may have left values)
-            std::fill(s.up[a].data() + row + nu, s.up[a].data() + row + R + 1, 0.0f);
-            std::fill(s.down[a].data() + row + nd, s.down[a].data() + row + R + 1, 0.0f);
+        for (int a = 0; a < 3; ++a) {  // the one zero after each row the sums read (earlier tiles left values)
+            s.up[a][row + nu] = 0.0f;
+            s.down[a][row + nd] = 0.0f;
         }
     }
-    for (int a = 0; a < 3; ++a) {  // grid row R has no triangles
-        std::fill(s.up[a].data() + (R + 1) * W, s.up[a].data() + (R + 2) * W, 0.0f);
-        std::fill(s.down[a].data() + (R + 1) * W, s.down[a].data() + (R + 2) * W, 0.0f);
+    for (int a = 0; a < 3; ++a) {  // grid row R has no triangles: the entry its one slot reads
+        s.up[a][(R + 1) * W + 1] = 0.0f;
+        s.down[a][(R + 1) * W + 1] = 0.0f;
     }
     float* sum[3] = {s.sx.data(), s.sy.data(), s.sz.data()};
     for (size_t j = 0; j <= R; ++j) {
@@ -502,6 +503,35 @@ STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint
     for (size_t k = 0; k < slots; ++k)
         if (vertex[k] != kNone && partial[k] == kNone)
             normals[vertex[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+}
+
+}  // namespace
+
+STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex,
+                                                           const uint32_t* partial, const uint16_t* snapped,
+                                                           size_t snappedCount, const uint16_t* snapTo,
+                                                           const glm::vec3* positions, glm::vec3* normals,
+                                                           glm::vec3* partials, Scratch& s)
+{
+    if (level == 0) {
+        // The control triangle itself: three corners, all shared, one normal.
+        const glm::vec3 a = positions[source[0]];
+        const glm::vec3 n = glm::cross(positions[source[1]] - a, positions[source[2]] - a);
+        for (int k = 0; k < 3; ++k)
+            partials[partial[k]] = n;
+        return;
+    }
+    // Called directly (a lambda here would be compiled for the baseline
+    // target, outside this clone).
+    const size_t R = size_t(1) << level;
+    if (R == 2)
+        shadeGrid<2, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
+    else if (R == 4)
+        shadeGrid<4, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
+    else if (R == 8)
+        shadeGrid<8, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
+    else
+        shadeGrid<0, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
 }
 
 AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level())
