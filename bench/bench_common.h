@@ -2,6 +2,11 @@
 // runs, each run long enough to dwarf the clock's resolution.
 #pragma once
 
+#include "strata/adaptive.h"
+
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -44,6 +49,34 @@ double medianMs(F&& f, int runs = 7, double minRunMs = 30.0)
         per.push_back((t - t0) / calls);
     }
     return median(std::move(per));
+}
+
+/// A sphere around points: the centre of their box, the farthest point's distance.
+inline void boundingSphere(const std::vector<glm::vec3>& points, glm::vec3* centre, float* radius)
+{
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : points) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    *centre = 0.5f * (lo + hi);
+    *radius = 0.0f;
+    for (const glm::vec3& p : points)
+        *radius = std::max(*radius, glm::length(p - *centre));
+}
+
+/// A 45-degree camera, heightPx pixels tall, at the distance where a sphere
+/// fills `fill` of its height, looking at the sphere's centre from the front
+/// a little above and to the right (the adaptive tables' three distances).
+inline ViewSpec viewFilling(glm::vec3 centre, float radius, float fill, float heightPx)
+{
+    ViewSpec view;
+    view.fovYDegrees = 45.0f;
+    view.heightPx = heightPx;
+    const float distance = 2.0f * radius * view.pixelsPerUnitAtDistanceOne() / (fill * heightPx);
+    view.target = centre;
+    view.eye = centre + distance * glm::normalize(glm::vec3(0.35f, 0.25f, 1.0f));
+    return view;
 }
 
 /// Machine-readable rows for --json FILE: one object per table row, stable

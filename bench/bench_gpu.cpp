@@ -272,24 +272,14 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
     // The posed model's bounding sphere, for the three fills.
     std::vector<glm::vec3> finePositions(n), shading(n);
     surface->evaluate(finePositions.data(), shading.data(), n, 1);
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const glm::vec3& p : finePositions) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
-    const glm::vec3 centre = 0.5f * (lo + hi);
+    glm::vec3 centre;
     float radius = 0.0f;
-    for (const glm::vec3& p : finePositions)
-        radius = std::max(radius, glm::length(p - centre));
+    bench::boundingSphere(finePositions, &centre, &radius);
     surface->faceLevelErrors();  // measured at load, not in a frame
 
     for (float fill : {1.0f, 0.3f, 0.1f}) {
-        ViewSpec view;
-        view.fovYDegrees = 45.0f;
-        view.heightPx = float(height);
-        const float distance = 2.0f * radius * view.pixelsPerUnitAtDistanceOne() / (fill * view.heightPx);
-        view.target = centre;
-        view.eye = centre + distance * glm::normalize(glm::vec3(0.35f, 0.25f, 1.0f));
+        const ViewSpec view = bench::viewFilling(centre, radius, fill, float(height));
+        const float distance = glm::length(view.eye - view.target);
         gl::DrawParams params;
         params.eye = view.eye;
         params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height),

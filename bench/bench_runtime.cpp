@@ -269,15 +269,9 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                        fine->controlNormals().data(), fine->controlVertexCount())
              .isOk())
         return;
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const glm::vec3& p : finePositions) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-    }
-    const glm::vec3 centre = 0.5f * (lo + hi);
+    glm::vec3 centre;
     float radius = 0.0f;
-    for (const glm::vec3& p : finePositions)
-        radius = std::max(radius, glm::length(p - centre));
+    bench::boundingSphere(finePositions, &centre, &radius);
     const double loadStart = bench::nowMs();
     fine->faceLevelErrors();
     const double loadMs = bench::nowMs() - loadStart;
@@ -288,12 +282,7 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
     std::printf("-----|----------|-------------|----------|-----------|----------|-----------|------------|--------------|--------------------|----------------\n");
     const float pixelError = 1.0f;
     for (float fill : {1.0f, 0.3f, 0.1f}) {
-        ViewSpec view;
-        view.fovYDegrees = 45.0f;
-        view.heightPx = 1080.0f;
-        const float distance = 2.0f * radius * view.pixelsPerUnitAtDistanceOne() / (fill * view.heightPx);
-        view.target = centre;
-        view.eye = centre + distance * glm::normalize(glm::vec3(0.35f, 0.25f, 1.0f));
+        const ViewSpec view = bench::viewFilling(centre, radius, fill, 1080.0f);
 
         // Uniform: the lowest level within the tolerance everywhere.
         int uniformLevel = L;

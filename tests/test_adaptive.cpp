@@ -106,6 +106,19 @@ void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
     rig->displacement.scheme = scheme;
 }
 
+// The bending example rig's Surface in either scheme, posed at `time` (the
+// rig and map come back too, for surfaces of other levels).
+std::unique_ptr<Surface> posedSurface(Scheme scheme, float time, Rig* rig, DisplacementMap* map)
+{
+    makeRig(rig, map, scheme);
+    std::unique_ptr<Surface> s;
+    EXPECT_TRUE(Surface::create(&s, *rig, map).isOk());
+    if (s) {
+        EXPECT_TRUE(s->setAnimationTime(0, time).isOk());
+    }
+    return s;
+}
+
 // The frame's triangles close up: no border edge, no non-manifold edge, the
 // sphere's Euler characteristic, every vertex used, no triangle repeats a
 // vertex, and each vertex where the uniform finest frame puts it.
@@ -171,10 +184,8 @@ TEST(Adaptive, OneLevelEverywhereIsTheUniformSurfaceOfThatLevel)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        makeRig(&rig, &map, scheme);
-        std::unique_ptr<Surface> fine;
-        ASSERT_TRUE(Surface::create(&fine, rig, &map).isOk());
-        ASSERT_TRUE(fine->setAnimationTime(0, 0.7f).isOk());
+        std::unique_ptr<Surface> fine = posedSurface(scheme, 0.7f, &rig, &map);
+        ASSERT_TRUE(fine);
         for (int level = 0; level <= 4; ++level) {
             const std::string label = std::string(schemeName(scheme)) + " level " + std::to_string(level);
             SurfaceOptions o;
@@ -257,10 +268,8 @@ TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        makeRig(&rig, &map, scheme);
-        std::unique_ptr<Surface> s;
-        ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
-        ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+        std::unique_ptr<Surface> s = posedSurface(scheme, 0.5f, &rig, &map);
+        ASSERT_TRUE(s);
         std::vector<glm::vec3> fine(s->vertexCount());
         ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
         size_t previous = ~size_t(0);

@@ -707,13 +707,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
 template <typename Body>
 void AdaptiveFrame::parallel(int threads, size_t n, const Body& body)
 {
-    if (threads <= 1) {
-        body(size_t(0), n, 0);
-        return;
-    }
-    if (!pool_ || pool_->size() != threads)
-        pool_ = std::make_unique<detail::WorkerPool>(threads);
-    pool_->run(n, body);
+    detail::runParallel(pool_, threads, n, body);
 }
 
 Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const float* displacements,

@@ -171,13 +171,7 @@ struct FrameEvaluator::Scratch {
 template <typename Body>
 void FrameEvaluator::parallel(int threads, size_t n, const Body& body)
 {
-    if (threads <= 1) {
-        body(size_t(0), n, 0);
-        return;
-    }
-    if (!pool_ || pool_->size() != threads)
-        pool_ = std::make_unique<detail::WorkerPool>(threads);
-    pool_->run(n, body);
+    detail::runParallel(pool_, threads, n, body);
 }
 
 FrameEvaluator::FrameEvaluator(const Plan& plan, FrameLayout layout) : plan_(plan), requested_(layout) {}

@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -125,6 +126,20 @@ private:
     bool stop_ = false;  // under mutex_
     std::vector<std::thread> workers_;
 };
+
+/// Runs body over [0, n) on `threads` threads: on the calling thread alone
+/// for one, else on `pool`, made (again) for that many threads when needed.
+template <typename Body>
+void runParallel(std::unique_ptr<WorkerPool>& pool, int threads, size_t n, const Body& body)
+{
+    if (threads <= 1) {
+        body(size_t(0), n, 0);
+        return;
+    }
+    if (!pool || pool->size() != threads)
+        pool = std::make_unique<WorkerPool>(threads);
+    pool->run(n, body);
+}
 
 }  // namespace detail
 }  // namespace strata

@@ -187,6 +187,39 @@ void GpuSurface::drawMaterials(GLuint prog)
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
 }
 
+void GpuSurface::setDrawUniforms(GLuint prog, const DrawParams& p, ColorMode mode) const
+{
+    glUniformMatrix4fv(glGetUniformLocation(prog, "u_viewProjection"), 1, GL_FALSE, glm::value_ptr(p.viewProjection));
+    glUniform1i(glGetUniformLocation(prog, "u_haveNormals"), evaluator_->shadingNormals() ? 1 : 0);
+    glUniform3fv(glGetUniformLocation(prog, "u_eye"), 1, glm::value_ptr(p.eye));
+    glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
+    glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
+    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(mode));
+    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+}
+
+void GpuSurface::beginWireframe(const DrawParams& p)
+{
+    if (p.wireframe) {  // the surface behind its edges
+        glEnable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(1.0f, 1.0f);
+    }
+}
+
+template <typename Draw>
+void GpuSurface::endWireframe(const DrawParams& p, GLuint prog, const Draw& draw)
+{
+    if (!p.wireframe)
+        return;
+    glDisable(GL_POLYGON_OFFSET_FILL);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(ColorMode::Flat));
+    glUniform3f(glGetUniformLocation(prog, "u_baseColor"), 0.12f, 0.12f, 0.14f);
+    draw();
+    glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+}
+
 Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
 {
     if (!adaptiveProgram_) {
@@ -221,15 +254,21 @@ Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
     return Status::ok();
 }
 
+void GpuSurface::takeTimings()
+{
+    if (!timing_)
+        return;
+    const EvaluatorTimings& t = evaluator_->timings();
+    timings_.uploadMs = t.uploadMs;
+    timings_.stencilMs = t.stencilMs;
+    timings_.normalsMs = t.normalsMs;
+}
+
 Status GpuSurface::updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
 {
     Status st = evaluator_->updateAdaptive(controlPositions, controlNormals, count);
-    if (st && timing_) {
-        const EvaluatorTimings& t = evaluator_->timings();
-        timings_.uploadMs = t.uploadMs;
-        timings_.stencilMs = t.stencilMs;
-        timings_.normalsMs = t.normalsMs;
-    }
+    if (st)
+        takeTimings();
     return st;
 }
 
@@ -251,29 +290,13 @@ void GpuSurface::drawAdaptive(const DrawParams& p)
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kFrameVertices, e.adaptiveBuffer(AdaptiveBuffer::FrameVertices));
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, e.buffer(kSampleUVs));
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, triangleLevels_);
-    glUniformMatrix4fv(glGetUniformLocation(prog, "u_viewProjection"), 1, GL_FALSE, glm::value_ptr(p.viewProjection));
-    glUniform1i(glGetUniformLocation(prog, "u_haveNormals"), e.shadingNormals() ? 1 : 0);
-    glUniform3fv(glGetUniformLocation(prog, "u_eye"), 1, glm::value_ptr(p.eye));
-    glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
-    glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
-    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(p.colorMode));
-    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
-    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
+    setDrawUniforms(prog, p, p.colorMode);
     glBindVertexArray(adaptiveVao_);
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, e.adaptiveBuffer(AdaptiveBuffer::Indirect));
-    if (p.wireframe) {
-        glEnable(GL_POLYGON_OFFSET_FILL);
-        glPolygonOffset(1.0f, 1.0f);
-    }
-    glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr);
-    if (p.wireframe) {
-        glDisable(GL_POLYGON_OFFSET_FILL);
-        glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
-        glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(ColorMode::Flat));
-        glUniform3f(glGetUniformLocation(prog, "u_baseColor"), 0.12f, 0.12f, 0.14f);
-        glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr);
-        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
-    }
+    const auto drawAll = [] { glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr); };
+    beginWireframe(p);
+    drawAll();
+    endWireframe(p, prog, drawAll);
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
     glBindVertexArray(0);
     glUseProgram(0);
@@ -286,12 +309,8 @@ void GpuSurface::drawAdaptive(const DrawParams& p)
 Status GpuSurface::update(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count)
 {
     Status st = evaluator_->update(controlPositions, controlNormals, count);
-    if (st && timing_) {
-        const EvaluatorTimings& t = evaluator_->timings();
-        timings_.uploadMs = t.uploadMs;
-        timings_.stencilMs = t.stencilMs;
-        timings_.normalsMs = t.normalsMs;
-    }
+    if (st)
+        takeTimings();
     return st;
 }
 
@@ -308,36 +327,20 @@ void GpuSurface::draw(const DrawParams& p)
     glUseProgram(prog);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSurface, evaluator_->buffer(kSurface));
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kNormals, evaluator_->buffer(kNormals));
-    glUniformMatrix4fv(glGetUniformLocation(prog, "u_viewProjection"), 1, GL_FALSE, glm::value_ptr(p.viewProjection));
-    glUniform1i(glGetUniformLocation(prog, "u_haveNormals"), evaluator_->shadingNormals() ? 1 : 0);
-    glUniform3fv(glGetUniformLocation(prog, "u_eye"), 1, glm::value_ptr(p.eye));
-    glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
-    glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
     const ColorMode mode = p.colorMode == ColorMode::Error && !haveErrors_ ? ColorMode::Shaded : p.colorMode;
-    glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(mode));
+    setDrawUniforms(prog, p, mode);
     if (!haveErrors_)
         glVertexAttrib1f(1, 0.0f);
-    glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
-    glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
-    if (p.wireframe) {
-        glEnable(GL_POLYGON_OFFSET_FILL);
-        glPolygonOffset(1.0f, 1.0f);
-    }
+    const auto drawAll = [&] { glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr); };
+    beginWireframe(p);
     if (mode == ColorMode::Shaded && !materials_.empty()) {
         drawMaterials(prog);
     } else {
         glBindVertexArray(vao_);
-        glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
+        drawAll();
     }
     glBindVertexArray(vao_);
-    if (p.wireframe) {
-        glDisable(GL_POLYGON_OFFSET_FILL);
-        glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
-        glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(ColorMode::Flat));
-        glUniform3f(glGetUniformLocation(prog, "u_baseColor"), 0.12f, 0.12f, 0.14f);
-        glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr);
-        glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
-    }
+    endWireframe(p, prog, drawAll);
     glBindVertexArray(0);
     glUseProgram(0);
     if (timing_) {

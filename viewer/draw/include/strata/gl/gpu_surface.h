@@ -121,6 +121,11 @@ public:
 private:
     GpuSurface() = default;
     void drawMaterials(GLuint program);
+    void takeTimings();  // the evaluator's stage times of the last update, when timing
+    void setDrawUniforms(GLuint program, const DrawParams& params, ColorMode mode) const;
+    static void beginWireframe(const DrawParams& params);
+    template <typename Draw>
+    static void endWireframe(const DrawParams& params, GLuint program, const Draw& draw);  // the edges over the surface
 
     std::unique_ptr<Evaluator> evaluator_;
     bool timing_ = false, haveErrors_ = false;
