@@ -402,21 +402,6 @@ void AdaptiveFrame::Scratch::resize(int finest)
 
 namespace {
 
-STRATA_KERNEL_INLINE void crossRowSoA(size_t n, const float* __restrict ax, const float* __restrict ay,
-                                      const float* __restrict az, const float* __restrict bx, const float* __restrict by,
-                                      const float* __restrict bz, const float* __restrict cx, const float* __restrict cy,
-                                      const float* __restrict cz, float* __restrict ox, float* __restrict oy,
-                                      float* __restrict oz)
-{
-    for (size_t i = 0; i < n; ++i) {
-        const float ux = bx[i] - ax[i], uy = by[i] - ay[i], uz = bz[i] - az[i];
-        const float vx = cx[i] - ax[i], vy = cy[i] - ay[i], vz = cz[i] - az[i];
-        ox[i] = uy * vz - uz * vy;
-        oy[i] = uz * vx - ux * vz;
-        oz[i] = ux * vy - uy * vx;
-    }
-}
-
 // Slot (i, j) sums up(i, j), up(i - 1, j), up(i, j - 1), down(i - 1, j),
 // down(i - 1, j - 1) and down(i, j - 1): in the padded rows (entry x of a
 // row is triangle x - 1) entries i + 1 and i of rows j and j - 1.
@@ -453,9 +438,9 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
     for (size_t j = 0; j < R; ++j) {
         const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), r1 = tileSlot(0, uint32_t(j + 1), uint32_t(R));
         const size_t nu = R - j, nd = R - j - 1, row = (j + 1) * W + 1;
-        crossRowSoA(nu, px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
+        detail::crossRow(nu, px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
                     s.up[0].data() + row, s.up[1].data() + row, s.up[2].data() + row);
-        crossRowSoA(nd, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
+        detail::crossRow(nd, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
                     pz + r1, s.down[0].data() + row, s.down[1].data() + row, s.down[2].data() + row);
         for (int a = 0; a < 3; ++a) {  // the one zero after each row the sums read (earlier tiles left values)
             s.up[a][row + nu] = 0.0f;

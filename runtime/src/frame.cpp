@@ -37,22 +37,6 @@ inline glm::vec3 unitOrZero(glm::vec3 n)
     return len > 0.0f ? n / len : glm::vec3(0.0f);
 }
 
-// Face normals of a row of grid triangles (a[j], b[j], c[j]): cross(b - a,
-// c - a), whose length is twice the area.  Structure of arrays, restrict
-// outputs: the loop vectorises.
-STRATA_KERNEL_INLINE void crossRow(size_t n, const float* ax, const float* ay, const float* az, const float* bx, const float* by,
-              const float* bz, const float* cx, const float* cy, const float* cz, float* __restrict fx,
-              float* __restrict fy, float* __restrict fz)
-{
-    for (size_t j = 0; j < n; ++j) {
-        const float ex = bx[j] - ax[j], ey = by[j] - ay[j], ez = bz[j] - az[j];
-        const float gx = cx[j] - ax[j], gy = cy[j] - ay[j], gz = cz[j] - az[j];
-        fx[j] = ey * gz - ez * gy;
-        fy[j] = ez * gx - ex * gz;
-        fz[j] = ex * gy - ey * gx;
-    }
-}
-
 // One grid row's sums of face normals.  The row lies between the row pair
 // below it (p: its up triangles touch the row with corners b and c, its down
 // triangles with a and b) and the pair above it (c: up triangles with a and
@@ -630,9 +614,9 @@ STRATA_KERNEL_INLINE void shadeTileGrid(const TileJob& job, size_t faceBegin, si
                 // down triangles (i + 1, j), (i + 1, j + 1), (i, j + 1): one fewer.
                 float* const(&pair)[2][3] = job.face[i % 3];
                 const size_t r0 = rows[i], r1 = rows[i + 1], up = R - i, down = up - 1;
-                crossRow(wholeVectors(up), p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1,
+                detail::crossRow(wholeVectors(up), p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1,
                          p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[0][0] + 1, pair[0][1] + 1, pair[0][2] + 1);
-                crossRow(wholeVectors(down), p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1,
+                detail::crossRow(wholeVectors(down), p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1,
                          p[2] + r1 + 1, p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[1][0] + 1, pair[1][1] + 1,
                          pair[1][2] + 1);
                 for (int a = 0; a < 3; ++a) {
