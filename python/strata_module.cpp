@@ -17,6 +17,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -63,7 +64,8 @@ struct PyRig {
         return names;
     }
 
-    py::tuple reconstruct(py::object level, py::object animation, py::object time, bool displacement) const
+    py::tuple reconstruct(py::object level, py::object animation, py::object time, bool displacement, py::object view,
+                          float pixelError) const
     {
         // As strata-reconstruct: what the surface refuses (a glTF whose layer
         // a tool dropped), refused before any work, with this binding's advice.
@@ -92,20 +94,45 @@ struct PyRig {
         }
         if (posed && rig.skeleton.empty())
             throw StrataError(path + ": the rig has no skin to animate");
-        auto rec = std::make_unique<io::Reconstruction>();
+        // view=(eye, target, fov_y_degrees, height_px): the adaptive mesh for that camera.
+        ViewSpec viewSpec;
+        const bool adaptive = !view.is_none();
+        if (adaptive) {
+            const py::tuple v = view.cast<py::tuple>();
+            if (v.size() != 4)
+                throw StrataError("view must be (eye, target, fov_y_degrees, height_px)");
+            const auto eye = v[0].cast<std::array<float, 3>>(), target = v[1].cast<std::array<float, 3>>();
+            viewSpec.eye = glm::vec3(eye[0], eye[1], eye[2]);
+            viewSpec.target = glm::vec3(target[0], target[1], target[2]);
+            viewSpec.fovYDegrees = v[2].cast<float>();
+            viewSpec.heightPx = v[3].cast<float>();
+        }
+        // The arrays view the reconstruction (and adaptive frame), which a capsule keeps alive.
+        struct Owner {
+            io::Reconstruction rec;
+            io::AdaptiveView view;
+        };
+        auto owned = std::make_unique<Owner>();
         {
             py::gil_scoped_release unlocked;
-            check(io::reconstruct(rec.get(), rig, &map, options, posed ? &pose : nullptr));
+            check(io::reconstruct(&owned->rec, rig, &map, options, posed ? &pose : nullptr));
+            if (adaptive) {
+                Status st = io::reconstructView(&owned->view, owned->rec, viewSpec, pixelError);
+                if (!st)
+                    throw StrataError(path + ": view: " + st.message());
+            }
         }
-        // The arrays view the reconstruction, which a capsule keeps alive.
-        io::Reconstruction* owner = rec.release();
-        py::capsule keep(owner, [](void* p) { delete static_cast<io::Reconstruction*>(p); });
-        const py::ssize_t n = py::ssize_t(owner->positions.size()), m = py::ssize_t(owner->surface->triangleCount());
+        Owner* owner = owned.release();
+        py::capsule keep(owner, [](void* p) { delete static_cast<Owner*>(p); });
+        const std::vector<glm::vec3>& points = adaptive ? owner->view.positions : owner->rec.positions;
+        const std::vector<uint32_t>& tris =
+            adaptive ? owner->rec.surface->adaptiveFrame().triangles() : owner->rec.surface->triangles();
+        const py::ssize_t n = py::ssize_t(points.size()), m = py::ssize_t(tris.size() / 3);
         py::array_t<float> vertices({n, py::ssize_t(3)}, {py::ssize_t(3 * sizeof(float)), py::ssize_t(sizeof(float))},
-                                    reinterpret_cast<const float*>(owner->positions.data()), keep);
+                                    reinterpret_cast<const float*>(points.data()), keep);
         py::array_t<uint32_t> triangles({m, py::ssize_t(3)},
                                         {py::ssize_t(3 * sizeof(uint32_t)), py::ssize_t(sizeof(uint32_t))},
-                                        owner->surface->triangles().data(), keep);
+                                        tris.data(), keep);
         return py::make_tuple(vertices, triangles);
     }
 };
@@ -299,11 +326,14 @@ PYBIND11_MODULE(_strata, m)
         .def_property_readonly("control_vertex_count", [](const PyRig& r) { return r.rig.mesh.positions.size(); })
         .def_property_readonly("warnings", [](const PyRig& r) { return r.rig.warnings; })
         .def("reconstruct", &PyRig::reconstruct, py::arg("level") = py::none(), py::arg("animation") = py::none(),
-             py::arg("time") = py::none(), py::arg("displacement") = true,
+             py::arg("time") = py::none(), py::arg("displacement") = true, py::arg("view") = py::none(),
+             py::arg("pixel_error") = 1.0f,
              "Refined, displaced vertices (float32 [N, 3]) and triangles (uint32 [M, 3]) at `level` (default: the "
-             "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.  A glTF without "
-             "the STRATA_layered_displacement layer raises strata.Error naming the tool that dropped it, unless "
-             "displacement=False asks for the plain mesh refined.");
+             "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.  With "
+             "view=(eye, target, fov_y_degrees, height_px), the adaptive mesh for that camera instead: each control "
+             "face at the lowest level within `pixel_error` pixels of `level` on screen, stitched without cracks.  "
+             "A glTF without the STRATA_layered_displacement layer raises strata.Error naming the tool that dropped "
+             "it, unless displacement=False asks for the plain mesh refined.");
     m.def(
         "bake_options",
         [] {

@@ -341,6 +341,71 @@ StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positi
     });
 }
 
+StrataStatus strata_surface_choose_levels(StrataSurface* surface, const float* eye, const float* target,
+                                          float fov_y_degrees, float height_px, float pixel_error)
+{
+    if (!surface || !eye || !target)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_choose_levels: null argument");
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        ViewSpec view;
+        view.eye = glm::vec3(eye[0], eye[1], eye[2]);
+        view.target = glm::vec3(target[0], target[1], target[2]);
+        view.fovYDegrees = fov_y_degrees;
+        view.heightPx = height_px;
+        return fromStatus(surface->surface->chooseFaceLevels(view, pixel_error));
+    });
+}
+
+// The adaptive frame is made on first use: reads take the frame's lock too.
+size_t strata_surface_adaptive_vertex_count(const StrataSurface* surface)
+{
+    if (!surface)
+        return 0;
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    return surface->surface->adaptiveFrame().vertexCount();
+}
+
+size_t strata_surface_adaptive_triangle_count(const StrataSurface* surface)
+{
+    if (!surface)
+        return 0;
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    return surface->surface->adaptiveFrame().triangleCount();
+}
+
+StrataStatus strata_surface_adaptive_triangles(const StrataSurface* surface, uint32_t* dst)
+{
+    if (!surface || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_adaptive_triangles: null argument");
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    const std::vector<uint32_t>& t = surface->surface->adaptiveFrame().triangles();
+    std::memcpy(dst, t.data(), t.size() * sizeof(uint32_t));
+    return STRATA_OK;
+}
+
+StrataStatus strata_surface_adaptive_vertices(const StrataSurface* surface, uint32_t* dst)
+{
+    if (!surface || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_adaptive_vertices: null argument");
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    const std::vector<uint32_t>& v = surface->surface->adaptiveFrame().vertices();
+    std::memcpy(dst, v.data(), v.size() * sizeof(uint32_t));
+    return STRATA_OK;
+}
+
+StrataStatus strata_surface_evaluate_adaptive(StrataSurface* surface, float* positions, float* normals)
+{
+    if (!surface || !positions)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_evaluate_adaptive: null argument");
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        Surface& s = *surface->surface;
+        return fromStatus(s.evaluateAdaptive(reinterpret_cast<glm::vec3*>(positions),
+                                             reinterpret_cast<glm::vec3*>(normals), s.adaptiveFrame().vertexCount()));
+    });
+}
+
 StrataStatus strata_render_mesh_create(const StrataRig* rig, const StrataSurface* surface, StrataRenderMesh** out)
 {
     if (!rig || !surface || !out)

@@ -60,6 +60,8 @@ class Rig:
         animation: Optional[str] = None,
         time: Optional[float] = None,
         displacement: bool = True,
+        view: Optional[Tuple[Sequence[float], Sequence[float], float, float]] = None,
+        pixel_error: float = 1.0,
     ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]: ...
 
 def bake_options() -> list[dict[str, Any]]: ...

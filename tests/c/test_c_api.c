@@ -45,6 +45,31 @@ static void closedForm(void)
     }
     for (size_t i = 0; i < 3 * strata_surface_triangle_count(s); ++i)
         CHECK(t[i] < n);
+    /* Adaptive: a flat plane displaced by a constant is flat at every level,
+     * so any view draws it at level 0: its 4 corners, 2 triangles, z = 0.25. */
+    {
+        const float eye[3] = {0.5f, 0.5f, 3.0f}, target[3] = {0.5f, 0.5f, 0.0f};
+        CHECK(strata_surface_adaptive_vertex_count(s) == 0);
+        CHECK(strata_surface_choose_levels(s, eye, target, 45.0f, 1080.0f, 1.0f) == STRATA_OK);
+        CHECK(strata_surface_adaptive_vertex_count(s) == 4);
+        CHECK(strata_surface_adaptive_triangle_count(s) == 2);
+        float ap[12], an[12];
+        uint32_t at[6], av[4];
+        CHECK(strata_surface_evaluate_adaptive(s, ap, an) == STRATA_OK);
+        CHECK(strata_surface_adaptive_triangles(s, at) == STRATA_OK);
+        CHECK(strata_surface_adaptive_vertices(s, av) == STRATA_OK);
+        for (int i = 0; i < 4; ++i) {
+            CHECK(fabsf(ap[3 * i + 2] - 0.25f) < 1e-6f);
+            CHECK(fabsf(an[3 * i + 2] - 1.0f) < 1e-5f);
+            CHECK(av[i] < n);
+            CHECK(fabsf(ap[3 * i] - p[3 * av[i]]) < 1e-6f && fabsf(ap[3 * i + 1] - p[3 * av[i] + 1]) < 1e-6f);
+        }
+        for (int i = 0; i < 6; ++i)
+            CHECK(at[i] < 4);
+        /* A camera on its target is refused with a message. */
+        CHECK(strata_surface_choose_levels(s, eye, eye, 45.0f, 1080.0f, 1.0f) == STRATA_INVALID_ARGUMENT);
+        CHECK(strstr(strata_last_error(), "not a view") != NULL);
+    }
     /* The engine deforms the control mesh itself: lifted by 1, the surface follows. */
     const float lifted[] = {0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
     CHECK(strata_surface_set_control_positions(s, lifted, 4) == STRATA_OK);

@@ -100,6 +100,25 @@ def test_reconstruction_is_the_bumpy_sphere(baked):
     assert math.sqrt(np.mean(radial ** 2)) < 2e-3
 
 
+def test_a_view_gives_the_adaptive_mesh(baked):
+    d, _ = baked
+    rig = strata.load_rig(str(d / "rig.glb"))
+    level = rig.recommended_level
+    fine, _ = rig.reconstruct()
+    near, near_t = rig.reconstruct(view=((0.0, 0.0, 3.0), (0.0, 0.0, 0.0), 45.0, 1080.0))
+    far, far_t = rig.reconstruct(view=((0.0, 0.0, 40.0), (0.0, 0.0, 0.0), 45.0, 1080.0), pixel_error=2.0)
+    # Farther away fewer vertices, never more than the finest level; closed
+    # meshes on the sphere (V - E + F = 2 with E = 3F / 2).
+    assert len(far) < len(near) <= len(fine)
+    for v, t in ((near, near_t), (far, far_t)):
+        assert t.max() < len(v)
+        assert len(v) - len(t) // 2 == 2
+        assert np.all(np.abs(np.linalg.norm(v, axis=1) - 1.0) < 0.1)
+    with pytest.raises(strata.Error, match="not a view"):
+        rig.reconstruct(view=((0.0, 0.0, 1.0), (0.0, 0.0, 1.0), 45.0, 1080.0))
+    assert level >= 1
+
+
 def test_same_numbers_as_strata_reconstruct(baked, tmp_path):
     if not RECONSTRUCT:
         pytest.fail("STRATA_RECONSTRUCT_EXE is not set (ctest sets it)")

@@ -113,6 +113,35 @@ StrataStatus strata_surface_displacements(const StrataSurface* surface, float* d
  *  Calls on one surface from several threads are serialised. */
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals);
 
+/* ---- Adaptive level of detail (strata/adaptive.h) ----
+ * Each control face at the lowest level whose surface stays within
+ * pixel_error pixels of the surface's level on screen, for one view of the
+ * current pose; neighbours at different levels are stitched without cracks.
+ *
+ *   strata_surface_choose_levels(surface, eye, target, 45.0f, 1080.0f, 1.0f);
+ *   size_t n = strata_surface_adaptive_vertex_count(surface);
+ *   strata_surface_evaluate_adaptive(surface, xyz, normals);   // n vertices
+ *   strata_surface_adaptive_triangles(surface, indices);        // 3 per triangle
+ */
+
+/** Levels for a camera at eye (3 floats) looking at target (3 floats) with a
+ *  vertical field of view in degrees and a viewport height in pixels.  The
+ *  errors per face are measured at the first call; calls that give the
+ *  levels already drawn keep the frame. */
+StrataStatus strata_surface_choose_levels(StrataSurface* surface, const float* eye, const float* target,
+                                          float fov_y_degrees, float height_px, float pixel_error);
+/** Vertices and triangles of the adaptive frame (0 before a choice). */
+size_t strata_surface_adaptive_vertex_count(const StrataSurface* surface);
+size_t strata_surface_adaptive_triangle_count(const StrataSurface* surface);
+/** 3 indices per adaptive triangle, into the adaptive frame's vertices. */
+StrataStatus strata_surface_adaptive_triangles(const StrataSurface* surface, uint32_t* dst);
+/** Per adaptive vertex, its refined vertex (an index into
+ *  strata_surface_evaluate's vertices): to place UVs or colours. */
+StrataStatus strata_surface_adaptive_vertices(const StrataSurface* surface, uint32_t* dst);
+/** Positions (3 floats per adaptive vertex) and, unless NULL, shading
+ *  normals of the adaptive frame in the current pose. */
+StrataStatus strata_surface_evaluate_adaptive(StrataSurface* surface, float* positions, float* normals);
+
 /* ---- Render meshes: a surface laid out for drawing ----
  * One vertex per (refined vertex, refined corner value), so material UVs
  * and colours split where the glTF parts' do.  The first
