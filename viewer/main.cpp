@@ -123,10 +123,10 @@ int runHeadless(viewer::Scene& scene, const Options& o)
         throw cli::Error(st.message());
     std::string adaptive;
     if (scene.settings.adaptive)
-        adaptive = " adaptive within " + std::to_string(scene.settings.pixelError).substr(0, 4) + " px: " +
+        adaptive = "; adaptive within " + std::to_string(scene.settings.pixelError).substr(0, 4) + " px: " +
                    std::to_string(scene.adaptiveVertexCount()) + " vertices, levels " +
-                   std::to_string(scene.adaptiveLevelMin()) + ".." + std::to_string(scene.adaptiveLevelMax()) + ";";
-    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices;%s -> %s (%s; --camera %g,%g,%g,%g)\n", o.file.c_str(),
+                   std::to_string(scene.adaptiveLevelMin()) + ".." + std::to_string(scene.adaptiveLevelMax());
+    std::fprintf(stderr, "strata-view: %s level %d, %zu vertices%s -> %s (%s; --camera %g,%g,%g,%g)\n", o.file.c_str(),
                  scene.currentLevel(), scene.vertexCount(), adaptive.c_str(), o.screenshot.c_str(), ctx->description().c_str(),
                  double(scene.camera.target.x), double(scene.camera.target.y), double(scene.camera.target.z),
                  double(scene.camera.distance));
