@@ -393,7 +393,7 @@ void AdaptiveFrame::Scratch::resize(int finest)
     const size_t R = size_t(1) << finest, width = (R + 2 + 7) / 8 * 8 + 8;
     rowWidth = width;
     for (std::vector<float>* v : {&px, &py, &pz, &sx, &sy, &sz})
-        v->assign((R + 1) * width, 0.0f);
+        v->assign((R + 1) * (R + 2) / 2 + 2 * width, 0.0f);  // every slot, and whole vectors past the last rows
     for (int a = 0; a < 3; ++a) {
         up[a].assign((R + 2) * width, 0.0f);
         down[a].assign((R + 2) * width, 0.0f);
@@ -423,6 +423,11 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
 {
     const size_t R = kR ? kR : rRuntime, W = s.rowWidth;
     const size_t slots = (R + 1) * (R + 2) / 2;
+    // Loops run in whole vectors of 8 (no scalar remainders): the scratch
+    // rows are padded, and what they write past a row's end is either
+    // rewritten (the next row's sums), reset (the zero after each triangle
+    // row) or never read.
+    auto whole = [](size_t n) { return (n + 7) & ~size_t(7); };
     float* px = s.px.data();
     float* py = s.py.data();
     float* pz = s.pz.data();
@@ -438,9 +443,9 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
     for (size_t j = 0; j < R; ++j) {
         const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), r1 = tileSlot(0, uint32_t(j + 1), uint32_t(R));
         const size_t nu = R - j, nd = R - j - 1, row = (j + 1) * W + 1;
-        detail::crossRow(nu, px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
+        detail::crossRow(whole(nu), px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
                     s.up[0].data() + row, s.up[1].data() + row, s.up[2].data() + row);
-        detail::crossRow(nd, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
+        detail::crossRow(whole(nd), px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
                     pz + r1, s.down[0].data() + row, s.down[1].data() + row, s.down[2].data() + row);
         for (int a = 0; a < 3; ++a) {  // the one zero after each row the sums read (earlier tiles left values)
             s.up[a][row + nu] = 0.0f;
@@ -455,7 +460,7 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
     for (size_t j = 0; j <= R; ++j) {
         const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), row = (j + 1) * W, below = j * W;
         for (int a = 0; a < 3; ++a)
-            sumRowSoA(R - j + 1, s.up[a].data() + row, s.up[a].data() + below, s.down[a].data() + row,
+            sumRowSoA(whole(R - j + 1), s.up[a].data() + row, s.up[a].data() + below, s.down[a].data() + row,
                       s.down[a].data() + below, sum[a] + r0);
     }
     // A snapped point's triangles are its target's in the stitched tile.
@@ -478,7 +483,7 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
         if (j < R)
             keep(r0 + R - j);
     }
-    for (size_t k = 0; k < slots; ++k) {
+    for (size_t k = 0; k < whole(slots); ++k) {
         const float x = sum[0][k], y = sum[1][k], z = sum[2][k];
         const float len = std::sqrt(x * x + y * y + z * z), inv = len > 0.0f ? 1.0f / len : 0.0f;
         sum[0][k] = x * inv;
