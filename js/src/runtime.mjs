@@ -223,12 +223,60 @@ export class StrataSurface {
       r.free(out);
     }
   }
+  /// Adaptive level of detail: each control face at the lowest level within
+  /// `pixelError` pixels of this surface's level, for a camera at `eye`
+  /// looking at `target` ([x, y, z] each) with a vertical field of view in
+  /// degrees and a viewport `heightPx` tall, in the current pose; faces of
+  /// different levels are stitched without cracks.  Then
+  /// adaptiveVertexCount, adaptiveTriangles(), adaptiveVertices() and
+  /// evaluateAdaptive() give the frame.
+  chooseLevels(eye, target, fovYDegrees, heightPx, pixelError = 1) {
+    const r = this.runtime;
+    const view = r.alloc(24);
+    try {
+      r.f32(view, 6).set([eye[0], eye[1], eye[2], target[0], target[1], target[2]]);
+      r.check(r.module._strata_surface_choose_levels(this.handle, view, view + 12, fovYDegrees, heightPx, pixelError));
+    } finally {
+      r.free(view);
+    }
+    this.adaptiveVertexCount = r.module._strata_surface_adaptive_vertex_count(this.handle) >>> 0;
+    this.adaptiveTriangleCount = r.module._strata_surface_adaptive_triangle_count(this.handle) >>> 0;
+  }
+  /// The adaptive frame's triangles (3 indices each, into its vertices).
+  adaptiveTriangles() {
+    const r = this.runtime;
+    return r.withScratch(Uint32Array, this.adaptiveTriangleCount * 3, (ptr) =>
+      r.check(r.module._strata_surface_adaptive_triangles(this.handle, ptr)));
+  }
+  /// Per adaptive vertex, its refined vertex (an index into evaluate()'s).
+  adaptiveVertices() {
+    const r = this.runtime;
+    return r.withScratch(Uint32Array, this.adaptiveVertexCount, (ptr) =>
+      r.check(r.module._strata_surface_adaptive_vertices(this.handle, ptr)));
+  }
+  /// The adaptive frame's positions and normals (3 floats per vertex).
+  evaluateAdaptive(into = {}) {
+    const r = this.runtime;
+    const n = (this.adaptiveVertexCount || 0) * 3;
+    if (n > (this.adaptiveCapacity || 0)) {
+      r.free(this.adaptiveFrame);
+      this.adaptiveFrame = r.alloc(Math.max(n, 3) * 8);
+      this.adaptiveCapacity = n;
+    }
+    r.check(r.module._strata_surface_evaluate_adaptive(this.handle, this.adaptiveFrame, this.adaptiveFrame + n * 4));
+    const positions = into.positions || new Float32Array(n);
+    const normals = into.normals || new Float32Array(n);
+    positions.set(r.f32(this.adaptiveFrame, n));
+    normals.set(r.f32(this.adaptiveFrame + n * 4, n));
+    return { positions, normals };
+  }
   dispose() {
     const r = this.runtime;
     if (this.handle) r.module._strata_surface_destroy(this.handle);
     r.free(this.frame);
     r.free(this.joints);
-    this.handle = this.frame = this.joints = 0;
+    r.free(this.adaptiveFrame);
+    this.handle = this.frame = this.joints = this.adaptiveFrame = 0;
   }
 }
 

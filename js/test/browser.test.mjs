@@ -143,6 +143,28 @@ window.probe = async (url, level, time) => {
   }
   return out;
 };
+window.adaptive = async (url, eye, target, fov, height) => {
+  const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
+  loader.register((parser) => new StrataLoaderPlugin(parser, {}));
+  const mesh = (await loader.loadAsync(url)).userData.strata;
+  mesh.setBindPose();
+  const surface = mesh.surface;
+  const fine = surface.evaluate().positions;
+  surface.chooseLevels(eye, target, fov, height, 1.0);
+  const { positions } = surface.evaluateAdaptive();
+  const vertices = surface.adaptiveVertices(), triangles = surface.adaptiveTriangles();
+  // Each adaptive vertex where the uniform frame puts its refined vertex
+  // (the smooth scheme's uniform frame sums its stencils in another order).
+  let worst = 0, lo = Infinity, hi = -Infinity;
+  for (let k = 0; k < vertices.length; ++k)
+    for (let c = 0; c < 3; ++c) worst = Math.max(worst, Math.abs(positions[3 * k + c] - fine[3 * vertices[k] + c]));
+  for (const x of fine) { lo = Math.min(lo, x); hi = Math.max(hi, x); }
+  const relative = worst / (hi - lo);
+  let inRange = true;
+  for (const t of triangles) inRange = inRange && t < vertices.length;
+  return { count: surface.adaptiveVertexCount, triangles: surface.adaptiveTriangleCount, uniform: surface.vertexCount,
+           relative, inRange };
+};
 window.refuse = async (url) => {
   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
   loader.register((parser) => new StrataLoaderPlugin(parser, { name: url }));
@@ -236,6 +258,27 @@ test('three.js draws the surface strata-reconstruct writes, bind pose and posed'
         `${r.relative.toExponential(2)}, posed by the mixer ${mixer.relative.toExponential(2)} of the diagonal, ` +
         'by its own animation bit-identical');
     }
+  }
+});
+
+test('the adaptive frame in the browser: the same C++ as strata-reconstruct --view', async () => {
+  for (const name of ['spot', 'CesiumMan']) {
+    const file = path.join(work, `${name}.glb`);
+    const eye = [0.4, 0.3, 6.0], target = [0.0, 0.0, 0.0];
+    const out = path.join(work, `${name}_view.ply`);
+    const log = spawnSync(tool('strata-reconstruct'), [file, '--view', `${eye.join(',')}:${target.join(',')}:40:1080`,
+      '-o', out], { encoding: 'utf8' });
+    assert.equal(log.status, 0, log.stderr);
+    const expected = readPly(out).length / 3;
+    const got = await tab.evaluate((u, e, t) => window.adaptive(u, e, t, 40, 1080), `/work/${name}.glb`, eye, target);
+    assert.deepEqual(tab.errors, []);
+    assert.ok(got.inRange, `${name}: a triangle indexes past the frame`);
+    assert.ok(got.relative <= 1e-6, `${name}: adaptive vertices ${got.relative} of the size off the uniform frame's`);
+    assert.ok(got.count < got.uniform, `${name}: ${got.count} adaptive vertices, ${got.uniform} uniform`);
+    // The levels come from the same code; libm's last bits may tip a face.
+    assert.ok(Math.abs(got.count - expected) <= 0.02 * expected, `${name}: ${got.count} vertices, the tool ${expected}`);
+    console.log(`${name} adaptive in the browser: ${got.count} vertices (strata-reconstruct --view: ${expected}; ` +
+      `uniform ${got.uniform})`);
   }
 });
 
