@@ -5,6 +5,7 @@
 #include "strata/baker/distance.h"
 #include "strata/io/mesh_io.h"
 #include "strata/normals.h"
+#include "strata/plane.h"
 #include "strata/surface.h"
 
 #include "test_rigs.h"
@@ -43,8 +44,8 @@ void expectTemplateTiles(int finest, int level, const int e[3])
     std::map<std::pair<int, int>, int> directed;
     ASSERT_EQ(t.size() % 3, 0u);
     for (size_t k = 0; k < t.size(); k += 3) {
-        const auto a = at[t[k]], b = at[t[k + 1]], c = at[t[k + 2]];
-        const long twice = long(b.first - a.first) * (c.second - a.second) - long(b.second - a.second) * (c.first - a.first);
+        auto point = [&](uint16_t slot) { return glm::ivec2(at[slot].first, at[slot].second); };
+        const long twice = orient2(point(t[k]), point(t[k + 1]), point(t[k + 2]));
         ASSERT_GT(twice, 0) << label;
         area += twice;
         for (int m = 0; m < 3; ++m)

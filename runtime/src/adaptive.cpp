@@ -3,11 +3,13 @@
 
 #include "strata/control_mesh.h"
 #include "strata/displacement_math.h"
+#include "strata/plane.h"
 
 #include "simd.h"
 #include "worker_pool.h"
 
 #include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -40,7 +42,8 @@ void slotPoints(std::vector<uint16_t>* is, std::vector<uint16_t>* js, uint32_t R
 template <typename Fn>
 void rasterGrid(const int gi[3], const int gj[3], int R, const Fn& fn)
 {
-    const int area = (gi[1] - gi[0]) * (gj[2] - gj[0]) - (gj[1] - gj[0]) * (gi[2] - gi[0]);
+    const glm::ivec2 g[3] = {{gi[0], gj[0]}, {gi[1], gj[1]}, {gi[2], gj[2]}};
+    const int area = orient2(g[0], g[1], g[2]);
     if (area <= 0)
         return;
     const int i0 = std::min({gi[0], gi[1], gi[2]}), i1 = std::max({gi[0], gi[1], gi[2]});
@@ -50,8 +53,7 @@ void rasterGrid(const int gi[3], const int gj[3], int R, const Fn& fn)
             int w[3];
             bool inside = true;
             for (int k = 0; k < 3 && inside; ++k) {
-                const int a = (k + 1) % 3, b = (k + 2) % 3;
-                w[k] = (gi[b] - gi[a]) * (j - gj[a]) - (gj[b] - gj[a]) * (i - gi[a]);
+                w[k] = orient2(g[(k + 1) % 3], g[(k + 2) % 3], glm::ivec2(i, j));
                 inside = w[k] >= 0;
             }
             if (inside)
@@ -121,6 +123,32 @@ void snapPoint(uint32_t* i, uint32_t* j, int level, const int edgeLevels[3])
     }
 }
 
+// The index of a (level, edge levels) template among (finest + 1)^4.
+size_t templateKey(int finest, int level, const int e[3])
+{
+    const size_t n = size_t(finest + 1);
+    return ((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2]);
+}
+
+// Per face corner (3 f + k, the edge from corner k to k + 1), its edge in `edges`.
+std::vector<uint32_t> cornerEdges(const EdgeGroups& edges, size_t faceCount)
+{
+    std::vector<uint32_t> edgeOf(3 * faceCount, 0);
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        for (uint32_t k = 0; k < edges.faceCountOf(e); ++k)
+            edgeOf[edges.cornersOf(e)[k]] = uint32_t(e);
+    return edgeOf;
+}
+
+// Each edge at the lowest level of the faces that share it.
+void edgeLevelsFor(std::vector<uint8_t>* edgeLevels, const uint8_t* levels, const std::vector<uint32_t>& edgeOf,
+                   int finest)
+{
+    std::fill(edgeLevels->begin(), edgeLevels->end(), uint8_t(finest));
+    for (size_t c = 0; c < edgeOf.size(); ++c)
+        (*edgeLevels)[edgeOf[c]] = std::min((*edgeLevels)[edgeOf[c]], levels[c / 3]);
+}
+
 }  // namespace
 
 void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
@@ -169,8 +197,7 @@ float LevelChooser::templateError(const std::vector<uint16_t>& t, size_t face) c
 
 const std::vector<uint16_t>& LevelChooser::tileTemplate(int level, const int e[3])
 {
-    const size_t n = size_t(errors_.finest + 1);
-    std::vector<uint16_t>& t = templates_[((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2])];
+    std::vector<uint16_t>& t = templates_[templateKey(errors_.finest, level, e)];
     if (t.empty())
         adaptiveTileTriangles(&t, errors_.finest, level, e);
     return t;
@@ -198,10 +225,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     const size_t nf = controlTriangles_.size() / 3;
     slotPoints(&slotI_, &slotJ_, R);
     edges_ = groupEdges(controlTriangles_.data(), nf);
-    edgeOf_.assign(3 * nf, 0);
-    for (size_t e = 0; e < edges_.edgeCount(); ++e)
-        for (uint32_t k = 0; k < edges_.faceCountOf(e); ++k)
-            edgeOf_[edges_.cornersOf(e)[k]] = uint32_t(e);
+    edgeOf_ = cornerEdges(edges_, nf);
     edgeLevels_.assign(edges_.edgeCount(), 0);
     templates_.assign(size_t(L + 1) * size_t(L + 1) * size_t(L + 1) * size_t(L + 1), {});
     stitched_.clear();
@@ -226,10 +250,10 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
                 reach = std::max(reach, glm::length(rest_[tile[k]] - centroid));
             e.reach[f] = reach;
             float* err = &e.error[f * size_t(L + 1)];
-            const size_t n = size_t(L + 1);
-            for (int l = L - 1; l >= 0; --l)
-                err[l] = std::max(templateError(templates_[((size_t(l) * n + size_t(l)) * n + size_t(l)) * n + size_t(l)], f),
-                                  err[l + 1]);
+            for (int l = L - 1; l >= 0; --l) {
+                const int same[3] = {l, l, l};  // built above
+                err[l] = std::max(templateError(templates_[templateKey(L, l, same)], f), err[l + 1]);
+            }
         }
     };
     if (threads > 1) {
@@ -362,9 +386,7 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
     // coarsest edge goes up a level (levels only rise, so this ends).
     for (bool changed = true; changed;) {
         changed = false;
-        std::fill(edgeLevels_.begin(), edgeLevels_.end(), uint8_t(L));
-        for (size_t c = 0; c < 3 * nf; ++c)
-            edgeLevels_[edgeOf_[c]] = std::min(edgeLevels_[edgeOf_[c]], levels[c / 3]);
+        edgeLevelsFor(&edgeLevels_, levels, edgeOf_, L);
         for (size_t f = 0; f < nf; ++f) {
             const int l = levels[f];
             const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
@@ -483,13 +505,7 @@ STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, con
         if (j < R)
             keep(r0 + R - j);
     }
-    for (size_t k = 0; k < whole(slots); ++k) {
-        const float x = sum[0][k], y = sum[1][k], z = sum[2][k];
-        const float len = std::sqrt(x * x + y * y + z * z), inv = len > 0.0f ? 1.0f / len : 0.0f;
-        sum[0][k] = x * inv;
-        sum[1][k] = y * inv;
-        sum[2][k] = z * inv;
-    }
+    detail::normalizeGrid(whole(slots), sum[0], sum[1], sum[2]);
     for (size_t k = 0; k < slots; ++k)
         if (vertex[k] != kNone && partial[k] == kNone)
             normals[vertex[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
@@ -534,10 +550,7 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
     const std::vector<uint32_t>& control = plan.controlTriangles();
     const size_t nf = control.size() / 3;
     const EdgeGroups edges = groupEdges(control.data(), nf);
-    edgeOf_.assign(3 * nf, 0);
-    for (size_t e = 0; e < edges.edgeCount(); ++e)
-        for (uint32_t k = 0; k < edges.faceCountOf(e); ++k)
-            edgeOf_[edges.cornersOf(e)[k]] = uint32_t(e);
+    edgeOf_ = cornerEdges(edges, nf);
     edgeLevels_.assign(edges.edgeCount(), 0);
     const size_t combos = size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1);
     templates_.resize(combos);
@@ -548,27 +561,16 @@ AdaptiveFrame::~AdaptiveFrame() = default;
 
 size_t AdaptiveFrame::templateFor(int level, const int e[3])
 {
-    const size_t n = size_t(finest_ + 1);
-    const size_t key = ((size_t(level) * n + size_t(e[0])) * n + size_t(e[1])) * n + size_t(e[2]);
+    const size_t key = templateKey(finest_, level, e);
     TileTemplate& t = templates_[key];
     if (t.fine.empty()) {
         adaptiveTileTriangles(&t.fine, finest_, level, e);
-        // The same triangles in the level's own slots, and each slot's
-        // triangles (ascending), for the tile pass.
+        // The same triangles in the level's own slots, for the tile pass.
         const uint32_t step = 1u << (finest_ - level), R = 1u << level;
         const size_t slots = size_t(R + 1) * (R + 2) / 2;
         t.local.resize(t.fine.size());
         for (size_t k = 0; k < t.fine.size(); ++k)
             t.local[k] = uint16_t(tileSlot(slotI_[t.fine[k]] / step, slotJ_[t.fine[k]] / step, R));
-        t.offsets.assign(slots + 1, 0);
-        for (uint16_t v : t.local)
-            ++t.offsets[v + 1u];
-        for (size_t k = 0; k < slots; ++k)
-            t.offsets[k + 1] = uint16_t(t.offsets[k + 1] + t.offsets[k]);
-        t.incident.resize(t.local.size());
-        std::vector<uint16_t> cursor(t.offsets.begin(), t.offsets.end() - 1);
-        for (size_t k = 0; k < t.local.size(); ++k)
-            t.incident[cursor[t.local[k]]++] = uint16_t(k / 3);
         // The points snapped onto another (the tile pass reads their
         // target's position and adds their sums into the target's).
         t.snapTo.resize(slots);
@@ -601,9 +603,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
                                                            std::to_string(levels[f]) + ", past the plan's level " +
                                                            std::to_string(finest_));
     levels_.assign(levels, levels + nf);
-    std::fill(edgeLevels_.begin(), edgeLevels_.end(), uint8_t(finest_));
-    for (size_t c = 0; c < 3 * nf; ++c)
-        edgeLevels_[edgeOf_[c]] = std::min(edgeLevels_[edgeOf_[c]], levels[c / 3]);
+    edgeLevelsFor(&edgeLevels_, levels, edgeOf_, finest_);
 
     vertices_.clear();
     triangles_.clear();
@@ -658,23 +658,31 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
 
-    // Each border vertex's partial sums, in tile order (a stable counting sort).
+    // Each border vertex's partial sums, in tile order (a stable counting
+    // sort), laid out per border vertex as the uniform frame's border pass
+    // reads them.  remap_, all ~0 again, lends its first n entries for the
+    // frame vertices' border numbers, and is cleared after.
     const size_t n = vertices_.size();
-    borderOffsets_.assign(n + 1, 0);
+    borderVertices_.clear();
+    borderOffsets_.assign(1, 0);
     for (uint32_t v : partialVertex_)
-        ++borderOffsets_[v + 1];
-    for (size_t v = 0; v < n; ++v)
-        borderOffsets_[v + 1] += borderOffsets_[v];
+        if (remap_[v] == kNone) {
+            remap_[v] = uint32_t(borderVertices_.size());
+            borderVertices_.push_back(v);
+            borderOffsets_.push_back(0);
+        }
+    for (uint32_t v : partialVertex_)
+        ++borderOffsets_[remap_[v] + 1];
+    for (size_t u = 0; u < borderVertices_.size(); ++u)
+        borderOffsets_[u + 1] += borderOffsets_[u];
     borderEntries_.resize(partials);
     for (size_t k = 0; k < partials; ++k)  // each vertex's end as its cursor, shifted back below
-        borderEntries_[borderOffsets_[partialVertex_[k]]++] = uint32_t(k);
-    for (size_t v = n; v > 0; --v)
-        borderOffsets_[v] = borderOffsets_[v - 1];
+        borderEntries_[borderOffsets_[remap_[partialVertex_[k]]]++] = uint32_t(k);
+    for (size_t u = borderVertices_.size(); u > 0; --u)
+        borderOffsets_[u] = borderOffsets_[u - 1];
     borderOffsets_[0] = 0;
-    borderVertices_.clear();
-    for (size_t v = 0; v < n; ++v)
-        if (borderOffsets_[v + 1] > borderOffsets_[v])
-            borderVertices_.push_back(uint32_t(v));
+    for (uint32_t v : borderVertices_)
+        remap_[v] = kNone;
     partials_.resize(partials);
 
     // Linear scheme: each frame vertex's control corners, weights and
@@ -758,14 +766,8 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
         }
     });
     parallel(threads, borderVertices_.size(), [&](size_t b, size_t e, int) {
-        for (size_t k = b; k < e; ++k) {
-            const uint32_t v = borderVertices_[k];
-            glm::vec3 sum(0.0f);
-            for (uint32_t m = borderOffsets_[v], end = borderOffsets_[v + 1]; m < end; ++m)
-                sum += partials_[borderEntries_[m]];
-            const float len = glm::length(sum);
-            normals[v] = sum * (len > 0.0f ? 1.0f / len : 0.0f);
-        }
+        detail::finishBorders(normals, borderVertices_.data(), borderOffsets_.data(), borderEntries_.data(),
+                              partials_.data(), b, e);
     });
     return Status::ok();
 }
@@ -803,7 +805,7 @@ size_t AdaptiveFrame::bytes() const
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     size_t t = 0;
     for (const TileTemplate& v : templates_)
-        t += bytes(v.fine) + bytes(v.local) + bytes(v.offsets) + bytes(v.incident);
+        t += bytes(v.fine) + bytes(v.local) + bytes(v.snapTo) + bytes(v.snapped);
     for (const Scratch& v : scratch_)
         t += 6 * bytes(v.px) + 6 * bytes(v.up[0]);
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) +

@@ -62,24 +62,6 @@ STRATA_KERNEL_INLINE void displaceGrid(size_t n, const float* w1, const float* w
     }
 }
 
-// The tiled path's unit normal: one division per vertex (zero stays zero).
-STRATA_KERNEL_INLINE float inverseLength(float x, float y, float z)
-{
-    const float len = std::sqrt(x * x + y * y + z * z);
-    return len > 0.0f ? 1.0f / len : 0.0f;
-}
-
-// Normalises sums of face normals in place, as inverseLength.
-STRATA_KERNEL_INLINE void normalizeGrid(size_t n, float* __restrict x, float* __restrict y, float* __restrict z)
-{
-    for (size_t k = 0; k < n; ++k) {
-        const float s = inverseLength(x[k], y[k], z[k]);
-        x[k] *= s;
-        y[k] *= s;
-        z[k] *= s;
-    }
-}
-
 // The smooth scheme's tile: limit positions and tangents as the product of
 // the tile's control points with its dense weights, then eq. 2 along the
 // unit limit normal (strata_limit_normal), as structure of arrays.
@@ -642,7 +624,7 @@ STRATA_KERNEL_INLINE void shadeTileGrid(const TileJob& job, size_t faceBegin, si
             const uint32_t k = job.borderSlots[b];
             partial[b] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
         }
-        normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
+        detail::normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
         // The tile's own vertices.  A border vertex's normal written here is
         // the tile's share only; the border pass, which runs after every
         // tile, overwrites it with the whole sum.
@@ -707,12 +689,8 @@ void FrameEvaluator::shadeTiles(Scratch& s, glm::vec3* positions, glm::vec3* nor
 
 void FrameEvaluator::finishBorders(glm::vec3* normals, size_t begin, size_t end) const
 {
-    for (size_t u = begin; u < end; ++u) {
-        glm::vec3 n(0.0f);
-        for (uint32_t e = borderOffsets_[u]; e < borderOffsets_[u + 1]; ++e)
-            n += partials_[borderEntries_[e]];
-        normals[borderVertices_[u]] = n * inverseLength(n.x, n.y, n.z);
-    }
+    detail::finishBorders(normals, borderVertices_.data(), borderOffsets_.data(), borderEntries_.data(),
+                          partials_.data(), begin, end);
 }
 
 void FrameEvaluator::faceNormals(const glm::vec3* p, size_t begin, size_t end)

@@ -207,10 +207,9 @@ private:
     std::vector<uint32_t> edgeOf_;        // per face corner (3 f + k): its undirected edge
     std::vector<uint8_t> edgeLevels_;     // per edge: its level for the current face levels
     // By (level, e0, e1, e2), built on first use: the triangles in the
-    // finest tile's slots and in the level's own, and each of the level's
-    // slots' triangles.
+    // finest tile's slots and in the level's own.
     struct TileTemplate {
-        std::vector<uint16_t> fine, local, offsets, incident;
+        std::vector<uint16_t> fine, local;
         std::vector<uint16_t> snapTo;   // per slot of the level: where it is drawn
         std::vector<uint16_t> snapped;  // the slots drawn elsewhere
     };
