@@ -117,7 +117,7 @@ struct PyRig {
             py::gil_scoped_release unlocked;
             check(io::reconstruct(&owned->rec, rig, &map, options, posed ? &pose : nullptr));
             if (adaptive) {
-                Status st = io::reconstructView(&owned->view, owned->rec, viewSpec, pixelError);
+                Status st = io::reconstructView(&owned->view, owned->rec, viewSpec, pixelError, /*measure=*/false);
                 if (!st)
                     throw StrataError(path + ": view: " + st.message());
             }

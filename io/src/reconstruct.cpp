@@ -61,7 +61,7 @@ Status reconstruct(Reconstruction* out, const Rig& rig, const DisplacementMap* m
     return reconstruct(out, rig, map, options, pose);
 }
 
-Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError)
+Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError, bool measure)
 {
     if (!out || !rec.surface)
         return Status(StatusCode::InvalidArgument, "reconstructView: no reconstruction");
@@ -74,7 +74,7 @@ Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& v
     a.normals.resize(frame.vertexCount());
     if (Status st = s.evaluateAdaptive(a.positions.data(), a.normals.data(), a.positions.size()); !st)
         return st;
-    if (rec.positions.size() == s.vertexCount())
+    if (measure && rec.positions.size() == s.vertexCount())
         a.maxPixelError = frame.maxScreenDeviation(a.positions.data(), rec.positions.data(), view);
     a.facesPerLevel.assign(size_t(s.level()) + 1, 0);
     for (uint8_t l : frame.levels())

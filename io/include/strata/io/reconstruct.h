@@ -50,10 +50,13 @@ Status reconstructPose(Reconstruction* rec, const Pose& pose);
 /// finest), and how far it strays from the finest surface on screen.
 struct AdaptiveView {
     std::vector<glm::vec3> positions, normals;  ///< surface->adaptiveFrame().vertexCount() each
-    float maxPixelError = 0.0f;                 ///< AdaptiveFrame::maxScreenDeviation against rec.positions
+    float maxPixelError = 0.0f;                 ///< AdaptiveFrame::maxScreenDeviation against rec.positions (measure)
     std::vector<size_t> facesPerLevel;          ///< control faces at each level 0..finest
 };
-Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError);
+/// measure: also measure maxPixelError (a pass over every finest vertex; a
+/// caller that only wants the mesh skips it).
+Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError,
+                       bool measure = true);
 
 /// Writes an adaptive view (positions, shading normals, UVs per corner when
 /// the rig has them) by extension.
