@@ -142,9 +142,24 @@ void expectClosedFrame(Surface& s, const std::string& label)
                     .evaluate(fine.data(), nullptr, 0, fine.size(), s.controlPositions().data(),
                               s.controlNormals().data(), s.controlVertexCount())
                     .isOk());
+    // Each normal is the area-weighted sum over the drawn triangles at the
+    // vertex (the tile pass inside large tiles, the gather pass elsewhere),
+    // and one thread gives the same bits as two.
+    std::vector<glm::vec3> expected(p.size(), glm::vec3(0.0f)), p1(p.size()), n1(p.size());
+    for (size_t t = 0; t < tri.size(); t += 3) {
+        const glm::vec3 area2 = glm::cross(p[tri[t + 1]] - p[tri[t]], p[tri[t + 2]] - p[tri[t]]);
+        for (size_t k = t; k < t + 3; ++k)
+            expected[tri[k]] += area2;
+    }
+    for (glm::vec3& e : expected)
+        e = glm::normalize(e);
+    ASSERT_TRUE(s.evaluateAdaptive(p1.data(), n1.data(), p1.size(), 1).isOk());
     for (size_t v = 0; v < p.size(); ++v) {
         ASSERT_EQ(p[v], fine[frame.vertices()[v]]) << label << " vertex " << v;
         ASSERT_NEAR(glm::length(n[v]), 1.0f, 1e-5f) << label;
+        ASSERT_LT(glm::length(n[v] - expected[v]), 1e-4f) << label << " vertex " << v;
+        ASSERT_EQ(p1[v], p[v]) << label;
+        ASSERT_EQ(n1[v], n[v]) << label;
     }
     // Shading normals face out of the closed surface, like its triangles.
     glm::vec3 centre(0.0f);

@@ -22,6 +22,16 @@ namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
 
+// Faces drawn at this level or finer (8 segments an edge) go through the
+// tile pass; coarser tiles are mostly border, and their few triangles cost
+// less summed per vertex (as the uniform frame's plain passes below level
+// 3; measured with bench_runtime).
+constexpr int kGridLevel = 3;
+
+// Slot of grid point (i, j) in the tile pass's layout (detail::GridScratch:
+// row i, j within it); tileSlot(j, i, R).
+inline size_t gridSlot(uint32_t i, uint32_t j, uint32_t R) { return tileSlot(j, i, R); }
+
 // The grid point of each slot of a tile of resolution R.
 void slotPoints(std::vector<uint16_t>* is, std::vector<uint16_t>* js, uint32_t R)
 {
@@ -406,138 +416,119 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
     return Status::ok();
 }
 
-// The tile pass's working arrays (structure of arrays): the grid's
-// positions and sums, per slot; the up and down triangles' normals, per row
-// with a zero before (never written) and one after (written per tile); row
-// -1 is a zero row, never written.
-void AdaptiveFrame::Scratch::resize(int finest)
-{
-    const size_t R = size_t(1) << finest, width = (R + 2 + 7) / 8 * 8 + 8;
-    rowWidth = width;
-    for (std::vector<float>* v : {&px, &py, &pz, &sx, &sy, &sz})
-        v->assign((R + 1) * (R + 2) / 2 + 2 * width, 0.0f);  // every slot, and whole vectors past the last rows
-    for (int a = 0; a < 3; ++a) {
-        up[a].assign((R + 2) * width, 0.0f);
-        down[a].assign((R + 2) * width, 0.0f);
-    }
-}
-
 namespace {
 
-// Slot (i, j) sums up(i, j), up(i - 1, j), up(i, j - 1), down(i - 1, j),
-// down(i - 1, j - 1) and down(i, j - 1): in the padded rows (entry x of a
-// row is triangle x - 1) entries i + 1 and i of rows j and j - 1.
-STRATA_KERNEL_INLINE void sumRowSoA(size_t n, const float* __restrict u, const float* __restrict uBelow,
-                                    const float* __restrict d, const float* __restrict dBelow, float* __restrict out)
+// Unnormalised normals of triangles list[b .. e) of a frame's triangles.
+STRATA_KERNEL_CLONES void triangleNormalsRange(const uint32_t* triangles, const uint32_t* list, const glm::vec3* p,
+                                               glm::vec3* out, size_t b, size_t e)
 {
-    for (size_t i = 0; i < n; ++i)
-        out[i] = u[i + 1] + u[i] + uBelow[i + 1] + d[i] + dBelow[i] + dBelow[i + 1];
+    for (size_t k = b; k < e; ++k) {
+        const uint32_t* t = triangles + 3 * size_t(list[k]);
+        const glm::vec3 a = p[t[0]];
+        out[k] = glm::cross(p[t[1]] - a, p[t[2]] - a);
+    }
 }
 
-
-// One tile at resolution R (kR: fixed at compile time, so a small tile's
-// short rows unroll; 0: the general loop).
-template <size_t kR, typename Scratch>
-STRATA_KERNEL_INLINE void shadeGrid(size_t rRuntime, const uint32_t* source, const uint32_t* vertex,
-                                    const uint32_t* partial, const uint16_t* snapped, size_t snappedCount,
-                                    const uint16_t* snapTo, const glm::vec3* positions, glm::vec3* normals,
-                                    glm::vec3* partials, Scratch& s)
+// Unit normals of vertices[b .. e): each the sum of its shares
+// (shares[entries[offsets[u] .. offsets[u + 1])], in order), normalised.
+STRATA_KERNEL_CLONES void gatherNormalsRange(const uint32_t* vertices, const uint32_t* offsets, const uint32_t* entries,
+                                             const glm::vec3* fn, glm::vec3* normals, size_t b, size_t e)
 {
-    const size_t R = kR ? kR : rRuntime, W = s.rowWidth;
-    const size_t slots = (R + 1) * (R + 2) / 2;
-    // Loops run in whole vectors of 8 (no scalar remainders): the scratch
-    // rows are padded, and what they write past a row's end is either
-    // rewritten (the next row's sums), reset (the zero after each triangle
-    // row) or never read.
-    auto whole = [](size_t n) { return (n + 7) & ~size_t(7); };
-    float* px = s.px.data();
-    float* py = s.py.data();
-    float* pz = s.pz.data();
-    // Positions, by slot (row j starts at tileSlot(0, j, R)).
-    for (size_t k = 0; k < slots; ++k) {
-        const glm::vec3 p = positions[source[k]];
-        px[k] = p.x;
-        py[k] = p.y;
-        pz[k] = p.z;
+    for (size_t u = b; u < e; ++u) {
+        glm::vec3 n(0.0f);
+        for (uint32_t k = offsets[u]; k < offsets[u + 1]; ++k)
+            n += fn[entries[k]];
+        normals[vertices[u]] = n * detail::inverseLength(n.x, n.y, n.z);
     }
-    // Triangle normals row by row, into padded rows (entry i + 1: triangle i).
-    // Row r of the buffers is grid row r - 1 (buffer row 0: the zero row -1).
-    for (size_t j = 0; j < R; ++j) {
-        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), r1 = tileSlot(0, uint32_t(j + 1), uint32_t(R));
-        const size_t nu = R - j, nd = R - j - 1, row = (j + 1) * W + 1;
-        detail::crossRow(whole(nu), px + r0, py + r0, pz + r0, px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1, py + r1, pz + r1,
-                    s.up[0].data() + row, s.up[1].data() + row, s.up[2].data() + row);
-        detail::crossRow(whole(nd), px + r0 + 1, py + r0 + 1, pz + r0 + 1, px + r1 + 1, py + r1 + 1, pz + r1 + 1, px + r1, py + r1,
-                    pz + r1, s.down[0].data() + row, s.down[1].data() + row, s.down[2].data() + row);
-        for (int a = 0; a < 3; ++a) {  // the one zero after each row the sums read (earlier tiles left values)
-            s.up[a][row + nu] = 0.0f;
-            s.down[a][row + nd] = 0.0f;
-        }
-    }
-    for (int a = 0; a < 3; ++a) {  // grid row R has no triangles: the entry its one slot reads
-        s.up[a][(R + 1) * W + 1] = 0.0f;
-        s.down[a][(R + 1) * W + 1] = 0.0f;
-    }
-    float* sum[3] = {s.sx.data(), s.sy.data(), s.sz.data()};
-    for (size_t j = 0; j <= R; ++j) {
-        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R)), row = (j + 1) * W, below = j * W;
-        for (int a = 0; a < 3; ++a)
-            sumRowSoA(whole(R - j + 1), s.up[a].data() + row, s.up[a].data() + below, s.down[a].data() + row,
-                      s.down[a].data() + below, sum[a] + r0);
-    }
-    // A snapped point's triangles are its target's in the stitched tile.
-    for (size_t k = 0; k < snappedCount; ++k) {
-        const uint16_t from = snapped[k], to = snapTo[from];
-        for (int a = 0; a < 3; ++a)
-            sum[a][to] += sum[a][from];
-    }
-    // The border's partial sums (rows 0 and the two slanted sides), then
-    // every slot normalised at once (vectorised), then the inner vertices.
-    auto keep = [&](size_t k) {
-        if (partial[k] != kNone)
-            partials[partial[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
-    };
-    for (size_t i = 0; i <= R; ++i)
-        keep(i);
-    for (size_t j = 1; j <= R; ++j) {
-        const size_t r0 = tileSlot(0, uint32_t(j), uint32_t(R));
-        keep(r0);
-        if (j < R)
-            keep(r0 + R - j);
-    }
-    detail::normalizeGrid(whole(slots), sum[0], sum[1], sum[2]);
-    for (size_t k = 0; k < slots; ++k)
-        if (vertex[k] != kNone && partial[k] == kNone)
-            normals[vertex[k]] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
 }
 
 }  // namespace
 
-STRATA_KERNEL_CLONES void AdaptiveFrame::shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex,
-                                                           const uint32_t* partial, const uint16_t* snapped,
-                                                           size_t snappedCount, const uint16_t* snapTo,
-                                                           const glm::vec3* positions, glm::vec3* normals,
-                                                           glm::vec3* partials, Scratch& s)
+// The tile pass's scratch (one per thread) and its arguments.
+struct AdaptiveFrame::Scratch : detail::GridScratch {};
+
+struct AdaptiveFrame::TileJob {
+    const uint32_t* control;
+    const LevelGrid* grids;
+    const uint8_t* levels;
+    const uint32_t *faces, *first, *slots, *writeFirst, *snapFirst;
+    const GridWrite* writes;
+    const uint16_t* snaps;
+    const uint32_t* partialFirst;
+    const uint16_t* partialSlots;
+    glm::vec3* partials;
+    const float* d;
+    const glm::vec3 *cp, *cn;  // linear: the control mesh (null: smooth, positions read)
+    glm::vec3 *positions, *normals;
+};
+
+// Grid tiles [begin, end): linear, displaced positions as the uniform
+// frame's tiles compute them (bit-identical to Plan::evaluate), each
+// snapped point then at its target; smooth, the positions already
+// evaluated, snapped points reading their target's.  Then the grid's sums
+// of face normals (a collapsed triangle has zero area); the tile writes its
+// own vertices' positions and its inner vertices' normals.
+STRATA_KERNEL_CLONES void AdaptiveFrame::shadeTiles(const TileJob& job, Scratch& s, size_t begin, size_t end)
 {
-    if (level == 0) {
-        // The control triangle itself: three corners, all shared, one normal.
-        const glm::vec3 a = positions[source[0]];
-        const glm::vec3 n = glm::cross(positions[source[1]] - a, positions[source[2]] - a);
-        for (int k = 0; k < 3; ++k)
-            partials[partial[k]] = n;
-        return;
+    float* p[3] = {s.px.data(), s.py.data(), s.pz.data()};
+    float* sum[3] = {s.sum[0].data(), s.sum[1].data(), s.sum[2].data()};
+    float* face[3][2][3];
+    for (int pair = 0; pair < 3; ++pair)
+        for (int kind = 0; kind < 2; ++kind)
+            for (int a = 0; a < 3; ++a)
+                face[pair][kind][a] = s.face[pair][kind][a].data();
+    for (size_t g = begin; g < end; ++g) {
+        const uint32_t f = job.faces[g];
+        const int level = job.levels[f];
+        const LevelGrid& grid = job.grids[level];
+        const size_t R = size_t(1) << level, S = (R + 1) * (R + 2) / 2;
+        const uint32_t* slot = job.slots + job.first[g];
+        if (job.cp) {
+            float* dl = s.d.data();
+            for (size_t k = 0; k < S; ++k)
+                dl[k] = job.d[slot[k]];
+            const uint32_t* c = job.control + 3 * size_t(f);
+            detail::displaceGrid(detail::wholeVectors(S), grid.w1.data(), grid.w2.data(), dl, job.cp[c[0]],
+                                 job.cp[c[1]], job.cp[c[2]], job.cn[c[0]], job.cn[c[1]], job.cn[c[2]], p[0], p[1],
+                                 p[2]);
+            for (uint32_t k = job.snapFirst[g]; k < job.snapFirst[g + 1]; k += 2)
+                for (int a = 0; a < 3; ++a)
+                    p[a][job.snaps[k]] = p[a][job.snaps[k + 1]];
+        } else {
+            for (size_t k = 0; k < S; ++k) {
+                const glm::vec3 q = job.positions[slot[k]];
+                p[0][k] = q.x;
+                p[1][k] = q.y;
+                p[2][k] = q.z;
+            }
+        }
+        if (job.normals) {
+            if (R == 8)
+                detail::gridNormalSums<8>(R, grid.rows.data(), p, face, s.zero.data(), sum);
+            else if (R == 16)
+                detail::gridNormalSums<16>(R, grid.rows.data(), p, face, s.zero.data(), sum);
+            else
+                detail::gridNormalSums<0>(R, grid.rows.data(), p, face, s.zero.data(), sum);
+            // A snapped point's triangles are its target's; a border
+            // slot's sum is the tile's share of its vertex's normal.
+            for (uint32_t k = job.snapFirst[g]; k < job.snapFirst[g + 1]; k += 2)
+                for (int a = 0; a < 3; ++a)
+                    sum[a][job.snaps[k + 1]] += sum[a][job.snaps[k]];
+            for (uint32_t k = job.partialFirst[g]; k < job.partialFirst[g + 1]; ++k) {
+                const size_t at = job.partialSlots[k];
+                job.partials[k] = glm::vec3(sum[0][at], sum[1][at], sum[2][at]);
+            }
+            detail::normalizeGrid(detail::wholeVectors(S), sum[0], sum[1], sum[2]);
+        }
+        for (uint32_t w = job.writeFirst[g]; w < job.writeFirst[g + 1]; ++w) {
+            const GridWrite& out = job.writes[w];
+            const size_t k = out.slot;
+            if (job.cp)
+                job.positions[out.vertex] = glm::vec3(p[0][k], p[1][k], p[2][k]);
+            if (job.normals && out.inner)
+                job.normals[out.vertex] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
+        }
     }
-    // Called directly (a lambda here would be compiled for the baseline
-    // target, outside this clone).
-    const size_t R = size_t(1) << level;
-    if (R == 2)
-        shadeGrid<2, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
-    else if (R == 4)
-        shadeGrid<4, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
-    else if (R == 8)
-        shadeGrid<8, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
-    else
-        shadeGrid<0, Scratch>(R, source, vertex, partial, snapped, snappedCount, snapTo, positions, normals, partials, s);
 }
 
 AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level())
@@ -555,6 +546,26 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
     const size_t combos = size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1);
     templates_.resize(combos);
     remap_.assign(plan.refinedVertexCount(), kNone);
+    // The tile pass's grids, level kGridLevel and finer.
+    levelGrids_.resize(size_t(finest_) + 1);
+    for (int level = kGridLevel; level <= finest_; ++level) {
+        LevelGrid& grid = levelGrids_[size_t(level)];
+        const uint32_t r = 1u << level, step = 1u << (finest_ - level);
+        const size_t slots = size_t(r + 1) * (r + 2) / 2;
+        grid.rows.resize(r + 2);
+        for (uint32_t i = 0; i <= r + 1; ++i)
+            grid.rows[i] = i * (r + 1) - i * (i - 1) / 2;
+        grid.w1.assign(detail::wholeVectors(slots), 0.0f);
+        grid.w2.assign(detail::wholeVectors(slots), 0.0f);
+        grid.fine.resize(slots);
+        for (uint32_t i = 0; i <= r; ++i)
+            for (uint32_t j = 0; i + j <= r; ++j) {
+                const size_t k = gridSlot(i, j, r);
+                grid.w1[k] = float(i) / float(r);
+                grid.w2[k] = float(j) / float(r);
+                grid.fine[k] = uint16_t(tileSlot(i * step, j * step, R));
+            }
+    }
 }
 
 AdaptiveFrame::~AdaptiveFrame() = default;
@@ -565,24 +576,25 @@ size_t AdaptiveFrame::templateFor(int level, const int e[3])
     TileTemplate& t = templates_[key];
     if (t.fine.empty()) {
         adaptiveTileTriangles(&t.fine, finest_, level, e);
-        // The same triangles in the level's own slots, for the tile pass.
+        if (level < kGridLevel)
+            return key;
+        // The same triangles in the level's grid slots, and where each grid
+        // point is drawn (a point snapped onto another takes its position).
         const uint32_t step = 1u << (finest_ - level), R = 1u << level;
         const size_t slots = size_t(R + 1) * (R + 2) / 2;
         t.local.resize(t.fine.size());
         for (size_t k = 0; k < t.fine.size(); ++k)
-            t.local[k] = uint16_t(tileSlot(slotI_[t.fine[k]] / step, slotJ_[t.fine[k]] / step, R));
-        // The points snapped onto another (the tile pass reads their
-        // target's position and adds their sums into the target's).
+            t.local[k] = uint16_t(gridSlot(slotI_[t.fine[k]] / step, slotJ_[t.fine[k]] / step, R));
         t.snapTo.resize(slots);
-        t.snapped.clear();
-        for (uint32_t j = 0; j <= R; ++j)
-            for (uint32_t i = 0; i + j <= R; ++i) {
+        t.snaps.clear();
+        for (uint32_t i = 0; i <= R; ++i)
+            for (uint32_t j = 0; i + j <= R; ++j) {
                 uint32_t si = i, sj = j;
                 snapPoint(&si, &sj, level, e);
-                const uint16_t from = uint16_t(tileSlot(i, j, R)), to = uint16_t(tileSlot(si, sj, R));
+                const uint16_t from = uint16_t(gridSlot(i, j, R)), to = uint16_t(gridSlot(si, sj, R));
                 t.snapTo[from] = to;
                 if (from != to)
-                    t.snapped.push_back(from);
+                    t.snaps.insert(t.snaps.end(), {from, to});
             }
     }
     return key;
@@ -609,94 +621,132 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     triangles_.clear();
     triangleFaces_.clear();
     cornerSlots_.clear();
-    tileTemplate_.resize(nf);
-    tileFirst_.resize(nf + 1);
-    tileVertex_.clear();
-    tilePartial_.clear();
-    tileSource_.clear();
+    gridFaces_.clear();
+    gridFirst_.assign(1, 0);
+    gridSlots_.clear();
+    gridWriteFirst_.assign(1, 0);
+    gridWrites_.clear();
+    gridSnapFirst_.assign(1, 0);
+    gridSnaps_.clear();
+    gridPartialFirst_.assign(1, 0);
+    gridPartialSlots_.clear();
     partialVertex_.clear();
-    size_t partials = 0;
+    gathered_.clear();
+    const bool linear = plan_.scheme() == Scheme::Linear;
+    const std::vector<SampleLocation>& samples = plan_.sampleLocations();
     for (size_t f = 0; f < nf; ++f) {
         const int l = levels[f];
         const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
-        const size_t key = templateFor(l, e);
-        const std::vector<uint16_t>& t = templates_[key].fine;
-        const std::vector<uint16_t>& local = templates_[key].local;
-        tileTemplate_[f] = uint32_t(key);
+        const TileTemplate& tt = templates_[templateFor(l, e)];
+        const std::vector<uint16_t>& t = tt.fine;
+        const bool grid = l >= kGridLevel;
         const uint32_t R = 1u << l, step = 1u << (finest_ - l);
-        const size_t levelSlots = size_t(R + 1) * (R + 2) / 2, base = tileVertex_.size();
-        tileFirst_[f] = uint32_t(base);
-        tileVertex_.resize(base + levelSlots, kNone);
-        tilePartial_.resize(base + levelSlots, kNone);
-        tileSource_.resize(base + levelSlots, kNone);
         const uint32_t* tile = &tiles_[f * slots_];
+        if (grid && slotVertex_.empty())
+            slotVertex_.assign(slots_, kNone);
         for (size_t k = 0; k < t.size(); ++k) {
             const uint32_t v = tile[t[k]];
             if (remap_[v] == kNone) {
                 remap_[v] = uint32_t(vertices_.size());
                 vertices_.push_back(v);
+                gathered_.push_back(0);
             }
             triangles_.push_back(remap_[v]);
             cornerSlots_.push_back(t[k]);
-            uint32_t& slot = tileVertex_[base + local[k]];
-            if (slot == kNone) {
-                slot = remap_[v];
-                const uint32_t i = slotI_[t[k]] / step, j = slotJ_[t[k]] / step;
-                if (i == 0 || j == 0 || i + j == R) {  // on the control face's border: shared
-                    tilePartial_[base + local[k]] = uint32_t(partials++);
-                    partialVertex_.push_back(remap_[v]);
-                }
-            }
+            const uint32_t i = slotI_[t[k]] / step, j = slotJ_[t[k]] / step;
+            if (!grid || i == 0 || j == 0 || i + j == R)  // a small tile's, or shared with another face
+                gathered_[remap_[v]] = 1;
+            if (grid)
+                slotVertex_[tt.local[k]] = remap_[v];
         }
         triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
-        // Every slot's position source: its own vertex, or its snap target's.
-        const std::vector<uint16_t>& snapTo = templates_[key].snapTo;
-        for (size_t k = 0; k < levelSlots; ++k)
-            tileSource_[base + k] = tileVertex_[base + snapTo[k]];
+        if (!grid)
+            continue;
+        // The tile pass: per grid slot its displacement's refined vertex
+        // (linear) or the frame vertex whose position it takes (smooth);
+        // the vertices it writes; its snapped points (linear).
+        const LevelGrid& lg = levelGrids_[size_t(l)];
+        const size_t S = lg.fine.size();
+        gridFaces_.push_back(uint32_t(f));
+        for (size_t k = 0; k < S; ++k)
+            gridSlots_.push_back(linear ? tile[lg.fine[k]] : slotVertex_[tt.snapTo[k]]);
+        gridFirst_.push_back(uint32_t(gridSlots_.size()));
+        for (uint32_t i = 0; i <= R; ++i)
+            for (uint32_t j = 0; i + j <= R; ++j) {
+                const size_t k = gridSlot(i, j, R);
+                const uint32_t v = slotVertex_[k];
+                if (v == kNone)
+                    continue;
+                const bool inner = i > 0 && j > 0 && i + j < R;
+                if (inner || (linear && samples[vertices_[v]].face == f))
+                    gridWrites_.push_back({v, uint16_t(k), uint16_t(inner)});
+                if (!inner) {  // the tile's share of a border vertex's normal
+                    gridPartialSlots_.push_back(uint16_t(k));
+                    partialVertex_.push_back(v);
+                }
+                slotVertex_[k] = kNone;
+            }
+        gridWriteFirst_.push_back(uint32_t(gridWrites_.size()));
+        gridPartialFirst_.push_back(uint32_t(gridPartialSlots_.size()));
+        gridSnaps_.insert(gridSnaps_.end(), tt.snaps.begin(), tt.snaps.end());
+        gridSnapFirst_.push_back(uint32_t(gridSnaps_.size()));
     }
-    tileFirst_[nf] = uint32_t(tileVertex_.size());
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
 
-    // Each border vertex's partial sums, in tile order (a stable counting
-    // sort), laid out per border vertex as the uniform frame's border pass
-    // reads them.  remap_, all ~0 again, lends its first n entries for the
-    // frame vertices' border numbers, and is cleared after.
-    const size_t n = vertices_.size();
-    borderVertices_.clear();
-    borderOffsets_.assign(1, 0);
-    for (uint32_t v : partialVertex_)
-        if (remap_[v] == kNone) {
-            remap_[v] = uint32_t(borderVertices_.size());
-            borderVertices_.push_back(v);
-            borderOffsets_.push_back(0);
+    // The gather pass: the triangles that touch a gathered vertex, and per
+    // gathered vertex its triangles among them in frame order (a counting
+    // sort).  remap_, all ~0 again, lends its first n entries for the
+    // gathered vertices' numbers, and is cleared after.
+    const size_t n = vertices_.size(), nt = triangles_.size() / 3;
+    gatherVertices_.clear();
+    for (size_t v = 0; v < n; ++v)
+        if (gathered_[v]) {
+            remap_[v] = uint32_t(gatherVertices_.size());
+            gatherVertices_.push_back(uint32_t(v));
         }
-    for (uint32_t v : partialVertex_)
-        ++borderOffsets_[remap_[v] + 1];
-    for (size_t u = 0; u < borderVertices_.size(); ++u)
-        borderOffsets_[u + 1] += borderOffsets_[u];
-    borderEntries_.resize(partials);
-    for (size_t k = 0; k < partials; ++k)  // each vertex's end as its cursor, shifted back below
-        borderEntries_[borderOffsets_[remap_[partialVertex_[k]]]++] = uint32_t(k);
-    for (size_t u = borderVertices_.size(); u > 0; --u)
-        borderOffsets_[u] = borderOffsets_[u - 1];
-    borderOffsets_[0] = 0;
-    for (uint32_t v : borderVertices_)
+    // Their shares: first the grid tiles' partial sums (in tile order),
+    // then the normals of the small tiles' triangles (in frame order).
+    gatherTriangles_.clear();
+    for (size_t t = 0; t < nt; ++t)
+        if (levels[triangleFaces_[t]] < kGridLevel)
+            gatherTriangles_.push_back(uint32_t(t));
+    const size_t partials = partialVertex_.size();
+    gatherOffsets_.assign(gatherVertices_.size() + 1, 0);
+    auto eachShare = [&](auto&& add) {
+        for (size_t k = 0; k < partials; ++k)
+            add(partialVertex_[k], k);
+        for (size_t g = 0; g < gatherTriangles_.size(); ++g) {
+            const uint32_t* c = &triangles_[3 * size_t(gatherTriangles_[g])];
+            for (int k = 0; k < 3; ++k)
+                add(c[k], partials + g);
+        }
+    };
+    eachShare([&](uint32_t v, size_t) { ++gatherOffsets_[remap_[v] + 1]; });
+    for (size_t u = 0; u < gatherVertices_.size(); ++u)
+        gatherOffsets_[u + 1] += gatherOffsets_[u];
+    gatherEntries_.resize(gatherOffsets_.back());
+    // Each vertex's start as its cursor, shifted back below.
+    eachShare([&](uint32_t v, size_t share) { gatherEntries_[gatherOffsets_[remap_[v]]++] = uint32_t(share); });
+    for (size_t u = gatherVertices_.size(); u > 0; --u)
+        gatherOffsets_[u] = gatherOffsets_[u - 1];
+    gatherOffsets_[0] = 0;
+    for (size_t v = 0; v < n; ++v)
         remap_[v] = kNone;
-    partials_.resize(partials);
+    shares_.resize(partials + gatherTriangles_.size());
 
-    // Linear scheme: each frame vertex's control corners, weights and
-    // displacement side by side, so a frame streams them.
+    // Linear scheme: the vertices of faces drawn below kGridLevel, each
+    // with its control corners, weights and displacement side by side, so
+    // a frame streams them.
     linear_.clear();
-    if (plan_.scheme() == Scheme::Linear) {
-        const std::vector<SampleLocation>& samples = plan_.sampleLocations();
+    if (linear) {
         const std::vector<float>& d = plan_.displacements();
-        linear_.resize(n);
         for (size_t k = 0; k < n; ++k) {
             const SampleLocation& at = samples[vertices_[k]];
-            LinearVertex& lv = linear_[k];
+            if (levels[at.face] >= kGridLevel)
+                continue;  // the tile pass writes it
             const uint32_t* c = &control[3 * size_t(at.face)];
-            lv = {{c[0], c[1], c[2]}, at.bary.x, at.bary.y, d[vertices_[k]]};
+            linear_.push_back({{c[0], c[1], c[2]}, uint32_t(k), at.bary.x, at.bary.y, d[vertices_[k]]});
         }
     }
     return Status::ok();
@@ -721,8 +771,45 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
                                            controlNormals, controlCount);
         !st)
         return st;
-    if (!linear_.empty()) {
-        // Plan::evaluate's expression, bit for bit, over the streamed corners.
+    const bool linear = plan_.scheme() == Scheme::Linear;
+    if (!linear)
+        parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
+            (void)plan_.evaluateVertices(positions + b, nullptr, vertices_.data() + b, e - b, d, controlPositions,
+                                         controlNormals, controlCount);
+        });
+    // The tile pass: linear, the positions of faces at kGridLevel or finer;
+    // either scheme, their inner vertices' normals.
+    if (!gridFaces_.empty() && (linear || normals)) {
+        const int pool = threads <= 1 ? 1 : threads;
+        if (scratch_.size() < size_t(pool)) {
+            scratch_.resize(size_t(pool));
+            for (Scratch& s : scratch_)
+                s.resize(slots_, (size_t(1) << finest_) + 1);
+        }
+        TileJob job{};
+        job.control = plan_.controlTriangles().data();
+        job.grids = levelGrids_.data();
+        job.levels = levels_.data();
+        job.faces = gridFaces_.data();
+        job.first = gridFirst_.data();
+        job.slots = gridSlots_.data();
+        job.writeFirst = gridWriteFirst_.data();
+        job.writes = gridWrites_.data();
+        job.snapFirst = gridSnapFirst_.data();
+        job.snaps = gridSnaps_.data();
+        job.partialFirst = gridPartialFirst_.data();
+        job.partialSlots = gridPartialSlots_.data();
+        job.partials = shares_.data();
+        job.d = d;
+        job.cp = linear ? controlPositions : nullptr;
+        job.cn = linear ? controlNormals : nullptr;
+        job.positions = positions;
+        job.normals = normals;
+        parallel(threads, gridFaces_.size(), [&](size_t b, size_t e, int t) { shadeTiles(job, scratch_[size_t(t)], b, e); });
+    }
+    if (linear) {
+        // The other faces' vertices: Plan::evaluate's expression, bit for
+        // bit, over the streamed corners.
         const bool own = d == plan_.displacements().data();
         parallel(threads, linear_.size(), [&](size_t b, size_t e, int) {
             for (size_t k = b; k < e; ++k) {
@@ -731,43 +818,23 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
                 const glm::vec3 p = w0 * controlPositions[v.c[0]] + w1 * controlPositions[v.c[1]] +
                                     w2 * controlPositions[v.c[2]];
                 const glm::vec3 n = w0 * controlNormals[v.c[0]] + w1 * controlNormals[v.c[1]] + w2 * controlNormals[v.c[2]];
-                positions[k] = shared::strata_displace(p, n, own ? v.d : d[vertices_[k]]);
+                positions[v.target] = shared::strata_displace(p, n, own ? v.d : d[vertices_[v.target]]);
             }
-        });
-    } else {
-        parallel(threads, vertices_.size(), [&](size_t b, size_t e, int) {
-            (void)plan_.evaluateVertices(positions + b, nullptr, vertices_.data() + b, e - b, d, controlPositions,
-                                         controlNormals, controlCount);
         });
     }
     if (!normals)
         return Status::ok();
 
-    // Normals per tile, on the tile's whole regular grid at its level:
-    // a snapped point takes its target's position, so the grid's triangles
-    // are the stitched tile's (a collapsed one has zero area), and its sum
-    // goes to the target.  A slot inside the control face is then final;
-    // one on its border leaves a partial sum that the border pass adds up
-    // in tile order.
-    const size_t nf = levels_.size();
-    const int pool = threads <= 1 ? 1 : threads;
-    if (scratch_.size() < size_t(pool)) {
-        scratch_.resize(size_t(pool));
-        for (Scratch& s : scratch_)
-            s.resize(finest_);
-    }
-    parallel(threads, nf, [&](size_t b, size_t e, int t) {
-        Scratch& s = scratch_[size_t(t)];
-        for (size_t f = b; f < e; ++f) {
-            const uint32_t base = tileFirst_[f];
-            const TileTemplate& tt = templates_[tileTemplate_[f]];
-            shadeAdaptiveTile(levels_[f], &tileSource_[base], &tileVertex_[base], &tilePartial_[base], tt.snapped.data(),
-                              tt.snapped.size(), tt.snapTo.data(), positions, normals, partials_.data(), s);
-        }
+    // Every vertex the tile pass leaves (on a control edge, or in a face
+    // below kGridLevel) sums its shares: grid tiles' partial sums and the
+    // small tiles' triangle normals.
+    glm::vec3* triangleShares = shares_.data() + partialVertex_.size();
+    parallel(threads, gatherTriangles_.size(), [&](size_t b, size_t e, int) {
+        triangleNormalsRange(triangles_.data(), gatherTriangles_.data(), positions, triangleShares, b, e);
     });
-    parallel(threads, borderVertices_.size(), [&](size_t b, size_t e, int) {
-        detail::finishBorders(normals, borderVertices_.data(), borderOffsets_.data(), borderEntries_.data(),
-                              partials_.data(), b, e);
+    parallel(threads, gatherVertices_.size(), [&](size_t b, size_t e, int) {
+        gatherNormalsRange(gatherVertices_.data(), gatherOffsets_.data(), gatherEntries_.data(), shares_.data(), normals,
+                           b, e);
     });
     return Status::ok();
 }
@@ -805,13 +872,16 @@ size_t AdaptiveFrame::bytes() const
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     size_t t = 0;
     for (const TileTemplate& v : templates_)
-        t += bytes(v.fine) + bytes(v.local) + bytes(v.snapTo) + bytes(v.snapped);
+        t += bytes(v.fine) + bytes(v.local) + bytes(v.snapTo) + bytes(v.snaps);
+    for (const LevelGrid& v : levelGrids_)
+        t += bytes(v.rows) + bytes(v.w1) + bytes(v.w2) + bytes(v.fine);
     for (const Scratch& v : scratch_)
-        t += 6 * bytes(v.px) + 6 * bytes(v.up[0]);
+        t += v.bytes();
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
-           bytes(tileTemplate_) + bytes(tileFirst_) + bytes(tileVertex_) + bytes(tilePartial_) + bytes(tileSource_) + bytes(partialVertex_) +
-           bytes(borderVertices_) + bytes(borderOffsets_) + bytes(borderEntries_) + bytes(partials_) + bytes(linear_);
+           bytes(gridFaces_) + bytes(gridFirst_) + bytes(gridSlots_) + bytes(gridWriteFirst_) + bytes(gridWrites_) +
+           bytes(gridSnapFirst_) + bytes(gridSnaps_) + bytes(slotVertex_) + bytes(gathered_) + bytes(gatherVertices_) + bytes(gatherOffsets_) + bytes(gatherEntries_) +
+           bytes(gatherTriangles_) + bytes(shares_) + bytes(gridPartialFirst_) + bytes(gridPartialSlots_) + bytes(partialVertex_) + bytes(linear_);
 }
 
 }  // namespace strata

@@ -18,13 +18,6 @@ namespace strata {
 
 namespace {
 
-// The tile loops run in whole vectors of 8 floats (AVX2's width): short
-// rows (8 slots at level 3) then need no scalar remainder.  Scratch arrays
-// are padded to match; values past a row's end are scratch that the next
-// row overwrites and nothing reads.
-constexpr size_t kLanes = 8;
-inline size_t wholeVectors(size_t n) { return (n + kLanes - 1) / kLanes * kLanes; }
-
 constexpr uint32_t kOwned = 0x80000000u;
 // A tile's slot numbers fit the tile layout's 16-bit slot list.
 static_assert((size_t(1) << kMaxLevel) + 2 < 362, "(R + 1)(R + 2) / 2 slots must stay below 2^16");
@@ -37,31 +30,6 @@ inline glm::vec3 unitOrZero(glm::vec3 n)
     return len > 0.0f ? n / len : glm::vec3(0.0f);
 }
 
-// One grid row's sums of face normals.  The row lies between the row pair
-// below it (p: its up triangles touch the row with corners b and c, its down
-// triangles with a and b) and the pair above it (c: up triangles with a and
-// c, down triangles with c).  Face normals are stored one slot to the right
-// with zero pads at both ends, so the grid's edges need no tests.
-STRATA_KERNEL_INLINE void rowSum(size_t m, const float* pu, const float* pd, const float* cu, const float* cd, float* __restrict sum)
-{
-    for (size_t j = 0; j < m; ++j)
-        sum[j] = (pu[j + 1] + pd[j + 1] + pd[j]) + (cu[j + 1] + cu[j] + cd[j]);
-}
-
-// A tile's displaced positions: eq. 2 at each slot's barycentrics, the same
-// expression as Plan::evaluate (bit-identical), as structure of arrays.
-STRATA_KERNEL_INLINE void displaceGrid(size_t n, const float* w1, const float* w2, const float* d, glm::vec3 A, glm::vec3 B, glm::vec3 C,
-                  glm::vec3 NA, glm::vec3 NB, glm::vec3 NC, float* __restrict px, float* __restrict py,
-                  float* __restrict pz)
-{
-    for (size_t k = 0; k < n; ++k) {
-        const float b1 = w1[k], b2 = w2[k], b0 = 1.0f - b1 - b2;
-        px[k] = (b0 * A.x + b1 * B.x + b2 * C.x) + (b0 * NA.x + b1 * NB.x + b2 * NC.x) * d[k];
-        py[k] = (b0 * A.y + b1 * B.y + b2 * C.y) + (b0 * NA.y + b1 * NB.y + b2 * NC.y) * d[k];
-        pz[k] = (b0 * A.z + b1 * B.z + b2 * C.z) + (b0 * NA.z + b1 * NB.z + b2 * NC.z) * d[k];
-    }
-}
-
 // The smooth scheme's tile: limit positions and tangents as the product of
 // the tile's control points with its dense weights, then eq. 2 along the
 // unit limit normal (strata_limit_normal), as structure of arrays.
@@ -70,13 +38,13 @@ STRATA_KERNEL_INLINE void limitGrid(size_t n, size_t points, const uint32_t* con
 {
     // One vector of slots at a time, its nine sums held in registers over
     // all the tile's points (the weights stream; nothing else moves).
-    for (size_t s0 = 0; s0 < n; s0 += kLanes) {
-        float a[9][kLanes] = {};
+    for (size_t s0 = 0; s0 < n; s0 += detail::kLanes) {
+        float a[9][detail::kLanes] = {};
         for (size_t k = 0; k < points; ++k) {
             const glm::vec3 c = cp[control[k]];
-            const float* w = weights + 3 * (s0 * points + kLanes * k);
-            for (size_t l = 0; l < kLanes; ++l) {
-                const float w0 = w[l], w1 = w[kLanes + l], w2 = w[2 * kLanes + l];
+            const float* w = weights + 3 * (s0 * points + detail::kLanes * k);
+            for (size_t l = 0; l < detail::kLanes; ++l) {
+                const float w0 = w[l], w1 = w[detail::kLanes + l], w2 = w[2 * detail::kLanes + l];
                 a[0][l] += w0 * c.x;
                 a[1][l] += w0 * c.y;
                 a[2][l] += w0 * c.z;
@@ -89,7 +57,7 @@ STRATA_KERNEL_INLINE void limitGrid(size_t n, size_t points, const uint32_t* con
             }
         }
         for (int i = 0; i < 9; ++i)
-            for (size_t l = 0; l < kLanes; ++l)
+            for (size_t l = 0; l < detail::kLanes; ++l)
                 acc[i][s0 + l] = a[i][l];
     }
     const float *ux = acc[3], *uy = acc[4], *uz = acc[5], *vx = acc[6], *vy = acc[7], *vz = acc[8];
@@ -109,29 +77,17 @@ STRATA_KERNEL_INLINE void limitGrid(size_t n, size_t points, const uint32_t* con
 
 }  // namespace
 
-// One tile's local arrays (structure of arrays, so the loops vectorise):
-// displacements, displaced positions and sums of face normals per slot; the
-// face normals of three row pairs in turn (up and down triangles, padded)
-// and a zero pair for the grid's edges; the smooth scheme's nine sums.
-struct FrameEvaluator::Scratch {
-    std::vector<float> d, px, py, pz;
-    std::vector<float> face[3][2][3];  // [pair % 3][up, down][x, y, z]
-    std::vector<float> zero;
-    std::vector<float> sum[3];         // per slot
-    std::vector<float> limit[9];       // smooth scheme, per slot: limit position, d/ds, d/dt
+// One tile's local arrays (detail::GridScratch) and the smooth scheme's
+// nine sums per slot: limit position, d/ds, d/dt.
+struct FrameEvaluator::Scratch : detail::GridScratch {
+    std::vector<float> limit[9];
     void resize(size_t slots, size_t row, bool smooth)
     {
-        for (std::vector<float>* v : {&d, &px, &py, &pz, &sum[0], &sum[1], &sum[2]})
-            v->assign(wholeVectors(slots) + wholeVectors(row) + kLanes, 0.0f);
+        GridScratch::resize(slots, row);
         for (std::vector<float>& v : limit)
-            v.assign(smooth ? wholeVectors(slots) : 0, 0.0f);
-        for (auto& pair : face)
-            for (auto& kind : pair)
-                for (std::vector<float>& v : kind)
-                    v.assign(wholeVectors(row + 2) + kLanes, 0.0f);
-        zero.assign(wholeVectors(row + 2) + kLanes, 0.0f);
+            v.assign(smooth ? detail::wholeVectors(slots) : 0, 0.0f);
     }
-    size_t bytes() const { return (7 * px.capacity() + 19 * face[0][0][0].capacity() + 9 * limit[0].capacity()) * 4; }
+    size_t bytes() const { return GridScratch::bytes() + 9 * limit[0].capacity() * 4; }
 };
 
 template <typename Body>
@@ -191,8 +147,8 @@ bool FrameEvaluator::buildTiles()
     rowStart_.resize(R + 2);
     for (uint32_t i = 0; i <= R + 1; ++i)
         rowStart_[i] = i * (R + 1) - i * (i - 1) / 2;  // row i holds R + 1 - i slots
-    slotW1_.assign(wholeVectors(slotCount_), 0.0f);  // padded with zeros for whole-vector loops
-    slotW2_.assign(wholeVectors(slotCount_), 0.0f);
+    slotW1_.assign(detail::wholeVectors(slotCount_), 0.0f);  // padded with zeros for whole-vector loops
+    slotW2_.assign(detail::wholeVectors(slotCount_), 0.0f);
     std::vector<uint16_t> slotI(slotCount_), slotJ(slotCount_);
     borderSlots_.clear();
     for (uint32_t i = 0; i <= R; ++i)
@@ -321,7 +277,7 @@ void FrameEvaluator::buildLimitTiles()
     constexpr float kShareTolerance = 1e-6f;
     Plan::FlatStencils flat;
     plan_.flattenStencils(&flat);
-    const size_t nf0 = plan_.controlTriangles().size() / 3, stride = wholeVectors(slotCount_);
+    const size_t nf0 = plan_.controlTriangles().size() / 3, stride = detail::wholeVectors(slotCount_);
     std::vector<int32_t> local(plan_.controlVertexCount(), -1);
     limitOffsets_.assign(1, 0);
     limitControl_.clear();
@@ -348,28 +304,28 @@ void FrameEvaluator::buildLimitTiles()
     std::unordered_multimap<uint64_t, std::pair<size_t, size_t>> shared;  // hash -> (start, points)
     for (size_t g = 0; g < nf0; ++g) {
         const uint32_t first = limitOffsets_[g];
-        const size_t points = limitOffsets_[g + 1] - first, rows = stride / kLanes;
+        const size_t points = limitOffsets_[g + 1] - first, rows = stride / detail::kLanes;
         for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
             local[limitControl_[i]] = int32_t(i - first);
         block.assign(3 * stride * points, 0.0f);
         for (size_t k = 0; k < slotCount_; ++k) {
             const uint32_t v = slots_[g * slotCount_ + k] & kIndexMask;
-            const size_t chunk = k / kLanes, lane = k % kLanes;
+            const size_t chunk = k / detail::kLanes, lane = k % detail::kLanes;
             for (uint32_t e = flat.offsets[v]; e < flat.offsets[v + 1]; ++e) {
-                float* row = block.data() + 3 * kLanes * (chunk * points + size_t(local[flat.indices[e]])) + lane;
+                float* row = block.data() + 3 * detail::kLanes * (chunk * points + size_t(local[flat.indices[e]])) + lane;
                 for (int c = 0; c < 3; ++c)
-                    row[size_t(c) * kLanes] += flat.weights[3 * size_t(e) + size_t(c)];
+                    row[size_t(c) * detail::kLanes] += flat.weights[3 * size_t(e) + size_t(c)];
             }
         }
         for (uint32_t i = first; i < limitOffsets_[g + 1]; ++i)
             local[limitControl_[i]] = -1;
         // Canonical point order: by weight column, compared lexicographically.
-        column.resize(points * rows * 3 * kLanes);
+        column.resize(points * rows * 3 * detail::kLanes);
         for (size_t pt = 0; pt < points; ++pt)
             for (size_t chunk = 0; chunk < rows; ++chunk)
-                std::copy_n(block.data() + 3 * kLanes * (chunk * points + pt), 3 * kLanes,
-                            column.data() + (pt * rows + chunk) * 3 * kLanes);
-        const size_t length = rows * 3 * kLanes;
+                std::copy_n(block.data() + 3 * detail::kLanes * (chunk * points + pt), 3 * detail::kLanes,
+                            column.data() + (pt * rows + chunk) * 3 * detail::kLanes);
+        const size_t length = rows * 3 * detail::kLanes;
         order.resize(points);
         for (uint32_t pt = 0; pt < points; ++pt)
             order[pt] = pt;
@@ -385,8 +341,8 @@ void FrameEvaluator::buildLimitTiles()
         canonical.resize(block.size());
         for (size_t chunk = 0; chunk < rows; ++chunk)
             for (size_t pt = 0; pt < points; ++pt)
-                std::copy_n(column.data() + (size_t(order[pt]) * rows + chunk) * 3 * kLanes, 3 * kLanes,
-                            canonical.data() + 3 * kLanes * (chunk * points + pt));
+                std::copy_n(column.data() + (size_t(order[pt]) * rows + chunk) * 3 * detail::kLanes, 3 * detail::kLanes,
+                            canonical.data() + 3 * detail::kLanes * (chunk * points + pt));
         std::vector<uint32_t> control(limitControl_.begin() + first, limitControl_.begin() + first + long(points));
         for (size_t pt = 0; pt < points; ++pt)
             limitControl_[first + pt] = control[order[pt]];
@@ -512,7 +468,7 @@ struct TileJob {
     const float* zero;       // zeros, as long as a pair buffer
     // Smooth scheme: per tile, its control points (limitOffsets[f] ..
     // limitOffsets[f + 1] of limitControl) and their weights from
-    // limitWeights + limitMatrix[f] (shared between tiles), [chunk of kLanes
+    // limitWeights + limitMatrix[f] (shared between tiles), [chunk of detail::kLanes
     // slots][point][position, d/ds, d/dt][lane]; limit: 9 sums per slot.
     const uint32_t *limitOffsets, *limitControl;
     const float* limitWeights;
@@ -568,55 +524,20 @@ STRATA_KERNEL_INLINE void shadeTileGrid(const TileJob& job, size_t faceBegin, si
         for (size_t k = 0; k < S; ++k)
             dl[k] = job.d[slot[k] & kIndexMask];
         if (job.limitWeights) {
-            const size_t stride = wholeVectors(S);
+            const size_t stride = detail::wholeVectors(S);
             const uint32_t first = job.limitOffsets[f], count = job.limitOffsets[f + 1] - first;
             limitGrid(stride, count, job.limitControl + first, job.limitWeights + job.limitMatrix[f], cp, dl,
                       job.limit, p);
         } else {
             // The same expression as Plan::evaluate, so bit-identical.
-            displaceGrid(wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]],
+            detail::displaceGrid(detail::wholeVectors(S), job.w1, job.w2, dl, cp[c[0]], cp[c[1]], cp[c[2]], cn[c[0]], cn[c[1]],
                          cn[c[2]], p[0], p[1], p[2]);
         }
         if (!job.normals) {
             writeOwned<false>(job, f, p, nullptr);
             continue;
         }
-        // Row by row: the face normals of the row pair (i, i + 1), then the
-        // sums of row i - 1 from the pairs on both sides of it (|cross| is
-        // twice the area).  Three pair buffers in turn: a row's sums read
-        // pairs written an iteration earlier, whose stores have retired
-        // (a vector load straddling fresh stores waits for them).  Rows 0
-        // and R have no pair below or above: the zero buffer stands in.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC unroll 18  // kR = 8 or 16: every row's sizes become constants
-#endif
-        for (size_t i = 0; i <= R + 1; ++i) {
-            if (i < R) {
-                // Up triangles (i, j), (i + 1, j), (i, j + 1): R - i of them;
-                // down triangles (i + 1, j), (i + 1, j + 1), (i, j + 1): one fewer.
-                float* const(&pair)[2][3] = job.face[i % 3];
-                const size_t r0 = rows[i], r1 = rows[i + 1], up = R - i, down = up - 1;
-                detail::crossRow(wholeVectors(up), p[0] + r0, p[1] + r0, p[2] + r0, p[0] + r1, p[1] + r1, p[2] + r1,
-                         p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[0][0] + 1, pair[0][1] + 1, pair[0][2] + 1);
-                detail::crossRow(wholeVectors(down), p[0] + r1, p[1] + r1, p[2] + r1, p[0] + r1 + 1, p[1] + r1 + 1,
-                         p[2] + r1 + 1, p[0] + r0 + 1, p[1] + r0 + 1, p[2] + r0 + 1, pair[1][0] + 1, pair[1][1] + 1,
-                         pair[1][2] + 1);
-                for (int a = 0; a < 3; ++a) {
-                    pair[0][a][0] = pair[0][a][up + 1] = 0.0f;
-                    pair[1][a][0] = pair[1][a][down + 1] = 0.0f;
-                }
-            }
-            if (i >= 1) {
-                const size_t row = i - 1, r0 = rows[row], m = R + 1 - row;  // row: m slots
-                for (int a = 0; a < 3; ++a) {
-                    const float* pu = row == 0 ? job.zero : job.face[(row + 2) % 3][0][a];
-                    const float* pd = row == 0 ? job.zero : job.face[(row + 2) % 3][1][a];
-                    const float* cu = row == R ? job.zero : job.face[row % 3][0][a];
-                    const float* cd = row == R ? job.zero : job.face[row % 3][1][a];
-                    rowSum(wholeVectors(m), pu, pd, cu, cd, sum[a] + r0);
-                }
-            }
-        }
+        detail::gridNormalSums<kR>(R, rows, p, job.face, job.zero, sum);
         // Border slots keep the tile's share (partials, in borderSlots
         // order); inside the tile the sums are complete.
         glm::vec3* partial = job.partials + f * ring;
@@ -624,7 +545,7 @@ STRATA_KERNEL_INLINE void shadeTileGrid(const TileJob& job, size_t faceBegin, si
             const uint32_t k = job.borderSlots[b];
             partial[b] = glm::vec3(sum[0][k], sum[1][k], sum[2][k]);
         }
-        detail::normalizeGrid(wholeVectors(S), sum[0], sum[1], sum[2]);
+        detail::normalizeGrid(detail::wholeVectors(S), sum[0], sum[1], sum[2]);
         // The tile's own vertices.  A border vertex's normal written here is
         // the tile's share only; the border pass, which runs after every
         // tile, overwrites it with the whole sum.

@@ -207,39 +207,57 @@ private:
     std::vector<uint32_t> edgeOf_;        // per face corner (3 f + k): its undirected edge
     std::vector<uint8_t> edgeLevels_;     // per edge: its level for the current face levels
     // By (level, e0, e1, e2), built on first use: the triangles in the
-    // finest tile's slots and in the level's own.
+    // finest tile's slots; at kGridLevel and finer, also in the level's grid
+    // slots, where each grid point is drawn, and the points drawn elsewhere
+    // (pairs: slot, the slot it is drawn at).
     struct TileTemplate {
-        std::vector<uint16_t> fine, local;
-        std::vector<uint16_t> snapTo;   // per slot of the level: where it is drawn
-        std::vector<uint16_t> snapped;  // the slots drawn elsewhere
+        std::vector<uint16_t> fine, local, snapTo, snaps;
     };
     std::vector<TileTemplate> templates_;
     std::vector<uint8_t> levels_;
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
     std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
     std::vector<uint16_t> cornerSlots_;
-    // The tile pass: per face its template and first slot; per slot of its
-    // level its frame vertex and, on the face's border, its partial sum
-    // (~0: none); each border vertex's partial sums in tile order.
-    std::vector<uint32_t> tileTemplate_, tileFirst_, tileVertex_, tilePartial_, partialVertex_;
-    std::vector<uint32_t> tileSource_;  // per slot: the frame vertex whose position it takes
-    std::vector<uint32_t> borderVertices_, borderOffsets_, borderEntries_;
-    std::vector<glm::vec3> partials_;
-    struct Scratch {
-        std::vector<float> px, py, pz, sx, sy, sz;  // per slot
-        std::vector<float> up[3], down[3];          // per padded row of triangles
-        size_t rowWidth = 0;
-        void resize(int finest);
+
+    // The tile pass, over the faces drawn at kGridLevel or finer
+    // (gridFaces_).  Per level, its grid (detail::GridScratch's layout): row
+    // starts, barycentrics per slot (padded to whole vectors), and each
+    // slot's slot in the finest tile.  Per grid face: per slot, its
+    // displacement's refined vertex (linear) or the frame vertex whose
+    // position it takes (smooth); the frame vertices it writes (its own
+    // positions, linear; its inner normals); its snapped points (linear).
+    struct LevelGrid {
+        std::vector<uint32_t> rows;
+        std::vector<float> w1, w2;
+        std::vector<uint16_t> fine;
     };
+    struct GridWrite {
+        uint32_t vertex;
+        uint16_t slot, inner;
+    };
+    std::vector<LevelGrid> levelGrids_;
+    std::vector<uint32_t> gridFaces_, gridFirst_, gridSlots_, gridWriteFirst_, gridSnapFirst_, gridPartialFirst_;
+    std::vector<GridWrite> gridWrites_;
+    std::vector<uint16_t> gridSnaps_;
+    std::vector<uint16_t> gridPartialSlots_;  // per partial sum: its grid slot
+    std::vector<uint32_t> partialVertex_;     // per partial sum: its frame vertex
+    std::vector<uint32_t> slotVertex_;  // setLevels' scratch: per grid slot, its frame vertex
+    struct Scratch;
+    struct TileJob;
     std::vector<Scratch> scratch_;  // per thread
-    static void shadeAdaptiveTile(int level, const uint32_t* source, const uint32_t* vertex, const uint32_t* partial,
-                                  const uint16_t* snapped, size_t snappedCount, const uint16_t* snapTo,
-                                  const glm::vec3* positions, glm::vec3* normals, glm::vec3* partials, Scratch& s);
+    static void shadeTiles(const TileJob& job, Scratch& s, size_t begin, size_t end);
+    // The gather pass, for every other vertex (gathered_): its shares of
+    // shares_, which holds the grid tiles' partial sums and then the normals
+    // of the small tiles' triangles (gatherTriangles_).
+    std::vector<uint8_t> gathered_;
+    std::vector<uint32_t> gatherVertices_, gatherOffsets_, gatherEntries_, gatherTriangles_;
+    std::vector<glm::vec3> shares_;
+    // Linear scheme: the vertices of faces below kGridLevel.
     struct LinearVertex {
-        uint32_t c[3];
+        uint32_t c[3], target;
         float w1, w2, d;
     };
-    std::vector<LinearVertex> linear_;   // linear scheme: per frame vertex
+    std::vector<LinearVertex> linear_;
     std::unique_ptr<detail::WorkerPool> pool_;
 };
 
