@@ -153,13 +153,19 @@ int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distanc
         }
     }
     if (!nodes_.empty()) {
-        uint32_t stack[64];
+        // Each node goes on the stack with its box's distance, measured
+        // once (when its parent ordered its children).
+        struct Entry {
+            uint32_t node;
+            float d2;
+        } stack[64];
         int top = 0;
-        stack[top++] = 0;
+        stack[top++] = {0, nodes_[0].box.distance2(p)};
         while (top > 0) {
-            const Node& n = nodes_[stack[--top]];
-            if (n.box.distance2(p) > bestD2)
+            const Entry e = stack[--top];
+            if (e.d2 > bestD2)
                 continue;
+            const Node& n = nodes_[e.node];
             if (n.count > 0) {
                 for (uint32_t i = 0; i < n.count; ++i) {
                     const uint32_t item = items_[n.first + i];
@@ -175,11 +181,11 @@ int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distanc
                 // Visit the nearer child first.
                 const float dl = nodes_[n.first].box.distance2(p), dr = nodes_[n.right].box.distance2(p);
                 if (dl < dr) {
-                    stack[top++] = n.right;
-                    stack[top++] = n.first;
+                    stack[top++] = {n.right, dr};
+                    stack[top++] = {n.first, dl};
                 } else {
-                    stack[top++] = n.first;
-                    stack[top++] = n.right;
+                    stack[top++] = {n.first, dl};
+                    stack[top++] = {n.right, dr};
                 }
             }
         }
