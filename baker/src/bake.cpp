@@ -318,17 +318,27 @@ double boxDistance(const glm::vec3& p, const glm::vec3& lo, const glm::vec3& hi)
 
 }  // namespace
 
+// Both directions sample by area (each sample of equal weight), as an
+// independent tool measures: as many samples over the capture as it has
+// vertices and faces, and over the reconstruction at one density.
+std::vector<glm::vec3> loopSamples(const TriangleMesh& high)
+{
+    return areaSamples(high.positions.data(), high.triangles.data(), high.faceCount(),
+                       high.positions.size() + high.faceCount());
+}
+
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
                        Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
-                       size_t chunkTriangles, const DisplacementField* field)
+                       size_t chunkTriangles, const DisplacementField* field, const LoopCapture* capture)
 {
-    TriangleIndex highIndex;
-    highIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
-    // Both directions sample by area (each sample of equal weight), as an
-    // independent tool measures: as many samples over the capture as it
-    // has vertices and faces, and over the reconstruction at one density.
-    const std::vector<glm::vec3> highSamples = areaSamples(high.positions.data(), high.triangles.data(),
-                                                           high.faceCount(), high.positions.size() + high.faceCount());
+    TriangleIndex ownIndex;
+    std::vector<glm::vec3> ownSamples;
+    if (!capture) {
+        ownIndex.build(high.positions.data(), high.triangles.data(), high.faceCount());
+        ownSamples = loopSamples(high);
+    }
+    const TriangleIndex& highIndex = capture ? *capture->index : ownIndex;
+    const std::vector<glm::vec3>& highSamples = capture ? capture->samples : ownSamples;
     std::vector<glm::vec3> normals(control.positions.size());
     computeControlNormals(normals.data(), control.positions.data(), normals.size(), control.triangles.data(),
                           control.faceCount());

@@ -414,6 +414,7 @@ public:
     {
         high = TriangleMesh();
         highIndex = TriangleIndex();
+        loop_ = LoopCapture();
         for (Fitted& f : fitted)
             f.positions = std::vector<glm::vec3>();  // their stats stay for the summary
         chartCache = ChartCache();
@@ -522,6 +523,15 @@ private:
     TriangleMesh high;
     HighMeshStats highStats;
     TriangleIndex highIndex;  // the capture indexed once: fits, measurements and closed loops query it
+    LoopCapture loop_;        // highIndex and the closed loop's samples of the capture (loopCapture())
+    const LoopCapture& loopCapture()
+    {
+        if (!loop_.index) {
+            loop_.index = &highIndex;
+            loop_.samples = loopSamples(high);
+        }
+        return loop_;
+    }
     ControlMesh control;
     Rig controlRig;     // a glTF control keeps its whole document for the output
     Skeleton skeleton;  // carried through from a skinned glTF control rig
@@ -985,7 +995,7 @@ void BakeJob::chooseScheme()
             Progress p(progress, "choosing the subdivision scheme");
             if (!(st = bake(&probeMap, nullptr, &probeReport, candidateMesh, high, probe)) ||
                 !(st = closedLoopError(&errs, candidateMesh, probeMap, candidate, high, paperLevel, paperLevel,
-                                       options.threads)))
+                                       options.threads, size_t(1) << 20, nullptr, &loopCapture())))
                 throw BakeError(request.high + ": " + st.message());
             return errs[0].rms() / probeReport.diagonal;
         };
@@ -1065,7 +1075,8 @@ void BakeJob::searchMapSize()
         const int lo = 0, hi = paperLevel;
         {
             Progress p(progress, "measuring the map size against --tolerance");
-            if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads)))
+            if (!(st = closedLoopError(&errs, control, map, options.scheme, high, lo, hi, options.threads,
+                                       size_t(1) << 20, nullptr, &loopCapture())))
                 throw BakeError(st.message());
         }
         double best = 1e300;
@@ -1270,7 +1281,7 @@ void BakeJob::measureWritten()
         Progress p(progress, "measuring the closed-loop error");
         if (!(st = closedLoopError(&errors, written.mesh, writtenMap_, options.scheme, high, errorFrom, errorTo,
                                    options.threads, size_t(1) << 20,
-                                   written.displacement.vertexLevel >= 0 ? &field : nullptr)))
+                                   written.displacement.vertexLevel >= 0 ? &field : nullptr, &loopCapture())))
             throw BakeError(st.message());
         errorMs = msSince(t0);
     }
@@ -1605,7 +1616,7 @@ Status BakeJob::refineStoredValues(const ControlMesh& mesh, int level, std::vect
         Status s = DisplacementField::create(&field, mesh, level, candidate);
         if (s)
             s = closedLoopError(&e, mesh, map, options.scheme, high, level, level, options.threads,
-                                size_t(1) << 20, &field);
+                                size_t(1) << 20, &field, &loopCapture());
         if (s)
             *rms = e[0].rms();
         return s;
@@ -1728,7 +1739,8 @@ void BakeJob::settleLevel()
             std::vector<LevelError> e;
             Progress p(progress, "measuring another level against --tolerance");
             Status st;
-            if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads)))
+            if (!(st = closedLoopError(&e, control, map, options.scheme, high, level, level, options.threads,
+                                       size_t(1) << 20, nullptr, &loopCapture())))
                 throw BakeError(st.message());
             trials.push_back({map.width, level, e[0].rms() / rep.diagonal});
         }

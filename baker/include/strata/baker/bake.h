@@ -116,10 +116,23 @@ struct LevelError {
 /// chunk.  The smooth scheme refines each chunk with two rings of support
 /// faces, so its limit surface is the whole mesh's.
 /// With `field`, the displacements come from it (a rig that stores them per
-/// vertex) instead of from sampling `map`.
+/// vertex) instead of from sampling `map`.  With `capture`, the capture's
+/// index and samples are those (built once where many closed loops measure
+/// one capture; the same answers as without).
+struct LoopCapture;
 Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control, const DisplacementMap& map,
                        Scheme scheme, const TriangleMesh& high, int minLevel, int maxLevel, int threads,
-                       size_t chunkTriangles = size_t(1) << 20, const DisplacementField* field = nullptr);
+                       size_t chunkTriangles = size_t(1) << 20, const DisplacementField* field = nullptr,
+                       const LoopCapture* capture = nullptr);
+
+/// The capture's side of the closed loop: its index (over high's positions
+/// and triangles) and the samples the backward distance measures from (by
+/// area, as many as it has vertices and faces: loopSamples()).
+struct LoopCapture {
+    const TriangleIndex* index = nullptr;
+    std::vector<glm::vec3> samples;
+};
+std::vector<glm::vec3> loopSamples(const TriangleMesh& high);
 
 /// Per-vertex displacements measured against the capture (Displaced
 /// Subdivision Surfaces' sampling): for each refined vertex of `mesh` at
