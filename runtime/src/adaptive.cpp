@@ -429,18 +429,6 @@ STRATA_KERNEL_CLONES void triangleNormalsRange(const uint32_t* triangles, const 
     }
 }
 
-// Unit normals of vertices[b .. e): each the sum of its shares
-// (shares[entries[offsets[u] .. offsets[u + 1])], in order), normalised.
-STRATA_KERNEL_CLONES void gatherNormalsRange(const uint32_t* vertices, const uint32_t* offsets, const uint32_t* entries,
-                                             const glm::vec3* fn, glm::vec3* normals, size_t b, size_t e)
-{
-    for (size_t u = b; u < e; ++u) {
-        glm::vec3 n(0.0f);
-        for (uint32_t k = offsets[u]; k < offsets[u + 1]; ++k)
-            n += fn[entries[k]];
-        normals[vertices[u]] = n * detail::inverseLength(n.x, n.y, n.z);
-    }
-}
 
 }  // namespace
 
@@ -551,20 +539,11 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
     for (int level = kGridLevel; level <= finest_; ++level) {
         LevelGrid& grid = levelGrids_[size_t(level)];
         const uint32_t r = 1u << level, step = 1u << (finest_ - level);
-        const size_t slots = size_t(r + 1) * (r + 2) / 2;
-        grid.rows.resize(r + 2);
-        for (uint32_t i = 0; i <= r + 1; ++i)
-            grid.rows[i] = i * (r + 1) - i * (i - 1) / 2;
-        grid.w1.assign(detail::wholeVectors(slots), 0.0f);
-        grid.w2.assign(detail::wholeVectors(slots), 0.0f);
-        grid.fine.resize(slots);
+        detail::gridTables(r, &grid.rows, &grid.w1, &grid.w2);
+        grid.fine.resize(size_t(r + 1) * (r + 2) / 2);
         for (uint32_t i = 0; i <= r; ++i)
-            for (uint32_t j = 0; i + j <= r; ++j) {
-                const size_t k = gridSlot(i, j, r);
-                grid.w1[k] = float(i) / float(r);
-                grid.w2[k] = float(j) / float(r);
-                grid.fine[k] = uint16_t(tileSlot(i * step, j * step, R));
-            }
+            for (uint32_t j = 0; i + j <= r; ++j)
+                grid.fine[gridSlot(i, j, r)] = uint16_t(tileSlot(i * step, j * step, R));
     }
 }
 
@@ -694,10 +673,9 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
 
-    // The gather pass: the triangles that touch a gathered vertex, and per
-    // gathered vertex its triangles among them in frame order (a counting
-    // sort).  remap_, all ~0 again, lends its first n entries for the
-    // gathered vertices' numbers, and is cleared after.
+    // The gather pass: per gathered vertex its shares (a counting sort).
+    // remap_, all ~0 again, lends its first n entries for the gathered
+    // vertices' numbers, and is cleared after.
     const size_t n = vertices_.size(), nt = triangles_.size() / 3;
     gatherVertices_.clear();
     for (size_t v = 0; v < n; ++v)
@@ -833,8 +811,8 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
         triangleNormalsRange(triangles_.data(), gatherTriangles_.data(), positions, triangleShares, b, e);
     });
     parallel(threads, gatherVertices_.size(), [&](size_t b, size_t e, int) {
-        gatherNormalsRange(gatherVertices_.data(), gatherOffsets_.data(), gatherEntries_.data(), shares_.data(), normals,
-                           b, e);
+        detail::finishBorders(normals, gatherVertices_.data(), gatherOffsets_.data(), gatherEntries_.data(),
+                              shares_.data(), b, e);
     });
     return Status::ok();
 }

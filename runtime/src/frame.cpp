@@ -144,18 +144,12 @@ bool FrameEvaluator::buildTiles()
 
     resolution_ = int(R);
     slotCount_ = size_t(R + 1) * (R + 2) / 2;
-    rowStart_.resize(R + 2);
-    for (uint32_t i = 0; i <= R + 1; ++i)
-        rowStart_[i] = i * (R + 1) - i * (i - 1) / 2;  // row i holds R + 1 - i slots
-    slotW1_.assign(detail::wholeVectors(slotCount_), 0.0f);  // padded with zeros for whole-vector loops
-    slotW2_.assign(detail::wholeVectors(slotCount_), 0.0f);
+    detail::gridTables(R, &rowStart_, &slotW1_, &slotW2_);
     std::vector<uint16_t> slotI(slotCount_), slotJ(slotCount_);
     borderSlots_.clear();
     for (uint32_t i = 0; i <= R; ++i)
         for (uint32_t j = 0; i + j <= R; ++j) {
             const uint32_t k = rowStart_[i] + j;
-            slotW1_[k] = float(i) / float(R);
-            slotW2_[k] = float(j) / float(R);
             slotI[k] = uint16_t(i);
             slotJ[k] = uint16_t(j);
             if (i == 0 || j == 0 || i + j == R)

@@ -44,9 +44,10 @@ STRATA_KERNEL_INLINE void normalizeGrid(size_t n, float* __restrict x, float* __
     }
 }
 
-// The border pass of both frames: border vertex u (of [begin, end)) sums
-// its tiles' partial sums entries[offsets[u] .. offsets[u + 1]) in tile
-// order, and its unit normal goes to normals[vertices[u]].
+// The border pass of both frames: vertex u (of [begin, end)) sums its
+// shares partials[entries[offsets[u] .. offsets[u + 1])] in order (its
+// tiles' partial sums; in the adaptive frame also small tiles' triangle
+// normals), and its unit normal goes to normals[vertices[u]].
 inline void finishBorders(glm::vec3* normals, const uint32_t* vertices, const uint32_t* offsets,
                           const uint32_t* entries, const glm::vec3* partials, size_t begin, size_t end)
 {
@@ -107,6 +108,23 @@ struct GridScratch {
     }
     size_t bytes() const { return (7 * px.capacity() + 19 * face[0][0][0].capacity()) * 4; }
 };
+
+// The grid's tables: row starts (R + 2, the last one past the grid) and
+// each slot's barycentrics i / R, j / R, padded with zeros to whole vectors.
+inline void gridTables(uint32_t R, std::vector<uint32_t>* rows, std::vector<float>* w1, std::vector<float>* w2)
+{
+    const size_t slots = size_t(R + 1) * (R + 2) / 2;
+    rows->resize(R + 2);
+    for (uint32_t i = 0; i <= R + 1; ++i)
+        (*rows)[i] = i * (R + 1) - i * (i - 1) / 2;  // row i holds R + 1 - i slots
+    w1->assign(wholeVectors(slots), 0.0f);
+    w2->assign(wholeVectors(slots), 0.0f);
+    for (uint32_t i = 0; i <= R; ++i)
+        for (uint32_t j = 0; i + j <= R; ++j) {
+            (*w1)[(*rows)[i] + j] = float(i) / float(R);
+            (*w2)[(*rows)[i] + j] = float(j) / float(R);
+        }
+}
 
 // A tile's displaced positions: eq. 2 at each slot's barycentrics, the same
 // expression as Plan::evaluate (bit-identical), as structure of arrays.
