@@ -308,6 +308,100 @@ TEST(Bake, TriangleIndexDoesNotDependOnThreadCount)
     }
 }
 
+// The four-wide tree's nearest point is the brute-force one: the same
+// smallest distance, ties to the lowest face, on random triangle soup and
+// random queries near and far, with and without a hint.  nearestWithin is
+// that distance clamped to its bound.  A non-finite query has no answer, and
+// a triangle with a NaN corner is never an answer, nor does it slow the
+// other queries into a walk of the whole tree (they see the same faces).
+TEST(Bake, TriangleIndexNearestIsTheBruteForceOne)
+{
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> uni(-1.0f, 1.0f), small(-0.05f, 0.05f);
+    TriangleMesh soup;
+    for (int t = 0; t < 3000; ++t) {
+        const glm::vec3 c(uni(rng), uni(rng), uni(rng));
+        for (int k = 0; k < 3; ++k) {
+            soup.triangles.push_back(uint32_t(soup.positions.size()));
+            soup.positions.push_back(c + glm::vec3(small(rng), small(rng), small(rng)));
+        }
+    }
+    TriangleIndex index;
+    index.build(soup.positions.data(), soup.triangles.data(), soup.faceCount(), 2);
+    // Independently of the index's routine: the plane when the projection
+    // falls inside, else the nearest of the three edges.
+    auto segment2 = [](const glm::dvec3& x, const glm::dvec3& a, const glm::dvec3& b) {
+        const glm::dvec3 ab = b - a;
+        const double t = std::clamp(glm::dot(x - a, ab) / glm::dot(ab, ab), 0.0, 1.0);
+        const glm::dvec3 c = a + t * ab;
+        return glm::dot(x - c, x - c);
+    };
+    auto triangle2 = [&](const glm::dvec3& x, uint32_t f) {
+        const glm::dvec3 a(soup.positions[3 * f]), b(soup.positions[3 * f + 1]), c(soup.positions[3 * f + 2]);
+        const glm::dvec3 n = glm::normalize(glm::cross(b - a, c - a));
+        const glm::dvec3 p = x - glm::dot(x - a, n) * n;
+        const bool inside = glm::dot(glm::cross(b - a, p - a), n) >= 0.0 && glm::dot(glm::cross(c - b, p - b), n) >= 0.0 &&
+                            glm::dot(glm::cross(a - c, p - c), n) >= 0.0;
+        if (inside)
+            return glm::dot(x - p, x - p);
+        return std::min({segment2(x, a, b), segment2(x, b, c), segment2(x, c, a)});
+    };
+    auto bruteForce = [&](const glm::dvec3& x, uint32_t* face) {
+        double best = 1e300;
+        for (uint32_t f = 0; f < soup.faceCount(); ++f)
+            if (const double d2 = triangle2(x, f); d2 < best) {
+                best = d2;
+                *face = f;
+            }
+        return best;
+    };
+    std::uniform_real_distribution<double> far(-3.0, 3.0);
+    int64_t hint = -1;
+    for (int q = 0; q < 400; ++q) {
+        const glm::dvec3 x(far(rng), far(rng), far(rng));
+        uint32_t expected = 0, got = 0, hinted = 0;
+        const double best2 = bruteForce(x, &expected);
+        const double d = index.nearest(x, &got);
+        ASSERT_NEAR(d * d, best2, 1e-6 * best2) << q;
+        if (got != expected) {  // only a tie within the float the index compares in
+            ASSERT_NEAR(triangle2(x, got), best2, 1e-6 * best2) << q;
+        }
+        index.nearest(x, &hinted, nullptr, nullptr, int64_t(q % soup.faceCount()));
+        ASSERT_EQ(hinted, got) << q;
+        const double bound = 0.5 * d;
+        EXPECT_EQ(index.nearestWithin(x, bound, &hint), bound) << q;
+        EXPECT_EQ(index.nearestWithin(x, 2.0 * d + 1e-3, &hint), d) << q;
+        EXPECT_EQ(hint, int64_t(got)) << q;
+    }
+    EXPECT_LT(index.nearest(glm::dvec3(std::nan(""), 0.0, 0.0)), 0.0);
+    EXPECT_LT(index.nearest(glm::dvec3(0.0, std::numeric_limits<double>::infinity(), 0.0)), 0.0);
+    const baker::DistanceStats lost = baker::sampleDistance({glm::vec3(std::nanf(""))}, index, 1);
+    EXPECT_TRUE(std::isinf(lost.rms));
+
+    // One corner NaN: that triangle is never the answer.
+    TriangleMesh poisoned = soup;
+    poisoned.positions[3 * 17 + 1] = glm::vec3(std::nanf(""), 0.0f, 0.0f);
+    TriangleIndex pi;
+    pi.build(poisoned.positions.data(), poisoned.triangles.data(), poisoned.faceCount(), 1);
+    for (int q = 0; q < 200; ++q) {
+        const glm::dvec3 x(far(rng), far(rng), far(rng));
+        uint32_t a = 0, b = 0;
+        index.nearest(x, &a);
+        const double d = pi.nearest(x, &b);
+        ASSERT_TRUE(std::isfinite(d)) << q;
+        ASSERT_NE(b, 17u) << q;
+        if (a != 17u) {
+            ASSERT_EQ(a, b) << q;
+        }
+    }
+    // The bound counts the samples beyond it.
+    const std::vector<glm::vec3> samples{glm::vec3(10.0f), glm::vec3(soup.positions[0])};
+    const baker::DistanceStats bounded = baker::sampleDistance(samples, index, 1, 1.0);
+    EXPECT_EQ(bounded.beyond, 1u);
+    EXPECT_EQ(bounded.max, 1.0);
+    EXPECT_NEAR(bounded.rms, std::sqrt(0.5), 1e-6);
+}
+
 TEST(Bake, DegenerateDuplicateAndNonManifoldInputIsTolerated)
 {
     ControlMesh control = examples::makeIcosphere(0);

@@ -348,6 +348,17 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
     buildVertexFaces(&vfOffsets, &vfFaces, control.triangles.data(), nf, nv);
     const std::vector<uint32_t> order = spatialFaceOrder(control);
     const double controlArea = surfaceArea(control.positions.data(), control.triangles.data(), nf);
+    // Distances are measured up to a tenth of the capture's diagonal; one
+    // that far counts as that far (the RMS is then a lower bound, and far
+    // beyond any tolerance).  Without the bound a surface that has gone
+    // wild costs a walk over much of the capture per sample: minutes.
+    glm::vec3 captureLo(1e30f), captureHi(-1e30f);
+    for (const glm::vec3& p : high.positions) {
+        captureLo = glm::min(captureLo, p);
+        captureHi = glm::max(captureHi, p);
+    }
+    const double reach =
+        high.positions.empty() ? 1.0 : 0.1 * std::max(1e-30, double(glm::length(captureHi - captureLo)));
     out->clear();
     for (int level = std::max(0, minLevel); level <= maxLevel; ++level) {
         // Each chunk of control faces is refined, measured and freed before
@@ -357,9 +368,9 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
         // triangle (the vertices and centroids the measure took before).
         const double density = controlArea > 0.0 ? 1.5 * double(nf * per) / controlArea : 0.0;
         const size_t facesPerChunk = std::max<size_t>(1, chunkTriangles / per);
-        double forwardSq = 0.0, forwardMax = 0.0;
-        size_t forwardSamples = 0, vertices = 0;
-        std::vector<double> best(highSamples.size(), std::numeric_limits<double>::infinity());
+        double forwardSq = 0.0, forwardMax = 0.0, forwardSamples = 0.0;
+        size_t vertices = 0;
+        std::vector<double> best(highSamples.size(), reach);
         std::vector<int32_t> subIndex(nv, -1);
         std::vector<uint8_t> inSub(nf, 0);
         for (size_t first = 0; first < nf; first += facesPerChunk) {
@@ -452,11 +463,19 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
             vertices += whole ? rec.size() : 0;
             // Forward samples: the measured faces by area, at one density
             // over every chunk.
-            const std::vector<glm::vec3> samples = areaSamplesAtDensity(rec.data(), tris, chunkFaces, density);
-            const DistanceStats fwd = sampleDistance(samples, highIndex, threads);
-            forwardSq += fwd.rms * fwd.rms * double(fwd.samples);
+            // A surface that has gone wild (a cage too coarse for the capture,
+            // a scheme that overshoots) can have many times its cage's area:
+            // its samples are capped at four times the usual count per
+            // triangle, each then weighted by the density it stands for.
+            const double recArea = surfaceArea(rec.data(), tris, chunkFaces);
+            const double chunkDensity =
+                recArea * density > 6.0 * double(chunkFaces) ? 6.0 * double(chunkFaces) / recArea : density;
+            const std::vector<glm::vec3> samples = areaSamplesAtDensity(rec.data(), tris, chunkFaces, chunkDensity);
+            const DistanceStats fwd = sampleDistance(samples, highIndex, threads, reach);
+            const double weight = density / chunkDensity;
+            forwardSq += fwd.rms * fwd.rms * double(fwd.samples) * weight;
             forwardMax = std::max(forwardMax, fwd.max);
-            forwardSamples += fwd.samples;
+            forwardSamples += double(fwd.samples) * weight;
             TriangleIndex recIndex;
             recIndex.build(rec.data(), tris, chunkFaces);
             glm::vec3 lo(1e30f), hi(-1e30f);
@@ -468,7 +487,7 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
                 int64_t hint = -1;  // as in sampleDistance
                 for (size_t i = b; i < e; ++i)
                     if (boxDistance(highSamples[i], lo, hi) < best[i])
-                        best[i] = std::min(best[i], recIndex.nearest(glm::dvec3(highSamples[i]), &hint));
+                        best[i] = std::min(best[i], recIndex.nearestWithin(glm::dvec3(highSamples[i]), best[i], &hint));
             });
         }
         double backwardSq = 0.0, backwardMax = 0.0;
@@ -480,7 +499,7 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
         e.level = level;
         e.vertices = vertices;  // 0 when the level was measured in chunks
         e.triangles = nf * per;
-        e.forwardRms = forwardSamples ? std::sqrt(forwardSq / double(forwardSamples)) : 0.0;
+        e.forwardRms = forwardSamples > 0.0 ? std::sqrt(forwardSq / forwardSamples) : 0.0;
         e.forwardMax = forwardMax;
         e.backwardRms = best.empty() ? 0.0 : std::sqrt(backwardSq / double(best.size()));
         e.backwardMax = backwardMax;

@@ -224,12 +224,17 @@ struct SearchShared {
     Scheme scheme = Scheme::Linear;
     std::string schemeReason;
     size_t schemeFaces = 0;  // the cage it was measured on
+    bool schemeDecisive = false;  // the limit surface came out over 4x farther than the linear one
     // A try reuses the measured scheme on a cage within a factor 1.5 of
     // that one's face count; further off it measures again (on CesiumMan
-    // the smooth scheme won on 200 faces and the linear one on 800).
+    // the smooth scheme won on 200 faces and the linear one on 800).  A
+    // decisive loss holds within a factor 3 (on the 100k scan the limit
+    // surface lost 13x on 1,998 faces and 39x on 748; its probe on 748
+    // faces, at level 4, was most of a 10 s try).
     bool schemeFits(size_t faces) const
     {
-        return schemeKnown && 3 * faces >= 2 * schemeFaces && 2 * faces <= 3 * schemeFaces;
+        const size_t k = schemeDecisive ? 6 : 3;  // twice the factor
+        return schemeKnown && k * faces >= 2 * schemeFaces && 2 * faces <= k * schemeFaces;
     }
     int sizeCap = 0;  // 0: none yet
     int mapSize = 0;  // the last try's
@@ -1027,6 +1032,7 @@ void BakeJob::chooseScheme()
             shared->scheme = options.scheme;
             shared->schemeReason = schemeReason;
             shared->schemeFaces = control.faceCount();
+            shared->schemeDecisive = unfitted;
             shared->schemeKnown = true;
         }
     }
@@ -1944,6 +1950,20 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                 missed = &t;
         if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
             break;
+        // Fewer faces stopped paying: the fewest that met saved under 10%
+        // of the bytes of the next fewest that met.  Below there the level
+        // rises (the capture's density caps it), so the stored values do
+        // not fall with the faces, and each try costs more (the 100k scan's
+        // cages: 43.2 KB at 1,998 faces, 33.2 at 1,404, 31.4 at 748, and a
+        // try of 439 faces took 34 s to miss).
+        if (met) {
+            const Try* next = nullptr;
+            for (const Try& t : tries)
+                if (t.rms >= 0.0 && t.rms <= request.tolerance && t.faces > met->faces && (!next || t.faces < next->faces))
+                    next = &t;
+            if (next && met->bytes > 0.9 * next->bytes)
+                break;
+        }
         // The power through the tries nearest the tolerance: the fewest that
         // met and the most that missed; none missed, the two fewest that
         // met; none met, the two most faces.
@@ -1975,8 +1995,14 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         double power = met && !missed ? 2.0 : 1.0;
         bool measured = false;
         if (finer && coarser && coarser->faces < finer->faces && coarser->shape > finer->shape && finer->shape > 0.0) {
+            // Going down from two tries that met, at least 1: there the
+            // error before quantisation is mostly the level's sampling of
+            // the capture, nearly flat in the face count (the 100k scan's
+            // cages of 1,998 and 1,404 faces measured 0.5), and a flat power
+            // sends the next try to a quarter of the faces, a cage too
+            // coarse to follow the capture (a 37 s try that missed).
             power = std::clamp(std::log(coarser->shape / finer->shape) / std::log(double(finer->faces) / double(coarser->faces)),
-                               0.5, 3.0);
+                               met && !missed ? 1.0 : 0.5, 3.0);
             measured = true;
         }
         const Try& anchor = met ? *met : *missed;

@@ -41,9 +41,10 @@ uint32_t spreadBits(uint32_t v)
 void Bvh::build(const std::vector<Box>& boxes, int threads)
 {
     nodes_.clear();
-    items_.resize(boxes.size());
+    itemCount_ = boxes.size();
     if (boxes.empty())
         return;
+    std::vector<uint32_t> items(boxes.size());
     // Morton codes of the box centres (10 bits an axis over the centres'
     // bounds) above each item's number, sorted on the code by a two-pass LSD
     // radix sort that keeps equal codes in item order: O(n), where a median
@@ -78,7 +79,7 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
     }
     std::vector<uint64_t>().swap(keyTmp);
     for (size_t i = 0; i < n; ++i)
-        items_[i] = uint32_t(key[i]);
+        items[i] = uint32_t(key[i]);
     auto code = [&](uint32_t i) { return uint32_t(key[i] >> 32); };
 
     // Top down over the sorted codes: a range splits where its highest
@@ -89,15 +90,22 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
     struct Range {
         uint32_t node, first, count, depth;
     };
-    nodes_.reserve(n / 2 + 1);
-    nodes_.push_back({});
+    struct BinaryNode {
+        Box box;
+        uint32_t first;  // leaf: first index into items; inner: left child
+        uint32_t count;  // leaf: item count; inner: 0
+        uint32_t right;  // inner: right child
+    };
+    std::vector<BinaryNode> bin;
+    bin.reserve(n / 2 + 1);
+    bin.push_back({});
     std::vector<Range> stack{{0, 0, uint32_t(n), 0}};
     while (!stack.empty()) {
         const Range r = stack.back();
         stack.pop_back();
         if (r.count <= 4) {
-            nodes_[r.node].first = r.first;
-            nodes_[r.node].count = r.count;
+            bin[r.node].first = r.first;
+            bin[r.node].count = r.count;
             continue;
         }
         const uint32_t last = r.first + r.count - 1;
@@ -118,83 +126,108 @@ void Bvh::build(const std::vector<Box>& boxes, int threads)
             }
             mid = lo;
         }
-        const uint32_t l = uint32_t(nodes_.size()), rt = l + 1;
-        nodes_.push_back({});
-        nodes_.push_back({});
-        nodes_[r.node].first = l;
-        nodes_[r.node].right = rt;
-        nodes_[r.node].count = 0;
+        const uint32_t l = uint32_t(bin.size()), rt = l + 1;
+        bin.push_back({});
+        bin.push_back({});
+        bin[r.node].first = l;
+        bin[r.node].right = rt;
+        bin[r.node].count = 0;
         stack.push_back({rt, mid, last + 1 - mid, r.depth + 1});
         stack.push_back({l, r.first, mid - r.first, r.depth + 1});
     }
-    itemBoxes_.resize(n);
-    parallelFor(n, threads, [&](size_t b, size_t e) {
-        for (size_t i = b; i < e; ++i)
-            itemBoxes_[i] = boxes[items_[i]];
-    });
     // Children always come after their parent: fill boxes in reverse order.
-    for (size_t i = nodes_.size(); i-- > 0;) {
-        Node& node = nodes_[i];
+    for (size_t i = bin.size(); i-- > 0;) {
+        BinaryNode& node = bin[i];
         node.box = Box();
         if (node.count > 0) {
             for (uint32_t k = 0; k < node.count; ++k)
-                node.box.extend(itemBoxes_[node.first + k]);
+                node.box.extend(boxes[items[node.first + k]]);
         } else {
-            node.box.extend(nodes_[node.first].box);
-            node.box.extend(nodes_[node.right].box);
+            node.box.extend(bin[node.first].box);
+            node.box.extend(bin[node.right].box);
         }
     }
-}
 
-glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
-                                  double* bary1, double* bary2)
-{
-    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-    if (d1 <= 0 && d2 <= 0) {
-        *bary1 = *bary2 = 0.0;
-        return a;
+    // Four-wide: each node takes its binary node's children, then opens the
+    // slot with the largest box (an inner node into its two children, a leaf
+    // into its items) while the result fits in four slots.  What is left
+    // closed becomes a child node.  A slot is a binary inner node, a binary
+    // leaf or an item; each wide node is built from one binary node.
+    struct Slot {
+        uint32_t index;  // binary node, or item when isItem
+        bool isItem;
+        Box box;
+    };
+    auto area = [](const Box& b) {
+        const glm::vec3 e = glm::max(b.hi - b.lo, glm::vec3(0.0f));
+        return e.x * e.y + e.y * e.z + e.z * e.x;
+    };
+    auto opensTo = [&](const Slot& s) { return s.isItem ? 1u : bin[s.index].count > 0 ? bin[s.index].count : 2u; };
+    nodes_.reserve(n / 2 + 1);
+    nodes_.push_back({});
+    struct Pending {
+        uint32_t wide, binary;
+    };
+    std::vector<Pending> todo{{0, 0}};
+    while (!todo.empty()) {
+        const Pending job = todo.back();
+        todo.pop_back();
+        Slot slots[4];
+        int count = 1;
+        slots[0] = {job.binary, false, bin[job.binary].box};
+        for (;;) {
+            int open = -1;
+            float bestArea = -1.0f;
+            for (int k = 0; k < count; ++k)
+                if (!slots[k].isItem && uint32_t(count) - 1 + opensTo(slots[k]) <= 4 && area(slots[k].box) > bestArea) {
+                    bestArea = area(slots[k].box);
+                    open = k;
+                }
+            if (open < 0)
+                break;
+            const BinaryNode& b = bin[slots[open].index];
+            Slot opened[4];
+            int m = 0;
+            if (b.count > 0) {
+                for (uint32_t k = 0; k < b.count; ++k)
+                    opened[m++] = {items[b.first + k], true, boxes[items[b.first + k]]};
+            } else {
+                opened[m++] = {b.first, false, bin[b.first].box};
+                opened[m++] = {b.right, false, bin[b.right].box};
+            }
+            // In place, keeping the order of the slots (and so of the items).
+            Slot merged[4];
+            int c = 0;
+            for (int k = 0; k < count; ++k) {
+                if (k != open) {
+                    merged[c++] = slots[k];
+                    continue;
+                }
+                for (int i = 0; i < m; ++i)
+                    merged[c++] = opened[i];
+            }
+            count = c;
+            std::copy(merged, merged + c, slots);
+        }
+        Node node;
+        for (int k = 0; k < 4; ++k) {
+            const Box b = k < count ? slots[k].box : Box();
+            for (int a = 0; a < 3; ++a) {
+                node.lo[a][k] = b.lo[a];
+                node.hi[a][k] = b.hi[a];
+            }
+            if (k >= count) {
+                node.slot[k] = kEmpty;
+            } else if (slots[k].isItem) {
+                node.slot[k] = kItem | slots[k].index;
+            } else {
+                node.slot[k] = uint32_t(nodes_.size());
+                nodes_.push_back({});
+                todo.push_back({node.slot[k], slots[k].index});
+            }
+        }
+        nodes_[job.wide] = node;
     }
-    const glm::dvec3 bp = p - b;
-    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-    if (d3 >= 0 && d4 <= d3) {
-        *bary1 = 1.0;
-        *bary2 = 0.0;
-        return b;
-    }
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-        const double v = d1 / (d1 - d3);
-        *bary1 = v;
-        *bary2 = 0.0;
-        return a + v * ab;
-    }
-    const glm::dvec3 cp = p - c;
-    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-    if (d6 >= 0 && d5 <= d6) {
-        *bary1 = 0.0;
-        *bary2 = 1.0;
-        return c;
-    }
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-        const double w = d2 / (d2 - d6);
-        *bary1 = 0.0;
-        *bary2 = w;
-        return a + w * ac;
-    }
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-        const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        *bary1 = 1.0 - w;
-        *bary2 = w;
-        return b + w * (c - b);
-    }
-    const double denom = 1.0 / (va + vb + vc);
-    const double v = vb * denom, w = vc * denom;
-    *bary1 = v;
-    *bary2 = w;
-    return a + ab * v + ac * w;
 }
 
 }  // namespace baker

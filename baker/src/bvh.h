@@ -1,10 +1,16 @@
 // Strata baker: a bounding-volume hierarchy over axis-aligned boxes, used as
 // the spatial index of normal volumes (point containment) and of triangle
-// meshes (nearest point).  Morton-order build, flat node array, iterative
-// queries; const queries are thread-safe.
+// meshes (nearest point).  Morton-order binary build collapsed into a
+// four-wide tree (a node's four boxes tested as one vector), flat node
+// array, iterative queries; const queries are thread-safe.
 #pragma once
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
+
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 
 #include <algorithm>
 #include <cstdint>
@@ -21,16 +27,6 @@ struct Box {
     bool contains(const glm::vec3& p) const
     {
         return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
-    }
-    /// Squared distance from p to the box (0 inside).  Inline: the nearest-
-    /// point walk calls it for every node and item box it meets (a quarter
-    /// of a default scan bake's time when it was a call into bvh.cpp).
-    float distance2(const glm::vec3& p) const
-    {
-        const float dx = std::max(std::max(lo.x - p.x, p.x - hi.x), 0.0f);
-        const float dy = std::max(std::max(lo.y - p.y, p.y - hi.y), 0.0f);
-        const float dz = std::max(std::max(lo.z - p.z, p.z - hi.z), 0.0f);
-        return dx * dx + dy * dy + dz * dz;
     }
 };
 
@@ -66,20 +62,57 @@ private:
     template <typename Enter, typename Visit>
     void walk(Enter&& enter, Visit&& visit) const;
 
+    // The tree is four-wide: a node holds the boxes of its four slots as
+    // structure of arrays, so one node (two cache lines) answers what two
+    // levels of a binary tree did in four scattered loads, and the four box
+    // distances are one vector computation.  A slot holds a child node, an
+    // item (kItem set) or nothing (kEmpty, an inverted box no query meets).
+    static constexpr uint32_t kItem = 0x80000000u, kEmpty = 0xffffffffu;
     struct Node {
-        Box box;
-        uint32_t first;  // leaf: first index into items_; inner: left child
-        uint32_t count;  // leaf: item count; inner: 0
-        uint32_t right;  // inner: right child
+        float lo[3][4], hi[3][4];
+        uint32_t slot[4];
+        Box box(int k) const
+        {
+            Box b;
+            for (int a = 0; a < 3; ++a) {
+                b.lo[a] = lo[a][k];
+                b.hi[a] = hi[a][k];
+            }
+            return b;
+        }
+        /// Squared distance from p to each slot's box (0 inside).  The vector
+        /// form rounds as the scalar one does without fused multiply-adds.
+        void distance2(const glm::vec3& p, float out[4]) const
+        {
+#if defined(__SSE__)
+            const __m128 zero = _mm_setzero_ps();
+            __m128 sum = zero;
+            for (int a = 0; a < 3; ++a) {
+                const __m128 q = _mm_set1_ps(p[a]);
+                const __m128 d = _mm_max_ps(_mm_max_ps(_mm_sub_ps(_mm_loadu_ps(lo[a]), q), _mm_sub_ps(q, _mm_loadu_ps(hi[a]))), zero);
+                sum = a == 0 ? _mm_mul_ps(d, d) : _mm_add_ps(sum, _mm_mul_ps(d, d));
+            }
+            _mm_storeu_ps(out, sum);
+#else
+            for (int k = 0; k < 4; ++k) {
+                float s = 0.0f;
+                for (int a = 0; a < 3; ++a) {
+                    const float d = std::max(std::max(lo[a][k] - p[a], p[a] - hi[a][k]), 0.0f);
+                    s = a == 0 ? d * d : s + d * d;
+                }
+                out[k] = s;
+            }
+#endif
+        }
     };
     std::vector<Node> nodes_;
-    std::vector<uint32_t> items_;
-    std::vector<Box> itemBoxes_;  // items_[i]'s box: leaves test their items before visiting them
+    size_t itemCount_ = 0;
 };
 
 /// Closest point on triangle (a, b, c) to p (Ericson 5.1.5), in double.
-glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c,
-                                  double* bary1, double* bary2);
+/// Inline: the nearest-point walk calls it for every triangle it measures.
+inline glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                         const glm::dvec3& c, double* bary1, double* bary2);
 
 // ---- implementation of the templates ----
 
@@ -88,20 +121,19 @@ void Bvh::walk(Enter&& enter, Visit&& visit) const
 {
     if (nodes_.empty())
         return;
-    uint32_t stack[64];
+    uint32_t stack[256];  // up to three siblings wait per level: 3 x 64 levels + 1
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
         const Node& n = nodes_[stack[--top]];
-        if (!enter(n.box))
-            continue;
-        if (n.count > 0) {
-            for (uint32_t i = 0; i < n.count; ++i)
-                if (enter(itemBoxes_[n.first + i]))
-                    visit(items_[n.first + i]);
-        } else {
-            stack[top++] = n.first;
-            stack[top++] = n.right;
+        for (int k = 0; k < 4; ++k) {
+            const uint32_t s = n.slot[k];
+            if (s == kEmpty || !enter(n.box(k)))
+                continue;
+            if (s & kItem)
+                visit(s & ~kItem);
+            else
+                stack[top++] = s;
         }
     }
 }
@@ -145,7 +177,7 @@ int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distanc
 {
     int64_t best = -1;
     float bestD2 = maxDistance2;
-    if (hint >= 0 && size_t(hint) < items_.size()) {
+    if (hint >= 0 && size_t(hint) < itemCount_) {
         const float d2 = distance2(uint32_t(hint));
         if (d2 <= bestD2) {
             bestD2 = d2;
@@ -154,44 +186,101 @@ int64_t Bvh::nearest(const glm::vec3& p, float maxDistance2, Distance2&& distanc
     }
     if (!nodes_.empty()) {
         // Each node goes on the stack with its box's distance, measured
-        // once (when its parent ordered its children).
+        // once (when its parent measured its slots); items are measured as
+        // their node is, child nodes pushed farthest first.
         struct Entry {
             uint32_t node;
             float d2;
-        } stack[64];
+        } stack[256];  // as in walk()
         int top = 0;
-        stack[top++] = {0, nodes_[0].box.distance2(p)};
+        stack[top++] = {0, 0.0f};
         while (top > 0) {
             const Entry e = stack[--top];
             if (e.d2 > bestD2)
                 continue;
             const Node& n = nodes_[e.node];
-            if (n.count > 0) {
-                for (uint32_t i = 0; i < n.count; ++i) {
-                    const uint32_t item = items_[n.first + i];
-                    if (int64_t(item) == hint || itemBoxes_[n.first + i].distance2(p) > bestD2)
+            float d[4];
+            n.distance2(p, d);
+            Entry children[4];
+            int count = 0;
+            for (int k = 0; k < 4; ++k) {
+                const uint32_t s = n.slot[k];
+                if (s == kEmpty || d[k] > bestD2)
+                    continue;
+                if (s & kItem) {
+                    const uint32_t item = s & ~kItem;
+                    if (int64_t(item) == hint)
                         continue;
                     const float d2 = distance2(item);
                     if (d2 < bestD2 || (d2 == bestD2 && (best < 0 || item < best))) {
                         bestD2 = d2;
                         best = item;
                     }
-                }
-            } else {
-                // Visit the nearer child first.
-                const float dl = nodes_[n.first].box.distance2(p), dr = nodes_[n.right].box.distance2(p);
-                if (dl < dr) {
-                    stack[top++] = {n.right, dr};
-                    stack[top++] = {n.first, dl};
                 } else {
-                    stack[top++] = {n.first, dl};
-                    stack[top++] = {n.right, dr};
+                    // Insertion by distance, farthest first.
+                    int i = count++;
+                    for (; i > 0 && children[i - 1].d2 < d[k]; --i)
+                        children[i] = children[i - 1];
+                    children[i] = {s, d[k]};
                 }
             }
+            for (int i = 0; i < count; ++i)
+                stack[top++] = children[i];
         }
     }
     *bestDistance2 = bestD2;
     return best;
+}
+
+inline glm::dvec3 closestPointOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                         const glm::dvec3& c, double* bary1, double* bary2)
+{
+    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) {
+        *bary1 = *bary2 = 0.0;
+        return a;
+    }
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) {
+        *bary1 = 1.0;
+        *bary2 = 0.0;
+        return b;
+    }
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        const double v = d1 / (d1 - d3);
+        *bary1 = v;
+        *bary2 = 0.0;
+        return a + v * ab;
+    }
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) {
+        *bary1 = 0.0;
+        *bary2 = 1.0;
+        return c;
+    }
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        const double w = d2 / (d2 - d6);
+        *bary1 = 0.0;
+        *bary2 = w;
+        return a + w * ac;
+    }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        *bary1 = 1.0 - w;
+        *bary2 = w;
+        return b + w * (c - b);
+    }
+    const double denom = 1.0 / (va + vb + vc);
+    const double v = vb * denom, w = vc * denom;
+    *bary1 = v;
+    *bary2 = w;
+    return a + ab * v + ac * w;
 }
 
 }  // namespace baker

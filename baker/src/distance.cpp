@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace strata {
 namespace baker {
@@ -20,21 +21,36 @@ TriangleIndex& TriangleIndex::operator=(TriangleIndex&&) noexcept = default;
 
 void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount, int threads)
 {
-    positions_ = positions;
-    triangles_ = triangles;
+    corners_.resize(3 * faceCount);
     std::vector<Box> boxes(faceCount);
     parallelFor(faceCount, threads, [&](size_t begin, size_t end) {
-        for (size_t f = begin; f < end; ++f)
-            for (int k = 0; k < 3; ++k)
-                boxes[f].extend(positions[triangles[3 * f + k]]);
+        for (size_t f = begin; f < end; ++f) {
+            Box box;
+            bool finite = true;
+            for (int k = 0; k < 3; ++k) {
+                const glm::vec3 p = positions[triangles[3 * f + k]];
+                corners_[3 * f + size_t(k)] = p;
+                box.extend(p);
+                finite = finite && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+            }
+            // A triangle with a non-finite corner keeps the empty box: no
+            // query meets it, and no node's box turns NaN (which would make
+            // every walk visit the whole tree).
+            if (finite)
+                boxes[f] = box;
+        }
     });
     bvh_->build(boxes, threads);
 }
 
 double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
 {
+    // A non-finite point is near nothing: its box distances compare false
+    // with everything, which would walk every triangle.
+    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
+        return -1.0;
     float best2 = 0.0f;
-    auto corner = [&](uint32_t f, int k) { return glm::dvec3(positions_[triangles_[3 * size_t(f) + k]]); };
+    auto corner = [&](uint32_t f, int k) { return glm::dvec3(corners_[3 * size_t(f) + size_t(k)]); };
     const int64_t f = bvh_->nearest(glm::vec3(x), 3.0e38f, [&](uint32_t t) {
         double u, v;
         const glm::dvec3 c = closestPointOnTriangle(x, corner(t, 0), corner(t, 1), corner(t, 2), &u, &v);
@@ -54,14 +70,41 @@ double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, d
     return glm::length(c - x);
 }
 
+double TriangleIndex::nearestWithin(const glm::dvec3& x, double maxDistance, int64_t* hint) const
+{
+    if (!(maxDistance < 1.0e19))
+        return nearest(x, hint);
+    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z)) {
+        *hint = -1;
+        return -1.0;
+    }
+    // The walk's float bound, a little over maxDistance: a triangle right at
+    // it is measured in double below and clamped.
+    const float bound = float(maxDistance * maxDistance) * 1.0001f;
+    float best2 = 0.0f;
+    const int64_t f = bvh_->nearest(glm::vec3(x), bound, [&](uint32_t t) {
+        double u, v;
+        const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(t)]),
+                                                    glm::dvec3(corners_[3 * size_t(t) + 1]),
+                                                    glm::dvec3(corners_[3 * size_t(t) + 2]), &u, &v);
+        return float(glm::dot(c - x, c - x));
+    }, &best2, *hint);
+    *hint = f;
+    if (f < 0)
+        return maxDistance;
+    double u, v;
+    const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(f)]), glm::dvec3(corners_[3 * size_t(f) + 1]),
+                                                glm::dvec3(corners_[3 * size_t(f) + 2]), &u, &v);
+    return std::min(glm::length(c - x), maxDistance);
+}
+
 bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut,
                                   bool alongOnly) const
 {
     bool found = false;
     double best = maxT;
     bvh_->forEachOnSegment(glm::vec3(origin), glm::vec3(dir), float(-maxT), float(maxT), [&](uint32_t f) {
-        const glm::dvec3 a(positions_[triangles_[3 * size_t(f)]]), b(positions_[triangles_[3 * size_t(f) + 1]]),
-            c(positions_[triangles_[3 * size_t(f) + 2]]);
+        const glm::dvec3 a(corners_[3 * size_t(f)]), b(corners_[3 * size_t(f) + 1]), c(corners_[3 * size_t(f) + 2]);
         const glm::dvec3 e1 = b - a, e2 = c - a;
         const glm::dvec3 pv = glm::cross(dir, e2);
         const double det = glm::dot(e1, pv);  // = -dot(dir, the face's normal) * 2 area
@@ -86,21 +129,25 @@ bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& di
     return found;
 }
 
-DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads)
+DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads,
+                             double maxDistance)
 {
     std::vector<double> d(samples.size());
     parallelFor(samples.size(), threads, [&](size_t b, size_t e) {
         // Consecutive samples lie close: the previous answer, tried first,
         // prunes most of the walk (the answer does not depend on it).
         int64_t hint = -1;
-        for (size_t i = b; i < e; ++i)
-            d[i] = to.nearest(glm::dvec3(samples[i]), &hint);
+        for (size_t i = b; i < e; ++i) {
+            const double di = to.nearestWithin(glm::dvec3(samples[i]), maxDistance, &hint);
+            d[i] = di >= 0.0 ? di : std::numeric_limits<double>::infinity();  // a non-finite sample is lost
+        }
     });
     DistanceStats s;
     double sum = 0.0;
     for (double v : d) {
         sum += v * v;
         s.max = std::max(s.max, v);
+        s.beyond += v >= maxDistance;
     }
     s.samples = d.size();
     s.rms = d.empty() ? 0.0 : std::sqrt(sum / double(d.size()));

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -23,7 +24,7 @@ public:
     TriangleIndex& operator=(TriangleIndex&&) noexcept;
 
     /// Indexes faceCount triangles (on `threads` threads; the same index for
-    /// any count); the arrays must outlive the index.
+    /// any count).  The index keeps its own copy of the corners.
     void build(const glm::vec3* positions, const uint32_t* triangles, size_t faceCount, int threads = 1);
     /// Distance from x to the nearest triangle; face and barycentrics of the
     /// nearest point when the pointers are non-null.  -1 when empty.
@@ -40,6 +41,12 @@ public:
         return d;
     }
 
+    /// min(distance to the nearest triangle, maxDistance), with the run's
+    /// hint as above: a walk that prunes every box farther than maxDistance,
+    /// so a point far from the mesh costs a few boxes, not every triangle
+    /// the mesh has within its distance.
+    double nearestWithin(const glm::dvec3& x, double maxDistance, int64_t* hint) const;
+
     /// The intersection of the line origin + t * dir with the mesh that has
     /// the smallest |t| within |t| <= maxT (Moller-Trumbore); false if none.
     /// alongOnly: only triangles whose normal points along dir (the line
@@ -49,8 +56,7 @@ public:
                        bool alongOnly = false) const;
 
 private:
-    const glm::vec3* positions_ = nullptr;
-    const uint32_t* triangles_ = nullptr;
+    std::vector<glm::vec3> corners_;  // three per triangle, in order: one load each, no index
     std::unique_ptr<Bvh> bvh_;  // private (bvh.h)
 };
 
@@ -58,10 +64,15 @@ struct DistanceStats {
     double rms = 0.0;
     double max = 0.0;
     size_t samples = 0;
+    size_t beyond = 0;  ///< samples farther than the bound asked for, counted at the bound
 };
 
-/// One-sided distance from the samples to the indexed surface.
-DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads);
+/// One-sided distance from the samples to the indexed surface.  With a
+/// finite maxDistance, a sample farther than it counts as that far (the
+/// RMS and maximum are then lower bounds, and `beyond` says how many).
+/// A non-finite sample counts as infinitely far.
+DistanceStats sampleDistance(const std::vector<glm::vec3>& samples, const TriangleIndex& to, int threads,
+                             double maxDistance = std::numeric_limits<double>::infinity());
 
 /// Points spread over a mesh by area, `density` per unit area on average
 /// (each of equal weight, so an RMS over them is the area-weighted RMS an

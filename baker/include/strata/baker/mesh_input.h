@@ -37,9 +37,12 @@ Status loadControlMesh(const std::string& path, ControlMesh* out, Skeleton* skel
 /// bounded by maxMemoryMB as loadHighMesh's is.
 Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB = 2048.0);
 
-/// Derives a control mesh from a high-resolution one by OpenMesh's quadric
-/// Decimater (with normal-flip protection) down to about targetFaces
-/// triangles, as the paper suggests (section 2).  No UVs.
+/// Derives a control mesh from a high-resolution one by quadric decimation
+/// down to about targetFaces triangles, as the paper suggests (section 2):
+/// a capture of more than max(20,000, 10 x targetFaces) triangles is first
+/// brought to that count by meshoptimizer's simplifier (held within 0.1% of
+/// its size), then OpenMesh's Decimater (with normal-flip protection) takes
+/// the last collapses.  No UVs.
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out);
 
 /// decimateToControlMesh for several face counts of one capture (the tries
