@@ -365,8 +365,14 @@ Status closedLoopError(std::vector<LevelError>* out, const ControlMesh& control,
         // the next: memory stays bounded by chunkTriangles whatever the level.
         const size_t per = size_t(1) << (2 * level);
         // Forward samples per unit area: about one and a half per refined
-        // triangle (the vertices and centroids the measure took before).
-        const double density = controlArea > 0.0 ? 1.5 * double(nf * per) / controlArea : 0.0;
+        // triangle (the vertices and centroids the measure took before), up
+        // to as many as the capture gets (its vertices and faces): a level
+        // finer than the capture holds no detail the capture's own sampling
+        // would miss, and at level 4 of a 2k cage the samples would be
+        // 770k where the capture has 150k.
+        const double density =
+            controlArea > 0.0 ? std::min(1.5 * double(nf * per), double(std::max<size_t>(highSamples.size(), 1))) / controlArea
+                              : 0.0;
         const size_t facesPerChunk = std::max<size_t>(1, chunkTriangles / per);
         double forwardSq = 0.0, forwardMax = 0.0, forwardSamples = 0.0;
         size_t vertices = 0;
