@@ -1139,6 +1139,58 @@ TEST(Atlas, RealCagesMeetTheAtlasTargets)
     }
 }
 
+// A capture cut along a seam (each vertex on one side of x = 0 duplicated
+// for the triangles there, as UV seams come from a scanner or an
+// exporter) decimates as the whole surface does: the seam's coincident
+// vertices are one, so the cage is closed (no boundary, Euler
+// characteristic 2) instead of keeping the seam as a crack.  The capture
+// is large enough (81,920 triangles) that meshoptimizer takes it most of
+// the way and OpenMesh the last collapses; the cage lies as close to the
+// capture as that of the uncut sphere.
+TEST(Simplifier, ASeamOfCoincidentVerticesIsNoBoundary)
+{
+    const ControlMesh sphere = strata::examples::makeHead(6);
+    strata::baker::TriangleMesh whole, cut;
+    whole.positions = sphere.positions;
+    whole.triangles = sphere.triangles;
+    cut = whole;
+    std::vector<int64_t> copy(whole.positions.size(), -1);
+    for (size_t f = 0; f < cut.faceCount(); ++f) {
+        const glm::vec3 c = (whole.positions[whole.triangles[3 * f]] + whole.positions[whole.triangles[3 * f + 1]] +
+                             whole.positions[whole.triangles[3 * f + 2]]) /
+                            3.0f;
+        if (c.x <= 0.0f)
+            continue;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t v = whole.triangles[3 * f + size_t(k)];
+            if (copy[v] < 0) {
+                copy[v] = int64_t(cut.positions.size());
+                cut.positions.push_back(whole.positions[v]);
+            }
+            cut.triangles[3 * f + size_t(k)] = uint32_t(copy[v]);
+        }
+    }
+    ASSERT_GT(strata::baker::countBoundaryEdges(cut.triangles.data(), cut.faceCount()), 0u);
+    auto rmsToCage = [&](const ControlMesh& cage) {
+        strata::baker::TriangleIndex index;
+        index.build(cage.positions.data(), cage.triangles.data(), cage.faceCount());
+        double sum = 0.0;
+        for (const glm::vec3& p : whole.positions) {
+            const double d = index.nearest(glm::dvec3(p));
+            sum += d * d;
+        }
+        return std::sqrt(sum / double(whole.positions.size()));
+    };
+    ControlMesh fromCut, fromWhole;
+    ASSERT_TRUE(strata::baker::decimateToControlMesh(cut, 500, &fromCut).isOk());
+    ASSERT_TRUE(strata::baker::decimateToControlMesh(whole, 500, &fromWhole).isOk());
+    EXPECT_EQ(strata::baker::countBoundaryEdges(fromCut.triangles.data(), fromCut.faceCount()), 0u);
+    EXPECT_EQ(fromCut.faceCount(), 500u);
+    // Closed and 2-manifold: V - E + F = 2 with E = 3F / 2.
+    EXPECT_EQ(int64_t(fromCut.positions.size()) - int64_t(3 * fromCut.faceCount() / 2) + int64_t(fromCut.faceCount()), 2);
+    EXPECT_LE(rmsToCage(fromCut), 1.2 * rmsToCage(fromWhole));
+}
+
 // The face-count search's simplifier: a smaller count continues the last
 // one's collapses (the same greedy order, with the quadrics accumulated so
 // far) and gives the mesh a decimation of the whole capture to that count

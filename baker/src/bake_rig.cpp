@@ -406,6 +406,9 @@ public:
     void reportTo(FractionSpan* span) { fraction = span; }
 
     size_t cageFaces() const { return control.faceCount(); }
+    // The level the rig recommends, and the paper's for this cage and capture.
+    int recommendedLevel() const { return recommended; }
+    int capturedLevel() const { return paperLevel; }
 
     // The stored values' closed-loop RMS / diagonal before they were
     // quantised (rms() where no values are stored per vertex).
@@ -1873,7 +1876,9 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         size_t asked;
         double rms, bytes;
         double shape;  // the closed-loop RMS / diagonal before quantisation: what the face count buys
+        int level, paperLevel;  // the level the rig recommends; the paper's for its cage
         std::unique_ptr<BakeJob> job;  // the choice's bake, its inputs released (the others' are freed)
+        std::string failure;           // why the try's bake failed (rms < 0), empty otherwise
     };
     std::vector<Try> tries;
     SearchShared shared;
@@ -1915,12 +1920,18 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         whole.last = part.last;
         if (progress && *progress)
             (*progress)(stage.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        if (!st)
+        if (!st) {
+            // Listed in the summary with its reason (the first try's failure
+            // is the bake's).
+            if (st.code() != StatusCode::Cancelled && !tries.empty())
+                tries.push_back({faces, faces, -1.0, 0.0, -1.0, 0, 0, nullptr, st.message()});
             return st;
+        }
         const double rms = job->rms(), shape = job->rmsBeforeQuantisation();
         job->reportTo(nullptr);  // `part` ends here
         job->releaseInputs();
-        tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, std::move(job)});
+        tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, job->recommendedLevel(),
+                         job->capturedLevel(), std::move(job), std::string()});
         if (rms >= 0.0 && rms <= request.tolerance)
             shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
         // Only the choice can be delivered, and a try that is not the
@@ -2018,8 +2029,17 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         } else {
             next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
         }
+        // A try that met two levels or more below the paper's is nearly all
+        // cage: the tolerance is loose for it, and its error at that level
+        // says nothing of what a smaller cage one level finer reaches.  A
+        // quarter of the faces holds as many refined vertices one level up,
+        // and a stored value costs a byte or two where a cage vertex costs
+        // twelve (the 100k scan at 0.1%: 1,998 faces at level 0, 27.6 KB).
+        const bool cageBound = met && !missed && met->level + 2 <= met->paperLevel && met->faces / 4 >= 200;
+        if (cageBound)
+            next = met->faces / 4;
         if (met) {
-            if (double(next) > 0.85 * double(met->faces))
+            if (!cageBound && double(next) > 0.85 * double(met->faces))
                 break;  // settled: the saving would be small
             next = std::max<size_t>(next, std::max<size_t>(200, met->faces / 4));
             if (missed && next <= missed->faces)
@@ -2057,6 +2077,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         appendf(&note, "\n                  %zu: ", t.faces);
         if (t.rms >= 0.0)
             appendf(&note, "%.4f%%, %.1f KB%s", 100.0 * t.rms, t.bytes / 1024.0, &t == chosen ? "  <- chosen" : "");
+        else if (!t.failure.empty())
+            note += "failed: " + t.failure;
         else
             note += "not measured";
         searchReport.push_back({{"faces", t.faces},
@@ -2064,7 +2086,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                                 {"rms", t.rms},
                                 {"rmsBeforeQuantisation", t.shape},
                                 {"bytes", t.bytes},
-                                {"chosen", &t == chosen}});
+                                {"chosen", &t == chosen},
+                                {"failure", t.failure}});
     }
     note += "\n";
     if (reusable)

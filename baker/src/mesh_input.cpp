@@ -21,6 +21,7 @@
 #include <array>
 #include <cstring>
 #include <filesystem>
+#include <unordered_map>
 
 namespace strata {
 namespace baker {
@@ -190,11 +191,40 @@ struct QuietOpenMesh {
 // triangles themselves when they are already that few.
 std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
 {
-    if (high.faceCount() <= faces)
-        return high.triangles;
-    std::vector<uint32_t> out(high.triangles.size());
-    out.resize(meshopt_simplify(out.data(), high.triangles.data(), high.triangles.size(), &high.positions[0].x,
-                                high.positions.size(), sizeof(glm::vec3), 3 * faces, 1e-3f, 0, nullptr));
+    // Vertices at one position (a capture's UV or normal seams) become one:
+    // kept apart, a seam is a boundary the decimation must keep whole, and
+    // the cage carries it as a crack of coincident vertices (which a glTF
+    // tool then welds).  Triangles that collapse in the welding are dropped.
+    std::unordered_map<uint64_t, std::vector<uint32_t>> byHash;
+    std::vector<uint32_t> weld(high.positions.size());
+    for (uint32_t v = 0; v < uint32_t(high.positions.size()); ++v) {
+        uint32_t bits[3];
+        std::memcpy(bits, &high.positions[v], sizeof(bits));
+        const uint64_t h = (uint64_t(bits[0]) * 0x9e3779b97f4a7c15ull) ^ (uint64_t(bits[1]) * 0xc2b2ae3d27d4eb4full) ^
+                           (uint64_t(bits[2]) * 0x165667b19e3779f9ull);
+        std::vector<uint32_t>& same = byHash[h];
+        weld[v] = v;
+        for (uint32_t u : same)
+            if (high.positions[u] == high.positions[v]) {
+                weld[v] = u;
+                break;
+            }
+        if (weld[v] == v)
+            same.push_back(v);
+    }
+    std::vector<uint32_t> welded;
+    welded.reserve(high.triangles.size());
+    for (size_t f = 0; f < high.faceCount(); ++f) {
+        const uint32_t a = weld[high.triangles[3 * f]], b = weld[high.triangles[3 * f + 1]],
+                       c = weld[high.triangles[3 * f + 2]];
+        if (a != b && b != c && c != a)
+            welded.insert(welded.end(), {a, b, c});
+    }
+    if (welded.size() / 3 <= faces)
+        return welded;
+    std::vector<uint32_t> out(welded.size());
+    out.resize(meshopt_simplify(out.data(), welded.data(), welded.size(), &high.positions[0].x, high.positions.size(),
+                                sizeof(glm::vec3), 3 * faces, 1e-3f, 0, nullptr));
     return out;
 }
 
