@@ -1841,10 +1841,12 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
 // nearest the tolerance (until two tries give it, 1 going up and 2 going
 // down), crosses the tolerance, with 10% to spare, between 200 and a fifth
 // of the capture (and, going up, at most twice the faces until two tries
-// measure the power).  The
-// search stops when the answer is settled: the fewest that met and the
+// measure the power).  A try that met two levels or more below the
+// paper's level is nearly all cage: the next takes a quarter of its faces.
+// The search stops when the answer is settled: the fewest that met and the
 // most that missed are within 15% of each other, the prediction saves
-// under 15% of the faces that met, or, none met, even the steepest power
+// under 15% of the faces that met, fewer faces saved under 10% of the
+// bytes, or, none met, even the steepest power
 // allowed (3) puts it past 1.5 times the fifth (the tolerance is out of
 // reach: the closest tried is chosen).  Each try is a whole bake in
 // memory; the tries share the capture as loaded, the scheme measured on a
