@@ -43,31 +43,42 @@ void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles,
     bvh_->build(boxes, threads);
 }
 
-double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
+double TriangleIndex::pointOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const
 {
-    // A non-finite point is near nothing: its box distances compare false
-    // with everything, which would walk every triangle.
-    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
-        return -1.0;
-    float best2 = 0.0f;
-    auto corner = [&](uint32_t f, int k) { return glm::dvec3(corners_[3 * size_t(f) + size_t(k)]); };
-    const int64_t f = bvh_->nearest(glm::vec3(x), 3.0e38f, [&](uint32_t t) {
-        double u, v;
-        const glm::dvec3 c = closestPointOnTriangle(x, corner(t, 0), corner(t, 1), corner(t, 2), &u, &v);
-        return float(glm::dot(c - x, c - x));
-    }, &best2, hint);
-    if (f < 0)
-        return -1.0;
     double u, v;
-    const glm::dvec3 c = closestPointOnTriangle(x, corner(uint32_t(f), 0), corner(uint32_t(f), 1), corner(uint32_t(f), 2),
-                                                &u, &v);
-    if (face)
-        *face = uint32_t(f);
+    const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(f)]), glm::dvec3(corners_[3 * size_t(f) + 1]),
+                                                glm::dvec3(corners_[3 * size_t(f) + 2]), &u, &v);
     if (b1)
         *b1 = u;
     if (b2)
         *b2 = v;
     return glm::length(c - x);
+}
+
+int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hint) const
+{
+    // A non-finite point is near nothing: its box distances compare false
+    // with everything, which would walk every triangle.
+    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
+        return -1;
+    float best2 = 0.0f;
+    return bvh_->nearest(glm::vec3(x), bound2, [&](uint32_t t) {
+        double u, v;
+        const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(t)]),
+                                                    glm::dvec3(corners_[3 * size_t(t) + 1]),
+                                                    glm::dvec3(corners_[3 * size_t(t) + 2]), &u, &v);
+        return float(glm::dot(c - x, c - x));
+    }, &best2, hint);
+}
+
+double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
+{
+    const int64_t f = nearestFace(x, 3.0e38f, hint);
+    if (f < 0)
+        return -1.0;
+    if (face)
+        *face = uint32_t(f);
+    return pointOn(uint32_t(f), x, b1, b2);
 }
 
 double TriangleIndex::nearestWithin(const glm::dvec3& x, double maxDistance, int64_t* hint) const
@@ -79,23 +90,10 @@ double TriangleIndex::nearestWithin(const glm::dvec3& x, double maxDistance, int
         return -1.0;
     }
     // The walk's float bound, a little over maxDistance: a triangle right at
-    // it is measured in double below and clamped.
-    const float bound = float(maxDistance * maxDistance) * 1.0001f;
-    float best2 = 0.0f;
-    const int64_t f = bvh_->nearest(glm::vec3(x), bound, [&](uint32_t t) {
-        double u, v;
-        const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(t)]),
-                                                    glm::dvec3(corners_[3 * size_t(t) + 1]),
-                                                    glm::dvec3(corners_[3 * size_t(t) + 2]), &u, &v);
-        return float(glm::dot(c - x, c - x));
-    }, &best2, *hint);
+    // it is measured in double and clamped.
+    const int64_t f = nearestFace(x, float(maxDistance * maxDistance) * 1.0001f, *hint);
     *hint = f;
-    if (f < 0)
-        return maxDistance;
-    double u, v;
-    const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(f)]), glm::dvec3(corners_[3 * size_t(f) + 1]),
-                                                glm::dvec3(corners_[3 * size_t(f) + 2]), &u, &v);
-    return std::min(glm::length(c - x), maxDistance);
+    return f < 0 ? maxDistance : std::min(pointOn(uint32_t(f), x, nullptr, nullptr), maxDistance);
 }
 
 bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut,
