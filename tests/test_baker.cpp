@@ -1139,6 +1139,19 @@ TEST(Atlas, RealCagesMeetTheAtlasTargets)
     }
 }
 
+// RMS distance from points (a capture's vertices) to a mesh (a cage).
+static double rmsFromPointsToMesh(const std::vector<glm::vec3>& points, const ControlMesh& mesh)
+{
+    strata::baker::TriangleIndex index;
+    index.build(mesh.positions.data(), mesh.triangles.data(), mesh.faceCount());
+    double sum = 0.0;
+    for (const glm::vec3& p : points) {
+        const double d = index.nearest(glm::dvec3(p));
+        sum += d * d;
+    }
+    return std::sqrt(sum / double(points.size()));
+}
+
 // A capture cut along a seam (each vertex on one side of x = 0 duplicated
 // for the triangles there, as UV seams come from a scanner or an
 // exporter) decimates as the whole surface does: the seam's coincident
@@ -1171,16 +1184,7 @@ TEST(Simplifier, ASeamOfCoincidentVerticesIsNoBoundary)
         }
     }
     ASSERT_GT(strata::baker::countBoundaryEdges(cut.triangles.data(), cut.faceCount()), 0u);
-    auto rmsToCage = [&](const ControlMesh& cage) {
-        strata::baker::TriangleIndex index;
-        index.build(cage.positions.data(), cage.triangles.data(), cage.faceCount());
-        double sum = 0.0;
-        for (const glm::vec3& p : whole.positions) {
-            const double d = index.nearest(glm::dvec3(p));
-            sum += d * d;
-        }
-        return std::sqrt(sum / double(whole.positions.size()));
-    };
+    auto rmsToCage = [&](const ControlMesh& cage) { return rmsFromPointsToMesh(whole.positions, cage); };
     ControlMesh fromCut, fromWhole;
     ASSERT_TRUE(strata::baker::decimateToControlMesh(cut, 500, &fromCut).isOk());
     ASSERT_TRUE(strata::baker::decimateToControlMesh(whole, 500, &fromWhole).isOk());
@@ -1203,17 +1207,7 @@ TEST(Simplifier, ContinuingGivesTheDirectDecimation)
     strata::baker::TriangleMesh high;
     high.positions = sphere.positions;
     high.triangles = sphere.triangles;
-    // RMS distance from the capture's vertices to a cage.
-    auto rmsToCage = [&](const ControlMesh& cage) {
-        strata::baker::TriangleIndex index;
-        index.build(cage.positions.data(), cage.triangles.data(), cage.faceCount());
-        double sum = 0.0;
-        for (const glm::vec3& p : high.positions) {
-            const double d = index.nearest(glm::dvec3(p));
-            sum += d * d;
-        }
-        return std::sqrt(sum / double(high.positions.size()));
-    };
+    auto rmsToCage = [&](const ControlMesh& cage) { return rmsFromPointsToMesh(high.positions, cage); };
     strata::baker::Simplifier simplifier(high);
     size_t last = ~size_t(0);
     for (size_t faces : {1500u, 900u, 500u, 1200u, 250u}) {
