@@ -199,7 +199,8 @@ std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
     std::vector<uint32_t> weld(high.positions.size());
     for (uint32_t v = 0; v < uint32_t(high.positions.size()); ++v) {
         uint32_t bits[3];
-        std::memcpy(bits, &high.positions[v], sizeof(bits));
+        const glm::vec3 p = high.positions[v] + glm::vec3(0.0f);  // -0 hashes as +0 (they compare equal)
+        std::memcpy(bits, &p, sizeof(bits));
         const uint64_t h = (uint64_t(bits[0]) * 0x9e3779b97f4a7c15ull) ^ (uint64_t(bits[1]) * 0xc2b2ae3d27d4eb4full) ^
                            (uint64_t(bits[2]) * 0x165667b19e3779f9ull);
         std::vector<uint32_t>& same = byHash[h];
