@@ -1884,10 +1884,11 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     };
     std::vector<Try> tries;
     SearchShared shared;
+    auto meets = [&](const Try& t) { return t.rms >= 0.0 && t.rms <= request.tolerance; };
     auto fewestThatMet = [&]() -> Try* {
         Try* met = nullptr;
         for (Try& t : tries)
-            if (t.rms >= 0.0 && t.rms <= request.tolerance && (!met || t.faces < met->faces))
+            if (meets(t) && (!met || t.faces < met->faces))
                 met = &t;
         return met;
     };
@@ -1934,7 +1935,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         job->releaseInputs();
         tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, job->recommendedLevel(),
                          job->capturedLevel(), std::move(job), std::string()});
-        if (rms >= 0.0 && rms <= request.tolerance)
+        if (meets(tries.back()))
             shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
         // Only the choice can be delivered, and a try that is not the
         // choice never becomes it (a later try can only take its place):
@@ -1958,7 +1959,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         // The most faces that missed, below the fewest that met.
         const Try* missed = nullptr;
         for (const Try& t : tries)
-            if (!(t.rms >= 0.0 && t.rms <= request.tolerance) && (!met || t.faces < met->faces) &&
+            if (!meets(t) && (!met || t.faces < met->faces) &&
                 (!missed || t.faces > missed->faces))
                 missed = &t;
         if (met && missed && double(met->faces) <= 1.15 * double(missed->faces))
@@ -1972,7 +1973,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (met) {
             const Try* next = nullptr;
             for (const Try& t : tries)
-                if (t.rms >= 0.0 && t.rms <= request.tolerance && t.faces > met->faces && (!next || t.faces < next->faces))
+                if (meets(t) && t.faces > met->faces && (!next || t.faces < next->faces))
                     next = &t;
             if (next && met->bytes > 0.9 * next->bytes)
                 break;

@@ -43,16 +43,10 @@ void TriangleIndex::build(const glm::vec3* positions, const uint32_t* triangles,
     bvh_->build(boxes, threads);
 }
 
-double TriangleIndex::pointOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const
+glm::dvec3 TriangleIndex::closestOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const
 {
-    double u, v;
-    const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(f)]), glm::dvec3(corners_[3 * size_t(f) + 1]),
-                                                glm::dvec3(corners_[3 * size_t(f) + 2]), &u, &v);
-    if (b1)
-        *b1 = u;
-    if (b2)
-        *b2 = v;
-    return glm::length(c - x);
+    return closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(f)]), glm::dvec3(corners_[3 * size_t(f) + 1]),
+                                  glm::dvec3(corners_[3 * size_t(f) + 2]), b1, b2);
 }
 
 int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hint) const
@@ -64,9 +58,7 @@ int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hi
     float best2 = 0.0f;
     return bvh_->nearest(glm::vec3(x), bound2, [&](uint32_t t) {
         double u, v;
-        const glm::dvec3 c = closestPointOnTriangle(x, glm::dvec3(corners_[3 * size_t(t)]),
-                                                    glm::dvec3(corners_[3 * size_t(t) + 1]),
-                                                    glm::dvec3(corners_[3 * size_t(t) + 2]), &u, &v);
+        const glm::dvec3 c = closestOn(t, x, &u, &v);
         return float(glm::dot(c - x, c - x));
     }, &best2, hint);
 }
@@ -78,22 +70,28 @@ double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, d
         return -1.0;
     if (face)
         *face = uint32_t(f);
-    return pointOn(uint32_t(f), x, b1, b2);
+    double u, v;
+    const glm::dvec3 c = closestOn(uint32_t(f), x, &u, &v);
+    if (b1)
+        *b1 = u;
+    if (b2)
+        *b2 = v;
+    return glm::length(c - x);
 }
 
 double TriangleIndex::nearestWithin(const glm::dvec3& x, double maxDistance, int64_t* hint) const
 {
     if (!(maxDistance < 1.0e19))
         return nearest(x, hint);
-    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z)) {
-        *hint = -1;
-        return -1.0;
-    }
     // The walk's float bound, a little over maxDistance: a triangle right at
     // it is measured in double and clamped.
     const int64_t f = nearestFace(x, float(maxDistance * maxDistance) * 1.0001f, *hint);
     *hint = f;
-    return f < 0 ? maxDistance : std::min(pointOn(uint32_t(f), x, nullptr, nullptr), maxDistance);
+    if (f < 0)  // nothing within reach, or x not finite (near nothing)
+        return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z) ? maxDistance : -1.0;
+    double u, v;
+    const glm::dvec3 c = closestOn(uint32_t(f), x, &u, &v);
+    return std::min(glm::length(c - x), maxDistance);
 }
 
 bool TriangleIndex::intersectLine(const glm::dvec3& origin, const glm::dvec3& dir, double maxT, double* tOut,

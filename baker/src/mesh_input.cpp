@@ -21,7 +21,6 @@
 #include <array>
 #include <cstring>
 #include <filesystem>
-#include <unordered_map>
 
 namespace strata {
 namespace baker {
@@ -29,31 +28,49 @@ namespace {
 
 using OMesh = OpenMesh::TriMesh_ArrayKernelT<>;
 
-void countTolerated(const TriangleMesh& m, HighMeshStats* s)
+// Per vertex, the lowest-numbered vertex at its position (itself when it is
+// the first there): equal positions as equal bit patterns (+0 for -0),
+// sorted as integers by a stable 96-bit radix sort, 16 bits a pass, so each
+// run of equal positions starts at its lowest vertex.
+std::vector<uint32_t> firstAtPosition(const std::vector<glm::vec3>& positions)
 {
-    // Equal positions as equal bit patterns (+0 for -0; the mesh holds no
-    // NaN), sorted as integers: a 96-bit radix sort, 16 bits a pass.
-    const size_t count = m.positions.size();
-    std::vector<std::array<uint32_t, 3>> keys(count), scratch(count);
-    for (size_t i = 0; i < count; ++i)
+    struct Key {
+        std::array<uint32_t, 3> bits;
+        uint32_t vertex;
+    };
+    const size_t count = positions.size();
+    std::vector<Key> keys(count), scratch(count);
+    for (size_t i = 0; i < count; ++i) {
         for (int c = 0; c < 3; ++c) {
-            const float v = m.positions[i][c] + 0.0f;
-            std::memcpy(&keys[i][size_t(c)], &v, 4);
+            const float v = positions[i][c] + 0.0f;
+            std::memcpy(&keys[i].bits[size_t(c)], &v, 4);
         }
+        keys[i].vertex = uint32_t(i);
+    }
     for (int pass = 0; pass < 6; ++pass) {  // least significant digit first: z low, z high, y low, ...
         const size_t word = size_t(2 - pass / 2);
         const int shift = 16 * (pass % 2);
         std::vector<uint32_t> bucket(65537, 0);
-        for (const auto& k : keys)
-            ++bucket[((k[word] >> shift) & 0xffffu) + 1];
+        for (const Key& k : keys)
+            ++bucket[((k.bits[word] >> shift) & 0xffffu) + 1];
         for (size_t d = 0; d < 65536; ++d)
             bucket[d + 1] += bucket[d];
-        for (const auto& k : keys)
-            scratch[bucket[(k[word] >> shift) & 0xffffu]++] = k;
+        for (const Key& k : keys)
+            scratch[bucket[(k.bits[word] >> shift) & 0xffffu]++] = k;
         keys.swap(scratch);
     }
-    for (size_t i = 1; i < count; ++i)
-        s->duplicateVertices += keys[i] == keys[i - 1];
+    std::vector<uint32_t> first(count);
+    for (size_t i = 0; i < count; ++i)
+        first[keys[i].vertex] = i > 0 && keys[i].bits == keys[i - 1].bits ? first[keys[i - 1].vertex] : keys[i].vertex;
+    return first;
+}
+
+void countTolerated(const TriangleMesh& m, HighMeshStats* s)
+{
+    // The mesh holds no NaN: equal bits are equal positions.
+    const std::vector<uint32_t> first = firstAtPosition(m.positions);
+    for (size_t v = 0; v < first.size(); ++v)
+        s->duplicateVertices += first[v] != v;
     for (size_t f = 0; f < m.faceCount(); ++f) {
         const glm::vec3 n = glm::cross(m.positions[m.triangles[3 * f + 1]] - m.positions[m.triangles[3 * f]],
                                        m.positions[m.triangles[3 * f + 2]] - m.positions[m.triangles[3 * f]]);
@@ -195,24 +212,7 @@ std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
     // kept apart, a seam is a boundary the decimation must keep whole, and
     // the cage carries it as a crack of coincident vertices (which a glTF
     // tool then welds).  Triangles that collapse in the welding are dropped.
-    std::unordered_map<uint64_t, std::vector<uint32_t>> byHash;
-    std::vector<uint32_t> weld(high.positions.size());
-    for (uint32_t v = 0; v < uint32_t(high.positions.size()); ++v) {
-        uint32_t bits[3];
-        const glm::vec3 p = high.positions[v] + glm::vec3(0.0f);  // -0 hashes as +0 (they compare equal)
-        std::memcpy(bits, &p, sizeof(bits));
-        const uint64_t h = (uint64_t(bits[0]) * 0x9e3779b97f4a7c15ull) ^ (uint64_t(bits[1]) * 0xc2b2ae3d27d4eb4full) ^
-                           (uint64_t(bits[2]) * 0x165667b19e3779f9ull);
-        std::vector<uint32_t>& same = byHash[h];
-        weld[v] = v;
-        for (uint32_t u : same)
-            if (high.positions[u] == high.positions[v]) {
-                weld[v] = u;
-                break;
-            }
-        if (weld[v] == v)
-            same.push_back(v);
-    }
+    const std::vector<uint32_t> weld = firstAtPosition(high.positions);
     std::vector<uint32_t> welded;
     welded.reserve(high.triangles.size());
     for (size_t f = 0; f < high.faceCount(); ++f) {

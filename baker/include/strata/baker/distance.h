@@ -58,8 +58,8 @@ public:
 private:
     // The walk: the nearest face within sqrt(bound2) (-1: none, or x not finite).
     int64_t nearestFace(const glm::dvec3& x, float bound2, int64_t hint) const;
-    // Distance from x to face f's closest point (its barycentrics when asked).
-    double pointOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const;
+    // Face f's point closest to x, and its barycentrics.
+    glm::dvec3 closestOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const;
 
     std::vector<glm::vec3> corners_;  // three per triangle, in order: one load each, no index
     std::unique_ptr<Bvh> bvh_;  // private (bvh.h)
