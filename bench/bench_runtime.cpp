@@ -309,9 +309,9 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
         std::vector<glm::vec3> up(uniform->vertexCount()), un(up.size());
         const double chooseMs = bench::medianMs([&] { fine->chooseFaceLevels(view, pixelError); }, 5, 20.0);
         const AdaptiveFrame& frame = fine->adaptiveFrame();
-        // A change of levels rebuilds the frame's topology (setLevels).
-        const std::vector<uint8_t> chosen = frame.levels();
-        const double rebuildMs = bench::medianMs([&] { fine->setFaceLevels(chosen.data(), chosen.size()); }, 5, 20.0);
+        // A change of levels rebuilds the frame's topology (setQuarterLevels).
+        const std::vector<uint8_t> chosen = frame.quarterLevels();
+        const double rebuildMs = bench::medianMs([&] { fine->setQuarterLevels(chosen.data(), chosen.size()); }, 5, 20.0);
         std::vector<glm::vec3> ap(frame.vertexCount()), an(ap.size());
         // Interleaved runs, so a slow spell of this shared machine falls on both.
         double uniformMs = 0.0, adaptiveMs = 0.0, uniformPositionsMs = 0.0, positionsMs = 0.0;
@@ -322,7 +322,7 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                       {&uniformMs, &adaptiveMs, &uniformPositionsMs, &positionsMs});
         const float adaptiveError = frame.maxScreenDeviation(ap.data(), finePositions.data(), view);
         int lmin = L, lmax = 0;
-        for (uint8_t l : frame.levels()) {
+        for (uint8_t l : frame.quarterLevels()) {
             lmin = std::min(lmin, int(l));
             lmax = std::max(lmax, int(l));
         }

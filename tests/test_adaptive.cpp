@@ -100,6 +100,145 @@ TEST(Adaptive, EveryTileTemplateTilesItsFace)
     }
 }
 
+// A face drawn as four quarters (levels q, each half of its edges at h:
+// h[k][0] at corner k, h[k][1] at corner k + 1) tiles the face exactly,
+// as a whole face's template does: counter-clockwise triangles of positive
+// area summing to the face, inner edges twice in opposite directions, and
+// each half of each border edge cut into its level's segments.
+void expectQuartersTile(int finest, const int q[4], const int h[3][2])
+{
+    const int R = 1 << finest;
+    std::vector<std::pair<int, int>> at(size_t(R + 1) * size_t(R + 2) / 2);
+    for (int j = 0; j <= R; ++j)
+        for (int i = 0; i + j <= R; ++i)
+            at[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))] = {i, j};
+    std::string label = "finest " + std::to_string(finest) + " quarters";
+    for (int c = 0; c < 4; ++c)
+        label += " " + std::to_string(q[c]);
+    label += " halves";
+    for (int k = 0; k < 3; ++k)
+        label += " " + std::to_string(h[k][0]) + "/" + std::to_string(h[k][1]);
+    std::vector<uint16_t> t, all;
+    const int mid = q[3];
+    for (int c = 0; c < 4; ++c) {
+        // Each quarter's edges in its own order (adaptive.h).
+        const int inner[3] = {std::min(q[0], mid), std::min(q[1], mid), std::min(q[2], mid)};
+        int x[3], coarse = 0;
+        if (c == 0) {
+            x[0] = h[0][0], x[1] = inner[0], x[2] = h[2][1];
+        } else if (c == 1) {
+            x[0] = h[0][1], x[1] = h[1][0], x[2] = inner[1];
+        } else if (c == 2) {
+            x[0] = inner[2], x[1] = h[1][1], x[2] = h[2][0];
+        } else {
+            x[0] = inner[2], x[1] = inner[0], x[2] = inner[1];
+            coarse = (h[0][0] == 0 ? 1 : 0) | (h[1][0] == 0 ? 2 : 0) | (h[2][0] == 0 ? 4 : 0);
+        }
+        adaptiveQuarterTriangles(&t, finest, c, q[c], x, coarse);
+        all.insert(all.end(), t.begin(), t.end());
+    }
+    long area = 0;
+    std::map<std::pair<int, int>, int> directed;
+    for (size_t k = 0; k < all.size(); k += 3) {
+        auto point = [&](uint16_t slot) { return glm::ivec2(at[slot].first, at[slot].second); };
+        const long twice = orient2(point(all[k]), point(all[k + 1]), point(all[k + 2]));
+        ASSERT_GT(twice, 0) << label;
+        area += twice;
+        for (int m = 0; m < 3; ++m)
+            ++directed[{all[k + size_t(m)], all[k + size_t(m + 1) % 3]}];
+    }
+    EXPECT_EQ(area, long(R) * R) << label;
+    auto side = [&](int slot) {
+        const auto p = at[size_t(slot)];
+        return std::array<bool, 3>{p.second == 0, p.first + p.second == R, p.first == 0};
+    };
+    std::array<std::array<int, 2>, 3> segments{};
+    for (const auto& [edge, count] : directed) {
+        EXPECT_EQ(count, 1) << label;
+        const bool twin = directed.count({edge.second, edge.first}) > 0;
+        const auto sa = side(edge.first), sb = side(edge.second);
+        int border = -1;
+        for (int m = 0; m < 3; ++m)
+            if (sa[size_t(m)] && sb[size_t(m)])
+                border = m;
+        if (border < 0) {
+            EXPECT_TRUE(twin) << label;
+            continue;
+        }
+        EXPECT_FALSE(twin) << label;
+        // Along the edge from its first corner: t0 -> t1.
+        const auto pa = at[size_t(edge.first)], pb = at[size_t(edge.second)];
+        const int t0 = border == 0 ? pa.first : border == 1 ? pa.second : R - pa.second;
+        const int t1 = border == 0 ? pb.first : border == 1 ? pb.second : R - pb.second;
+        const int half = t1 <= R / 2 ? 0 : 1;
+        if (h[border][0] == 0) {
+            EXPECT_EQ(t1 - t0, R) << label << " border " << border;
+        } else {
+            EXPECT_EQ(t1 - t0, 1 << (finest - h[border][half])) << label << " border " << border;
+        }
+        ++segments[size_t(border)][size_t(half)];
+    }
+    for (int k = 0; k < 3; ++k) {
+        if (h[k][0] == 0) {
+            EXPECT_EQ(segments[size_t(k)][0] + segments[size_t(k)][1], 1) << label << " border " << k;
+        } else {
+            EXPECT_EQ(segments[size_t(k)][0], 1 << (h[k][0] - 1)) << label << " border " << k;
+            EXPECT_EQ(segments[size_t(k)][1], 1 << (h[k][1] - 1)) << label << " border " << k;
+        }
+    }
+}
+
+TEST(Adaptive, EveryMixOfQuartersTilesItsFace)
+{
+    // Every mix at finest 3, each edge's halves at any levels up to their
+    // quarters' (both 0: a neighbour at level 0); random mixes at 5.
+    for (int finest : {1, 2, 3}) {
+        std::vector<int> q(4, 1);
+        for (q[0] = 1; q[0] <= finest; ++q[0])
+            for (q[1] = 1; q[1] <= finest; ++q[1])
+                for (q[2] = 1; q[2] <= finest; ++q[2])
+                    for (q[3] = 1; q[3] <= finest; ++q[3])
+                        for (int code = 0; code < 729; ++code) {
+                            // Per edge: 0 both halves at 0, else a level per half.
+                            int h[3][2], rest = code;
+                            bool valid = true;
+                            for (int k = 0; k < 3; ++k) {
+                                const int a = rest % 3, b = (rest / 3) % 3;
+                                rest /= 9;
+                                const int qa = q[size_t(k)], qb = q[size_t(k + 1) % 3];
+                                // 0: zero; 1: the quarter's own; 2: one coarser (if >= 1)
+                                // A face edge at level 0 only beside four equal quarters.
+                                if (a == 0 || b == 0) {
+                                    valid = valid && a == 0 && b == 0 && q[0] == q[1] && q[1] == q[2] && q[2] == q[3];
+                                    h[k][0] = h[k][1] = 0;
+                                } else {
+                                    h[k][0] = a == 1 ? qa : qa - 1;
+                                    h[k][1] = b == 1 ? qb : qb - 1;
+                                    valid = valid && h[k][0] >= 1 && h[k][1] >= 1;
+                                }
+                            }
+                            if (valid)
+                                expectQuartersTile(finest, q.data(), h);
+                        }
+    }
+    std::mt19937 rng(3);
+    for (int trial = 0; trial < 400; ++trial) {
+        const int finest = 5;
+        std::uniform_int_distribution<int> level(1, finest);
+        int q[4], h[3][2];
+        for (int& l : q)
+            l = level(rng);
+        if (trial % 10 == 0)
+            q[1] = q[2] = q[3] = q[0];
+        for (int k = 0; k < 3; ++k) {
+            const bool zero = trial % 5 == 0 && k == trial % 3 && q[0] == q[1] && q[1] == q[2] && q[2] == q[3];
+            h[k][0] = zero ? 0 : std::uniform_int_distribution<int>(1, q[k])(rng);
+            h[k][1] = zero ? 0 : std::uniform_int_distribution<int>(1, q[(k + 1) % 3])(rng);
+        }
+        expectQuartersTile(finest, q, h);
+    }
+}
+
 // The bending example rig in either scheme.
 void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
 {
@@ -191,6 +330,23 @@ TEST(Adaptive, RandomLevelMixesAreClosedInBothSchemesAnimated)
             ASSERT_TRUE(s->setFaceLevels(levels.data(), nf).isOk());
             ASSERT_TRUE(s->setAnimationTime(0, 0.1f * float(trial)).isOk());
             expectClosedFrame(*s, std::string(schemeName(scheme)) + " trial " + std::to_string(trial));
+        }
+        // Quarters at random levels, faces at level 0 among them (a face
+        // of unequal quarters beside one is drawn at its finest quarter).
+        std::vector<uint8_t> quarters(4 * nf);
+        for (int trial = 0; trial < 12; ++trial) {
+            std::uniform_int_distribution<int> any(1, 4), pick(0, 3);
+            for (size_t f = 0; f < nf; ++f) {
+                const bool whole = pick(rng) == 0;
+                for (int c = 0; c < 4; ++c)
+                    quarters[4 * f + size_t(c)] = uint8_t(trial % 2 && whole ? 0 : any(rng));
+            }
+            ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
+            const std::vector<uint8_t>& drawn = s->adaptiveFrame().quarterLevels();
+            for (size_t k = 0; k < quarters.size(); ++k)
+                ASSERT_GE(drawn[k], quarters[k]);
+            ASSERT_TRUE(s->setAnimationTime(0, 0.1f * float(trial)).isOk());
+            expectClosedFrame(*s, std::string(schemeName(scheme)) + " quarters trial " + std::to_string(trial));
         }
     }
 }
@@ -323,6 +479,15 @@ TEST(Adaptive, BadLevelsAndViewsAreRefused)
     const Status st = s->setFaceLevels(levels.data(), levels.size());
     EXPECT_FALSE(st.isOk());
     EXPECT_NE(st.message().find("past the plan's level 4"), std::string::npos) << st.message();
+    // Quarters: four per face, all 0 or each 1 and up.
+    std::vector<uint8_t> quarters(4 * rig.mesh.faceCount(), 2);
+    EXPECT_FALSE(s->setQuarterLevels(quarters.data(), quarters.size() - 4).isOk());
+    quarters[5] = 0;
+    const Status mixed = s->setQuarterLevels(quarters.data(), quarters.size());
+    EXPECT_FALSE(mixed.isOk());
+    EXPECT_NE(mixed.message().find("control face 1 mixes level 0"), std::string::npos) << mixed.message();
+    quarters[5] = 5;
+    EXPECT_FALSE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
     ViewSpec view;
     view.eye = view.target = glm::vec3(1.0f);
     EXPECT_FALSE(s->chooseFaceLevels(view, 1.0f).isOk());

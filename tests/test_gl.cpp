@@ -291,12 +291,18 @@ TEST(Gpu, AdaptiveFramesMatchTheCpuAtRandomLevelMixes)
             }
             diagonal = glm::length(hi - lo);
         }
-        std::vector<uint8_t> levels(rig.mesh.faceCount());
-        for (int trial = 0; trial < 4; ++trial) {
-            std::uniform_int_distribution<int> any(0, s->level());
+        std::vector<uint8_t> levels(rig.mesh.faceCount()), quarters(4 * levels.size());
+        for (int trial = 0; trial < 6; ++trial) {
+            std::uniform_int_distribution<int> any(0, s->level()), quarter(1, s->level());
             for (uint8_t& l : levels)
                 l = uint8_t(trial == 0 ? s->level() : any(rng));
-            ASSERT_TRUE(s->setFaceLevels(levels.data(), levels.size()).isOk());
+            if (trial < 4) {
+                ASSERT_TRUE(s->setFaceLevels(levels.data(), levels.size()).isOk());
+            } else {  // each quarter of a face at its own level
+                for (uint8_t& q : quarters)
+                    q = uint8_t(quarter(rng));
+                ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
+            }
             ASSERT_TRUE(s->setAnimationTime(0, 0.3f * float(trial)).isOk());
             const AdaptiveFrame& frame = s->adaptiveFrame();
             std::vector<glm::vec3> p(frame.vertexCount()), n(p.size()), gp, gn;

@@ -442,9 +442,9 @@ void Scene::renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* p)
     Status st = cpu_->chooseFaceLevels(view, std::max(settings.pixelError, 0.01f));
     adaptiveChooseMs_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     const AdaptiveFrame& frame = cpu_->adaptiveFrame();
-    if (st && frame.levels() != drawnLevels_) {
+    if (st && frame.quarterLevels() != drawnLevels_) {
         st = surface_->setAdaptive(frame);
-        drawnLevels_ = frame.levels();
+        drawnLevels_ = frame.quarterLevels();
     }
     if (st)
         st = surface_->updateAdaptive(cpu_->controlPositions().data(), cpu_->controlNormals().data(),
@@ -456,8 +456,9 @@ void Scene::renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* p)
     }
     adaptiveVertices_ = frame.vertexCount();
     adaptiveTriangles_ = frame.triangleCount();
-    adaptiveLevels_[0] = frame.levels().empty() ? 0 : *std::min_element(frame.levels().begin(), frame.levels().end());
-    adaptiveLevels_[1] = frame.levels().empty() ? 0 : *std::max_element(frame.levels().begin(), frame.levels().end());
+    const std::vector<uint8_t>& quarters = frame.quarterLevels();
+    adaptiveLevels_[0] = quarters.empty() ? 0 : *std::min_element(quarters.begin(), quarters.end());
+    adaptiveLevels_[1] = quarters.empty() ? 0 : *std::max_element(quarters.begin(), quarters.end());
     if (settings.levelColours) {
         p->colorMode = gl::ColorMode::Error;
         p->colorRange = glm::vec2(0.0f, float(std::max(cpu_->level(), 1)));

@@ -9,6 +9,7 @@
 #include "worker_pool.h"
 
 #include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 
 #include <algorithm>
@@ -150,13 +151,100 @@ std::vector<uint32_t> cornerEdges(const EdgeGroups& edges, size_t faceCount)
     return edgeOf;
 }
 
-// Each edge at the lowest level of the faces that share it.
-void edgeLevelsFor(std::vector<uint8_t>* edgeLevels, const uint8_t* levels, const std::vector<uint32_t>& edgeOf,
-                   int finest)
+// Each half of each edge at the lowest level of the quarters that touch it
+// (a face at level 0 touches both halves at 0): halves[2 e] is the half at
+// the edge's lower-numbered vertex.  The quarter at corner k of a face
+// touches the halves of edges k and k + 2 at that corner.
+void halfLevelsFor(std::vector<uint8_t>* halves, const uint8_t* quarters, const uint32_t* control,
+                   const std::vector<uint32_t>& edgeOf, int finest)
 {
-    std::fill(edgeLevels->begin(), edgeLevels->end(), uint8_t(finest));
-    for (size_t c = 0; c < edgeOf.size(); ++c)
-        (*edgeLevels)[edgeOf[c]] = std::min((*edgeLevels)[edgeOf[c]], levels[c / 3]);
+    std::fill(halves->begin(), halves->end(), uint8_t(finest));
+    for (size_t c = 0; c < edgeOf.size(); ++c) {
+        const size_t f = c / 3, k = c % 3, next = 3 * f + (k + 1) % 3;
+        const uint8_t* q = quarters + 4 * f;
+        const bool forward = control[c] < control[next];
+        uint8_t& atFirst = (*halves)[2 * size_t(edgeOf[c]) + (forward ? 0 : 1)];
+        uint8_t& atSecond = (*halves)[2 * size_t(edgeOf[c]) + (forward ? 1 : 0)];
+        atFirst = std::min(atFirst, q[k]);
+        atSecond = std::min(atSecond, q[(k + 1) % 3]);
+    }
+}
+
+// A face of unequal quarters beside a face at level 0 is drawn with every
+// quarter at its finest: the midpoint of the edge between them is gone, and
+// an inner edge drawn coarser would have to snap onto it.  `zero` (per edge)
+// is scratch.  Levels only rise.
+void settleQuarters(uint8_t* quarters, const std::vector<uint32_t>& edgeOf, size_t edgeCount,
+                    std::vector<uint8_t>* zero)
+{
+    const size_t nf = edgeOf.size() / 3;
+    zero->assign(edgeCount, 0);
+    for (size_t f = 0; f < nf; ++f)
+        if (quarters[4 * f] == 0)
+            for (size_t k = 0; k < 3; ++k)
+                (*zero)[edgeOf[3 * f + k]] = 1;
+    for (size_t f = 0; f < nf; ++f) {
+        uint8_t* q = quarters + 4 * f;
+        if (q[0] == q[1] && q[1] == q[2] && q[2] == q[3])
+            continue;
+        if ((*zero)[edgeOf[3 * f]] || (*zero)[edgeOf[3 * f + 1]] || (*zero)[edgeOf[3 * f + 2]])
+            std::fill(q, q + 4, std::max({q[0], q[1], q[2], q[3]}));
+    }
+}
+
+// Face f's halves: h[k][0] the half of its edge k at corner k, h[k][1] at
+// corner k + 1.
+void faceHalves(int h[3][2], const std::vector<uint8_t>& halves, const uint32_t* control,
+                const std::vector<uint32_t>& edgeOf, size_t f)
+{
+    for (size_t k = 0; k < 3; ++k) {
+        const bool forward = control[3 * f + k] < control[3 * f + (k + 1) % 3];
+        const size_t e = 2 * size_t(edgeOf[3 * f + k]);
+        h[k][0] = halves[e + (forward ? 0 : 1)];
+        h[k][1] = halves[e + (forward ? 1 : 0)];
+    }
+}
+
+// Whether face f (its quarters q, its halves h) is drawn whole: four equal
+// quarters and each edge at one level (then e[k], else the lower half).
+bool drawnWhole(const uint8_t* q, const int h[3][2], int e[3])
+{
+    bool whole = q[0] == q[1] && q[1] == q[2] && q[2] == q[3];
+    for (int k = 0; k < 3; ++k) {
+        whole = whole && h[k][0] == h[k][1];
+        e[k] = std::min(h[k][0], h[k][1]);
+    }
+    return whole;
+}
+
+// Quarter c's edge levels in its own corner order (adaptiveQuarterTriangles)
+// and, for the middle one, the face's edges at level 0 (coarseSides).
+void quarterEdges(int c, const uint8_t* q, const int h[3][2], int x[3], int* coarseSides)
+{
+    const int mid = q[3];
+    const int inner[3] = {std::min<int>(q[0], mid), std::min<int>(q[1], mid), std::min<int>(q[2], mid)};
+    *coarseSides = 0;
+    switch (c) {
+    case 0: x[0] = h[0][0], x[1] = inner[0], x[2] = h[2][1]; break;
+    case 1: x[0] = h[0][1], x[1] = h[1][0], x[2] = inner[1]; break;
+    case 2: x[0] = inner[2], x[1] = h[1][1], x[2] = h[2][0]; break;
+    default:
+        x[0] = inner[2], x[1] = inner[0], x[2] = inner[1];
+        *coarseSides = (h[0][0] == 0 ? 1 : 0) | (h[1][0] == 0 ? 2 : 0) | (h[2][0] == 0 ? 4 : 0);
+    }
+}
+
+// A quarter template's key (levels up to 7: kMaxLevel is 6).
+uint32_t quarterKey(int c, int level, const int x[3], int coarseSides)
+{
+    return uint32_t(c) | uint32_t(level) << 2 | uint32_t(x[0]) << 5 | uint32_t(x[1]) << 8 | uint32_t(x[2]) << 11 |
+           uint32_t(coarseSides) << 14;
+}
+
+// The quarter whose part holds the grid point (i, j) of a tile of resolution R.
+int quarterAt(uint32_t i, uint32_t j, uint32_t R)
+{
+    return 2 * (i + j) <= R ? 0 : 2 * i >= R ? 1 : 2 * j >= R ? 2 : 3;
 }
 
 }  // namespace
@@ -181,6 +269,73 @@ void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, co
             emit(point(i, j), point(i + 1, j), point(i, j + 1));
             if (i + j + 1 < R)
                 emit(point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+        }
+}
+
+void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarter, int level, const int x[3],
+                              int coarseSides)
+{
+    out->clear();
+    if (finest < 1 || level < 1 || level > finest || quarter < 0 || quarter > 3)
+        return;
+    const uint32_t N = 1u << finest, h = N / 2, step = 1u << (finest - level), r = 1u << (level - 1);
+    // The quarter's origin and direction in the face's grid: the middle one
+    // is the corner ones turned half a turn (counter-clockwise still).
+    const uint32_t oi = quarter == 1 || quarter == 3 ? h : 0, oj = quarter >= 2 ? h : 0;
+    const bool turned = quarter == 3;
+    // To the nearest kept point, a tie to the lower t (or, `up`, the higher).
+    auto snap = [&](uint32_t t, int edgeLevel, bool up = false) {
+        const uint32_t m = 1u << (finest - edgeLevel);
+        return m == 1 ? t : (t + m / 2 - (up ? 0 : 1)) / m * m;
+    };
+    // The level each of the face's edges (0, 1, 2) and inner edges (A: i +
+    // j = h, B: i = h, C: j = h) is drawn at where this quarter meets it.
+    // A tie goes to the start of the quarter's own edge (as on a whole
+    // face), so the two quarters of an inner edge break ties apart: both
+    // keep the same points, which is what closes the seam.
+    int side[3] = {finest, finest, finest}, inner[3] = {finest, finest, finest};
+    switch (quarter) {
+    case 0: side[0] = x[0], inner[0] = x[1], side[2] = x[2]; break;
+    case 1: side[0] = x[0], side[1] = x[1], inner[1] = x[2]; break;
+    case 2: inner[2] = x[0], side[1] = x[1], side[2] = x[2]; break;
+    default:
+        inner[2] = x[0], inner[0] = x[1], inner[1] = x[2];
+        for (int k = 0; k < 3; ++k)
+            side[k] = coarseSides >> k & 1 ? 0 : finest;
+    }
+    auto point = [&](uint32_t u, uint32_t v) {
+        uint32_t i = turned ? oi - u * step : oi + u * step, j = turned ? oj - v * step : oj + v * step;
+        const bool corner = (j == 0 && (i == 0 || i == N)) || (i == 0 && j == N);
+        if (corner) {
+        } else if (j == 0) {  // edge 0, t = i
+            i = snap(i, side[0]);
+        } else if (i + j == N) {  // edge 1, t = j
+            j = snap(j, side[1]);
+            i = N - j;
+        } else if (i == 0) {  // edge 2, t = N - j
+            j = N - snap(N - j, side[2]);
+        } else if (i + j == h) {  // A, t = j
+            j = snap(j, inner[0], turned);
+            i = h - j;
+        } else if (i == h && j < h) {  // B, t = j
+            j = snap(j, inner[1], !turned);
+        } else if (j == h && i < h) {  // C, t = i
+            i = snap(i, inner[2], turned);
+        }
+        return uint16_t(tileSlot(i, j, N));
+    };
+    auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
+        if (a == b || b == c || c == a)
+            return;  // collapsed onto a coarser edge
+        out->push_back(a);
+        out->push_back(b);
+        out->push_back(c);
+    };
+    for (uint32_t v = 0; v < r; ++v)
+        for (uint32_t u = 0; u + v < r; ++u) {
+            emit(point(u, v), point(u + 1, v), point(u, v + 1));
+            if (u + v + 1 < r)
+                emit(point(u + 1, v), point(u + 1, v + 1), point(u, v + 1));
         }
 }
 
@@ -213,6 +368,14 @@ const std::vector<uint16_t>& LevelChooser::tileTemplate(int level, const int e[3
     return t;
 }
 
+const std::vector<uint16_t>& LevelChooser::quarterTemplate(int quarter, int level, const int x[3], int coarseSides)
+{
+    std::vector<uint16_t>& t = quarterTemplates_[quarterKey(quarter, level, x, coarseSides)];
+    if (t.empty())
+        adaptiveQuarterTriangles(&t, errors_.finest, quarter, level, x, coarseSides);
+    return t;
+}
+
 Status LevelChooser::init(const Plan& plan, const float* displacements, const glm::vec3* controlPositions,
                           const glm::vec3* controlNormals, size_t controlCount, int threads)
 {
@@ -229,6 +392,8 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     const uint32_t R = 1u << L;
     tiles_ = std::move(tiles);
     rest_ = std::move(rest);
+    restControl_.assign(controlPositions, controlPositions + controlCount);
+    restNormals_.assign(controlNormals, controlNormals + controlCount);
     slots_ = size_t(R + 1) * (R + 2) / 2;
     controlTriangles_ = plan.controlTriangles();
     controlCount_ = plan.controlVertexCount();
@@ -236,9 +401,11 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     slotPoints(&slotI_, &slotJ_, R);
     edges_ = groupEdges(controlTriangles_.data(), nf);
     edgeOf_ = cornerEdges(edges_, nf);
-    edgeLevels_.assign(edges_.edgeCount(), 0);
+    halves_.assign(2 * edges_.edgeCount(), 0);
     templates_.assign(size_t(L + 1) * size_t(L + 1) * size_t(L + 1) * size_t(L + 1), {});
+    quarterTemplates_.clear();
     stitched_.clear();
+    stitchedQuarters_.clear();
     gains_.assign(nf, 0.0f);
 
     FaceLevelErrors& e = errors_;
@@ -246,9 +413,13 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     e.faceCount = nf;
     e.error.assign(nf * size_t(L + 1), 0.0f);
     e.reach.assign(nf, 0.0f);
+    e.quarterError.assign(4 * nf * size_t(L + 1), 0.0f);
+    std::vector<const std::vector<uint16_t>*> quarterTiles(4 * size_t(L + 1), nullptr);
     for (int l = 0; l <= L; ++l) {
         const int same[3] = {l, l, l};
         tileTemplate(l, same);
+        for (int c = 0; c < 4 && l >= 1; ++c)
+            quarterTiles[size_t(c) * size_t(L + 1) + size_t(l)] = &quarterTemplate(c, l, same, 0);
     }
     auto faces = [&](size_t begin, size_t end, int) {
         for (size_t f = begin; f < end; ++f) {
@@ -263,6 +434,12 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
             for (int l = L - 1; l >= 0; --l) {
                 const int same[3] = {l, l, l};  // built above
                 err[l] = std::max(templateError(templates_[templateKey(L, l, same)], f), err[l + 1]);
+            }
+            for (int q = 0; q < 4; ++q) {
+                float* qe = &e.quarterError[(4 * f + size_t(q)) * size_t(L + 1)];
+                for (int l = L - 1; l >= 1; --l)
+                    qe[l] = std::max(templateError(*quarterTiles[size_t(q) * size_t(L + 1) + size_t(l)], f), qe[l + 1]);
+                qe[0] = L >= 1 ? qe[1] : 0.0f;
             }
         }
     };
@@ -289,15 +466,31 @@ float LevelChooser::stitchedError(size_t face, int level, const int e[3])
     return error;
 }
 
+float LevelChooser::stitchedQuarterError(size_t face, int quarter, int level, const int x[3], int coarseSides)
+{
+    if (x[0] >= level && x[1] >= level && x[2] >= level && coarseSides == 0)
+        return errors_.quarterAt(face, quarter, level);
+    const uint64_t key = uint64_t(face) << 17 | quarterKey(quarter, level, x, coarseSides);
+    const auto found = stitchedQuarters_.find(key);
+    if (found != stitchedQuarters_.end())
+        return found->second;
+    const float error = templateError(quarterTemplate(quarter, level, x, coarseSides), face);
+    stitchedQuarters_.emplace(key, error);
+    return error;
+}
+
 size_t LevelChooser::bytes() const
 {
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    const size_t node = sizeof(uint64_t) + sizeof(float) + 2 * sizeof(void*);
     size_t t = 0;
     for (const std::vector<uint16_t>& v : templates_)
         t += bytes(v);
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(rest_) + bytes(tiles_) + bytes(controlTriangles_) +
-           bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) + bytes(edgeOf_) +
-           bytes(edgeLevels_) + bytes(gains_) + stitched_.size() * (sizeof(uint64_t) + sizeof(float) + 2 * sizeof(void*));
+    for (const auto& v : quarterTemplates_)
+        t += bytes(v.second) + node;
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restControl_) + bytes(restNormals_) + bytes(bends_) + bytes(tiles_) +
+           bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
+           bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + (stitched_.size() + stitchedQuarters_.size()) * node;
 }
 
 float skinScale(const float* m, size_t count)
@@ -339,12 +532,45 @@ float skinScale(const float* m, size_t count)
     return worst;
 }
 
-Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
-                            size_t controlCount, float poseScale)
+namespace {
+
+// An orthonormal frame of triangle (a, b, c): its first edge, the in-plane
+// normal to it, the triangle's normal (columns); false when degenerate.
+bool triangleFrame(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::mat3* frame)
+{
+    const glm::vec3 u = b - a, n = glm::cross(u, c - a);
+    const float lu = glm::length(u), ln = glm::length(n);
+    if (!(lu > 0.0f) || !(ln > 0.0f))
+        return false;
+    const glm::vec3 e1 = u / lu, e3 = n / ln;
+    *frame = glm::mat3(e1, glm::cross(e3, e1), e3);
+    return true;
+}
+
+}  // namespace
+
+float LevelChooser::bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const
+{
+    const uint32_t* c = &controlTriangles_[3 * f];
+    glm::mat3 rest, posed;
+    if (!triangleFrame(restControl_[c[0]], restControl_[c[1]], restControl_[c[2]], &rest) ||
+        !triangleFrame(positions[c[0]], positions[c[1]], positions[c[2]], &posed))
+        return 0.0f;
+    const glm::mat3 turn = posed * glm::transpose(rest);
+    float worst = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        const float cosine = glm::dot(normals[c[k]], turn * restNormals_[c[k]]);
+        worst = std::max(worst, std::acos(std::max(-1.0f, std::min(1.0f, cosine))));
+    }
+    return std::isfinite(worst) ? worst : 0.0f;
+}
+
+Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
+                            size_t controlCount, float poseScale, const glm::vec3* controlNormals)
 {
     const int L = errors_.finest;
     const size_t nf = errors_.faceCount;
-    if (!levels || (nf > 0 && !controlPositions))
+    if (!quarters || (nf > 0 && !controlPositions))
         return Status(StatusCode::InvalidArgument, "LevelChooser::choose: null buffer");
     if (controlCount != controlCount_)
         return Status(StatusCode::InvalidArgument, std::to_string(controlCount) + " control positions for " +
@@ -357,6 +583,14 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
     if (!(poseScale >= 1.0f) || !std::isfinite(poseScale))
         poseScale = 1.0f;
     const Camera cam(view);
+    // The pose's bend at each face: its own, or its neighbours' where
+    // larger (a smooth surface's stencils reach across its edges).
+    const bool bent = controlNormals && restNormals_.size() == controlCount;
+    if (bent) {
+        bends_.resize(nf);
+        for (size_t f = 0; f < nf; ++f)
+            bends_[f] = bend(f, controlPositions, controlNormals);
+    }
     // Pixels per model unit of error at each face: at the nearest point of
     // a sphere around it, and at the largest angle off the view axis within
     // the sphere (an error there moves up to 1 / cos^2 as many pixels as on
@@ -381,6 +615,15 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
                 g = cam.k * poseScale / ((d - r) * cosine * cosine);
             }
         }
+        if (bent) {
+            float b = bends_[f];
+            for (size_t k = 0; k < 3; ++k) {
+                const uint32_t edge = edgeOf_[3 * f + k];
+                for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m)
+                    b = std::max(b, bends_[edges_.cornersOf(edge)[m] / 3]);
+            }
+            g *= 1.0f + 2.0f * b;
+        }
         gains_[f] = g;
         int level = L;
         for (int l = 0; l < L; ++l)
@@ -388,29 +631,78 @@ Status LevelChooser::choose(uint8_t* levels, const ViewSpec& view, float pixelEr
                 level = l;
                 break;
             }
-        levels[f] = uint8_t(level);
+        // Below level 2 a quarter has nothing coarser to take.
+        uint8_t* fq = quarters + 4 * f;
+        for (int k = 0; k < 4; ++k) {
+            int ql = level;
+            for (int l = 1; l < level && level >= 2; ++l)
+                if (errors_.quarterAt(f, k, l) * g <= pixelError) {
+                    ql = l;
+                    break;
+                }
+            fq[k] = uint8_t(ql);
+        }
     }
-    // Stitching: where a face meets coarser edges its strips (and corners,
-    // where two coarse edges meet) may stray further than the face or its
-    // neighbours alone.  While one does, the coarsest neighbour across its
-    // coarsest edge goes up a level (levels only rise, so this ends).
+    // Stitching: where a quarter meets coarser edges its strips (and
+    // corners, where two coarse edges meet) may stray further than it or
+    // its neighbours alone.  While one does, the coarsest neighbour across
+    // its coarsest edge goes up a level (levels only rise, so this ends).
+    const uint32_t* control = controlTriangles_.data();
     for (bool changed = true; changed;) {
         changed = false;
-        edgeLevelsFor(&edgeLevels_, levels, edgeOf_, L);
+        settleQuarters(quarters, edgeOf_, edges_.edgeCount(), &zeroEdges_);
+        halfLevelsFor(&halves_, quarters, control, edgeOf_, L);
         for (size_t f = 0; f < nf; ++f) {
-            const int l = levels[f];
-            const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
-            if ((e[0] >= l && e[1] >= l && e[2] >= l) || stitchedError(f, l, e) * gains_[f] <= pixelError)
-                continue;
-            const int k = e[0] <= e[1] && e[0] <= e[2] ? 0 : e[1] <= e[2] ? 1 : 2;
-            const uint32_t edge = edgeOf_[3 * f + size_t(k)];
-            for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m) {
-                uint8_t& other = levels[edges_.cornersOf(edge)[m] / 3];
-                if (other == e[k])
-                    other = uint8_t(e[k] + 1);
+            uint8_t* fq = quarters + 4 * f;
+            if (fq[0] == 0)
+                continue;  // a level-0 face has no point to snap
+            int h[3][2];
+            faceHalves(h, halves_, control, edgeOf_, f);
+            for (int c = 0; c < 4; ++c) {
+                int x[3], coarseSides;
+                quarterEdges(c, fq, h, x, &coarseSides);
+                const int l = fq[c];
+                if ((x[0] >= l && x[1] >= l && x[2] >= l && coarseSides == 0) ||
+                    stitchedQuarterError(f, c, l, x, coarseSides) * gains_[f] <= pixelError)
+                    continue;
+                // The coarsest of its edges; the middle quarter's corners on
+                // a face edge at level 0 count as that edge.
+                int k = x[0] <= x[1] && x[0] <= x[2] ? 0 : x[1] <= x[2] ? 1 : 2, lowest = x[k];
+                int faceEdge = -1, end = 0;  // the face edge (and its half) across edge k, if any
+                if (coarseSides != 0) {
+                    faceEdge = (coarseSides & 1) ? 0 : (coarseSides & 2) ? 1 : 2;
+                    lowest = 0;
+                } else if (c < 3 && k != (c == 0 ? 1 : c == 1 ? 2 : 0)) {
+                    // Quarter c's edges on the face: c's edge c (half at its
+                    // start) and edge c + 2 (half at its end).
+                    faceEdge = c == 0 ? (k == 0 ? 0 : 2) : c == 1 ? (k == 0 ? 0 : 1) : (k == 1 ? 1 : 2);
+                    end = (c == 0 && k == 2) || (c == 1 && k == 0) || (c == 2 && k == 1) ? 1 : 0;
+                }
+                if (faceEdge < 0) {  // a sibling across an inner edge
+                    uint8_t& sibling = fq[c < 3 ? 3 : (k == 0 ? 2 : k == 1 ? 0 : 1)];
+                    if (sibling == lowest) {
+                        sibling = uint8_t(lowest + 1);
+                        changed = true;
+                    }
+                    continue;
+                }
+                const uint32_t edge = edgeOf_[3 * f + size_t(faceEdge)];
+                const uint32_t at = control[3 * f + (size_t(faceEdge) + size_t(end)) % 3];
+                for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m) {
+                    const size_t g = edges_.cornersOf(edge)[m] / 3;
+                    uint8_t* gq = quarters + 4 * g;
+                    if (gq[0] == 0 && lowest == 0) {
+                        std::fill(gq, gq + 4, uint8_t(1));
+                        changed = true;
+                        continue;
+                    }
+                    for (int kk = 0; kk < 3; ++kk)
+                        if (control[3 * g + size_t(kk)] == at && gq[kk] == lowest) {
+                            gq[kk] = uint8_t(lowest + 1);
+                            changed = true;
+                        }
+                }
             }
-            edgeLevels_[edge] = uint8_t(e[k] + 1);  // at least; recomputed next pass
-            changed = true;
         }
     }
     return Status::ok();
@@ -530,7 +822,7 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
     const size_t nf = control.size() / 3;
     const EdgeGroups edges = groupEdges(control.data(), nf);
     edgeOf_ = cornerEdges(edges, nf);
-    edgeLevels_.assign(edges.edgeCount(), 0);
+    halves_.assign(2 * edges.edgeCount(), 0);
     const size_t combos = size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1) * size_t(finest_ + 1);
     templates_.resize(combos);
     remap_.assign(plan.refinedVertexCount(), kNone);
@@ -581,10 +873,7 @@ size_t AdaptiveFrame::templateFor(int level, const int e[3])
 
 Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
 {
-    const std::vector<uint32_t>& control = plan_.controlTriangles();
-    const size_t nf = control.size() / 3;
-    if (tiles_.size() != nf * slots_)
-        return Status(StatusCode::InvalidData, "the plan's refined faces are not a grid per control face");
+    const size_t nf = plan_.controlTriangles().size() / 3;
     if (count != nf || (nf > 0 && !levels))
         return Status(StatusCode::InvalidArgument, std::to_string(levels ? count : 0) + " face levels for " +
                                                        std::to_string(nf) + " control faces");
@@ -593,8 +882,52 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
             return Status(StatusCode::InvalidArgument, "control face " + std::to_string(f) + " asks for level " +
                                                            std::to_string(levels[f]) + ", past the plan's level " +
                                                            std::to_string(finest_));
-    levels_.assign(levels, levels + nf);
-    edgeLevelsFor(&edgeLevels_, levels, edgeOf_, finest_);
+    quarterScratch_.resize(4 * nf);
+    for (size_t f = 0; f < nf; ++f)
+        std::fill(&quarterScratch_[4 * f], &quarterScratch_[4 * f] + 4, levels[f]);
+    return setQuarterLevels(quarterScratch_.data(), quarterScratch_.size());
+}
+
+int AdaptiveFrame::triangleLevel(size_t t) const
+{
+    const uint8_t* q = &quarters_[4 * size_t(triangleFaces_[t])];
+    if (q[0] == q[1] && q[1] == q[2] && q[2] == q[3])
+        return q[0];
+    const uint16_t* cs = &cornerSlots_[3 * t];
+    const uint32_t i = uint32_t(slotI_[cs[0]]) + slotI_[cs[1]] + slotI_[cs[2]];
+    const uint32_t j = uint32_t(slotJ_[cs[0]]) + slotJ_[cs[1]] + slotJ_[cs[2]];
+    return q[quarterAt(i, j, 3u << finest_)];  // the centroid's quarter (three times its grid point)
+}
+
+Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
+{
+    const std::vector<uint32_t>& control = plan_.controlTriangles();
+    const size_t nf = control.size() / 3;
+    if (tiles_.size() != nf * slots_)
+        return Status(StatusCode::InvalidData, "the plan's refined faces are not a grid per control face");
+    if (count != 4 * nf || (nf > 0 && !quarters))
+        return Status(StatusCode::InvalidArgument, std::to_string(quarters ? count : 0) + " quarter levels for " +
+                                                       std::to_string(nf) + " control faces (4 each)");
+    for (size_t f = 0; f < nf; ++f) {
+        const uint8_t* q = quarters + 4 * f;
+        const uint8_t top = std::max({q[0], q[1], q[2], q[3]}), low = std::min({q[0], q[1], q[2], q[3]});
+        if (top > finest_)
+            return Status(StatusCode::InvalidArgument, "control face " + std::to_string(f) + " asks for level " +
+                                                           std::to_string(top) + ", past the plan's level " +
+                                                           std::to_string(finest_));
+        if (low == 0 && top != 0)
+            return Status(StatusCode::InvalidArgument, "control face " + std::to_string(f) +
+                                                           " mixes level 0 with finer quarters (a quarter's levels "
+                                                           "are 1 and up; level 0 is the whole face)");
+    }
+    quarters_.assign(quarters, quarters + 4 * nf);
+    settleQuarters(quarters_.data(), edgeOf_, halves_.size() / 2, &zeroEdges_);
+    quarters = quarters_.data();
+    levels_.resize(nf);
+    for (size_t f = 0; f < nf; ++f)
+        levels_[f] = std::max({quarters[4 * f], quarters[4 * f + 1], quarters[4 * f + 2], quarters[4 * f + 3]});
+    halfLevelsFor(&halves_, quarters, control.data(), edgeOf_, finest_);
+    gridFace_.assign(nf, 0);
 
     vertices_.clear();
     triangles_.clear();
@@ -614,13 +947,40 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     const bool linear = plan_.scheme() == Scheme::Linear;
     const std::vector<SampleLocation>& samples = plan_.sampleLocations();
     for (size_t f = 0; f < nf; ++f) {
-        const int l = levels[f];
-        const int e[3] = {edgeLevels_[edgeOf_[3 * f]], edgeLevels_[edgeOf_[3 * f + 1]], edgeLevels_[edgeOf_[3 * f + 2]]};
+        const uint8_t* q = quarters + 4 * f;
+        const uint32_t* tile = &tiles_[f * slots_];
+        int h[3][2], e[3];
+        faceHalves(h, halves_, control.data(), edgeOf_, f);
+        if (!drawnWhole(q, h, e)) {
+            // Its quarters, each with its own template; every vertex is
+            // left to the gather pass (and, linear, the streamed corners).
+            for (int c = 0; c < 4; ++c) {
+                int x[3], coarseSides;
+                quarterEdges(c, q, h, x, &coarseSides);
+                std::vector<uint16_t>& t = quarterTemplates_[quarterKey(c, q[c], x, coarseSides)];
+                if (t.empty())
+                    adaptiveQuarterTriangles(&t, finest_, c, q[c], x, coarseSides);
+                for (size_t k = 0; k < t.size(); ++k) {
+                    const uint32_t v = tile[t[k]];
+                    if (remap_[v] == kNone) {
+                        remap_[v] = uint32_t(vertices_.size());
+                        vertices_.push_back(v);
+                        gathered_.push_back(1);
+                    }
+                    gathered_[remap_[v]] = 1;
+                    triangles_.push_back(remap_[v]);
+                    cornerSlots_.push_back(t[k]);
+                }
+                triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
+            }
+            continue;
+        }
+        const int l = q[0];
         const TileTemplate& tt = templates_[templateFor(l, e)];
         const std::vector<uint16_t>& t = tt.fine;
         const bool grid = l >= kGridLevel;
+        gridFace_[f] = uint8_t(grid);
         const uint32_t R = 1u << l, step = 1u << (finest_ - l);
-        const uint32_t* tile = &tiles_[f * slots_];
         if (grid && slotVertex_.empty())
             slotVertex_.assign(slots_, kNone);
         for (size_t k = 0; k < t.size(); ++k) {
@@ -687,7 +1047,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
     // then the normals of the small tiles' triangles (in frame order).
     gatherTriangles_.clear();
     for (size_t t = 0; t < nt; ++t)
-        if (levels[triangleFaces_[t]] < kGridLevel)
+        if (!gridFace_[triangleFaces_[t]])
             gatherTriangles_.push_back(uint32_t(t));
     const size_t partials = partialVertex_.size();
     gatherOffsets_.assign(gatherVertices_.size() + 1, 0);
@@ -721,7 +1081,7 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
         const std::vector<float>& d = plan_.displacements();
         for (size_t k = 0; k < n; ++k) {
             const SampleLocation& at = samples[vertices_[k]];
-            if (levels[at.face] >= kGridLevel)
+            if (gridFace_[at.face])
                 continue;  // the tile pass writes it
             const uint32_t* c = &control[3 * size_t(at.face)];
             linear_.push_back({{c[0], c[1], c[2]}, uint32_t(k), at.bary.x, at.bary.y, d[vertices_[k]]});
@@ -855,7 +1215,10 @@ size_t AdaptiveFrame::bytes() const
         t += bytes(v.rows) + bytes(v.w1) + bytes(v.w2) + bytes(v.fine);
     for (const Scratch& v : scratch_)
         t += v.bytes();
-    return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(edgeLevels_) + bytes(levels_) +
+    for (const auto& v : quarterTemplates_)
+        t += bytes(v.second) + sizeof(uint32_t) + 2 * sizeof(void*);
+    return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(halves_) + bytes(levels_) +
+           bytes(quarters_) + bytes(quarterScratch_) + bytes(gridFace_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
            bytes(gridFaces_) + bytes(gridFirst_) + bytes(gridSlots_) + bytes(gridWriteFirst_) + bytes(gridWrites_) +
            bytes(gridSnapFirst_) + bytes(gridSnaps_) + bytes(slotVertex_) + bytes(gathered_) + bytes(gatherVertices_) + bytes(gatherOffsets_) + bytes(gatherEntries_) +

@@ -200,6 +200,12 @@ Status Surface::setFaceLevels(const uint8_t* levels, size_t count)
     return adaptive_->setLevels(levels, count);
 }
 
+Status Surface::setQuarterLevels(const uint8_t* quarters, size_t count)
+{
+    adaptiveFrame();
+    return adaptive_->setQuarterLevels(quarters, count);
+}
+
 const FaceLevelErrors& Surface::faceLevelErrors()
 {
     if (!chooser_) {
@@ -220,16 +226,16 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
     const FaceLevelErrors& errors = faceLevelErrors();
     if (errors.faceCount != mesh_.faceCount())
         return Status(StatusCode::InvalidData, "the surface's refined faces are not a grid per control face");
-    chosen_.resize(errors.faceCount);
+    chosen_.resize(4 * errors.faceCount);
     const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
     if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
-                                     scale);
+                                     scale, controlNormals_.data());
         !st)
         return st;
     // The same levels as drawn: the frame's topology stands.
-    if (adaptive_ && adaptive_->levels() == chosen_)
+    if (adaptive_ && adaptive_->quarterLevels() == chosen_)
         return Status::ok();
-    return setFaceLevels(chosen_.data(), chosen_.size());
+    return setQuarterLevels(chosen_.data(), chosen_.size());
 }
 
 Status Surface::evaluateAdaptive(glm::vec3* positions, glm::vec3* normals, size_t count, int threads)

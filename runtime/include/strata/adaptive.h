@@ -17,6 +17,19 @@
 // manifold control mesh gives a closed manifold frame for every assignment
 // of levels.
 //
+// Quarters.  A control face drawn at level l >= 1 is its four level-1
+// children (quarters: at corners 0, 1, 2, then the middle one) each at l,
+// and each quarter may take its own level (1 .. finest) instead: detail
+// finer-grained than the control mesh, for cages whose faces span more of
+// the model than a view resolves alike.  An edge between quarters (inside a
+// face) is drawn at the lower of theirs, and each half of a control edge at
+// the lowest level of what touches it; a face at level 0 (its quarters all
+// 0) draws its edges at level 0, and a quarter's points on such an edge
+// snap to the edge's corners, its midpoint to the first.  A face of unequal
+// quarters beside a face at level 0 is drawn with all four at its finest
+// (quarterLevels() says what is drawn).  The same snapping then closes
+// every seam.
+//
 // Levels from a view.  FaceLevelErrors holds, per control face and level,
 // how far the level's surface (the piecewise-linear interpolation of its
 // displaced grid) strays from level L's: measured once, at load, in the
@@ -28,6 +41,7 @@
 //
 //     strata::AdaptiveFrame frame(plan);
 //     frame.setLevels(levels.data(), levels.size());       // when the levels change
+//     // or frame.setQuarterLevels(quarters.data(), quarters.size()): 4 per face
 //     frame.evaluate(positions, normals, displacements, cp, cn, n, threads);
 //     // draw frame.triangles() over frame.vertexCount() vertices
 #pragma once
@@ -73,20 +87,29 @@ struct FaceLevelErrors {
     size_t faceCount = 0;
     std::vector<float> error;   ///< faceCount * (finest + 1): error[f * (finest + 1) + l]
     std::vector<float> reach;   ///< per face: the largest distance from its control corners' centroid to its displaced surface
+    /// faceCount * 4 * (finest + 1): the same per quarter of a face (levels
+    /// 1 .. finest; level 0 holds level 1's), over the quarter's own part.
+    std::vector<float> quarterError;
     float at(size_t face, int level) const { return error[face * size_t(finest + 1) + size_t(level)]; }
+    float quarterAt(size_t face, int quarter, int level) const
+    {
+        return quarterError[(4 * face + size_t(quarter)) * size_t(finest + 1) + size_t(level)];
+    }
 };
 
-/// Chooses each control face's level for a view.
+/// Chooses each control face's quarter levels for a view.
 ///
 /// init() measures FaceLevelErrors once (in the rest pose, at load) and
 /// keeps the finest surface's rest positions.  choose() first takes, per
 /// face, the smallest level whose error, projected at the face's nearest
 /// distance to the eye, is within the pixel tolerance (a face whose
-/// bounding sphere holds the eye gets the finest level).  Then, while a
-/// face's stitched tile (its strips along coarser edges, and the corners
-/// where two meet) strays past the tolerance, the coarsest neighbour across
-/// its coarsest edge goes up a level: that error is measured exactly for
-/// the tile as drawn, once per face and combination, and remembered.
+/// bounding sphere holds the eye gets the finest level); a face at level 2
+/// or finer then gives each quarter the smallest level within the tolerance
+/// on its own part.  Then, while a quarter's stitched tile (its strips along
+/// coarser edges, and the corners where two meet) strays past the
+/// tolerance, the coarsest neighbour across its coarsest edge goes up a
+/// level: that error is measured exactly for the tile as drawn, once per
+/// quarter and combination, and remembered.
 class LevelChooser {
 public:
     LevelChooser();
@@ -100,34 +123,52 @@ public:
                 const glm::vec3* controlNormals, size_t controlCount, int threads = 1);
     const FaceLevelErrors& errors() const { return errors_; }
 
-    /// levels: errors().faceCount values (caller-owned).  controlPositions:
+    /// quarters: 4 * errors().faceCount values (caller-owned; see
+    /// AdaptiveFrame::setQuarterLevels).  controlPositions:
     /// the current pose; `poseScale` (>= 1 for a pose that stretches, the
     /// largest singular value of the skin matrices: skinScale()) multiplies
     /// errors and reaches.
-    Status choose(uint8_t* levels, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
-                  size_t controlCount, float poseScale = 1.0f);
+    ///
+    /// With the pose's control normals, a face whose corner normals turn
+    /// apart (a bend: the displacement directions no longer turn as one)
+    /// counts its errors (1 + twice that angle in radians, or its
+    /// neighbours' where larger) times larger: a displacement error along a
+    /// normal tilts with it, at the point and at the drawn corners, and a
+    /// smooth surface's stencils reach across the face's edges.
+    Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
+                  size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr);
 
     /// The error (model units, rest pose) of face `face` drawn at `level`
     /// with its edges at edgeLevels (each <= level), as stitched.
     float stitchedError(size_t face, int level, const int edgeLevels[3]);
+    /// The same for quarter `quarter` of a face at `level` >= 1, its edges at
+    /// edgeLevels and, for the middle quarter, `coarseSides` (as
+    /// adaptiveQuarterTriangles), over the quarter's own part.
+    float stitchedQuarterError(size_t face, int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     size_t bytes() const;
 
 private:
     float templateError(const std::vector<uint16_t>& t, size_t face) const;
+    // The largest angle (radians) between a corner normal of face f in the
+    // pose and its rest normal turned as the face's triangle turned.
+    float bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const;
     const std::vector<uint16_t>& tileTemplate(int level, const int edgeLevels[3]);
+    const std::vector<uint16_t>& quarterTemplate(int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     FaceLevelErrors errors_;
     std::vector<glm::vec3> rest_;          // the finest surface, rest pose
+    std::vector<glm::vec3> restControl_, restNormals_;  // the control mesh, rest pose
     std::vector<uint32_t> tiles_, controlTriangles_;
     size_t slots_ = 0, controlCount_ = 0;
     std::vector<uint16_t> slotI_, slotJ_;
     EdgeGroups edges_;
     std::vector<uint32_t> edgeOf_;
-    std::vector<uint8_t> edgeLevels_;
+    std::vector<uint8_t> halves_, zeroEdges_;  // per edge, its two halves' levels; scratch
     std::vector<std::vector<uint16_t>> templates_;
-    std::unordered_map<uint64_t, float> stitched_;
-    std::vector<float> gains_;
+    std::unordered_map<uint32_t, std::vector<uint16_t>> quarterTemplates_;
+    std::unordered_map<uint64_t, float> stitched_, stitchedQuarters_;
+    std::vector<float> gains_, bends_;
 };
 
 /// The largest singular value of the upper 3x3 of any of `count` matrices
@@ -140,6 +181,18 @@ float skinScale(const float* matrices4x4, size_t count);
 /// What AdaptiveFrame draws per face, and a GPU's index template per
 /// (level, edge levels).
 void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3]);
+
+/// The triangles of quarter `quarter` (0, 1, 2 at the control face's corners
+/// 0, 1, 2; 3 the middle one) drawn at control level `level` (1 .. finest),
+/// as slots of the face's finest tile, counter-clockwise.  Its edges, in its
+/// own corner order (quarter k: corner k, then the face's edge midpoints
+/// going counter-clockwise; the middle: the midpoints of edges 1, 2, 0), are
+/// drawn at edgeLevels[k] <= level (0 only on a control edge drawn at level
+/// 0).  The middle quarter's corners lie on the face's edges: bit k of
+/// `coarseSides` says edge k is drawn at level 0 (that corner then snaps to
+/// the edge's first corner); 0 for the other quarters.
+void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarter, int level, const int edgeLevels[3],
+                              int coarseSides);
 
 class AdaptiveFrame {
 public:
@@ -155,7 +208,17 @@ public:
     /// frame so far (and the first time a (level, edge levels) combination
     /// appears).
     Status setLevels(const uint8_t* levels, size_t count);
+    /// Sets the level of each quarter of each control face (count = 4 per
+    /// face: the quarters at corners 0, 1, 2, then the middle one): all four
+    /// 0 (the face at level 0), or each in 1 .. the plan's level.  Four equal
+    /// levels draw the face as setLevels does.
+    Status setQuarterLevels(const uint8_t* quarters, size_t count);
+    /// Per control face, its finest quarter's level.
     const std::vector<uint8_t>& levels() const { return levels_; }
+    /// Per control face, its four quarters' levels (4 per face).
+    const std::vector<uint8_t>& quarterLevels() const { return quarters_; }
+    /// The level triangle `t` is drawn at (its quarter's).
+    int triangleLevel(size_t t) const;
 
     /// The frame's vertices and triangles (3 per triangle, counter-clockwise,
     /// indexing the frame's vertices) for the current levels.
@@ -205,7 +268,8 @@ private:
     std::vector<uint32_t> tiles_;         // per control face, its finest tile's refined vertices
     std::vector<uint16_t> slotI_, slotJ_; // the finest tile's grid point per slot
     std::vector<uint32_t> edgeOf_;        // per face corner (3 f + k): its undirected edge
-    std::vector<uint8_t> edgeLevels_;     // per edge: its level for the current face levels
+    std::vector<uint8_t> halves_;         // per edge: its two halves' levels for the current quarters
+    std::vector<uint8_t> zeroEdges_;      // setQuarterLevels' scratch
     // By (level, e0, e1, e2), built on first use: the triangles in the
     // finest tile's slots; at kGridLevel and finer, also in the level's grid
     // slots, where each grid point is drawn, and the points drawn elsewhere
@@ -214,7 +278,9 @@ private:
         std::vector<uint16_t> fine, local, snapTo, snaps;
     };
     std::vector<TileTemplate> templates_;
-    std::vector<uint8_t> levels_;
+    std::unordered_map<uint32_t, std::vector<uint16_t>> quarterTemplates_;
+    std::vector<uint8_t> levels_, quarters_, quarterScratch_;
+    std::vector<uint8_t> gridFace_;       // per face: drawn whole at kGridLevel or finer (the tile pass)
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
     std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
     std::vector<uint16_t> cornerSlots_;

@@ -131,9 +131,13 @@ public:
     /// and triangles follow the last setFaceLevels or chooseFaceLevels.
     /// \param levels  one per control face, each 0..level()
     Status setFaceLevels(const uint8_t* levels, size_t count);
-    /// Levels for a view of the current pose: per face the smallest level
-    /// within `pixelError` pixels of level() (errors measured once, in the
-    /// rest pose, at the first call; a skinned pose's stretch scales them).
+    /// The same per quarter of each control face (AdaptiveFrame::setQuarterLevels:
+    /// 4 per face, all 0 or each 1..level()).
+    Status setQuarterLevels(const uint8_t* quarters, size_t count);
+    /// Levels for a view of the current pose: per face (and quarter of a
+    /// face) the smallest level within `pixelError` pixels of level() (errors
+    /// measured once, in the rest pose, at the first call; a skinned pose's
+    /// stretch scales them).
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
     /// The errors chooseFaceLevels projects (measured on first use).
     const FaceLevelErrors& faceLevelErrors();

@@ -234,10 +234,10 @@ Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
     }
     if (Status st = evaluator_->setAdaptive(frame); !st)
         return st;
-    // Each triangle's control face level, for the false colour.
+    // Each triangle's level (its quarter's), for the false colour.
     std::vector<float> levels(frame.triangleCount());
     for (size_t t = 0; t < levels.size(); ++t)
-        levels[t] = float(frame.levels()[frame.triangleFaces()[t]]);
+        levels[t] = float(frame.triangleLevel(t));
     const size_t bytes = std::max<size_t>(levels.size(), 1) * 4;
     if (triangleLevelsCapacity_ < bytes) {
         if (triangleLevels_)
