@@ -241,6 +241,16 @@ uint32_t quarterKey(int c, int level, const int x[3], int coarseSides)
            uint32_t(coarseSides) << 14;
 }
 
+// Quarters at this level and finer go through the tile pass (a quarter's
+// grid there has kGridLevel's 8 segments an edge, or more).
+constexpr int kQuarterGridLevel = kGridLevel + 1;
+
+// The index of quarter q's grid at `level` among AdaptiveFrame's grids.
+size_t quarterGrid(int finest, int q, int level)
+{
+    return size_t(finest + 1) * size_t(q + 1) + size_t(level);
+}
+
 // The quarter whose part holds the grid point (i, j) of a tile of resolution R.
 int quarterAt(uint32_t i, uint32_t j, uint32_t R)
 {
@@ -272,39 +282,55 @@ void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, co
         }
 }
 
-void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarter, int level, const int x[3],
-                              int coarseSides)
-{
-    out->clear();
-    if (finest < 1 || level < 1 || level > finest || quarter < 0 || quarter > 3)
-        return;
-    const uint32_t N = 1u << finest, h = N / 2, step = 1u << (finest - level), r = 1u << (level - 1);
-    // The quarter's origin and direction in the face's grid: the middle one
-    // is the corner ones turned half a turn (counter-clockwise still).
-    const uint32_t oi = quarter == 1 || quarter == 3 ? h : 0, oj = quarter >= 2 ? h : 0;
-    const bool turned = quarter == 3;
-    // To the nearest kept point, a tie to the lower t (or, `up`, the higher).
-    auto snap = [&](uint32_t t, int edgeLevel, bool up = false) {
-        const uint32_t m = 1u << (finest - edgeLevel);
-        return m == 1 ? t : (t + m / 2 - (up ? 0 : 1)) / m * m;
-    };
-    // The level each of the face's edges (0, 1, 2) and inner edges (A: i +
-    // j = h, B: i = h, C: j = h) is drawn at where this quarter meets it.
-    // A tie goes to the start of the quarter's own edge (as on a whole
-    // face), so the two quarters of an inner edge break ties apart: both
-    // keep the same points, which is what closes the seam.
-    int side[3] = {finest, finest, finest}, inner[3] = {finest, finest, finest};
-    switch (quarter) {
-    case 0: side[0] = x[0], inner[0] = x[1], side[2] = x[2]; break;
-    case 1: side[0] = x[0], side[1] = x[1], inner[1] = x[2]; break;
-    case 2: inner[2] = x[0], side[1] = x[1], side[2] = x[2]; break;
-    default:
-        inner[2] = x[0], inner[0] = x[1], inner[1] = x[2];
-        for (int k = 0; k < 3; ++k)
-            side[k] = coarseSides >> k & 1 ? 0 : finest;
+namespace {
+
+// Quarter `quarter` of a face's finest grid (N = 2^finest), drawn at
+// `level`: its own grid of r = 2^(level - 1) segments an edge, point (u, v)
+// of which is the face's grid point at(u, v), and where that point is drawn.
+struct QuarterLattice {
+    int finest;
+    uint32_t N, h, step, r, oi, oj;
+    bool turned;
+    int side[3], inner[3];
+
+    QuarterLattice(int finestLevel, int quarter, int level, const int x[3], int coarseSides)
+        : finest(finestLevel), N(1u << finestLevel), h(N / 2), step(1u << (finestLevel - level)),
+          r(1u << (level - 1)), oi(quarter == 1 || quarter == 3 ? h : 0), oj(quarter >= 2 ? h : 0),
+          turned(quarter == 3), side{finestLevel, finestLevel, finestLevel}, inner{finestLevel, finestLevel, finestLevel}
+    {
+        // The quarter's origin and direction in the face's grid: the middle
+        // one is the corner ones turned half a turn (counter-clockwise
+        // still).  The level each of the face's edges (0, 1, 2) and inner
+        // edges (A: i + j = h, B: i = h, C: j = h) is drawn at where this
+        // quarter meets it.
+        switch (quarter) {
+        case 0: side[0] = x[0], inner[0] = x[1], side[2] = x[2]; break;
+        case 1: side[0] = x[0], side[1] = x[1], inner[1] = x[2]; break;
+        case 2: inner[2] = x[0], side[1] = x[1], side[2] = x[2]; break;
+        default:
+            inner[2] = x[0], inner[0] = x[1], inner[1] = x[2];
+            for (int k = 0; k < 3; ++k)
+                side[k] = coarseSides >> k & 1 ? 0 : finest;
+        }
     }
-    auto point = [&](uint32_t u, uint32_t v) {
-        uint32_t i = turned ? oi - u * step : oi + u * step, j = turned ? oj - v * step : oj + v * step;
+    void at(uint32_t u, uint32_t v, uint32_t* i, uint32_t* j) const
+    {
+        *i = turned ? oi - u * step : oi + u * step;
+        *j = turned ? oj - v * step : oj + v * step;
+    }
+    // Where point (u, v) is drawn, in the face's grid.  A tie goes to the
+    // start of the quarter's own edge (as on a whole face), so the two
+    // quarters of an inner edge break ties apart: both keep the same
+    // points, which is what closes the seam.
+    void drawnAt(uint32_t u, uint32_t v, uint32_t* pi, uint32_t* pj) const
+    {
+        uint32_t i, j;
+        at(u, v, &i, &j);
+        // To the nearest kept point, a tie to the lower t (or, `up`, the higher).
+        auto snap = [&](uint32_t t, int edgeLevel, bool up = false) {
+            const uint32_t m = 1u << (finest - edgeLevel);
+            return m == 1 ? t : (t + m / 2 - (up ? 0 : 1)) / m * m;
+        };
         const bool corner = (j == 0 && (i == 0 || i == N)) || (i == 0 && j == N);
         if (corner) {
         } else if (j == 0) {  // edge 0, t = i
@@ -322,7 +348,35 @@ void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarte
         } else if (j == h && i < h) {  // C, t = i
             i = snap(i, inner[2], turned);
         }
-        return uint16_t(tileSlot(i, j, N));
+        *pi = i;
+        *pj = j;
+    }
+    // The quarter's own point at face grid point (i, j), false if none.
+    bool local(uint32_t i, uint32_t j, uint32_t* u, uint32_t* v) const
+    {
+        const int64_t du = turned ? int64_t(oi) - int64_t(i) : int64_t(i) - int64_t(oi);
+        const int64_t dv = turned ? int64_t(oj) - int64_t(j) : int64_t(j) - int64_t(oj);
+        if (du < 0 || dv < 0 || du % step != 0 || dv % step != 0 || (du + dv) / step > int64_t(r))
+            return false;
+        *u = uint32_t(du / step);
+        *v = uint32_t(dv / step);
+        return true;
+    }
+};
+
+}  // namespace
+
+void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarter, int level, const int x[3],
+                              int coarseSides)
+{
+    out->clear();
+    if (finest < 1 || level < 1 || level > finest || quarter < 0 || quarter > 3)
+        return;
+    const QuarterLattice q(finest, quarter, level, x, coarseSides);
+    auto point = [&](uint32_t u, uint32_t v) {
+        uint32_t i, j;
+        q.drawnAt(u, v, &i, &j);
+        return uint16_t(tileSlot(i, j, q.N));
     };
     auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
         if (a == b || b == c || c == a)
@@ -331,10 +385,10 @@ void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarte
         out->push_back(b);
         out->push_back(c);
     };
-    for (uint32_t v = 0; v < r; ++v)
-        for (uint32_t u = 0; u + v < r; ++u) {
+    for (uint32_t v = 0; v < q.r; ++v)
+        for (uint32_t u = 0; u + v < q.r; ++u) {
             emit(point(u, v), point(u + 1, v), point(u, v + 1));
-            if (u + v + 1 < r)
+            if (u + v + 1 < q.r)
                 emit(point(u + 1, v), point(u + 1, v + 1), point(u, v + 1));
         }
 }
@@ -730,7 +784,7 @@ struct AdaptiveFrame::Scratch : detail::GridScratch {};
 struct AdaptiveFrame::TileJob {
     const uint32_t* control;
     const LevelGrid* grids;
-    const uint8_t* levels;
+    const uint32_t* gridOf;
     const uint32_t *faces, *first, *slots, *writeFirst, *snapFirst;
     const GridWrite* writes;
     const uint16_t* snaps;
@@ -759,9 +813,8 @@ STRATA_KERNEL_CLONES void AdaptiveFrame::shadeTiles(const TileJob& job, Scratch&
                 face[pair][kind][a] = s.face[pair][kind][a].data();
     for (size_t g = begin; g < end; ++g) {
         const uint32_t f = job.faces[g];
-        const int level = job.levels[f];
-        const LevelGrid& grid = job.grids[level];
-        const size_t R = size_t(1) << level, S = (R + 1) * (R + 2) / 2;
+        const LevelGrid& grid = job.grids[job.gridOf[g]];
+        const size_t R = grid.res, S = (R + 1) * (R + 2) / 2;
         const uint32_t* slot = job.slots + job.first[g];
         if (job.cp) {
             float* dl = s.d.data();
@@ -831,12 +884,39 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
     for (int level = kGridLevel; level <= finest_; ++level) {
         LevelGrid& grid = levelGrids_[size_t(level)];
         const uint32_t r = 1u << level, step = 1u << (finest_ - level);
+        grid.res = r;
         detail::gridTables(r, &grid.rows, &grid.w1, &grid.w2);
         grid.fine.resize(size_t(r + 1) * (r + 2) / 2);
+        grid.border.resize(grid.fine.size());
         for (uint32_t i = 0; i <= r; ++i)
-            for (uint32_t j = 0; i + j <= r; ++j)
+            for (uint32_t j = 0; i + j <= r; ++j) {
                 grid.fine[gridSlot(i, j, r)] = uint16_t(tileSlot(i * step, j * step, R));
+                grid.border[gridSlot(i, j, r)] = uint8_t(i == 0 || j == 0 || i + j == r);
+            }
     }
+    // Each quarter's grids, level kGridLevel + 1 and finer: the same rows,
+    // the face's barycentrics at the quarter's points.
+    levelGrids_.resize(size_t(finest_ + 1) * 5);
+    for (int quarter = 0; quarter < 4; ++quarter)
+        for (int level = kQuarterGridLevel; level <= finest_; ++level) {
+            const int none[3] = {finest_, finest_, finest_};
+            const QuarterLattice q(finest_, quarter, level, none, 0);
+            LevelGrid& grid = levelGrids_[quarterGrid(finest_, quarter, level)];
+            grid.res = q.r;
+            detail::gridTables(q.r, &grid.rows, &grid.w1, &grid.w2);
+            grid.fine.resize(size_t(q.r + 1) * (q.r + 2) / 2);
+            grid.border.resize(grid.fine.size());
+            for (uint32_t u = 0; u <= q.r; ++u)
+                for (uint32_t v = 0; u + v <= q.r; ++v) {
+                    uint32_t i, j;
+                    q.at(u, v, &i, &j);
+                    const size_t k = gridSlot(u, v, q.r);
+                    grid.border[k] = uint8_t(u == 0 || v == 0 || u + v == q.r);
+                    grid.w1[k] = float(i) / float(R);
+                    grid.w2[k] = float(j) / float(R);
+                    grid.fine[k] = uint16_t(tileSlot(i, j, R));
+                }
+        }
 }
 
 AdaptiveFrame::~AdaptiveFrame() = default;
@@ -869,6 +949,44 @@ size_t AdaptiveFrame::templateFor(int level, const int e[3])
             }
     }
     return key;
+}
+
+const AdaptiveFrame::TileTemplate& AdaptiveFrame::quarterTemplateFor(int quarter, int level, const int x[3],
+                                                                      int coarseSides)
+{
+    TileTemplate& t = quarterTemplates_[quarterKey(quarter, level, x, coarseSides)];
+    if (!t.fine.empty() || level < 1)
+        return t;
+    adaptiveQuarterTriangles(&t.fine, finest_, quarter, level, x, coarseSides);
+    if (level < kQuarterGridLevel)
+        return t;
+    // The same triangles in the quarter's grid slots, and where each of its
+    // points is drawn; a point drawn off the quarter's grid (beside a face
+    // at level 0) leaves the quarter to the small tiles' passes.
+    const QuarterLattice q(finest_, quarter, level, x, coarseSides);
+    const size_t slots = size_t(q.r + 1) * (q.r + 2) / 2;
+    t.local.resize(t.fine.size());
+    t.snapTo.resize(slots);
+    t.snaps.clear();
+    for (size_t k = 0; k < t.fine.size(); ++k) {
+        uint32_t u, v;
+        if (!q.local(slotI_[t.fine[k]], slotJ_[t.fine[k]], &u, &v))
+            return t;
+        t.local[k] = uint16_t(gridSlot(u, v, q.r));
+    }
+    for (uint32_t u = 0; u <= q.r; ++u)
+        for (uint32_t v = 0; u + v <= q.r; ++v) {
+            uint32_t i, j, su, sv;
+            q.drawnAt(u, v, &i, &j);
+            if (!q.local(i, j, &su, &sv))
+                return t;
+            const uint16_t from = uint16_t(gridSlot(u, v, q.r)), to = uint16_t(gridSlot(su, sv, q.r));
+            t.snapTo[from] = to;
+            if (from != to)
+                t.snaps.insert(t.snaps.end(), {from, to});
+        }
+    t.grid = true;
+    return t;
 }
 
 Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
@@ -927,7 +1045,6 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     for (size_t f = 0; f < nf; ++f)
         levels_[f] = std::max({quarters[4 * f], quarters[4 * f + 1], quarters[4 * f + 2], quarters[4 * f + 3]});
     halfLevelsFor(&halves_, quarters, control.data(), edgeOf_, finest_);
-    gridFace_.assign(nf, 0);
 
     vertices_.clear();
     triangles_.clear();
@@ -946,69 +1063,46 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     gathered_.clear();
     const bool linear = plan_.scheme() == Scheme::Linear;
     const std::vector<SampleLocation>& samples = plan_.sampleLocations();
-    for (size_t f = 0; f < nf; ++f) {
-        const uint8_t* q = quarters + 4 * f;
-        const uint32_t* tile = &tiles_[f * slots_];
-        int h[3][2], e[3];
-        faceHalves(h, halves_, control.data(), edgeOf_, f);
-        if (!drawnWhole(q, h, e)) {
-            // Its quarters, each with its own template; every vertex is
-            // left to the gather pass (and, linear, the streamed corners).
-            for (int c = 0; c < 4; ++c) {
-                int x[3], coarseSides;
-                quarterEdges(c, q, h, x, &coarseSides);
-                std::vector<uint16_t>& t = quarterTemplates_[quarterKey(c, q[c], x, coarseSides)];
-                if (t.empty())
-                    adaptiveQuarterTriangles(&t, finest_, c, q[c], x, coarseSides);
-                for (size_t k = 0; k < t.size(); ++k) {
-                    const uint32_t v = tile[t[k]];
-                    if (remap_[v] == kNone) {
-                        remap_[v] = uint32_t(vertices_.size());
-                        vertices_.push_back(v);
-                        gathered_.push_back(1);
-                    }
-                    gathered_[remap_[v]] = 1;
-                    triangles_.push_back(remap_[v]);
-                    cornerSlots_.push_back(t[k]);
-                }
-                triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
-            }
-            continue;
-        }
-        const int l = q[0];
-        const TileTemplate& tt = templates_[templateFor(l, e)];
+    written_.clear();
+    tiled_.clear();
+    gridOf_.clear();
+    if (slotVertex_.empty())
+        slotVertex_.assign(slots_, kNone);
+    // One drawn unit: a whole face, or a quarter of one.  `grid`: its tile
+    // pass runs on levelGrids_[gridIndex]; a whole face's tile writes the
+    // positions of the border points its face owns too (a quarter's are
+    // streamed, or evaluated, with the small tiles').
+    auto addUnit = [&](size_t f, const uint32_t* tile, const TileTemplate& tt, bool grid, size_t gridIndex, bool whole) {
         const std::vector<uint16_t>& t = tt.fine;
-        const bool grid = l >= kGridLevel;
-        gridFace_[f] = uint8_t(grid);
-        const uint32_t R = 1u << l, step = 1u << (finest_ - l);
-        if (grid && slotVertex_.empty())
-            slotVertex_.assign(slots_, kNone);
+        const LevelGrid* lg = grid ? &levelGrids_[gridIndex] : nullptr;
         for (size_t k = 0; k < t.size(); ++k) {
             const uint32_t v = tile[t[k]];
             if (remap_[v] == kNone) {
                 remap_[v] = uint32_t(vertices_.size());
                 vertices_.push_back(v);
                 gathered_.push_back(0);
+                written_.push_back(0);
             }
             triangles_.push_back(remap_[v]);
             cornerSlots_.push_back(t[k]);
-            const uint32_t i = slotI_[t[k]] / step, j = slotJ_[t[k]] / step;
-            if (!grid || i == 0 || j == 0 || i + j == R)  // a small tile's, or shared with another face
+            if (!grid || lg->border[tt.local[k]])  // a small tile's, or shared with another unit
                 gathered_[remap_[v]] = 1;
             if (grid)
                 slotVertex_[tt.local[k]] = remap_[v];
         }
         triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
+        tiled_.insert(tiled_.end(), t.size() / 3, uint8_t(grid));
         if (!grid)
-            continue;
+            return;
         // The tile pass: per grid slot its displacement's refined vertex
         // (linear) or the frame vertex whose position it takes (smooth);
         // the vertices it writes; its snapped points (linear).
-        const LevelGrid& lg = levelGrids_[size_t(l)];
-        const size_t S = lg.fine.size();
+        const size_t S = lg->fine.size();
+        const uint32_t R = lg->res;
         gridFaces_.push_back(uint32_t(f));
+        gridOf_.push_back(uint32_t(gridIndex));
         for (size_t k = 0; k < S; ++k)
-            gridSlots_.push_back(linear ? tile[lg.fine[k]] : slotVertex_[tt.snapTo[k]]);
+            gridSlots_.push_back(linear ? tile[lg->fine[k]] : slotVertex_[tt.snapTo[k]]);
         gridFirst_.push_back(uint32_t(gridSlots_.size()));
         for (uint32_t i = 0; i <= R; ++i)
             for (uint32_t j = 0; i + j <= R; ++j) {
@@ -1016,9 +1110,12 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
                 const uint32_t v = slotVertex_[k];
                 if (v == kNone)
                     continue;
-                const bool inner = i > 0 && j > 0 && i + j < R;
-                if (inner || (linear && samples[vertices_[v]].face == f))
+                const bool inner = !lg->border[k];
+                const bool owned = whole && linear && samples[vertices_[v]].face == f;
+                if (inner || owned) {
                     gridWrites_.push_back({v, uint16_t(k), uint16_t(inner)});
+                    written_[v] = 1;
+                }
                 if (!inner) {  // the tile's share of a border vertex's normal
                     gridPartialSlots_.push_back(uint16_t(k));
                     partialVertex_.push_back(v);
@@ -1029,6 +1126,23 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
         gridPartialFirst_.push_back(uint32_t(gridPartialSlots_.size()));
         gridSnaps_.insert(gridSnaps_.end(), tt.snaps.begin(), tt.snaps.end());
         gridSnapFirst_.push_back(uint32_t(gridSnaps_.size()));
+    };
+    for (size_t f = 0; f < nf; ++f) {
+        const uint8_t* q = quarters + 4 * f;
+        const uint32_t* tile = &tiles_[f * slots_];
+        int h[3][2], e[3];
+        faceHalves(h, halves_, control.data(), edgeOf_, f);
+        if (!drawnWhole(q, h, e)) {
+            for (int c = 0; c < 4; ++c) {
+                int x[3], coarseSides;
+                quarterEdges(c, q, h, x, &coarseSides);
+                const TileTemplate& tt = quarterTemplateFor(c, q[c], x, coarseSides);
+                addUnit(f, tile, tt, tt.grid, quarterGrid(finest_, c, q[c]), false);
+            }
+            continue;
+        }
+        const int l = q[0];
+        addUnit(f, tile, templates_[templateFor(l, e)], l >= kGridLevel, size_t(l), true);
     }
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
@@ -1047,7 +1161,7 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     // then the normals of the small tiles' triangles (in frame order).
     gatherTriangles_.clear();
     for (size_t t = 0; t < nt; ++t)
-        if (!gridFace_[triangleFaces_[t]])
+        if (!tiled_[t])
             gatherTriangles_.push_back(uint32_t(t));
     const size_t partials = partialVertex_.size();
     gatherOffsets_.assign(gatherVertices_.size() + 1, 0);
@@ -1081,7 +1195,7 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
         const std::vector<float>& d = plan_.displacements();
         for (size_t k = 0; k < n; ++k) {
             const SampleLocation& at = samples[vertices_[k]];
-            if (gridFace_[at.face])
+            if (written_[k])
                 continue;  // the tile pass writes it
             const uint32_t* c = &control[3 * size_t(at.face)];
             linear_.push_back({{c[0], c[1], c[2]}, uint32_t(k), at.bary.x, at.bary.y, d[vertices_[k]]});
@@ -1127,7 +1241,7 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
         TileJob job{};
         job.control = plan_.controlTriangles().data();
         job.grids = levelGrids_.data();
-        job.levels = levels_.data();
+        job.gridOf = gridOf_.data();
         job.faces = gridFaces_.data();
         job.first = gridFirst_.data();
         job.slots = gridSlots_.data();
@@ -1212,13 +1326,14 @@ size_t AdaptiveFrame::bytes() const
     for (const TileTemplate& v : templates_)
         t += bytes(v.fine) + bytes(v.local) + bytes(v.snapTo) + bytes(v.snaps);
     for (const LevelGrid& v : levelGrids_)
-        t += bytes(v.rows) + bytes(v.w1) + bytes(v.w2) + bytes(v.fine);
+        t += bytes(v.rows) + bytes(v.w1) + bytes(v.w2) + bytes(v.fine) + bytes(v.border);
     for (const Scratch& v : scratch_)
         t += v.bytes();
     for (const auto& v : quarterTemplates_)
-        t += bytes(v.second) + sizeof(uint32_t) + 2 * sizeof(void*);
+        t += bytes(v.second.fine) + bytes(v.second.local) + bytes(v.second.snapTo) + bytes(v.second.snaps) +
+             sizeof(v) + 2 * sizeof(void*);
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(halves_) + bytes(levels_) +
-           bytes(quarters_) + bytes(quarterScratch_) + bytes(gridFace_) +
+           bytes(quarters_) + bytes(quarterScratch_) + bytes(written_) + bytes(tiled_) + bytes(gridOf_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
            bytes(gridFaces_) + bytes(gridFirst_) + bytes(gridSlots_) + bytes(gridWriteFirst_) + bytes(gridWrites_) +
            bytes(gridSnapFirst_) + bytes(gridSnaps_) + bytes(slotVertex_) + bytes(gathered_) + bytes(gatherVertices_) + bytes(gatherOffsets_) + bytes(gatherEntries_) +

@@ -274,35 +274,44 @@ private:
     // finest tile's slots; at kGridLevel and finer, also in the level's grid
     // slots, where each grid point is drawn, and the points drawn elsewhere
     // (pairs: slot, the slot it is drawn at).
+    // Quarters the same (at kGridLevel + 1 and finer, `local` in the
+    // quarter's own grid, when every point snaps to a point of it: `grid`).
     struct TileTemplate {
         std::vector<uint16_t> fine, local, snapTo, snaps;
+        bool grid = false;
     };
     std::vector<TileTemplate> templates_;
-    std::unordered_map<uint32_t, std::vector<uint16_t>> quarterTemplates_;
+    std::unordered_map<uint32_t, TileTemplate> quarterTemplates_;
+    const TileTemplate& quarterTemplateFor(int quarter, int level, const int edgeLevels[3], int coarseSides);
     std::vector<uint8_t> levels_, quarters_, quarterScratch_;
-    std::vector<uint8_t> gridFace_;       // per face: drawn whole at kGridLevel or finer (the tile pass)
+    std::vector<uint8_t> written_;        // per frame vertex: its position written by the tile pass
+    std::vector<uint8_t> tiled_;          // per frame triangle: its normal summed by the tile pass
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
     std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
     std::vector<uint16_t> cornerSlots_;
 
-    // The tile pass, over the faces drawn at kGridLevel or finer
-    // (gridFaces_).  Per level, its grid (detail::GridScratch's layout): row
+    // The tile pass, over the faces drawn whole at kGridLevel or finer and
+    // the quarters at kGridLevel + 1 or finer (gridFaces_, each with its grid
+    // in gridOf_).  Per level (and per quarter and level, past the levels),
+    // its grid (detail::GridScratch's layout): row
     // starts, barycentrics per slot (padded to whole vectors), and each
     // slot's slot in the finest tile.  Per grid face: per slot, its
     // displacement's refined vertex (linear) or the frame vertex whose
     // position it takes (smooth); the frame vertices it writes (its own
     // positions, linear; its inner normals); its snapped points (linear).
     struct LevelGrid {
+        uint32_t res = 0;  // segments an edge
         std::vector<uint32_t> rows;
         std::vector<float> w1, w2;
         std::vector<uint16_t> fine;
+        std::vector<uint8_t> border;  // per slot: on the grid's border
     };
     struct GridWrite {
         uint32_t vertex;
         uint16_t slot, inner;
     };
     std::vector<LevelGrid> levelGrids_;
-    std::vector<uint32_t> gridFaces_, gridFirst_, gridSlots_, gridWriteFirst_, gridSnapFirst_, gridPartialFirst_;
+    std::vector<uint32_t> gridFaces_, gridOf_, gridFirst_, gridSlots_, gridWriteFirst_, gridSnapFirst_, gridPartialFirst_;
     std::vector<GridWrite> gridWrites_;
     std::vector<uint16_t> gridSnaps_;
     std::vector<uint16_t> gridPartialSlots_;  // per partial sum: its grid slot
