@@ -351,6 +351,70 @@ TEST(Adaptive, RandomLevelMixesAreClosedInBothSchemesAnimated)
     }
 }
 
+// A control mesh with a hole (the bending head without its crown): random
+// face and quarter levels keep the frame's topology that of the control
+// mesh (Euler characteristic 1, one border), with no non-manifold edge and
+// every vertex where the finest plan puts it.
+TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
+{
+    std::mt19937 rng(11);
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        ControlMesh& m = rig.mesh;
+        std::vector<uint32_t> triangles, uvIndices;
+        for (size_t f = 0; f < m.faceCount(); ++f) {
+            const glm::vec3 c = (m.positions[m.triangles[3 * f]] + m.positions[m.triangles[3 * f + 1]] +
+                                 m.positions[m.triangles[3 * f + 2]]) / 3.0f;
+            if (c.y > 0.6f * glm::length(c))
+                continue;  // the crown
+            triangles.insert(triangles.end(), m.triangles.begin() + std::ptrdiff_t(3 * f), m.triangles.begin() + std::ptrdiff_t(3 * f + 3));
+            if (m.hasUVs())
+                uvIndices.insert(uvIndices.end(), m.uvIndices.begin() + std::ptrdiff_t(3 * f), m.uvIndices.begin() + std::ptrdiff_t(3 * f + 3));
+        }
+        ASSERT_LT(triangles.size(), m.triangles.size());
+        m.triangles = triangles;
+        m.uvIndices = uvIndices;
+        const MeshTopologyStats control = computeTopologyStats(m.triangles.data(), m.faceCount());
+        ASSERT_EQ(control.eulerCharacteristic, 1);
+        ASSERT_GT(control.boundaryEdges, 0u);
+        std::unique_ptr<Surface> s;
+        const Status created = Surface::create(&s, rig, &map);
+        ASSERT_TRUE(created.isOk()) << created.message();
+        const size_t nf = m.faceCount();
+        std::vector<uint8_t> quarters(4 * nf);
+        std::vector<glm::vec3> fine(s->vertexCount());
+        for (int trial = 0; trial < 10; ++trial) {
+            std::uniform_int_distribution<int> any(1, s->level()), pick(0, 3);
+            for (size_t f = 0; f < nf; ++f) {
+                const int kind = pick(rng);  // 0: level 0; 1: one level; else mixed
+                const uint8_t one = uint8_t(any(rng));
+                for (int c = 0; c < 4; ++c)
+                    quarters[4 * f + size_t(c)] = kind == 0 ? 0 : kind == 1 ? one : uint8_t(any(rng));
+            }
+            ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
+            ASSERT_TRUE(s->setAnimationTime(0, 0.15f * float(trial)).isOk());
+            const std::string label = std::string(schemeName(scheme)) + " trial " + std::to_string(trial);
+            const AdaptiveFrame& frame = s->adaptiveFrame();
+            const MeshTopologyStats st = computeTopologyStats(frame.triangles().data(), frame.triangleCount());
+            EXPECT_EQ(st.nonManifoldEdges, 0u) << label;
+            EXPECT_EQ(st.eulerCharacteristic, 1) << label;
+            EXPECT_GT(st.boundaryEdges, 0u) << label;
+            std::vector<glm::vec3> p(frame.vertexCount()), n(p.size());
+            ASSERT_TRUE(s->evaluateAdaptive(p.data(), n.data(), p.size(), 2).isOk());
+            ASSERT_TRUE(s->plan()
+                            .evaluate(fine.data(), nullptr, 0, fine.size(), s->controlPositions().data(),
+                                      s->controlNormals().data(), s->controlVertexCount())
+                            .isOk());
+            for (size_t v = 0; v < p.size(); ++v) {
+                ASSERT_EQ(p[v], fine[frame.vertices()[v]]) << label << " vertex " << v;
+                ASSERT_NEAR(glm::length(n[v]), 1.0f, 1e-5f) << label;
+            }
+        }
+    }
+}
+
 TEST(Adaptive, OneLevelEverywhereIsTheUniformSurfaceOfThatLevel)
 {
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
