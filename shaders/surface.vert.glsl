@@ -32,12 +32,14 @@ out vec2 v_materialUV;
 void main()
 {
 #ifdef STRATA_ADAPTIVE_DRAW
-    uint slot = uint(gl_VertexID), refined = frameVertices[slot];
+    // Corner mode (materials): gl_VertexID is a corner of the frame's
+    // triangles, with its own material UV.
+    uint slot = u_corners != 0 ? triangles[gl_VertexID] : uint(gl_VertexID), refined = frameVertices[slot];
     v_position = displaced[slot].xyz;
     v_normal = normals[slot].xyz;
     v_displacement = strata_vertex_displacement(refined, sampleUVs[refined]);
     v_error = 0.0;  // the fragment shader reads its triangle's level
-    v_materialUV = vec2(0.0);
+    v_materialUV = u_corners != 0 ? cornerUVs[gl_VertexID] : vec2(0.0);
     gl_Position = u_viewProjection * vec4(v_position, 1.0);
     return;
 #endif

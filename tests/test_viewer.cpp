@@ -117,7 +117,7 @@ TEST(Viewer, AdaptiveModeDrawsTheSameHeadWithFewerVertices)
 {
     const std::string dir = test::tempDir("viewer_adaptive");
     const std::string rig = test::writeExampleRig(dir, "head");
-    // The adaptive draw has no materials yet: both in the plain base colour.
+    // Both in the plain base colour (the adaptive draw's materials: FoxIsDrawnWithItsTexture).
     const Image uniform = shoot(rig, "--level 4 --yaw 0 --pitch 0 --no-materials", dir + "/uniform.png");
     const Image shaded =
         shoot(rig, "--level 4 --yaw 0 --pitch 0 --no-materials --adaptive --no-level-colours", dir + "/shaded.png");
@@ -207,6 +207,20 @@ TEST(ViewerRealData, FoxIsDrawnWithItsTexture)
     };
     EXPECT_GT(orange(textured), 0.4);
     EXPECT_LT(orange(grey), 0.01);
+    // The adaptive draw too, at mixed levels of the smooth surface: the same
+    // fur, the same place on screen as the uniform draw of its finest level.
+    const Image uniform = shoot(fox, "--level 3 --scheme smooth", dir + "/uniform.png");
+    const test::CommandResult r =
+        test::runCommand(std::string(STRATA_VIEW_EXE) + " '" + fox + "' --headless --no-grid --size 320x240 --level 3 "
+                         "--scheme smooth --adaptive --no-level-colours --screenshot '" + dir + "/adaptive.png'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("levels 0..2"), std::string::npos) << r.output;
+    Image adaptive;
+    ASSERT_TRUE(io::readPngRgb(dir + "/adaptive.png", &adaptive.width, &adaptive.height, &adaptive.rgb).isOk());
+    EXPECT_GT(orange(adaptive), 0.4);
+    const Coverage cu = coverage(uniform), ca = coverage(adaptive);
+    EXPECT_NEAR(ca.fraction, cu.fraction, 0.01);
+    EXPECT_LT(meanDifference(uniform, adaptive, cu.x0, cu.y0, cu.x1, cu.y1), 8.0);
 }
 
 TEST(ViewerRealData, CesiumManIsFramedStandingOnTheGrid)

@@ -429,6 +429,42 @@ void Scene::render(int width, int height)
         drawColorScale(width, height);
 }
 
+// The adaptive frame's materials: each part's triangles (the frame lists
+// them face by face), their base colour UVs at each corner's grid point,
+// linear inside its control face as the plan refines UVs.
+Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
+{
+    if (rig_->parts.empty() || rig_->fileCorners.size() != rig_->mesh.triangles.size())
+        return Status::ok();  // not from a glTF scene: flat grey
+    const std::vector<uint32_t>& faces = frame.triangleFaces();
+    const std::vector<uint16_t>& slots = frame.cornerSlots();
+    const uint32_t R = 1u << cpu_->level();
+    std::vector<glm::vec2> grid(size_t(R + 1) * (R + 2) / 2);
+    for (uint32_t j = 0; j <= R; ++j)
+        for (uint32_t i = 0; i + j <= R; ++i)
+            grid[tileSlot(i, j, R)] = glm::vec2(float(i), float(j)) / float(R);
+    std::vector<glm::vec2> corners(slots.size());
+    for (size_t c = 0; c < slots.size(); ++c) {
+        const uint32_t* file = &rig_->fileCorners[3 * size_t(faces[c / 3])];
+        const glm::vec2 b = grid[slots[c]];
+        corners[c] = (1.0f - b.x - b.y) * materials_.fileUVs[file[0]] + b.x * materials_.fileUVs[file[1]] +
+                     b.y * materials_.fileUVs[file[2]];
+    }
+    std::vector<gl::MaterialRange> ranges;
+    size_t t = 0;
+    for (size_t p = 0; p < rig_->parts.size(); ++p) {
+        const RigPart& part = rig_->parts[p];
+        while (t < faces.size() && faces[t] < part.firstFace)
+            ++t;
+        const size_t first = t;
+        while (t < faces.size() && faces[t] < size_t(part.firstFace) + part.faceCount)
+            ++t;
+        if (t > first)
+            ranges.push_back({first, t - first, materials_.partMaterial[p]});
+    }
+    return surface_->setAdaptiveMaterials(ranges, corners);
+}
+
 // The adaptive frame for this view: levels chosen for the current pose,
 // the GPU frame set up again only when they change, evaluated and drawn.
 void Scene::renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* p)
@@ -445,6 +481,8 @@ void Scene::renderAdaptive(const glm::vec3& eye, int height, gl::DrawParams* p)
     if (st && frame.quarterLevels() != drawnLevels_) {
         st = surface_->setAdaptive(frame);
         drawnLevels_ = frame.quarterLevels();
+        if (st && builtMaterials_)
+            st = uploadAdaptiveMaterials(frame);
     }
     if (st)
         st = surface_->updateAdaptive(cpu_->controlPositions().data(), cpu_->controlNormals().data(),

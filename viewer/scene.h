@@ -99,6 +99,7 @@ public:
 private:
     Status rebuild();
     Status uploadMaterials();
+    Status uploadAdaptiveMaterials(const AdaptiveFrame& frame);
     void computeErrors();
     void buildLines();
 

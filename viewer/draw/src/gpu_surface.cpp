@@ -66,7 +66,7 @@ Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bo
 
 GpuSurface::~GpuSurface()
 {
-    for (GLuint b : {errors_, feedback_, cornerUVs_, triangleLevels_})
+    for (GLuint b : {errors_, feedback_, cornerUVs_, triangleLevels_, adaptiveCornerUVs_})
         if (b)
             glDeleteBuffers(1, &b);
     glDeleteVertexArrays(1, &vao_);
@@ -134,11 +134,8 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
         materials_.push_back(m);
     }
     ranges_ = ranges;
-    // Blended ranges last.
-    std::stable_sort(ranges_.begin(), ranges_.end(), [&](const MaterialRange& a, const MaterialRange& b) {
-        return (materials_[size_t(a.material)].material.alphaMode == 2) <
-               (materials_[size_t(b.material)].material.alphaMode == 2);
-    });
+    sortBlendedLast(&ranges_);
+    adaptiveRanges_.clear();
     if (cornerUVs_)
         glDeleteBuffers(1, &cornerUVs_);
     glCreateBuffers(1, &cornerUVs_);
@@ -149,19 +146,55 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     return Status::ok();
 }
 
-// The shaded view with materials: corner-ordered draws (gl_VertexID is the
-// refined corner), one per face range.
-void GpuSurface::drawMaterials(GLuint prog)
+// Blended ranges last (drawn without depth writes).
+void GpuSurface::sortBlendedLast(std::vector<MaterialRange>* ranges) const
+{
+    std::stable_sort(ranges->begin(), ranges->end(), [&](const MaterialRange& a, const MaterialRange& b) {
+        return (materials_[size_t(a.material)].material.alphaMode == 2) <
+               (materials_[size_t(b.material)].material.alphaMode == 2);
+    });
+}
+
+Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs)
+{
+    const size_t triangles = evaluator_->adaptiveTriangleCount();
+    if (cornerUVs.size() != 3 * triangles)
+        return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: " + std::to_string(cornerUVs.size()) +
+                                                       " corner UVs for " + std::to_string(triangles) + " triangles");
+    for (const MaterialRange& r : ranges)
+        if (r.material < 0 || size_t(r.material) >= materials_.size() || r.firstFace > triangles ||
+            r.faceCount > triangles - r.firstFace)
+            return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: a triangle range is out of bounds");
+    const size_t bytes = std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2);
+    if (adaptiveCornerUVsCapacity_ < bytes) {
+        if (adaptiveCornerUVs_)
+            glDeleteBuffers(1, &adaptiveCornerUVs_);
+        ownBytes_ = ownBytes_ - adaptiveCornerUVsCapacity_ + bytes + bytes / 4;
+        adaptiveCornerUVsCapacity_ = bytes + bytes / 4;
+        glCreateBuffers(1, &adaptiveCornerUVs_);
+        glNamedBufferStorage(adaptiveCornerUVs_, GLsizeiptr(adaptiveCornerUVsCapacity_), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    }
+    if (!cornerUVs.empty())
+        glNamedBufferSubData(adaptiveCornerUVs_, 0, GLsizeiptr(cornerUVs.size() * sizeof(glm::vec2)), cornerUVs.data());
+    adaptiveRanges_ = ranges;
+    sortBlendedLast(&adaptiveRanges_);
+    return Status::ok();
+}
+
+// The shaded view with materials: corner-ordered draws (gl_VertexID is a
+// corner of `triangles`), one per range.
+void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
+                               GLuint vao)
 {
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, evaluator_->buffer(kSampleUVs));
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kTriangles, evaluator_->buffer(kTriangles));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kTriangles, triangles);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, errors_);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerUVs, cornerUVs_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerUVs, cornerUVs);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 1);
     glUniform1i(glGetUniformLocation(prog, "u_baseColorTexture"), 1);
-    glBindVertexArray(cornerVao_);
+    glBindVertexArray(vao);
     bool blending = false;
-    for (const MaterialRange& r : ranges_) {
+    for (const MaterialRange& r : ranges) {
         const GpuMaterial& m = materials_[size_t(r.material)];
         const bool blend = m.material.alphaMode == 2;
         if (blend && !blending) {
@@ -234,6 +267,7 @@ Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
     }
     if (Status st = evaluator_->setAdaptive(frame); !st)
         return st;
+    adaptiveRanges_.clear();
     // Each triangle's level (its quarter's), for the false colour.
     std::vector<float> levels(frame.triangleCount());
     for (size_t t = 0; t < levels.size(); ++t)
@@ -295,7 +329,14 @@ void GpuSurface::drawAdaptive(const DrawParams& p)
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, e.adaptiveBuffer(AdaptiveBuffer::Indirect));
     const auto drawAll = [] { glDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, nullptr); };
     beginWireframe(p);
-    drawAll();
+    if (p.colorMode == ColorMode::Shaded && !adaptiveRanges_.empty()) {
+        drawMaterials(prog, adaptiveRanges_, e.adaptiveBuffer(AdaptiveBuffer::Triangles), adaptiveCornerUVs_,
+                      adaptiveVao_);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, triangleLevels_);
+        glBindVertexArray(adaptiveVao_);
+    } else {
+        drawAll();
+    }
     endWireframe(p, prog, drawAll);
     glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
     glBindVertexArray(0);
@@ -334,7 +375,7 @@ void GpuSurface::draw(const DrawParams& p)
     const auto drawAll = [&] { glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr); };
     beginWireframe(p);
     if (mode == ColorMode::Shaded && !materials_.empty()) {
-        drawMaterials(prog);
+        drawMaterials(prog, ranges_, evaluator_->buffer(kTriangles), cornerUVs_, cornerVao_);
     } else {
         glBindVertexArray(vao_);
         drawAll();

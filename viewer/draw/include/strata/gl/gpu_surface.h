@@ -103,6 +103,11 @@ public:
     /// (drawAdaptive).  ColorMode::Error then shows each control face's
     /// level in false colour over DrawParams::colorRange (0..finest).
     Status setAdaptive(const AdaptiveFrame& frame);
+    /// The shaded view of the adaptive frame set last with setMaterials'
+    /// materials: ranges of the frame's triangles (each range's material
+    /// an index into setMaterials' list), the texture sampled through
+    /// cornerUVs (3 per frame triangle).  Cleared by setAdaptive.
+    Status setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs);
     Status updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
     void drawAdaptive(const DrawParams& params);
 
@@ -120,7 +125,10 @@ public:
 
 private:
     GpuSurface() = default;
-    void drawMaterials(GLuint program);
+    // Corner-ordered draws of `ranges` (gl_VertexID a corner of `triangles`).
+    void drawMaterials(GLuint program, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
+                       GLuint vao);
+    void sortBlendedLast(std::vector<MaterialRange>* ranges) const;
     void takeTimings();  // the evaluator's stage times of the last update, when timing
     void setDrawUniforms(GLuint program, const DrawParams& params, ColorMode mode) const;
     static void beginWireframe(const DrawParams& params);
@@ -141,6 +149,9 @@ private:
     GLuint surface_ = 0, feedbackProgram_ = 0;
     GLuint adaptiveProgram_ = 0, adaptiveVao_ = 0, triangleLevels_ = 0;  // the adaptive draw
     size_t triangleLevelsCapacity_ = 0;
+    std::vector<MaterialRange> adaptiveRanges_;  // over the adaptive frame's triangles
+    GLuint adaptiveCornerUVs_ = 0;
+    size_t adaptiveCornerUVsCapacity_ = 0;
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };
