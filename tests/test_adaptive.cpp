@@ -20,44 +20,38 @@
 namespace strata {
 namespace {
 
-// Every (level, edge levels) template of a finest level tiles its control
-// face exactly: counter-clockwise triangles of positive area summing to the
-// face, interior edges shared by two triangles in opposite directions, and
-// each border edge cut into exactly its edge level's 2^e segments.
-void expectTemplateTiles(int finest, int level, const int e[3])
+// Triangles (slots of a tile of 2^finest segments an edge) that tile their
+// control face exactly: counter-clockwise, of positive area summing to the
+// face, every edge inside the face shared by two triangles in opposite
+// directions.  Returns the edges on the face's sides: side k (from corner k
+// to corner k + 1) and the stretch t0 -> t1 along it from its first corner.
+struct SideSegment {
+    int side, t0, t1;
+};
+std::vector<SideSegment> expectTiling(const std::vector<uint16_t>& t, int finest, const std::string& label)
 {
-    std::vector<uint16_t> t;
-    adaptiveTileTriangles(&t, finest, level, e);
     const int R = 1 << finest;
-    std::vector<int> si, sj;
+    std::vector<std::pair<int, int>> at(size_t(R + 1) * size_t(R + 2) / 2);
     for (int j = 0; j <= R; ++j)
-        for (int i = 0; i + j <= R; ++i) {
-            si.push_back(i);
-            sj.push_back(j);
-        }
-    std::vector<std::pair<int, int>> at(si.size());
-    for (size_t k = 0; k < si.size(); ++k)
-        at[tileSlot(uint32_t(si[k]), uint32_t(sj[k]), uint32_t(R))] = {si[k], sj[k]};
-    const std::string label = "finest " + std::to_string(finest) + " level " + std::to_string(level) + " edges " +
-                              std::to_string(e[0]) + std::to_string(e[1]) + std::to_string(e[2]);
+        for (int i = 0; i + j <= R; ++i)
+            at[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))] = {i, j};
+    std::vector<SideSegment> sides;
     long area = 0;
     std::map<std::pair<int, int>, int> directed;
-    ASSERT_EQ(t.size() % 3, 0u);
-    for (size_t k = 0; k < t.size(); k += 3) {
+    EXPECT_EQ(t.size() % 3, 0u) << label;
+    for (size_t k = 0; k + 2 < t.size(); k += 3) {
         auto point = [&](uint16_t slot) { return glm::ivec2(at[slot].first, at[slot].second); };
         const long twice = orient2(point(t[k]), point(t[k + 1]), point(t[k + 2]));
-        ASSERT_GT(twice, 0) << label;
+        EXPECT_GT(twice, 0) << label;
         area += twice;
         for (int m = 0; m < 3; ++m)
             ++directed[{t[k + size_t(m)], t[k + size_t(m + 1) % 3]}];
     }
     EXPECT_EQ(area, long(R) * R) << label;  // twice the face's area in grid units
-    // Border edges: on the face's three sides; every other edge twice, once each way.
     auto side = [&](int slot) {
         const auto p = at[size_t(slot)];
         return std::array<bool, 3>{p.second == 0, p.first + p.second == R, p.first == 0};
     };
-    std::array<int, 3> segments{0, 0, 0};
     for (const auto& [edge, count] : directed) {
         EXPECT_EQ(count, 1) << label;
         const bool twin = directed.count({edge.second, edge.first}) > 0;
@@ -66,17 +60,28 @@ void expectTemplateTiles(int finest, int level, const int e[3])
         for (int m = 0; m < 3; ++m)
             if (sa[size_t(m)] && sb[size_t(m)])
                 border = m;
-        if (border >= 0) {
-            EXPECT_FALSE(twin) << label;
-            ++segments[size_t(border)];
-            // A border segment joins two neighbours of its edge's level.
-            const int step = (1 << (finest - e[border]));
-            const auto pa = at[size_t(edge.first)], pb = at[size_t(edge.second)];
-            const int along = border == 0 ? pb.first - pa.first : border == 1 ? pb.second - pa.second : pa.second - pb.second;
-            EXPECT_EQ(along, step) << label << " border " << border;
-        } else {
-            EXPECT_TRUE(twin) << label;
-        }
+        EXPECT_EQ(twin, border < 0) << label;
+        if (border < 0)
+            continue;
+        const auto pa = at[size_t(edge.first)], pb = at[size_t(edge.second)];
+        auto along = [&](std::pair<int, int> p) { return border == 0 ? p.first : border == 1 ? p.second : R - p.second; };
+        sides.push_back({border, along(pa), along(pb)});
+    }
+    return sides;
+}
+
+// Every (level, edge levels) template of a finest level tiles its control
+// face exactly, each side cut into exactly its edge level's 2^e segments.
+void expectTemplateTiles(int finest, int level, const int e[3])
+{
+    std::vector<uint16_t> t;
+    adaptiveTileTriangles(&t, finest, level, e);
+    const std::string label = "finest " + std::to_string(finest) + " level " + std::to_string(level) + " edges " +
+                              std::to_string(e[0]) + std::to_string(e[1]) + std::to_string(e[2]);
+    std::array<int, 3> segments{0, 0, 0};
+    for (const SideSegment& g : expectTiling(t, finest, label)) {
+        EXPECT_EQ(g.t1 - g.t0, 1 << (finest - e[g.side])) << label << " border " << g.side;
+        ++segments[size_t(g.side)];
     }
     for (int m = 0; m < 3; ++m)
         EXPECT_EQ(segments[size_t(m)], 1 << e[m]) << label << " border " << m;
@@ -108,10 +113,6 @@ TEST(Adaptive, EveryTileTemplateTilesItsFace)
 void expectQuartersTile(int finest, const int q[4], const int h[3][2])
 {
     const int R = 1 << finest;
-    std::vector<std::pair<int, int>> at(size_t(R + 1) * size_t(R + 2) / 2);
-    for (int j = 0; j <= R; ++j)
-        for (int i = 0; i + j <= R; ++i)
-            at[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))] = {i, j};
     std::string label = "finest " + std::to_string(finest) + " quarters";
     for (int c = 0; c < 4; ++c)
         label += " " + std::to_string(q[c]);
@@ -137,46 +138,15 @@ void expectQuartersTile(int finest, const int q[4], const int h[3][2])
         adaptiveQuarterTriangles(&t, finest, c, q[c], x, coarse);
         all.insert(all.end(), t.begin(), t.end());
     }
-    long area = 0;
-    std::map<std::pair<int, int>, int> directed;
-    for (size_t k = 0; k < all.size(); k += 3) {
-        auto point = [&](uint16_t slot) { return glm::ivec2(at[slot].first, at[slot].second); };
-        const long twice = orient2(point(all[k]), point(all[k + 1]), point(all[k + 2]));
-        ASSERT_GT(twice, 0) << label;
-        area += twice;
-        for (int m = 0; m < 3; ++m)
-            ++directed[{all[k + size_t(m)], all[k + size_t(m + 1) % 3]}];
-    }
-    EXPECT_EQ(area, long(R) * R) << label;
-    auto side = [&](int slot) {
-        const auto p = at[size_t(slot)];
-        return std::array<bool, 3>{p.second == 0, p.first + p.second == R, p.first == 0};
-    };
     std::array<std::array<int, 2>, 3> segments{};
-    for (const auto& [edge, count] : directed) {
-        EXPECT_EQ(count, 1) << label;
-        const bool twin = directed.count({edge.second, edge.first}) > 0;
-        const auto sa = side(edge.first), sb = side(edge.second);
-        int border = -1;
-        for (int m = 0; m < 3; ++m)
-            if (sa[size_t(m)] && sb[size_t(m)])
-                border = m;
-        if (border < 0) {
-            EXPECT_TRUE(twin) << label;
-            continue;
-        }
-        EXPECT_FALSE(twin) << label;
-        // Along the edge from its first corner: t0 -> t1.
-        const auto pa = at[size_t(edge.first)], pb = at[size_t(edge.second)];
-        const int t0 = border == 0 ? pa.first : border == 1 ? pa.second : R - pa.second;
-        const int t1 = border == 0 ? pb.first : border == 1 ? pb.second : R - pb.second;
-        const int half = t1 <= R / 2 ? 0 : 1;
-        if (h[border][0] == 0) {
-            EXPECT_EQ(t1 - t0, R) << label << " border " << border;
+    for (const SideSegment& g : expectTiling(all, finest, label)) {
+        const int half = g.t1 <= R / 2 ? 0 : 1;
+        if (h[g.side][0] == 0) {
+            EXPECT_EQ(g.t1 - g.t0, R) << label << " border " << g.side;
         } else {
-            EXPECT_EQ(t1 - t0, 1 << (finest - h[border][half])) << label << " border " << border;
+            EXPECT_EQ(g.t1 - g.t0, 1 << (finest - h[g.side][half])) << label << " border " << g.side;
         }
-        ++segments[size_t(border)][size_t(half)];
+        ++segments[size_t(g.side)][size_t(half)];
     }
     for (int k = 0; k < 3; ++k) {
         if (h[k][0] == 0) {

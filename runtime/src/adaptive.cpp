@@ -257,19 +257,15 @@ int quarterAt(uint32_t i, uint32_t j, uint32_t R)
     return 2 * (i + j) <= R ? 0 : 2 * i >= R ? 1 : 2 * j >= R ? 2 : 3;
 }
 
-}  // namespace
-
-void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
+// The triangles of a lattice of R segments an edge, counter-clockwise in
+// (i, j), each corner drawn at point(i, j) (a slot); a triangle collapsed
+// by its points (onto a coarser edge) is left out.
+template <typename Point>
+void emitLattice(std::vector<uint16_t>* out, uint32_t R, const Point& point)
 {
-    out->clear();
-    const uint32_t R = 1u << level, fineR = 1u << finest, step = 1u << (finest - level);
-    auto point = [&](uint32_t i, uint32_t j) {
-        snapPoint(&i, &j, level, edgeLevels);
-        return uint16_t(tileSlot(i * step, j * step, fineR));
-    };
     auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
         if (a == b || b == c || c == a)
-            return;  // collapsed onto a coarser edge
+            return;
         out->push_back(a);
         out->push_back(b);
         out->push_back(c);
@@ -280,6 +276,18 @@ void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, co
             if (i + j + 1 < R)
                 emit(point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
         }
+}
+
+}  // namespace
+
+void adaptiveTileTriangles(std::vector<uint16_t>* out, int finest, int level, const int edgeLevels[3])
+{
+    out->clear();
+    const uint32_t R = 1u << level, fineR = 1u << finest, step = 1u << (finest - level);
+    emitLattice(out, R, [&](uint32_t i, uint32_t j) {
+        snapPoint(&i, &j, level, edgeLevels);
+        return uint16_t(tileSlot(i * step, j * step, fineR));
+    });
 }
 
 namespace {
@@ -373,24 +381,11 @@ void adaptiveQuarterTriangles(std::vector<uint16_t>* out, int finest, int quarte
     if (finest < 1 || level < 1 || level > finest || quarter < 0 || quarter > 3)
         return;
     const QuarterLattice q(finest, quarter, level, x, coarseSides);
-    auto point = [&](uint32_t u, uint32_t v) {
+    emitLattice(out, q.r, [&](uint32_t u, uint32_t v) {
         uint32_t i, j;
         q.drawnAt(u, v, &i, &j);
         return uint16_t(tileSlot(i, j, q.N));
-    };
-    auto emit = [&](uint16_t a, uint16_t b, uint16_t c) {
-        if (a == b || b == c || c == a)
-            return;  // collapsed onto a coarser edge
-        out->push_back(a);
-        out->push_back(b);
-        out->push_back(c);
-    };
-    for (uint32_t v = 0; v < q.r; ++v)
-        for (uint32_t u = 0; u + v < q.r; ++u) {
-            emit(point(u, v), point(u + 1, v), point(u, v + 1));
-            if (u + v + 1 < q.r)
-                emit(point(u + 1, v), point(u + 1, v + 1), point(u, v + 1));
-        }
+    });
 }
 
 LevelChooser::LevelChooser() = default;

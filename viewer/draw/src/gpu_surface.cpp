@@ -99,6 +99,19 @@ void GpuSurface::setVertexErrors(const float* errors)
         glDisableVertexArrayAttrib(vao_, 1);
 }
 
+namespace {
+
+// Whether every range lies within `faces` faces and names one of `materials`.
+bool rangesFit(const std::vector<MaterialRange>& ranges, size_t faces, size_t materials)
+{
+    for (const MaterialRange& r : ranges)
+        if (r.material < 0 || size_t(r.material) >= materials || r.firstFace > faces || r.faceCount > faces - r.firstFace)
+            return false;
+    return true;
+}
+
+}  // namespace
+
 Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
                                 const std::vector<glm::vec2>& cornerUVs)
 {
@@ -106,10 +119,8 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     if (cornerUVs.size() != 3 * faceCount_)
         return Status(StatusCode::InvalidArgument, "setMaterials: " + std::to_string(cornerUVs.size()) +
                                                        " corner UVs for " + std::to_string(faceCount_) + " faces");
-    for (const MaterialRange& r : ranges)
-        if (r.material < 0 || size_t(r.material) >= materials.size() || r.firstFace > faceCount_ ||
-            r.faceCount > faceCount_ - r.firstFace)
-            return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
+    if (!rangesFit(ranges, faceCount_, materials.size()))
+        return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
     for (GpuMaterial& m : materials_)
         glDeleteTextures(1, &m.texture);
     materials_.clear();
@@ -146,6 +157,22 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     return Status::ok();
 }
 
+// `bytes` of `data` into *buffer, grown (by a quarter more) when it holds less.
+void GpuSurface::upload(GLuint* buffer, size_t* capacity, const void* data, size_t bytes)
+{
+    const size_t need = std::max<size_t>(bytes, 4);
+    if (*capacity < need) {
+        if (*buffer)
+            glDeleteBuffers(1, buffer);
+        ownBytes_ = ownBytes_ - *capacity + need + need / 4;
+        *capacity = need + need / 4;
+        glCreateBuffers(1, buffer);
+        glNamedBufferStorage(*buffer, GLsizeiptr(*capacity), nullptr, GL_DYNAMIC_STORAGE_BIT);
+    }
+    if (bytes)
+        glNamedBufferSubData(*buffer, 0, GLsizeiptr(bytes), data);
+}
+
 // Blended ranges last (drawn without depth writes).
 void GpuSurface::sortBlendedLast(std::vector<MaterialRange>* ranges) const
 {
@@ -161,21 +188,9 @@ Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges
     if (cornerUVs.size() != 3 * triangles)
         return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: " + std::to_string(cornerUVs.size()) +
                                                        " corner UVs for " + std::to_string(triangles) + " triangles");
-    for (const MaterialRange& r : ranges)
-        if (r.material < 0 || size_t(r.material) >= materials_.size() || r.firstFace > triangles ||
-            r.faceCount > triangles - r.firstFace)
-            return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: a triangle range is out of bounds");
-    const size_t bytes = std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2);
-    if (adaptiveCornerUVsCapacity_ < bytes) {
-        if (adaptiveCornerUVs_)
-            glDeleteBuffers(1, &adaptiveCornerUVs_);
-        ownBytes_ = ownBytes_ - adaptiveCornerUVsCapacity_ + bytes + bytes / 4;
-        adaptiveCornerUVsCapacity_ = bytes + bytes / 4;
-        glCreateBuffers(1, &adaptiveCornerUVs_);
-        glNamedBufferStorage(adaptiveCornerUVs_, GLsizeiptr(adaptiveCornerUVsCapacity_), nullptr, GL_DYNAMIC_STORAGE_BIT);
-    }
-    if (!cornerUVs.empty())
-        glNamedBufferSubData(adaptiveCornerUVs_, 0, GLsizeiptr(cornerUVs.size() * sizeof(glm::vec2)), cornerUVs.data());
+    if (!rangesFit(ranges, triangles, materials_.size()))
+        return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: a triangle range is out of bounds");
+    upload(&adaptiveCornerUVs_, &adaptiveCornerUVsCapacity_, cornerUVs.data(), cornerUVs.size() * sizeof(glm::vec2));
     adaptiveRanges_ = ranges;
     sortBlendedLast(&adaptiveRanges_);
     return Status::ok();
@@ -272,16 +287,7 @@ Status GpuSurface::setAdaptive(const AdaptiveFrame& frame)
     std::vector<float> levels(frame.triangleCount());
     for (size_t t = 0; t < levels.size(); ++t)
         levels[t] = float(frame.triangleLevel(t));
-    const size_t bytes = std::max<size_t>(levels.size(), 1) * 4;
-    if (triangleLevelsCapacity_ < bytes) {
-        if (triangleLevels_)
-            glDeleteBuffers(1, &triangleLevels_);
-        ownBytes_ = ownBytes_ - triangleLevelsCapacity_ + bytes + bytes / 4;
-        triangleLevelsCapacity_ = bytes + bytes / 4;
-        glCreateBuffers(1, &triangleLevels_);
-        glNamedBufferStorage(triangleLevels_, GLsizeiptr(triangleLevelsCapacity_), nullptr, GL_DYNAMIC_STORAGE_BIT);
-    }
-    glNamedBufferSubData(triangleLevels_, 0, GLsizeiptr(levels.size() * 4), levels.data());
+    upload(&triangleLevels_, &triangleLevelsCapacity_, levels.data(), levels.size() * sizeof(float));
     glVertexArrayElementBuffer(adaptiveVao_, evaluator_->adaptiveBuffer(AdaptiveBuffer::Triangles));
     if (glGetError() != GL_NO_ERROR)
         return Status(StatusCode::Unsupported, "OpenGL reported an error while setting up the adaptive draw");

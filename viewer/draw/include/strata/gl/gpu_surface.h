@@ -129,6 +129,7 @@ private:
     void drawMaterials(GLuint program, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
                        GLuint vao);
     void sortBlendedLast(std::vector<MaterialRange>* ranges) const;
+    void upload(GLuint* buffer, size_t* capacity, const void* data, size_t bytes);
     void takeTimings();  // the evaluator's stage times of the last update, when timing
     void setDrawUniforms(GLuint program, const DrawParams& params, ColorMode mode) const;
     static void beginWireframe(const DrawParams& params);
