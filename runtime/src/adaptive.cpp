@@ -691,6 +691,17 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                 }
             fq[k] = uint8_t(ql);
         }
+        // A split whose quarters' grids hold more points than the face's
+        // (their shared borders counted twice, as the frame's passes work
+        // them) saves too few vertices to pay for its smaller tiles.
+        if (level >= 2) {
+            auto points = [](int l) { const uint32_t n = 1u << l; return (n + 1) * (n + 2) / 2; };
+            uint32_t split = 0;
+            for (int k = 0; k < 4; ++k)
+                split += points(fq[k] - 1);
+            if (split > points(level))
+                std::fill(fq, fq + 4, uint8_t(level));
+        }
     }
     // Stitching: where a quarter meets coarser edges its strips (and
     // corners, where two coarse edges meet) may stray further than it or
