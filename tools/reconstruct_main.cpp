@@ -303,6 +303,8 @@ int main(int argc, char** argv)
                 if (adaptive.facesPerLevel[l])
                     levels += (levels.empty() ? "" : ", ") + std::to_string(adaptive.facesPerLevel[l]) + " at " +
                               std::to_string(l);
+            if (adaptive.splitFaces)
+                levels += " (" + std::to_string(adaptive.splitFaces) + " of them as quarters, counted at their finest)";
             const AdaptiveFrame& frame = rec.surface->adaptiveFrame();
             std::fprintf(stderr,
                          "strata-reconstruct: %s adaptive to level %d (%s) within %g px: %zu vertices, %zu triangles "

@@ -79,6 +79,9 @@ Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& v
     a.facesPerLevel.assign(size_t(s.level()) + 1, 0);
     for (uint8_t l : frame.levels())
         ++a.facesPerLevel[l];
+    const std::vector<uint8_t>& q = frame.quarterLevels();
+    for (size_t f = 0; 4 * f + 3 < q.size(); ++f)
+        a.splitFaces += !(q[4 * f] == q[4 * f + 1] && q[4 * f + 1] == q[4 * f + 2] && q[4 * f + 2] == q[4 * f + 3]);
     *out = std::move(a);
     return Status::ok();
 }

@@ -51,7 +51,8 @@ Status reconstructPose(Reconstruction* rec, const Pose& pose);
 struct AdaptiveView {
     std::vector<glm::vec3> positions, normals;  ///< surface->adaptiveFrame().vertexCount() each
     float maxPixelError = 0.0f;                 ///< AdaptiveFrame::maxScreenDeviation against rec.positions (measure)
-    std::vector<size_t> facesPerLevel;          ///< control faces at each level 0..finest
+    std::vector<size_t> facesPerLevel;          ///< control faces at each level 0..finest (a split face: its finest quarter's)
+    size_t splitFaces = 0;                      ///< control faces drawn as quarters of mixed levels
 };
 /// measure: also measure maxPixelError (a pass over every finest vertex; a
 /// caller that only wants the mesh skips it).
