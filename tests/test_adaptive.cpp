@@ -451,17 +451,24 @@ TEST(Adaptive, LevelErrorsShrinkToZeroAtTheFinestLevel)
         coarsest = std::max(coarsest, e.at(f, 0));
         EXPECT_GT(e.reach[f], 0.0f);
     }
-    // Level 1 with all three edges at level 0 snaps every midpoint to a
-    // corner: the level 0 triangle, with level 0's error.
+    // Quarters at level 1 with all three face edges at level 0 snap every
+    // midpoint to a corner: the middle quarter becomes the level 0
+    // triangle, with level 0's error, and the others collapse.  Quarters
+    // at level 2 with their edges at 2 are the face at level 2.
     LevelChooser chooser;
     std::vector<glm::vec3> restNormals(rig.mesh.vertexCount());
     computeControlNormals(restNormals.data(), rig.mesh.positions.data(), rig.mesh.vertexCount(), rig.mesh.triangles.data(),
                           rig.mesh.faceCount());
     ASSERT_TRUE(chooser.init(s->plan(), nullptr, rig.mesh.positions.data(), restNormals.data(), rig.mesh.vertexCount()).isOk());
-    const int coarse[3] = {0, 0, 0}, same[3] = {2, 2, 2};
+    const int corner[3][3] = {{0, 1, 0}, {0, 0, 1}, {1, 0, 0}}, inner[3] = {1, 1, 1}, same[3] = {2, 2, 2};
     for (size_t f = 0; f < e.faceCount; ++f) {
-        EXPECT_EQ(chooser.stitchedError(f, 1, coarse), e.at(f, 0));
-        EXPECT_EQ(chooser.stitchedError(f, 2, same), e.at(f, 2));
+        for (int c = 0; c < 3; ++c)
+            EXPECT_EQ(chooser.stitchedQuarterError(f, c, 1, corner[c], 0), 0.0f);
+        EXPECT_EQ(chooser.stitchedQuarterError(f, 3, 1, inner, 7), e.at(f, 0));
+        float whole = 0.0f;
+        for (int c = 0; c < 4; ++c)
+            whole = std::max(whole, chooser.stitchedQuarterError(f, c, 2, same, 0));
+        EXPECT_EQ(whole, e.at(f, 2));
     }
     // The head's bumps are a few percent of its unit radius: level 0 (the
     // flat icosphere face) misses them by that much.

@@ -398,23 +398,19 @@ float LevelChooser::templateError(const std::vector<uint16_t>& t, size_t face) c
     const glm::vec3* p = rest_.data();
     float worst = 0.0f;
     for (size_t k = 0; k < t.size(); k += 3) {
-        const int gi[3] = {slotI_[t[k]], slotI_[t[k + 1]], slotI_[t[k + 2]]};
-        const int gj[3] = {slotJ_[t[k]], slotJ_[t[k + 1]], slotJ_[t[k + 2]]};
-        const glm::vec3 q[3] = {p[tile[t[k]]], p[tile[t[k + 1]]], p[tile[t[k + 2]]]};
+        // From its lowest slot on (a turn keeps it counter-clockwise): the
+        // same triangle gives the same sums in whatever template it stands.
+        const size_t r = t[k] <= t[k + 1] && t[k] <= t[k + 2] ? 0 : t[k + 1] <= t[k + 2] ? 1 : 2;
+        const uint16_t c[3] = {t[k + r], t[k + (r + 1) % 3], t[k + (r + 2) % 3]};
+        const int gi[3] = {slotI_[c[0]], slotI_[c[1]], slotI_[c[2]]};
+        const int gj[3] = {slotJ_[c[0]], slotJ_[c[1]], slotJ_[c[2]]};
+        const glm::vec3 q[3] = {p[tile[c[0]]], p[tile[c[1]]], p[tile[c[2]]]};
         rasterGrid(gi, gj, int(R), [&](int i, int j, const int w[3], int area) {
             const glm::vec3 drawn = (float(w[0]) * q[0] + float(w[1]) * q[1] + float(w[2]) * q[2]) / float(area);
             worst = std::max(worst, glm::length(p[tile[tileSlot(uint32_t(i), uint32_t(j), R)]] - drawn));
         });
     }
     return worst;
-}
-
-const std::vector<uint16_t>& LevelChooser::tileTemplate(int level, const int e[3])
-{
-    std::vector<uint16_t>& t = templates_[templateKey(errors_.finest, level, e)];
-    if (t.empty())
-        adaptiveTileTriangles(&t, errors_.finest, level, e);
-    return t;
 }
 
 const std::vector<uint16_t>& LevelChooser::quarterTemplate(int quarter, int level, const int x[3], int coarseSides)
@@ -451,9 +447,8 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     edges_ = groupEdges(controlTriangles_.data(), nf);
     edgeOf_ = cornerEdges(edges_, nf);
     halves_.assign(2 * edges_.edgeCount(), 0);
-    templates_.assign(size_t(L + 1) * size_t(L + 1) * size_t(L + 1) * size_t(L + 1), {});
+    levelTiles_.assign(size_t(L + 1), {});
     quarterTemplates_.clear();
-    stitched_.clear();
     stitchedQuarters_.clear();
     gains_.assign(nf, 0.0f);
 
@@ -466,7 +461,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     std::vector<const std::vector<uint16_t>*> quarterTiles(4 * size_t(L + 1), nullptr);
     for (int l = 0; l <= L; ++l) {
         const int same[3] = {l, l, l};
-        tileTemplate(l, same);
+        adaptiveTileTriangles(&levelTiles_[size_t(l)], L, l, same);
         for (int c = 0; c < 4 && l >= 1; ++c)
             quarterTiles[size_t(c) * size_t(L + 1) + size_t(l)] = &quarterTemplate(c, l, same, 0);
     }
@@ -481,8 +476,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
             e.reach[f] = reach;
             float* err = &e.error[f * size_t(L + 1)];
             for (int l = L - 1; l >= 0; --l) {
-                const int same[3] = {l, l, l};  // built above
-                err[l] = std::max(templateError(templates_[templateKey(L, l, same)], f), err[l + 1]);
+                err[l] = std::max(templateError(levelTiles_[size_t(l)], f), err[l + 1]);
             }
             for (int q = 0; q < 4; ++q) {
                 float* qe = &e.quarterError[(4 * f + size_t(q)) * size_t(L + 1)];
@@ -499,20 +493,6 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
         faces(0, nf, 0);
     }
     return Status::ok();
-}
-
-float LevelChooser::stitchedError(size_t face, int level, const int e[3])
-{
-    if (e[0] >= level && e[1] >= level && e[2] >= level)
-        return errors_.at(face, level);
-    const uint64_t key = uint64_t(face) << 12 | uint64_t(level) << 9 | uint64_t(e[0]) << 6 | uint64_t(e[1]) << 3 |
-                         uint64_t(e[2]);
-    const auto found = stitched_.find(key);
-    if (found != stitched_.end())
-        return found->second;
-    const float error = templateError(tileTemplate(level, e), face);
-    stitched_.emplace(key, error);
-    return error;
 }
 
 float LevelChooser::stitchedQuarterError(size_t face, int quarter, int level, const int x[3], int coarseSides)
@@ -533,13 +513,13 @@ size_t LevelChooser::bytes() const
     auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
     const size_t node = sizeof(uint64_t) + sizeof(float) + 2 * sizeof(void*);
     size_t t = 0;
-    for (const std::vector<uint16_t>& v : templates_)
+    for (const std::vector<uint16_t>& v : levelTiles_)
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
     return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restControl_) + bytes(restNormals_) + bytes(bends_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
-           bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + (stitched_.size() + stitchedQuarters_.size()) * node;
+           bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
 
 float skinScale(const float* m, size_t count)

@@ -138,12 +138,10 @@ public:
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr);
 
-    /// The error (model units, rest pose) of face `face` drawn at `level`
-    /// with its edges at edgeLevels (each <= level), as stitched.
-    float stitchedError(size_t face, int level, const int edgeLevels[3]);
-    /// The same for quarter `quarter` of a face at `level` >= 1, its edges at
-    /// edgeLevels and, for the middle quarter, `coarseSides` (as
-    /// adaptiveQuarterTriangles), over the quarter's own part.
+    /// The error (model units, rest pose) of quarter `quarter` of face
+    /// `face` drawn at `level` >= 1 with its edges at edgeLevels and, for the
+    /// middle quarter, `coarseSides` (as adaptiveQuarterTriangles), as
+    /// stitched.  A whole face at level l >= 1 is its four quarters at l.
     float stitchedQuarterError(size_t face, int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     size_t bytes() const;
@@ -153,7 +151,6 @@ private:
     // The largest angle (radians) between a corner normal of face f in the
     // pose and its rest normal turned as the face's triangle turned.
     float bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const;
-    const std::vector<uint16_t>& tileTemplate(int level, const int edgeLevels[3]);
     const std::vector<uint16_t>& quarterTemplate(int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     FaceLevelErrors errors_;
@@ -165,9 +162,9 @@ private:
     EdgeGroups edges_;
     std::vector<uint32_t> edgeOf_;
     std::vector<uint8_t> halves_, zeroEdges_;  // per edge, its two halves' levels; scratch
-    std::vector<std::vector<uint16_t>> templates_;
+    std::vector<std::vector<uint16_t>> levelTiles_;  // per level, the whole face's triangles at it
     std::unordered_map<uint32_t, std::vector<uint16_t>> quarterTemplates_;
-    std::unordered_map<uint64_t, float> stitched_, stitchedQuarters_;
+    std::unordered_map<uint64_t, float> stitchedQuarters_;
     std::vector<float> gains_, bends_;
 };
 
