@@ -437,19 +437,8 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
     if (rig_->parts.empty() || rig_->fileCorners.size() != rig_->mesh.triangles.size())
         return Status::ok();  // not from a glTF scene: flat grey
     const std::vector<uint32_t>& faces = frame.triangleFaces();
-    const std::vector<uint16_t>& slots = frame.cornerSlots();
-    const uint32_t R = 1u << cpu_->level();
-    std::vector<glm::vec2> grid(size_t(R + 1) * (R + 2) / 2);
-    for (uint32_t j = 0; j <= R; ++j)
-        for (uint32_t i = 0; i + j <= R; ++i)
-            grid[tileSlot(i, j, R)] = glm::vec2(float(i), float(j)) / float(R);
-    std::vector<glm::vec2> corners(slots.size());
-    for (size_t c = 0; c < slots.size(); ++c) {
-        const uint32_t* file = &rig_->fileCorners[3 * size_t(faces[c / 3])];
-        const glm::vec2 b = grid[slots[c]];
-        corners[c] = (1.0f - b.x - b.y) * materials_.fileUVs[file[0]] + b.x * materials_.fileUVs[file[1]] +
-                     b.y * materials_.fileUVs[file[2]];
-    }
+    std::vector<glm::vec2> corners;
+    frame.cornerUVs(&corners, materials_.fileUVs.data(), rig_->fileCorners.data());
     std::vector<gl::MaterialRange> ranges;
     size_t t = 0;
     for (size_t p = 0; p < rig_->parts.size(); ++p) {

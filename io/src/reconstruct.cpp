@@ -79,9 +79,7 @@ Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& v
     a.facesPerLevel.assign(size_t(s.level()) + 1, 0);
     for (uint8_t l : frame.levels())
         ++a.facesPerLevel[l];
-    const std::vector<uint8_t>& q = frame.quarterLevels();
-    for (size_t f = 0; 4 * f + 3 < q.size(); ++f)
-        a.splitFaces += !(q[4 * f] == q[4 * f + 1] && q[4 * f + 1] == q[4 * f + 2] && q[4 * f + 2] == q[4 * f + 3]);
+    a.splitFaces = frame.splitFaceCount();
     *out = std::move(a);
     return Status::ok();
 }
@@ -105,21 +103,10 @@ Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec,
     std::vector<glm::vec2> uvs;
     std::vector<uint32_t> uvIndices;
     if (!control.uvIndices.empty()) {
-        const uint32_t R = 1u << rec.surface->level();
-        std::vector<glm::vec2> grid(size_t(R + 1) * (R + 2) / 2);
-        for (uint32_t j = 0; j <= R; ++j)
-            for (uint32_t i = 0; i + j <= R; ++i)
-                grid[tileSlot(i, j, R)] = glm::vec2(float(i), float(j)) / float(R);
-        const std::vector<uint32_t>& faces = frame.triangleFaces();
-        const std::vector<uint16_t>& slots = frame.cornerSlots();
-        uvs.resize(slots.size());
-        uvIndices.resize(slots.size());
-        for (size_t c = 0; c < slots.size(); ++c) {
-            const uint32_t* uv = &control.uvIndices[3 * size_t(faces[c / 3])];
-            const glm::vec2 b = grid[slots[c]];
-            uvs[c] = (1.0f - b.x - b.y) * control.uvs[uv[0]] + b.x * control.uvs[uv[1]] + b.y * control.uvs[uv[2]];
+        frame.cornerUVs(&uvs, control.uvs.data(), control.uvIndices.data());
+        uvIndices.resize(uvs.size());
+        for (size_t c = 0; c < uvs.size(); ++c)
             uvIndices[c] = uint32_t(c);
-        }
         mesh.uvs = uvs.data();
         mesh.uvCount = uvs.size();
         mesh.uvIndices = uvIndices.data();

@@ -170,6 +170,10 @@ void halfLevelsFor(std::vector<uint8_t>* halves, const uint8_t* quarters, const 
     }
 }
 
+// Whether a face's four quarters are at one level (the face drawn as one
+// tile, unless its edges' halves differ).
+bool alike(const uint8_t* q) { return q[0] == q[1] && q[1] == q[2] && q[2] == q[3]; }
+
 // A face of unequal quarters beside a face at level 0 is drawn with every
 // quarter at its finest: the midpoint of the edge between them is gone, and
 // an inner edge drawn coarser would have to snap onto it.  `zero` (per edge)
@@ -185,7 +189,7 @@ void settleQuarters(uint8_t* quarters, const std::vector<uint32_t>& edgeOf, size
                 (*zero)[edgeOf[3 * f + k]] = 1;
     for (size_t f = 0; f < nf; ++f) {
         uint8_t* q = quarters + 4 * f;
-        if (q[0] == q[1] && q[1] == q[2] && q[2] == q[3])
+        if (alike(q))
             continue;
         if ((*zero)[edgeOf[3 * f]] || (*zero)[edgeOf[3 * f + 1]] || (*zero)[edgeOf[3 * f + 2]])
             std::fill(q, q + 4, std::max({q[0], q[1], q[2], q[3]}));
@@ -209,7 +213,7 @@ void faceHalves(int h[3][2], const std::vector<uint8_t>& halves, const uint32_t*
 // quarters and each edge at one level (then e[k], else the lower half).
 bool drawnWhole(const uint8_t* q, const int h[3][2], int e[3])
 {
-    bool whole = q[0] == q[1] && q[1] == q[2] && q[2] == q[3];
+    bool whole = alike(q);
     for (int k = 0; k < 3; ++k) {
         whole = whole && h[k][0] == h[k][1];
         e[k] = std::min(h[k][0], h[k][1]);
@@ -995,12 +999,31 @@ Status AdaptiveFrame::setLevels(const uint8_t* levels, size_t count)
 int AdaptiveFrame::triangleLevel(size_t t) const
 {
     const uint8_t* q = &quarters_[4 * size_t(triangleFaces_[t])];
-    if (q[0] == q[1] && q[1] == q[2] && q[2] == q[3])
+    if (alike(q))
         return q[0];
     const uint16_t* cs = &cornerSlots_[3 * t];
     const uint32_t i = uint32_t(slotI_[cs[0]]) + slotI_[cs[1]] + slotI_[cs[2]];
     const uint32_t j = uint32_t(slotJ_[cs[0]]) + slotJ_[cs[1]] + slotJ_[cs[2]];
     return q[quarterAt(i, j, 3u << finest_)];  // the centroid's quarter (three times its grid point)
+}
+
+size_t AdaptiveFrame::splitFaceCount() const
+{
+    size_t n = 0;
+    for (size_t k = 0; k < quarters_.size(); k += 4)
+        n += alike(&quarters_[k]) ? 0 : 1;
+    return n;
+}
+
+void AdaptiveFrame::cornerUVs(std::vector<glm::vec2>* out, const glm::vec2* uvs, const uint32_t* uvIndices) const
+{
+    const float R = float(1u << finest_);
+    out->resize(cornerSlots_.size());
+    for (size_t c = 0; c < cornerSlots_.size(); ++c) {
+        const uint32_t* uv = &uvIndices[3 * size_t(triangleFaces_[c / 3])];
+        const float b1 = float(slotI_[cornerSlots_[c]]) / R, b2 = float(slotJ_[cornerSlots_[c]]) / R;
+        (*out)[c] = (1.0f - b1 - b2) * uvs[uv[0]] + b1 * uvs[uv[1]] + b2 * uvs[uv[2]];
+    }
 }
 
 Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)

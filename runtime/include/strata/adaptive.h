@@ -50,6 +50,7 @@
 #include "strata/plan.h"
 #include "strata/status.h"
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include <cstddef>
@@ -216,6 +217,12 @@ public:
     const std::vector<uint8_t>& quarterLevels() const { return quarters_; }
     /// The level triangle `t` is drawn at (its quarter's).
     int triangleLevel(size_t t) const;
+    /// How many control faces are drawn as quarters of mixed levels.
+    size_t splitFaceCount() const;
+    /// Per triangle corner (3 per triangle), face-varying UVs at its grid
+    /// point, linear inside its control face as the plan refines UVs:
+    /// control face f's corner k has uvs[uvIndices[3 f + k]].
+    void cornerUVs(std::vector<glm::vec2>* out, const glm::vec2* uvs, const uint32_t* uvIndices) const;
 
     /// The frame's vertices and triangles (3 per triangle, counter-clockwise,
     /// indexing the frame's vertices) for the current levels.
