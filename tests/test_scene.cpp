@@ -20,6 +20,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <random>
 #include <map>
 #include <tuple>
 
@@ -147,6 +148,82 @@ void checkKeepsEverything(const std::string& source, const std::string& dir, con
     int code = 0;
     const std::string report = test::runGltfValidator({rig}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+}
+
+// The adaptive layout of `rig` at `level` for `trials` random mixes of
+// quarter levels (all at the finest first): every corner is drawn at its
+// frame vertex, with the attribute values the uniform layout gives that
+// refined vertex in the same control face; parts are the uniform parts'
+// faces; gather places the frame's positions.
+void expectAdaptiveLayout(const Rig& rig, bool displace, int level, int trials, size_t* splitVertices)
+{
+    SurfaceOptions options;
+    options.level = level;
+    options.displace = displace;
+    std::unique_ptr<Surface> surface;
+    ASSERT_TRUE(Surface::create(&surface, rig, nullptr, options).isOk());
+    const Plan& plan = surface->plan();
+    io::RenderMesh uniform;
+    ASSERT_TRUE(io::buildRenderMesh(rig, plan, &uniform).isOk());
+    const size_t faces = rig.mesh.faceCount(), perFace = size_t(1) << (2 * level);
+    const std::vector<uint32_t>& tris = plan.refinedTriangles();
+    std::mt19937 rng(7);
+    std::vector<uint8_t> quarters(4 * faces);
+    for (int trial = 0; trial < trials; ++trial) {
+        SCOPED_TRACE("trial " + std::to_string(trial));
+        for (size_t f = 0; f < faces; ++f) {
+            const bool whole = trial > 0 && rng() % 4 == 0;
+            for (int k = 0; k < 4; ++k)
+                quarters[4 * f + size_t(k)] = uint8_t(trial == 0 ? level : whole ? 0 : 1 + int(rng() % uint32_t(level)));
+        }
+        ASSERT_TRUE(surface->setQuarterLevels(quarters.data(), quarters.size()).isOk());
+        const AdaptiveFrame& frame = surface->adaptiveFrame();
+        io::RenderMesh rm;
+        ASSERT_TRUE(io::buildAdaptiveRenderMesh(uniform, plan, frame, &rm).isOk());
+        const size_t n = frame.vertexCount();
+        ASSERT_EQ(rm.refinedVertexCount, n);
+        for (size_t v = 0; v < n; ++v)
+            ASSERT_EQ(rm.refinedVertex[v], v);
+        if (trial == 0) {
+            EXPECT_EQ(rm.vertexCount(), uniform.vertexCount());  // the same seams
+        }
+        *splitVertices += rm.vertexCount() - n;
+        ASSERT_EQ(rm.indices.size(), frame.triangles().size());
+        for (size_t c = 0; c < rm.indices.size(); ++c) {
+            ASSERT_EQ(rm.refinedVertex[rm.indices[c]], frame.triangles()[c]);
+            // Uniform's render vertex of this refined vertex in this face.
+            const uint32_t v = frame.vertices()[frame.triangles()[c]], f = frame.triangleFaces()[c / 3];
+            uint32_t want = ~0u;
+            for (size_t u = 3 * perFace * f; u < 3 * perFace * (f + 1) && want == ~0u; ++u)
+                if (tris[u] == v)
+                    want = uniform.indices[u];
+            ASSERT_NE(want, ~0u) << "corner " << c << " outside its face";
+            ASSERT_EQ(rm.attributes.size(), uniform.attributes.size());
+            for (size_t a = 0; a < rm.attributes.size(); ++a) {
+                const size_t k = size_t(rm.attributes[a].components);
+                for (size_t i = 0; i < k; ++i)
+                    ASSERT_EQ(rm.attributes[a].values[rm.indices[c] * k + i], uniform.attributes[a].values[want * k + i])
+                        << rm.attributes[a].name << " at corner " << c;
+            }
+        }
+        ASSERT_EQ(rm.parts.size(), uniform.parts.size());
+        size_t covered = 0;
+        for (size_t p = 0; p < rm.parts.size(); ++p) {
+            EXPECT_EQ(rm.parts[p].firstIndex, covered);
+            EXPECT_EQ(rm.parts[p].material, uniform.parts[p].material);
+            const size_t f0 = uniform.parts[p].firstIndex / (3 * perFace);
+            const size_t f1 = f0 + uniform.parts[p].indexCount / (3 * perFace);
+            for (size_t c = rm.parts[p].firstIndex; c < size_t(rm.parts[p].firstIndex) + rm.parts[p].indexCount; c += 3)
+                ASSERT_TRUE(frame.triangleFaces()[c / 3] >= f0 && frame.triangleFaces()[c / 3] < f1);
+            covered += rm.parts[p].indexCount;
+        }
+        EXPECT_EQ(covered, rm.indices.size());
+        std::vector<glm::vec3> positions(n), drawn(rm.vertexCount());
+        ASSERT_TRUE(surface->evaluateAdaptive(positions.data(), nullptr, n).isOk());
+        rm.gather(positions.data(), drawn.data());
+        for (size_t i = 0; i < drawn.size(); ++i)
+            ASSERT_EQ(drawn[i], positions[rm.refinedVertex[i]]);
+    }
 }
 
 }  // namespace
@@ -416,6 +493,8 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
     EXPECT_FALSE(io::loadRigDisplacementMap(rigPath, rig, &map).isOk());
     const MeshTopologyStats s0 = computeTopologyStats(rig.mesh.triangles.data(), rig.mesh.faceCount());
     EXPECT_GE(s0.nonManifoldEdges, 1u);
+    size_t split = 0;
+    expectAdaptiveLayout(rig, true, 2, 4, &split);  // five parts, drawn adaptively
     tinygltf::Model source;
     // The rig's own accessors (the input's vertices, split where the new UV
     // set needs it) are the reference, read here by tinygltf.
@@ -1149,6 +1228,16 @@ TEST(Scene, MeshoptCodesSkinAndAnimationData)
 // part, and at level 0 each corner's TEXCOORD_0 exactly the file's.  At level
 // 1 an edge's midpoint carries the mean of its ends' UVs (linear refinement
 // of the face-varying values).
+TEST(Scene, AdaptiveRenderMeshKeepsTheFinestLevelsTextureCoordinates)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(man, &rig, io::LoadOptions()).isOk());
+    size_t split = 0;
+    expectAdaptiveLayout(rig, false, 2, 6, &split);
+    EXPECT_GT(split, 0u);  // its UV seams split frame vertices
+}
+
 TEST(Scene, RenderMeshSplitsAtSeamsAndKeepsThePlanOrder)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");

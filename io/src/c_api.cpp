@@ -34,6 +34,9 @@ struct StrataSurface {
 struct StrataRenderMesh {
     io::RenderMesh layout;
     std::vector<glm::vec3> positions, normals;  // the refined frame, before gather
+    // An adaptive layout: the frame it was made for, at that version.
+    const AdaptiveFrame* frame = nullptr;
+    uint64_t version = 0;
 };
 
 namespace {
@@ -406,6 +409,37 @@ StrataStatus strata_surface_evaluate_adaptive(StrataSurface* surface, float* pos
     });
 }
 
+uint32_t strata_surface_adaptive_version(const StrataSurface* surface)
+{
+    if (!surface)
+        return 0;
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    return uint32_t(surface->surface->adaptiveFrame().topologyVersion());
+}
+
+StrataStatus strata_render_mesh_create_adaptive(const StrataRenderMesh* uniform, StrataSurface* surface,
+                                                StrataRenderMesh** out)
+{
+    if (!uniform || !surface || !out)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_create_adaptive: null argument");
+    *out = nullptr;
+    if (uniform->frame)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_create_adaptive: give the surface's own render mesh, "
+                                             "not an adaptive one");
+    return guarded([&] {
+        std::lock_guard<std::mutex> lock(surface->frameMutex);
+        Surface& s = *surface->surface;
+        const AdaptiveFrame& frame = s.adaptiveFrame();
+        auto m = std::make_unique<StrataRenderMesh>();
+        if (Status st = io::buildAdaptiveRenderMesh(uniform->layout, s.plan(), frame, &m->layout); !st)
+            return fail(fromStatus(st), "strata_render_mesh_create_adaptive: " + st.message());
+        m->frame = &frame;
+        m->version = frame.topologyVersion();
+        *out = m.release();
+        return STRATA_OK;
+    });
+}
+
 StrataStatus strata_render_mesh_create(const StrataRig* rig, const StrataSurface* surface, StrataRenderMesh** out)
 {
     if (!rig || !surface || !out)
@@ -510,7 +544,16 @@ StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSur
     return guarded([&] {
         std::lock_guard<std::mutex> lock(surface->frameMutex);
         Surface& s = *surface->surface;
-        const size_t n = s.vertexCount();
+        if (mesh->frame) {
+            const AdaptiveFrame& frame = s.adaptiveFrame();
+            if (&frame != mesh->frame)
+                return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the adaptive render mesh was made "
+                                                     "for another surface");
+            if (frame.topologyVersion() != mesh->version)
+                return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the surface's adaptive levels "
+                                                     "changed since this render mesh was made; make another");
+        }
+        const size_t n = mesh->frame ? mesh->frame->vertexCount() : s.vertexCount();
         if (n != mesh->layout.refinedVertexCount)
             return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the surface has " + std::to_string(n) +
                                                      " vertices, the render mesh was made for " +
@@ -518,7 +561,9 @@ StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSur
         mesh->positions.resize(n);
         if (normals)
             mesh->normals.resize(n);
-        if (Status st = s.evaluate(mesh->positions.data(), normals ? mesh->normals.data() : nullptr, n); !st)
+        glm::vec3* p = mesh->positions.data();
+        glm::vec3* q = normals ? mesh->normals.data() : nullptr;
+        if (Status st = mesh->frame ? s.evaluateAdaptive(p, q, n) : s.evaluate(p, q, n); !st)
             return fromStatus(st);
         mesh->layout.gather(mesh->positions.data(), reinterpret_cast<glm::vec3*>(positions));
         if (normals)

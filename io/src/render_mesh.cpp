@@ -4,6 +4,7 @@
 #include "gltf_document.h"
 #include "refined_attributes.h"
 
+#include <algorithm>
 #include <map>
 #include <numeric>
 #include <unordered_map>
@@ -175,6 +176,90 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
                 for (size_t c = 0; c < comps; ++c)
                     a.values[size_t(mine[k]) * comps + c] = refined[k * comps + c];
         }
+    }
+    *out = std::move(rm);
+    return Status::ok();
+}
+
+Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, const AdaptiveFrame& frame,
+                               RenderMesh* out)
+{
+    const std::vector<uint32_t>& tris = plan.refinedTriangles();
+    const size_t n = plan.refinedVertexCount(), perFace = size_t(1) << (2 * plan.level());
+    const size_t faces = plan.controlTriangles().size() / 3;
+    if (uniform.refinedVertexCount != n || uniform.indices.size() != tris.size() || tris.size() != 3 * perFace * faces)
+        return Status(StatusCode::InvalidArgument, "the render mesh was not made for this surface's plan");
+    // A refined vertex with seam copies takes, in each control face, the
+    // render vertex that face's triangles use (one per face: a face's
+    // corners share their values); any other is its own render vertex.
+    std::vector<uint8_t> seam(n, 0);
+    for (size_t r = n; r < uniform.refinedVertex.size(); ++r)
+        seam[uniform.refinedVertex[r]] = 1;
+    std::unordered_map<uint64_t, uint32_t> inFace;
+    for (size_t c = 0; c < tris.size(); ++c)
+        if (seam[tris[c]])
+            inFace.emplace((uint64_t(c / (3 * perFace)) << 32) | tris[c], uniform.indices[c]);
+
+    const std::vector<uint32_t>& vertices = frame.vertices();
+    const std::vector<uint32_t>& triangles = frame.triangles();
+    const std::vector<uint32_t>& triangleFaces = frame.triangleFaces();
+    const size_t count = vertices.size();
+    RenderMesh rm;
+    rm.refinedVertexCount = count;
+    rm.refinedVertex.resize(count);
+    std::iota(rm.refinedVertex.begin(), rm.refinedVertex.end(), 0u);
+    std::vector<uint32_t> source(count, ~0u);  // per render vertex: uniform's render vertex
+    std::unordered_map<uint64_t, uint32_t> copies;
+    rm.indices.resize(triangles.size());
+    for (size_t c = 0; c < triangles.size(); ++c) {
+        const uint32_t a = triangles[c], v = vertices[a];
+        uint32_t r = v;
+        if (seam[v]) {
+            auto it = inFace.find((uint64_t(triangleFaces[c / 3]) << 32) | v);
+            if (it == inFace.end())
+                return Status(StatusCode::InvalidData, "adaptive vertex " + std::to_string(a) +
+                                                           " lies outside its triangle's control face");
+            r = it->second;
+        }
+        if (source[a] == ~0u || source[a] == r) {
+            source[a] = r;
+            rm.indices[c] = a;
+            continue;
+        }
+        auto it = copies.emplace((uint64_t(a) << 32) | r, uint32_t(rm.refinedVertex.size()));
+        if (it.second) {
+            rm.refinedVertex.push_back(a);
+            source.push_back(r);
+        }
+        rm.indices[c] = it.first->second;
+    }
+    for (uint32_t& r : source)
+        if (r == ~0u)
+            r = 0;  // a frame vertex of no triangle (never drawn)
+
+    // Parts: the frame lists its triangles control face by control face,
+    // so each part's faces give one range of them.
+    if (!std::is_sorted(triangleFaces.begin(), triangleFaces.end()))
+        return Status(StatusCode::InvalidData, "the adaptive frame's triangles are not in control face order");
+    for (const RenderPart& part : uniform.parts) {
+        const size_t firstFace = part.firstIndex / (3 * perFace), endFace = firstFace + part.indexCount / (3 * perFace);
+        const auto first = std::lower_bound(triangleFaces.begin(), triangleFaces.end(), uint32_t(firstFace));
+        const auto end = std::lower_bound(first, triangleFaces.end(), uint32_t(endFace));
+        RenderPart p = part;
+        p.firstIndex = uint32_t(3 * size_t(first - triangleFaces.begin()));
+        p.indexCount = uint32_t(3 * size_t(end - first));
+        rm.parts.push_back(p);
+    }
+    for (const RenderAttribute& a : uniform.attributes) {
+        RenderAttribute b;
+        b.name = a.name;
+        b.components = a.components;
+        const size_t comps = size_t(a.components);
+        b.values.resize(source.size() * comps);
+        for (size_t k = 0; k < source.size(); ++k)
+            for (size_t i = 0; i < comps; ++i)
+                b.values[k * comps + i] = a.values[size_t(source[k]) * comps + i];
+        rm.attributes.push_back(std::move(b));
     }
     *out = std::move(rm);
     return Status::ok();

@@ -1047,6 +1047,7 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
                                                            " mixes level 0 with finer quarters (a quarter's levels "
                                                            "are 1 and up; level 0 is the whole face)");
     }
+    ++topologyVersion_;
     quarters_.assign(quarters, quarters + 4 * nf);
     settleQuarters(quarters_.data(), edgeOf_, halves_.size() / 2, &zeroEdges_);
     quarters = quarters_.data();

@@ -105,6 +105,55 @@ static int sameBits(const float* got, FILE* expected, size_t n)
     return ok;
 }
 
+/* The adaptive layout of a view: the adaptive frame's vertices first, every
+ * vertex where its adaptive vertex is; refused once the levels change. */
+static void adaptiveRenderMesh(const StrataRenderMesh* uniform, StrataSurface* s, const float* posed, uint32_t count)
+{
+    float lo[3] = {posed[0], posed[1], posed[2]}, hi[3] = {posed[0], posed[1], posed[2]};
+    for (uint32_t i = 0; i < count; ++i)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = fminf(lo[k], posed[3 * i + k]);
+            hi[k] = fmaxf(hi[k], posed[3 * i + k]);
+        }
+    const float size = fmaxf(hi[0] - lo[0], fmaxf(hi[1] - lo[1], hi[2] - lo[2]));
+    const float target[3] = {0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), 0.5f * (lo[2] + hi[2])};
+    const float far[3] = {target[0], target[1], target[2] + 8.0f * size};
+    CHECK(strata_surface_choose_levels(s, far, target, 40.0f, 1080.0f, 1.0f) == STRATA_OK);
+    const uint32_t version = strata_surface_adaptive_version(s);
+    const size_t frame = strata_surface_adaptive_vertex_count(s);
+    StrataRenderMesh* a = NULL;
+    CHECK(strata_render_mesh_create_adaptive(uniform, s, &a) == STRATA_OK);
+    if (!a)
+        return;
+    StrataRenderMesh* none = NULL;
+    CHECK(strata_render_mesh_create_adaptive(a, s, &none) == STRATA_INVALID_ARGUMENT && none == NULL);
+    const size_t n = strata_render_mesh_vertex_count(a);
+    CHECK(n >= frame && frame > 0);
+    CHECK(strata_render_mesh_index_count(a) == 3 * strata_surface_adaptive_triangle_count(s));
+    CHECK(strata_render_mesh_attribute_count(a) == strata_render_mesh_attribute_count(uniform));
+    CHECK(strata_render_mesh_part_count(a) == strata_render_mesh_part_count(uniform));
+    uint32_t* of = (uint32_t*)malloc(n * sizeof(uint32_t));
+    float* xyz = (float*)malloc(n * 3 * sizeof(float));
+    float* own = (float*)malloc(frame * 3 * sizeof(float));
+    CHECK(strata_render_mesh_refined_vertices(a, of) == STRATA_OK);
+    CHECK(strata_render_mesh_evaluate(a, s, xyz, NULL) == STRATA_OK);
+    CHECK(strata_surface_evaluate_adaptive(s, own, NULL) == STRATA_OK);
+    for (size_t i = 0; i < n; ++i) {
+        CHECK(of[i] < frame && (i >= frame || of[i] == i));
+        CHECK(memcmp(xyz + 3 * i, own + 3 * (size_t)of[i], 3 * sizeof(float)) == 0);
+    }
+    /* Closer, at a tenth of the tolerance: other levels, and the old layout is refused. */
+    const float near[3] = {target[0], target[1], target[2] + 1.5f * size};
+    CHECK(strata_surface_choose_levels(s, near, target, 40.0f, 1080.0f, 0.1f) == STRATA_OK);
+    CHECK(strata_surface_adaptive_version(s) != version);
+    CHECK(strata_render_mesh_evaluate(a, s, xyz, NULL) == STRATA_INVALID_ARGUMENT);
+    CHECK(strstr(strata_last_error(), "levels changed") != NULL);
+    free(of);
+    free(xyz);
+    free(own);
+    strata_render_mesh_destroy(a);
+}
+
 /* The render mesh of a posed surface: the refined vertices first, in
  * strata_surface_evaluate's order; every vertex placed where its refined
  * vertex is; the parts cover the indices; joints name their nodes. */
@@ -154,6 +203,7 @@ static void renderMesh(const StrataRig* rig, StrataSurface* s, const float* pose
     }
     CHECK(strata_rig_joint_node(rig, 99) == -1);
     CHECK(strata_rig_joint_inverse_bind(rig, 99, ibm) == STRATA_INVALID_ARGUMENT);
+    adaptiveRenderMesh(m, s, posed, count);
     free(d);
     free(refined);
     free(idx);

@@ -141,6 +141,10 @@ StrataStatus strata_surface_adaptive_vertices(const StrataSurface* surface, uint
 /** Positions (3 floats per adaptive vertex) and, unless NULL, shading
  *  normals of the adaptive frame in the current pose. */
 StrataStatus strata_surface_evaluate_adaptive(StrataSurface* surface, float* positions, float* normals);
+/** Changes whenever the adaptive frame's vertices and triangles do (a choice
+ *  that keeps the levels drawn keeps it): what was laid out for the frame,
+ *  an adaptive render mesh included, holds while it stays the same. */
+uint32_t strata_surface_adaptive_version(const StrataSurface* surface);
 
 /* ---- Render meshes: a surface laid out for drawing ----
  * One vertex per (refined vertex, refined corner value), so material UVs
@@ -176,9 +180,21 @@ const char* strata_render_mesh_attribute_name(const StrataRenderMesh* mesh, size
 int strata_render_mesh_attribute_components(const StrataRenderMesh* mesh, size_t index);
 /** Copies attribute `index`: components floats per render vertex. */
 StrataStatus strata_render_mesh_attribute(const StrataRenderMesh* mesh, size_t index, float* dst);
-/** strata_surface_evaluate into the render vertices: 3 floats each of
- *  positions and (unless NULL) normals per render vertex.  `surface` is the
- *  one the mesh was made for (its vertex count is checked). */
+/** The layout of `surface`'s current adaptive frame (after
+ *  strata_surface_choose_levels), from `uniform`, the surface's own render
+ *  mesh: the same parts (each a contiguous range of the indices) and
+ *  attributes, each vertex with its grid point's value at the surface's
+ *  level.  Its first vertices are the adaptive frame's, in its order; seam
+ *  copies follow (strata_render_mesh_refined_vertices gives each one's
+ *  adaptive vertex).  strata_render_mesh_evaluate fills it from the adaptive
+ *  frame; it refuses once the frame's levels change (make another). */
+StrataStatus strata_render_mesh_create_adaptive(const StrataRenderMesh* uniform, StrataSurface* surface,
+                                                StrataRenderMesh** out);
+/** strata_surface_evaluate (or, for an adaptive render mesh,
+ *  strata_surface_evaluate_adaptive) into the render vertices: 3 floats each
+ *  of positions and (unless NULL) normals per render vertex.  `surface` is
+ *  the one the mesh was made for (its vertex count, or the adaptive frame's
+ *  version, is checked). */
 StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSurface* surface, float* positions,
                                          float* normals);
 

@@ -237,6 +237,10 @@ public:
     const std::vector<uint32_t>& triangleFaces() const { return triangleFaces_; }
     /// Per triangle corner, its slot in its control face's finest tile.
     const std::vector<uint16_t>& cornerSlots() const { return cornerSlots_; }
+    /// Counts the topologies set (every setLevels or setQuarterLevels that
+    /// succeeds): what was laid out for the frame's vertices and triangles
+    /// holds while it stays the same.
+    uint64_t topologyVersion() const { return topologyVersion_; }
 
     /// Displaced positions (and shading normals when normals is not null:
     /// the area-weighted sum of the incident frame triangles' normals,
@@ -268,6 +272,7 @@ private:
 
     const Plan& plan_;
     int finest_ = 0;
+    uint64_t topologyVersion_ = 0;
     size_t slots_ = 0;
     std::vector<uint32_t> tiles_;         // per control face, its finest tile's refined vertices
     std::vector<uint16_t> slotI_, slotJ_; // the finest tile's grid point per slot

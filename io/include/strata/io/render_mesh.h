@@ -14,6 +14,7 @@
 // attributes per part.
 #pragma once
 
+#include "strata/adaptive.h"
 #include "strata/plan.h"
 #include "strata/rig.h"
 #include "strata/status.h"
@@ -43,7 +44,9 @@ struct RenderAttribute {
 
 struct RenderMesh {
     size_t refinedVertexCount = 0;
-    std::vector<uint32_t> refinedVertex;  ///< per render vertex: its refined vertex
+    /// Per render vertex: its refined vertex (an adaptive layout: its
+    /// adaptive frame vertex).
+    std::vector<uint32_t> refinedVertex;
     std::vector<uint32_t> indices;        ///< 3 per refined triangle, into the render vertices
     std::vector<RenderPart> parts;
     std::vector<RenderAttribute> attributes;
@@ -56,6 +59,18 @@ struct RenderMesh {
 /// The layout of `plan` (a refinement of rig.mesh, as Surface::plan()).  A
 /// rig not loaded from glTF is one part without attributes.
 Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out);
+
+/// The same for `frame`'s current levels (an AdaptiveFrame of `plan`, laid
+/// out by `uniform` = buildRenderMesh(rig, plan)): one vertex per (frame
+/// vertex, corner value), the frame's vertices first in frame order, seam
+/// copies after; refinedVertexCount is the frame's vertex count and
+/// refinedVertex names frame vertices, so gather() takes
+/// AdaptiveFrame::evaluate's output.  The parts and attributes are
+/// uniform's, each vertex with the value its grid point has at the finest
+/// level, so textures map as they do there.  Holds until the frame's
+/// topologyVersion() changes.
+Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, const AdaptiveFrame& frame,
+                               RenderMesh* out);
 
 }  // namespace io
 }  // namespace strata
