@@ -270,6 +270,26 @@ export class StrataSurface {
     normals.set(r.f32(this.adaptiveFrame + n * 4, n));
     return { positions, normals };
   }
+  /// Changes whenever the adaptive frame's vertices and triangles do (a
+  /// choice that keeps the levels drawn keeps it).
+  adaptiveVersion() {
+    return this.runtime.module._strata_surface_adaptive_version(this.handle) >>> 0;
+  }
+  /// The current adaptive frame laid out for drawing, from `uniform` (this
+  /// surface's createRenderMesh): the same parts and attributes, each vertex
+  /// with its grid point's value at this surface's level; the adaptive
+  /// frame's vertices first.  Its evaluate() fills it from the adaptive
+  /// frame, and throws once the levels change (make another).
+  createAdaptiveRenderMesh(uniform) {
+    const r = this.runtime;
+    const out = r.alloc(4);
+    try {
+      r.check(r.module._strata_render_mesh_create_adaptive(uniform.handle, this.handle, out));
+      return new StrataRenderMesh(r, r.u32(out, 1)[0]);
+    } finally {
+      r.free(out);
+    }
+  }
   dispose() {
     const r = this.runtime;
     if (this.handle) r.module._strata_surface_destroy(this.handle);

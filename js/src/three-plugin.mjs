@@ -22,6 +22,12 @@
 // .obj and .ply; the copies a UV seam needs follow (`refinedVertex` maps every
 // vertex to its refined one).
 //
+// Adaptive level of detail: surface.setView(camera, { pixelError: 1,
+// heightPx: renderer.domElement.height }) before each render draws each
+// control face at the lowest level within the pixel tolerance of the
+// surface's level for that camera (crack-free, textured as at the full
+// level); clearView() or setLevel() draws one level everywhere again.
+//
 // A file whose layer no longer matches its control mesh (a tool changed the
 // mesh after the bake) is refused: loadAsync rejects with the runtime's
 // one-line cause, never a wrong surface.  Options:
@@ -29,7 +35,7 @@
 //   runtime:  a StrataRuntime (or its promise); default StrataRuntime.load()
 //   name:     the file's name in error messages (default 'the glTF file')
 import {
-  BufferAttribute, BufferGeometry, DynamicDrawUsage, Matrix4, Mesh, MeshStandardMaterial, Sphere,
+  BufferAttribute, BufferGeometry, DynamicDrawUsage, Matrix4, Mesh, MeshStandardMaterial, Sphere, Vector3,
 } from 'three';
 import { StrataError, StrataRuntime } from './runtime.mjs';
 
@@ -120,8 +126,12 @@ export class StrataSurfaceMesh extends Mesh {
     this.posedByNodes = false;
     this.toScene = new Matrix4();
     this.jointScratch = new Matrix4();
+    this.viewScratch = new Matrix4();
+    this.eyeScratch = new Vector3();
+    this.targetScratch = new Vector3();
     this.surface = null;
     this.renderMesh = null;
+    this.adaptiveMesh = null;
     this.setLevel(level);
     // Parts are the glTF primitives: the same at every level.
     const materials = this.parts.map(materialFor);
@@ -139,27 +149,83 @@ export class StrataSurfaceMesh extends Mesh {
       surface.dispose();
       throw e;
     }
+    this.dropView();
     if (this.renderMesh) this.renderMesh.dispose();
     if (this.surface) this.surface.dispose();
     this.surface = surface;
     this.renderMesh = renderMesh;
     this.level = wanted < 0 ? this.rig.recommendedLevel : wanted;
+    this.refinedVertexCount = surface.vertexCount;
+    this.showLayout(renderMesh);
+    return this;
+  }
 
-    const n = renderMesh.vertexCount;
+  /// Adaptive level of detail for `camera` (a PerspectiveCamera): each
+  /// control face at the lowest level whose surface stays within
+  /// `pixelError` pixels of this mesh's level on a viewport `heightPx` tall,
+  /// in the current pose (the same C++ as strata-reconstruct --view), with
+  /// neighbours stitched without cracks and textures mapped as at the full
+  /// level.  Call it before each render; the geometry is rebuilt only when
+  /// the levels change.  Returns { vertices, triangles } drawn.  Then the
+  /// first `refinedVertexCount` vertices of the geometry are the adaptive
+  /// frame's (`refinedVertex` maps every vertex to its frame vertex).
+  /// setLevel() or clearView() draws the uniform level again.
+  setView(camera, { pixelError = 1, heightPx = 1080 } = {}) {
+    if (!camera || !camera.isPerspectiveCamera)
+      throw new StrataError('setView: a PerspectiveCamera is needed', 'invalid argument');
+    camera.updateMatrixWorld();
+    this.updateMatrixWorld();
+    // The camera in the surface's own space (the rig's model space).
+    const toModel = this.viewScratch.copy(this.matrixWorld).invert();
+    const eye = this.eyeScratch.setFromMatrixPosition(camera.matrixWorld);
+    const target = this.targetScratch.set(0, 0, -1).applyMatrix4(camera.matrixWorld);
+    eye.applyMatrix4(toModel);
+    target.applyMatrix4(toModel);
+    this.surface.chooseLevels(eye.toArray(), target.toArray(), camera.fov, heightPx, pixelError);
+    const version = this.surface.adaptiveVersion();
+    if (!this.adaptiveMesh || version !== this.adaptiveVersionShown) {
+      const layout = this.surface.createAdaptiveRenderMesh(this.renderMesh);
+      if (this.adaptiveMesh) this.adaptiveMesh.dispose();
+      this.adaptiveMesh = layout;
+      this.adaptiveVersionShown = version;
+      this.refinedVertexCount = this.surface.adaptiveVertexCount;
+      this.showLayout(layout);
+    }
+    return { vertices: this.refinedVertexCount, triangles: this.surface.adaptiveTriangleCount };
+  }
+
+  /// Back to the uniform level after setView.
+  clearView() {
+    if (!this.adaptiveMesh) return this;
+    this.dropView();
+    this.refinedVertexCount = this.surface.vertexCount;
+    this.showLayout(this.renderMesh);
+    return this;
+  }
+
+  dropView() {
+    if (this.adaptiveMesh) this.adaptiveMesh.dispose();
+    this.adaptiveMesh = null;
+    this.adaptiveVersionShown = -1;
+  }
+
+  // A geometry for `layout` (the uniform or the adaptive render mesh), in
+  // the current pose.
+  showLayout(layout) {
+    const n = layout.vertexCount;
     const geometry = new BufferGeometry();
     const positions = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
     const normals = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
     geometry.setAttribute('position', positions);
     geometry.setAttribute('normal', normals);
-    for (const a of renderMesh.attributes()) {
+    for (const a of layout.attributes()) {
       const name = ATTRIBUTE_NAMES[a.name] || a.name.toLowerCase();
       geometry.setAttribute(name, new BufferAttribute(a.array, a.components));
     }
-    geometry.setIndex(new BufferAttribute(renderMesh.indices(), 1));
-    const parts = renderMesh.parts();
+    geometry.setIndex(new BufferAttribute(layout.indices(), 1));
+    const parts = layout.parts();
     parts.forEach((p, i) => geometry.addGroup(p.firstIndex, p.indexCount, i));
-    this.refinedVertexCount = surface.vertexCount;
-    this.refinedVertex = renderMesh.refinedVertices();
+    this.refinedVertex = layout.refinedVertices();
     this.parts = parts;
     const old = this.geometry;
     this.geometry = geometry;
@@ -168,7 +234,6 @@ export class StrataSurfaceMesh extends Mesh {
     this.update(true);
     geometry.computeBoundingBox();
     geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new Sphere());
-    return this;
   }
 
   /// Poses the surface from its nodes' current world matrices (relative
@@ -214,7 +279,7 @@ export class StrataSurfaceMesh extends Mesh {
   // The surface's current pose into the geometry.
   writeFrame() {
     const g = this.geometry;
-    this.renderMesh.evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
+    (this.adaptiveMesh || this.renderMesh).evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
     g.attributes.position.needsUpdate = true;
     g.attributes.normal.needsUpdate = true;
   }
@@ -227,6 +292,7 @@ export class StrataSurfaceMesh extends Mesh {
   }
 
   dispose() {
+    this.dropView();
     if (this.renderMesh) this.renderMesh.dispose();
     if (this.surface) this.surface.dispose();
     if (this.rig) this.rig.dispose();

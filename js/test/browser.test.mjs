@@ -165,6 +165,70 @@ window.adaptive = async (url, eye, target, fov, height) => {
   return { count: surface.adaptiveVertexCount, triangles: surface.adaptiveTriangleCount, uniform: surface.vertexCount,
            relative, inRange };
 };
+// The plugin's adaptive mode against its uniform draw: one camera, a
+// 512-pixel view, textured; then with the texture taken off, to say how
+// much of the picture the texture is.
+window.adaptiveDraw = async (url) => {
+  const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
+  loader.register((parser) => new StrataLoaderPlugin(parser, {}));
+  const gltf = await loader.loadAsync(url);
+  const mesh = gltf.userData.strata;
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color(0.2, 0.2, 0.25);
+  scene.add(gltf.scene);
+  scene.add(new THREE.AmbientLight(0xffffff, 1.0));
+  const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+  sun.position.set(1, 2, 3);
+  scene.add(sun);
+  scene.updateMatrixWorld(true);
+  const box = new THREE.Box3().setFromObject(mesh);
+  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
+  const camera = new THREE.PerspectiveCamera(40, 1, 0.01 * size, 100 * size);
+  camera.position.copy(centre).add(new THREE.Vector3(0.3 * size, 0.2 * size, 1.4 * size));
+  camera.lookAt(centre);
+  const px = 512;
+  const renderer = new THREE.WebGLRenderer({ antialias: false });
+  renderer.setSize(px, px);
+  const target = new THREE.WebGLRenderTarget(px, px);
+  const draw = () => {
+    renderer.setRenderTarget(target);
+    renderer.render(scene, camera);
+    const out = new Uint8Array(4 * px * px);
+    renderer.readRenderTargetPixels(target, 0, 0, px, px, out);
+    renderer.setRenderTarget(null);
+    return out;
+  };
+  const psnr = (a, b) => {
+    let se = 0;
+    for (let i = 0; i < a.length; ++i) if (i % 4 !== 3) se += (a[i] - b[i]) ** 2;
+    return 10 * Math.log10(255 * 255 / (se / (0.75 * a.length)));
+  };
+  const uniform = draw();
+  const uniformVertices = mesh.refinedVertexCount;
+  const drawn = mesh.setView(camera, { heightPx: px, pixelError: 1 });
+  const geometry = mesh.geometry;
+  const again = mesh.setView(camera, { heightPx: px, pixelError: 1 });
+  const kept = mesh.geometry === geometry && again.vertices === drawn.vertices;
+  const adaptive = draw();
+  // The geometry three.js draws holds the adaptive frame as evaluated.
+  const own = mesh.surface.evaluateAdaptive().positions, shown = mesh.geometry.attributes.position.array;
+  let same = true;
+  for (let i = 0; i < own.length; ++i) same = same && Object.is(own[i], shown[i]);
+  const count = mesh.geometry.attributes.position.count;
+  let inRange = true;
+  for (const i of mesh.geometry.index.array) inRange = inRange && i < count;
+  const materials = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
+  const textured = materials.some((m) => m.map);
+  for (const m of materials) { m.map = null; m.needsUpdate = true; }
+  const bare = draw();
+  mesh.clearView();
+  const back = mesh.refinedVertexCount;
+  return {
+    uniformVertices, drawn, kept, same, inRange,
+    groups: geometry.groups.length, parts: mesh.parts.length, textured, back,
+    adaptivePsnr: psnr(adaptive, uniform), untexturedPsnr: psnr(bare, adaptive),
+  };
+};
 window.refuse = async (url) => {
   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
   loader.register((parser) => new StrataLoaderPlugin(parser, { name: url }));
@@ -279,6 +343,29 @@ test('the adaptive frame in the browser: the same C++ as strata-reconstruct --vi
     assert.ok(Math.abs(got.count - expected) <= 0.02 * expected, `${name}: ${got.count} vertices, the tool ${expected}`);
     console.log(`${name} adaptive in the browser: ${got.count} vertices (strata-reconstruct --view: ${expected}; ` +
       `uniform ${got.uniform})`);
+  }
+});
+
+test('three.js draws the adaptive frame textured, through the plugin', async () => {
+  for (const name of ['Fox', 'CesiumMan']) {
+    const got = await tab.evaluate((u) => window.adaptiveDraw(u), `/work/${name}.glb`);
+    assert.deepEqual(tab.errors, []);
+    assert.ok(got.textured, `${name}: no texture to check`);
+    assert.ok(got.drawn.vertices < got.uniformVertices, `${name}: ${got.drawn.vertices} adaptive vertices, ` +
+      `${got.uniformVertices} uniform`);
+    assert.ok(got.same, `${name}: the geometry is not the adaptive frame`);
+    assert.ok(got.inRange, `${name}: an index past the geometry`);
+    assert.equal(got.groups, got.parts);
+    assert.ok(got.kept, `${name}: the same view rebuilt the geometry`);
+    assert.equal(got.back, got.uniformVertices, `${name}: clearView did not restore the uniform level`);
+    // Within a pixel of the uniform draw, textured the same: far closer to
+    // it than the same frame without its texture is.
+    assert.ok(got.adaptivePsnr >= 30, `${name}: adaptive against uniform ${got.adaptivePsnr.toFixed(1)} dB`);
+    assert.ok(got.adaptivePsnr >= got.untexturedPsnr + 10, `${name}: adaptive ${got.adaptivePsnr.toFixed(1)} dB, ` +
+      `untextured ${got.untexturedPsnr.toFixed(1)} dB`);
+    console.log(`${name} adaptive in three.js: ${got.drawn.vertices} vertices of ${got.uniformVertices} uniform, ` +
+      `${got.drawn.triangles} triangles; against the uniform draw ${got.adaptivePsnr.toFixed(1)} dB PSNR ` +
+      `(without its texture ${got.untexturedPsnr.toFixed(1)} dB)`);
   }
 });
 
