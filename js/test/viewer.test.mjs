@@ -1,6 +1,7 @@
 // The web viewer in headless Chromium (WebGL2 on SwiftShader): it opens a
 // rig from ?rig=, draws it (the canvas is not blank), changes level, shows
-// the cage, wireframe and false colour, plays an animation, and names the
+// the cage, wireframe and false colour, plays an animation (adaptively too),
+// and names the
 // cause when a file is refused.  STRATA_SCREENSHOTS=DIR saves its
 // screenshots there (docs/images holds the ones the README shows).
 import assert from 'node:assert/strict';
@@ -108,6 +109,31 @@ test('the viewer plays a character', async () => {
   const b = await tab.evaluate(() => window.strataViewer.surface.geometry.attributes.position.array.slice(0, 300));
   const moved = Object.keys(a).some((k) => a[k] !== b[k]);
   assert.ok(moved, 'the animation does not move the surface');
+  // Adaptive: fewer vertices than the level everywhere, said in the stats;
+  // a looser tolerance draws fewer still; off again, the level everywhere.
+  const adaptive = async (px) => {
+    await tab.evaluate((p) => {
+      const s = document.getElementById('pixelError');
+      s.value = String(p);
+      s.dispatchEvent(new Event('input'));
+      if (!document.getElementById('adaptive').checked) document.getElementById('adaptive').click();
+    }, px);
+    await new Promise((r) => setTimeout(r, 700));
+    return tab.evaluate(() => ({ drawn: window.strataViewer.surface.refinedVertexCount,
+      uniform: window.strataViewer.surface.surface.vertexCount, stats: document.getElementById('stats').textContent }));
+  };
+  const tight = await adaptive(1), loose = await adaptive(8);
+  assert.ok(tight.drawn < tight.uniform, `adaptive draws ${tight.drawn} of ${tight.uniform} vertices`);
+  assert.ok(loose.drawn < tight.drawn, `8 px draws ${loose.drawn}, 1 px ${tight.drawn}`);
+  await tab.evaluate(() => document.getElementById('pixelError').dispatchEvent(new Event('input')));
+  await new Promise((r) => setTimeout(r, 700));  // the stats refresh every 30 frames
+  assert.match(await tab.evaluate(() => document.getElementById('stats').textContent), /adaptive to level \d, 8 px: \d+ of \d+ vertices/);
+  await shot(tab, 'web-viewer-adaptive.png');
+  const back = await tab.evaluate(() => {
+    document.getElementById('adaptive').click();
+    return window.strataViewer.surface.refinedVertexCount;
+  });
+  assert.equal(back, tight.uniform);
   await tab.evaluate(() => document.getElementById('wireframe').click());
   await finish(tab, 10, 'web-viewer-cesiumman.png');
 });

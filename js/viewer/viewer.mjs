@@ -1,6 +1,8 @@
 // Strata's web viewer: three.js with StrataLoaderPlugin.  Drop a rig (or any
 // .glb); orbit; pick the level, the animation and its time; show the cage,
-// wireframe, or the displacement in false colour; read the file's numbers.
+// wireframe, or the displacement in false colour; draw adaptively (each
+// control face at the lowest level within a pixel tolerance of the chosen
+// one, for the camera); read the file's numbers.
 // ?rig=URL loads a file at start (the smoke test uses it).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -27,7 +29,7 @@ controls.enableDamping = true;
 
 const state = {
   gltf: null, surface: null, mixer: null, action: null, playing: true, bytes: 0, name: '',
-  frameMs: 0, frames: 0, errors: null, falseColour: false, diagonal: 1,
+  frameMs: 0, frames: 0, errors: null, falseColour: false, diagonal: 1, adaptive: null,
 };
 window.strataViewer = state;  // for tests and the console
 
@@ -155,7 +157,11 @@ function updateStats() {
   if (m) {
     const rig = m.rig;
     lines.push(`control: ${rig.controlVertexCount} vertices, scheme ${rig.scheme}`);
-    lines.push(`level ${m.level} (recommended ${rig.recommendedLevel}): ${m.refinedVertexCount} vertices,`);
+    if (state.adaptive)
+      lines.push(`adaptive to level ${m.level}, ${$('pixelError').value} px: ${m.refinedVertexCount} of ` +
+        `${m.surface.vertexCount} vertices,`);
+    else
+      lines.push(`level ${m.level} (recommended ${rig.recommendedLevel}): ${m.refinedVertexCount} vertices,`);
     lines.push(`  ${m.geometry.index.count / 3} triangles, ${m.geometry.attributes.position.count} drawn vertices`);
     lines.push(`joints ${rig.jointCount}, animations ${rig.animationCount}`);
     lines.push(`surface update: ${state.frameMs.toFixed(2)} ms / frame`);
@@ -314,6 +320,20 @@ $('time').addEventListener('input', () => {
 $('cage').addEventListener('change', applyToggles);
 $('wireframe').addEventListener('change', () => { applyToggles(); if (state.falseColour) applyFalseColour(); });
 $('falseColour').addEventListener('change', () => { state.falseColour = $('falseColour').checked; applyFalseColour(); });
+// Adaptive level of detail: each frame, every control face at the lowest
+// level within the pixel tolerance of the slider's level for this camera
+// (the false colour shows per-vertex displacement of one level: off here).
+$('adaptive').addEventListener('change', () => {
+  state.adaptive = $('adaptive').checked ? {} : null;
+  $('falseColour').disabled = !!state.adaptive;
+  if (state.adaptive && state.falseColour) {
+    $('falseColour').checked = state.falseColour = false;
+    applyFalseColour();
+  }
+  if (!state.adaptive && state.surface) state.surface.clearView();
+  updateStats();
+});
+$('pixelError').addEventListener('input', () => { $('pixelErrorText').textContent = `${$('pixelError').value} px`; });
 async function loadFile(file) {
   const bytes = await file.arrayBuffer();
   await load(bytes, file.name, bytes.byteLength);
@@ -347,6 +367,15 @@ renderer.setAnimationLoop(() => {
     }
   }
   scene.updateMatrixWorld();
+  if (state.adaptive && state.surface) {
+    try {
+      state.surface.setView(camera, { pixelError: Number($('pixelError').value), heightPx: renderer.domElement.height });
+    } catch (e) {
+      message(e.message);
+      $('adaptive').checked = false;
+      state.adaptive = null;
+    }
+  }
   const ms = performance.now() - t0;
   state.frameMs = state.frames ? 0.9 * state.frameMs + 0.1 * ms : ms;
   if (++state.frames % 30 === 0) updateStats();
