@@ -1,8 +1,7 @@
 // The web viewer in headless Chromium (WebGL2 on SwiftShader): it opens a
 // rig from ?rig=, draws it (the canvas is not blank), changes level, shows
 // the cage, wireframe and false colour, plays an animation (adaptively too),
-// and names the
-// cause when a file is refused.  STRATA_SCREENSHOTS=DIR saves its
+// and names the cause when a file is refused.  STRATA_SCREENSHOTS=DIR saves its
 // screenshots there (docs/images holds the ones the README shows).
 import assert from 'node:assert/strict';
 import { spawnSync } from 'node:child_process';
