@@ -9,6 +9,10 @@
 //   update ms   per frame on the CPU: AnimationMixer.update and the scene's
 //               matrix update, which for the rig evaluates the surface in
 //               WebAssembly (mean over the frames)
+//   adaptive    the rig with setView(camera, 1 px on the 480-pixel view)
+//               each frame: each control face at the lowest level within a
+//               pixel of the row's level (drawn vertices: the mean frame's
+//               own, without seam copies; update includes the choice)
 //   frame ms    update + renderer.render + a one-pixel readPixels that waits
 //               for the draw (mean): Chromium's WebGL2 on
 //               SwiftShader (no GPU on these machines), so the draw is CPU
@@ -66,7 +70,7 @@ async function load(url, level) {
   if (level !== null) loader.register((parser) => new StrataLoaderPlugin(parser, { level }));
   return loader.loadAsync(url);
 }
-window.measure = async (url, level, frames) => {
+window.measure = async (url, level, frames, adaptive = false) => {
   const loads = [];
   let gltf;
   for (let i = 0; i < 3; ++i) {
@@ -89,9 +93,15 @@ window.measure = async (url, level, frames) => {
   gltf.scene.traverse((o) => { if (o.isMesh && o.visible) vertices += o.geometry.attributes.position.count; });
   // Timed as whole loops: the page's clock is coarse (0.1 ms).
   const pixel = new Uint8Array(4);
+  const strata = gltf.userData.strata;
+  let drawnSum = 0, drawnFrames = 0;
   const step = (draw) => {
     mixer.update(1 / 60);
     scene.updateMatrixWorld();
+    if (adaptive) {
+      drawnSum += strata.setView(camera, { pixelError: 1, heightPx: 480 }).vertices;
+      drawnFrames++;
+    }
     if (draw) {
       renderer.render(scene, camera);
       gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);  // waits for the draw
@@ -104,6 +114,7 @@ window.measure = async (url, level, frames) => {
   t0 = performance.now();
   for (let f = 0; f < frames; ++f) step(true);
   const frame = (performance.now() - t0) / frames;
+  if (adaptive) vertices = Math.round(drawnSum / drawnFrames);  // the frame's own vertices, mean
   if (gltf.userData.strata) gltf.userData.strata.dispose();
   return { load: median(loads), update, frame, vertices };
 };
@@ -129,6 +140,9 @@ try {
       const a = await tab.evaluate((u, l, n) => window.measure(u, l, n), `/work/${name}.glb`, level, frames);
       rows.push({ mesh: name, mode: 'strata rig', level, bytes: fs.statSync(rigFile).size,
         gzip: gz(fs.readFileSync(rigFile)), vertices: a.vertices, load_ms: a.load, update_ms: a.update, frame_ms: a.frame });
+      const d = await tab.evaluate((u, l, n) => window.measure(u, l, n, true), `/work/${name}.glb`, level, frames);
+      rows.push({ mesh: name, mode: 'strata rig, adaptive 1 px', level, bytes: fs.statSync(rigFile).size,
+        gzip: gz(fs.readFileSync(rigFile)), vertices: d.vertices, load_ms: d.load, update_ms: d.update, frame_ms: d.frame });
       const b = await tab.evaluate((u, n) => window.measure(u, null, n), `/work/${name}_L${level}_detailed.glb`, frames);
       rows.push({ mesh: name, mode: 'detailed glb', level, bytes: fs.statSync(detailed).size,
         gzip: gz(fs.readFileSync(detailed)), vertices: b.vertices, load_ms: b.load, update_ms: b.update, frame_ms: b.frame });
