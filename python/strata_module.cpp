@@ -331,7 +331,7 @@ PYBIND11_MODULE(_strata, m)
              "Refined, displaced vertices (float32 [N, 3]) and triangles (uint32 [M, 3]) at `level` (default: the "
              "rig's recommended one), in the bind pose or posed by `animation` at `time` seconds.  With "
              "view=(eye, target, fov_y_degrees, height_px), the adaptive mesh for that camera instead: each control "
-             "face at the lowest level within `pixel_error` pixels of `level` on screen, stitched without cracks.  "
+             "face at the lowest level within `pixel_error` pixels of `level` wherever it lies in front of the eye, stitched without cracks.  "
              "A glTF without the STRATA_layered_displacement layer raises strata.Error naming the tool that dropped "
              "it, unless displacement=False asks for the plain mesh refined.");
     m.def(

@@ -37,7 +37,8 @@ static const char* kUsage =
     "     --static (or --anim/--time) writes one posed mesh instead\n"
     "  --view: the adaptive mesh for that camera (eye, target, vertical field of view, viewport\n"
     "     height): each control face at the lowest level within --pixel-error pixels (default 1)\n"
-    "     of level N on screen, stitched without cracks; in model space, posed as --anim/--time\n"
+    "     of level N wherever it lies in front of the eye, on screen or off (the view has no\n"
+    "     width), stitched without cracks; in model space, posed as --anim/--time\n"
     "  --skinning segments: the paper's point-to-line deformer (eq. 6) from the joints alone\n"
     "  --skeleton: a joint file (JSON) that replaces the rig's skin; implies --skinning segments\n";
 
@@ -308,8 +309,8 @@ int main(int argc, char** argv)
             const AdaptiveFrame& frame = rec.surface->adaptiveFrame();
             std::fprintf(stderr,
                          "strata-reconstruct: %s adaptive to level %d (%s) within %g px: %zu vertices, %zu triangles "
-                         "(level %d everywhere: %zu vertices); control faces %s; largest deviation from level %d on "
-                         "screen %.3f px; %.1f ms -> %s\n",
+                         "(level %d everywhere: %zu vertices); control faces %s; largest deviation from level %d in "
+                         "front of the eye %.3f px; %.1f ms -> %s\n",
                          rigPath.c_str(), level, schemeName(scheme), double(pixelError), frame.vertexCount(),
                          frame.triangleCount(), level, rec.positions.size(), levels.c_str(), level,
                          double(adaptive.maxPixelError), std::chrono::duration<double, std::milli>(v1 - v0).count(),

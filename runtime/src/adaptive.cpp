@@ -627,8 +627,11 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // Pixels per model unit of error at each face: at the nearest point of
     // a sphere around it, and at the largest angle off the view axis within
     // the sphere (an error there moves up to 1 / cos^2 as many pixels as on
-    // the axis).  Infinite when the eye is inside the sphere, 0 when the
-    // sphere is wholly behind the eye.
+    // the axis).  Infinite when the eye is inside the sphere or the sphere
+    // reaches the eye's plane (a point there projects arbitrarily far: the
+    // view has no width, so every point in front of the eye is held to the
+    // tolerance, as maxScreenDeviation measures), 0 when the sphere is
+    // wholly behind the eye.
     for (size_t f = 0; f < nf; ++f) {
         const uint32_t* c = &controlTriangles_[3 * f];
         const glm::vec3 centre = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
@@ -643,8 +646,10 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             const float spread = std::asin(std::min(1.0f, r / d));
             if (axis - spread >= 1.5707f) {
                 g = 0.0f;
+            } else if (axis + spread >= 1.5697f) {
+                g = std::numeric_limits<float>::infinity();
             } else {
-                const float cosine = std::cos(std::min(axis + spread, 1.0472f));  // past 60 degrees: off any screen
+                const float cosine = std::cos(axis + spread);
                 g = cam.k * poseScale / ((d - r) * cosine * cosine);
             }
         }
