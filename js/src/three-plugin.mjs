@@ -20,7 +20,9 @@
 // first `refinedVertexCount` vertices of the surface's `position` attribute
 // are the refined vertices in the order strata-reconstruct writes them to
 // .obj and .ply; the copies a UV seam needs follow (`refinedVertex` maps every
-// vertex to its refined one).
+// vertex to its refined one).  The geometry draws `drawnVertexCount` vertices
+// and `drawnIndexCount` indices (its drawRange); an adaptive geometry's
+// buffers may hold room past them.
 //
 // Adaptive level of detail: surface.setView(camera, { pixelError: 1,
 // heightPx: renderer.domElement.height }) before each render draws each
@@ -35,7 +37,8 @@
 //   runtime:  a StrataRuntime (or its promise); default StrataRuntime.load()
 //   name:     the file's name in error messages (default 'the glTF file')
 import {
-  BufferAttribute, BufferGeometry, DynamicDrawUsage, Matrix4, Mesh, MeshStandardMaterial, Sphere, Vector3,
+  Box3, BufferAttribute, BufferGeometry, DynamicDrawUsage, Matrix4, Mesh, MeshStandardMaterial, Sphere,
+  StaticDrawUsage, Vector3,
 } from 'three';
 import { StrataError, StrataRuntime } from './runtime.mjs';
 
@@ -189,7 +192,7 @@ export class StrataSurfaceMesh extends Mesh {
       this.adaptiveMesh = layout;
       this.adaptiveVersionShown = version;
       this.refinedVertexCount = this.surface.adaptiveVertexCount;
-      this.showLayout(layout);
+      this.showLayout(layout, true);
     }
     return { vertices: this.refinedVertexCount, triangles: this.surface.adaptiveTriangleCount };
   }
@@ -209,31 +212,68 @@ export class StrataSurfaceMesh extends Mesh {
     this.adaptiveVersionShown = -1;
   }
 
-  // A geometry for `layout` (the uniform or the adaptive render mesh), in
-  // the current pose.
-  showLayout(layout) {
+  // `layout` (the uniform or the adaptive render mesh) as the geometry, in
+  // the current pose.  `reuse`: into the current geometry's buffers where
+  // they hold it (an adaptive frame changes levels often as a character
+  // moves; new buffers would be new GPU buffers each time), else into new
+  // ones with room to grow.
+  showLayout(layout, reuse = false) {
     const n = layout.vertexCount;
-    const geometry = new BufferGeometry();
-    const positions = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
-    const normals = new BufferAttribute(new Float32Array(3 * n), 3).setUsage(DynamicDrawUsage);
-    geometry.setAttribute('position', positions);
-    geometry.setAttribute('normal', normals);
-    for (const a of layout.attributes()) {
-      const name = ATTRIBUTE_NAMES[a.name] || a.name.toLowerCase();
-      geometry.setAttribute(name, new BufferAttribute(a.array, a.components));
-    }
-    geometry.setIndex(new BufferAttribute(layout.indices(), 1));
+    const indices = layout.indices();
+    const attributes = layout.attributes().map((a) => ({ ...a, name: ATTRIBUTE_NAMES[a.name] || a.name.toLowerCase() }));
     const parts = layout.parts();
+    const old = this.geometry;
+    const room = old.userData.strataRoom;
+    const fits = reuse && room && n <= room.vertices && indices.length <= room.indices &&
+      attributes.length + 2 === Object.keys(old.attributes).length &&
+      attributes.every((a) => old.attributes[a.name] && old.attributes[a.name].itemSize === a.components);
+    let geometry = old;
+    if (fits) {
+      for (const a of attributes) {
+        const b = old.attributes[a.name];
+        b.array.set(a.array);
+        b.clearUpdateRanges();
+        b.addUpdateRange(0, a.array.length);
+        b.needsUpdate = true;
+      }
+      old.index.array.set(indices);
+      old.index.clearUpdateRanges();
+      old.index.addUpdateRange(0, indices.length);
+      old.index.needsUpdate = true;
+      old.clearGroups();
+    } else {
+      const grow = reuse ? 1.5 : 1;
+      const vertices = Math.ceil(grow * n), count = Math.ceil(grow * indices.length);
+      geometry = new BufferGeometry();
+      geometry.userData.strataRoom = { vertices, indices: count };
+      for (const name of ['position', 'normal'])
+        geometry.setAttribute(name, new BufferAttribute(new Float32Array(3 * vertices), 3).setUsage(DynamicDrawUsage));
+      for (const a of attributes) {
+        const array = new Float32Array(vertices * a.components);
+        array.set(a.array);
+        geometry.setAttribute(a.name, new BufferAttribute(array, a.components).setUsage(reuse ? DynamicDrawUsage : StaticDrawUsage));
+      }
+      const index = new Uint32Array(count);
+      index.set(indices);
+      geometry.setIndex(new BufferAttribute(index, 1).setUsage(reuse ? DynamicDrawUsage : StaticDrawUsage));
+    }
     parts.forEach((p, i) => geometry.addGroup(p.firstIndex, p.indexCount, i));
+    geometry.setDrawRange(0, indices.length);
+    this.drawnVertexCount = n;
+    this.drawnIndexCount = indices.length;
     this.refinedVertex = layout.refinedVertices();
     this.parts = parts;
-    const old = this.geometry;
-    this.geometry = geometry;
-    old.dispose();
+    if (geometry !== old) {
+      this.geometry = geometry;
+      old.dispose();
+    }
     this.posedByNodes = false;
     this.update(true);
-    geometry.computeBoundingBox();
-    geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new Sphere());
+    // The box of the vertices drawn (the buffers may hold room past them).
+    const p = geometry.attributes.position.array, box = new Box3(), v = new Vector3();
+    for (let i = 0; i < this.drawnVertexCount; ++i) box.expandByPoint(v.fromArray(p, 3 * i));
+    geometry.boundingBox = box;
+    geometry.boundingSphere = box.getBoundingSphere(new Sphere());
   }
 
   /// Poses the surface from its nodes' current world matrices (relative
@@ -280,8 +320,11 @@ export class StrataSurfaceMesh extends Mesh {
   writeFrame() {
     const g = this.geometry;
     (this.adaptiveMesh || this.renderMesh).evaluate(this.surface, g.attributes.position.array, g.attributes.normal.array);
-    g.attributes.position.needsUpdate = true;
-    g.attributes.normal.needsUpdate = true;
+    for (const a of [g.attributes.position, g.attributes.normal]) {
+      a.clearUpdateRanges();
+      a.addUpdateRange(0, 3 * this.drawnVertexCount);
+      a.needsUpdate = true;
+    }
   }
 
   updateMatrixWorld(force) {

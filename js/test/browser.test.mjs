@@ -214,19 +214,40 @@ window.adaptiveDraw = async (url) => {
   const own = mesh.surface.evaluateAdaptive().positions, shown = mesh.geometry.attributes.position.array;
   let same = true;
   for (let i = 0; i < own.length; ++i) same = same && Object.is(own[i], shown[i]);
-  const count = mesh.geometry.attributes.position.count;
-  let inRange = true;
-  for (const i of mesh.geometry.index.array) inRange = inRange && i < count;
+  // Drawn: the first drawnIndexCount indices, into the first drawnVertexCount vertices.
+  const g = mesh.geometry;
+  let inRange = g.drawRange.count === mesh.drawnIndexCount && g.groups.every((p) => p.start + p.count <= mesh.drawnIndexCount);
+  for (const i of g.index.array.subarray(0, mesh.drawnIndexCount)) inRange = inRange && i < mesh.drawnVertexCount;
   const materials = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
   const textured = materials.some((m) => m.map);
-  for (const m of materials) { m.map = null; m.needsUpdate = true; }
+  for (const m of materials) { m.userData.map = m.map; m.map = null; m.needsUpdate = true; }
   const bare = draw();
+  for (const m of materials) { m.map = m.userData.map; m.needsUpdate = true; }
+  // Farther away, nearer again and farther again: other levels each time,
+  // all in the buffers the first of them took (the uniform level's, which
+  // hold any adaptive frame), each drawn as the uniform level draws.
+  camera.position.sub(centre).multiplyScalar(2.5).add(centre);
+  camera.updateMatrixWorld();
+  mesh.clearView();
+  const farUniform = draw();
+  mesh.setView(camera, { heightPx: px, pixelError: 1 });
+  const grown = mesh.geometry;
+  camera.position.sub(centre).multiplyScalar(1 / 2.5).add(centre);
+  camera.updateMatrixWorld();
+  mesh.setView(camera, { heightPx: px, pixelError: 1 });
+  const near = draw();
+  camera.position.sub(centre).multiplyScalar(2.5).add(centre);
+  camera.updateMatrixWorld();
+  const far = mesh.setView(camera, { heightPx: px, pixelError: 1 });
+  const reused = mesh.geometry === grown && far.vertices < drawn.vertices;
+  const farAdaptive = draw();
   mesh.clearView();
   const back = mesh.refinedVertexCount;
   return {
-    uniformVertices, drawn, kept, same, inRange,
+    uniformVertices, drawn, kept, same, inRange, reused, far: far.vertices,
     groups: geometry.groups.length, parts: mesh.parts.length, textured, back,
     adaptivePsnr: psnr(adaptive, uniform), untexturedPsnr: psnr(bare, adaptive),
+    nearPsnr: psnr(near, uniform), farPsnr: psnr(farAdaptive, farUniform),
   };
 };
 window.refuse = async (url) => {
@@ -357,6 +378,10 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
     assert.ok(got.inRange, `${name}: an index past the geometry`);
     assert.equal(got.groups, got.parts);
     assert.ok(got.kept, `${name}: the same view rebuilt the geometry`);
+    // Levels changing back and forth reuse the buffers and still draw right.
+    assert.ok(got.reused, `${name}: farther away (${got.far} vertices) the buffers were not reused`);
+    assert.ok(got.nearPsnr >= got.adaptivePsnr - 0.5, `${name}: back near ${got.nearPsnr.toFixed(1)} dB`);
+    assert.ok(got.farPsnr >= 30, `${name}: far away ${got.farPsnr.toFixed(1)} dB against the uniform draw`);
     assert.equal(got.back, got.uniformVertices, `${name}: clearView did not restore the uniform level`);
     // Within a pixel of the uniform draw, textured the same: far closer to
     // it than the same frame without its texture is.
@@ -365,7 +390,8 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
       `untextured ${got.untexturedPsnr.toFixed(1)} dB`);
     console.log(`${name} adaptive in three.js: ${got.drawn.vertices} vertices of ${got.uniformVertices} uniform, ` +
       `${got.drawn.triangles} triangles; against the uniform draw ${got.adaptivePsnr.toFixed(1)} dB PSNR ` +
-      `(without its texture ${got.untexturedPsnr.toFixed(1)} dB)`);
+      `(without its texture ${got.untexturedPsnr.toFixed(1)} dB); 2.5x farther ${got.far} vertices, ` +
+      `${got.farPsnr.toFixed(1)} dB, in the same buffers`);
   }
 });
 

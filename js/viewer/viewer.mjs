@@ -162,7 +162,7 @@ function updateStats() {
         `${m.surface.vertexCount} vertices,`);
     else
       lines.push(`level ${m.level} (recommended ${rig.recommendedLevel}): ${m.refinedVertexCount} vertices,`);
-    lines.push(`  ${m.geometry.index.count / 3} triangles, ${m.geometry.attributes.position.count} drawn vertices`);
+    lines.push(`  ${m.drawnIndexCount / 3} triangles, ${m.drawnVertexCount} drawn vertices`);
     lines.push(`joints ${rig.jointCount}, animations ${rig.animationCount}`);
     lines.push(`surface update: ${state.frameMs.toFixed(2)} ms / frame`);
     if (state.errors && state.errors.length) {
