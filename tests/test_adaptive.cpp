@@ -385,6 +385,72 @@ TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
     }
 }
 
+// A non-manifold control edge: a tetrahedron hung inside the closed head on
+// one of its edges (four faces on that edge).  Every mix of quarter levels
+// stitches all four faces to the same points along it: no output edge is
+// open, each lies on two faces or (along the hinge) four, and the Euler
+// characteristic stays the control mesh's.
+TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
+{
+    std::mt19937 rng(5);
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        ControlMesh& m = rig.mesh;
+        m.uvs.clear();
+        m.uvIndices.clear();
+        const uint32_t a = m.triangles[0], b = m.triangles[1];
+        const glm::vec3 mid = 0.5f * (m.positions[a] + m.positions[b]);
+        const glm::vec3 side = 0.2f * glm::normalize(glm::cross(m.positions[b] - m.positions[a], mid));
+        const uint32_t c = uint32_t(m.positions.size()), d = c + 1;
+        m.positions.push_back(0.6f * mid + side);
+        m.positions.push_back(0.6f * mid - side);
+        m.triangles.insert(m.triangles.end(), {a, b, c, b, a, d, a, c, d, b, d, c});
+        const MeshTopologyStats control = computeTopologyStats(m.triangles.data(), m.faceCount());
+        ASSERT_EQ(control.nonManifoldEdges, 1u);
+        ASSERT_EQ(control.boundaryEdges, 0u);
+        SurfaceOptions options;
+        options.displace = false;
+        options.level = 4;
+        std::unique_ptr<Surface> s;
+        const Status created = Surface::create(&s, rig, nullptr, options);
+        ASSERT_TRUE(created.isOk()) << created.message();
+        ASSERT_EQ(s->level(), 4);
+        const size_t nf = m.faceCount();
+        std::vector<uint8_t> quarters(4 * nf);
+        for (int trial = 0; trial < 40; ++trial) {
+            std::uniform_int_distribution<int> any(1, s->level()), pick(0, 3);
+            for (size_t f = 0; f < nf; ++f) {
+                const int kind = pick(rng);  // 0: level 0; 1: one level; else mixed
+                const uint8_t one = uint8_t(any(rng));
+                for (int k = 0; k < 4; ++k)
+                    quarters[4 * f + size_t(k)] = kind == 0 ? 0 : kind == 1 ? one : uint8_t(any(rng));
+            }
+            ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
+            const std::string label = std::string(schemeName(scheme)) + " trial " + std::to_string(trial);
+            const AdaptiveFrame& frame = s->adaptiveFrame();
+            const std::vector<uint32_t>& t = frame.triangles();
+            std::map<std::pair<uint32_t, uint32_t>, int> faces;
+            for (size_t k = 0; k < t.size(); k += 3)
+                for (int e = 0; e < 3; ++e) {
+                    const uint32_t u = t[k + size_t(e)], v = t[k + size_t(e + 1) % 3];
+                    ++faces[{std::min(u, v), std::max(u, v)}];
+                }
+            size_t hinge = 0;
+            for (const auto& [edge, count] : faces) {
+                ASSERT_TRUE(count == 2 || count == 4) << label << ": an edge on " << count << " faces";
+                hinge += count == 4;
+            }
+            EXPECT_GE(hinge, 1u) << label;
+            const MeshTopologyStats st = computeTopologyStats(t.data(), frame.triangleCount());
+            EXPECT_EQ(st.eulerCharacteristic, control.eulerCharacteristic) << label;
+            std::vector<glm::vec3> p(frame.vertexCount());
+            ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk()) << label;
+        }
+    }
+}
+
 TEST(Adaptive, OneLevelEverywhereIsTheUniformSurfaceOfThatLevel)
 {
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
