@@ -371,6 +371,33 @@ TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
             EXPECT_EQ(st.nonManifoldEdges, 0u) << label;
             EXPECT_EQ(st.eulerCharacteristic, 1) << label;
             EXPECT_GT(st.boundaryEdges, 0u) << label;
+            // One rim and no slit: the open edges make one loop, each of its
+            // vertices on two of them (a crack would open a second loop).
+            std::map<std::pair<uint32_t, uint32_t>, int> uses;
+            const std::vector<uint32_t>& t = frame.triangles();
+            for (size_t k = 0; k < t.size(); k += 3)
+                for (int e = 0; e < 3; ++e) {
+                    const uint32_t u = t[k + size_t(e)], v = t[k + size_t(e + 1) % 3];
+                    ++uses[{std::min(u, v), std::max(u, v)}];
+                }
+            std::map<uint32_t, std::vector<uint32_t>> rim;
+            for (const auto& [edge, count] : uses)
+                if (count == 1) {
+                    rim[edge.first].push_back(edge.second);
+                    rim[edge.second].push_back(edge.first);
+                }
+            ASSERT_FALSE(rim.empty()) << label;
+            size_t walked = 0;
+            for (uint32_t prev = rim.begin()->first, at = rim.begin()->second[0];; ++walked) {
+                ASSERT_EQ(rim[at].size(), 2u) << label;
+                const uint32_t next = rim[at][0] == prev ? rim[at][1] : rim[at][0];
+                prev = at;
+                at = next;
+                if (prev == rim.begin()->first)
+                    break;
+                ASSERT_LE(walked, rim.size()) << label;
+            }
+            EXPECT_EQ(walked + 1, rim.size()) << label << ": the open edges make more than one loop";
             std::vector<glm::vec3> p(frame.vertexCount()), n(p.size());
             ASSERT_TRUE(s->evaluateAdaptive(p.data(), n.data(), p.size(), 2).isOk());
             ASSERT_TRUE(s->plan()
