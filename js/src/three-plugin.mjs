@@ -184,7 +184,9 @@ export class StrataSurfaceMesh extends Mesh {
     const target = this.targetScratch.set(0, 0, -1).applyMatrix4(camera.matrixWorld);
     eye.applyMatrix4(toModel);
     target.applyMatrix4(toModel);
-    this.surface.chooseLevels(eye.toArray(), target.toArray(), camera.fov, heightPx, pixelError);
+    // The lens as drawn: zoom narrows the field of view.
+    const fov = (2 * Math.atan(Math.tan((camera.fov * Math.PI) / 360) / (camera.zoom || 1)) * 180) / Math.PI;
+    this.surface.chooseLevels(eye.toArray(), target.toArray(), fov, heightPx, pixelError);
     const version = this.surface.adaptiveVersion();
     if (!this.adaptiveMesh || version !== this.adaptiveVersionShown) {
       const layout = this.surface.createAdaptiveRenderMesh(this.renderMesh);

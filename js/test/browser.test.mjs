@@ -241,10 +241,18 @@ window.adaptiveDraw = async (url) => {
   const far = mesh.setView(camera, { heightPx: px, pixelError: 1 });
   const reused = mesh.geometry === grown && far.vertices < drawn.vertices;
   const farAdaptive = draw();
+  // A zoomed lens is the narrower lens it draws as.
+  camera.zoom = 3;
+  camera.updateProjectionMatrix();
+  const zoomed = mesh.setView(camera, { heightPx: px, pixelError: 1 }).vertices;
+  camera.zoom = 1;
+  camera.fov = (2 * Math.atan(Math.tan((40 * Math.PI) / 360) / 3) * 180) / Math.PI;
+  camera.updateProjectionMatrix();
+  const narrow = mesh.setView(camera, { heightPx: px, pixelError: 1 }).vertices;
   mesh.clearView();
   const back = mesh.refinedVertexCount;
   return {
-    uniformVertices, drawn, kept, same, inRange, reused, far: far.vertices,
+    uniformVertices, drawn, kept, same, inRange, reused, far: far.vertices, zoomed, narrow,
     groups: geometry.groups.length, parts: mesh.parts.length, textured, back,
     adaptivePsnr: psnr(adaptive, uniform), untexturedPsnr: psnr(bare, adaptive),
     nearPsnr: psnr(near, uniform), farPsnr: psnr(farAdaptive, farUniform),
@@ -382,6 +390,8 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
     assert.ok(got.reused, `${name}: farther away (${got.far} vertices) the buffers were not reused`);
     assert.ok(got.nearPsnr >= got.adaptivePsnr - 0.5, `${name}: back near ${got.nearPsnr.toFixed(1)} dB`);
     assert.ok(got.farPsnr >= 30, `${name}: far away ${got.farPsnr.toFixed(1)} dB against the uniform draw`);
+    assert.ok(got.zoomed > got.far, `${name}: zoomed in 3x, ${got.zoomed} vertices, ${got.far} without`);
+    assert.equal(got.zoomed, got.narrow, `${name}: a 3x zoom draws as the lens a third as wide`);
     assert.equal(got.back, got.uniformVertices, `${name}: clearView did not restore the uniform level`);
     // Within a pixel of the uniform draw, textured the same: far closer to
     // it than the same frame without its texture is.
