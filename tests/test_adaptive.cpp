@@ -635,6 +635,75 @@ TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
     }
 }
 
+// A pose swinging back and forth under a still camera: chosen afresh each
+// frame, levels
+// flip where a face's error sits at the tolerance; chosen
+// from the frame before, each level holds until it is clearly too fine.
+// Both stay within the tolerance every frame.
+TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> held = posedSurface(scheme, 0.0f, &rig, &map), fresh;
+        ASSERT_TRUE(held);
+        ASSERT_TRUE(Surface::create(&fresh, rig, &map).isOk());
+        ViewSpec view;
+        view.eye = glm::vec3(0.3f, 0.2f, 6.0f);
+        view.target = glm::vec3(0.0f);
+        view.fovYDegrees = 40.0f;
+        view.heightPx = 1080.0f;
+        std::vector<uint8_t> heldBefore, freshBefore, reset(4 * rig.mesh.faceCount(), uint8_t(held->level()));
+        int heldChanges = 0, freshChanges = 0;
+        size_t heldVertices = 0, freshVertices = 0;
+        std::vector<glm::vec3> fine(held->vertexCount());
+        for (int frame = 0; frame <= 60; ++frame) {
+            const float t = 0.5f + 0.1f * std::sin(0.6f * float(frame));  // back and forth
+            const std::string label = std::string(schemeName(scheme)) + " frame " + std::to_string(frame);
+            ASSERT_TRUE(held->setAnimationTime(0, t).isOk());
+            ASSERT_TRUE(fresh->setAnimationTime(0, t).isOk());
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk()) << label;
+            // Fresh: the levels set by hand first, so no choice is held.
+            ASSERT_TRUE(fresh->setQuarterLevels(reset.data(), reset.size()).isOk());
+            ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk()) << label;
+            ASSERT_TRUE(held->plan()
+                            .evaluate(fine.data(), nullptr, 0, fine.size(), held->controlPositions().data(),
+                                      held->controlNormals().data(), held->controlVertexCount())
+                            .isOk());
+            for (Surface* s : {held.get(), fresh.get()}) {
+                const AdaptiveFrame& f = s->adaptiveFrame();
+                std::vector<glm::vec3> p(f.vertexCount());
+                ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
+                ASSERT_LE(f.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
+            }
+            const std::vector<uint8_t>& h = held->adaptiveFrame().quarterLevels();
+            const std::vector<uint8_t>& r = fresh->adaptiveFrame().quarterLevels();
+            heldChanges += frame > 0 && h != heldBefore;
+            freshChanges += frame > 0 && r != freshBefore;
+            heldBefore = h;
+            freshBefore = r;
+            heldVertices += held->adaptiveFrame().vertexCount();
+            freshVertices += fresh->adaptiveFrame().vertexCount();
+        }
+        std::printf("%s: levels changed in %d of 60 frames held, %d chosen afresh; vertices %.3f of fresh\n",
+                    schemeName(scheme), heldChanges, freshChanges, double(heldVertices) / double(freshVertices));
+        EXPECT_LT(heldChanges, freshChanges / 2) << schemeName(scheme);
+        EXPECT_LT(double(heldVertices), 1.25 * double(freshVertices)) << schemeName(scheme);
+        // A still pose and camera settle: the choice after the first keeps
+        // the frame.
+        for (float distance : {2.5f, 6.0f, 20.0f}) {
+            view.eye = glm::vec3(0.3f, 0.2f, distance);
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+            const uint64_t settled = held->adaptiveFrame().topologyVersion();
+            for (int again = 0; again < 3; ++again) {
+                ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+                EXPECT_EQ(held->adaptiveFrame().topologyVersion(), settled) << schemeName(scheme) << " at " << distance;
+            }
+        }
+    }
+}
+
 TEST(Adaptive, BadLevelsAndViewsAreRefused)
 {
     Rig rig;

@@ -599,7 +599,8 @@ float LevelChooser::bend(size_t f, const glm::vec3* positions, const glm::vec3* 
 }
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
-                            size_t controlCount, float poseScale, const glm::vec3* controlNormals)
+                            size_t controlCount, float poseScale, const glm::vec3* controlNormals,
+                            const uint8_t* previous)
 {
     const int L = errors_.finest;
     const size_t nf = errors_.faceCount;
@@ -663,21 +664,31 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             g *= 1.0f + 2.0f * b;
         }
         gains_[f] = g;
-        int level = L;
-        for (int l = 0; l < L; ++l)
-            if (errors_.at(f, l) * g <= pixelError) {
-                level = l;
-                break;
-            }
+        // The lowest level within the tolerance; with a previous choice,
+        // that level held while it is no finer than the hold would choose.
+        auto lowest = [&](int from, int to, float tolerance, auto&& error) {
+            for (int l = from; l < to; ++l)
+                if (error(l) * g <= tolerance)
+                    return l;
+            return to;
+        };
+        auto held = [&](int need, int hold, int was) { return std::min(std::max(was, need), std::max(hold, need)); };
+        const uint8_t* pq = previous ? previous + 4 * f : nullptr;
+        auto faceError = [&](int l) { return errors_.at(f, l); };
+        int level = lowest(0, L, pixelError, faceError);
+        if (pq)
+            level = held(level, lowest(0, L, kHoldTolerance * pixelError, faceError),
+                         std::max({pq[0], pq[1], pq[2], pq[3]}));
         // Below level 2 a quarter has nothing coarser to take.
         uint8_t* fq = quarters + 4 * f;
         for (int k = 0; k < 4; ++k) {
             int ql = level;
-            for (int l = 1; l < level && level >= 2; ++l)
-                if (errors_.quarterAt(f, k, l) * g <= pixelError) {
-                    ql = l;
-                    break;
-                }
+            if (level >= 2) {
+                auto quarterError = [&](int l) { return errors_.quarterAt(f, k, l); };
+                ql = lowest(1, level, pixelError, quarterError);
+                if (pq && pq[k] >= 1)
+                    ql = std::min(level, held(ql, lowest(1, level, kHoldTolerance * pixelError, quarterError), pq[k]));
+            }
             fq[k] = uint8_t(ql);
         }
         // A split whose quarters' grids hold more points than the face's

@@ -228,14 +228,20 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
         return Status(StatusCode::InvalidData, "the surface's refined faces are not a grid per control face");
     chosen_.resize(4 * errors.faceCount);
     const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
+    // The frame's levels hold where they still fit, if a choice made them.
+    const bool held = adaptive_ && adaptive_->topologyVersion() == chosenVersion_ &&
+                      adaptive_->quarterLevels().size() == chosen_.size();
     if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
-                                     scale, controlNormals_.data());
+                                     scale, controlNormals_.data(), held ? adaptive_->quarterLevels().data() : nullptr);
         !st)
         return st;
     // The same levels as drawn: the frame's topology stands.
     if (adaptive_ && adaptive_->quarterLevels() == chosen_)
         return Status::ok();
-    return setQuarterLevels(chosen_.data(), chosen_.size());
+    if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st)
+        return st;
+    chosenVersion_ = adaptive_->topologyVersion();
+    return Status::ok();
 }
 
 Status Surface::evaluateAdaptive(glm::vec3* positions, glm::vec3* normals, size_t count, int threads)

@@ -136,8 +136,19 @@ public:
     /// neighbours' where larger) times larger: a displacement error along a
     /// normal tilts with it, at the point and at the drawn corners, and a
     /// smooth surface's stencils reach across the face's edges.
+    ///
+    /// `previous` (4 per face, or null): the levels chosen for the frame
+    /// before.  Each face and quarter keeps its previous level while that
+    /// level is within the tolerance and no finer than kHoldTolerance times
+    /// the tolerance would choose, so a moving pose or camera does not flip
+    /// levels (and rebuild the frame) every frame; every level still meets
+    /// the tolerance.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
-                  size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr);
+                  size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
+                  const uint8_t* previous = nullptr);
+    /// The share of the tolerance below which a held level gives way to a
+    /// coarser one (see choose).
+    static constexpr float kHoldTolerance = 0.85f;
 
     /// The error (model units, rest pose) of quarter `quarter` of face
     /// `face` drawn at `level` >= 1 with its edges at edgeLevels and, for the

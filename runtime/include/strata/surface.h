@@ -137,7 +137,11 @@ public:
     /// Levels for a view of the current pose: per face (and quarter of a
     /// face) the smallest level within `pixelError` pixels of level() (errors
     /// measured once, in the rest pose, at the first call; a skinned pose's
-    /// stretch scales them).
+    /// stretch scales them).  Where the frame's levels came from the last
+    /// choice, each keeps its level while that still meets the tolerance
+    /// and is not finer than LevelChooser::kHoldTolerance of it would choose
+    /// (levels do not flip, and the frame rebuild, every frame of a
+    /// moving pose or camera).
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
     /// The errors chooseFaceLevels projects (measured on first use).
     const FaceLevelErrors& faceLevelErrors();
@@ -173,6 +177,7 @@ private:
     std::unique_ptr<AdaptiveFrame> adaptive_;
     std::unique_ptr<LevelChooser> chooser_;
     std::vector<uint8_t> chosen_;
+    uint64_t chosenVersion_ = ~uint64_t(0);  // the frame's topology the last choice set
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::mat4> skinMatrices_;
 };
