@@ -227,19 +227,31 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
     if (errors.faceCount != mesh_.faceCount())
         return Status(StatusCode::InvalidData, "the surface's refined faces are not a grid per control face");
     chosen_.resize(4 * errors.faceCount);
-    const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
-    // The frame's levels hold where they still fit, if a choice made them.
+    // The frame's levels hold where they still fit, if a choice made them;
+    // for the same view, tolerance and pose, they are the choice.
     const bool held = adaptive_ && adaptive_->topologyVersion() == chosenVersion_ &&
                       adaptive_->quarterLevels().size() == chosen_.size();
+    const bool sameView = view.eye == chosenView_.eye && view.target == chosenView_.target &&
+                          view.fovYDegrees == chosenView_.fovYDegrees && view.heightPx == chosenView_.heightPx;
+    if (held && sameView && pixelError == chosenTolerance_ && controlPositions_ == chosenPose_)
+        return Status::ok();
+    const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
     if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
                                      scale, controlNormals_.data(), held ? adaptive_->quarterLevels().data() : nullptr);
         !st)
         return st;
+    chosenView_ = view;
+    chosenTolerance_ = pixelError;
+    chosenPose_ = controlPositions_;
     // The same levels as drawn: the frame's topology stands.
-    if (adaptive_ && adaptive_->quarterLevels() == chosen_)
+    if (adaptive_ && adaptive_->quarterLevels() == chosen_) {
+        chosenVersion_ = adaptive_->topologyVersion();
         return Status::ok();
-    if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st)
+    }
+    if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st) {
+        chosenVersion_ = ~uint64_t(0);
         return st;
+    }
     chosenVersion_ = adaptive_->topologyVersion();
     return Status::ok();
 }

@@ -141,7 +141,8 @@ public:
     /// choice, each keeps its level while that still meets the tolerance
     /// and is not finer than LevelChooser::kHoldTolerance of it would choose
     /// (levels do not flip, and the frame rebuild, every frame of a
-    /// moving pose or camera).
+    /// moving pose or camera); for the same view, tolerance and pose as the
+    /// last choice, the frame stands as it is.
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
     /// The errors chooseFaceLevels projects (measured on first use).
     const FaceLevelErrors& faceLevelErrors();
@@ -177,7 +178,12 @@ private:
     std::unique_ptr<AdaptiveFrame> adaptive_;
     std::unique_ptr<LevelChooser> chooser_;
     std::vector<uint8_t> chosen_;
-    uint64_t chosenVersion_ = ~uint64_t(0);  // the frame's topology the last choice set
+    // The last choice: the frame's topology it set (or kept), and its
+    // view, tolerance and pose.
+    uint64_t chosenVersion_ = ~uint64_t(0);
+    ViewSpec chosenView_;
+    float chosenTolerance_ = 0.0f;
+    std::vector<glm::vec3> chosenPose_;
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::mat4> skinMatrices_;
 };
