@@ -271,11 +271,19 @@ export class StrataSurfaceMesh extends Mesh {
     }
     this.posedByNodes = false;
     this.update(true);
-    // The box of the vertices drawn (the buffers may hold room past them).
-    const p = geometry.attributes.position.array, box = new Box3(), v = new Vector3();
+    this.updateBounds();
+  }
+
+  /// The geometry's bounding box and sphere, of the vertices drawn in the
+  /// current pose (the buffers may hold room past them).  Set when the
+  /// layout changes and at load; a pose moves the surface past them, as it
+  /// moves a SkinnedMesh past its own.
+  updateBounds() {
+    const g = this.geometry;
+    const p = g.attributes.position.array, box = new Box3(), v = new Vector3();
     for (let i = 0; i < this.drawnVertexCount; ++i) box.expandByPoint(v.fromArray(p, 3 * i));
-    geometry.boundingBox = box;
-    geometry.boundingSphere = box.getBoundingSphere(new Sphere());
+    g.boundingBox = box;
+    g.boundingSphere = box.getBoundingSphere(new Sphere());
   }
 
   /// Poses the surface from its nodes' current world matrices (relative
@@ -386,6 +394,7 @@ export class StrataLoaderPlugin {
       result.scene.add(surface);
       result.scene.updateMatrixWorld(true);
       surface.update(true);
+      surface.updateBounds();  // posed by its nodes in the scene now
       result.userData = result.userData || {};
       result.userData.strata = surface;
     } catch (e) {

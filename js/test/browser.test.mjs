@@ -181,6 +181,11 @@ window.adaptiveDraw = async (url) => {
   sun.position.set(1, 2, 3);
   scene.add(sun);
   scene.updateMatrixWorld(true);
+  // The geometry's box is the loaded pose's (what a page frames its camera by).
+  const posed = new THREE.Box3();
+  for (let i = 0, a = mesh.geometry.attributes.position.array; i < mesh.drawnVertexCount; ++i)
+    posed.expandByPoint(new THREE.Vector3().fromArray(a, 3 * i));
+  const boxed = mesh.geometry.boundingBox.equals(posed);
   const box = new THREE.Box3().setFromObject(mesh);
   const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
   const camera = new THREE.PerspectiveCamera(40, 1, 0.01 * size, 100 * size);
@@ -252,7 +257,7 @@ window.adaptiveDraw = async (url) => {
   mesh.clearView();
   const back = mesh.refinedVertexCount;
   return {
-    uniformVertices, drawn, kept, same, inRange, reused, far: far.vertices, zoomed, narrow,
+    uniformVertices, drawn, kept, same, inRange, reused, boxed, far: far.vertices, zoomed, narrow,
     groups: geometry.groups.length, parts: mesh.parts.length, textured, back,
     adaptivePsnr: psnr(adaptive, uniform), untexturedPsnr: psnr(bare, adaptive),
     nearPsnr: psnr(near, uniform), farPsnr: psnr(farAdaptive, farUniform),
@@ -380,6 +385,7 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
     const got = await tab.evaluate((u) => window.adaptiveDraw(u), `/work/${name}.glb`);
     assert.deepEqual(tab.errors, []);
     assert.ok(got.textured, `${name}: no texture to check`);
+    assert.ok(got.boxed, `${name}: the geometry's bounding box is not the loaded pose's`);
     assert.ok(got.drawn.vertices < got.uniformVertices, `${name}: ${got.drawn.vertices} adaptive vertices, ` +
       `${got.uniformVertices} uniform`);
     assert.ok(got.same, `${name}: the geometry is not the adaptive frame`);
