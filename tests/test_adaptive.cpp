@@ -210,6 +210,31 @@ TEST(Adaptive, EveryMixOfQuartersTilesItsFace)
 }
 
 // The bending example rig in either scheme.
+// Random quarter levels, 4 per face: a quarter of the faces at level 0,
+// a quarter at one level 1..finest, the rest mixed.
+void randomQuarters(std::vector<uint8_t>* quarters, int finest, std::mt19937& rng)
+{
+    std::uniform_int_distribution<int> any(1, finest), pick(0, 3);
+    for (size_t f = 0; f < quarters->size() / 4; ++f) {
+        const int kind = pick(rng);
+        const uint8_t one = uint8_t(any(rng));
+        for (size_t k = 0; k < 4; ++k)
+            (*quarters)[4 * f + k] = kind == 0 ? 0 : kind == 1 ? one : uint8_t(any(rng));
+    }
+}
+
+// How many triangles use each undirected edge.
+std::map<std::pair<uint32_t, uint32_t>, int> edgeUses(const std::vector<uint32_t>& triangles)
+{
+    std::map<std::pair<uint32_t, uint32_t>, int> uses;
+    for (size_t k = 0; k < triangles.size(); k += 3)
+        for (size_t e = 0; e < 3; ++e) {
+            const uint32_t u = triangles[k + e], v = triangles[k + (e + 1) % 3];
+            ++uses[{std::min(u, v), std::max(u, v)}];
+        }
+    return uses;
+}
+
 void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
 {
     test::makeBendingExampleRig(rig, map);
@@ -356,13 +381,7 @@ TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
         std::vector<uint8_t> quarters(4 * nf);
         std::vector<glm::vec3> fine(s->vertexCount());
         for (int trial = 0; trial < 10; ++trial) {
-            std::uniform_int_distribution<int> any(1, s->level()), pick(0, 3);
-            for (size_t f = 0; f < nf; ++f) {
-                const int kind = pick(rng);  // 0: level 0; 1: one level; else mixed
-                const uint8_t one = uint8_t(any(rng));
-                for (int c = 0; c < 4; ++c)
-                    quarters[4 * f + size_t(c)] = kind == 0 ? 0 : kind == 1 ? one : uint8_t(any(rng));
-            }
+            randomQuarters(&quarters, s->level(), rng);
             ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
             ASSERT_TRUE(s->setAnimationTime(0, 0.15f * float(trial)).isOk());
             const std::string label = std::string(schemeName(scheme)) + " trial " + std::to_string(trial);
@@ -373,15 +392,8 @@ TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
             EXPECT_GT(st.boundaryEdges, 0u) << label;
             // One rim and no slit: the open edges make one loop, each of its
             // vertices on two of them (a crack would open a second loop).
-            std::map<std::pair<uint32_t, uint32_t>, int> uses;
-            const std::vector<uint32_t>& t = frame.triangles();
-            for (size_t k = 0; k < t.size(); k += 3)
-                for (int e = 0; e < 3; ++e) {
-                    const uint32_t u = t[k + size_t(e)], v = t[k + size_t(e + 1) % 3];
-                    ++uses[{std::min(u, v), std::max(u, v)}];
-                }
             std::map<uint32_t, std::vector<uint32_t>> rim;
-            for (const auto& [edge, count] : uses)
+            for (const auto& [edge, count] : edgeUses(frame.triangles()))
                 if (count == 1) {
                     rim[edge.first].push_back(edge.second);
                     rim[edge.second].push_back(edge.first);
@@ -447,25 +459,13 @@ TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
         const size_t nf = m.faceCount();
         std::vector<uint8_t> quarters(4 * nf);
         for (int trial = 0; trial < 40; ++trial) {
-            std::uniform_int_distribution<int> any(1, s->level()), pick(0, 3);
-            for (size_t f = 0; f < nf; ++f) {
-                const int kind = pick(rng);  // 0: level 0; 1: one level; else mixed
-                const uint8_t one = uint8_t(any(rng));
-                for (int k = 0; k < 4; ++k)
-                    quarters[4 * f + size_t(k)] = kind == 0 ? 0 : kind == 1 ? one : uint8_t(any(rng));
-            }
+            randomQuarters(&quarters, s->level(), rng);
             ASSERT_TRUE(s->setQuarterLevels(quarters.data(), quarters.size()).isOk());
             const std::string label = std::string(schemeName(scheme)) + " trial " + std::to_string(trial);
             const AdaptiveFrame& frame = s->adaptiveFrame();
             const std::vector<uint32_t>& t = frame.triangles();
-            std::map<std::pair<uint32_t, uint32_t>, int> faces;
-            for (size_t k = 0; k < t.size(); k += 3)
-                for (int e = 0; e < 3; ++e) {
-                    const uint32_t u = t[k + size_t(e)], v = t[k + size_t(e + 1) % 3];
-                    ++faces[{std::min(u, v), std::max(u, v)}];
-                }
             size_t hinge = 0;
-            for (const auto& [edge, count] : faces) {
+            for (const auto& [edge, count] : edgeUses(t)) {
                 ASSERT_TRUE(count == 2 || count == 4) << label << ": an edge on " << count << " faces";
                 hinge += count == 4;
             }

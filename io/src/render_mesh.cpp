@@ -52,6 +52,43 @@ Status refinePartAttribute(const tinygltf::Model& model, const RigPart& part, co
     return Status::ok();
 }
 
+namespace {
+
+// One render vertex per (vertex, corner value): corner c uses vertex
+// vertexOf[c] with value valueOf[c].  The first `n` render vertices are the
+// vertices themselves, each with the value of its first corner (0 for a
+// vertex of no corner, never drawn); the copies others need follow.  Fills
+// rm's refinedVertex and indices, and the value of every render vertex.
+void splitByCornerValue(size_t n, const std::vector<uint32_t>& vertexOf, const std::vector<uint32_t>& valueOf,
+                        RenderMesh* rm, std::vector<uint32_t>* values)
+{
+    rm->refinedVertexCount = n;
+    rm->refinedVertex.resize(n);
+    std::iota(rm->refinedVertex.begin(), rm->refinedVertex.end(), 0u);
+    rm->indices.resize(vertexOf.size());
+    values->assign(n, ~0u);
+    std::unordered_map<uint64_t, uint32_t> copies;
+    for (size_t c = 0; c < vertexOf.size(); ++c) {
+        const uint32_t v = vertexOf[c], u = valueOf[c];
+        if ((*values)[v] == ~0u || (*values)[v] == u) {
+            (*values)[v] = u;
+            rm->indices[c] = v;
+            continue;
+        }
+        auto it = copies.emplace((uint64_t(v) << 32) | u, uint32_t(rm->refinedVertex.size()));
+        if (it.second) {
+            rm->refinedVertex.push_back(v);
+            values->push_back(u);
+        }
+        rm->indices[c] = it.first->second;
+    }
+    for (uint32_t& u : *values)
+        if (u == ~0u)
+            u = 0;
+}
+
+}  // namespace
+
 void RenderMesh::gather(const glm::vec3* refined, glm::vec3* out) const
 {
     const size_t n = refinedVertex.size();
@@ -85,26 +122,8 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
         return Status(StatusCode::InvalidData, "the face-varying refinement does not match the plan");
     // Each refined vertex first takes the corner value of its first corner;
     // a corner with another value gets (or finds) a copy.
-    std::vector<uint32_t> cornerValue(n, ~0u);
-    std::unordered_map<uint64_t, uint32_t> copies;
-    rm.indices.resize(tris.size());
-    for (size_t c = 0; c < tris.size(); ++c) {
-        const uint32_t v = tris[c], u = fv.corners[c];
-        if (cornerValue[v] == ~0u || cornerValue[v] == u) {
-            cornerValue[v] = u;
-            rm.indices[c] = v;
-            continue;
-        }
-        auto it = copies.emplace((uint64_t(v) << 32) | u, uint32_t(rm.refinedVertex.size()));
-        if (it.second) {
-            rm.refinedVertex.push_back(v);
-            cornerValue.push_back(u);
-        }
-        rm.indices[c] = it.first->second;
-    }
-    for (uint32_t& u : cornerValue)
-        if (u == ~0u)
-            u = 0;  // a refined vertex of no triangle (never drawn)
+    std::vector<uint32_t> cornerValue;
+    splitByCornerValue(n, tris, fv.corners, &rm, &cornerValue);
 
     // Parts, and which render vertices each part's triangles use.
     const tinygltf::Model& model = rig.source->model;
@@ -203,14 +222,8 @@ Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, cons
     const std::vector<uint32_t>& vertices = frame.vertices();
     const std::vector<uint32_t>& triangles = frame.triangles();
     const std::vector<uint32_t>& triangleFaces = frame.triangleFaces();
-    const size_t count = vertices.size();
-    RenderMesh rm;
-    rm.refinedVertexCount = count;
-    rm.refinedVertex.resize(count);
-    std::iota(rm.refinedVertex.begin(), rm.refinedVertex.end(), 0u);
-    std::vector<uint32_t> source(count, ~0u);  // per render vertex: uniform's render vertex
-    std::unordered_map<uint64_t, uint32_t> copies;
-    rm.indices.resize(triangles.size());
+    // Per corner, uniform's render vertex of its refined vertex in its face.
+    std::vector<uint32_t> cornerSource(triangles.size());
     for (size_t c = 0; c < triangles.size(); ++c) {
         const uint32_t a = triangles[c], v = vertices[a];
         uint32_t r = v;
@@ -221,21 +234,11 @@ Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, cons
                                                            " lies outside its triangle's control face");
             r = it->second;
         }
-        if (source[a] == ~0u || source[a] == r) {
-            source[a] = r;
-            rm.indices[c] = a;
-            continue;
-        }
-        auto it = copies.emplace((uint64_t(a) << 32) | r, uint32_t(rm.refinedVertex.size()));
-        if (it.second) {
-            rm.refinedVertex.push_back(a);
-            source.push_back(r);
-        }
-        rm.indices[c] = it.first->second;
+        cornerSource[c] = r;
     }
-    for (uint32_t& r : source)
-        if (r == ~0u)
-            r = 0;  // a frame vertex of no triangle (never drawn)
+    RenderMesh rm;
+    std::vector<uint32_t> source;  // per render vertex: uniform's render vertex
+    splitByCornerValue(vertices.size(), triangles, cornerSource, &rm, &source);
 
     // Parts: the frame lists its triangles control face by control face,
     // so each part's faces give one range of them.

@@ -214,14 +214,7 @@ export class StrataSurface {
   }
   /// This surface laid out for drawing (StrataRenderMesh).
   createRenderMesh(rig) {
-    const r = this.runtime;
-    const out = r.alloc(4);
-    try {
-      r.check(r.module._strata_render_mesh_create(rig.handle, this.handle, out));
-      return new StrataRenderMesh(r, r.u32(out, 1)[0]);
-    } finally {
-      r.free(out);
-    }
+    return renderMesh(this.runtime, (out) => this.runtime.module._strata_render_mesh_create(rig.handle, this.handle, out));
   }
   /// Adaptive level of detail: each control face at the lowest level within
   /// `pixelError` pixels of this surface's level, for a camera at `eye`
@@ -281,14 +274,8 @@ export class StrataSurface {
   /// frame's vertices first.  Its evaluate() fills it from the adaptive
   /// frame, and throws once the levels change (make another).
   createAdaptiveRenderMesh(uniform) {
-    const r = this.runtime;
-    const out = r.alloc(4);
-    try {
-      r.check(r.module._strata_render_mesh_create_adaptive(uniform.handle, this.handle, out));
-      return new StrataRenderMesh(r, r.u32(out, 1)[0]);
-    } finally {
-      r.free(out);
-    }
+    return renderMesh(this.runtime,
+      (out) => this.runtime.module._strata_render_mesh_create_adaptive(uniform.handle, this.handle, out));
   }
   dispose() {
     const r = this.runtime;
@@ -297,6 +284,17 @@ export class StrataSurface {
     r.free(this.joints);
     r.free(this.adaptiveFrame);
     this.handle = this.frame = this.joints = this.adaptiveFrame = 0;
+  }
+}
+
+// A render mesh from a C API call that writes its handle to `out`.
+function renderMesh(runtime, create) {
+  const out = runtime.alloc(4);
+  try {
+    runtime.check(create(out));
+    return new StrataRenderMesh(runtime, runtime.u32(out, 1)[0]);
+  } finally {
+    runtime.free(out);
   }
 }
 
