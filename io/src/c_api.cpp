@@ -387,6 +387,17 @@ StrataStatus strata_surface_adaptive_triangles(const StrataSurface* surface, uin
     return STRATA_OK;
 }
 
+StrataStatus strata_surface_adaptive_triangle_levels(const StrataSurface* surface, uint8_t* dst)
+{
+    if (!surface || !dst)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_adaptive_triangle_levels: null argument");
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    const AdaptiveFrame& frame = surface->surface->adaptiveFrame();
+    for (size_t t = 0; t < frame.triangleCount(); ++t)
+        dst[t] = uint8_t(frame.triangleLevel(t));
+    return STRATA_OK;
+}
+
 StrataStatus strata_surface_adaptive_vertices(const StrataSurface* surface, uint32_t* dst)
 {
     if (!surface || !dst)

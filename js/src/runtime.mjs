@@ -86,10 +86,11 @@ export class StrataRuntime {
   }
   // Calls fn(ptr) with `count` elements of 4 bytes of scratch, returning a copy as Type.
   withScratch(Type, count, fn) {
-    const ptr = this.alloc(count * 4);
+    const bytes = count * Type.BYTES_PER_ELEMENT;
+    const ptr = this.alloc(Math.max(bytes, 4));
     try {
       fn(ptr);
-      return new Type(this.module.HEAPU8.buffer.slice(ptr, ptr + count * 4));
+      return new Type(this.module.HEAPU8.buffer.slice(ptr, ptr + bytes));
     } finally {
       this.free(ptr);
     }
@@ -240,6 +241,12 @@ export class StrataSurface {
     const r = this.runtime;
     return r.withScratch(Uint32Array, this.adaptiveTriangleCount * 3, (ptr) =>
       r.check(r.module._strata_surface_adaptive_triangles(this.handle, ptr)));
+  }
+  /// Per adaptive triangle, the level it is drawn at (its quarter's).
+  adaptiveTriangleLevels() {
+    const r = this.runtime;
+    return r.withScratch(Uint8Array, this.adaptiveTriangleCount, (ptr) =>
+      r.check(r.module._strata_surface_adaptive_triangle_levels(this.handle, ptr)));
   }
   /// Per adaptive vertex, its refined vertex (an index into evaluate()'s).
   adaptiveVertices() {

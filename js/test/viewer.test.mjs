@@ -126,8 +126,26 @@ test('the viewer plays a character', async () => {
   assert.ok(loose.drawn < tight.drawn, `8 px draws ${loose.drawn}, 1 px ${tight.drawn}`);
   await tab.evaluate(() => document.getElementById('pixelError').dispatchEvent(new Event('input')));
   await new Promise((r) => setTimeout(r, 700));  // the stats refresh every 30 frames
-  assert.match(await tab.evaluate(() => document.getElementById('stats').textContent), /adaptive to level \d, 8 px: \d+ of \d+ vertices/);
+  assert.match(await tab.evaluate(() => document.getElementById('stats').textContent), /adaptive within 8 px, up to level \d:\n +\d+ of \d+ vertices/);
+  // The false colour shows levels in adaptive mode: its legend says so, and
+  // the vertices take more than one colour (the frame mixes levels).
+  const coloured = await tab.evaluate(async () => {
+    const s = document.getElementById('pixelError');
+    s.value = '1';
+    s.dispatchEvent(new Event('input'));
+    document.getElementById('falseColour').click();
+    await new Promise((r) => setTimeout(r, 500));
+    const g = window.strataViewer.surface.geometry, c = g.attributes.strataColour;
+    const seen = new Set();
+    for (let i = 0; c && i < window.strataViewer.surface.drawnVertexCount; ++i) seen.add(c.array.slice(3 * i, 3 * i + 3).join());
+    return { label: document.getElementById('falseColourText').textContent, high: document.getElementById('legendHigh').textContent,
+      colours: seen.size };
+  });
+  assert.equal(coloured.label, 'level false colour');
+  assert.match(coloured.high, /^level \d$/);
+  assert.ok(coloured.colours >= 2, `${coloured.colours} level colours`);
   await shot(tab, 'web-viewer-adaptive.png');
+  await tab.evaluate(() => document.getElementById('falseColour').click());
   const back = await tab.evaluate(() => {
     document.getElementById('adaptive').click();
     return window.strataViewer.surface.refinedVertexCount;

@@ -158,8 +158,8 @@ function updateStats() {
     const rig = m.rig;
     lines.push(`control: ${rig.controlVertexCount} vertices, scheme ${rig.scheme}`);
     if (state.adaptive)
-      lines.push(`adaptive to level ${m.level}, ${$('pixelError').value} px: ${m.refinedVertexCount} of ` +
-        `${m.surface.vertexCount} vertices,`);
+      lines.push(`adaptive within ${$('pixelError').value} px, up to level ${m.level}:`,
+        `  ${m.refinedVertexCount} of ${m.surface.vertexCount} vertices,`);
     else
       lines.push(`level ${m.level} (recommended ${rig.recommendedLevel}): ${m.refinedVertexCount} vertices,`);
     lines.push(`  ${m.drawnIndexCount / 3} triangles, ${m.drawnVertexCount} drawn vertices`);
@@ -176,6 +176,19 @@ function updateStats() {
   $('stats').textContent = lines.join('\n');
 }
 
+// Lambert shading tinted by the strataColour attribute.
+function falseColourMaterial() {
+  const material = new THREE.MeshLambertMaterial({ wireframe: $('wireframe').checked });
+  material.onBeforeCompile = (shader) => {
+    shader.vertexShader = shader.vertexShader.replace('#include <color_pars_vertex>',
+      'attribute vec3 strataColour;\nvarying vec3 vStrataColour;')
+      .replace('#include <color_vertex>', 'vStrataColour = strataColour;');
+    shader.fragmentShader = shader.fragmentShader.replace('#include <color_pars_fragment>', 'varying vec3 vStrataColour;')
+      .replace('#include <color_fragment>', 'diffuseColor.rgb *= vStrataColour;');
+  };
+  return material;
+}
+
 function applyFalseColour() {
   const m = state.surface;
   if (!m) return;
@@ -185,32 +198,50 @@ function applyFalseColour() {
     m.userData.savedMaterial = null;
     return;
   }
-  const d = m.surface.displacements();
-  let scale = 0;
-  for (const x of d) scale = Math.max(scale, Math.abs(x));
-  scale = scale || 1;
+  // A value in -1 .. 1 per drawn vertex: the displacement over its largest,
+  // or in adaptive mode the finest level of the triangles it is drawn in,
+  // from level 0 (-1) to the surface's (+1).
   const n = m.geometry.attributes.position.count;
+  const value = new Float32Array(n);
+  let scale = 0;
+  if (state.adaptive && m.adaptiveMesh) {
+    const levels = m.surface.adaptiveTriangleLevels(), index = m.geometry.index.array;
+    value.fill(-1);
+    for (let t = 0; t < levels.length; ++t)
+      for (let k = 0; k < 3; ++k)
+        value[index[3 * t + k]] = Math.max(value[index[3 * t + k]], m.level ? (2 * levels[t]) / m.level - 1 : 1);
+  } else {
+    const d = m.surface.displacements();
+    for (const x of d) scale = Math.max(scale, Math.abs(x));
+    scale = scale || 1;
+    for (let i = 0; i < n; ++i) value[i] = d[m.refinedVertex[i]] / scale;
+  }
   const colours = new Float32Array(3 * n);
   const low = new THREE.Color(0x3b4cc0), mid = new THREE.Color(0xdddddd), high = new THREE.Color(0xb40426);
   const c = new THREE.Color();
   for (let i = 0; i < n; ++i) {
-    const t = d[m.refinedVertex[i]] / scale;
+    const t = value[i];
     c.copy(mid).lerp(t < 0 ? low : high, Math.min(1, Math.abs(t)));
     colours.set([c.r, c.g, c.b], 3 * i);
   }
   m.geometry.setAttribute('strataColour', new THREE.BufferAttribute(colours, 3));
   if (!m.userData.savedMaterial) m.userData.savedMaterial = m.material;
-  const material = new THREE.MeshLambertMaterial({ wireframe: $('wireframe').checked });
-  material.onBeforeCompile = (shader) => {
-    shader.vertexShader = shader.vertexShader.replace('#include <color_pars_vertex>',
-      'attribute vec3 strataColour;\nvarying vec3 vStrataColour;')
-      .replace('#include <color_vertex>', 'vStrataColour = strataColour;');
-    shader.fragmentShader = shader.fragmentShader.replace('#include <color_pars_fragment>', 'varying vec3 vStrataColour;')
-      .replace('#include <color_fragment>', 'diffuseColor.rgb *= vStrataColour;');
-  };
-  m.material = material;
-  $('legendLow').textContent = (-scale).toPrecision(3);
-  $('legendHigh').textContent = `+${scale.toPrecision(3)}`;
+  if (m.userData.falseMaterial) {
+    m.userData.falseMaterial.wireframe = $('wireframe').checked;
+    m.material = m.userData.falseMaterial;
+  } else {
+    m.material = m.userData.falseMaterial = falseColourMaterial();
+  }
+  if (state.adaptive && m.adaptiveMesh) {
+    $('legendLow').textContent = 'level 0';
+    $('legendMid').textContent = m.level % 2 ? '' : `level ${m.level / 2}`;
+    $('legendHigh').textContent = `level ${m.level}`;
+  } else {
+    $('legendMid').textContent = '0';
+    $('legendLow').textContent = (-scale).toPrecision(3);
+    $('legendHigh').textContent = `+${scale.toPrecision(3)}`;
+  }
+  state.colouredVersion = m.adaptiveVersionShown;
 }
 
 function applyToggles() {
@@ -321,16 +352,17 @@ $('cage').addEventListener('change', applyToggles);
 $('wireframe').addEventListener('change', () => { applyToggles(); if (state.falseColour) applyFalseColour(); });
 $('falseColour').addEventListener('change', () => { state.falseColour = $('falseColour').checked; applyFalseColour(); });
 // Adaptive level of detail: each frame, every control face at the lowest
-// level within the pixel tolerance of the slider's level for this camera
-// (the false colour shows per-vertex displacement of one level: off here).
+// level within the pixel tolerance of the slider's level for this camera.
+// The false colour then shows each vertex's level (the finest of the
+// triangles it is drawn in) instead of its displacement.
 $('adaptive').addEventListener('change', () => {
   state.adaptive = $('adaptive').checked ? {} : null;
-  $('falseColour').disabled = !!state.adaptive;
-  if (state.adaptive && state.falseColour) {
-    $('falseColour').checked = state.falseColour = false;
+  $('falseColourText').textContent = state.adaptive ? 'level false colour' : 'displacement false colour';
+  if (!state.adaptive && state.surface) {
+    state.surface.clearView();
+    applyToggles();
     applyFalseColour();
   }
-  if (!state.adaptive && state.surface) state.surface.clearView();
   updateStats();
 });
 $('pixelError').addEventListener('input', () => { $('pixelErrorText').textContent = `${$('pixelError').value} px`; });
@@ -370,6 +402,7 @@ renderer.setAnimationLoop(() => {
   if (state.adaptive && state.surface) {
     try {
       state.surface.setView(camera, { pixelError: Number($('pixelError').value), heightPx: renderer.domElement.height });
+      if (state.falseColour && state.colouredVersion !== state.surface.adaptiveVersionShown) applyFalseColour();
     } catch (e) {
       message(e.message);
       $('adaptive').checked = false;

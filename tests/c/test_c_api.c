@@ -66,6 +66,10 @@ static void closedForm(void)
         }
         for (int i = 0; i < 6; ++i)
             CHECK(at[i] < 4);
+        uint8_t levels[2] = {9, 9};
+        CHECK(strata_surface_adaptive_triangle_levels(s, levels) == STRATA_OK);
+        CHECK(levels[0] == 0 && levels[1] == 0);
+        CHECK(strata_surface_adaptive_triangle_levels(s, NULL) == STRATA_INVALID_ARGUMENT);
         /* A camera on its target is refused with a message. */
         CHECK(strata_surface_choose_levels(s, eye, eye, 45.0f, 1080.0f, 1.0f) == STRATA_INVALID_ARGUMENT);
         CHECK(strstr(strata_last_error(), "not a view") != NULL);

@@ -135,6 +135,9 @@ size_t strata_surface_adaptive_vertex_count(const StrataSurface* surface);
 size_t strata_surface_adaptive_triangle_count(const StrataSurface* surface);
 /** 3 indices per adaptive triangle, into the adaptive frame's vertices. */
 StrataStatus strata_surface_adaptive_triangles(const StrataSurface* surface, uint32_t* dst);
+/** Per adaptive triangle, the level it is drawn at (its quarter's): one
+ *  byte each, strata_surface_adaptive_triangle_count of them. */
+StrataStatus strata_surface_adaptive_triangle_levels(const StrataSurface* surface, uint8_t* dst);
 /** Per adaptive vertex, its refined vertex (an index into
  *  strata_surface_evaluate's vertices): to place UVs or colours. */
 StrataStatus strata_surface_adaptive_vertices(const StrataSurface* surface, uint32_t* dst);
