@@ -152,6 +152,19 @@ void checkKeepsEverything(const std::string& source, const std::string& dir, con
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
 }
 
+// A surface of `rig` at `level` (displaced or not, no map) and its render
+// layout; null when either fails.
+std::unique_ptr<Surface> surfaceWithLayout(const Rig& rig, int level, bool displace, io::RenderMesh* layout)
+{
+    SurfaceOptions options;
+    options.level = level;
+    options.displace = displace;
+    std::unique_ptr<Surface> surface;
+    if (!Surface::create(&surface, rig, nullptr, options).isOk() || !io::buildRenderMesh(rig, surface->plan(), layout).isOk())
+        return nullptr;
+    return surface;
+}
+
 // The adaptive layout of `rig` at `level` for `trials` random mixes of
 // quarter levels (all at the finest first): every corner is drawn at its
 // frame vertex, with the attribute values the uniform layout gives that
@@ -159,14 +172,10 @@ void checkKeepsEverything(const std::string& source, const std::string& dir, con
 // faces; gather places the frame's positions.
 void expectAdaptiveLayout(const Rig& rig, bool displace, int level, int trials, size_t* splitVertices)
 {
-    SurfaceOptions options;
-    options.level = level;
-    options.displace = displace;
-    std::unique_ptr<Surface> surface;
-    ASSERT_TRUE(Surface::create(&surface, rig, nullptr, options).isOk());
-    const Plan& plan = surface->plan();
     io::RenderMesh uniform;
-    ASSERT_TRUE(io::buildRenderMesh(rig, plan, &uniform).isOk());
+    std::unique_ptr<Surface> surface = surfaceWithLayout(rig, level, displace, &uniform);
+    ASSERT_TRUE(surface);
+    const Plan& plan = surface->plan();
     const size_t faces = rig.mesh.faceCount(), perFace = size_t(1) << (2 * level);
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
     std::mt19937 rng(7);
@@ -293,6 +302,21 @@ std::vector<uint32_t> indicesOf(const tinygltf::Model& m, int index)
     return out;
 }
 
+// A one-primitive glTF character with that primitive taken out of its mesh
+// (to be split), and its triangles' indices.
+bool takeFirstPrimitive(const std::string& source, tinygltf::Model* m, tinygltf::Primitive* whole,
+                        std::vector<uint32_t>* idx)
+{
+    tinygltf::TinyGLTF io;
+    std::string err, warn;
+    if (!io.LoadBinaryFromFile(m, &err, &warn, source) || m->meshes.empty() || m->meshes[0].primitives.empty())
+        return false;
+    *whole = m->meshes[0].primitives[0];
+    *idx = indicesOf(*m, whole->indices);
+    m->meshes[0].primitives.clear();
+    return true;
+}
+
 // CesiumMan as a production character: its primitive split in three with
 // three materials, a fin triangle (own primitive) on an existing edge, and a
 // closed "eye" mesh on a node parented to a joint, not skinned.
@@ -300,14 +324,12 @@ bool makeCharacter(const std::string& source, const std::string& path, size_t* f
 {
     tinygltf::TinyGLTF io;
     tinygltf::Model m;
-    std::string err, warn;
-    if (!io.LoadBinaryFromFile(&m, &err, &warn, source))
+    tinygltf::Primitive whole;
+    std::vector<uint32_t> idx;
+    if (!takeFirstPrimitive(source, &m, &whole, &idx))
         return false;
     tinygltf::Mesh& mesh = m.meshes[0];
-    const tinygltf::Primitive whole = mesh.primitives[0];
-    const std::vector<uint32_t> idx = indicesOf(m, whole.indices);
     const size_t faces = idx.size() / 3;
-    mesh.primitives.clear();
     for (int k = 0; k < 3; ++k) {
         tinygltf::Primitive p = whole;
         const size_t f0 = faces * size_t(k) / 3, f1 = faces * size_t(k + 1) / 3;
@@ -473,14 +495,12 @@ bool splitIntoParts(const std::string& source, const std::string& path, int part
 {
     tinygltf::TinyGLTF io;
     tinygltf::Model m;
-    std::string err, warn;
-    if (!io.LoadBinaryFromFile(&m, &err, &warn, source))
+    tinygltf::Primitive whole;
+    std::vector<uint32_t> idx;
+    if (!takeFirstPrimitive(source, &m, &whole, &idx))
         return false;
     tinygltf::Mesh& mesh = m.meshes[0];
-    const tinygltf::Primitive whole = mesh.primitives[0];
-    const std::vector<uint32_t> idx = indicesOf(m, whole.indices);
     const size_t faces = idx.size() / 3;
-    mesh.primitives.clear();
     for (int k = 0; k < parts; ++k) {
         const size_t f0 = faces * size_t(k) / size_t(parts), f1 = faces * size_t(k + 1) / size_t(parts);
         std::vector<uint32_t> used(idx.begin() + long(3 * f0), idx.begin() + long(3 * f1));
@@ -1358,14 +1378,10 @@ TEST(Scene, RenderMeshSplitsAtSeamsAndKeepsThePlanOrder)
     const std::vector<float> fileUV = accessorData<float>(m, m.meshes[0].primitives[0].attributes.at("TEXCOORD_0"), 2);
     for (int level : {0, 1}) {
         SCOPED_TRACE(level);
-        SurfaceOptions options;
-        options.level = level;
-        options.displace = false;
-        std::unique_ptr<Surface> surface;
-        ASSERT_TRUE(Surface::create(&surface, rig, nullptr, options).isOk());
-        const Plan& plan = surface->plan();
         io::RenderMesh rm;
-        ASSERT_TRUE(io::buildRenderMesh(rig, plan, &rm).isOk());
+        std::unique_ptr<Surface> surface = surfaceWithLayout(rig, level, false, &rm);
+        ASSERT_TRUE(surface);
+        const Plan& plan = surface->plan();
         const size_t n = plan.refinedVertexCount();
         ASSERT_EQ(rm.refinedVertexCount, n);
         ASSERT_GT(rm.vertexCount(), n);  // the seams split vertices
