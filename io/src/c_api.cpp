@@ -564,7 +564,7 @@ StrataStatus strata_render_mesh_evaluate(StrataRenderMesh* mesh, const StrataSur
                 return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the surface's adaptive levels "
                                                      "changed since this render mesh was made; make another");
         }
-        const size_t n = mesh->frame ? mesh->frame->vertexCount() : s.vertexCount();
+        const size_t n = mesh->frame ? s.adaptiveFrame().vertexCount() : s.vertexCount();
         if (n != mesh->layout.refinedVertexCount)
             return fail(STRATA_INVALID_ARGUMENT, "strata_render_mesh_evaluate: the surface has " + std::to_string(n) +
                                                      " vertices, the render mesh was made for " +

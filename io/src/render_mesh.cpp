@@ -101,11 +101,11 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
     RenderMesh rm;
     const size_t n = plan.refinedVertexCount();
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
-    rm.refinedVertexCount = n;
-    rm.refinedVertex.resize(n);
-    std::iota(rm.refinedVertex.begin(), rm.refinedVertex.end(), 0u);
     const bool fromGltf = rig.source && !rig.parts.empty() && rig.fileCorners.size() == rig.mesh.triangles.size();
     if (!fromGltf) {
+        rm.refinedVertexCount = n;
+        rm.refinedVertex.resize(n);
+        std::iota(rm.refinedVertex.begin(), rm.refinedVertex.end(), 0u);
         rm.indices = tris;
         RenderPart part;
         part.indexCount = uint32_t(tris.size());

@@ -158,7 +158,6 @@ export class StrataSurfaceMesh extends Mesh {
     this.surface = surface;
     this.renderMesh = renderMesh;
     this.level = wanted < 0 ? this.rig.recommendedLevel : wanted;
-    this.refinedVertexCount = surface.vertexCount;
     this.showLayout(renderMesh);
     return this;
   }
@@ -193,8 +192,7 @@ export class StrataSurfaceMesh extends Mesh {
       if (this.adaptiveMesh) this.adaptiveMesh.dispose();
       this.adaptiveMesh = layout;
       this.adaptiveVersionShown = version;
-      this.refinedVertexCount = this.surface.adaptiveVertexCount;
-      this.showLayout(layout, true);
+      this.showLayout(layout);
     }
     return { vertices: this.refinedVertexCount, triangles: this.surface.adaptiveTriangleCount };
   }
@@ -203,7 +201,6 @@ export class StrataSurfaceMesh extends Mesh {
   clearView() {
     if (!this.adaptiveMesh) return this;
     this.dropView();
-    this.refinedVertexCount = this.surface.vertexCount;
     this.showLayout(this.renderMesh);
     return this;
   }
@@ -215,11 +212,13 @@ export class StrataSurfaceMesh extends Mesh {
   }
 
   // `layout` (the uniform or the adaptive render mesh) as the geometry, in
-  // the current pose.  `reuse`: into the current geometry's buffers where
-  // they hold it (an adaptive frame changes levels often as a character
-  // moves; new buffers would be new GPU buffers each time), else into new
-  // ones with room to grow.
-  showLayout(layout, reuse = false) {
+  // the current pose.  An adaptive layout goes into the current geometry's
+  // buffers where they hold it (an adaptive frame changes levels often as a
+  // character moves; new buffers would be new GPU buffers each time), else
+  // into new ones with room to grow.
+  showLayout(layout) {
+    const reuse = layout === this.adaptiveMesh;
+    this.refinedVertexCount = reuse ? this.surface.adaptiveVertexCount : this.surface.vertexCount;
     const n = layout.vertexCount;
     const indices = layout.indices();
     const attributes = layout.attributes().map((a) => ({ ...a, name: ATTRIBUTE_NAMES[a.name] || a.name.toLowerCase() }));

@@ -664,33 +664,27 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             g *= 1.0f + 2.0f * b;
         }
         gains_[f] = g;
-        // The lowest level within the tolerance; with a previous choice,
-        // that level held while it is no finer than the hold would choose.
-        auto lowest = [&](int from, int to, float tolerance, auto&& error) {
-            for (int l = from; l < to; ++l)
-                if (error(l) * g <= tolerance)
-                    return l;
-            return to;
+        // The lowest level in [from, to] within the tolerance; a previous
+        // level `was` above it is kept while no finer than the lowest
+        // within kHoldTolerance of the tolerance.
+        auto pick = [&](int from, int to, int was, auto&& error) {
+            auto lowest = [&](float tolerance) {
+                for (int l = from; l < to; ++l)
+                    if (error(l) * g <= tolerance)
+                        return l;
+                return to;
+            };
+            const int need = lowest(pixelError);
+            return was <= need ? need : std::min(was, lowest(kHoldTolerance * pixelError));
         };
-        auto held = [&](int need, int hold, int was) { return std::min(std::max(was, need), std::max(hold, need)); };
         const uint8_t* pq = previous ? previous + 4 * f : nullptr;
-        auto faceError = [&](int l) { return errors_.at(f, l); };
-        int level = lowest(0, L, pixelError, faceError);
-        if (pq)
-            level = held(level, lowest(0, L, kHoldTolerance * pixelError, faceError),
-                         std::max({pq[0], pq[1], pq[2], pq[3]}));
+        const int level = pick(0, L, pq ? std::max({pq[0], pq[1], pq[2], pq[3]}) : 0,
+                               [&](int l) { return errors_.at(f, l); });
         // Below level 2 a quarter has nothing coarser to take.
         uint8_t* fq = quarters + 4 * f;
-        for (int k = 0; k < 4; ++k) {
-            int ql = level;
-            if (level >= 2) {
-                auto quarterError = [&](int l) { return errors_.quarterAt(f, k, l); };
-                ql = lowest(1, level, pixelError, quarterError);
-                if (pq && pq[k] >= 1)
-                    ql = std::min(level, held(ql, lowest(1, level, kHoldTolerance * pixelError, quarterError), pq[k]));
-            }
-            fq[k] = uint8_t(ql);
-        }
+        for (int k = 0; k < 4; ++k)
+            fq[k] = uint8_t(level < 2 ? level
+                                      : pick(1, level, pq ? pq[k] : 0, [&](int l) { return errors_.quarterAt(f, k, l); }));
         // A split whose quarters' grids hold more points than the face's
         // (their shared borders counted twice, as the frame's passes work
         // them) saves too few vertices to pay for its smaller tiles.

@@ -243,14 +243,12 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
     chosenView_ = view;
     chosenTolerance_ = pixelError;
     chosenPose_ = controlPositions_;
-    // The same levels as drawn: the frame's topology stands.
-    if (adaptive_ && adaptive_->quarterLevels() == chosen_) {
-        chosenVersion_ = adaptive_->topologyVersion();
-        return Status::ok();
-    }
-    if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st) {
-        chosenVersion_ = ~uint64_t(0);
-        return st;
+    // Other levels than drawn set the frame's topology; the same keep it.
+    if (!adaptive_ || adaptive_->quarterLevels() != chosen_) {
+        if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st) {
+            chosenVersion_ = ~uint64_t(0);
+            return st;
+        }
     }
     chosenVersion_ = adaptive_->topologyVersion();
     return Status::ok();
