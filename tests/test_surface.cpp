@@ -8,6 +8,7 @@
 #include "strata/surface.h"
 
 #include <cstring>
+#include <random>
 
 namespace strata {
 namespace {
@@ -238,6 +239,56 @@ TEST(Surface, RefusesEveryInputThatWouldDrawAnotherSurface)
     Status ev = s->evaluate(small.data(), nullptr, small.size());
     EXPECT_FALSE(ev.isOk());
     EXPECT_NE(ev.message().find("refined vertices"), std::string::npos) << ev.message();
+}
+
+// The box Surface::bounds gives holds every vertex of every frame, uniform
+// and adaptive, in both schemes, as the pose moves, and is not much larger
+// than the surface itself (the control box grown by the displacement).
+TEST(Surface, BoundsHoldEveryPosedFrameAtEveryLevel)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        test::makeBendingExampleRig(&rig, &map);
+        rig.displacement.scheme = scheme;
+        SurfaceOptions options;
+        options.level = 3;
+        std::unique_ptr<Surface> s;
+        ASSERT_TRUE(Surface::create(&s, rig, &map, options).isOk());
+        float largest = 0.0f;
+        for (float d : s->plan().displacements())
+            largest = std::max(largest, std::fabs(d));
+        ASSERT_GT(largest, 0.01f);  // a displaced surface: the growth is tested
+        std::mt19937 random(7);
+        std::vector<uint8_t> levels(rig.mesh.faceCount());
+        for (float time : {0.0f, 0.3f, 0.7f, 1.0f}) {
+            ASSERT_TRUE(s->setAnimationTime(0, time).isOk());
+            glm::vec3 lo, hi;
+            s->bounds(&lo, &hi);
+            const std::vector<glm::vec3> p = evaluate(*s);
+            glm::vec3 a = p[0], b = p[0];
+            for (const glm::vec3& q : p) {
+                a = glm::min(a, q);
+                b = glm::max(b, q);
+            }
+            for (int k = 0; k < 3; ++k) {
+                EXPECT_LE(lo[k], a[k]) << schemeName(scheme) << " t " << time;
+                EXPECT_GE(hi[k], b[k]) << schemeName(scheme) << " t " << time;
+                // No looser than the displacement twice over on each side.
+                EXPECT_GE(lo[k], a[k] - 2.0f * largest - 0.05f * (b[k] - a[k]));
+                EXPECT_LE(hi[k], b[k] + 2.0f * largest + 0.05f * (b[k] - a[k]));
+            }
+            // Random levels per face: the adaptive frame is inside too.
+            for (uint8_t& l : levels)
+                l = uint8_t(std::uniform_int_distribution<int>(0, 3)(random));
+            ASSERT_TRUE(s->setFaceLevels(levels.data(), levels.size()).isOk());
+            std::vector<glm::vec3> q(s->adaptiveFrame().vertexCount());
+            ASSERT_TRUE(s->evaluateAdaptive(q.data(), nullptr, q.size()).isOk());
+            for (const glm::vec3& v : q)
+                ASSERT_TRUE(glm::all(glm::lessThanEqual(lo, v)) && glm::all(glm::lessThanEqual(v, hi)))
+                    << schemeName(scheme) << " t " << time;
+        }
+    }
 }
 
 }  // namespace strata

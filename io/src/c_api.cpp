@@ -377,6 +377,20 @@ size_t strata_surface_adaptive_triangle_count(const StrataSurface* surface)
     return surface->surface->adaptiveFrame().triangleCount();
 }
 
+StrataStatus strata_surface_bounds(const StrataSurface* surface, float* min, float* max)
+{
+    if (!surface || !min || !max)
+        return fail(STRATA_INVALID_ARGUMENT, "strata_surface_bounds: null argument");
+    std::lock_guard<std::mutex> lock(surface->frameMutex);
+    glm::vec3 lo, hi;
+    surface->surface->bounds(&lo, &hi);
+    for (int k = 0; k < 3; ++k) {
+        min[k] = lo[k];
+        max[k] = hi[k];
+    }
+    return STRATA_OK;
+}
+
 StrataStatus strata_surface_adaptive_triangles(const StrataSurface* surface, uint32_t* dst)
 {
     if (!surface || !dst)

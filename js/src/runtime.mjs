@@ -207,6 +207,15 @@ export class StrataSurface {
     normals.set(r.f32(this.frame + n * 4, n));
     return { positions, normals };
   }
+  /// A box that holds the current pose's surface at every level, uniform
+  /// and adaptive: { min: [x, y, z], max: [x, y, z] } (for culling and
+  /// picking without reading the frame).
+  bounds() {
+    const r = this.runtime;
+    const box = r.withScratch(Float32Array, 6, (ptr) =>
+      r.check(r.module._strata_surface_bounds(this.handle, ptr, ptr + 12)));
+    return { min: Array.from(box.subarray(0, 3)), max: Array.from(box.subarray(3, 6)) };
+  }
   /// Each refined vertex's displacement along its normal (model units).
   displacements() {
     const r = this.runtime;

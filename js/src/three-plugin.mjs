@@ -119,7 +119,6 @@ export class StrataSurfaceMesh extends Mesh {
     this.rig = rig;
     this.nodes = nodes;        // Object3D per skin joint
     this.cage = cage;          // the control meshes, hidden
-    this.frustumCulled = false;
     this.inverseBind = [];
     for (let j = 0; j < rig.jointCount; ++j) this.inverseBind.push(new Matrix4().fromArray(rig.inverseBindMatrix(j)));
     // Per-frame scratch, made once: the skin matrices, those last applied,
@@ -270,19 +269,20 @@ export class StrataSurfaceMesh extends Mesh {
     }
     this.posedByNodes = false;
     this.update(true);
-    this.updateBounds();
   }
 
-  /// The geometry's bounding box and sphere, of the vertices drawn in the
-  /// current pose (the buffers may hold room past them).  Set when the
-  /// layout changes and at load; a pose moves the surface past them, as it
-  /// moves a SkinnedMesh past its own.
+  /// The geometry's bounding box and sphere: the runtime's box of the
+  /// current pose (it holds the surface at every level, uniform and
+  /// adaptive), so three culls and picks the surface where it is drawn.
+  /// Called with every frame written.
   updateBounds() {
     const g = this.geometry;
-    const p = g.attributes.position.array, box = new Box3(), v = new Vector3();
-    for (let i = 0; i < this.drawnVertexCount; ++i) box.expandByPoint(v.fromArray(p, 3 * i));
-    g.boundingBox = box;
-    g.boundingSphere = box.getBoundingSphere(new Sphere());
+    const box = this.surface.bounds();
+    if (!g.boundingBox) g.boundingBox = new Box3();
+    if (!g.boundingSphere) g.boundingSphere = new Sphere();
+    g.boundingBox.min.fromArray(box.min);
+    g.boundingBox.max.fromArray(box.max);
+    g.boundingBox.getBoundingSphere(g.boundingSphere);
   }
 
   /// Poses the surface from its nodes' current world matrices (relative
@@ -334,6 +334,7 @@ export class StrataSurfaceMesh extends Mesh {
       a.addUpdateRange(0, 3 * this.drawnVertexCount);
       a.needsUpdate = true;
     }
+    this.updateBounds();
   }
 
   updateMatrixWorld(force) {
@@ -392,8 +393,7 @@ export class StrataLoaderPlugin {
       for (const c of cage) c.visible = false;
       result.scene.add(surface);
       result.scene.updateMatrixWorld(true);
-      surface.update(true);
-      surface.updateBounds();  // posed by its nodes in the scene now
+      surface.update(true);  // posed by its nodes in the scene now (and its bounds)
       result.userData = result.userData || {};
       result.userData.strata = surface;
     } catch (e) {

@@ -181,11 +181,19 @@ window.adaptiveDraw = async (url) => {
   sun.position.set(1, 2, 3);
   scene.add(sun);
   scene.updateMatrixWorld(true);
-  // The geometry's box is the loaded pose's (what a page frames its camera by).
-  const posed = new THREE.Box3();
-  for (let i = 0, a = mesh.geometry.attributes.position.array; i < mesh.drawnVertexCount; ++i)
-    posed.expandByPoint(new THREE.Vector3().fromArray(a, 3 * i));
-  const boxed = mesh.geometry.boundingBox.equals(posed);
+  // The geometry's box holds the pose drawn, and not much more (what a
+  // page frames its camera by, and three culls by).
+  const drawnBox = () => {
+    const b = new THREE.Box3();
+    for (let i = 0, a = mesh.geometry.attributes.position.array; i < mesh.drawnVertexCount; ++i)
+      b.expandByPoint(new THREE.Vector3().fromArray(a, 3 * i));
+    return b;
+  };
+  const holds = () => {
+    const b = mesh.geometry.boundingBox, d = drawnBox();
+    return b.containsBox(d) && b.getSize(new THREE.Vector3()).length() <= 1.25 * d.getSize(new THREE.Vector3()).length();
+  };
+  const boxed = holds();
   const box = new THREE.Box3().setFromObject(mesh);
   const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
   const camera = new THREE.PerspectiveCamera(40, 1, 0.01 * size, 100 * size);
@@ -256,8 +264,26 @@ window.adaptiveDraw = async (url) => {
   const narrow = mesh.setView(camera, { heightPx: px, pixelError: 1 }).vertices;
   mesh.clearView();
   const back = mesh.refinedVertexCount;
+  // Animated, the box follows the pose, adaptive or not; turned away, the
+  // camera sees nothing and three draws nothing (the surface is culled).
+  let follows = true;
+  for (const t of [0.3, 0.9]) {
+    mesh.setAnimationTime(0, t);
+    follows = follows && holds();
+    mesh.setView(camera, { heightPx: px, pixelError: 1 });
+    follows = follows && holds();
+    mesh.clearView();
+  }
+  renderer.info.autoReset = true;
+  draw();
+  const trianglesFacing = renderer.info.render.triangles;
+  camera.lookAt(camera.position.clone().multiplyScalar(2).sub(centre));
+  camera.updateMatrixWorld();
+  draw();
+  const trianglesAway = renderer.info.render.triangles;
   return {
-    uniformVertices, drawn, kept, same, inRange, reused, boxed, far: far.vertices, zoomed, narrow,
+    uniformVertices, drawn, kept, same, inRange, reused, boxed, follows, trianglesFacing, trianglesAway,
+    far: far.vertices, zoomed, narrow,
     groups: geometry.groups.length, parts: mesh.parts.length, textured, back,
     adaptivePsnr: psnr(adaptive, uniform), untexturedPsnr: psnr(bare, adaptive),
     nearPsnr: psnr(near, uniform), farPsnr: psnr(farAdaptive, farUniform),
@@ -385,7 +411,10 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
     const got = await tab.evaluate((u) => window.adaptiveDraw(u), `/work/${name}.glb`);
     assert.deepEqual(tab.errors, []);
     assert.ok(got.textured, `${name}: no texture to check`);
-    assert.ok(got.boxed, `${name}: the geometry's bounding box is not the loaded pose's`);
+    assert.ok(got.boxed, `${name}: the geometry's bounding box does not fit the loaded pose`);
+    assert.ok(got.follows, `${name}: the bounding box does not follow the animation`);
+    assert.ok(got.trianglesFacing > 0 && got.trianglesAway === 0,
+      `${name}: ${got.trianglesFacing} triangles drawn facing, ${got.trianglesAway} turned away (not culled)`);
     assert.ok(got.drawn.vertices < got.uniformVertices, `${name}: ${got.drawn.vertices} adaptive vertices, ` +
       `${got.uniformVertices} uniform`);
     assert.ok(got.same, `${name}: the geometry is not the adaptive frame`);

@@ -3,6 +3,8 @@
 
 #include "strata/normals.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 
@@ -68,6 +70,8 @@ Status Surface::create(std::unique_ptr<Surface>* out, const Rig& rig, const Disp
                       "the rig samples a displacement map and none was given (io::loadRigDisplacementMap)");
     if (s->displaced_ && !(st = applyRigDisplacement(s->plan_.get(), rig, map, options.scale)))
         return st;
+    for (float d : s->plan_->displacements())
+        s->largestDisplacement_ = std::max(s->largestDisplacement_, std::fabs(d));
     if (!s->skeleton_.empty()) {
         s->animator_ = std::make_unique<Animator>();
         if (!(st = s->animator_->init(s->skeleton_, s->mesh_)))
@@ -122,6 +126,20 @@ void Surface::updateNormals()
     controlNormals_.assign(controlPositions_.size(), glm::vec3(0.0f));
     computeControlNormals(controlNormals_.data(), controlPositions_.data(), controlPositions_.size(),
                           mesh_.triangles.data(), mesh_.faceCount());
+}
+
+void Surface::bounds(glm::vec3* lo, glm::vec3* hi) const
+{
+    glm::vec3 a(0.0f), b(0.0f);
+    float longest = plan_->scheme() == Scheme::Smooth ? 1.0f : 0.0f;  // the smooth direction is a unit normal
+    for (size_t v = 0; v < controlPositions_.size(); ++v) {
+        a = v ? glm::min(a, controlPositions_[v]) : controlPositions_[v];
+        b = v ? glm::max(b, controlPositions_[v]) : controlPositions_[v];
+        longest = std::max(longest, glm::length(controlNormals_[v]));
+    }
+    const glm::vec3 grow(largestDisplacement_ * longest);
+    *lo = a - grow;
+    *hi = b + grow;
 }
 
 Status Surface::setRestPose()

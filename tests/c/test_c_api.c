@@ -119,6 +119,12 @@ static void adaptiveRenderMesh(const StrataRenderMesh* uniform, StrataSurface* s
             lo[k] = fminf(lo[k], posed[3 * i + k]);
             hi[k] = fmaxf(hi[k], posed[3 * i + k]);
         }
+    /* The surface's own box holds the pose's every vertex. */
+    float box[6];
+    CHECK(strata_surface_bounds(s, box, box + 3) == STRATA_OK);
+    for (int k = 0; k < 3; ++k)
+        CHECK(box[k] <= lo[k] && hi[k] <= box[3 + k]);
+    CHECK(strata_surface_bounds(s, NULL, box) == STRATA_INVALID_ARGUMENT);
     const float size = fmaxf(hi[0] - lo[0], fmaxf(hi[1] - lo[1], hi[2] - lo[2]));
     const float target[3] = {0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), 0.5f * (lo[2] + hi[2])};
     const float far[3] = {target[0], target[1], target[2] + 8.0f * size};

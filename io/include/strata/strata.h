@@ -113,6 +113,11 @@ StrataStatus strata_surface_displacements(const StrataSurface* surface, float* d
  *  Calls on one surface from several threads are serialised. */
 StrataStatus strata_surface_evaluate(const StrataSurface* surface, float* positions, float* normals);
 
+/** A box (min and max, 3 floats each) that holds the current pose's surface
+ *  at every level, uniform and adaptive: for culling and picking without
+ *  reading the frame (Surface::bounds). */
+StrataStatus strata_surface_bounds(const StrataSurface* surface, float* min, float* max);
+
 /* ---- Adaptive level of detail (strata/adaptive.h) ----
  * Each control face at the lowest level whose surface stays within
  * pixel_error pixels of the surface's level on screen, for one view of the

@@ -155,6 +155,14 @@ public:
     /// triangles; allocates nothing once warmed up.
     Status evaluateAdaptive(glm::vec3* positions, glm::vec3* normals, size_t count, int threads = 1);
 
+    /// A box that holds the current pose's surface at every level, uniform
+    /// and adaptive, for culling and picking without reading the frame: the
+    /// control positions' box grown on every side by the largest
+    /// displacement times the longest control normal.  The refined surface
+    /// lies in the control points' convex hull (the schemes' weights are not
+    /// negative) and moves off it along a direction no longer than that.
+    void bounds(glm::vec3* lo, glm::vec3* hi) const;
+
     /// The current pose's control positions and normals.
     const std::vector<glm::vec3>& controlPositions() const { return controlPositions_; }
     const std::vector<glm::vec3>& controlNormals() const { return controlNormals_; }
@@ -172,6 +180,7 @@ private:
     Skeleton skeleton_;
     SkinningMethod method_ = SkinningMethod::Linear;
     bool displaced_ = false;
+    float largestDisplacement_ = 0.0f;  // of plan_'s, in magnitude
     std::unique_ptr<Plan> plan_;
     std::unique_ptr<Animator> animator_;  // refers to mesh_ and skeleton_
     std::unique_ptr<FrameEvaluator> frame_;
