@@ -323,13 +323,27 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
         const std::vector<uint8_t> chosen = frame.quarterLevels();
         const double rebuildMs = bench::medianMs([&] { fine->setQuarterLevels(chosen.data(), chosen.size()); }, 5, 20.0);
         std::vector<glm::vec3> ap(frame.vertexCount()), an(ap.size());
+        // The uniform frame a level down (where it exists): a vertex costs
+        // more in smaller tiles (more of them on a border), and an adaptive
+        // frame's tiles are mostly that size or smaller.
+        std::unique_ptr<Surface> below;
+        o.level = uniformLevel - 1;
+        if (uniformLevel > 0 && (!Surface::create(&below, rig, map, o).isOk() ||
+                                 (animation >= 0 && !below->setAnimationTime(animation, time).isOk())))
+            return;
+        std::vector<glm::vec3> bp(below ? below->vertexCount() : 0), bn(bp.size());
         // Interleaved runs, so a slow spell of this shared machine falls on both.
-        double uniformMs = 0.0, adaptiveMs = 0.0, uniformPositionsMs = 0.0, positionsMs = 0.0;
+        double uniformMs = 0.0, adaptiveMs = 0.0, uniformPositionsMs = 0.0, positionsMs = 0.0, belowMs = 0.0;
         interleavedMs({[&] { uniform->evaluate(up.data(), un.data(), up.size()); },
                        [&] { fine->evaluateAdaptive(ap.data(), an.data(), ap.size()); },
                        [&] { uniform->evaluate(up.data(), nullptr, up.size()); },
-                       [&] { fine->evaluateAdaptive(ap.data(), nullptr, ap.size()); }},
-                      {&uniformMs, &adaptiveMs, &uniformPositionsMs, &positionsMs});
+                       [&] { fine->evaluateAdaptive(ap.data(), nullptr, ap.size()); },
+                       [&] {
+                           if (below)
+                               below->evaluate(bp.data(), bn.data(), bp.size());
+                       }},
+                      {&uniformMs, &adaptiveMs, &uniformPositionsMs, &positionsMs, &belowMs});
+        const auto nsPerVertex = [](double ms, size_t n) { return n ? 1e6 * ms / double(n) : 0.0; };
         const float adaptiveError = frame.maxScreenDeviation(ap.data(), finePositions.data(), view);
         int lmin = L, lmax = 0;
         for (uint8_t l : frame.quarterLevels()) {
@@ -347,6 +361,11 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                     adaptiveMs / uniformMs);
         std::printf("     | positions alone: uniform %.3f ms, adaptive %.3f ms (%.3f)\n", uniformPositionsMs, positionsMs,
                     positionsMs / uniformPositionsMs);
+        std::printf("     | frame per vertex: adaptive %.2f ns, uniform level %d %.2f ns", nsPerVertex(adaptiveMs, ap.size()),
+                    uniformLevel, nsPerVertex(uniformMs, up.size()));
+        if (below)
+            std::printf(", uniform level %d %.2f ns", uniformLevel - 1, nsPerVertex(belowMs, bp.size()));
+        std::printf("\n");
         std::fflush(stdout);
         for (int adaptive = 0; adaptive < 2; ++adaptive) {
             jsonRows.field("table", "adaptive")
@@ -364,6 +383,8 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                 .field("rebuild_ms", adaptive ? rebuildMs : 0.0)
                 .field("max_pixel_error", double(adaptive ? adaptiveError : uniformError))
                 .field("positions_ms", adaptive ? positionsMs : uniformPositionsMs)
+                .field("ns_per_vertex", adaptive ? nsPerVertex(adaptiveMs, ap.size()) : nsPerVertex(uniformMs, up.size()))
+                .field("uniform_level_below_ns_per_vertex", nsPerVertex(belowMs, bp.size()))
                 .field("uniform_frame_ms", uniformMs)
                 .field("load_errors_ms", loadMs)
                 .endRow();
