@@ -679,10 +679,6 @@ Status FrameEvaluator::evaluate(glm::vec3* positions, glm::vec3* normals, const 
     positionsOnly();
     if (!normals)
         return Status::ok();
-    if (threads == 1) {
-        plan_.computeShadingNormals(normals, positions);
-        return Status::ok();
-    }
     parallel(threads, faceNormals_.size(), [&](size_t b, size_t e, int) { faceNormals(positions, b, e); });
     parallel(threads, nv, [&](size_t b, size_t e, int) { vertexNormals(normals, b, e); });
     return Status::ok();
