@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -159,14 +160,19 @@ void halfLevelsFor(std::vector<uint8_t>* halves, const uint8_t* quarters, const 
                    const std::vector<uint32_t>& edgeOf, int finest)
 {
     std::fill(halves->begin(), halves->end(), uint8_t(finest));
-    for (size_t c = 0; c < edgeOf.size(); ++c) {
-        const size_t f = c / 3, k = c % 3, next = 3 * f + (k + 1) % 3;
+    uint8_t* h = halves->data();
+    const size_t nf = edgeOf.size() / 3;
+    for (size_t f = 0; f < nf; ++f) {
         const uint8_t* q = quarters + 4 * f;
-        const bool forward = control[c] < control[next];
-        uint8_t& atFirst = (*halves)[2 * size_t(edgeOf[c]) + (forward ? 0 : 1)];
-        uint8_t& atSecond = (*halves)[2 * size_t(edgeOf[c]) + (forward ? 1 : 0)];
-        atFirst = std::min(atFirst, q[k]);
-        atSecond = std::min(atSecond, q[(k + 1) % 3]);
+        const uint32_t* c = control + 3 * f;
+        const uint32_t* e = edgeOf.data() + 3 * f;
+        for (int k = 0; k < 3; ++k) {
+            const int next = k == 2 ? 0 : k + 1;
+            uint8_t* half = h + 2 * size_t(e[k]);
+            const int forward = c[k] < c[next] ? 0 : 1;  // the half at corner k
+            half[forward] = std::min(half[forward], q[k]);
+            half[1 - forward] = std::min(half[1 - forward], q[next]);
+        }
     }
 }
 
@@ -425,6 +431,23 @@ const std::vector<uint16_t>& LevelChooser::quarterTemplate(int quarter, int leve
     return t;
 }
 
+namespace {
+
+// An orthonormal frame of triangle (a, b, c): its first edge, the in-plane
+// normal to it, the triangle's normal (columns); false when degenerate.
+bool triangleFrame(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::mat3* frame)
+{
+    const glm::vec3 u = b - a, n = glm::cross(u, c - a);
+    const float lu = glm::length(u), ln = glm::length(n);
+    if (!(lu > 0.0f) || !(ln > 0.0f))
+        return false;
+    const glm::vec3 e1 = u / lu, e3 = n / ln;
+    *frame = glm::mat3(e1, glm::cross(e3, e1), e3);
+    return true;
+}
+
+}  // namespace
+
 Status LevelChooser::init(const Plan& plan, const float* displacements, const glm::vec3* controlPositions,
                           const glm::vec3* controlNormals, size_t controlCount, int threads)
 {
@@ -441,12 +464,23 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     const uint32_t R = 1u << L;
     tiles_ = std::move(tiles);
     rest_ = std::move(rest);
-    restControl_.assign(controlPositions, controlPositions + controlCount);
     restNormals_.assign(controlNormals, controlNormals + controlCount);
     slots_ = size_t(R + 1) * (R + 2) / 2;
     controlTriangles_ = plan.controlTriangles();
     controlCount_ = plan.controlVertexCount();
     const size_t nf = controlTriangles_.size() / 3;
+    restLocal_.assign(3 * nf, glm::vec3(0.0f));
+    restFramed_.assign(nf, 0);
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t* c = &controlTriangles_[3 * f];
+        glm::mat3 frame;
+        if (!triangleFrame(controlPositions[c[0]], controlPositions[c[1]], controlPositions[c[2]], &frame))
+            continue;
+        restFramed_[f] = 1;
+        for (int k = 0; k < 3; ++k)
+            restLocal_[3 * f + size_t(k)] = glm::transpose(frame) * controlNormals[c[k]];
+    }
+    lastStitched_.assign(4 * nf, {~0u, 0.0f});
     slotPoints(&slotI_, &slotJ_, R);
     edges_ = groupEdges(controlTriangles_.data(), nf);
     edgeOf_ = cornerEdges(edges_, nf);
@@ -503,12 +537,20 @@ float LevelChooser::stitchedQuarterError(size_t face, int quarter, int level, co
 {
     if (x[0] >= level && x[1] >= level && x[2] >= level && coarseSides == 0)
         return errors_.quarterAt(face, quarter, level);
-    const uint64_t key = uint64_t(face) << 17 | quarterKey(quarter, level, x, coarseSides);
+    const uint32_t small = quarterKey(quarter, level, x, coarseSides);
+    std::pair<uint32_t, float>& last = lastStitched_[4 * face + size_t(quarter)];
+    if (last.first == small)
+        return last.second;
+    const uint64_t key = uint64_t(face) << 17 | small;
     const auto found = stitchedQuarters_.find(key);
-    if (found != stitchedQuarters_.end())
-        return found->second;
-    const float error = templateError(quarterTemplate(quarter, level, x, coarseSides), face);
-    stitchedQuarters_.emplace(key, error);
+    float error;
+    if (found != stitchedQuarters_.end()) {
+        error = found->second;
+    } else {
+        error = templateError(quarterTemplate(quarter, level, x, coarseSides), face);
+        stitchedQuarters_.emplace(key, error);
+    }
+    last = {small, error};
     return error;
 }
 
@@ -521,7 +563,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restControl_) + bytes(restNormals_) + bytes(bends_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(bends_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -565,38 +607,31 @@ float skinScale(const float* m, size_t count)
     return worst;
 }
 
-namespace {
-
-// An orthonormal frame of triangle (a, b, c): its first edge, the in-plane
-// normal to it, the triangle's normal (columns); false when degenerate.
-bool triangleFrame(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::mat3* frame)
-{
-    const glm::vec3 u = b - a, n = glm::cross(u, c - a);
-    const float lu = glm::length(u), ln = glm::length(n);
-    if (!(lu > 0.0f) || !(ln > 0.0f))
-        return false;
-    const glm::vec3 e1 = u / lu, e3 = n / ln;
-    *frame = glm::mat3(e1, glm::cross(e3, e1), e3);
-    return true;
-}
-
-}  // namespace
-
 float LevelChooser::bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const
 {
     const uint32_t* c = &controlTriangles_[3 * f];
-    glm::mat3 rest, posed;
-    if (!triangleFrame(restControl_[c[0]], restControl_[c[1]], restControl_[c[2]], &rest) ||
-        !triangleFrame(positions[c[0]], positions[c[1]], positions[c[2]], &posed))
+    glm::mat3 posed;
+    if (!restFramed_[f] || !triangleFrame(positions[c[0]], positions[c[1]], positions[c[2]], &posed))
         return 0.0f;
-    const glm::mat3 turn = posed * glm::transpose(rest);
-    float worst = 0.0f;
-    for (int k = 0; k < 3; ++k) {
-        const float cosine = glm::dot(normals[c[k]], turn * restNormals_[c[k]]);
-        worst = std::max(worst, std::acos(std::max(-1.0f, std::min(1.0f, cosine))));
-    }
+    // The rest normal turned as the face turned: the posed frame applied
+    // to its coordinates in the rest frame.  The widest angle is the
+    // smallest cosine's; one within rounding of 1 (under 0.1 degree) is no
+    // bend, so the rest pose has none.
+    float least = 1.0f;
+    for (int k = 0; k < 3; ++k)
+        least = std::min(least, glm::dot(normals[c[k]], posed * restLocal_[3 * f + size_t(k)]));
+    if (least >= 1.0f - 1e-6f)
+        return 0.0f;
+    const float worst = std::acos(std::max(-1.0f, least));
     return std::isfinite(worst) ? worst : 0.0f;
 }
+
+namespace {
+// The choice's angular bounds (see choose) as cosines: a sphere wholly
+// behind the eye (its nearest direction 1.5707 rad off the axis or more),
+// and one reaching the eye's plane (its farthest 1.5697 rad or more).
+const float kBehindCosine = std::cos(1.5707f), kEyePlaneCosine = std::cos(1.5697f);
+}  // namespace
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                             size_t controlCount, float poseScale, const glm::vec3* controlNormals,
@@ -643,15 +678,21 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         if (!(d > r)) {
             g = std::numeric_limits<float>::infinity();
         } else {
-            const float axis = std::acos(std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d)));
-            const float spread = std::asin(std::min(1.0f, r / d));
-            if (axis - spread >= 1.5707f) {
+            // The cosines of axis - spread and axis + spread, from the
+            // axis's cosine and the spread's sine (r / d).  An angle in
+            // [0, 3pi/2] is past a bound below pi/2 exactly where its
+            // cosine is below the bound's; axis - spread is in it where
+            // the axis is no nearer than the spread (cosines the other way).
+            const float ca = std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d));
+            const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
+            const float ss = std::min(1.0f, r / d), cs = std::sqrt(std::max(0.0f, 1.0f - ss * ss));
+            const float inner = ca * cs + sa * ss, outer = ca * cs - sa * ss;
+            if (ca <= cs && inner <= kBehindCosine) {
                 g = 0.0f;
-            } else if (axis + spread >= 1.5697f) {
+            } else if (outer <= kEyePlaneCosine) {
                 g = std::numeric_limits<float>::infinity();
             } else {
-                const float cosine = std::cos(axis + spread);
-                g = cam.k * poseScale / ((d - r) * cosine * cosine);
+                g = cam.k * poseScale / ((d - r) * outer * outer);
             }
         }
         if (bent) {
@@ -701,15 +742,36 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // corners, where two coarse edges meet) may stray further than it or
     // its neighbours alone.  While one does, the coarsest neighbour across
     // its coarsest edge goes up a level (levels only rise, so this ends).
+    // A face's check reads its own quarters and its edges' halves (from
+    // its edge neighbours' quarters) and nothing else, so after the first
+    // pass only faces where those changed (settled or raised) are checked
+    // again, and faces raised during a pass later in it: the others pass
+    // as they did.
     const uint32_t* control = controlTriangles_.data();
-    for (bool changed = true; changed;) {
+    recheck_.assign(nf, 1);
+    seen_.resize(4 * nf);
+    for (bool changed = true, first = true; changed; first = false) {
         changed = false;
         settleQuarters(quarters, edgeOf_, edges_.edgeCount(), &zeroEdges_);
         halfLevelsFor(&halves_, quarters, control, edgeOf_, L);
+        if (!first) {
+            std::fill(recheck_.begin(), recheck_.end(), uint8_t(0));
+            for (size_t f = 0; f < nf; ++f) {
+                if (std::memcmp(quarters + 4 * f, &seen_[4 * f], 4) == 0)
+                    continue;
+                recheck_[f] = 1;
+                for (size_t k = 0; k < 3; ++k) {
+                    const uint32_t edge = edgeOf_[3 * f + k];
+                    for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m)
+                        recheck_[edges_.cornersOf(edge)[m] / 3] = 1;
+                }
+            }
+        }
+        std::memcpy(seen_.data(), quarters, 4 * nf);
         for (size_t f = 0; f < nf; ++f) {
             uint8_t* fq = quarters + 4 * f;
-            if (fq[0] == 0)
-                continue;  // a level-0 face has no point to snap
+            if (!recheck_[f] || fq[0] == 0)
+                continue;  // as it passed; or a level-0 face (no point to snap)
             int h[3][2];
             faceHalves(h, halves_, control, edgeOf_, f);
             for (int c = 0; c < 4; ++c) {
@@ -748,12 +810,14 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                     if (gq[0] == 0 && lowest == 0) {
                         std::fill(gq, gq + 4, uint8_t(1));
                         changed = true;
+                        recheck_[g] = 1;
                         continue;
                     }
                     for (int kk = 0; kk < 3; ++kk)
                         if (control[3 * g + size_t(kk)] == at && gq[kk] == lowest) {
                             gq[kk] = uint8_t(lowest + 1);
                             changed = true;
+                            recheck_[g] = 1;
                         }
                 }
             }

@@ -167,7 +167,12 @@ private:
 
     FaceLevelErrors errors_;
     std::vector<glm::vec3> rest_;          // the finest surface, rest pose
-    std::vector<glm::vec3> restControl_, restNormals_;  // the control mesh, rest pose
+    std::vector<glm::vec3> restNormals_;  // the control mesh's, rest pose
+    // Per face corner, its rest normal in its face's rest frame (first
+    // edge, in-plane normal, face normal); per face whether that frame
+    // exists (not degenerate).
+    std::vector<glm::vec3> restLocal_;
+    std::vector<uint8_t> restFramed_;
     std::vector<uint32_t> tiles_, controlTriangles_;
     size_t slots_ = 0, controlCount_ = 0;
     std::vector<uint16_t> slotI_, slotJ_;
@@ -177,7 +182,11 @@ private:
     std::vector<std::vector<uint16_t>> levelTiles_;  // per level, the whole face's triangles at it
     std::unordered_map<uint32_t, std::vector<uint16_t>> quarterTemplates_;
     std::unordered_map<uint64_t, float> stitchedQuarters_;
+    // Per face quarter, the last stitched error looked up (its key, ~0u:
+    // none): a moving view asks for the same ones frame after frame.
+    std::vector<std::pair<uint32_t, float>> lastStitched_;
     std::vector<float> gains_, bends_;
+    std::vector<uint8_t> seen_, recheck_;  // the stitching pass's scratch
 };
 
 /// The largest singular value of the upper 3x3 of any of `count` matrices
