@@ -985,12 +985,35 @@ AdaptiveFrame::AdaptiveFrame(const Plan& plan) : plan_(plan), finest_(plan.level
 
 AdaptiveFrame::~AdaptiveFrame() = default;
 
+void AdaptiveFrame::TileTemplate::indexCorners(size_t tileSlots)
+{
+    std::vector<int32_t> at(tileSlots, -1);
+    used.clear();
+    corner.resize(fine.size());
+    for (size_t k = 0; k < fine.size(); ++k) {
+        int32_t& u = at[fine[k]];
+        if (u < 0) {
+            u = int32_t(used.size());
+            used.push_back(fine[k]);
+        }
+        corner[k] = uint16_t(u);
+    }
+}
+
+void AdaptiveFrame::TileTemplate::indexLocal()
+{
+    usedLocal.resize(used.size());
+    for (size_t k = 0; k < fine.size(); ++k)
+        usedLocal[corner[k]] = local[k];
+}
+
 size_t AdaptiveFrame::templateFor(int level, const int e[3])
 {
     const size_t key = templateKey(finest_, level, e);
     TileTemplate& t = templates_[key];
     if (t.fine.empty()) {
         adaptiveTileTriangles(&t.fine, finest_, level, e);
+        t.indexCorners(slots_);
         if (level < kGridLevel)
             return key;
         // The same triangles in the level's grid slots, and where each grid
@@ -1011,6 +1034,7 @@ size_t AdaptiveFrame::templateFor(int level, const int e[3])
                 if (from != to)
                     t.snaps.insert(t.snaps.end(), {from, to});
             }
+        t.indexLocal();
     }
     return key;
 }
@@ -1022,6 +1046,7 @@ const AdaptiveFrame::TileTemplate& AdaptiveFrame::quarterTemplateFor(int quarter
     if (!t.fine.empty() || level < 1)
         return t;
     adaptiveQuarterTriangles(&t.fine, finest_, quarter, level, x, coarseSides);
+    t.indexCorners(slots_);
     if (level < kQuarterGridLevel)
         return t;
     // The same triangles in the quarter's grid slots, and where each of its
@@ -1049,6 +1074,7 @@ const AdaptiveFrame::TileTemplate& AdaptiveFrame::quarterTemplateFor(int quarter
             if (from != to)
                 t.snaps.insert(t.snaps.end(), {from, to});
         }
+    t.indexLocal();
     t.grid = true;
     return t;
 }
@@ -1156,24 +1182,36 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     // pass runs on levelGrids_[gridIndex]; a whole face's tile writes the
     // positions of the border points its face owns too (a quarter's are
     // streamed, or evaluated, with the small tiles').
+    if (unitVertex_.size() < slots_)
+        unitVertex_.resize(slots_);
     auto addUnit = [&](size_t f, const uint32_t* tile, const TileTemplate& tt, bool grid, size_t gridIndex, bool whole) {
         const std::vector<uint16_t>& t = tt.fine;
         const LevelGrid* lg = grid ? &levelGrids_[gridIndex] : nullptr;
-        for (size_t k = 0; k < t.size(); ++k) {
-            const uint32_t v = tile[t[k]];
-            if (remap_[v] == kNone) {
-                remap_[v] = uint32_t(vertices_.size());
+        // Its vertices, numbered as its corners first use them; a small
+        // tile's, or one a grid shares with another unit (its border),
+        // sums its normal from shares.
+        for (size_t u = 0; u < tt.used.size(); ++u) {
+            const uint32_t v = tile[tt.used[u]];
+            const uint8_t shared = uint8_t(!grid || lg->border[tt.usedLocal[u]]);
+            uint32_t& m = remap_[v];
+            if (m == kNone) {
+                m = uint32_t(vertices_.size());
                 vertices_.push_back(v);
-                gathered_.push_back(0);
+                gathered_.push_back(shared);
                 written_.push_back(0);
+            } else if (shared) {
+                gathered_[m] = 1;
             }
-            triangles_.push_back(remap_[v]);
-            cornerSlots_.push_back(t[k]);
-            if (!grid || lg->border[tt.local[k]])  // a small tile's, or shared with another unit
-                gathered_[remap_[v]] = 1;
+            unitVertex_[u] = m;
             if (grid)
-                slotVertex_[tt.local[k]] = remap_[v];
+                slotVertex_[tt.usedLocal[u]] = m;
         }
+        const size_t base = triangles_.size();
+        triangles_.resize(base + t.size());
+        uint32_t* corners = triangles_.data() + base;
+        for (size_t k = 0; k < t.size(); ++k)
+            corners[k] = unitVertex_[tt.corner[k]];
+        cornerSlots_.insert(cornerSlots_.end(), t.begin(), t.end());
         triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
         tiled_.insert(tiled_.end(), t.size() / 3, uint8_t(grid));
         if (!grid)
@@ -1185,9 +1223,18 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
         const uint32_t R = lg->res;
         gridFaces_.push_back(uint32_t(f));
         gridOf_.push_back(uint32_t(gridIndex));
+        const size_t slotsBefore = gridSlots_.size();
+        gridSlots_.resize(slotsBefore + S);
+        uint32_t* gridSlot0 = gridSlots_.data() + slotsBefore;
         for (size_t k = 0; k < S; ++k)
-            gridSlots_.push_back(linear ? tile[lg->fine[k]] : slotVertex_[tt.snapTo[k]]);
+            gridSlot0[k] = linear ? tile[lg->fine[k]] : slotVertex_[tt.snapTo[k]];
         gridFirst_.push_back(uint32_t(gridSlots_.size()));
+        // Written in place (room for every slot, trimmed after): a record
+        // built aside and copied in stalls on its own stores.
+        size_t writes = gridWrites_.size(), partials = partialVertex_.size();
+        gridWrites_.resize(writes + S);
+        gridPartialSlots_.resize(partials + S);
+        partialVertex_.resize(partials + S);
         for (uint32_t i = 0; i <= R; ++i)
             for (uint32_t j = 0; i + j <= R; ++j) {
                 const size_t k = gridSlot(i, j, R);
@@ -1195,17 +1242,23 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
                 if (v == kNone)
                     continue;
                 const bool inner = !lg->border[k];
-                const bool owned = whole && linear && samples[vertices_[v]].face == f;
-                if (inner || owned) {
-                    gridWrites_.push_back({v, uint16_t(k), uint16_t(inner)});
+                // A border point's position is written by the face that owns it.
+                if (inner || (whole && linear && samples[vertices_[v]].face == f)) {
+                    GridWrite& w = gridWrites_[writes++];
+                    w.vertex = v;
+                    w.slot = uint16_t(k);
+                    w.inner = uint16_t(inner);
                     written_[v] = 1;
                 }
                 if (!inner) {  // the tile's share of a border vertex's normal
-                    gridPartialSlots_.push_back(uint16_t(k));
-                    partialVertex_.push_back(v);
+                    gridPartialSlots_[partials] = uint16_t(k);
+                    partialVertex_[partials++] = v;
                 }
                 slotVertex_[k] = kNone;
             }
+        gridWrites_.resize(writes);
+        gridPartialSlots_.resize(partials);
+        partialVertex_.resize(partials);
         gridWriteFirst_.push_back(uint32_t(gridWrites_.size()));
         gridPartialFirst_.push_back(uint32_t(gridPartialSlots_.size()));
         gridSnaps_.insert(gridSnaps_.end(), tt.snaps.begin(), tt.snaps.end());

@@ -307,7 +307,14 @@ private:
     // quarter's own grid, when every point snaps to a point of it: `grid`).
     struct TileTemplate {
         std::vector<uint16_t> fine, local, snapTo, snaps;
+        // The distinct finest-tile slots of `fine` in the order its corners
+        // first use them, each corner's index among them, and (a template
+        // with a grid) each distinct slot's grid slot: a frame numbers a
+        // unit's vertices once per slot, not once per corner.
+        std::vector<uint16_t> used, corner, usedLocal;
         bool grid = false;
+        void indexCorners(size_t tileSlots);
+        void indexLocal();
     };
     std::vector<TileTemplate> templates_;
     std::unordered_map<uint32_t, TileTemplate> quarterTemplates_;
@@ -346,6 +353,7 @@ private:
     std::vector<uint16_t> gridPartialSlots_;  // per partial sum: its grid slot
     std::vector<uint32_t> partialVertex_;     // per partial sum: its frame vertex
     std::vector<uint32_t> slotVertex_;  // setLevels' scratch: per grid slot, its frame vertex
+    std::vector<uint32_t> unitVertex_;  // setLevels' scratch: per distinct slot of a unit, its frame vertex
     struct Scratch;
     struct TileJob;
     std::vector<Scratch> scratch_;  // per thread
