@@ -1329,14 +1329,25 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     // a frame streams them.
     linear_.clear();
     if (linear) {
+        // Written in place (room for all, trimmed after), as the tile records.
         const std::vector<float>& d = plan_.displacements();
+        linear_.resize(n);
+        size_t streamed = 0;
         for (size_t k = 0; k < n; ++k) {
-            const SampleLocation& at = samples[vertices_[k]];
             if (written_[k])
                 continue;  // the tile pass writes it
+            const SampleLocation& at = samples[vertices_[k]];
             const uint32_t* c = &control[3 * size_t(at.face)];
-            linear_.push_back({{c[0], c[1], c[2]}, uint32_t(k), at.bary.x, at.bary.y, d[vertices_[k]]});
+            LinearVertex& v = linear_[streamed++];
+            v.c[0] = c[0];
+            v.c[1] = c[1];
+            v.c[2] = c[2];
+            v.target = uint32_t(k);
+            v.w1 = at.bary.x;
+            v.w2 = at.bary.y;
+            v.d = d[vertices_[k]];
         }
+        linear_.resize(streamed);
     }
     return Status::ok();
 }
