@@ -96,6 +96,47 @@ void RenderMesh::gather(const glm::vec3* refined, glm::vec3* out) const
         out[i] = refined[refinedVertex[i]];
 }
 
+namespace {
+
+// m.seams from m's indices over plan's refined triangles (one control face
+// every perFace triangles): a face's corners at one refined vertex share
+// its values, so one render vertex per (vertex, face).
+void buildSeams(RenderMesh* m, const Plan& plan)
+{
+    const std::vector<uint32_t>& tris = plan.refinedTriangles();
+    const size_t n = plan.refinedVertexCount(), perFace = size_t(1) << (2 * plan.level());
+    RenderMesh::Seams& t = m->seams;
+    t = {};
+    if (m->refinedVertex.size() <= n)
+        return;  // no seam copies
+    std::vector<uint8_t> seam(n, 0);
+    for (size_t r = n; r < m->refinedVertex.size(); ++r)
+        seam[m->refinedVertex[r]] = 1;
+    struct Entry {
+        uint32_t vertex, face, render;
+    };
+    std::vector<Entry> entries;
+    for (size_t c = 0; c < tris.size(); ++c)
+        if (seam[tris[c]])
+            entries.push_back({tris[c], uint32_t(c / (3 * perFace)), m->indices[c]});
+    std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+        return a.vertex != b.vertex ? a.vertex < b.vertex : a.face < b.face;
+    });
+    t.offsets.assign(n + 1, 0);
+    for (size_t k = 0; k < entries.size(); ++k) {
+        const Entry& e = entries[k];
+        if (k > 0 && entries[k - 1].vertex == e.vertex && entries[k - 1].face == e.face)
+            continue;
+        ++t.offsets[e.vertex + 1];
+        t.faces.push_back(e.face);
+        t.vertices.push_back(e.render);
+    }
+    for (size_t v = 0; v < n; ++v)
+        t.offsets[v + 1] += t.offsets[v];
+}
+
+}  // namespace
+
 Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
 {
     RenderMesh rm;
@@ -196,6 +237,7 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
                     a.values[size_t(mine[k]) * comps + c] = refined[k * comps + c];
         }
     }
+    buildSeams(&rm, plan);
     *out = std::move(rm);
     return Status::ok();
 }
@@ -209,15 +251,17 @@ Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, cons
     if (uniform.refinedVertexCount != n || uniform.indices.size() != tris.size() || tris.size() != 3 * perFace * faces)
         return Status(StatusCode::InvalidArgument, "the render mesh was not made for this surface's plan");
     // A refined vertex with seam copies takes, in each control face, the
-    // render vertex that face's triangles use (one per face: a face's
-    // corners share their values); any other is its own render vertex.
-    std::vector<uint8_t> seam(n, 0);
-    for (size_t r = n; r < uniform.refinedVertex.size(); ++r)
-        seam[uniform.refinedVertex[r]] = 1;
-    std::unordered_map<uint64_t, uint32_t> inFace;
-    for (size_t c = 0; c < tris.size(); ++c)
-        if (seam[tris[c]])
-            inFace.emplace((uint64_t(c / (3 * perFace)) << 32) | tris[c], uniform.indices[c]);
+    // render vertex that face's triangles use; any other is its own render
+    // vertex.  (A layout made by hand without its table gets one here.)
+    RenderMesh made;
+    const RenderMesh::Seams* seams = &uniform.seams;
+    if (uniform.refinedVertex.size() > n && seams->offsets.size() != n + 1) {
+        made.refinedVertex = uniform.refinedVertex;
+        made.indices = uniform.indices;
+        buildSeams(&made, plan);
+        seams = &made.seams;
+    }
+    const bool anySeam = !seams->offsets.empty();
 
     const std::vector<uint32_t>& vertices = frame.vertices();
     const std::vector<uint32_t>& triangles = frame.triangles();
@@ -227,12 +271,15 @@ Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, cons
     for (size_t c = 0; c < triangles.size(); ++c) {
         const uint32_t a = triangles[c], v = vertices[a];
         uint32_t r = v;
-        if (seam[v]) {
-            auto it = inFace.find((uint64_t(triangleFaces[c / 3]) << 32) | v);
-            if (it == inFace.end())
+        if (anySeam && seams->offsets[v + 1] > seams->offsets[v]) {
+            const uint32_t face = triangleFaces[c / 3];
+            uint32_t e = seams->offsets[v];
+            while (e < seams->offsets[v + 1] && seams->faces[e] != face)
+                ++e;
+            if (e == seams->offsets[v + 1])
                 return Status(StatusCode::InvalidData, "adaptive vertex " + std::to_string(a) +
                                                            " lies outside its triangle's control face");
-            r = it->second;
+            r = seams->vertices[e];
         }
         cornerSource[c] = r;
     }

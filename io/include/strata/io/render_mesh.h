@@ -50,6 +50,13 @@ struct RenderMesh {
     std::vector<uint32_t> indices;        ///< 3 per refined triangle, into the render vertices
     std::vector<RenderPart> parts;
     std::vector<RenderAttribute> attributes;
+    /// Per refined vertex with seam copies (an empty table: none), the
+    /// render vertex each control face around it uses, faces ascending:
+    /// entries offsets[v] .. offsets[v + 1] of faces and vertices.  What
+    /// buildAdaptiveRenderMesh reads a grid point's values by, made once.
+    struct Seams {
+        std::vector<uint32_t> offsets, faces, vertices;
+    } seams;
 
     size_t vertexCount() const { return refinedVertex.size(); }
     /// Copies per-refined-vertex values (plan order) to the render vertices.
