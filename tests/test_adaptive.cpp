@@ -12,7 +12,6 @@
 
 #include <gtest/gtest.h>
 
-#include <map>
 #include <random>
 #include <set>
 #include <utility>
@@ -700,6 +699,43 @@ TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
                 ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
                 EXPECT_EQ(held->adaptiveFrame().topologyVersion(), settled) << schemeName(scheme) << " at " << distance;
             }
+        }
+    }
+}
+
+// A camera that moves away from a held choice keeps no more detail than a
+// fresh choice within kHoldTolerance of the tolerance would take, and no
+// less than one within the tolerance.
+TEST(Adaptive, MovingAwayDropsLevelsToTheTolerance)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
+        ASSERT_TRUE(held && fresh);
+        ViewSpec view;
+        view.target = glm::vec3(0.0f);
+        view.fovYDegrees = 40.0f;
+        view.heightPx = 1080.0f;
+        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
+        // Fresh: from levels set by hand, so nothing is held.
+        auto freshAt = [&](float tolerance) {
+            EXPECT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
+            EXPECT_TRUE(fresh->chooseFaceLevels(view, tolerance).isOk());
+            return fresh->adaptiveFrame().vertexCount();
+        };
+        const glm::vec3 near(0.3f, 0.2f, 2.5f);
+        for (float distance : {6.0f, 12.0f, 20.0f}) {
+            view.eye = near;
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+            view.eye = glm::vec3(0.3f, 0.2f, distance);
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+            const size_t kept = held->adaptiveFrame().vertexCount(), need = freshAt(1.0f),
+                         band = freshAt(LevelChooser::kHoldTolerance);
+            std::printf("%s, 2.5 -> %.0f: %zu vertices held, %zu fresh, %zu fresh within the band\n",
+                        schemeName(scheme), double(distance), kept, need, band);
+            EXPECT_GE(kept, need);
+            EXPECT_LE(double(kept), 1.02 * double(band)) << schemeName(scheme) << " at " << distance;
         }
     }
 }

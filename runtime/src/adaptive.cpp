@@ -707,7 +707,9 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         gains_[f] = g;
         // The lowest level in [from, to] within the tolerance; a previous
         // level `was` above it is kept while no finer than the lowest
-        // within kHoldTolerance of the tolerance.
+        // within kHoldTolerance of the tolerance (past that, the lowest
+        // within the tolerance: a camera that jumps away does not keep the
+        // band's extra detail).
         auto pick = [&](int from, int to, int was, auto&& error) {
             auto lowest = [&](float tolerance) {
                 for (int l = from; l < to; ++l)
@@ -716,7 +718,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                 return to;
             };
             const int need = lowest(pixelError);
-            return was <= need ? need : std::min(was, lowest(kHoldTolerance * pixelError));
+            return was <= need || was > lowest(kHoldTolerance * pixelError) ? need : was;
         };
         const uint8_t* pq = previous ? previous + 4 * f : nullptr;
         const int level = pick(0, L, pq ? std::max({pq[0], pq[1], pq[2], pq[3]}) : 0,

@@ -140,9 +140,11 @@ public:
     /// `previous` (4 per face, or null): the levels chosen for the frame
     /// before.  Each face and quarter keeps its previous level while that
     /// level is within the tolerance and no finer than kHoldTolerance times
-    /// the tolerance would choose, so a moving pose or camera does not flip
-    /// levels (and rebuild the frame) every frame; every level still meets
-    /// the tolerance.
+    /// the tolerance would choose; past that it takes the lowest level
+    /// within the tolerance.  A level that changes has to see its error
+    /// move by the band between the two before it changes back, so a moving
+    /// pose or camera does not flip levels (and rebuild the frame) every
+    /// frame; every level still meets the tolerance.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
                   const uint8_t* previous = nullptr);

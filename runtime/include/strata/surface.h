@@ -139,10 +139,11 @@ public:
     /// measured once, in the rest pose, at the first call; a skinned pose's
     /// stretch scales them).  Where the frame's levels came from the last
     /// choice, each keeps its level while that still meets the tolerance
-    /// and is not finer than LevelChooser::kHoldTolerance of it would choose
-    /// (levels do not flip, and the frame rebuild, every frame of a
-    /// moving pose or camera); for the same view, tolerance and pose as the
-    /// last choice, the frame stands as it is.
+    /// and is not finer than LevelChooser::kHoldTolerance of it would
+    /// choose, else takes the lowest within the tolerance (levels do not
+    /// flip, and the frame rebuild, every frame of a moving pose or
+    /// camera); for the same view, tolerance and pose as the last choice,
+    /// the frame stands as it is.
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
     /// The errors chooseFaceLevels projects (measured on first use).
     const FaceLevelErrors& faceLevelErrors();
