@@ -289,6 +289,10 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
             double chooseMs = 0.0, setMs = 0.0;
             size_t vertices = n, triangles = surface->triangleCount();
             if (adaptive) {
+                // The same pose at each choice, run after run (the timed
+                // loops below pose as many frames as their time allows).
+                t = 0.0f;
+                pose();
                 const double c0 = bench::nowMs();
                 surface->chooseFaceLevels(view, 1.0f);
                 const double c1 = bench::nowMs();
