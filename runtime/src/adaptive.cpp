@@ -629,8 +629,9 @@ float LevelChooser::bend(size_t f, const glm::vec3* positions, const glm::vec3* 
 namespace {
 // The choice's angular bounds (see choose) as cosines: a sphere wholly
 // behind the eye (its nearest direction 1.5707 rad off the axis or more),
-// and one reaching the eye's plane (its farthest 1.5697 rad or more).
-const float kBehindCosine = std::cos(1.5707f), kEyePlaneCosine = std::cos(1.5697f);
+// and one reaching the eye's plane (its farthest 1.5697 rad or more);
+// cosf(1.5707f) and cosf(1.5697f).
+constexpr float kBehindCosine = 9.6277392e-05f, kEyePlaneCosine = 0.00109632395f;
 }  // namespace
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
