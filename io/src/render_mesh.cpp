@@ -98,27 +98,27 @@ void RenderMesh::gather(const glm::vec3* refined, glm::vec3* out) const
 
 namespace {
 
-// m.seams from m's indices over plan's refined triangles (one control face
-// every perFace triangles): a face's corners at one refined vertex share
-// its values, so one render vertex per (vertex, face).
-void buildSeams(RenderMesh* m, const Plan& plan)
+// The seam table of layout m (its refinedVertex and indices over plan's
+// refined triangles, one control face every perFace triangles): a face's
+// corners at one refined vertex share its values, so one render vertex per
+// (vertex, face).
+RenderMesh::Seams seamsOf(const RenderMesh& m, const Plan& plan)
 {
     const std::vector<uint32_t>& tris = plan.refinedTriangles();
     const size_t n = plan.refinedVertexCount(), perFace = size_t(1) << (2 * plan.level());
-    RenderMesh::Seams& t = m->seams;
-    t = {};
-    if (m->refinedVertex.size() <= n)
-        return;  // no seam copies
+    RenderMesh::Seams t;
+    if (m.refinedVertex.size() <= n)
+        return t;  // no seam copies
     std::vector<uint8_t> seam(n, 0);
-    for (size_t r = n; r < m->refinedVertex.size(); ++r)
-        seam[m->refinedVertex[r]] = 1;
+    for (size_t r = n; r < m.refinedVertex.size(); ++r)
+        seam[m.refinedVertex[r]] = 1;
     struct Entry {
         uint32_t vertex, face, render;
     };
     std::vector<Entry> entries;
     for (size_t c = 0; c < tris.size(); ++c)
         if (seam[tris[c]])
-            entries.push_back({tris[c], uint32_t(c / (3 * perFace)), m->indices[c]});
+            entries.push_back({tris[c], uint32_t(c / (3 * perFace)), m.indices[c]});
     std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
         return a.vertex != b.vertex ? a.vertex < b.vertex : a.face < b.face;
     });
@@ -133,6 +133,7 @@ void buildSeams(RenderMesh* m, const Plan& plan)
     }
     for (size_t v = 0; v < n; ++v)
         t.offsets[v + 1] += t.offsets[v];
+    return t;
 }
 
 }  // namespace
@@ -237,7 +238,7 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
                     a.values[size_t(mine[k]) * comps + c] = refined[k * comps + c];
         }
     }
-    buildSeams(&rm, plan);
+    rm.seams = seamsOf(rm, plan);
     *out = std::move(rm);
     return Status::ok();
 }
@@ -253,13 +254,11 @@ Status buildAdaptiveRenderMesh(const RenderMesh& uniform, const Plan& plan, cons
     // A refined vertex with seam copies takes, in each control face, the
     // render vertex that face's triangles use; any other is its own render
     // vertex.  (A layout made by hand without its table gets one here.)
-    RenderMesh made;
+    RenderMesh::Seams made;
     const RenderMesh::Seams* seams = &uniform.seams;
     if (uniform.refinedVertex.size() > n && seams->offsets.size() != n + 1) {
-        made.refinedVertex = uniform.refinedVertex;
-        made.indices = uniform.indices;
-        buildSeams(&made, plan);
-        seams = &made.seams;
+        made = seamsOf(uniform, plan);
+        seams = &made;
     }
     const bool anySeam = !seams->offsets.empty();
 
