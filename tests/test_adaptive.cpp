@@ -703,6 +703,49 @@ TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
     }
 }
 
+// A choice keeps the last pose's bends while the pose stays (a view that
+// moves over a still character); a pose that moves, by as little as a
+// frame, is measured again: a surface that chose at other poses before
+// chooses what a new one chooses.
+TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> reused = posedSurface(scheme, 0.0f, &rig, &map);
+        ASSERT_TRUE(reused);
+        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(reused->level()));
+        ViewSpec view;
+        view.eye = glm::vec3(0.3f, 0.2f, 3.0f);
+        view.target = glm::vec3(0.0f);
+        view.fovYDegrees = 40.0f;
+        view.heightPx = 1080.0f;
+        size_t differ = 0;
+        std::vector<uint8_t> rest;
+        for (float t : {0.0f, 0.5f, 0.501f, 0.501f, 1.0f, 0.0f}) {
+            const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(t);
+            std::unique_ptr<Surface> fresh = posedSurface(scheme, t, &rig, &map);
+            ASSERT_TRUE(fresh);
+            ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk());
+            ASSERT_TRUE(reused->setAnimationTime(0, t).isOk());
+            for (int move = 0; move < 2; ++move) {
+                view.eye.x += 0.01f * float(move);  // the view moves, the pose stays
+                ASSERT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
+                ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk());
+                ASSERT_TRUE(reused->setQuarterLevels(none.data(), none.size()).isOk());
+                ASSERT_TRUE(reused->chooseFaceLevels(view, 1.0f).isOk());
+                EXPECT_EQ(reused->adaptiveFrame().quarterLevels(), fresh->adaptiveFrame().quarterLevels()) << label;
+            }
+            view.eye.x = 0.3f;
+            if (t == 0.0f)
+                rest = fresh->adaptiveFrame().quarterLevels();
+            else
+                differ += fresh->adaptiveFrame().quarterLevels() != rest;
+        }
+        EXPECT_GT(differ, 0u) << schemeName(scheme) << ": the poses should choose differently";
+    }
+}
+
 // A camera that moves away from a held choice keeps no more detail than a
 // fresh choice within kHoldTolerance of the tolerance would take, and no
 // less than one within the tolerance.

@@ -176,6 +176,22 @@ void halfLevelsFor(std::vector<uint8_t>* halves, const uint8_t* quarters, const 
     }
 }
 
+// Edge e's two halves again (as halfLevelsFor), from the quarters of the
+// faces around it: after some of those faces' quarters changed.
+void edgeHalves(uint8_t* halves, size_t e, const uint8_t* quarters, const uint32_t* control, const EdgeGroups& edges,
+                int finest)
+{
+    uint8_t* half = halves + 2 * e;
+    half[0] = half[1] = uint8_t(finest);
+    for (uint32_t m = 0; m < edges.faceCountOf(e); ++m) {
+        const uint32_t corner = edges.cornersOf(e)[m], f = corner / 3, k = corner % 3, next = k == 2 ? 0 : k + 1;
+        const uint8_t* q = quarters + 4 * size_t(f);
+        const int forward = control[3 * f + k] < control[3 * f + next] ? 0 : 1;
+        half[forward] = std::min(half[forward], q[k]);
+        half[1 - forward] = std::min(half[1 - forward], q[next]);
+    }
+}
+
 // Whether a face's four quarters are at one level (the face drawn as one
 // tile, unless its edges' halves differ).
 bool alike(const uint8_t* q) { return q[0] == q[1] && q[1] == q[2] && q[2] == q[3]; }
@@ -489,6 +505,8 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     quarterTemplates_.clear();
     stitchedQuarters_.clear();
     gains_.assign(nf, 0.0f);
+    bentPositions_.clear();  // no bends measured for this plan yet
+    bentNormals_.clear();
 
     FaceLevelErrors& e = errors_;
     e.finest = L;
@@ -563,7 +581,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(bends_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -607,24 +625,45 @@ float skinScale(const float* m, size_t count)
     return worst;
 }
 
-float LevelChooser::bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const
+void LevelChooser::leastCosines(const glm::vec3* positions, const glm::vec3* normals)
 {
-    const uint32_t* c = &controlTriangles_[3 * f];
-    glm::mat3 posed;
-    if (!restFramed_[f] || !triangleFrame(positions[c[0]], positions[c[1]], positions[c[2]], &posed))
-        return 0.0f;
-    // The rest normal turned as the face turned: the posed frame applied
-    // to its coordinates in the rest frame.  The widest angle is the
-    // smallest cosine's; one within rounding of 1 (under 0.1 degree) is no
-    // bend, so the rest pose has none.
-    float least = 1.0f;
-    for (int k = 0; k < 3; ++k)
-        least = std::min(least, glm::dot(normals[c[k]], posed * restLocal_[3 * f + size_t(k)]));
-    if (least >= 1.0f - 1e-6f)
-        return 0.0f;
-    const float worst = std::acos(std::max(-1.0f, least));
-    return std::isfinite(worst) ? worst : 0.0f;
+    // Per face, the smallest cosine between a corner normal in the pose and
+    // its rest normal turned as the face's triangle turned (its posed frame
+    // applied to the rest frame's coordinates); 1 where either frame is
+    // degenerate.  One pass without calls or branches on the data, so the
+    // compiler keeps it in registers.
+    const size_t nf = restFramed_.size();
+    cosines_.resize(nf);
+    const uint32_t* c = controlTriangles_.data();
+    const glm::vec3* local = restLocal_.data();
+    for (size_t f = 0; f < nf; ++f, c += 3, local += 3) {
+        const glm::vec3 a = positions[c[0]], u = positions[c[1]] - a, n = glm::cross(u, positions[c[2]] - a);
+        const float lu = glm::dot(u, u), ln = glm::dot(n, n);
+        const bool framed = restFramed_[f] && lu > 0.0f && ln > 0.0f;
+        const glm::vec3 e1 = u * (framed ? 1.0f / std::sqrt(lu) : 0.0f), e3 = n * (framed ? 1.0f / std::sqrt(ln) : 0.0f);
+        const glm::vec3 e2 = glm::cross(e3, e1);
+        float least = 1.0f;
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec3 turned = e1 * local[k].x + e2 * local[k].y + e3 * local[k].z;
+            least = std::min(least, glm::dot(normals[c[k]], turned));
+        }
+        cosines_[f] = framed ? least : 1.0f;
+    }
 }
+
+namespace {
+// arccos to within 2e-8 rad on [-1, 1] (Abramowitz and Stegun 4.4.46: a
+// polynomial times sqrt(1 - x) on [0, 1], reflected below 0), a few
+// multiplies where the library's call is the choice's dearest step.
+float arccos(float x)
+{
+    const float t = std::fabs(x);
+    const float p = 1.5707963050f + t * (-0.2145988016f + t * (0.0889789874f + t * (-0.0501743046f + t * (0.0308918810f +
+                    t * (-0.0170881256f + t * (0.0066700901f + t * -0.0012624911f))))));
+    const float r = std::sqrt(std::max(0.0f, 1.0f - t)) * p;
+    return x < 0.0f ? 3.14159265f - r : r;
+}
+}  // namespace
 
 namespace {
 // The choice's angular bounds (see choose) as cosines: a sphere wholly
@@ -633,6 +672,53 @@ namespace {
 // cosf(1.5707f) and cosf(1.5697f).
 constexpr float kBehindCosine = 9.6277392e-05f, kEyePlaneCosine = 0.00109632395f;
 }  // namespace
+
+// Pixels per model unit of error at each face: at the nearest point of a
+// sphere around it, and at the largest angle off the view axis within the
+// sphere (an error there moves up to 1 / cos^2 as many pixels as on the
+// axis).  Infinite when the eye is inside the sphere or the sphere reaches
+// the eye's plane (a point there projects arbitrarily far: the view has no
+// width, so every point in front of the eye is held to the tolerance, as
+// maxScreenDeviation measures), 0 when the sphere is wholly behind the
+// eye.  A bent face (cosines_, when `bent`) counts its errors 1 + twice its
+// angle larger.  Every case is computed and one selected, so the loop has
+// no branches.
+STRATA_KERNEL_CLONES void LevelChooser::gainsFor(glm::vec3 eye, glm::vec3 forward, float k, float poseScale,
+                                                 const glm::vec3* controlPositions, bool bent)
+{
+    const float infinity = std::numeric_limits<float>::infinity();
+    const size_t nf = errors_.faceCount;
+    const uint32_t* c = controlTriangles_.data();
+    const float* reach = errors_.reach.data();
+    float* gains = gains_.data();
+    for (size_t f = 0; f < nf; ++f) {
+        const glm::vec3 centre =
+            (controlPositions[c[3 * f]] + controlPositions[c[3 * f + 1]] + controlPositions[c[3 * f + 2]]) / 3.0f;
+        const float r = reach[f] * poseScale;
+        const glm::vec3 q = centre - eye;
+        const float d = std::sqrt(glm::dot(q, q));
+        // The cosines of axis - spread and axis + spread, from the axis's
+        // cosine and the spread's sine (r / d).  An angle in [0, 3pi/2] is
+        // past a bound below pi/2 exactly where its cosine is below the
+        // bound's; axis - spread is in it where the axis is no nearer than
+        // the spread (cosines the other way).
+        const float ca = std::max(-1.0f, std::min(1.0f, glm::dot(q, forward) / d));
+        const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
+        const float ss = std::min(1.0f, r / d), cs = std::sqrt(std::max(0.0f, 1.0f - ss * ss));
+        const float inner = ca * cs + sa * ss, outer = ca * cs - sa * ss;
+        float g = k * poseScale / ((d - r) * outer * outer);
+        g = outer <= kEyePlaneCosine ? infinity : g;
+        g = ca <= cs && inner <= kBehindCosine ? 0.0f : g;
+        g = d > r ? g : infinity;
+        if (bent) {
+            // The widest angle is the smallest cosine's; one within rounding
+            // of 1 (under 0.1 degree) is no bend, so the rest pose has none.
+            const float least = cosines_[f];
+            g *= least < 1.0f - 1e-6f ? 1.0f + 2.0f * arccos(std::max(-1.0f, least)) : 1.0f;
+        }
+        gains[f] = g;
+    }
+}
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                             size_t controlCount, float poseScale, const glm::vec3* controlNormals,
@@ -654,58 +740,30 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         poseScale = 1.0f;
     const Camera cam(view);
     // The pose's bend at each face: its own, or its neighbours' where
-    // larger (a smooth surface's stencils reach across its edges).
+    // larger (a smooth surface's stencils reach across its edges): the
+    // smallest cosine of each edge's faces, then of each face's edges.
     const bool bent = controlNormals && restNormals_.size() == controlCount;
-    if (bent) {
-        bends_.resize(nf);
-        for (size_t f = 0; f < nf; ++f)
-            bends_[f] = bend(f, controlPositions, controlNormals);
+    // A view that moves over a pose that does not (a still character, a
+    // scan) keeps the bends of the last choice.
+    const bool samePose = bent && bentPositions_.size() == controlCount &&
+                          std::equal(bentPositions_.begin(), bentPositions_.end(), controlPositions) &&
+                          std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals);
+    if (bent && !samePose) {
+        bentPositions_.assign(controlPositions, controlPositions + controlCount);
+        bentNormals_.assign(controlNormals, controlNormals + controlCount);
+        leastCosines(controlPositions, controlNormals);
+        edgeCosines_.assign(edges_.edgeCount(), 1.0f);
+        for (size_t e = 0; e < edges_.edgeCount(); ++e)
+            for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
+                edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
+        for (size_t f = 0; f < nf; ++f) {
+            const uint32_t* e = &edgeOf_[3 * f];
+            cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+        }
     }
-    // Pixels per model unit of error at each face: at the nearest point of
-    // a sphere around it, and at the largest angle off the view axis within
-    // the sphere (an error there moves up to 1 / cos^2 as many pixels as on
-    // the axis).  Infinite when the eye is inside the sphere or the sphere
-    // reaches the eye's plane (a point there projects arbitrarily far: the
-    // view has no width, so every point in front of the eye is held to the
-    // tolerance, as maxScreenDeviation measures), 0 when the sphere is
-    // wholly behind the eye.
+    gainsFor(cam.eye, cam.forward, cam.k, poseScale, controlPositions, bent);
     for (size_t f = 0; f < nf; ++f) {
-        const uint32_t* c = &controlTriangles_[3 * f];
-        const glm::vec3 centre = (controlPositions[c[0]] + controlPositions[c[1]] + controlPositions[c[2]]) / 3.0f;
-        const float r = errors_.reach[f] * poseScale;
-        const glm::vec3 q = centre - cam.eye;
-        const float d = glm::length(q);
-        float g;
-        if (!(d > r)) {
-            g = std::numeric_limits<float>::infinity();
-        } else {
-            // The cosines of axis - spread and axis + spread, from the
-            // axis's cosine and the spread's sine (r / d).  An angle in
-            // [0, 3pi/2] is past a bound below pi/2 exactly where its
-            // cosine is below the bound's; axis - spread is in it where
-            // the axis is no nearer than the spread (cosines the other way).
-            const float ca = std::max(-1.0f, std::min(1.0f, glm::dot(q, cam.forward) / d));
-            const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
-            const float ss = std::min(1.0f, r / d), cs = std::sqrt(std::max(0.0f, 1.0f - ss * ss));
-            const float inner = ca * cs + sa * ss, outer = ca * cs - sa * ss;
-            if (ca <= cs && inner <= kBehindCosine) {
-                g = 0.0f;
-            } else if (outer <= kEyePlaneCosine) {
-                g = std::numeric_limits<float>::infinity();
-            } else {
-                g = cam.k * poseScale / ((d - r) * outer * outer);
-            }
-        }
-        if (bent) {
-            float b = bends_[f];
-            for (size_t k = 0; k < 3; ++k) {
-                const uint32_t edge = edgeOf_[3 * f + k];
-                for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m)
-                    b = std::max(b, bends_[edges_.cornersOf(edge)[m] / 3]);
-            }
-            g *= 1.0f + 2.0f * b;
-        }
-        gains_[f] = g;
+        const float g = gains_[f];
         // The lowest level in [from, to] within the tolerance; a previous
         // level `was` above it is kept while no finer than the lowest
         // within kHoldTolerance of the tolerance (past that, the lowest
@@ -756,8 +814,10 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     for (bool changed = true, first = true; changed; first = false) {
         changed = false;
         settleQuarters(quarters, edgeOf_, edges_.edgeCount(), &zeroEdges_);
-        halfLevelsFor(&halves_, quarters, control, edgeOf_, L);
-        if (!first) {
+        if (first) {
+            halfLevelsFor(&halves_, quarters, control, edgeOf_, L);
+        } else {
+            // Only the edges of faces whose quarters changed have new halves.
             std::fill(recheck_.begin(), recheck_.end(), uint8_t(0));
             for (size_t f = 0; f < nf; ++f) {
                 if (std::memcmp(quarters + 4 * f, &seen_[4 * f], 4) == 0)
@@ -765,6 +825,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                 recheck_[f] = 1;
                 for (size_t k = 0; k < 3; ++k) {
                     const uint32_t edge = edgeOf_[3 * f + k];
+                    edgeHalves(halves_.data(), edge, quarters, control, edges_, L);
                     for (uint32_t m = 0; m < edges_.faceCountOf(edge); ++m)
                         recheck_[edges_.cornersOf(edge)[m] / 3] = 1;
                 }

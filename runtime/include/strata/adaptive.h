@@ -162,9 +162,12 @@ public:
 
 private:
     float templateError(const std::vector<uint16_t>& t, size_t face) const;
-    // The largest angle (radians) between a corner normal of face f in the
-    // pose and its rest normal turned as the face's triangle turned.
-    float bend(size_t f, const glm::vec3* positions, const glm::vec3* normals) const;
+    // cosines_: per face, the cosine of the largest angle between a corner
+    // normal in the pose and its rest normal turned as the face turned.
+    void leastCosines(const glm::vec3* positions, const glm::vec3* normals);
+    // gains_: per face, pixels per unit of error in this view and pose.
+    void gainsFor(glm::vec3 eye, glm::vec3 forward, float k, float poseScale, const glm::vec3* controlPositions,
+                  bool bent);
     const std::vector<uint16_t>& quarterTemplate(int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     FaceLevelErrors errors_;
@@ -187,7 +190,8 @@ private:
     // Per face quarter, the last stitched error looked up (its key, ~0u:
     // none): a moving view asks for the same ones frame after frame.
     std::vector<std::pair<uint32_t, float>> lastStitched_;
-    std::vector<float> gains_, bends_;
+    std::vector<float> gains_, cosines_, edgeCosines_;
+    std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for
     std::vector<uint8_t> seen_, recheck_;  // the stitching pass's scratch
 };
 
