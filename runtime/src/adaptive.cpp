@@ -485,16 +485,19 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     controlTriangles_ = plan.controlTriangles();
     controlCount_ = plan.controlVertexCount();
     const size_t nf = controlTriangles_.size() / 3;
-    restLocal_.assign(3 * nf, glm::vec3(0.0f));
-    restFramed_.assign(nf, 0);
+    restLocal_.assign(9 * nf, 0.0f);
+    restFramed_.assign(nf, 0.0f);
     for (size_t f = 0; f < nf; ++f) {
         const uint32_t* c = &controlTriangles_[3 * f];
         glm::mat3 frame;
         if (!triangleFrame(controlPositions[c[0]], controlPositions[c[1]], controlPositions[c[2]], &frame))
             continue;
-        restFramed_[f] = 1;
-        for (int k = 0; k < 3; ++k)
-            restLocal_[3 * f + size_t(k)] = glm::transpose(frame) * controlNormals[c[k]];
+        restFramed_[f] = 1.0f;
+        for (size_t k = 0; k < 3; ++k) {
+            const glm::vec3 local = glm::transpose(frame) * controlNormals[c[k]];
+            for (int a = 0; a < 3; ++a)
+                restLocal_[(3 * k + size_t(a)) * nf + f] = local[a];
+        }
     }
     lastStitched_.assign(4 * nf, {~0u, 0.0f});
     slotPoints(&slotI_, &slotJ_, R);
@@ -581,7 +584,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -625,37 +628,13 @@ float skinScale(const float* m, size_t count)
     return worst;
 }
 
-void LevelChooser::leastCosines(const glm::vec3* positions, const glm::vec3* normals)
-{
-    // Per face, the smallest cosine between a corner normal in the pose and
-    // its rest normal turned as the face's triangle turned (its posed frame
-    // applied to the rest frame's coordinates); 1 where either frame is
-    // degenerate.  One pass without calls or branches on the data, so the
-    // compiler keeps it in registers.
-    const size_t nf = restFramed_.size();
-    cosines_.resize(nf);
-    const uint32_t* c = controlTriangles_.data();
-    const glm::vec3* local = restLocal_.data();
-    for (size_t f = 0; f < nf; ++f, c += 3, local += 3) {
-        const glm::vec3 a = positions[c[0]], u = positions[c[1]] - a, n = glm::cross(u, positions[c[2]] - a);
-        const float lu = glm::dot(u, u), ln = glm::dot(n, n);
-        const bool framed = restFramed_[f] && lu > 0.0f && ln > 0.0f;
-        const glm::vec3 e1 = u * (framed ? 1.0f / std::sqrt(lu) : 0.0f), e3 = n * (framed ? 1.0f / std::sqrt(ln) : 0.0f);
-        const glm::vec3 e2 = glm::cross(e3, e1);
-        float least = 1.0f;
-        for (int k = 0; k < 3; ++k) {
-            const glm::vec3 turned = e1 * local[k].x + e2 * local[k].y + e3 * local[k].z;
-            least = std::min(least, glm::dot(normals[c[k]], turned));
-        }
-        cosines_[f] = framed ? least : 1.0f;
-    }
-}
-
 namespace {
+
 // arccos to within 2e-8 rad on [-1, 1] (Abramowitz and Stegun 4.4.46: a
-// polynomial times sqrt(1 - x) on [0, 1], reflected below 0), a few
-// multiplies where the library's call is the choice's dearest step.
-float arccos(float x)
+// polynomial times sqrt(1 - x) on [0, 1], reflected below 0): a few
+// multiplies that vectorise, where the library's call was the choice's
+// dearest step.
+STRATA_KERNEL_INLINE float arccos(float x)
 {
     const float t = std::fabs(x);
     const float p = 1.5707963050f + t * (-0.2145988016f + t * (0.0889789874f + t * (-0.0501743046f + t * (0.0308918810f +
@@ -663,15 +642,54 @@ float arccos(float x)
     const float r = std::sqrt(std::max(0.0f, 1.0f - t)) * p;
     return x < 0.0f ? 3.14159265f - r : r;
 }
-}  // namespace
 
-namespace {
+// Gathers one value per face corner into 9 rows of n (row 3 k + axis):
+// the choice's passes then run over faces as whole vectors.
+void gatherCorners(float* rows, const glm::vec3* values, const uint32_t* triangles, size_t n)
+{
+    for (size_t f = 0; f < n; ++f)
+        for (size_t k = 0; k < 3; ++k) {
+            const glm::vec3 v = values[triangles[3 * f + k]];
+            rows[(3 * k) * n + f] = v.x;
+            rows[(3 * k + 1) * n + f] = v.y;
+            rows[(3 * k + 2) * n + f] = v.z;
+        }
+}
+
+// Per face, the smallest cosine between a corner normal in the pose and
+// its rest normal turned as the face's triangle turned: the posed frame
+// (first edge, in-plane normal, face normal) applied to the rest frame's
+// coordinates `local`.  1 where either frame is degenerate (`framed` 0).
+// Corners p, normals nr and local are gatherCorners rows.
+STRATA_KERNEL_CLONES void leastCosines(size_t n, const float* __restrict p, const float* __restrict nr,
+                                       const float* __restrict local, const float* __restrict framed,
+                                       float* __restrict out)
+{
+    for (size_t f = 0; f < n; ++f) {
+        const float ux = p[3 * n + f] - p[f], uy = p[4 * n + f] - p[n + f], uz = p[5 * n + f] - p[2 * n + f];
+        const float vx = p[6 * n + f] - p[f], vy = p[7 * n + f] - p[n + f], vz = p[8 * n + f] - p[2 * n + f];
+        const float nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+        const float lu = ux * ux + uy * uy + uz * uz, ln = nx * nx + ny * ny + nz * nz;
+        const bool ok = framed[f] > 0.0f && lu > 0.0f && ln > 0.0f;
+        const float iu = ok ? 1.0f / std::sqrt(lu) : 0.0f, in = ok ? 1.0f / std::sqrt(ln) : 0.0f;
+        const float e1x = ux * iu, e1y = uy * iu, e1z = uz * iu, e3x = nx * in, e3y = ny * in, e3z = nz * in;
+        const float e2x = e3y * e1z - e3z * e1y, e2y = e3z * e1x - e3x * e1z, e2z = e3x * e1y - e3y * e1x;
+        float least = 1.0f;
+        for (size_t k = 0; k < 3; ++k) {
+            const float lx = local[3 * k * n + f], ly = local[(3 * k + 1) * n + f], lz = local[(3 * k + 2) * n + f];
+            const float c = nr[3 * k * n + f] * (e1x * lx + e2x * ly + e3x * lz) +
+                            nr[(3 * k + 1) * n + f] * (e1y * lx + e2y * ly + e3y * lz) +
+                            nr[(3 * k + 2) * n + f] * (e1z * lx + e2z * ly + e3z * lz);
+            least = c < least ? c : least;  // a NaN normal bends nothing
+        }
+        out[f] = ok ? least : 1.0f;
+    }
+}
 // The choice's angular bounds (see choose) as cosines: a sphere wholly
 // behind the eye (its nearest direction 1.5707 rad off the axis or more),
 // and one reaching the eye's plane (its farthest 1.5697 rad or more);
 // cosf(1.5707f) and cosf(1.5697f).
 constexpr float kBehindCosine = 9.6277392e-05f, kEyePlaneCosine = 0.00109632395f;
-}  // namespace
 
 // Pixels per model unit of error at each face: at the nearest point of a
 // sphere around it, and at the largest angle off the view axis within the
@@ -680,45 +698,48 @@ constexpr float kBehindCosine = 9.6277392e-05f, kEyePlaneCosine = 0.00109632395f
 // the eye's plane (a point there projects arbitrarily far: the view has no
 // width, so every point in front of the eye is held to the tolerance, as
 // maxScreenDeviation measures), 0 when the sphere is wholly behind the
-// eye.  A bent face (cosines_, when `bent`) counts its errors 1 + twice its
-// angle larger.  Every case is computed and one selected, so the loop has
-// no branches.
-STRATA_KERNEL_CLONES void LevelChooser::gainsFor(glm::vec3 eye, glm::vec3 forward, float k, float poseScale,
-                                                 const glm::vec3* controlPositions, bool bent)
+// eye.  A bent face (cosines, when not null: its smallest) counts its errors
+// 1 + twice its angle larger.  Every case is computed and one selected, so
+// the loop vectorises.  p: the corners' gatherCorners rows.
+struct GainView {
+    glm::vec3 eye, forward;
+    float k, poseScale;
+};
+STRATA_KERNEL_CLONES void gainsFor(size_t n, const float* __restrict p, const float* __restrict reach,
+                                   const float* __restrict cosines, GainView v, float* __restrict out)
 {
     const float infinity = std::numeric_limits<float>::infinity();
-    const size_t nf = errors_.faceCount;
-    const uint32_t* c = controlTriangles_.data();
-    const float* reach = errors_.reach.data();
-    float* gains = gains_.data();
-    for (size_t f = 0; f < nf; ++f) {
-        const glm::vec3 centre =
-            (controlPositions[c[3 * f]] + controlPositions[c[3 * f + 1]] + controlPositions[c[3 * f + 2]]) / 3.0f;
-        const float r = reach[f] * poseScale;
-        const glm::vec3 q = centre - eye;
-        const float d = std::sqrt(glm::dot(q, q));
+    for (size_t f = 0; f < n; ++f) {
+        const float qx = (p[f] + p[3 * n + f] + p[6 * n + f]) / 3.0f - v.eye.x;
+        const float qy = (p[n + f] + p[4 * n + f] + p[7 * n + f]) / 3.0f - v.eye.y;
+        const float qz = (p[2 * n + f] + p[5 * n + f] + p[8 * n + f]) / 3.0f - v.eye.z;
+        const float r = reach[f] * v.poseScale;
+        const float d = std::sqrt(qx * qx + qy * qy + qz * qz);
         // The cosines of axis - spread and axis + spread, from the axis's
         // cosine and the spread's sine (r / d).  An angle in [0, 3pi/2] is
         // past a bound below pi/2 exactly where its cosine is below the
         // bound's; axis - spread is in it where the axis is no nearer than
         // the spread (cosines the other way).
-        const float ca = std::max(-1.0f, std::min(1.0f, glm::dot(q, forward) / d));
+        const float ca = std::max(-1.0f, std::min(1.0f, (qx * v.forward.x + qy * v.forward.y + qz * v.forward.z) / d));
         const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
         const float ss = std::min(1.0f, r / d), cs = std::sqrt(std::max(0.0f, 1.0f - ss * ss));
         const float inner = ca * cs + sa * ss, outer = ca * cs - sa * ss;
-        float g = k * poseScale / ((d - r) * outer * outer);
+        float g = v.k * v.poseScale / ((d - r) * outer * outer);
         g = outer <= kEyePlaneCosine ? infinity : g;
         g = ca <= cs && inner <= kBehindCosine ? 0.0f : g;
         g = d > r ? g : infinity;
-        if (bent) {
-            // The widest angle is the smallest cosine's; one within rounding
-            // of 1 (under 0.1 degree) is no bend, so the rest pose has none.
-            const float least = cosines_[f];
+        if (cosines) {
+            // The widest angle is the smallest cosine's; one within
+            // rounding of 1 (under 0.1 degree) is no bend, so the rest pose
+            // has none.
+            const float least = cosines[f];
             g *= least < 1.0f - 1e-6f ? 1.0f + 2.0f * arccos(std::max(-1.0f, least)) : 1.0f;
         }
-        gains[f] = g;
+        out[f] = g;
     }
 }
+
+}  // namespace
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                             size_t controlCount, float poseScale, const glm::vec3* controlNormals,
@@ -748,10 +769,15 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     const bool samePose = bent && bentPositions_.size() == controlCount &&
                           std::equal(bentPositions_.begin(), bentPositions_.end(), controlPositions) &&
                           std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals);
+    corners_.resize(9 * nf);
+    gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
     if (bent && !samePose) {
         bentPositions_.assign(controlPositions, controlPositions + controlCount);
         bentNormals_.assign(controlNormals, controlNormals + controlCount);
-        leastCosines(controlPositions, controlNormals);
+        cornerNormals_.resize(9 * nf);
+        gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
+        cosines_.resize(nf);
+        leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
         edgeCosines_.assign(edges_.edgeCount(), 1.0f);
         for (size_t e = 0; e < edges_.edgeCount(); ++e)
             for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
@@ -761,7 +787,8 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
         }
     }
-    gainsFor(cam.eye, cam.forward, cam.k, poseScale, controlPositions, bent);
+    gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
+             GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
     for (size_t f = 0; f < nf; ++f) {
         const float g = gains_[f];
         // The lowest level in [from, to] within the tolerance; a previous

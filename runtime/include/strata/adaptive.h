@@ -162,22 +162,15 @@ public:
 
 private:
     float templateError(const std::vector<uint16_t>& t, size_t face) const;
-    // cosines_: per face, the cosine of the largest angle between a corner
-    // normal in the pose and its rest normal turned as the face turned.
-    void leastCosines(const glm::vec3* positions, const glm::vec3* normals);
-    // gains_: per face, pixels per unit of error in this view and pose.
-    void gainsFor(glm::vec3 eye, glm::vec3 forward, float k, float poseScale, const glm::vec3* controlPositions,
-                  bool bent);
     const std::vector<uint16_t>& quarterTemplate(int quarter, int level, const int edgeLevels[3], int coarseSides);
 
     FaceLevelErrors errors_;
     std::vector<glm::vec3> rest_;          // the finest surface, rest pose
     std::vector<glm::vec3> restNormals_;  // the control mesh's, rest pose
     // Per face corner, its rest normal in its face's rest frame (first
-    // edge, in-plane normal, face normal); per face whether that frame
-    // exists (not degenerate).
-    std::vector<glm::vec3> restLocal_;
-    std::vector<uint8_t> restFramed_;
+    // edge, in-plane normal, face normal), in 9 rows of a value per face
+    // (row 3 k + axis); per face 1 where that frame exists (not degenerate).
+    std::vector<float> restLocal_, restFramed_;
     std::vector<uint32_t> tiles_, controlTriangles_;
     size_t slots_ = 0, controlCount_ = 0;
     std::vector<uint16_t> slotI_, slotJ_;
@@ -190,8 +183,11 @@ private:
     // Per face quarter, the last stitched error looked up (its key, ~0u:
     // none): a moving view asks for the same ones frame after frame.
     std::vector<std::pair<uint32_t, float>> lastStitched_;
+    // Per face: pixels per unit of error in this view and pose; the cosine
+    // of its bend's widest angle (its own or its neighbours'; see choose).
     std::vector<float> gains_, cosines_, edgeCosines_;
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for
+    std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
     std::vector<uint8_t> seen_, recheck_;  // the stitching pass's scratch
 };
 
