@@ -746,6 +746,59 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
     }
 }
 
+// A camera that dollies in and out a little each frame over a moving pose:
+// most choices keep the last levels without being made again, and every
+// frame still meets the tolerance (the kept ones too) and keeps no more
+// detail than a fresh choice within kHoldTolerance of it, or about that.
+TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
+        ASSERT_TRUE(held && fresh);
+        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
+        ViewSpec view;
+        view.target = glm::vec3(0.0f);
+        view.fovYDegrees = 40.0f;
+        view.heightPx = 1080.0f;
+        std::vector<glm::vec3> fine(held->vertexCount());
+        size_t heldVertices = 0, bandVertices = 0;
+        const int frames = 120;
+        for (int frame = 0; frame < frames; ++frame) {
+            // In from 6 to 2.5 and out again, the pose bending meanwhile.
+            const float s = 0.5f - 0.5f * std::cos(6.2831853f * float(frame) / float(frames));
+            view.eye = glm::vec3(0.3f, 0.2f, 6.0f - 3.5f * s);
+            const float t = 0.5f + 0.05f * std::sin(0.1f * float(frame));
+            const std::string label = std::string(schemeName(scheme)) + " frame " + std::to_string(frame);
+            ASSERT_TRUE(held->setAnimationTime(0, t).isOk());
+            ASSERT_TRUE(fresh->setAnimationTime(0, t).isOk());
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk()) << label;
+            ASSERT_TRUE(held->plan()
+                            .evaluate(fine.data(), nullptr, 0, fine.size(), held->controlPositions().data(),
+                                      held->controlNormals().data(), held->controlVertexCount())
+                            .isOk());
+            const AdaptiveFrame& f = held->adaptiveFrame();
+            std::vector<glm::vec3> p(f.vertexCount());
+            ASSERT_TRUE(held->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
+            ASSERT_LE(f.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
+            heldVertices += f.vertexCount();
+            ASSERT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
+            ASSERT_TRUE(fresh->chooseFaceLevels(view, LevelChooser::kHoldTolerance).isOk());
+            bandVertices += fresh->adaptiveFrame().vertexCount();
+        }
+        const LevelChooser* chooser = held->levelChooser();
+        ASSERT_TRUE(chooser);
+        std::printf("%s: %zu choices made in full, %zu kept; vertices %.3f of a fresh choice within the band\n",
+                    schemeName(scheme), chooser->fullChoices(), chooser->keptChoices(),
+                    double(heldVertices) / double(bandVertices));
+        EXPECT_EQ(chooser->fullChoices() + chooser->keptChoices(), size_t(frames)) << schemeName(scheme);
+        EXPECT_GT(chooser->keptChoices(), size_t(frames) / 2) << schemeName(scheme);
+        EXPECT_GT(chooser->fullChoices(), 1u) << schemeName(scheme);
+        EXPECT_LT(double(heldVertices), 1.1 * double(bandVertices)) << schemeName(scheme);
+    }
+}
+
 // A camera that moves away from a held choice keeps no more detail than a
 // fresh choice within kHoldTolerance of the tolerance would take, and no
 // less than one within the tolerance.

@@ -509,6 +509,8 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     stitchedQuarters_.clear();
     gains_.assign(nf, 0.0f);
     bentPositions_.clear();  // no bends measured for this plan yet
+    lastQuarters_.clear();   // nor a choice made
+    fullChoices_ = keptChoices_ = 0;
     bentNormals_.clear();
 
     FaceLevelErrors& e = errors_;
@@ -584,7 +586,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -789,6 +791,22 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
              GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
+    // The last choice's levels stand, without picking or stitching, while
+    // everything it draws is still within the tolerance and no face's gain
+    // has fallen below kHoldTolerance of its gain then (see choose).
+    if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
+        std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
+        bool stands = true;
+        for (size_t f = 0; f < nf; ++f) {
+            const float g = gains_[f], e = drawnErrors_[f];
+            stands = stands && (e == 0.0f || e * g <= pixelError) && g >= kHoldTolerance * fullGains_[f];
+        }
+        if (stands) {
+            std::copy(previous, previous + 4 * nf, quarters);
+            ++keptChoices_;
+            return Status::ok();
+        }
+    }
     for (size_t f = 0; f < nf; ++f) {
         const float g = gains_[f];
         // The lowest level in [from, to] within the tolerance; a previous
@@ -914,6 +932,29 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             }
         }
     }
+    // What the next choice needs to keep these levels: per face the largest
+    // error of what it draws (as the stitching measures it) and its gain.
+    drawnErrors_.resize(nf);
+    for (size_t f = 0; f < nf; ++f) {
+        const uint8_t* fq = quarters + 4 * f;
+        float e = errors_.at(f, fq[0]);
+        if (fq[0] != 0) {
+            int h[3][2];
+            faceHalves(h, halves_, control, edgeOf_, f);
+            if (!alike(fq))
+                e = 0.0f;  // a split face: its quarters' own
+            for (int c = 0; c < 4; ++c) {
+                int x[3], coarseSides;
+                quarterEdges(c, fq, h, x, &coarseSides);
+                e = std::max(e, stitchedQuarterError(f, c, fq[c], x, coarseSides));
+            }
+        }
+        drawnErrors_[f] = e;
+    }
+    fullGains_ = gains_;
+    lastQuarters_.assign(quarters, quarters + 4 * nf);
+    lastTolerance_ = pixelError;
+    ++fullChoices_;
     return Status::ok();
 }
 

@@ -145,12 +145,23 @@ public:
     /// move by the band between the two before it changes back, so a moving
     /// pose or camera does not flip levels (and rebuild the frame) every
     /// frame; every level still meets the tolerance.
+    ///
+    /// When `previous` are the levels this chooser chose last, for the same
+    /// tolerance, they stand as they are (no picking, no stitching: a
+    /// fraction of the cost) while everything they draw is still within the
+    /// tolerance in this view and pose and no face's pixels per unit of
+    /// error has fallen below kHoldTolerance of what it was at the last
+    /// choice made in full; otherwise the choice is made in full.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
                   const uint8_t* previous = nullptr);
     /// The share of the tolerance below which a held level gives way to a
     /// coarser one (see choose).
     static constexpr float kHoldTolerance = 0.85f;
+    /// Choices made in full, and choices that kept the last levels (see
+    /// choose), since init.
+    size_t fullChoices() const { return fullChoices_; }
+    size_t keptChoices() const { return keptChoices_; }
 
     /// The error (model units, rest pose) of quarter `quarter` of face
     /// `face` drawn at `level` >= 1 with its edges at edgeLevels and, for the
@@ -188,6 +199,12 @@ private:
     std::vector<float> gains_, cosines_, edgeCosines_;
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
+    // The last full choice: its levels and tolerance, and per face its gain
+    // and the largest error (rest pose, model units) of what it draws.
+    std::vector<uint8_t> lastQuarters_;
+    std::vector<float> fullGains_, drawnErrors_;
+    float lastTolerance_ = 0.0f;
+    size_t fullChoices_ = 0, keptChoices_ = 0;
     std::vector<uint8_t> seen_, recheck_;  // the stitching pass's scratch
 };
 

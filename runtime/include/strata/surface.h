@@ -143,8 +143,12 @@ public:
     /// choose, else takes the lowest within the tolerance (levels do not
     /// flip, and the frame rebuild, every frame of a moving pose or
     /// camera); for the same view, tolerance and pose as the last choice,
-    /// the frame stands as it is.
+    /// the frame stands as it is, and while the last choice still meets the
+    /// tolerance it stands without being made again (LevelChooser::choose).
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
+    /// The chooser behind chooseFaceLevels (null before the first choice
+    /// or faceLevelErrors()): its counts of full and kept choices.
+    const LevelChooser* levelChooser() const { return chooser_.get(); }
     /// The errors chooseFaceLevels projects (measured on first use).
     const FaceLevelErrors& faceLevelErrors();
     /// The adaptive frame's topology: vertexCount(), triangles(),
