@@ -308,30 +308,59 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
             return;
         std::vector<glm::vec3> up(uniform->vertexCount()), un(up.size());
         // A choice per frame of a view that moves (a hair each time: the same
-        // view again keeps the frame without choosing), then this view's.
-        // An animated rig's pose moves too (a millisecond a frame): the
-        // skinning is timed alone and taken off.
+        // view again keeps the frame without choosing).  In full: a chooser
+        // of the bench's own, made as the Surface makes its own (the rest
+        // pose's errors), asked with no previous levels, so none stand.
+        // Kept: the Surface's choice, whose last levels stand.  An animated
+        // rig's pose moves too (a millisecond a frame): the skinning is
+        // timed alone and taken off.
+        std::unique_ptr<Surface> rest;
+        LevelChooser chooser;
+        if (!Surface::create(&rest, rig, map).isOk() || !rest->setRestPose().isOk() ||
+            !chooser
+                 .init(rest->plan(), nullptr, rest->controlPositions().data(), rest->controlNormals().data(),
+                       rest->controlVertexCount())
+                 .isOk())
+            return;
+        std::vector<uint8_t> scratchLevels(4 * rig.mesh.faceCount());
         int nudge = 0;
-        auto moveView = [&] {
+        auto choose = [&](bool full) {
             ViewSpec moved = view;
             moved.eye.x += float(nudge++ % 2) * 1e-6f * radius;
-            return moved;
+            if (!full) {
+                fine->chooseFaceLevels(moved, pixelError);
+                return;
+            }
+            const std::vector<glm::mat4>& skin = fine->skinMatrices();
+            chooser.choose(scratchLevels.data(), moved, pixelError, fine->controlPositions().data(),
+                           fine->controlVertexCount(), skin.empty() ? 1.0f : skinScale(&skin[0][0][0], skin.size()),
+                           fine->controlNormals().data(), nullptr);
         };
-        const double stillPoseMs = bench::medianMs([&] { fine->chooseFaceLevels(moveView(), pixelError); }, 5, 20.0);
-        double chooseMs = stillPoseMs;
+        const double stillPoseMs = bench::medianMs([&] { choose(true); }, 5, 20.0);
+        double chooseMs = stillPoseMs, keptMs = bench::medianMs([&] { choose(false); }, 5, 20.0);
         if (animation >= 0) {
             int step = 0;
             auto pose = [&] { fine->setAnimationTime(animation, time + float(step++ % 2) * 1e-3f); };
             const double poseMs = bench::medianMs(pose, 5, 20.0);
-            const double bothMs = bench::medianMs(
+            const double fullMs = bench::medianMs(
                 [&] {
                     pose();
-                    fine->chooseFaceLevels(moveView(), pixelError);
+                    choose(true);
                 },
                 5, 20.0);
-            chooseMs = std::max(0.0, bothMs - poseMs);
+            const double keptPoseMs = bench::medianMs(
+                [&] {
+                    pose();
+                    choose(false);
+                },
+                5, 20.0);
+            chooseMs = std::max(0.0, fullMs - poseMs);
+            keptMs = std::max(0.0, keptPoseMs - poseMs);
             fine->setAnimationTime(animation, time);
         }
+        // This view's own choice, made fresh: levels set by hand first, so
+        // none of the timing's levels are held.
+        fine->setFaceLevels(levels.data(), levels.size());
         fine->chooseFaceLevels(view, pixelError);
         const AdaptiveFrame& frame = fine->adaptiveFrame();
         // A change of levels rebuilds the frame's topology (setQuarterLevels).
@@ -376,8 +405,8 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                     adaptiveMs / uniformMs);
         std::printf("     | positions alone: uniform %.3f ms, adaptive %.3f ms (%.3f)\n", uniformPositionsMs, positionsMs,
                     positionsMs / uniformPositionsMs);
-        if (animation >= 0)
-            std::printf("     | choose with the pose still (the view alone moving): %.3f ms\n", stillPoseMs);
+        std::printf("     | a choice in full with the pose still (the view alone moving): %.3f ms; the last levels kept: %.3f ms\n",
+                    stillPoseMs, keptMs);
         std::printf("     | frame per vertex: adaptive %.2f ns, uniform level %d %.2f ns", nsPerVertex(adaptiveMs, ap.size()),
                     uniformLevel, nsPerVertex(uniformMs, up.size()));
         if (below)
@@ -398,6 +427,7 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                 .field("frame_ms", adaptive ? adaptiveMs : uniformMs)
                 .field("choose_ms", adaptive ? chooseMs : 0.0)
                 .field("choose_still_pose_ms", adaptive ? stillPoseMs : 0.0)
+                .field("kept_choice_ms", adaptive ? keptMs : 0.0)
                 .field("rebuild_ms", adaptive ? rebuildMs : 0.0)
                 .field("max_pixel_error", double(adaptive ? adaptiveError : uniformError))
                 .field("positions_ms", adaptive ? positionsMs : uniformPositionsMs)
@@ -407,6 +437,67 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                 .field("load_errors_ms", loadMs)
                 .endRow();
         }
+
+        // A moving view (and pose): 120 frames of the camera dollying 10% in
+        // and out and sliding sideways, an animated rig playing at 60 Hz.
+        // Per frame, adaptive is the choice (and the rebuild where the levels
+        // change) and the frame; uniform is its frame.  The skinning, the
+        // same for both, is left out.  Three runs, the median.
+        const int frames = 120;
+        std::vector<double> adaptiveRuns, uniformRuns;
+        size_t full = 0, kept = 0, rebuilds = 0, drawn = 0;
+        std::vector<glm::vec3> mp(fine->vertexCount()), mn(mp.size());
+        for (int run = 0; run < 3; ++run) {
+            double adaptiveTotal = 0.0, uniformTotal = 0.0;
+            const size_t fullBefore = fine->levelChooser()->fullChoices(), keptBefore = fine->levelChooser()->keptChoices();
+            size_t changes = 0, vertices = 0;
+            for (int f = 0; f < frames; ++f) {
+                const float s = std::sin(6.2831853f * float(f) / float(frames));
+                ViewSpec v = view;
+                v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
+                if (animation >= 0) {
+                    fine->setAnimationTime(animation, time + float(f) / 60.0f);
+                    uniform->setAnimationTime(animation, time + float(f) / 60.0f);
+                }
+                const uint64_t topology = fine->adaptiveFrame().topologyVersion();
+                double t0 = bench::nowMs();
+                fine->chooseFaceLevels(v, pixelError);
+                fine->evaluateAdaptive(mp.data(), mn.data(), fine->adaptiveFrame().vertexCount());
+                double t1 = bench::nowMs();
+                adaptiveTotal += t1 - t0;
+                changes += fine->adaptiveFrame().topologyVersion() != topology;
+                vertices += fine->adaptiveFrame().vertexCount();
+                t0 = bench::nowMs();
+                uniform->evaluate(up.data(), un.data(), up.size());
+                t1 = bench::nowMs();
+                uniformTotal += t1 - t0;
+            }
+            adaptiveRuns.push_back(adaptiveTotal / frames);
+            uniformRuns.push_back(uniformTotal / frames);
+            full = fine->levelChooser()->fullChoices() - fullBefore;
+            kept = fine->levelChooser()->keptChoices() - keptBefore;
+            rebuilds = changes;
+            drawn = vertices / size_t(frames);
+        }
+        if (animation >= 0)  // the next fill's uniform level is measured in this pose
+            fine->setAnimationTime(animation, time);
+        const double movingAdaptiveMs = bench::median(adaptiveRuns), movingUniformMs = bench::median(uniformRuns);
+        std::printf("     | moving, %d frames: adaptive %.3f ms a frame (choice and frame; %zu choices in full, %zu kept, %zu "
+                    "rebuilds, %zu vertices on average), uniform %.3f ms (%.2f)\n",
+                    frames, movingAdaptiveMs, full, kept, rebuilds, drawn, movingUniformMs,
+                    movingAdaptiveMs / movingUniformMs);
+        std::fflush(stdout);
+        jsonRows.field("table", "adaptive_moving")
+            .field("mesh", name)
+            .field("fill", double(fill))
+            .field("frames", frames)
+            .field("adaptive_ms_per_frame", movingAdaptiveMs)
+            .field("uniform_ms_per_frame", movingUniformMs)
+            .field("full_choices", double(full))
+            .field("kept_choices", double(kept))
+            .field("rebuilds", double(rebuilds))
+            .field("mean_vertices", double(drawn))
+            .endRow();
     }
 }
 
