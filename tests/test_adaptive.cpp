@@ -253,6 +253,18 @@ std::unique_ptr<Surface> posedSurface(Scheme scheme, float time, Rig* rig, Displ
     return s;
 }
 
+// The tests' camera: a 40-degree, 1080-pixel-tall view of the origin from
+// `eye`.
+ViewSpec viewFrom(glm::vec3 eye)
+{
+    ViewSpec view;
+    view.eye = eye;
+    view.target = glm::vec3(0.0f);
+    view.fovYDegrees = 40.0f;
+    view.heightPx = 1080.0f;
+    return view;
+}
+
 // The frame's triangles close up: no border edge, no non-manifold edge, the
 // sphere's Euler characteristic, every vertex used, no triangle repeats a
 // vertex, and each vertex where the uniform finest frame puts it.
@@ -579,11 +591,7 @@ TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
         ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
         size_t previous = ~size_t(0);
         for (float distance : {3.0f, 8.0f, 30.0f, 100.0f}) {
-            ViewSpec view;
-            view.eye = glm::vec3(0.3f, 0.2f, distance);
-            view.target = glm::vec3(0.0f);
-            view.fovYDegrees = 40.0f;
-            view.heightPx = 1080.0f;
+            ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, distance));
             const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(distance);
             ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk()) << label;
             const AdaptiveFrame& frame = s->adaptiveFrame();
@@ -647,11 +655,7 @@ TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
         std::unique_ptr<Surface> held = posedSurface(scheme, 0.0f, &rig, &map), fresh;
         ASSERT_TRUE(held);
         ASSERT_TRUE(Surface::create(&fresh, rig, &map).isOk());
-        ViewSpec view;
-        view.eye = glm::vec3(0.3f, 0.2f, 6.0f);
-        view.target = glm::vec3(0.0f);
-        view.fovYDegrees = 40.0f;
-        view.heightPx = 1080.0f;
+        ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 6.0f));
         std::vector<uint8_t> heldBefore, freshBefore, reset(4 * rig.mesh.faceCount(), uint8_t(held->level()));
         int heldChanges = 0, freshChanges = 0;
         size_t heldVertices = 0, freshVertices = 0;
@@ -715,11 +719,7 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
         std::unique_ptr<Surface> reused = posedSurface(scheme, 0.0f, &rig, &map);
         ASSERT_TRUE(reused);
         const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(reused->level()));
-        ViewSpec view;
-        view.eye = glm::vec3(0.3f, 0.2f, 3.0f);
-        view.target = glm::vec3(0.0f);
-        view.fovYDegrees = 40.0f;
-        view.heightPx = 1080.0f;
+        ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 3.0f));
         size_t differ = 0;
         std::vector<uint8_t> rest;
         for (float t : {0.0f, 0.5f, 0.501f, 0.501f, 1.0f, 0.0f}) {
@@ -758,10 +758,7 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
         std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
         ASSERT_TRUE(held && fresh);
         const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
-        ViewSpec view;
-        view.target = glm::vec3(0.0f);
-        view.fovYDegrees = 40.0f;
-        view.heightPx = 1080.0f;
+        ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
         std::vector<glm::vec3> fine(held->vertexCount());
         size_t heldVertices = 0, bandVertices = 0;
         const int frames = 120;
@@ -809,10 +806,7 @@ TEST(Adaptive, MovingAwayDropsLevelsToTheTolerance)
         DisplacementMap map;
         std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
         ASSERT_TRUE(held && fresh);
-        ViewSpec view;
-        view.target = glm::vec3(0.0f);
-        view.fovYDegrees = 40.0f;
-        view.heightPx = 1080.0f;
+        ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
         const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
         // Fresh: from levels set by hand, so nothing is held.
         auto freshAt = [&](float tolerance) {
