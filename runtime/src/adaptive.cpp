@@ -152,6 +152,17 @@ std::vector<uint32_t> cornerEdges(const EdgeGroups& edges, size_t faceCount)
     return edgeOf;
 }
 
+// Lowers an edge's two halves (half[0] at its lower-numbered vertex) to
+// the levels of the quarters of face corners c (control indices) and q
+// that touch it, the edge being the face's edge k (corner k to k + 1).
+inline void lowerHalves(uint8_t* half, const uint32_t* c, const uint8_t* q, size_t k)
+{
+    const size_t next = k == 2 ? 0 : k + 1;
+    const int forward = c[k] < c[next] ? 0 : 1;  // the half at corner k
+    half[forward] = std::min(half[forward], q[k]);
+    half[1 - forward] = std::min(half[1 - forward], q[next]);
+}
+
 // Each half of each edge at the lowest level of the quarters that touch it
 // (a face at level 0 touches both halves at 0): halves[2 e] is the half at
 // the edge's lower-numbered vertex.  The quarter at corner k of a face
@@ -162,18 +173,9 @@ void halfLevelsFor(std::vector<uint8_t>* halves, const uint8_t* quarters, const 
     std::fill(halves->begin(), halves->end(), uint8_t(finest));
     uint8_t* h = halves->data();
     const size_t nf = edgeOf.size() / 3;
-    for (size_t f = 0; f < nf; ++f) {
-        const uint8_t* q = quarters + 4 * f;
-        const uint32_t* c = control + 3 * f;
-        const uint32_t* e = edgeOf.data() + 3 * f;
-        for (int k = 0; k < 3; ++k) {
-            const int next = k == 2 ? 0 : k + 1;
-            uint8_t* half = h + 2 * size_t(e[k]);
-            const int forward = c[k] < c[next] ? 0 : 1;  // the half at corner k
-            half[forward] = std::min(half[forward], q[k]);
-            half[1 - forward] = std::min(half[1 - forward], q[next]);
-        }
-    }
+    for (size_t f = 0; f < nf; ++f)
+        for (size_t k = 0; k < 3; ++k)
+            lowerHalves(h + 2 * size_t(edgeOf[3 * f + k]), control + 3 * f, quarters + 4 * f, k);
 }
 
 // Edge e's two halves again (as halfLevelsFor), from the quarters of the
@@ -184,11 +186,8 @@ void edgeHalves(uint8_t* halves, size_t e, const uint8_t* quarters, const uint32
     uint8_t* half = halves + 2 * e;
     half[0] = half[1] = uint8_t(finest);
     for (uint32_t m = 0; m < edges.faceCountOf(e); ++m) {
-        const uint32_t corner = edges.cornersOf(e)[m], f = corner / 3, k = corner % 3, next = k == 2 ? 0 : k + 1;
-        const uint8_t* q = quarters + 4 * size_t(f);
-        const int forward = control[3 * f + k] < control[3 * f + next] ? 0 : 1;
-        half[forward] = std::min(half[forward], q[k]);
-        half[1 - forward] = std::min(half[1 - forward], q[next]);
+        const size_t corner = edges.cornersOf(e)[m], f = corner / 3;
+        lowerHalves(half, control + 3 * f, quarters + 4 * f, corner % 3);
     }
 }
 
@@ -480,7 +479,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     const uint32_t R = 1u << L;
     tiles_ = std::move(tiles);
     rest_ = std::move(rest);
-    restNormals_.assign(controlNormals, controlNormals + controlCount);
+    restCount_ = controlCount;
     slots_ = size_t(R + 1) * (R + 2) / 2;
     controlTriangles_ = plan.controlTriangles();
     controlCount_ = plan.controlVertexCount();
@@ -509,9 +508,9 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     stitchedQuarters_.clear();
     gains_.assign(nf, 0.0f);
     bentPositions_.clear();  // no bends measured for this plan yet
-    lastQuarters_.clear();   // nor a choice made
-    fullChoices_ = keptChoices_ = 0;
     bentNormals_.clear();
+    lastQuarters_.clear();  // nor a choice made
+    fullChoices_ = keptChoices_ = 0;
 
     FaceLevelErrors& e = errors_;
     e.finest = L;
@@ -586,7 +585,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restNormals_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -687,6 +686,7 @@ STRATA_KERNEL_CLONES void leastCosines(size_t n, const float* __restrict p, cons
         out[f] = ok ? least : 1.0f;
     }
 }
+
 // The choice's angular bounds (see choose) as cosines: a sphere wholly
 // behind the eye (its nearest direction 1.5707 rad off the axis or more),
 // and one reaching the eye's plane (its farthest 1.5697 rad or more);
@@ -765,7 +765,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // The pose's bend at each face: its own, or its neighbours' where
     // larger (a smooth surface's stencils reach across its edges): the
     // smallest cosine of each edge's faces, then of each face's edges.
-    const bool bent = controlNormals && restNormals_.size() == controlCount;
+    const bool bent = controlNormals && restCount_ == controlCount;
     // A view that moves over a pose that does not (a still character, a
     // scan) keeps the bends of the last choice.
     const bool samePose = bent && bentPositions_.size() == controlCount &&
@@ -937,12 +937,10 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     drawnErrors_.resize(nf);
     for (size_t f = 0; f < nf; ++f) {
         const uint8_t* fq = quarters + 4 * f;
-        float e = errors_.at(f, fq[0]);
+        float e = alike(fq) ? errors_.at(f, fq[0]) : 0.0f;  // a split face: its quarters' own
         if (fq[0] != 0) {
             int h[3][2];
             faceHalves(h, halves_, control, edgeOf_, f);
-            if (!alike(fq))
-                e = 0.0f;  // a split face: its quarters' own
             for (int c = 0; c < 4; ++c) {
                 int x[3], coarseSides;
                 quarterEdges(c, fq, h, x, &coarseSides);

@@ -177,7 +177,7 @@ private:
 
     FaceLevelErrors errors_;
     std::vector<glm::vec3> rest_;          // the finest surface, rest pose
-    std::vector<glm::vec3> restNormals_;  // the control mesh's, rest pose
+    size_t restCount_ = 0;                 // control vertices of the rest pose given to init
     // Per face corner, its rest normal in its face's rest frame (first
     // edge, in-plane normal, face normal), in 9 rows of a value per face
     // (row 3 k + axis); per face 1 where that frame exists (not degenerate).
