@@ -265,6 +265,26 @@ ViewSpec viewFrom(glm::vec3 eye)
     return view;
 }
 
+// A choice made afresh: every quarter set to the finest level by hand
+// first, so no levels are held from an earlier choice.
+Status chooseAfresh(Surface& s, const ViewSpec& view, float tolerance)
+{
+    const std::vector<uint8_t> finest(4 * (s.plan().controlTriangles().size() / 3), uint8_t(s.level()));
+    if (Status st = s.setQuarterLevels(finest.data(), finest.size()); !st)
+        return st;
+    return s.chooseFaceLevels(view, tolerance);
+}
+
+// The largest on-screen deviation (pixels) of s's adaptive frame from its
+// finest surface, both in s's current pose.
+float pixelDeviation(Surface& s, const ViewSpec& view)
+{
+    std::vector<glm::vec3> fine(s.vertexCount()), p(s.adaptiveFrame().vertexCount());
+    if (!s.evaluate(fine.data(), nullptr, fine.size()).isOk() || !s.evaluateAdaptive(p.data(), nullptr, p.size()).isOk())
+        return std::numeric_limits<float>::infinity();
+    return s.adaptiveFrame().maxScreenDeviation(p.data(), fine.data(), view);
+}
+
 // The frame's triangles close up: no border edge, no non-manifold edge, the
 // sphere's Euler characteristic, every vertex used, no triangle repeats a
 // vertex, and each vertex where the uniform finest frame puts it.
@@ -587,17 +607,13 @@ TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
         DisplacementMap map;
         std::unique_ptr<Surface> s = posedSurface(scheme, 0.5f, &rig, &map);
         ASSERT_TRUE(s);
-        std::vector<glm::vec3> fine(s->vertexCount());
-        ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
         size_t previous = ~size_t(0);
         for (float distance : {3.0f, 8.0f, 30.0f, 100.0f}) {
             ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, distance));
             const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(distance);
             ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk()) << label;
             const AdaptiveFrame& frame = s->adaptiveFrame();
-            std::vector<glm::vec3> p(frame.vertexCount());
-            ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
-            EXPECT_LE(frame.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
+            EXPECT_LE(pixelDeviation(*s, view), 1.0f) << label;
             EXPECT_LE(frame.vertexCount(), previous) << label;
             previous = frame.vertexCount();
             expectClosedFrame(*s, label);
@@ -656,29 +672,18 @@ TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
         ASSERT_TRUE(held);
         ASSERT_TRUE(Surface::create(&fresh, rig, &map).isOk());
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 6.0f));
-        std::vector<uint8_t> heldBefore, freshBefore, reset(4 * rig.mesh.faceCount(), uint8_t(held->level()));
+        std::vector<uint8_t> heldBefore, freshBefore;
         int heldChanges = 0, freshChanges = 0;
         size_t heldVertices = 0, freshVertices = 0;
-        std::vector<glm::vec3> fine(held->vertexCount());
         for (int frame = 0; frame <= 60; ++frame) {
             const float t = 0.5f + 0.1f * std::sin(0.6f * float(frame));  // back and forth
             const std::string label = std::string(schemeName(scheme)) + " frame " + std::to_string(frame);
             ASSERT_TRUE(held->setAnimationTime(0, t).isOk());
             ASSERT_TRUE(fresh->setAnimationTime(0, t).isOk());
             ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk()) << label;
-            // Fresh: the levels set by hand first, so no choice is held.
-            ASSERT_TRUE(fresh->setQuarterLevels(reset.data(), reset.size()).isOk());
-            ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk()) << label;
-            ASSERT_TRUE(held->plan()
-                            .evaluate(fine.data(), nullptr, 0, fine.size(), held->controlPositions().data(),
-                                      held->controlNormals().data(), held->controlVertexCount())
-                            .isOk());
-            for (Surface* s : {held.get(), fresh.get()}) {
-                const AdaptiveFrame& f = s->adaptiveFrame();
-                std::vector<glm::vec3> p(f.vertexCount());
-                ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
-                ASSERT_LE(f.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
-            }
+            ASSERT_TRUE(chooseAfresh(*fresh, view, 1.0f).isOk()) << label;
+            for (Surface* s : {held.get(), fresh.get()})
+                ASSERT_LE(pixelDeviation(*s, view), 1.0f) << label;
             const std::vector<uint8_t>& h = held->adaptiveFrame().quarterLevels();
             const std::vector<uint8_t>& r = fresh->adaptiveFrame().quarterLevels();
             heldChanges += frame > 0 && h != heldBefore;
@@ -718,7 +723,6 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
         DisplacementMap map;
         std::unique_ptr<Surface> reused = posedSurface(scheme, 0.0f, &rig, &map);
         ASSERT_TRUE(reused);
-        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(reused->level()));
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 3.0f));
         size_t differ = 0;
         std::vector<uint8_t> rest;
@@ -730,10 +734,8 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
             ASSERT_TRUE(reused->setAnimationTime(0, t).isOk());
             for (int move = 0; move < 2; ++move) {
                 view.eye.x += 0.01f * float(move);  // the view moves, the pose stays
-                ASSERT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
-                ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk());
-                ASSERT_TRUE(reused->setQuarterLevels(none.data(), none.size()).isOk());
-                ASSERT_TRUE(reused->chooseFaceLevels(view, 1.0f).isOk());
+                ASSERT_TRUE(chooseAfresh(*fresh, view, 1.0f).isOk());
+                ASSERT_TRUE(chooseAfresh(*reused, view, 1.0f).isOk());
                 EXPECT_EQ(reused->adaptiveFrame().quarterLevels(), fresh->adaptiveFrame().quarterLevels()) << label;
             }
             view.eye.x = 0.3f;
@@ -757,9 +759,7 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
         DisplacementMap map;
         std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
         ASSERT_TRUE(held && fresh);
-        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
         ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
-        std::vector<glm::vec3> fine(held->vertexCount());
         size_t heldVertices = 0, bandVertices = 0;
         const int frames = 120;
         for (int frame = 0; frame < frames; ++frame) {
@@ -771,17 +771,9 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
             ASSERT_TRUE(held->setAnimationTime(0, t).isOk());
             ASSERT_TRUE(fresh->setAnimationTime(0, t).isOk());
             ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk()) << label;
-            ASSERT_TRUE(held->plan()
-                            .evaluate(fine.data(), nullptr, 0, fine.size(), held->controlPositions().data(),
-                                      held->controlNormals().data(), held->controlVertexCount())
-                            .isOk());
-            const AdaptiveFrame& f = held->adaptiveFrame();
-            std::vector<glm::vec3> p(f.vertexCount());
-            ASSERT_TRUE(held->evaluateAdaptive(p.data(), nullptr, p.size()).isOk());
-            ASSERT_LE(f.maxScreenDeviation(p.data(), fine.data(), view), 1.0f) << label;
-            heldVertices += f.vertexCount();
-            ASSERT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
-            ASSERT_TRUE(fresh->chooseFaceLevels(view, LevelChooser::kHoldTolerance).isOk());
+            ASSERT_LE(pixelDeviation(*held, view), 1.0f) << label;
+            heldVertices += held->adaptiveFrame().vertexCount();
+            ASSERT_TRUE(chooseAfresh(*fresh, view, LevelChooser::kHoldTolerance).isOk());
             bandVertices += fresh->adaptiveFrame().vertexCount();
         }
         const LevelChooser* chooser = held->levelChooser();
@@ -807,11 +799,8 @@ TEST(Adaptive, MovingAwayDropsLevelsToTheTolerance)
         std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
         ASSERT_TRUE(held && fresh);
         ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
-        const std::vector<uint8_t> none(4 * rig.mesh.faceCount(), uint8_t(fresh->level()));
-        // Fresh: from levels set by hand, so nothing is held.
         auto freshAt = [&](float tolerance) {
-            EXPECT_TRUE(fresh->setQuarterLevels(none.data(), none.size()).isOk());
-            EXPECT_TRUE(fresh->chooseFaceLevels(view, tolerance).isOk());
+            EXPECT_TRUE(chooseAfresh(*fresh, view, tolerance).isOk());
             return fresh->adaptiveFrame().vertexCount();
         };
         const glm::vec3 near(0.3f, 0.2f, 2.5f);
