@@ -1286,85 +1286,131 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
         levels_[f] = std::max({quarters[4 * f], quarters[4 * f + 1], quarters[4 * f + 2], quarters[4 * f + 3]});
     halfLevelsFor(&halves_, quarters, control.data(), edgeOf_, finest_);
 
-    vertices_.clear();
-    triangles_.clear();
-    triangleFaces_.clear();
-    cornerSlots_.clear();
+    const bool linear = plan_.scheme() == Scheme::Linear;
+    const std::vector<SampleLocation>& samples = plan_.sampleLocations();
+
+    // The drawn units, chosen first: a whole face, or a quarter of one.
+    // `grid`: its tile pass runs on levelGrids_[gridIndex]; a whole face's
+    // tile writes the positions of the border points its face owns too (a
+    // quarter's are streamed, or evaluated, with the small tiles').  Their
+    // sizes then size every record once.
+    units_.resize(4 * nf);
+    size_t unitCount = 0, cornerTotal = 0, slotTotal = 0;
+    auto unit = [&](size_t f, const TileTemplate& tt, bool grid, size_t gridIndex, bool whole) {
+        units_[unitCount++] = Unit{&tt, uint32_t(f), uint32_t(gridIndex), grid, whole};
+        cornerTotal += tt.fine.size();
+        if (grid)
+            slotTotal += levelGrids_[gridIndex].fine.size();
+    };
+    for (size_t f = 0; f < nf; ++f) {
+        const uint8_t* q = quarters + 4 * f;
+        int h[3][2], e[3];
+        faceHalves(h, halves_, control.data(), edgeOf_, f);
+        if (!drawnWhole(q, h, e)) {
+            for (int c = 0; c < 4; ++c) {
+                int x[3], coarseSides;
+                quarterEdges(c, q, h, x, &coarseSides);
+                const TileTemplate& tt = quarterTemplateFor(c, q[c], x, coarseSides);
+                unit(f, tt, tt.grid, quarterGrid(finest_, c, q[c]), false);
+            }
+            continue;
+        }
+        const int l = q[0];
+        unit(f, templates_[templateFor(l, e)], l >= kGridLevel, size_t(l), true);
+    }
+    units_.resize(unitCount);
+
+    // Per frame vertex (at most the plan's): its refined vertex, whether it
+    // gathers its normal from shares and how many, whether the tile pass
+    // writes its position.  Per triangle: its corners, their finest-tile
+    // slots, its face, whether the tile pass sums its normal.
+    const size_t most = plan_.refinedVertexCount();
+    if (frameVertex_.size() < most) {
+        frameVertex_.resize(most);
+        gathered_.resize(most);
+        written_.resize(most);
+        shareCount_.resize(most);
+    }
+    uint32_t* const vertex = frameVertex_.data();
+    uint32_t* const shareCount = shareCount_.data();
+    uint8_t *const gathered = gathered_.data(), *const written = written_.data();
+    triangles_.resize(cornerTotal);
+    cornerSlots_.resize(cornerTotal);
+    triangleFaces_.resize(cornerTotal / 3);
+    tiled_.resize(cornerTotal / 3);
+    gatherTriangles_.resize(cornerTotal / 3);
+    size_t smallTriangles = 0;
     gridFaces_.clear();
+    gridOf_.clear();
     gridFirst_.assign(1, 0);
-    gridSlots_.clear();
     gridWriteFirst_.assign(1, 0);
-    gridWrites_.clear();
     gridSnapFirst_.assign(1, 0);
     gridSnaps_.clear();
     gridPartialFirst_.assign(1, 0);
-    gridPartialSlots_.clear();
-    partialVertex_.clear();
-    gathered_.clear();
-    const bool linear = plan_.scheme() == Scheme::Linear;
-    const std::vector<SampleLocation>& samples = plan_.sampleLocations();
-    written_.clear();
-    tiled_.clear();
-    gridOf_.clear();
+    // Room for every slot (trimmed after): records written in place, where
+    // one built aside and copied in stalls on its own stores.
+    gridSlots_.resize(slotTotal);
+    gridWrites_.resize(slotTotal);
+    gridPartialSlots_.resize(slotTotal);
+    partialVertex_.resize(slotTotal);
     if (slotVertex_.empty())
         slotVertex_.assign(slots_, kNone);
-    // One drawn unit: a whole face, or a quarter of one.  `grid`: its tile
-    // pass runs on levelGrids_[gridIndex]; a whole face's tile writes the
-    // positions of the border points its face owns too (a quarter's are
-    // streamed, or evaluated, with the small tiles').
     if (unitVertex_.size() < slots_)
         unitVertex_.resize(slots_);
-    auto addUnit = [&](size_t f, const uint32_t* tile, const TileTemplate& tt, bool grid, size_t gridIndex, bool whole) {
+    size_t n = 0, corner = 0, slotAt = 0, writes = 0, partials = 0;
+    for (const Unit& un : units_) {
+        const TileTemplate& tt = *un.tt;
         const std::vector<uint16_t>& t = tt.fine;
-        const LevelGrid* lg = grid ? &levelGrids_[gridIndex] : nullptr;
+        const uint32_t* tile = &tiles_[size_t(un.face) * slots_];
+        const LevelGrid* lg = un.grid ? &levelGrids_[un.gridIndex] : nullptr;
         // Its vertices, numbered as its corners first use them; a small
         // tile's, or one a grid shares with another unit (its border),
         // sums its normal from shares.
         for (size_t u = 0; u < tt.used.size(); ++u) {
             const uint32_t v = tile[tt.used[u]];
-            const uint8_t shared = uint8_t(!grid || lg->border[tt.usedLocal[u]]);
+            const uint8_t shared = uint8_t(!lg || lg->border[tt.usedLocal[u]]);
             uint32_t& m = remap_[v];
             if (m == kNone) {
-                m = uint32_t(vertices_.size());
-                vertices_.push_back(v);
-                gathered_.push_back(shared);
-                written_.push_back(0);
+                m = uint32_t(n++);
+                vertex[m] = v;
+                gathered[m] = shared;
+                written[m] = 0;
+                shareCount[m] = 0;
             } else if (shared) {
-                gathered_[m] = 1;
+                gathered[m] = 1;
             }
             unitVertex_[u] = m;
-            if (grid)
+            if (lg)
                 slotVertex_[tt.usedLocal[u]] = m;
         }
-        const size_t base = triangles_.size();
-        triangles_.resize(base + t.size());
-        uint32_t* corners = triangles_.data() + base;
+        uint32_t* corners = triangles_.data() + corner;
         for (size_t k = 0; k < t.size(); ++k)
             corners[k] = unitVertex_[tt.corner[k]];
-        cornerSlots_.insert(cornerSlots_.end(), t.begin(), t.end());
-        triangleFaces_.insert(triangleFaces_.end(), t.size() / 3, uint32_t(f));
-        tiled_.insert(tiled_.end(), t.size() / 3, uint8_t(grid));
-        if (!grid)
-            return;
+        std::copy(t.begin(), t.end(), cornerSlots_.begin() + long(corner));
+        std::fill_n(triangleFaces_.begin() + long(corner / 3), t.size() / 3, un.face);
+        std::fill_n(tiled_.begin() + long(corner / 3), t.size() / 3, uint8_t(un.grid));
+        if (!lg) {
+            // A small tile's triangles: each a share of its corners' normals.
+            for (size_t k = 0; k < t.size(); ++k)
+                ++shareCount[corners[k]];
+            for (size_t k = corner / 3; k < (corner + t.size()) / 3; ++k)
+                gatherTriangles_[smallTriangles++] = uint32_t(k);
+            corner += t.size();
+            continue;
+        }
+        corner += t.size();
         // The tile pass: per grid slot its displacement's refined vertex
         // (linear) or the frame vertex whose position it takes (smooth);
         // the vertices it writes; its snapped points (linear).
         const size_t S = lg->fine.size();
         const uint32_t R = lg->res;
-        gridFaces_.push_back(uint32_t(f));
-        gridOf_.push_back(uint32_t(gridIndex));
-        const size_t slotsBefore = gridSlots_.size();
-        gridSlots_.resize(slotsBefore + S);
-        uint32_t* gridSlot0 = gridSlots_.data() + slotsBefore;
+        gridFaces_.push_back(un.face);
+        gridOf_.push_back(un.gridIndex);
+        uint32_t* gridSlot0 = gridSlots_.data() + slotAt;
         for (size_t k = 0; k < S; ++k)
             gridSlot0[k] = linear ? tile[lg->fine[k]] : slotVertex_[tt.snapTo[k]];
-        gridFirst_.push_back(uint32_t(gridSlots_.size()));
-        // Written in place (room for every slot, trimmed after): a record
-        // built aside and copied in stalls on its own stores.
-        size_t writes = gridWrites_.size(), partials = partialVertex_.size();
-        gridWrites_.resize(writes + S);
-        gridPartialSlots_.resize(partials + S);
-        partialVertex_.resize(partials + S);
+        slotAt += S;
+        gridFirst_.push_back(uint32_t(slotAt));
         for (uint32_t i = 0; i <= R; ++i)
             for (uint32_t j = 0; i + j <= R; ++j) {
                 const size_t k = gridSlot(i, j, R);
@@ -1373,85 +1419,60 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
                     continue;
                 const bool inner = !lg->border[k];
                 // A border point's position is written by the face that owns it.
-                if (inner || (whole && linear && samples[vertices_[v]].face == f)) {
+                if (inner || (un.whole && linear && samples[vertex[v]].face == un.face)) {
                     GridWrite& w = gridWrites_[writes++];
                     w.vertex = v;
                     w.slot = uint16_t(k);
                     w.inner = uint16_t(inner);
-                    written_[v] = 1;
+                    written[v] = 1;
                 }
                 if (!inner) {  // the tile's share of a border vertex's normal
                     gridPartialSlots_[partials] = uint16_t(k);
                     partialVertex_[partials++] = v;
+                    ++shareCount[v];
                 }
                 slotVertex_[k] = kNone;
             }
-        gridWrites_.resize(writes);
-        gridPartialSlots_.resize(partials);
-        partialVertex_.resize(partials);
-        gridWriteFirst_.push_back(uint32_t(gridWrites_.size()));
-        gridPartialFirst_.push_back(uint32_t(gridPartialSlots_.size()));
+        gridWriteFirst_.push_back(uint32_t(writes));
+        gridPartialFirst_.push_back(uint32_t(partials));
         gridSnaps_.insert(gridSnaps_.end(), tt.snaps.begin(), tt.snaps.end());
         gridSnapFirst_.push_back(uint32_t(gridSnaps_.size()));
-    };
-    for (size_t f = 0; f < nf; ++f) {
-        const uint8_t* q = quarters + 4 * f;
-        const uint32_t* tile = &tiles_[f * slots_];
-        int h[3][2], e[3];
-        faceHalves(h, halves_, control.data(), edgeOf_, f);
-        if (!drawnWhole(q, h, e)) {
-            for (int c = 0; c < 4; ++c) {
-                int x[3], coarseSides;
-                quarterEdges(c, q, h, x, &coarseSides);
-                const TileTemplate& tt = quarterTemplateFor(c, q[c], x, coarseSides);
-                addUnit(f, tile, tt, tt.grid, quarterGrid(finest_, c, q[c]), false);
-            }
-            continue;
-        }
-        const int l = q[0];
-        addUnit(f, tile, templates_[templateFor(l, e)], l >= kGridLevel, size_t(l), true);
     }
+    gatherTriangles_.resize(smallTriangles);
+    gridWrites_.resize(writes);
+    gridPartialSlots_.resize(partials);
+    partialVertex_.resize(partials);
+    vertices_.assign(vertex, vertex + n);
     for (uint32_t v : vertices_)
         remap_[v] = kNone;
 
-    // The gather pass: per gathered vertex its shares (a counting sort).
-    // remap_, all ~0 again, lends its first n entries for the gathered
-    // vertices' numbers, and is cleared after.
-    const size_t n = vertices_.size(), nt = triangles_.size() / 3;
-    gatherVertices_.clear();
-    for (size_t v = 0; v < n; ++v)
-        if (gathered_[v]) {
-            remap_[v] = uint32_t(gatherVertices_.size());
-            gatherVertices_.push_back(uint32_t(v));
-        }
-    // Their shares: first the grid tiles' partial sums (in tile order),
-    // then the normals of the small tiles' triangles (in frame order).
-    gatherTriangles_.clear();
-    for (size_t t = 0; t < nt; ++t)
-        if (!tiled_[t])
-            gatherTriangles_.push_back(uint32_t(t));
-    const size_t partials = partialVertex_.size();
-    gatherOffsets_.assign(gatherVertices_.size() + 1, 0);
-    auto eachShare = [&](auto&& add) {
-        for (size_t k = 0; k < partials; ++k)
-            add(partialVertex_[k], k);
-        for (size_t g = 0; g < gatherTriangles_.size(); ++g) {
-            const uint32_t* c = &triangles_[3 * size_t(gatherTriangles_[g])];
-            for (int k = 0; k < 3; ++k)
-                add(c[k], partials + g);
-        }
-    };
-    eachShare([&](uint32_t v, size_t) { ++gatherOffsets_[remap_[v] + 1]; });
-    for (size_t u = 0; u < gatherVertices_.size(); ++u)
-        gatherOffsets_[u + 1] += gatherOffsets_[u];
-    gatherEntries_.resize(gatherOffsets_.back());
-    // Each vertex's start as its cursor, shifted back below.
-    eachShare([&](uint32_t v, size_t share) { gatherEntries_[gatherOffsets_[remap_[v]]++] = uint32_t(share); });
-    for (size_t u = gatherVertices_.size(); u > 0; --u)
-        gatherOffsets_[u] = gatherOffsets_[u - 1];
+    // The gather pass: per gathered vertex its shares, first the grid
+    // tiles' partial sums (in tile order), then the normals of the small
+    // tiles' triangles (in frame order).  A gathered vertex's share count
+    // becomes its cursor into gatherEntries_.
+    gatherVertices_.resize(n);
+    gatherOffsets_.resize(n + 1);
     gatherOffsets_[0] = 0;
+    size_t g = 0;
+    uint32_t total = 0;
     for (size_t v = 0; v < n; ++v)
-        remap_[v] = kNone;
+        if (gathered[v]) {
+            gatherVertices_[g] = uint32_t(v);
+            const uint32_t shares = shareCount[v];
+            shareCount[v] = total;
+            total += shares;
+            gatherOffsets_[++g] = total;
+        }
+    gatherVertices_.resize(g);
+    gatherOffsets_.resize(g + 1);
+    gatherEntries_.resize(total);
+    for (size_t k = 0; k < partials; ++k)
+        gatherEntries_[shareCount[partialVertex_[k]]++] = uint32_t(k);
+    for (size_t k = 0; k < gatherTriangles_.size(); ++k) {
+        const uint32_t* c = &triangles_[3 * size_t(gatherTriangles_[k])];
+        for (int i = 0; i < 3; ++i)
+            gatherEntries_[shareCount[c[i]]++] = uint32_t(partials + k);
+    }
     shares_.resize(partials + gatherTriangles_.size());
 
     // Linear scheme: the vertices of faces drawn below kGridLevel, each
@@ -1611,7 +1632,7 @@ size_t AdaptiveFrame::bytes() const
         t += bytes(v.second.fine) + bytes(v.second.local) + bytes(v.second.snapTo) + bytes(v.second.snaps) +
              sizeof(v) + 2 * sizeof(void*);
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(halves_) + bytes(levels_) +
-           bytes(quarters_) + bytes(quarterScratch_) + bytes(written_) + bytes(tiled_) + bytes(gridOf_) +
+           bytes(quarters_) + bytes(quarterScratch_) + bytes(units_) + bytes(frameVertex_) + bytes(shareCount_) + bytes(written_) + bytes(tiled_) + bytes(gridOf_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
            bytes(gridFaces_) + bytes(gridFirst_) + bytes(gridSlots_) + bytes(gridWriteFirst_) + bytes(gridWrites_) +
            bytes(gridSnapFirst_) + bytes(gridSnaps_) + bytes(slotVertex_) + bytes(gathered_) + bytes(gatherVertices_) + bytes(gatherOffsets_) + bytes(gatherEntries_) +

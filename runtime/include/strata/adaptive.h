@@ -339,6 +339,16 @@ private:
     std::unordered_map<uint32_t, TileTemplate> quarterTemplates_;
     const TileTemplate& quarterTemplateFor(int quarter, int level, const int edgeLevels[3], int coarseSides);
     std::vector<uint8_t> levels_, quarters_, quarterScratch_;
+    // setQuarterLevels' drawn units (a whole face or a quarter of one) and,
+    // per frame vertex (room for the plan's), its refined vertex and its
+    // count of normal shares (then its cursor among them).
+    struct Unit {
+        const TileTemplate* tt;
+        uint32_t face, gridIndex;
+        bool grid, whole;
+    };
+    std::vector<Unit> units_;
+    std::vector<uint32_t> frameVertex_, shareCount_;
     std::vector<uint8_t> written_;        // per frame vertex: its position written by the tile pass
     std::vector<uint8_t> tiled_;          // per frame triangle: its normal summed by the tile pass
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
