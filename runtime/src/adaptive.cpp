@@ -230,6 +230,12 @@ void faceHalves(int h[3][2], const std::vector<uint8_t>& halves, const uint32_t*
     }
 }
 
+// Whether every half of a face's edges (h, as faceHalves) is at `level` or finer.
+bool noCoarser(const int h[3][2], int level)
+{
+    return std::min({h[0][0], h[0][1], h[1][0], h[1][1], h[2][0], h[2][1]}) >= level;
+}
+
 // Whether face f (its quarters q, its halves h) is drawn whole: four equal
 // quarters and each edge at one level (then e[k], else the lower half).
 bool drawnWhole(const uint8_t* q, const int h[3][2], int e[3])
@@ -883,6 +889,8 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                 continue;  // as it passed; or a level-0 face (no point to snap)
             int h[3][2];
             faceHalves(h, halves_, control, edgeOf_, f);
+            if (alike(fq) && noCoarser(h, fq[0]))
+                continue;  // every quarter meets edges at its level or finer
             for (int c = 0; c < 4; ++c) {
                 int x[3], coarseSides;
                 quarterEdges(c, fq, h, x, &coarseSides);
@@ -941,6 +949,12 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         if (fq[0] != 0) {
             int h[3][2];
             faceHalves(h, halves_, control, edgeOf_, f);
+            if (alike(fq) && noCoarser(h, fq[0])) {  // unstitched: the quarters' own errors
+                for (int c = 0; c < 4; ++c)
+                    e = std::max(e, errors_.quarterAt(f, c, fq[0]));
+                drawnErrors_[f] = e;
+                continue;
+            }
             for (int c = 0; c < 4; ++c) {
                 int x[3], coarseSides;
                 quarterEdges(c, fq, h, x, &coarseSides);
