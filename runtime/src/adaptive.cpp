@@ -1337,7 +1337,7 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     // Per frame vertex (at most the plan's): its refined vertex, whether it
     // gathers its normal from shares and how many, whether the tile pass
     // writes its position.  Per triangle: its corners, their finest-tile
-    // slots, its face, whether the tile pass sums its normal.
+    // slots, its face.
     const size_t most = plan_.refinedVertexCount();
     if (frameVertex_.size() < most) {
         frameVertex_.resize(most);
@@ -1351,7 +1351,6 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
     triangles_.resize(cornerTotal);
     cornerSlots_.resize(cornerTotal);
     triangleFaces_.resize(cornerTotal / 3);
-    tiled_.resize(cornerTotal / 3);
     gatherTriangles_.resize(cornerTotal / 3);
     size_t smallTriangles = 0;
     gridFaces_.clear();
@@ -1402,7 +1401,6 @@ Status AdaptiveFrame::setQuarterLevels(const uint8_t* quarters, size_t count)
             corners[k] = unitVertex_[tt.corner[k]];
         std::copy(t.begin(), t.end(), cornerSlots_.begin() + long(corner));
         std::fill_n(triangleFaces_.begin() + long(corner / 3), t.size() / 3, un.face);
-        std::fill_n(tiled_.begin() + long(corner / 3), t.size() / 3, uint8_t(un.grid));
         if (!lg) {
             // A small tile's triangles: each a share of its corners' normals.
             for (size_t k = 0; k < t.size(); ++k)
@@ -1646,7 +1644,7 @@ size_t AdaptiveFrame::bytes() const
         t += bytes(v.second.fine) + bytes(v.second.local) + bytes(v.second.snapTo) + bytes(v.second.snaps) +
              sizeof(v) + 2 * sizeof(void*);
     return t + bytes(tiles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edgeOf_) + bytes(halves_) + bytes(levels_) +
-           bytes(quarters_) + bytes(quarterScratch_) + bytes(units_) + bytes(frameVertex_) + bytes(shareCount_) + bytes(written_) + bytes(tiled_) + bytes(gridOf_) +
+           bytes(quarters_) + bytes(quarterScratch_) + bytes(units_) + bytes(frameVertex_) + bytes(shareCount_) + bytes(written_) + bytes(gridOf_) +
            bytes(remap_) + bytes(vertices_) + bytes(triangles_) + bytes(triangleFaces_) + bytes(cornerSlots_) +
            bytes(gridFaces_) + bytes(gridFirst_) + bytes(gridSlots_) + bytes(gridWriteFirst_) + bytes(gridWrites_) +
            bytes(gridSnapFirst_) + bytes(gridSnaps_) + bytes(slotVertex_) + bytes(gathered_) + bytes(gatherVertices_) + bytes(gatherOffsets_) + bytes(gatherEntries_) +

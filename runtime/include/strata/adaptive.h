@@ -350,7 +350,6 @@ private:
     std::vector<Unit> units_;
     std::vector<uint32_t> frameVertex_, shareCount_;
     std::vector<uint8_t> written_;        // per frame vertex: its position written by the tile pass
-    std::vector<uint8_t> tiled_;          // per frame triangle: its normal summed by the tile pass
     std::vector<uint32_t> remap_;         // per refined vertex: its frame vertex, or ~0
     std::vector<uint32_t> vertices_, triangles_, triangleFaces_;
     std::vector<uint16_t> cornerSlots_;
