@@ -508,6 +508,20 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     slotPoints(&slotI_, &slotJ_, R);
     edges_ = groupEdges(controlTriangles_.data(), nf);
     edgeOf_ = cornerEdges(edges_, nf);
+    // Each edge's two faces (a border edge's one twice), where no edge has
+    // more: the bend's pass over edges then reads a fixed pair.
+    edgeFaces_.clear();
+    bool pairs = true;
+    for (size_t e = 0; e < edges_.edgeCount() && pairs; ++e)
+        pairs = edges_.faceCountOf(e) <= 2;
+    if (pairs) {
+        edgeFaces_.resize(2 * edges_.edgeCount());
+        for (size_t e = 0; e < edges_.edgeCount(); ++e) {
+            const uint32_t* c = edges_.cornersOf(e);
+            edgeFaces_[2 * e] = c[0] / 3;
+            edgeFaces_[2 * e + 1] = c[edges_.faceCountOf(e) - 1] / 3;
+        }
+    }
     halves_.assign(2 * edges_.edgeCount(), 0);
     levelTiles_.assign(size_t(L + 1), {});
     quarterTemplates_.clear();
@@ -591,7 +605,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -787,9 +801,14 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         cosines_.resize(nf);
         leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
         edgeCosines_.assign(edges_.edgeCount(), 1.0f);
-        for (size_t e = 0; e < edges_.edgeCount(); ++e)
-            for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
-                edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
+        if (!edgeFaces_.empty()) {
+            for (size_t e = 0; e < edges_.edgeCount(); ++e)
+                edgeCosines_[e] = std::min(cosines_[edgeFaces_[2 * e]], cosines_[edgeFaces_[2 * e + 1]]);
+        } else {
+            for (size_t e = 0; e < edges_.edgeCount(); ++e)
+                for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
+                    edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
+        }
         for (size_t f = 0; f < nf; ++f) {
             const uint32_t* e = &edgeOf_[3 * f];
             cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
@@ -802,10 +821,11 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // has fallen below kHoldTolerance of its gain then (see choose).
     if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
         std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
-        bool stands = true;
+        // Every face checked, without a branch: the loop vectorises.
+        int stands = 1;
         for (size_t f = 0; f < nf; ++f) {
             const float g = gains_[f], e = drawnErrors_[f];
-            stands = stands && (e == 0.0f || e * g <= pixelError) && g >= kHoldTolerance * fullGains_[f];
+            stands &= int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * fullGains_[f]);
         }
         if (stands) {
             std::copy(previous, previous + 4 * nf, quarters);

@@ -186,6 +186,7 @@ private:
     size_t slots_ = 0, controlCount_ = 0;
     std::vector<uint16_t> slotI_, slotJ_;
     EdgeGroups edges_;
+    std::vector<uint32_t> edgeFaces_;  // per edge its two faces (empty: some edge has more)
     std::vector<uint32_t> edgeOf_;
     std::vector<uint8_t> halves_, zeroEdges_;  // per edge, its two halves' levels; scratch
     std::vector<std::vector<uint16_t>> levelTiles_;  // per level, the whole face's triangles at it
