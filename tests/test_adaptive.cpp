@@ -468,8 +468,6 @@ TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
         DisplacementMap map;
         makeRig(&rig, &map, scheme);
         ControlMesh& m = rig.mesh;
-        m.uvs.clear();
-        m.uvIndices.clear();
         const uint32_t a = m.triangles[0], b = m.triangles[1];
         const glm::vec3 mid = 0.5f * (m.positions[a] + m.positions[b]);
         const glm::vec3 side = 0.2f * glm::normalize(glm::cross(m.positions[b] - m.positions[a], mid));
@@ -477,14 +475,16 @@ TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
         m.positions.push_back(0.6f * mid + side);
         m.positions.push_back(0.6f * mid - side);
         m.triangles.insert(m.triangles.end(), {a, b, c, b, a, d, a, c, d, b, d, c});
+        // The fins sample the map where the first face does.
+        const uint32_t ua = m.uvIndices[0], ub = m.uvIndices[1], uc = m.uvIndices[2];
+        m.uvIndices.insert(m.uvIndices.end(), {ua, ub, uc, ub, ua, uc, ua, uc, uc, ub, uc, uc});
         const MeshTopologyStats control = computeTopologyStats(m.triangles.data(), m.faceCount());
         ASSERT_EQ(control.nonManifoldEdges, 1u);
         ASSERT_EQ(control.boundaryEdges, 0u);
         SurfaceOptions options;
-        options.displace = false;
         options.level = 4;
         std::unique_ptr<Surface> s;
-        const Status created = Surface::create(&s, rig, nullptr, options);
+        const Status created = Surface::create(&s, rig, &map, options);
         ASSERT_TRUE(created.isOk()) << created.message();
         ASSERT_EQ(s->level(), 4);
         const size_t nf = m.faceCount();
@@ -505,6 +505,17 @@ TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
             EXPECT_EQ(st.eulerCharacteristic, control.eulerCharacteristic) << label;
             std::vector<glm::vec3> p(frame.vertexCount());
             ASSERT_TRUE(s->evaluateAdaptive(p.data(), nullptr, p.size()).isOk()) << label;
+        }
+        // A view's choice over the hinge, bent (the bend's pass takes every
+        // face around an edge there, not a pair): within the tolerance.
+        ASSERT_TRUE(s->setAnimationTime(0, 0.8f).isOk());
+        for (float distance : {2.5f, 8.0f}) {
+            const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(distance);
+            const ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, distance));
+            ASSERT_TRUE(chooseAfresh(*s, view, 1.0f).isOk()) << label;
+            EXPECT_LE(pixelDeviation(*s, view), 1.0f) << label;
+            std::set<int> levels(s->adaptiveFrame().quarterLevels().begin(), s->adaptiveFrame().quarterLevels().end());
+            EXPECT_GE(levels.size(), 2u) << label << ": one level everywhere";
         }
     }
 }
