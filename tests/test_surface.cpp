@@ -239,6 +239,21 @@ TEST(Surface, RefusesEveryInputThatWouldDrawAnotherSurface)
     Status ev = s->evaluate(small.data(), nullptr, small.size());
     EXPECT_FALSE(ev.isOk());
     EXPECT_NE(ev.message().find("refined vertices"), std::string::npos) << ev.message();
+
+    // A skin that weighs other vertices than the cage has (a vertex added to
+    // a hand-built rig after its skeleton was finalised), or names a joint
+    // past its own: refused, not read past its end.
+    Rig skinned;
+    DisplacementMap skinnedMap;
+    test::makeBendingExampleRig(&skinned, &skinnedMap);
+    ASSERT_TRUE(Surface::create(&s, skinned, &skinnedMap).isOk());
+    Rig grown = skinned;
+    grown.mesh.positions.push_back(glm::vec3(0.0f));
+    refused(grown, &skinnedMap, {}, "the skin weighs 42 vertices and the control mesh has 43");
+    Rig wild = skinned;
+    wild.skeleton.weights.joints[4 * 3] = 40;
+    wild.skeleton.weights.weights[4 * 3] = 1.0f;
+    refused(wild, &skinnedMap, {}, "vertex 3 references joint 40 of a 2-joint skin");
 }
 
 // The box Surface::bounds gives holds every vertex of every frame, uniform

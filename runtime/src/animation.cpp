@@ -291,6 +291,20 @@ Status Animator::init(const Skeleton& skeleton, const ControlMesh& mesh)
         return Status(StatusCode::InvalidArgument, "the rig has no skin to animate");
     if (skeleton.order.size() != skeleton.nodes.size())
         return Status(StatusCode::InvalidArgument, "the skeleton was not finalised");
+    // The mesh may have changed since the skeleton was finalised: a skin
+    // that weighs other vertices than the mesh has is refused, not read
+    // past its end.
+    const VertexWeights& w = skeleton.weights;
+    const size_t nv = mesh.positions.size(), nj = skeleton.skin.joints.size();
+    if (w.influences <= 0 || w.joints.size() != nv * size_t(w.influences) || w.weights.size() != w.joints.size())
+        return Status(StatusCode::InvalidData, "the skin weighs " +
+                                                   std::to_string(w.influences > 0 ? w.joints.size() / size_t(w.influences) : 0) +
+                                                   " vertices and the control mesh has " + std::to_string(nv));
+    for (size_t i = 0; i < w.joints.size(); ++i)
+        if (w.weights[i] != 0.0f && w.joints[i] >= nj)
+            return Status(StatusCode::InvalidData, "vertex " + std::to_string(i / size_t(w.influences)) +
+                                                       " references joint " + std::to_string(w.joints[i]) + " of a " +
+                                                       std::to_string(nj) + "-joint skin");
     skeleton_ = &skeleton;
     mesh_ = &mesh;
     local_.assign(skeleton.nodes.size(), NodeTransform());
