@@ -455,11 +455,12 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
         // same for both, is left out.  Three runs, the median.
         const int frames = 120;
         std::vector<double> adaptiveRuns, uniformRuns;
-        size_t full = 0, kept = 0, rebuilds = 0, drawn = 0;
+        size_t full = 0, kept = 0, repaired = 0, rebuilds = 0, drawn = 0;
         std::vector<glm::vec3> mp(fine->vertexCount()), mn(mp.size());
         for (int run = 0; run < 3; ++run) {
             double adaptiveTotal = 0.0, uniformTotal = 0.0;
-            const size_t fullBefore = fine->levelChooser()->fullChoices(), keptBefore = fine->levelChooser()->keptChoices();
+            const LevelChooser* lc = fine->levelChooser();
+            const size_t fullBefore = lc->fullChoices(), keptBefore = lc->keptChoices(), repairedBefore = lc->repairedChoices();
             size_t changes = 0, vertices = 0;
             for (int f = 0; f < frames; ++f) {
                 const float s = std::sin(6.2831853f * float(f) / float(frames));
@@ -484,8 +485,9 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
             }
             adaptiveRuns.push_back(adaptiveTotal / frames);
             uniformRuns.push_back(uniformTotal / frames);
-            full = fine->levelChooser()->fullChoices() - fullBefore;
-            kept = fine->levelChooser()->keptChoices() - keptBefore;
+            full = lc->fullChoices() - fullBefore;
+            kept = lc->keptChoices() - keptBefore;
+            repaired = lc->repairedChoices() - repairedBefore;
             rebuilds = changes;
             drawn = vertices / size_t(frames);
         }
@@ -493,8 +495,8 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
             fine->setAnimationTime(animation, time);
         const double movingAdaptiveMs = bench::median(adaptiveRuns), movingUniformMs = bench::median(uniformRuns);
         std::printf("     | moving, %d frames: adaptive %.3f ms a frame (choice and frame; %zu choices in full, %zu kept, %zu "
-                    "rebuilds, %zu vertices on average), uniform %.3f ms (%.2f)\n",
-                    frames, movingAdaptiveMs, full, kept, rebuilds, drawn, movingUniformMs,
+                    "repaired, %zu rebuilds, %zu vertices on average), uniform %.3f ms (%.2f)\n",
+                    frames, movingAdaptiveMs, full, kept, repaired, rebuilds, drawn, movingUniformMs,
                     movingAdaptiveMs / movingUniformMs);
         std::fflush(stdout);
         jsonRows.field("table", "adaptive_moving")
@@ -505,6 +507,7 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
             .field("uniform_ms_per_frame", movingUniformMs)
             .field("full_choices", double(full))
             .field("kept_choices", double(kept))
+            .field("repaired_choices", double(repaired))
             .field("rebuilds", double(rebuilds))
             .field("mean_vertices", double(drawn))
             .endRow();

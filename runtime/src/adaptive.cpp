@@ -530,7 +530,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     bentPositions_.clear();  // no bends measured for this plan yet
     bentNormals_.clear();
     lastQuarters_.clear();  // nor a choice made
-    fullChoices_ = keptChoices_ = 0;
+    fullChoices_ = keptChoices_ = repairedChoices_ = 0;
 
     FaceLevelErrors& e = errors_;
     e.finest = L;
@@ -605,7 +605,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -763,113 +763,10 @@ STRATA_KERNEL_CLONES void gainsFor(size_t n, const float* __restrict p, const fl
 
 }  // namespace
 
-Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
-                            size_t controlCount, float poseScale, const glm::vec3* controlNormals,
-                            const uint8_t* previous)
+void LevelChooser::stitch(uint8_t* quarters, float pixelError, bool fromLast)
 {
     const int L = errors_.finest;
     const size_t nf = errors_.faceCount;
-    if (!quarters || (nf > 0 && !controlPositions))
-        return Status(StatusCode::InvalidArgument, "LevelChooser::choose: null buffer");
-    if (controlCount != controlCount_)
-        return Status(StatusCode::InvalidArgument, std::to_string(controlCount) + " control positions for " +
-                                                       std::to_string(controlCount_) + " control vertices");
-    if (!view.valid())
-        return Status(StatusCode::InvalidArgument, "the view is not a view (eye and target must differ, the field of view "
-                                                   "lie in (0, 180) degrees and the height be positive)");
-    if (!(pixelError > 0.0f) || !std::isfinite(pixelError))
-        return Status(StatusCode::InvalidArgument, "the pixel tolerance must be a positive number");
-    if (!(poseScale >= 1.0f) || !std::isfinite(poseScale))
-        poseScale = 1.0f;
-    const Camera cam(view);
-    // The pose's bend at each face: its own, or its neighbours' where
-    // larger (a smooth surface's stencils reach across its edges): the
-    // smallest cosine of each edge's faces, then of each face's edges.
-    const bool bent = controlNormals && restCount_ == controlCount;
-    // A view that moves over a pose that does not (a still character, a
-    // scan) keeps the bends of the last choice.
-    const bool samePose = bent && bentPositions_.size() == controlCount &&
-                          std::equal(bentPositions_.begin(), bentPositions_.end(), controlPositions) &&
-                          std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals);
-    corners_.resize(9 * nf);
-    gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
-    if (bent && !samePose) {
-        bentPositions_.assign(controlPositions, controlPositions + controlCount);
-        bentNormals_.assign(controlNormals, controlNormals + controlCount);
-        cornerNormals_.resize(9 * nf);
-        gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
-        cosines_.resize(nf);
-        leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
-        edgeCosines_.assign(edges_.edgeCount(), 1.0f);
-        if (!edgeFaces_.empty()) {
-            for (size_t e = 0; e < edges_.edgeCount(); ++e)
-                edgeCosines_[e] = std::min(cosines_[edgeFaces_[2 * e]], cosines_[edgeFaces_[2 * e + 1]]);
-        } else {
-            for (size_t e = 0; e < edges_.edgeCount(); ++e)
-                for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
-                    edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
-        }
-        for (size_t f = 0; f < nf; ++f) {
-            const uint32_t* e = &edgeOf_[3 * f];
-            cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
-        }
-    }
-    gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
-             GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
-    // The last choice's levels stand, without picking or stitching, while
-    // everything it draws is still within the tolerance and no face's gain
-    // has fallen below kHoldTolerance of its gain then (see choose).
-    if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
-        std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
-        // Every face checked, without a branch: the loop vectorises.
-        int stands = 1;
-        for (size_t f = 0; f < nf; ++f) {
-            const float g = gains_[f], e = drawnErrors_[f];
-            stands &= int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * fullGains_[f]);
-        }
-        if (stands) {
-            std::copy(previous, previous + 4 * nf, quarters);
-            ++keptChoices_;
-            return Status::ok();
-        }
-    }
-    for (size_t f = 0; f < nf; ++f) {
-        const float g = gains_[f];
-        // The lowest level in [from, to] within the tolerance; a previous
-        // level `was` above it is kept while no finer than the lowest
-        // within kHoldTolerance of the tolerance (past that, the lowest
-        // within the tolerance: a camera that jumps away does not keep the
-        // band's extra detail).
-        auto pick = [&](int from, int to, int was, auto&& error) {
-            auto lowest = [&](float tolerance) {
-                for (int l = from; l < to; ++l)
-                    if (error(l) * g <= tolerance)
-                        return l;
-                return to;
-            };
-            const int need = lowest(pixelError);
-            return was <= need || was > lowest(kHoldTolerance * pixelError) ? need : was;
-        };
-        const uint8_t* pq = previous ? previous + 4 * f : nullptr;
-        const int level = pick(0, L, pq ? std::max({pq[0], pq[1], pq[2], pq[3]}) : 0,
-                               [&](int l) { return errors_.at(f, l); });
-        // Below level 2 a quarter has nothing coarser to take.
-        uint8_t* fq = quarters + 4 * f;
-        for (int k = 0; k < 4; ++k)
-            fq[k] = uint8_t(level < 2 ? level
-                                      : pick(1, level, pq ? pq[k] : 0, [&](int l) { return errors_.quarterAt(f, k, l); }));
-        // A split whose quarters' grids hold more points than the face's
-        // (their shared borders counted twice, as the frame's passes work
-        // them) saves too few vertices to pay for its smaller tiles.
-        if (level >= 2) {
-            auto points = [](int l) { const uint32_t n = 1u << l; return (n + 1) * (n + 2) / 2; };
-            uint32_t split = 0;
-            for (int k = 0; k < 4; ++k)
-                split += points(fq[k] - 1);
-            if (split > points(level))
-                std::fill(fq, fq + 4, uint8_t(level));
-        }
-    }
     // Stitching: where a quarter meets coarser edges its strips (and
     // corners, where two coarse edges meet) may stray further than it or
     // its neighbours alone.  While one does, the coarsest neighbour across
@@ -878,11 +775,18 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // its edge neighbours' quarters) and nothing else, so after the first
     // pass only faces where those changed (settled or raised) are checked
     // again, and faces raised during a pass later in it: the others pass
-    // as they did.
+    // as they did.  From the last levels (fromLast), their halves stand,
+    // and the first pass checks the faces that no longer stood (moved_), the
+    // faces whose quarters changed and their edge neighbours; `touched_`
+    // gathers every face checked, whose drawn errors are measured again.
     const uint32_t* control = controlTriangles_.data();
     recheck_.assign(nf, 1);
-    seen_.resize(4 * nf);
-    for (bool changed = true, first = true; changed; first = false) {
+    touched_.assign(nf, fromLast ? 0 : 1);
+    if (fromLast)
+        seen_.assign(lastQuarters_.begin(), lastQuarters_.end());
+    else
+        seen_.resize(4 * nf);
+    for (bool changed = true, first = !fromLast, start = true; changed; first = false, start = false) {
         changed = false;
         settleQuarters(quarters, edgeOf_, edges_.edgeCount(), &zeroEdges_);
         if (first) {
@@ -890,6 +794,9 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         } else {
             // Only the edges of faces whose quarters changed have new halves.
             std::fill(recheck_.begin(), recheck_.end(), uint8_t(0));
+            if (start)
+                for (uint32_t f : moved_)
+                    recheck_[f] = 1;
             for (size_t f = 0; f < nf; ++f) {
                 if (std::memcmp(quarters + 4 * f, &seen_[4 * f], 4) == 0)
                     continue;
@@ -903,6 +810,8 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             }
         }
         std::memcpy(seen_.data(), quarters, 4 * nf);
+        for (size_t f = 0; f < nf; ++f)
+            touched_[f] |= recheck_[f];
         for (size_t f = 0; f < nf; ++f) {
             uint8_t* fq = quarters + 4 * f;
             if (!recheck_[f] || fq[0] == 0)
@@ -964,6 +873,8 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // error of what it draws (as the stitching measures it) and its gain.
     drawnErrors_.resize(nf);
     for (size_t f = 0; f < nf; ++f) {
+        if (!touched_[f])
+            continue;  // as the last choice drew it
         const uint8_t* fq = quarters + 4 * f;
         float e = alike(fq) ? errors_.at(f, fq[0]) : 0.0f;  // a split face: its quarters' own
         if (fq[0] != 0) {
@@ -983,10 +894,149 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         }
         drawnErrors_[f] = e;
     }
+}
+
+Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
+                            size_t controlCount, float poseScale, const glm::vec3* controlNormals,
+                            const uint8_t* previous)
+{
+    const int L = errors_.finest;
+    const size_t nf = errors_.faceCount;
+    if (!quarters || (nf > 0 && !controlPositions))
+        return Status(StatusCode::InvalidArgument, "LevelChooser::choose: null buffer");
+    if (controlCount != controlCount_)
+        return Status(StatusCode::InvalidArgument, std::to_string(controlCount) + " control positions for " +
+                                                       std::to_string(controlCount_) + " control vertices");
+    if (!view.valid())
+        return Status(StatusCode::InvalidArgument, "the view is not a view (eye and target must differ, the field of view "
+                                                   "lie in (0, 180) degrees and the height be positive)");
+    if (!(pixelError > 0.0f) || !std::isfinite(pixelError))
+        return Status(StatusCode::InvalidArgument, "the pixel tolerance must be a positive number");
+    if (!(poseScale >= 1.0f) || !std::isfinite(poseScale))
+        poseScale = 1.0f;
+    const Camera cam(view);
+    // The pose's bend at each face: its own, or its neighbours' where
+    // larger (a smooth surface's stencils reach across its edges): the
+    // smallest cosine of each edge's faces, then of each face's edges.
+    const bool bent = controlNormals && restCount_ == controlCount;
+    // A view that moves over a pose that does not (a still character, a
+    // scan) keeps the bends of the last choice.
+    const bool samePose = bent && bentPositions_.size() == controlCount &&
+                          std::equal(bentPositions_.begin(), bentPositions_.end(), controlPositions) &&
+                          std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals);
+    corners_.resize(9 * nf);
+    gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
+    if (bent && !samePose) {
+        bentPositions_.assign(controlPositions, controlPositions + controlCount);
+        bentNormals_.assign(controlNormals, controlNormals + controlCount);
+        cornerNormals_.resize(9 * nf);
+        gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
+        cosines_.resize(nf);
+        leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
+        edgeCosines_.assign(edges_.edgeCount(), 1.0f);
+        if (!edgeFaces_.empty()) {
+            for (size_t e = 0; e < edges_.edgeCount(); ++e)
+                edgeCosines_[e] = std::min(cosines_[edgeFaces_[2 * e]], cosines_[edgeFaces_[2 * e + 1]]);
+        } else {
+            for (size_t e = 0; e < edges_.edgeCount(); ++e)
+                for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
+                    edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
+        }
+        for (size_t f = 0; f < nf; ++f) {
+            const uint32_t* e = &edgeOf_[3 * f];
+            cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+        }
+    }
+    gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
+             GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
+    // Face f's levels from its gain: the lowest level within the tolerance
+    // and, from level 2, each quarter's.
+    auto pickFace = [&](size_t f) {
+        const float g = gains_[f];
+        // The lowest level in [from, to] within the tolerance; a previous
+        // level `was` above it is kept while no finer than the lowest
+        // within kHoldTolerance of the tolerance (past that, the lowest
+        // within the tolerance: a camera that jumps away does not keep the
+        // band's extra detail).
+        auto pick = [&](int from, int to, int was, auto&& error) {
+            auto lowest = [&](float tolerance) {
+                for (int l = from; l < to; ++l)
+                    if (error(l) * g <= tolerance)
+                        return l;
+                return to;
+            };
+            const int need = lowest(pixelError);
+            return was <= need || was > lowest(kHoldTolerance * pixelError) ? need : was;
+        };
+        const uint8_t* pq = previous ? previous + 4 * f : nullptr;
+        const int level = pick(0, L, pq ? std::max({pq[0], pq[1], pq[2], pq[3]}) : 0,
+                               [&](int l) { return errors_.at(f, l); });
+        // Below level 2 a quarter has nothing coarser to take.
+        uint8_t* fq = quarters + 4 * f;
+        for (int k = 0; k < 4; ++k)
+            fq[k] = uint8_t(level < 2 ? level
+                                      : pick(1, level, pq ? pq[k] : 0, [&](int l) { return errors_.quarterAt(f, k, l); }));
+        // A split whose quarters' grids hold more points than the face's
+        // (their shared borders counted twice, as the frame's passes work
+        // them) saves too few vertices to pay for its smaller tiles.
+        if (level >= 2) {
+            auto points = [](int l) { const uint32_t n = 1u << l; return (n + 1) * (n + 2) / 2; };
+            uint32_t split = 0;
+            for (int k = 0; k < 4; ++k)
+                split += points(fq[k] - 1);
+            if (split > points(level))
+                std::fill(fq, fq + 4, uint8_t(level));
+        }
+    };
+    // The last choice's levels stand, without picking or stitching, while
+    // everything it draws is still within the tolerance and no face's gain
+    // has fallen below kHoldTolerance of its gain then (see choose).  Where
+    // only a few faces no longer stand, the choice is repaired: stitched
+    // from those faces and the ones whose levels the picking changed.
+    auto stands = [&](size_t f) {
+        const float g = gains_[f], e = drawnErrors_[f];
+        return int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * fullGains_[f]);
+    };
+    bool repair = false;
+    if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
+        std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
+        // Every face checked, without a branch: the loop vectorises.
+        size_t moved = 0;
+        for (size_t f = 0; f < nf; ++f)
+            moved += size_t(1 - stands(f));
+        if (moved == 0) {
+            std::copy(previous, previous + 4 * nf, quarters);
+            ++keptChoices_;
+            return Status::ok();
+        }
+        repair = moved * kRepairShare <= nf;
+    }
+    moved_.clear();
+    if (repair)
+        for (size_t f = 0; f < nf; ++f)
+            if (!stands(f))
+                moved_.push_back(uint32_t(f));
+    for (size_t f = 0; f < nf; ++f)
+        pickFace(f);
+    stitch(quarters, pixelError, repair);
+    // A repair stands where every face it checked draws within the
+    // tolerance (the others passed above); otherwise the choice is made in
+    // full.
+    if (repair) {
+        bool within = true;
+        for (size_t f = 0; f < nf && within; ++f)
+            within = !touched_[f] || drawnErrors_[f] == 0.0f || drawnErrors_[f] * gains_[f] <= pixelError;
+        if (!within) {
+            repair = false;
+            for (size_t f = 0; f < nf; ++f)
+                pickFace(f);
+            stitch(quarters, pixelError, false);
+        }
+    }
+    ++(repair ? repairedChoices_ : fullChoices_);
     fullGains_ = gains_;
     lastQuarters_.assign(quarters, quarters + 4 * nf);
     lastTolerance_ = pixelError;
-    ++fullChoices_;
     return Status::ok();
 }
 

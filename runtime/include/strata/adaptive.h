@@ -151,7 +151,12 @@ public:
     /// fraction of the cost) while everything they draw is still within the
     /// tolerance in this view and pose and no face's pixels per unit of
     /// error has fallen below kHoldTolerance of what it was at the last
-    /// choice made in full; otherwise the choice is made in full.
+    /// choice made in full.  Where only a few faces (at most one in
+    /// kRepairShare) no longer stand, every face is picked again but the
+    /// stitching starts from the last levels and checks only those faces,
+    /// the faces whose levels changed and their edge neighbours (a repair:
+    /// the same levels as a choice in full from `previous`, for a third of
+    /// its cost); otherwise the choice is made in full.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
                   const uint8_t* previous = nullptr);
@@ -162,6 +167,11 @@ public:
     /// choose), since init.
     size_t fullChoices() const { return fullChoices_; }
     size_t keptChoices() const { return keptChoices_; }
+    /// Choices stitched from the faces that no longer stand (see choose).
+    size_t repairedChoices() const { return repairedChoices_; }
+    /// A repair is tried while at most one face in kRepairShare no longer
+    /// stands.
+    static constexpr size_t kRepairShare = 8;
 
     /// The error (model units, rest pose) of quarter `quarter` of face
     /// `face` drawn at `level` >= 1 with its edges at edgeLevels and, for the
@@ -172,6 +182,7 @@ public:
     size_t bytes() const;
 
 private:
+    void stitch(uint8_t* quarters, float pixelError, bool fromLast);
     float templateError(const std::vector<uint16_t>& t, size_t face) const;
     const std::vector<uint16_t>& quarterTemplate(int quarter, int level, const int edgeLevels[3], int coarseSides);
 
@@ -205,8 +216,9 @@ private:
     std::vector<uint8_t> lastQuarters_;
     std::vector<float> fullGains_, drawnErrors_;
     float lastTolerance_ = 0.0f;
-    size_t fullChoices_ = 0, keptChoices_ = 0;
-    std::vector<uint8_t> seen_, recheck_;  // the stitching pass's scratch
+    size_t fullChoices_ = 0, keptChoices_ = 0, repairedChoices_ = 0;
+    std::vector<uint8_t> seen_, recheck_, touched_;  // the stitching pass's scratch
+    std::vector<uint32_t> moved_;                    // a repair's faces that no longer stood
 };
 
 /// The largest singular value of the upper 3x3 of any of `count` matrices
