@@ -154,9 +154,9 @@ public:
     /// choice made in full.  Where only a few faces (at most one in
     /// kRepairShare) no longer stand, every face is picked again but the
     /// stitching starts from the last levels and checks only those faces,
-    /// the faces whose levels changed and their edge neighbours (a repair:
-    /// the levels a choice in full from `previous` gives, without checking
-    /// the faces that did not move); otherwise the choice is made in full.
+    /// the faces whose levels changed and their edge neighbours (a repair;
+    /// on every repair of the tests, the levels a choice in full from
+    /// `previous` gives); otherwise the choice is made in full.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
                   const uint8_t* previous = nullptr);
