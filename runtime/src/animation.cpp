@@ -13,6 +13,32 @@
 
 namespace strata {
 
+namespace {
+
+// Whether weights `w` skin `vertexCount` vertices (4 or 8 influences each)
+// with joints of a `jointCount`-joint skin where they weigh anything.
+Status checkWeights(const VertexWeights& w, size_t jointCount, size_t vertexCount)
+{
+    if (w.influences != 4 && w.influences != 8)
+        return Status(StatusCode::InvalidData, "the skin has " + std::to_string(w.influences) +
+                                                   " influences a vertex (4 or 8 are read)");
+    const size_t k = size_t(w.influences);
+    if (w.weights.size() != w.joints.size())
+        return Status(StatusCode::InvalidData, "the skin has " + std::to_string(w.joints.size()) + " joint indices and " +
+                                                   std::to_string(w.weights.size()) + " weights");
+    if (w.joints.size() != vertexCount * k)
+        return Status(StatusCode::InvalidData, "the skin weighs " + std::to_string(w.joints.size() / k) +
+                                                   " vertices and the control mesh has " + std::to_string(vertexCount));
+    for (size_t i = 0; i < w.joints.size(); ++i)
+        if (w.weights[i] != 0.0f && w.joints[i] >= jointCount)
+            return Status(StatusCode::InvalidData, "vertex " + std::to_string(i / k) + " references joint " +
+                                                       std::to_string(w.joints[i]) + " of a " +
+                                                       std::to_string(jointCount) + "-joint skin");
+    return Status::ok();
+}
+
+}  // namespace
+
 Status finalizeSkeleton(Skeleton* s, size_t vertexCount)
 {
     const int n = int(s->nodes.size());
@@ -49,18 +75,9 @@ Status finalizeSkeleton(Skeleton* s, size_t vertexCount)
         return Status(StatusCode::InvalidData, "the skin has " + std::to_string(nj) + " joints but " +
                                                    std::to_string(s->skin.inverseBindMatrices.size()) +
                                                    " inverse bind matrices");
-    const VertexWeights& w = s->weights;
-    if (nj > 0) {
-        if ((w.influences != 4 && w.influences != 8) || w.joints.size() != vertexCount * size_t(w.influences) ||
-            w.weights.size() != w.joints.size())
-            return Status(StatusCode::InvalidData, "skin weights do not match the " + std::to_string(vertexCount) +
-                                                       " control vertices");
-        for (size_t i = 0; i < w.joints.size(); ++i)
-            if (w.weights[i] != 0.0f && w.joints[i] >= nj)
-                return Status(StatusCode::InvalidData, "vertex " + std::to_string(i / size_t(w.influences)) +
-                                                           " references joint " + std::to_string(w.joints[i]) +
-                                                           " of a " + std::to_string(nj) + "-joint skin");
-    }
+    if (nj > 0)
+        if (Status st = checkWeights(s->weights, nj, vertexCount); !st)
+            return st;
     for (size_t a = 0; a < s->animations.size(); ++a) {
         Animation& anim = s->animations[a];
         if (anim.channels.empty())
@@ -294,17 +311,8 @@ Status Animator::init(const Skeleton& skeleton, const ControlMesh& mesh)
     // The mesh may have changed since the skeleton was finalised: a skin
     // that weighs other vertices than the mesh has is refused, not read
     // past its end.
-    const VertexWeights& w = skeleton.weights;
-    const size_t nv = mesh.positions.size(), nj = skeleton.skin.joints.size();
-    if (w.influences <= 0 || w.joints.size() != nv * size_t(w.influences) || w.weights.size() != w.joints.size())
-        return Status(StatusCode::InvalidData, "the skin weighs " +
-                                                   std::to_string(w.influences > 0 ? w.joints.size() / size_t(w.influences) : 0) +
-                                                   " vertices and the control mesh has " + std::to_string(nv));
-    for (size_t i = 0; i < w.joints.size(); ++i)
-        if (w.weights[i] != 0.0f && w.joints[i] >= nj)
-            return Status(StatusCode::InvalidData, "vertex " + std::to_string(i / size_t(w.influences)) +
-                                                       " references joint " + std::to_string(w.joints[i]) + " of a " +
-                                                       std::to_string(nj) + "-joint skin");
+    if (Status st = checkWeights(skeleton.weights, skeleton.skin.joints.size(), mesh.positions.size()); !st)
+        return st;
     skeleton_ = &skeleton;
     mesh_ = &mesh;
     local_.assign(skeleton.nodes.size(), NodeTransform());
