@@ -605,7 +605,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(fullGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -995,7 +995,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // from those faces and the ones whose levels the picking changed.
     auto stands = [&](size_t f) {
         const float g = gains_[f], e = drawnErrors_[f];
-        return int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * fullGains_[f]);
+        return int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * chosenGains_[f]);
     };
     bool repair = false;
     if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
@@ -1034,7 +1034,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         }
     }
     ++(repair ? repairedChoices_ : fullChoices_);
-    fullGains_ = gains_;
+    chosenGains_ = gains_;
     lastQuarters_.assign(quarters, quarters + 4 * nf);
     lastTolerance_ = pixelError;
     return Status::ok();

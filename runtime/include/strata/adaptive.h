@@ -151,7 +151,7 @@ public:
     /// fraction of the cost) while everything they draw is still within the
     /// tolerance in this view and pose and no face's pixels per unit of
     /// error has fallen below kHoldTolerance of what it was at the last
-    /// choice made in full.  Where only a few faces (at most one in
+    /// choice made (in full or repaired).  Where only a few faces (at most one in
     /// kRepairShare) no longer stand, every face is picked again but the
     /// stitching starts from the last levels and checks only those faces,
     /// the faces whose levels changed and their edge neighbours (a repair;
@@ -211,10 +211,11 @@ private:
     std::vector<float> gains_, cosines_, edgeCosines_;
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
-    // The last full choice: its levels and tolerance, and per face its gain
-    // and the largest error (rest pose, model units) of what it draws.
+    // The last choice made (in full or repaired): its levels and tolerance,
+    // and per face its gain and the largest error (rest pose, model units)
+    // of what it draws.
     std::vector<uint8_t> lastQuarters_;
-    std::vector<float> fullGains_, drawnErrors_;
+    std::vector<float> chosenGains_, drawnErrors_;
     float lastTolerance_ = 0.0f;
     size_t fullChoices_ = 0, keptChoices_ = 0, repairedChoices_ = 0;
     std::vector<uint8_t> seen_, recheck_, touched_;  // the stitching pass's scratch
