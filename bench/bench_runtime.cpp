@@ -387,16 +387,6 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
                                below->evaluate(bp.data(), bn.data(), bp.size());
                        }},
                       {&uniformMs, &adaptiveMs, &uniformPositionsMs, &positionsMs, &belowMs});
-        if (const char* dumpDir = std::getenv("PROF_DUMP")) {
-            char fn[256]; std::snprintf(fn, 256, "%s/%s_%d.bin", dumpDir, name, int(fill * 100));
-            FILE* fp = std::fopen(fn, "wb");
-            fine->evaluateAdaptive(ap.data(), an.data(), ap.size());
-            std::fwrite(ap.data(), 12, ap.size(), fp); std::fwrite(an.data(), 12, an.size(), fp);
-            std::fwrite(frame.triangles().data(), 4, frame.triangles().size(), fp);
-            std::fwrite(frame.cornerSlots().data(), 2, frame.cornerSlots().size(), fp);
-            std::fwrite(frame.triangleFaces().data(), 4, frame.triangleFaces().size(), fp);
-            std::fclose(fp);
-        }
         const auto nsPerVertex = [](double ms, size_t n) { return n ? 1e6 * ms / double(n) : 0.0; };
         const float adaptiveError = frame.maxScreenDeviation(ap.data(), finePositions.data(), view);
         int lmin = L, lmax = 0;
