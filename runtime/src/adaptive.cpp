@@ -870,7 +870,7 @@ void LevelChooser::stitch(uint8_t* quarters, float pixelError, bool fromLast)
         }
     }
     // What the next choice needs to keep these levels: per face the largest
-    // error of what it draws (as the stitching measures it) and its gain.
+    // error of what it draws (as the stitching measures it).
     drawnErrors_.resize(nf);
     for (size_t f = 0; f < nf; ++f) {
         if (!touched_[f])
