@@ -6,13 +6,15 @@
 // levels 0..5 (6 with --max 6).
 //
 //   bench_gpu [--size WxH] [--max-level N]
-//   bench_gpu --adaptive [--level N] [--size WxH] [--json FILE]
+//   bench_gpu --adaptive [--level N] [--size WxH] [--frames N] [--json FILE]
 //
 // --adaptive: one displaced, animated character of about a million refined
 // vertices (a 500-face geodesic head, the example's head map, two joints
 // bending it; level 6), uniform against adaptive (1-pixel tolerance, the
 // model filling 100%, 30% and 10% of the view's height), stage by stage, as
-// JSON on stdout (and into FILE).  tools/gpu/ packs this for a GPU machine.
+// JSON on stdout (and into FILE), then a moving view and pose over N frames
+// (120), adaptive against uniform per frame.  tools/gpu/ packs this for a
+// GPU machine.
 //
 // Headless through EGL: llvmpipe on a machine without a GPU, the vendor's
 // driver where there is one (the context line says which).
@@ -231,7 +233,8 @@ bool makeBigCharacter(Rig* rig, DisplacementMap* map)
 }
 
 // Uniform against adaptive on the GPU, stage by stage, as JSON rows.
-int runAdaptive(int width, int height, int level, const std::string& jsonPath, const std::string& device)
+int runAdaptive(int width, int height, int level, int movingFrames, const std::string& jsonPath,
+                const std::string& device)
 {
     Rig rig;
     DisplacementMap map;
@@ -277,6 +280,35 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
     bench::boundingSphere(finePositions, &centre, &radius);
     surface->faceLevelErrors();  // measured at load, not in a frame
 
+    // Once per run, outside the rows: the adaptive passes' programs are
+    // compiled by the first setAdaptive (tens of milliseconds on a driver
+    // that compiles late), and a GPU idling at low clocks takes a moment to
+    // come up.  Half a second of uniform frames brings it up.
+    double programsMs = 0.0;
+    {
+        const double p0 = bench::nowMs();
+        surface->chooseFaceLevels(bench::viewFilling(centre, radius, 0.1f, float(height)), 1.0f);
+        gpu->setAdaptive(surface->adaptiveFrame());
+        glFinish();
+        programsMs = bench::nowMs() - p0;
+        fb.bind();
+        glViewport(0, 0, width, height);
+        const ViewSpec view = bench::viewFilling(centre, radius, 1.0f, float(height));
+        gl::DrawParams params;
+        params.eye = view.eye;
+        params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height), 0.01f,
+                                                 100.0f * radius) *
+                                glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+        for (const double w0 = bench::nowMs(); bench::nowMs() - w0 < 500.0;) {
+            gpu->update(surface->controlPositions().data(), surface->controlNormals().data(), cn);
+            glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+            gpu->draw(params);
+            glFinish();
+        }
+    }
+    std::printf("(the adaptive programs built and a first frame set in %.1f ms, once; GPU warmed for 0.5 s)\n",
+                programsMs);
+
     for (float fill : {1.0f, 0.3f, 0.1f}) {
         const ViewSpec view = bench::viewFilling(centre, radius, fill, float(height));
         const float distance = glm::length(view.eye - view.target);
@@ -295,12 +327,16 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
                 pose();
                 const double c0 = bench::nowMs();
                 surface->chooseFaceLevels(view, 1.0f);
-                const double c1 = bench::nowMs();
-                gpu->setAdaptive(surface->adaptiveFrame());
-                glFinish();
-                const double c2 = bench::nowMs();
-                chooseMs = c1 - c0;
-                setMs = c2 - c1;
+                chooseMs = bench::nowMs() - c0;
+                // A new frame's fans and uploads, finished (median of 5).
+                std::vector<double> sets;
+                for (int r = 0; r < 5; ++r) {
+                    const double c1 = bench::nowMs();
+                    gpu->setAdaptive(surface->adaptiveFrame());
+                    glFinish();
+                    sets.push_back(bench::nowMs() - c1);
+                }
+                setMs = bench::median(sets);
                 vertices = surface->adaptiveFrame().vertexCount();
                 triangles = surface->adaptiveFrame().triangleCount();
             }
@@ -375,6 +411,75 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
                 .field("height", height)
                 .endRow();
         }
+
+        // A moving view and pose, as bench_runtime's adaptive_moving: the
+        // camera dollies 10% in and out and slides sideways, the rig plays
+        // at 60 Hz.  An adaptive frame is its choice, a new frame set where
+        // the levels changed, the passes and the draw, finished; a uniform
+        // frame is its passes and draw, finished.  The pose, the same for
+        // both, is left out.  Three runs, the median.
+        std::vector<double> adaptiveRuns, uniformRuns;
+        size_t sets = 0, drawn = 0;
+        for (int run = 0; run < 3; ++run) {
+            double adaptiveTotal = 0.0, uniformTotal = 0.0;
+            sets = drawn = 0;
+            for (int f = 0; f < movingFrames; ++f) {
+                const float s = std::sin(6.2831853f * float(f) / float(movingFrames));
+                ViewSpec v = view;
+                v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
+                gl::DrawParams p = params;
+                p.eye = v.eye;
+                p.viewProjection = glm::perspective(glm::radians(v.fovYDegrees), float(width) / float(height),
+                                                    0.05f * distance, 10.0f * distance) *
+                                   glm::lookAt(v.eye, v.target, glm::vec3(0, 1, 0));
+                surface->setAnimationTime(0, std::fmod(float(f) / 60.0f, 2.0f));
+                const glm::vec3* cp = surface->controlPositions().data();
+                const glm::vec3* nn = surface->controlNormals().data();
+                const uint64_t topology = surface->adaptiveFrame().topologyVersion();
+                double t0 = bench::nowMs();
+                surface->chooseFaceLevels(v, 1.0f);
+                if (surface->adaptiveFrame().topologyVersion() != topology) {
+                    gpu->setAdaptive(surface->adaptiveFrame());
+                    ++sets;
+                }
+                gpu->updateAdaptive(cp, nn, cn);
+                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+                glEnable(GL_DEPTH_TEST);
+                gpu->drawAdaptive(p);
+                glFinish();
+                double t1 = bench::nowMs();
+                adaptiveTotal += t1 - t0;
+                drawn += surface->adaptiveFrame().vertexCount();
+                t0 = bench::nowMs();
+                gpu->update(cp, nn, cn);
+                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+                glEnable(GL_DEPTH_TEST);
+                gpu->draw(p);
+                glFinish();
+                t1 = bench::nowMs();
+                uniformTotal += t1 - t0;
+            }
+            adaptiveRuns.push_back(adaptiveTotal / movingFrames);
+            uniformRuns.push_back(uniformTotal / movingFrames);
+        }
+        const double movingAdaptive = bench::median(adaptiveRuns), movingUniform = bench::median(uniformRuns);
+        std::printf("moving   | %3.0f%% | %d frames: adaptive %.3f ms a frame (%zu new frames set, %zu vertices on "
+                    "average), uniform %.3f ms (%.2f)\n",
+                    100.0 * fill, movingFrames, movingAdaptive, sets, drawn / size_t(movingFrames), movingUniform,
+                    movingAdaptive / movingUniform);
+        std::fflush(stdout);
+        rows.field("table", "gpu_adaptive_moving")
+            .field("device", device)
+            .field("fill", double(fill))
+            .field("level", level)
+            .field("frames", movingFrames)
+            .field("adaptive_ms_per_frame", movingAdaptive)
+            .field("uniform_ms_per_frame", movingUniform)
+            .field("frames_set", double(sets))
+            .field("mean_vertices", double(drawn / size_t(movingFrames)))
+            .field("width", width)
+            .field("height", height)
+            .endRow();
     }
     std::printf("%s\n", rows.text().c_str());
     if (!jsonPath.empty() && !rows.write(jsonPath)) {
@@ -388,7 +493,7 @@ int runAdaptive(int width, int height, int level, const std::string& jsonPath, c
 
 int main(int argc, char** argv)
 {
-    int width = 1280, height = 720, maxLevel = 5, adaptiveLevel = 6;
+    int width = 1280, height = 720, maxLevel = 5, adaptiveLevel = 6, movingFrames = 120;
     bool adaptive = false, sizeGiven = false;
     std::string jsonPath;
     for (int i = 1; i < argc; ++i) {
@@ -400,11 +505,13 @@ int main(int argc, char** argv)
             adaptive = true;
         else if (!std::strcmp(argv[i], "--level") && i + 1 < argc)
             adaptiveLevel = std::clamp(std::atoi(argv[++i]), 1, kMaxLevel);
+        else if (!std::strcmp(argv[i], "--frames") && i + 1 < argc)
+            movingFrames = std::clamp(std::atoi(argv[++i]), 1, 100000);
         else if (!std::strcmp(argv[i], "--json") && i + 1 < argc)
             jsonPath = argv[++i];
         else {
             std::fprintf(stderr, "usage: bench_gpu [--size WxH] [--max-level N]\n"
-                                 "       bench_gpu --adaptive [--level N] [--size WxH] [--json FILE]\n");
+                                 "       bench_gpu --adaptive [--level N] [--size WxH] [--frames N] [--json FILE]\n");
             return 2;
         }
     }
@@ -421,7 +528,7 @@ int main(int argc, char** argv)
         return 1;
     }
     if (adaptive)
-        return runAdaptive(width, height, adaptiveLevel, jsonPath, ctx->description());
+        return runAdaptive(width, height, adaptiveLevel, movingFrames, jsonPath, ctx->description());
     std::printf("bench_gpu: %s\n", ctx->description().c_str());
 
     Case example;

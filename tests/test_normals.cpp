@@ -277,6 +277,46 @@ TEST(VertexFans, ClosedRingsOpenFansAndPinchedVertices)
     EXPECT_EQ(offsets[7] - offsets[6], 0u);  // vertex 6 is only in the two faces without area at it
 }
 
+// A vertex's steps are searched in place when few and through sorted lists
+// when many (kFewSteps, 16): wheels of 5 .. 40 faces around vertex 0, given
+// in a scrambled order, closed and with one face taken out, and two wheels
+// pinched at vertex 0, give the ring in turn either way.
+TEST(VertexFans, WheelsOfFewAndManyFaces)
+{
+    for (uint32_t k : {5u, 16u, 17u, 40u}) {
+        for (bool open : {false, true}) {
+            std::vector<uint32_t> tris;
+            for (uint32_t i = 0; i < k; ++i) {
+                const uint32_t s = (7 * i + 3) % k;  // scrambled (7 and k share no factor)
+                if (open && s == k - 1)
+                    continue;  // the face from ring vertex k to ring vertex 1
+                tris.insert(tris.end(), {0, 1 + s, 1 + (s + 1) % k});
+            }
+            // A second wheel of k faces pinched to the first at vertex 0.
+            for (uint32_t i = 0; i < k; ++i)
+                tris.insert(tris.end(), {0, 1 + k + i, 1 + k + (i + 1) % k});
+            std::vector<uint32_t> offsets, entries;
+            buildVertexFans(&offsets, &entries, tris.data(), tris.size() / 3, 2 * k + 1);
+            const auto fans = fansOf(offsets, entries, 0);
+            ASSERT_EQ(fans.size(), 2u) << k;
+            std::vector<uint32_t> first, second;
+            for (uint32_t i = 0; i <= k; ++i) {
+                if (!open || i < k)
+                    first.push_back(1 + i % k);
+                second.push_back(1 + k + i % k);
+            }
+            // The open fan starts at its border and comes first; a closed
+            // ring starts at its first step in face order.
+            if (!open) {
+                std::rotate(first.begin(), first.begin() + 3, first.end() - 1);
+                first.back() = first.front();
+            }
+            EXPECT_EQ(fans[0], first) << k << (open ? " open" : " closed");
+            EXPECT_EQ(fans[1], second) << k;
+        }
+    }
+}
+
 TEST(VertexFans, FanNormalsEqualTheAreaWeightedScatter)
 {
     // A displaced refined sphere with an open cut and a pinched vertex: the

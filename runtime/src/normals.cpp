@@ -118,7 +118,12 @@ void buildVertexFans(std::vector<uint32_t>* offsets, std::vector<uint32_t>* entr
         bool used;
     };
     std::vector<Step> steps;
-    std::vector<uint32_t> byA, bs;  // step indices sorted by a; every b, sorted
+    // A vertex's few steps are searched in place; past kFewSteps (a fan
+    // of many faces), through step indices sorted by a and every b, sorted,
+    // so that no vertex costs the square of its faces.  Either way the same
+    // steps are found: the first unused one in face order.
+    constexpr size_t kFewSteps = 16;
+    std::vector<uint32_t> byA, bs;
     for (size_t v = 0; v < vertexCount; ++v) {
         steps.clear();
         uint32_t previous = UINT32_MAX;
@@ -133,16 +138,35 @@ void buildVertexFans(std::vector<uint32_t>* offsets, std::vector<uint32_t>* entr
             if (a != v && b != v && a != b)
                 steps.push_back({a, b, false});
         }
-        byA.resize(steps.size());
-        bs.resize(steps.size());
-        for (uint32_t i = 0; i < steps.size(); ++i) {
-            byA[i] = i;
-            bs[i] = steps[i].b;
+        const uint32_t count = uint32_t(steps.size());
+        const bool few = count <= kFewSteps;
+        if (!few) {
+            byA.resize(count);
+            bs.resize(count);
+            for (uint32_t i = 0; i < count; ++i) {
+                byA[i] = i;
+                bs[i] = steps[i].b;
+            }
+            std::stable_sort(byA.begin(), byA.end(), [&](uint32_t x, uint32_t y) { return steps[x].a < steps[y].a; });
+            std::sort(bs.begin(), bs.end());
         }
-        std::stable_sort(byA.begin(), byA.end(), [&](uint32_t x, uint32_t y) { return steps[x].a < steps[y].a; });
-        std::sort(bs.begin(), bs.end());
+        // Whether some step (used or not) leads into ring vertex a.
+        auto isTarget = [&](uint32_t a) {
+            if (!few)
+                return std::binary_search(bs.begin(), bs.end(), a);
+            for (uint32_t i = 0; i < count; ++i)
+                if (steps[i].b == a)
+                    return true;
+            return false;
+        };
         // The first unused step leaving ring vertex a, in face order.
         auto next = [&](uint32_t a) -> uint32_t {
+            if (few) {
+                for (uint32_t i = 0; i < count; ++i)
+                    if (steps[i].a == a && !steps[i].used)
+                        return i;
+                return UINT32_MAX;
+            }
             auto it = std::lower_bound(byA.begin(), byA.end(), a,
                                        [&](uint32_t i, uint32_t value) { return steps[i].a < value; });
             for (; it != byA.end() && steps[*it].a == a; ++it)
@@ -165,10 +189,10 @@ void buildVertexFans(std::vector<uint32_t>* offsets, std::vector<uint32_t>* entr
         };
         // Open fans first, from steps that no other step leads into (a
         // boundary), then the closed rings that remain.
-        for (uint32_t i = 0; i < steps.size(); ++i)
-            if (!steps[i].used && !std::binary_search(bs.begin(), bs.end(), steps[i].a))
+        for (uint32_t i = 0; i < count; ++i)
+            if (!steps[i].used && !isTarget(steps[i].a))
                 walk(i);
-        for (uint32_t i = 0; i < steps.size(); ++i)
+        for (uint32_t i = 0; i < count; ++i)
             if (!steps[i].used)
                 walk(i);
         (*offsets)[v + 1] = uint32_t(entries->size());

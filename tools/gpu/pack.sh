@@ -4,7 +4,7 @@
 # machine with an NVIDIA driver and no network, headless through EGL:
 #
 #   tools/gpu/pack.sh BUILD_DIR OUT_DIR      # here, after building bench_gpu
-#   OUT_DIR/run.sh [--level N] [--size WxH] [--json FILE]   # there
+#   OUT_DIR/run.sh [--level N] [--size WxH] [--frames N] [--json FILE]   # there
 #
 # run.sh starts bench_gpu --adaptive through the packed loader, so the
 # machine's own libraries never mix in, except the EGL vendor: glvnd (packed)
@@ -59,7 +59,7 @@ RUN
 chmod +x "$stage/run.sh"
 {
   echo "bench_gpu packed by tools/gpu/pack.sh on $(date -u +%Y-%m-%dT%H:%M:%SZ) from $(cd "$build" && pwd)"
-  echo "run: ./run.sh [--level N] [--size WxH] [--json FILE]   (defaults: level 6, 1920x1080)"
+  echo "run: ./run.sh [--level N] [--size WxH] [--frames N] [--json FILE]   (defaults: level 6, 1920x1080, 120 moving frames)"
   echo "needs: x86-64 Linux, a GPU driver with an EGL vendor in /usr/share/glvnd/egl_vendor.d"
   (cd "$stage" && find bin lib -type f | sort | xargs sha256sum)
 } > "$stage/MANIFEST.txt"
