@@ -770,6 +770,25 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
 // most choices keep the last levels without being made again, and every
 // frame still meets the tolerance (the kept ones too) and keeps no more
 // detail than a fresh choice within kHoldTolerance of it, or about that.
+// The levels a chooser of the test's own, made as `posed` makes its own
+// (from `rest`, its rest pose), chooses in full in `posed`'s pose from
+// `previous`.
+std::vector<uint8_t> choiceInFull(const Surface& rest, const Surface& posed, const ViewSpec& view,
+                                  const std::vector<uint8_t>& previous)
+{
+    LevelChooser full;
+    std::vector<uint8_t> levels(previous.size());
+    EXPECT_TRUE(full.init(rest.plan(), nullptr, rest.controlPositions().data(), rest.controlNormals().data(),
+                          rest.controlVertexCount())
+                    .isOk());
+    const std::vector<glm::mat4>& skin = posed.skinMatrices();
+    EXPECT_TRUE(full.choose(levels.data(), view, 1.0f, posed.controlPositions().data(), posed.controlVertexCount(),
+                            skin.empty() ? 1.0f : skinScale(&skin[0][0][0], skin.size()),
+                            posed.controlNormals().data(), previous.data())
+                    .isOk());
+    return levels;
+}
+
 TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
 {
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
@@ -800,17 +819,7 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
                 // A repair (stitched from the faces that moved) is the
                 // choice made in full from the same levels.
                 ++repairs;
-                LevelChooser full;
-                ASSERT_TRUE(full.init(rest->plan(), nullptr, rest->controlPositions().data(),
-                                      rest->controlNormals().data(), rest->controlVertexCount())
-                                .isOk());
-                std::vector<uint8_t> levels(before.size());
-                const std::vector<glm::mat4>& skin = held->skinMatrices();
-                ASSERT_TRUE(full.choose(levels.data(), view, 1.0f, held->controlPositions().data(),
-                                        held->controlVertexCount(), skin.empty() ? 1.0f : skinScale(&skin[0][0][0], skin.size()),
-                                        held->controlNormals().data(), before.data())
-                                .isOk());
-                EXPECT_EQ(levels, held->adaptiveFrame().quarterLevels()) << label;
+                EXPECT_EQ(choiceInFull(*rest, *held, view, before), held->adaptiveFrame().quarterLevels()) << label;
             }
             heldVertices += held->adaptiveFrame().vertexCount();
             ASSERT_TRUE(chooseAfresh(*fresh, view, LevelChooser::kHoldTolerance).isOk());
@@ -859,6 +868,53 @@ TEST(Adaptive, MovingAwayDropsLevelsToTheTolerance)
             EXPECT_GE(kept, need);
             EXPECT_LE(double(kept), 1.02 * double(band)) << schemeName(scheme) << " at " << distance;
         }
+    }
+}
+
+// A camera drifting away keeps the detail it no longer needs while it still
+// meets the tolerance and at most one face in kRepairShare could fall:
+// dropping it costs a rebuild.  Past that share the choice is made again
+// and the levels fall to what a choice in full from them takes.
+TEST(Adaptive, FallsWaitUntilEnoughCouldFall)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> full = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> rest = posedSurface(scheme, 0.0f, &rig, &map);
+        ASSERT_TRUE(held && full && rest && rest->setRestPose().isOk());
+        ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 2.5f));
+        ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
+        size_t waited = 0, fell = 0;
+        double most = 0.0;  // the largest share of extra vertices kept
+        for (int frame = 1; frame <= 60; ++frame) {
+            // Away from 2.5 to 2.5 * 1.01^60 = 4.5, one percent a frame.
+            view.eye = glm::vec3(0.3f, 0.2f, 2.5f * std::pow(1.01f, float(frame)));
+            const std::string label = std::string(schemeName(scheme)) + " frame " + std::to_string(frame);
+            const std::vector<uint8_t> before = held->adaptiveFrame().quarterLevels();
+            ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk()) << label;
+            ASSERT_LE(pixelDeviation(*held, view), 1.0f) << label;
+            const std::vector<uint8_t>& now = held->adaptiveFrame().quarterLevels();
+            const std::vector<uint8_t> levels = choiceInFull(*rest, *held, view, before);
+            if (now == before) {
+                ASSERT_TRUE(full->setQuarterLevels(levels.data(), levels.size()).isOk());
+                const double extra = double(held->adaptiveFrame().vertexCount()) /
+                                         double(full->adaptiveFrame().vertexCount()) -
+                                     1.0;
+                waited += extra > 0.0;
+                most = std::max(most, extra);
+            } else {
+                EXPECT_EQ(now, levels) << label;  // chosen again: the choice in full
+                ++fell;
+            }
+        }
+        std::printf("%s: %zu frames kept detail a choice in full would drop (at most %.1f%% more vertices), %zu "
+                    "frames chose again\n",
+                    schemeName(scheme), waited, 100.0 * most, fell);
+        EXPECT_GT(waited, 0u) << schemeName(scheme);
+        EXPECT_GT(fell, 0u) << schemeName(scheme);
+        EXPECT_LT(most, 0.1) << schemeName(scheme);
     }
 }
 

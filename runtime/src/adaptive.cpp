@@ -989,22 +989,30 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         }
     };
     // The last choice's levels stand, without picking or stitching, while
-    // everything it draws is still within the tolerance and no face's gain
-    // has fallen below kHoldTolerance of its gain then (see choose).  Where
-    // only a few faces no longer stand, the choice is repaired: stitched
-    // from those faces and the ones whose levels the picking changed.
-    auto stands = [&](size_t f) {
+    // everything it draws is still within the tolerance and at most one face
+    // in kRepairShare could fall (its gain fell below kHoldTolerance of its
+    // gain then; see choose).  Where only a few faces no longer stand, the
+    // choice is repaired: stitched from those faces and the ones whose
+    // levels the picking changed.
+    auto within = [&](size_t f) {
         const float g = gains_[f], e = drawnErrors_[f];
-        return int((e == 0.0f) | (e * g <= pixelError)) & int(g >= kHoldTolerance * chosenGains_[f]);
+        return int((e == 0.0f) | (e * g <= pixelError));
     };
+    auto holds = [&](size_t f) { return int(gains_[f] >= kHoldTolerance * chosenGains_[f]); };
+    auto stands = [&](size_t f) { return within(f) & holds(f); };
     bool repair = false;
     if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
         std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
         // Every face checked, without a branch: the loop vectorises.
-        size_t moved = 0;
-        for (size_t f = 0; f < nf; ++f)
-            moved += size_t(1 - stands(f));
-        if (moved == 0) {
+        size_t moved = 0, rising = 0;
+        for (size_t f = 0; f < nf; ++f) {
+            const int w = within(f);
+            rising += size_t(1 - w);
+            moved += size_t(1 - (w & holds(f)));
+        }
+        // Detail no longer needed waits: it still meets the tolerance, and
+        // dropping it costs a rebuild.
+        if (rising == 0 && moved * kRepairShare <= nf) {
             std::copy(previous, previous + 4 * nf, quarters);
             ++keptChoices_;
             return Status::ok();
@@ -1023,10 +1031,10 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // tolerance (the others passed above); otherwise the choice is made in
     // full.
     if (repair) {
-        bool within = true;
-        for (size_t f = 0; f < nf && within; ++f)
-            within = !touched_[f] || drawnErrors_[f] == 0.0f || drawnErrors_[f] * gains_[f] <= pixelError;
-        if (!within) {
+        bool checked = true;
+        for (size_t f = 0; f < nf && checked; ++f)
+            checked = !touched_[f] || within(f);
+        if (!checked) {
             repair = false;
             for (size_t f = 0; f < nf; ++f)
                 pickFace(f);

@@ -149,9 +149,13 @@ public:
     /// When `previous` are the levels this chooser chose last, for the same
     /// tolerance, they stand as they are (no picking, no stitching: a
     /// fraction of the cost) while everything they draw is still within the
-    /// tolerance in this view and pose and no face's pixels per unit of
-    /// error has fallen below kHoldTolerance of what it was at the last
-    /// choice made (in full or repaired).  Where only a few faces (at most one in
+    /// tolerance in this view and pose and at most one face in kRepairShare
+    /// could fall: its pixels per unit of error fell below kHoldTolerance
+    /// of what they were at the last choice made (in full or repaired).
+    /// Detail no longer needed so waits for the next choice made for
+    /// another reason, or for enough of it to gather: dropping it costs a
+    /// rebuild of the frame.  A face stands while it is within the
+    /// tolerance and cannot fall.  Where only a few faces (at most one in
     /// kRepairShare) no longer stand, every face is picked again but the
     /// stitching starts from the last levels and checks only those faces,
     /// the faces whose levels changed and their edge neighbours (a repair;

@@ -144,7 +144,9 @@ public:
     /// flip, and the frame rebuild, every frame of a moving pose or
     /// camera); for the same view, tolerance and pose as the last choice,
     /// the frame stands as it is, and while the last choice still meets the
-    /// tolerance it stands without being made again (LevelChooser::choose).
+    /// tolerance (and at most one face in LevelChooser::kRepairShare could
+    /// fall to a coarser level) it stands without being made again
+    /// (LevelChooser::choose).
     Status chooseFaceLevels(const ViewSpec& view, float pixelError);
     /// The chooser behind chooseFaceLevels (null before the first choice
     /// or faceLevelErrors()): its counts of full and kept choices.
