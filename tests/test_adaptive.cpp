@@ -772,7 +772,7 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
 // detail than a fresh choice within kHoldTolerance of it, or about that.
 // The levels a chooser of the test's own, made as `posed` makes its own
 // (from `rest`, its rest pose), chooses in full in `posed`'s pose from
-// `previous`.
+// `previous` (for a 1-pixel tolerance).
 std::vector<uint8_t> choiceInFull(const Surface& rest, const Surface& posed, const ViewSpec& view,
                                   const std::vector<uint8_t>& previous)
 {
@@ -832,7 +832,7 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
                     double(heldVertices) / double(bandVertices));
         EXPECT_EQ(chooser->fullChoices() + chooser->keptChoices() + chooser->repairedChoices(), size_t(frames))
             << schemeName(scheme);
-        EXPECT_GT(chooser->repairedChoices(), chooser->fullChoices()) << schemeName(scheme);
+        EXPECT_GE(chooser->repairedChoices(), 5u) << schemeName(scheme);  // each checked above
         EXPECT_EQ(repairs, chooser->repairedChoices()) << schemeName(scheme);
         EXPECT_GT(chooser->keptChoices(), size_t(frames) / 2) << schemeName(scheme);
         EXPECT_GT(chooser->fullChoices(), 1u) << schemeName(scheme);

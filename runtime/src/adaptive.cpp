@@ -949,7 +949,11 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
              GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
-    // Face f's levels from its gain: the lowest level within the tolerance
+    // What the picking and stitching aim at: the tolerance, or, where this
+    // choice follows levels chosen before (a view or pose that moves),
+    // kMotionTolerance of it (see choose).
+    const float target = previous ? kMotionTolerance * pixelError : pixelError;
+    // Face f's levels from its gain: the lowest level within the target
     // and, from level 2, each quarter's.
     auto pickFace = [&](size_t f) {
         const float g = gains_[f];
@@ -965,7 +969,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                         return l;
                 return to;
             };
-            const int need = lowest(pixelError);
+            const int need = lowest(target);
             return was <= need || was > lowest(kHoldTolerance * pixelError) ? need : was;
         };
         const uint8_t* pq = previous ? previous + 4 * f : nullptr;
@@ -994,19 +998,21 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // gain then; see choose).  Where only a few faces no longer stand, the
     // choice is repaired: stitched from those faces and the ones whose
     // levels the picking changed.
-    auto within = [&](size_t f) {
+    auto within = [&](size_t f, float tolerance) {
         const float g = gains_[f], e = drawnErrors_[f];
-        return int((e == 0.0f) | (e * g <= pixelError));
+        return int((e == 0.0f) | (e * g <= tolerance));
     };
     auto holds = [&](size_t f) { return int(gains_[f] >= kHoldTolerance * chosenGains_[f]); };
-    auto stands = [&](size_t f) { return within(f) & holds(f); };
+    // What a repair checks again: the faces past the target (the tolerance
+    // itself, or kMotionTolerance of it) or able to fall.
+    auto settled = [&](size_t f) { return within(f, target) & holds(f); };
     bool repair = false;
     if (previous && pixelError == lastTolerance_ && lastQuarters_.size() == 4 * nf &&
         std::equal(lastQuarters_.begin(), lastQuarters_.end(), previous)) {
         // Every face checked, without a branch: the loop vectorises.
         size_t moved = 0, rising = 0;
         for (size_t f = 0; f < nf; ++f) {
-            const int w = within(f);
+            const int w = within(f, pixelError);
             rising += size_t(1 - w);
             moved += size_t(1 - (w & holds(f)));
         }
@@ -1022,23 +1028,22 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     moved_.clear();
     if (repair)
         for (size_t f = 0; f < nf; ++f)
-            if (!stands(f))
+            if (!settled(f))
                 moved_.push_back(uint32_t(f));
     for (size_t f = 0; f < nf; ++f)
         pickFace(f);
-    stitch(quarters, pixelError, repair);
-    // A repair stands where every face it checked draws within the
-    // tolerance (the others passed above); otherwise the choice is made in
-    // full.
+    stitch(quarters, target, repair);
+    // A repair stands where every face it checked draws within the target
+    // (the others passed above); otherwise the choice is made in full.
     if (repair) {
         bool checked = true;
         for (size_t f = 0; f < nf && checked; ++f)
-            checked = !touched_[f] || within(f);
+            checked = !touched_[f] || within(f, target);
         if (!checked) {
             repair = false;
             for (size_t f = 0; f < nf; ++f)
                 pickFace(f);
-            stitch(quarters, pixelError, false);
+            stitch(quarters, target, false);
         }
     }
     ++(repair ? repairedChoices_ : fullChoices_);

@@ -141,10 +141,10 @@ public:
     /// before.  Each face and quarter keeps its previous level while that
     /// level is within the tolerance and no finer than kHoldTolerance times
     /// the tolerance would choose; past that it takes the lowest level
-    /// within the tolerance.  A level that changes has to see its error
-    /// move by the band between the two before it changes back, so a moving
-    /// pose or camera does not flip levels (and rebuild the frame) every
-    /// frame; every level still meets the tolerance.
+    /// within kMotionTolerance of the tolerance.  A level that changes has
+    /// to see its error move by the band between the two before it changes
+    /// back, so a moving pose or camera does not flip levels (and rebuild
+    /// the frame) every frame; every level still meets the tolerance.
     ///
     /// When `previous` are the levels this chooser chose last, for the same
     /// tolerance, they stand as they are (no picking, no stitching: a
@@ -160,13 +160,21 @@ public:
     /// stitching starts from the last levels and checks only those faces,
     /// the faces whose levels changed and their edge neighbours (a repair;
     /// on every repair of the tests, the levels a choice in full from
-    /// `previous` gives); otherwise the choice is made in full.
+    /// `previous` gives); otherwise the choice is made in full.  A choice
+    /// from `previous` levels (a view or pose that moves) picks and
+    /// stitches for kMotionTolerance of the tolerance, while what stands is
+    /// still checked against the tolerance itself: the faces near it rise
+    /// together, in one rebuild, rather than one or two a frame as a moving
+    /// camera or limb sweeps them across it.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
                   const uint8_t* previous = nullptr);
     /// The share of the tolerance below which a held level gives way to a
     /// coarser one (see choose).
     static constexpr float kHoldTolerance = 0.85f;
+    /// The share of the tolerance a choice from previous levels aims at
+    /// (see choose).
+    static constexpr float kMotionTolerance = 0.85f;
     /// Choices made in full, and choices that kept the last levels (see
     /// choose), since init.
     size_t fullChoices() const { return fullChoices_; }

@@ -140,7 +140,8 @@ public:
     /// stretch scales them).  Where the frame's levels came from the last
     /// choice, each keeps its level while that still meets the tolerance
     /// and is not finer than LevelChooser::kHoldTolerance of it would
-    /// choose, else takes the lowest within the tolerance (levels do not
+    /// choose, else takes the lowest within LevelChooser::kMotionTolerance
+    /// of it, so that faces near the tolerance rise together (levels do not
     /// flip, and the frame rebuild, every frame of a moving pose or
     /// camera); for the same view, tolerance and pose as the last choice,
     /// the frame stands as it is, and while the last choice still meets the
