@@ -232,6 +232,19 @@ bool makeBigCharacter(Rig* rig, DisplacementMap* map)
     return finalizeSkeleton(&s, rig->mesh.vertexCount()).isOk();
 }
 
+// The draw's camera for a view of a width x height target: near and far
+// planes around the distance to the target.
+gl::DrawParams drawParamsFor(const ViewSpec& view, int width, int height)
+{
+    const float distance = glm::length(view.eye - view.target);
+    gl::DrawParams params;
+    params.eye = view.eye;
+    params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height),
+                                             0.05f * distance, 10.0f * distance) *
+                            glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+    return params;
+}
+
 // Uniform against adaptive on the GPU, stage by stage, as JSON rows.
 int runAdaptive(int width, int height, int level, int movingFrames, const std::string& jsonPath,
                 const std::string& device)
@@ -293,12 +306,8 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
         programsMs = bench::nowMs() - p0;
         fb.bind();
         glViewport(0, 0, width, height);
-        const ViewSpec view = bench::viewFilling(centre, radius, 1.0f, float(height));
-        gl::DrawParams params;
-        params.eye = view.eye;
-        params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height), 0.01f,
-                                                 100.0f * radius) *
-                                glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+        const gl::DrawParams params =
+            drawParamsFor(bench::viewFilling(centre, radius, 1.0f, float(height)), width, height);
         for (const double w0 = bench::nowMs(); bench::nowMs() - w0 < 500.0;) {
             gpu->update(surface->controlPositions().data(), surface->controlNormals().data(), cn);
             glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -311,12 +320,7 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
 
     for (float fill : {1.0f, 0.3f, 0.1f}) {
         const ViewSpec view = bench::viewFilling(centre, radius, fill, float(height));
-        const float distance = glm::length(view.eye - view.target);
-        gl::DrawParams params;
-        params.eye = view.eye;
-        params.viewProjection = glm::perspective(glm::radians(view.fovYDegrees), float(width) / float(height),
-                                                 0.05f * distance, 10.0f * distance) *
-                                glm::lookAt(view.eye, view.target, glm::vec3(0, 1, 0));
+        const gl::DrawParams params = drawParamsFor(view, width, height);
         for (int adaptive = 0; adaptive < 2; ++adaptive) {
             double chooseMs = 0.0, setMs = 0.0;
             size_t vertices = n, triangles = surface->triangleCount();
@@ -431,11 +435,7 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
                 const float s = std::sin(6.2831853f * float(f) / float(movingFrames));
                 ViewSpec v = view;
                 v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
-                gl::DrawParams p = params;
-                p.eye = v.eye;
-                p.viewProjection = glm::perspective(glm::radians(v.fovYDegrees), float(width) / float(height),
-                                                    0.05f * distance, 10.0f * distance) *
-                                   glm::lookAt(v.eye, v.target, glm::vec3(0, 1, 0));
+                const gl::DrawParams p = drawParamsFor(v, width, height);
                 surface->setAnimationTime(0, std::fmod(float(f) / 60.0f, 2.0f));
                 const glm::vec3* cp = surface->controlPositions().data();
                 const glm::vec3* nn = surface->controlNormals().data();
