@@ -918,6 +918,43 @@ TEST(Adaptive, FallsWaitUntilEnoughCouldFall)
     }
 }
 
+// The finest level everywhere draws the finest surface: no pixel off, even
+// where a vertex lies a hair in front of the eye's plane, which projects a
+// float step between two evaluation orders of the same vertex (the smooth
+// tile pass against its stencils) to millions of pixels; and a choice made
+// for such a view stays within its tolerance.
+TEST(Adaptive, APointAtTheEyesPlaneIsNoPixelsOffAtTheFinestLevel)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        std::unique_ptr<Surface> s = posedSurface(scheme, 0.5f, &rig, &map);
+        ASSERT_TRUE(s);
+        std::vector<glm::vec3> fine(s->vertexCount());
+        ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
+        const std::vector<uint8_t> finest(rig.mesh.faceCount(), uint8_t(s->level()));
+        size_t views = 0;
+        for (size_t v = 0; v < fine.size(); v += fine.size() / 7) {
+            // Vertex v 1e-6 in front of the eye, 0.4 to its side, looking
+            // along +z or -z past it.
+            for (float dir : {1.0f, -1.0f}) {
+                ViewSpec view;
+                view.eye = fine[v] + glm::vec3(0.4f, 0.0f, -dir * 1e-6f);
+                view.target = view.eye + glm::vec3(0.0f, 0.0f, dir);
+                view.fovYDegrees = 60.0f;
+                view.heightPx = 1080.0f;
+                const std::string label = std::string(schemeName(scheme)) + " vertex " + std::to_string(v);
+                ASSERT_TRUE(s->setFaceLevels(finest.data(), finest.size()).isOk());
+                EXPECT_EQ(pixelDeviation(*s, view), 0.0f) << label;
+                ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk()) << label;
+                EXPECT_LE(pixelDeviation(*s, view), 1.0f) << label;
+                ++views;
+            }
+        }
+        EXPECT_GE(views, 14u);
+    }
+}
+
 TEST(Adaptive, BadLevelsAndViewsAreRefused)
 {
     Rig rig;

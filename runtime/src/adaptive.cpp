@@ -84,15 +84,18 @@ struct Camera {
         right = glm::normalize(glm::cross(forward, worldUp));
         up = glm::cross(right, forward);
     }
-    // Pixel coordinates of p, false behind the eye.
-    bool project(glm::vec3 p, float* x, float* y) const
+    // Pixel coordinates of p and its depth, false behind the eye.  In
+    // double: a point near the eye's plane projects its rounding far off
+    // screen.
+    bool project(const glm::dvec3& p, double* x, double* y, double* depth) const
     {
-        const glm::vec3 q = p - eye;
-        const float z = glm::dot(q, forward);
-        if (!(z > 0.0f))
+        const glm::dvec3 q = p - glm::dvec3(eye);
+        const double z = glm::dot(q, glm::dvec3(forward));
+        if (!(z > 0.0))
             return false;
-        *x = k * glm::dot(q, right) / z;
-        *y = k * glm::dot(q, up) / z;
+        *x = double(k) * glm::dot(q, glm::dvec3(right)) / z;
+        *y = double(k) * glm::dot(q, glm::dvec3(up)) / z;
+        *depth = z;
         return true;
     }
 };
@@ -1699,15 +1702,22 @@ float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const g
         const uint16_t* cs = &cornerSlots_[3 * t];
         const int gi[3] = {slotI_[cs[0]], slotI_[cs[1]], slotI_[cs[2]]}, gj[3] = {slotJ_[cs[0]], slotJ_[cs[1]], slotJ_[cs[2]]};
         const uint32_t* v = &triangles_[3 * t];
-        const glm::vec3 p[3] = {framePositions[v[0]], framePositions[v[1]], framePositions[v[2]]};
+        const glm::dvec3 p[3] = {framePositions[v[0]], framePositions[v[1]], framePositions[v[2]]};
         rasterGrid(gi, gj, R, [&](int i, int j, const int w[3], int area) {
-            const glm::vec3 drawn = (float(w[0]) * p[0] + float(w[1]) * p[1] + float(w[2]) * p[2]) / float(area);
-            const glm::vec3 fine = finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]];
-            float xa, ya, xb, yb;
-            if (cam.project(drawn, &xa, &ya) && cam.project(fine, &xb, &yb)) {
-                const float depth = glm::dot(fine - cam.eye, cam.forward);
-                worst = std::max({worst, std::hypot(xa - xb, ya - yb), glm::length(fine - drawn) * cam.k / depth});
-            }
+            const glm::dvec3 drawn = (double(w[0]) * p[0] + double(w[1]) * p[1] + double(w[2]) * p[2]) / double(area);
+            const glm::dvec3 fine(finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]]);
+            // Points a few float steps apart are one point: two evaluation
+            // orders of the same vertex differ so (the smooth scheme's tile
+            // pass against its stencils, 1e-7 at 0.75), and a point
+            // 0.000005 units in front of the eye turned that into 2.7
+            // million pixels.
+            const glm::dvec3 magnitude = glm::max(glm::abs(fine), glm::abs(drawn));
+            const double ulps = 8.0 * double(std::numeric_limits<float>::epsilon()) *
+                                std::max({magnitude.x, magnitude.y, magnitude.z});
+            const double apart = glm::length(fine - drawn);
+            double xa, ya, xb, yb, da, depth;
+            if (apart > ulps && cam.project(drawn, &xa, &ya, &da) && cam.project(fine, &xb, &yb, &depth))
+                worst = std::max(worst, float(std::max(std::hypot(xa - xb, ya - yb), apart * double(cam.k) / depth)));
         });
     }
     return worst;

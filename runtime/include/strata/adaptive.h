@@ -323,7 +323,11 @@ public:
     /// there) against the vertex: the larger of the distance between their
     /// projections and their distance in space seen at the vertex's depth
     /// (a deviation along the line of sight moves no pixel but changes
-    /// depth and shading).  Points behind the eye are skipped.
+    /// depth and shading).  Points behind the eye are skipped, and points a
+    /// few float steps apart (8 of their largest coordinate) count as one:
+    /// two evaluation orders of a vertex differ so, and a point a hair in
+    /// front of the eye's plane projects that to millions of pixels.
+    /// Computed in double.
     /// \param framePositions  vertexCount() positions from evaluate()
     /// \param finePositions   the plan's refinedVertexCount() positions in the same pose
     float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view) const;
