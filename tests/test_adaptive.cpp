@@ -740,7 +740,8 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
         Rig rig;
         DisplacementMap map;
         std::unique_ptr<Surface> reused = posedSurface(scheme, 0.0f, &rig, &map);
-        ASSERT_TRUE(reused);
+        std::unique_ptr<Surface> driven = posedSurface(scheme, 0.0f, &rig, &map);
+        ASSERT_TRUE(reused && driven);
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 3.0f));
         size_t differ = 0;
         std::vector<uint8_t> rest;
@@ -757,6 +758,15 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
                 EXPECT_EQ(reused->adaptiveFrame().quarterLevels(), fresh->adaptiveFrame().quarterLevels()) << label;
             }
             view.eye.x = 0.3f;
+            // The same poses given as control positions, to a surface that
+            // keeps choosing and to one made for each.
+            std::unique_ptr<Surface> given = posedSurface(scheme, 0.0f, &rig, &map);
+            ASSERT_TRUE(given);
+            ASSERT_TRUE(given->setControlPositions(fresh->controlPositions().data(), fresh->controlVertexCount()).isOk());
+            ASSERT_TRUE(driven->setControlPositions(fresh->controlPositions().data(), fresh->controlVertexCount()).isOk());
+            ASSERT_TRUE(chooseAfresh(*given, view, 1.0f).isOk());
+            ASSERT_TRUE(chooseAfresh(*driven, view, 1.0f).isOk());
+            EXPECT_EQ(driven->adaptiveFrame().quarterLevels(), given->adaptiveFrame().quarterLevels()) << label;
             if (t == 0.0f)
                 rest = fresh->adaptiveFrame().quarterLevels();
             else

@@ -532,6 +532,7 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     gains_.assign(nf, 0.0f);
     bentPositions_.clear();  // no bends measured for this plan yet
     bentNormals_.clear();
+    bentStamp_ = 0;
     lastQuarters_.clear();  // nor a choice made
     fullChoices_ = keptChoices_ = repairedChoices_ = 0;
 
@@ -679,6 +680,7 @@ void gatherCorners(float* rows, const glm::vec3* values, const uint32_t* triangl
             rows[(3 * k + 2) * n + f] = v.z;
         }
 }
+
 
 // Per face, the smallest cosine between a corner normal in the pose and
 // its rest normal turned as the face's triangle turned: the posed frame
@@ -901,7 +903,7 @@ void LevelChooser::stitch(uint8_t* quarters, float pixelError, bool fromLast)
 
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                             size_t controlCount, float poseScale, const glm::vec3* controlNormals,
-                            const uint8_t* previous)
+                            const uint8_t* previous, uint64_t poseStamp)
 {
     const int L = errors_.finest;
     const size_t nf = errors_.faceCount;
@@ -923,16 +925,25 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // smallest cosine of each edge's faces, then of each face's edges.
     const bool bent = controlNormals && restCount_ == controlCount;
     // A view that moves over a pose that does not (a still character, a
-    // scan) keeps the bends of the last choice.
-    const bool samePose = bent && bentPositions_.size() == controlCount &&
-                          std::equal(bentPositions_.begin(), bentPositions_.end(), controlPositions) &&
-                          std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals);
+    // scan) keeps the bends of the last choice: the same stamp, or (none
+    // given) the same positions and normals.
+    const bool samePose = bent && (poseStamp != 0 ? poseStamp == bentStamp_
+                                                  : bentStamp_ == 0 && bentPositions_.size() == controlCount &&
+                                                        std::equal(bentPositions_.begin(), bentPositions_.end(),
+                                                                   controlPositions) &&
+                                                        std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals));
     corners_.resize(9 * nf);
-    gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
     if (bent && !samePose) {
-        bentPositions_.assign(controlPositions, controlPositions + controlCount);
-        bentNormals_.assign(controlNormals, controlNormals + controlCount);
+        bentStamp_ = poseStamp;
+        if (poseStamp == 0) {
+            bentPositions_.assign(controlPositions, controlPositions + controlCount);
+            bentNormals_.assign(controlNormals, controlNormals + controlCount);
+        } else {
+            bentPositions_.clear();
+            bentNormals_.clear();
+        }
         cornerNormals_.resize(9 * nf);
+        gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
         gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
         cosines_.resize(nf);
         leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
@@ -949,6 +960,8 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             const uint32_t* e = &edgeOf_[3 * f];
             cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
         }
+    } else {
+        gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
              GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());

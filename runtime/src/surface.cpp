@@ -147,6 +147,7 @@ Status Surface::setRestPose()
     controlPositions_ = mesh_.positions;
     skinMatrices_.clear();
     updateNormals();
+    ++poseVersion_;
     return Status::ok();
 }
 
@@ -162,8 +163,13 @@ Status Surface::setAnimationTime(int animation, float time)
     Status st = animator_->pose(animation, time, method_);
     if (!st)
         return st;
-    controlPositions_ = animator_->positions();
-    controlNormals_ = animator_->normals();
+    // The same pose again (a paused clip) keeps its version, and what a
+    // choice measured for it.
+    if (controlPositions_ != animator_->positions() || controlNormals_ != animator_->normals()) {
+        controlPositions_ = animator_->positions();
+        controlNormals_ = animator_->normals();
+        ++poseVersion_;
+    }
     skinMatrices_ = animator_->skinMatrices();
     return Status::ok();
 }
@@ -180,6 +186,7 @@ Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
     skinLinear(controlPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights,
                skinMatrices_.data());
     updateNormals();
+    ++poseVersion_;
     return Status::ok();
 }
 
@@ -191,6 +198,7 @@ Status Surface::setControlPositions(const glm::vec3* positions, size_t count)
     controlPositions_.assign(positions, positions + count);
     skinMatrices_.clear();
     updateNormals();
+    ++poseVersion_;
     return Status::ok();
 }
 
@@ -251,16 +259,17 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
                       adaptive_->quarterLevels().size() == chosen_.size();
     const bool sameView = view.eye == chosenView_.eye && view.target == chosenView_.target &&
                           view.fovYDegrees == chosenView_.fovYDegrees && view.heightPx == chosenView_.heightPx;
-    if (held && sameView && pixelError == chosenTolerance_ && controlPositions_ == chosenPose_)
+    if (held && sameView && pixelError == chosenTolerance_ && poseVersion_ == chosenPose_)
         return Status::ok();
     const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
     if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
-                                     scale, controlNormals_.data(), held ? adaptive_->quarterLevels().data() : nullptr);
+                                     scale, controlNormals_.data(), held ? adaptive_->quarterLevels().data() : nullptr,
+                                     poseVersion_);
         !st)
         return st;
     chosenView_ = view;
     chosenTolerance_ = pixelError;
-    chosenPose_ = controlPositions_;
+    chosenPose_ = poseVersion_;
     // Other levels than drawn set the frame's topology; the same keep it.
     if (!adaptive_ || adaptive_->quarterLevels() != chosen_) {
         if (Status st = setQuarterLevels(chosen_.data(), chosen_.size()); !st) {

@@ -166,9 +166,14 @@ public:
     /// still checked against the tolerance itself: the faces near it rise
     /// together, in one rebuild, rather than one or two a frame as a moving
     /// camera or limb sweeps them across it.
+    ///
+    /// `poseStamp`: a number that changes whenever controlPositions or
+    /// controlNormals do (Surface's pose version), or 0: the chooser then
+    /// compares them with the last pose it measured bends for, and keeps a
+    /// copy.  A moving pose then costs neither.
     Status choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                   size_t controlCount, float poseScale = 1.0f, const glm::vec3* controlNormals = nullptr,
-                  const uint8_t* previous = nullptr);
+                  const uint8_t* previous = nullptr, uint64_t poseStamp = 0);
     /// The share of the tolerance below which a held level gives way to a
     /// coarser one (see choose).
     static constexpr float kHoldTolerance = 0.85f;
@@ -221,7 +226,8 @@ private:
     // Per face: pixels per unit of error in this view and pose; the cosine
     // of its bend's widest angle (its own or its neighbours'; see choose).
     std::vector<float> gains_, cosines_, edgeCosines_;
-    std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for
+    std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for (no stamp)
+    uint64_t bentStamp_ = 0;                              // or its stamp
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
     // The last choice made (in full or repaired): its levels and tolerance,
     // and per face its gain and the largest error (rest pose, model units)

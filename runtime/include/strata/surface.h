@@ -200,7 +200,10 @@ private:
     uint64_t chosenVersion_ = ~uint64_t(0);
     ViewSpec chosenView_;
     float chosenTolerance_ = 0.0f;
-    std::vector<glm::vec3> chosenPose_;
+    uint64_t chosenPose_ = 0;
+    // The pose: changes with every change of the control positions (and
+    // their normals), never 0.
+    uint64_t poseVersion_ = 1;
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::mat4> skinMatrices_;
 };
