@@ -681,7 +681,6 @@ void gatherCorners(float* rows, const glm::vec3* values, const uint32_t* triangl
         }
 }
 
-
 // Per face, the smallest cosine between a corner normal in the pose and
 // its rest normal turned as the face's triangle turned: the posed frame
 // (first edge, in-plane normal, face normal) applied to the rest frame's
