@@ -238,7 +238,10 @@ def test_ctrl_c_cancels_a_bake_and_leaves_no_file(tmp_path):
     elapsed = time.monotonic() - sent
     assert p.returncode == 3, rest
     assert "cancelled" in rest and "finished" not in rest
-    assert elapsed < 2.0, f"the bake took {elapsed:.2f} s to stop"
+    # Within a second or two on an idle machine; the bound leaves room for
+    # a loaded one (ctest -j2 beside other bakes), and is still well under
+    # the 15 s the whole bake takes here on one thread.
+    assert elapsed < 6.0, f"the bake took {elapsed:.2f} s to stop"
     assert os.listdir(out) == []
 
 
