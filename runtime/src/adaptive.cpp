@@ -932,6 +932,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
                                                                    controlPositions) &&
                                                         std::equal(bentNormals_.begin(), bentNormals_.end(), controlNormals));
     corners_.resize(9 * nf);
+    gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
     if (bent && !samePose) {
         bentStamp_ = poseStamp;
         if (poseStamp == 0) {
@@ -942,7 +943,6 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             bentNormals_.clear();
         }
         cornerNormals_.resize(9 * nf);
-        gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
         gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
         cosines_.resize(nf);
         leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
@@ -959,8 +959,6 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
             const uint32_t* e = &edgeOf_[3 * f];
             cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
         }
-    } else {
-        gatherCorners(corners_.data(), controlPositions, controlTriangles_.data(), nf);
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
              GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
@@ -972,10 +970,10 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     // and, from level 2, each quarter's.
     auto pickFace = [&](size_t f) {
         const float g = gains_[f];
-        // The lowest level in [from, to] within the tolerance; a previous
+        // The lowest level in [from, to] within the target; a previous
         // level `was` above it is kept while no finer than the lowest
         // within kHoldTolerance of the tolerance (past that, the lowest
-        // within the tolerance: a camera that jumps away does not keep the
+        // within the target: a camera that jumps away does not keep the
         // band's extra detail).
         auto pick = [&](int from, int to, int was, auto&& error) {
             auto lowest = [&](float tolerance) {

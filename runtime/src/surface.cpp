@@ -121,11 +121,12 @@ void Surface::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* 
     plan_->refinedUVs(values, indices);
 }
 
-void Surface::updateNormals()
+void Surface::poseChanged()
 {
     controlNormals_.assign(controlPositions_.size(), glm::vec3(0.0f));
     computeControlNormals(controlNormals_.data(), controlPositions_.data(), controlPositions_.size(),
                           mesh_.triangles.data(), mesh_.faceCount());
+    ++poseVersion_;
 }
 
 void Surface::bounds(glm::vec3* lo, glm::vec3* hi) const
@@ -146,8 +147,7 @@ Status Surface::setRestPose()
 {
     controlPositions_ = mesh_.positions;
     skinMatrices_.clear();
-    updateNormals();
-    ++poseVersion_;
+    poseChanged();
     return Status::ok();
 }
 
@@ -185,8 +185,7 @@ Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
     controlPositions_.resize(mesh_.positions.size());
     skinLinear(controlPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights,
                skinMatrices_.data());
-    updateNormals();
-    ++poseVersion_;
+    poseChanged();
     return Status::ok();
 }
 
@@ -197,8 +196,7 @@ Status Surface::setControlPositions(const glm::vec3* positions, size_t count)
                                                        std::to_string(mesh_.positions.size()) + " control vertices");
     controlPositions_.assign(positions, positions + count);
     skinMatrices_.clear();
-    updateNormals();
-    ++poseVersion_;
+    poseChanged();
     return Status::ok();
 }
 

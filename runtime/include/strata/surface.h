@@ -182,7 +182,9 @@ public:
 
 private:
     Surface() = default;
-    void updateNormals();
+    // The control positions changed (not through the animator, which brings
+    // its own normals): their normals again, and a new pose version.
+    void poseChanged();
 
     ControlMesh mesh_;
     Skeleton skeleton_;
