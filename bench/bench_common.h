@@ -79,6 +79,16 @@ inline ViewSpec viewFilling(glm::vec3 centre, float radius, float fill, float he
     return view;
 }
 
+/// Frame f of `frames` of the adaptive benches' moving view: `view` dollied
+/// 10% in and out and slid a tenth of the radius sideways, once round.
+inline ViewSpec movingView(const ViewSpec& view, glm::vec3 centre, float radius, int f, int frames)
+{
+    const float s = std::sin(6.2831853f * float(f) / float(frames));
+    ViewSpec v = view;
+    v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
+    return v;
+}
+
 /// Machine-readable rows for --json FILE: one object per table row, stable
 /// field names (docs/RESULTS.md is made from them).
 class JsonRows {

@@ -292,6 +292,22 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
     float radius = 0.0f;
     bench::boundingSphere(finePositions, &centre, &radius);
     surface->faceLevelErrors();  // measured at load, not in a frame
+    // One frame of the current pose, unfinished: the control vertices up,
+    // the passes, and the draw, uniform or adaptive.
+    auto drawFrame = [&](bool adaptive, const gl::DrawParams& params) {
+        const glm::vec3* cp = surface->controlPositions().data();
+        const glm::vec3* nn = surface->controlNormals().data();
+        if (adaptive)
+            gpu->updateAdaptive(cp, nn, cn);
+        else
+            gpu->update(cp, nn, cn);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        glEnable(GL_DEPTH_TEST);
+        if (adaptive)
+            gpu->drawAdaptive(params);
+        else
+            gpu->draw(params);
+    };
 
     // Once per run, outside the rows: the adaptive passes' programs are
     // compiled by the first setAdaptive (tens of milliseconds on a driver
@@ -309,9 +325,7 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
         const gl::DrawParams params =
             drawParamsFor(bench::viewFilling(centre, radius, 1.0f, float(height)), width, height);
         for (const double w0 = bench::nowMs(); bench::nowMs() - w0 < 500.0;) {
-            gpu->update(surface->controlPositions().data(), surface->controlNormals().data(), cn);
-            glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-            gpu->draw(params);
+            drawFrame(false, params);
             glFinish();
         }
     }
@@ -325,10 +339,10 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
             double chooseMs = 0.0, setMs = 0.0;
             size_t vertices = n, triangles = surface->triangleCount();
             if (adaptive) {
-                // The same pose at each choice, run after run (the timed
-                // loops below pose as many frames as their time allows).
                 // This view's own choice, made fresh (as bench_runtime's):
-                // levels set by hand first, so none of the last fill's are held.
+                // levels set by hand first, so none of the last fill's are
+                // held; and at the same pose run after run (the timed loops
+                // below pose as many frames as their time allows).
                 t = 0.0f;
                 pose();
                 const std::vector<uint8_t> zeros(rig.mesh.faceCount(), 0);
@@ -348,20 +362,7 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
                 vertices = surface->adaptiveFrame().vertexCount();
                 triangles = surface->adaptiveFrame().triangleCount();
             }
-            auto frame = [&] {
-                const glm::vec3* cp = surface->controlPositions().data();
-                const glm::vec3* nn = surface->controlNormals().data();
-                if (adaptive)
-                    gpu->updateAdaptive(cp, nn, cn);
-                else
-                    gpu->update(cp, nn, cn);
-                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-                glEnable(GL_DEPTH_TEST);
-                if (adaptive)
-                    gpu->drawAdaptive(params);
-                else
-                    gpu->draw(params);
-            };
+            auto frame = [&] { drawFrame(adaptive != 0, params); };
             fb.bind();
             glViewport(0, 0, width, height);
             gpu->setTiming(true);
@@ -432,13 +433,9 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
             double adaptiveTotal = 0.0, uniformTotal = 0.0;
             sets = drawn = 0;
             for (int f = 0; f < movingFrames; ++f) {
-                const float s = std::sin(6.2831853f * float(f) / float(movingFrames));
-                ViewSpec v = view;
-                v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
+                const ViewSpec v = bench::movingView(view, centre, radius, f, movingFrames);
                 const gl::DrawParams p = drawParamsFor(v, width, height);
                 surface->setAnimationTime(0, std::fmod(float(f) / 60.0f, 2.0f));
-                const glm::vec3* cp = surface->controlPositions().data();
-                const glm::vec3* nn = surface->controlNormals().data();
                 const uint64_t topology = surface->adaptiveFrame().topologyVersion();
                 double t0 = bench::nowMs();
                 surface->chooseFaceLevels(v, 1.0f);
@@ -446,19 +443,13 @@ int runAdaptive(int width, int height, int level, int movingFrames, const std::s
                     gpu->setAdaptive(surface->adaptiveFrame());
                     ++sets;
                 }
-                gpu->updateAdaptive(cp, nn, cn);
-                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-                glEnable(GL_DEPTH_TEST);
-                gpu->drawAdaptive(p);
+                drawFrame(true, p);
                 glFinish();
                 double t1 = bench::nowMs();
                 adaptiveTotal += t1 - t0;
                 drawn += surface->adaptiveFrame().vertexCount();
                 t0 = bench::nowMs();
-                gpu->update(cp, nn, cn);
-                glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-                glEnable(GL_DEPTH_TEST);
-                gpu->draw(p);
+                drawFrame(false, p);
                 glFinish();
                 t1 = bench::nowMs();
                 uniformTotal += t1 - t0;

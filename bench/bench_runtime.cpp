@@ -453,9 +453,7 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
             const size_t fullBefore = lc->fullChoices(), keptBefore = lc->keptChoices(), repairedBefore = lc->repairedChoices();
             size_t changes = 0, vertices = 0;
             for (int f = 0; f < frames; ++f) {
-                const float s = std::sin(6.2831853f * float(f) / float(frames));
-                ViewSpec v = view;
-                v.eye = centre + (view.eye - centre) * (1.0f + 0.1f * s) + glm::vec3(0.1f * radius * s, 0.0f, 0.0f);
+                const ViewSpec v = bench::movingView(view, centre, radius, f, frames);
                 if (animation >= 0) {
                     fine->setAnimationTime(animation, time + float(f) / 60.0f);
                     uniform->setAnimationTime(animation, time + float(f) / 60.0f);
