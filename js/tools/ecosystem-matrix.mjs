@@ -31,7 +31,11 @@ function option(name, fallback) {
   return i >= 0 && i + 1 < process.argv.length ? process.argv[i + 1] : fallback;
 }
 const build = path.resolve(option('--build', path.join(root, 'build')));
-const work = path.resolve(option('--work', fs.mkdtempSync(path.join(os.tmpdir(), 'strata-ecosystem-'))));
+// Without --work, a folder of its own, removed on exit (a default made
+// eagerly left an empty one behind on every run that passed --work).
+const given = option('--work', '');
+const work = given ? path.resolve(given) : fs.mkdtempSync(path.join(os.tmpdir(), 'strata-ecosystem-'));
+if (!given) process.on('exit', () => fs.rmSync(work, { recursive: true, force: true }));
 const markdown = option('--markdown', '');
 const bake = path.join(build, 'tools', 'strata-bake');
 const reconstruct = path.join(build, 'tools', 'strata-reconstruct');
