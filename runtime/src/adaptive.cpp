@@ -511,19 +511,22 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     slotPoints(&slotI_, &slotJ_, R);
     edges_ = groupEdges(controlTriangles_.data(), nf);
     edgeOf_ = cornerEdges(edges_, nf);
-    // Each edge's two faces (a border edge's one twice), where no edge has
-    // more: the bend's pass over edges then reads a fixed pair.
-    edgeFaces_.clear();
+    // Where no edge has more than two faces: each face's neighbour across
+    // each of its edges (itself across a border edge), so the bend's spread
+    // reads three faces per face and no pass over edges.
+    faceNeighbours_.clear();
     bool pairs = true;
     for (size_t e = 0; e < edges_.edgeCount() && pairs; ++e)
         pairs = edges_.faceCountOf(e) <= 2;
     if (pairs) {
-        edgeFaces_.resize(2 * edges_.edgeCount());
-        for (size_t e = 0; e < edges_.edgeCount(); ++e) {
-            const uint32_t* c = edges_.cornersOf(e);
-            edgeFaces_[2 * e] = c[0] / 3;
-            edgeFaces_[2 * e + 1] = c[edges_.faceCountOf(e) - 1] / 3;
-        }
+        faceNeighbours_.resize(3 * nf);
+        for (size_t f = 0; f < nf; ++f)
+            for (size_t k = 0; k < 3; ++k) {
+                const uint32_t e = edgeOf_[3 * f + k];
+                const uint32_t* c = edges_.cornersOf(e);
+                const uint32_t a = c[0] / 3, b = c[edges_.faceCountOf(e) - 1] / 3;
+                faceNeighbours_[3 * f + k] = a == f ? b : a;
+            }
     }
     halves_.assign(2 * edges_.edgeCount(), 0);
     levelTiles_.assign(size_t(L + 1), {});
@@ -609,7 +612,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(edgeCosines_) + bytes(edgeFaces_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(own_) + bytes(edgeCosines_) + bytes(faceNeighbours_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -921,7 +924,7 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
     const Camera cam(view);
     // The pose's bend at each face: its own, or its neighbours' where
     // larger (a smooth surface's stencils reach across its edges): the
-    // smallest cosine of each edge's faces, then of each face's edges.
+    // smallest cosine of the face and the faces across its edges.
     const bool bent = controlNormals && restCount_ == controlCount;
     // A view that moves over a pose that does not (a still character, a
     // scan) keeps the bends of the last choice: the same stamp, or (none
@@ -944,20 +947,22 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         }
         cornerNormals_.resize(9 * nf);
         gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
+        own_.resize(nf);
+        leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), own_.data());
         cosines_.resize(nf);
-        leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), cosines_.data());
-        edgeCosines_.assign(edges_.edgeCount(), 1.0f);
-        if (!edgeFaces_.empty()) {
-            for (size_t e = 0; e < edges_.edgeCount(); ++e)
-                edgeCosines_[e] = std::min(cosines_[edgeFaces_[2 * e]], cosines_[edgeFaces_[2 * e + 1]]);
+        if (!faceNeighbours_.empty()) {
+            const uint32_t* nb = faceNeighbours_.data();
+            for (size_t f = 0; f < nf; ++f)
+                cosines_[f] = std::min({own_[f], own_[nb[3 * f]], own_[nb[3 * f + 1]], own_[nb[3 * f + 2]]});
         } else {
+            edgeCosines_.assign(edges_.edgeCount(), 1.0f);
             for (size_t e = 0; e < edges_.edgeCount(); ++e)
                 for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
-                    edgeCosines_[e] = std::min(edgeCosines_[e], cosines_[edges_.cornersOf(e)[m] / 3]);
-        }
-        for (size_t f = 0; f < nf; ++f) {
-            const uint32_t* e = &edgeOf_[3 * f];
-            cosines_[f] = std::min({cosines_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+                    edgeCosines_[e] = std::min(edgeCosines_[e], own_[edges_.cornersOf(e)[m] / 3]);
+            for (size_t f = 0; f < nf; ++f) {
+                const uint32_t* e = &edgeOf_[3 * f];
+                cosines_[f] = std::min({own_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+            }
         }
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,

@@ -214,7 +214,7 @@ private:
     size_t slots_ = 0, controlCount_ = 0;
     std::vector<uint16_t> slotI_, slotJ_;
     EdgeGroups edges_;
-    std::vector<uint32_t> edgeFaces_;  // per edge its two faces (empty: some edge has more)
+    std::vector<uint32_t> faceNeighbours_;  // per face edge the face across it (empty: an edge has more than two)
     std::vector<uint32_t> edgeOf_;
     std::vector<uint8_t> halves_, zeroEdges_;  // per edge, its two halves' levels; scratch
     std::vector<std::vector<uint16_t>> levelTiles_;  // per level, the whole face's triangles at it
@@ -225,7 +225,7 @@ private:
     std::vector<std::pair<uint32_t, float>> lastStitched_;
     // Per face: pixels per unit of error in this view and pose; the cosine
     // of its bend's widest angle (its own or its neighbours'; see choose).
-    std::vector<float> gains_, cosines_, edgeCosines_;
+    std::vector<float> gains_, cosines_, own_, edgeCosines_;  // own_: each face's own bend, before its spread
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for (no stamp)
     uint64_t bentStamp_ = 0;                              // or its stamp
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
