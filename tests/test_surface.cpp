@@ -8,6 +8,7 @@
 #include "strata/surface.h"
 
 #include <cstring>
+#include <limits>
 #include <random>
 
 namespace strata {
@@ -254,6 +255,97 @@ TEST(Surface, RefusesEveryInputThatWouldDrawAnotherSurface)
     wild.skeleton.weights.joints[4 * 3] = 40;
     wild.skeleton.weights.weights[4 * 3] = 1.0f;
     refused(wild, &skinnedMap, {}, "vertex 3 references joint 40 of a 2-joint skin");
+}
+
+// A pose that is not finite (a NaN or infinity an engine passed, a joint
+// matrix that blew up, coordinates so large that the normals overflow) is
+// refused by every pose setter with one line naming the vertex or joint,
+// and the surface keeps its last pose: the same surface, the same choice
+// of levels, never a NaN frame drawn with status OK.
+TEST(Surface, PosesThatAreNotFiniteAreRefusedAndTheLastPoseKept)
+{
+    Rig rig;
+    DisplacementMap map;
+    test::makeBendingExampleRig(&rig, &map);
+    std::unique_ptr<Surface> s;
+    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
+    ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+    const std::vector<glm::vec3> posed = s->controlPositions(), normals = s->controlNormals();
+    const std::vector<glm::mat4> skin = s->skinMatrices();
+    ViewSpec view;
+    view.eye = glm::vec3(0.3f, 0.2f, 5.0f);
+    ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk());
+    const std::vector<uint8_t> levels = s->adaptiveFrame().quarterLevels();
+    const std::vector<glm::vec3> before = evaluate(*s);
+    auto kept = [&](const Status& st, const std::string& needle, const std::string& label) {
+        EXPECT_FALSE(st.isOk()) << label;
+        EXPECT_NE(st.message().find(needle), std::string::npos) << label << ": " << st.message();
+        EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+        EXPECT_TRUE(sameBits(s->controlPositions(), posed)) << label;
+        EXPECT_TRUE(sameBits(s->controlNormals(), normals)) << label;
+        EXPECT_TRUE(sameBits(evaluate(*s), before)) << label;
+        ViewSpec nudged = view;
+        nudged.eye.x += 1e-4f;
+        ASSERT_TRUE(s->chooseFaceLevels(nudged, 1.0f).isOk()) << label;
+        EXPECT_EQ(s->adaptiveFrame().quarterLevels(), levels) << label;
+    };
+    const float inf = std::numeric_limits<float>::infinity();
+    for (const glm::vec3 bad : {glm::vec3(std::nanf(""), 0.0f, 0.0f), glm::vec3(0.0f, -inf, 0.0f)}) {
+        std::vector<glm::vec3> p = posed;
+        p[7] = bad;
+        kept(s->setControlPositions(p.data(), p.size()), "control vertex 7 at (", "position " + std::to_string(bad.y));
+    }
+    // Finite, but so far out that the normals would overflow (the whole
+    // pose moved there too), and just inside the bound: taken, and finite.
+    std::vector<glm::vec3> far = posed;
+    far[7] = glm::vec3(3e38f, -3e38f, 3e38f);
+    kept(s->setControlPositions(far.data(), far.size()), "beyond +-1e9", "3e38");
+    for (glm::vec3& p : far)
+        p = p * 2e9f;
+    kept(s->setControlPositions(far.data(), far.size()), "beyond +-1e9", "2e9");
+    for (size_t v = 0; v < far.size(); ++v)
+        far[v] = posed[v] * 1e9f / 1.5f;
+    ASSERT_TRUE(s->setControlPositions(far.data(), far.size()).isOk());
+    std::vector<glm::vec3> farNormals;
+    const std::vector<glm::vec3> farFrame = evaluate(*s, &farNormals);
+    for (size_t v = 0; v < farFrame.size(); ++v) {
+        ASSERT_TRUE(std::isfinite(farFrame[v].x + farFrame[v].y + farFrame[v].z)) << v;
+        ASSERT_NEAR(glm::length(farNormals[v]), 1.0f, 1e-3f) << v;
+    }
+    ASSERT_TRUE(s->setControlPositions(posed.data(), posed.size()).isOk());
+    // A joint matrix that is not finite, and finite ones whose skinning overflows.
+    std::vector<glm::mat4> wild = skin;
+    wild[1][3][0] = std::nanf("");
+    kept(s->setJointMatrices(wild.data(), wild.size()), "joint 1", "NaN matrix");
+    wild = skin;
+    wild[0] = glm::mat4(3e38f);
+    wild[0][3][3] = 1.0f;
+    kept(s->setJointMatrices(wild.data(), wild.size()), "the joint matrices overflow it", "huge matrix");
+    // An animation whose keys scale two nested joints by 1e20: the joint named.
+    Rig grow = rig;
+    Animation a;
+    a.name = "grow";
+    for (int node = 0; node < 2; ++node) {
+        AnimationChannel c;
+        c.node = node;
+        c.path = AnimationPath::Scale;
+        c.times = {0.0f, 1.0f};
+        c.values = {1e20f, 1e20f, 1e20f, 1e20f, 1e20f, 1e20f};
+        a.channels.push_back(c);
+    }
+    grow.skeleton.animations.push_back(a);
+    std::unique_ptr<Surface> g;
+    ASSERT_TRUE(Surface::create(&g, grow, &map).isOk());
+    ASSERT_TRUE(g->setAnimationTime(0, 0.5f).isOk());
+    const std::vector<glm::vec3> last = g->controlPositions();
+    const Status st = g->setAnimationTime(1, 0.5f);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("the pose of animation 1 at 0.5"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("joint 1 (node 1"), std::string::npos) << st.message();
+    EXPECT_TRUE(sameBits(g->controlPositions(), last));
+    // And a good pose after a refused one is taken.
+    ASSERT_TRUE(s->setControlPositions(posed.data(), posed.size()).isOk());
+    ASSERT_TRUE(g->setAnimationTime(0, 0.25f).isOk());
 }
 
 // The box Surface::bounds gives holds every vertex of every frame, uniform

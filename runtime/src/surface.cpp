@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string>
 
@@ -121,12 +122,89 @@ void Surface::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* 
     plan_->refinedUVs(values, indices);
 }
 
-void Surface::poseChanged()
+namespace {
+
+// The first of `values` with a coordinate that is not finite or lies
+// beyond +-Surface::kLargestCoordinate, or values.size(): a pass without
+// branches first (it vectorises), the search only where it fails.
+size_t firstOutOfRange(const std::vector<glm::vec3>& values)
 {
-    controlNormals_.assign(controlPositions_.size(), glm::vec3(0.0f));
-    computeControlNormals(controlNormals_.data(), controlPositions_.data(), controlPositions_.size(),
+    const float* f = values.empty() ? nullptr : &values[0].x;
+    int bad = 0;
+    for (size_t i = 0; i < 3 * values.size(); ++i)
+        bad |= int(!(std::fabs(f[i]) <= Surface::kLargestCoordinate));
+    if (!bad)
+        return values.size();
+    size_t i = 0;
+    while (std::fabs(f[i]) <= Surface::kLargestCoordinate)
+        ++i;
+    return i / 3;
+}
+
+std::string seconds(float t)
+{
+    char text[32];
+    std::snprintf(text, sizeof(text), "%g s", double(t));
+    return text;
+}
+
+std::string printed(const glm::vec3& p)
+{
+    char text[96];
+    std::snprintf(text, sizeof(text), "(%g, %g, %g)", double(p.x), double(p.y), double(p.z));
+    return text;
+}
+
+}  // namespace
+
+std::string Surface::overflowingJoint(const glm::mat4* skin, size_t count) const
+{
+    for (size_t j = 0; j < count; ++j) {
+        bool finite = true;
+        for (int k = 0; k < 16; ++k)
+            finite = finite && std::isfinite(skin[j][k / 4][k % 4]);
+        if (finite)
+            continue;
+        std::string joint = "joint " + std::to_string(j);
+        if (j < skeleton_.skin.joints.size()) {
+            const int node = skeleton_.skin.joints[j];
+            joint += " (node " + std::to_string(node);
+            if (node >= 0 && size_t(node) < skeleton_.nodes.size() && !skeleton_.nodes[size_t(node)].name.empty())
+                joint += " \"" + skeleton_.nodes[size_t(node)].name.substr(0, 64) + "\"";
+            joint += ")";
+        }
+        return joint;
+    }
+    return std::string();
+}
+
+Status Surface::checkPose(const std::vector<glm::vec3>& positions, const std::string& what,
+                          const std::string& cause)
+{
+    const size_t v = firstOutOfRange(positions);
+    if (v == positions.size())
+        return Status::ok();
+    static_assert(kLargestCoordinate == 1e9f, "the message below names the bound");
+    const glm::vec3 p = positions[v];
+    const bool finite = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+    return Status(StatusCode::InvalidArgument,
+                  what + (finite ? " is out of range" : " is not finite") + ": control vertex " + std::to_string(v) +
+                      " at " + printed(p) +
+                      (finite ? " lies beyond +-1e9, where the normals' squared products overflow" : "") +
+                      (cause.empty() ? std::string() : ": " + cause));
+}
+
+Status Surface::adoptPending(const std::string& what, const std::string& cause)
+{
+    if (Status st = checkPose(pendingPositions_, what, cause); !st)
+        return st;
+    pendingNormals_.assign(pendingPositions_.size(), glm::vec3(0.0f));
+    computeControlNormals(pendingNormals_.data(), pendingPositions_.data(), pendingPositions_.size(),
                           mesh_.triangles.data(), mesh_.faceCount());
+    controlPositions_.swap(pendingPositions_);
+    controlNormals_.swap(pendingNormals_);
     ++poseVersion_;
+    return Status::ok();
 }
 
 void Surface::bounds(glm::vec3* lo, glm::vec3* hi) const
@@ -145,9 +223,10 @@ void Surface::bounds(glm::vec3* lo, glm::vec3* hi) const
 
 Status Surface::setRestPose()
 {
-    controlPositions_ = mesh_.positions;
+    pendingPositions_ = mesh_.positions;
+    if (Status st = adoptPending("the rest pose", ""); !st)
+        return st;
     skinMatrices_.clear();
-    poseChanged();
     return Status::ok();
 }
 
@@ -162,6 +241,12 @@ Status Surface::setAnimationTime(int animation, float time)
         return Status(StatusCode::InvalidArgument, "the animation time is not a number");
     Status st = animator_->pose(animation, time, method_);
     if (!st)
+        return st;
+    const std::vector<glm::mat4>& skin = animator_->skinMatrices();
+    const std::string joint = overflowingJoint(skin.data(), skin.size());
+    if (!(st = checkPose(animator_->positions(),
+                         "the pose of animation " + std::to_string(animation) + " at " + seconds(time),
+                         joint.empty() ? std::string() : joint + " has a posed transform that overflows")))
         return st;
     // The same pose again (a paused clip) keeps its version, and what a
     // choice measured for it.
@@ -181,11 +266,15 @@ Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
     if (!matrices || count != skeleton_.skin.joints.size())
         return Status(StatusCode::InvalidArgument, std::to_string(matrices ? count : 0) + " joint matrices for a skin of " +
                                                        std::to_string(skeleton_.skin.joints.size()) + " joints");
+    const std::string joint = overflowingJoint(matrices, count);
+    if (!joint.empty())
+        return Status(StatusCode::InvalidArgument,
+                      "the joint matrices are not finite: " + joint + "'s is not; the last pose is kept");
+    pendingPositions_.resize(mesh_.positions.size());
+    skinLinear(pendingPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights, matrices);
+    if (Status st = adoptPending("the skinned pose", "the joint matrices overflow it"); !st)
+        return st;
     skinMatrices_.assign(matrices, matrices + count);
-    controlPositions_.resize(mesh_.positions.size());
-    skinLinear(controlPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights,
-               skinMatrices_.data());
-    poseChanged();
     return Status::ok();
 }
 
@@ -194,9 +283,10 @@ Status Surface::setControlPositions(const glm::vec3* positions, size_t count)
     if (!positions || count != mesh_.positions.size())
         return Status(StatusCode::InvalidArgument, std::to_string(positions ? count : 0) + " control positions for " +
                                                        std::to_string(mesh_.positions.size()) + " control vertices");
-    controlPositions_.assign(positions, positions + count);
+    pendingPositions_.assign(positions, positions + count);
+    if (Status st = adoptPending("the control positions", ""); !st)
+        return st;
     skinMatrices_.clear();
-    poseChanged();
     return Status::ok();
 }
 

@@ -99,7 +99,10 @@ StrataStatus strata_surface_set_animation_time(StrataSurface* surface, int anima
 /** Poses from skin matrices the engine computed (world * inverse bind), 16
  *  floats each, column-major, one per joint in the rig's order. */
 StrataStatus strata_surface_set_joint_matrices(StrataSurface* surface, const float* matrices, size_t joint_count);
-/** Poses from control positions the engine deformed itself (3 floats each). */
+/** Poses from control positions the engine deformed itself (3 floats each).
+ *  Each pose call refuses (STRATA_INVALID_ARGUMENT, the message naming the
+ *  control vertex and any joint) a pose with a coordinate that is not
+ *  finite or lies beyond +-1e9, and keeps the last pose. */
 StrataStatus strata_surface_set_control_positions(StrataSurface* surface, const float* positions, size_t count);
 
 /** The displacement of each refined vertex along its normal, in model

@@ -36,6 +36,7 @@
 #include <glm/vec3.hpp>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace strata {
@@ -109,8 +110,17 @@ public:
 
     /// The bind pose: control positions as stored.
     Status setRestPose();
+    /// The largest control coordinate a pose may have: a normal's length
+    /// squares a product of two coordinate differences, which overflows a
+    /// float (to a zero or NaN normal) from about 1e9.5.
+    static constexpr float kLargestCoordinate = 1e9f;
     /// The rig's animation `animation` at `time` seconds (-1: the nodes' rest
     /// pose), skinned with options.method.
+    ///
+    /// Every pose setter refuses a pose with a control position that is not
+    /// finite or lies beyond +-kLargestCoordinate (a NaN or infinity given,
+    /// a joint transform that blew up), naming the control vertex and, for
+    /// a skinned pose, the joint; the surface keeps its last pose.
     Status setAnimationTime(int animation, float time);
     /// The skinning setAnimationTime uses from now on.
     void setSkinningMethod(SkinningMethod method) { method_ = method; }
@@ -182,9 +192,16 @@ public:
 
 private:
     Surface() = default;
-    // The control positions changed (not through the animator, which brings
-    // its own normals): their normals again, and a new pose version.
-    void poseChanged();
+    // Every coordinate of a pose within +-kLargestCoordinate, or an error
+    // naming `what` (the pose), the first control vertex that is not, and
+    // `cause`.
+    static Status checkPose(const std::vector<glm::vec3>& positions, const std::string& what, const std::string& cause);
+    // pendingPositions_ (and their normals) become the pose, with a new
+    // pose version, where checkPose passes; otherwise the pose stays.
+    Status adoptPending(const std::string& what, const std::string& cause);
+    // The first joint whose skin matrix is not finite, as "joint J (node N
+    // "NAME")", or empty.
+    std::string overflowingJoint(const glm::mat4* skin, size_t count) const;
 
     ControlMesh mesh_;
     Skeleton skeleton_;
@@ -207,6 +224,7 @@ private:
     // their normals), never 0.
     uint64_t poseVersion_ = 1;
     std::vector<glm::vec3> controlPositions_, controlNormals_;
+    std::vector<glm::vec3> pendingPositions_, pendingNormals_;  // a pose before it is adopted
     std::vector<glm::mat4> skinMatrices_;
 };
 
