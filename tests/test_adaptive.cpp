@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include <random>
 #include <set>
 #include <utility>
@@ -1064,6 +1066,38 @@ TEST(Adaptive, ReconstructViewWritesAClosedMeshWithinItsTolerance)
         EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
         EXPECT_NE(r.output.find(c.needle), std::string::npos) << c.args << "\n" << r.output;
         EXPECT_FALSE(test::fileExists(dir + "/bad.obj")) << c.args;
+    }
+}
+
+// A pose an engine deformed itself (control positions, no skin) that
+// stretches the character counts its stretch as a skinned pose does: the
+// same pose given as positions and as joint matrices chooses the same
+// levels, and stays within the tolerance.
+TEST(Adaptive, APoseGivenAsPositionsCountsItsStretch)
+{
+    for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
+        Rig rig;
+        DisplacementMap map;
+        makeRig(&rig, &map, scheme);
+        std::unique_ptr<Surface> bySkin, byPositions;
+        ASSERT_TRUE(Surface::create(&bySkin, rig, &map).isOk());
+        ASSERT_TRUE(Surface::create(&byPositions, rig, &map).isOk());
+        // Both joints scaled 3x along x and 2x along y about the origin.
+        const glm::mat4 stretch = glm::scale(glm::mat4(1.0f), glm::vec3(3.0f, 2.0f, 1.0f));
+        const std::vector<glm::mat4> skin(bySkin->jointCount(), stretch);
+        ASSERT_TRUE(bySkin->setJointMatrices(skin.data(), skin.size()).isOk());
+        ASSERT_TRUE(byPositions->setControlPositions(bySkin->controlPositions().data(), bySkin->controlVertexCount()).isOk());
+        EXPECT_FLOAT_EQ(stretchScale(rig.mesh.positions.data(), byPositions->controlPositions().data(),
+                                     rig.mesh.triangles.data(), rig.mesh.faceCount()),
+                        3.0f);
+        for (float distance : {4.0f, 9.0f, 20.0f}) {
+            const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(distance);
+            const ViewSpec view = viewFrom(glm::vec3(0.5f, 0.3f, distance));
+            ASSERT_TRUE(chooseAfresh(*bySkin, view, 1.0f).isOk()) << label;
+            ASSERT_TRUE(chooseAfresh(*byPositions, view, 1.0f).isOk()) << label;
+            EXPECT_EQ(byPositions->adaptiveFrame().quarterLevels(), bySkin->adaptiveFrame().quarterLevels()) << label;
+            EXPECT_LE(pixelDeviation(*byPositions, view), 1.0f) << label;
+        }
     }
 }
 

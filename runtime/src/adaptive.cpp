@@ -617,6 +617,30 @@ size_t LevelChooser::bytes() const
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
 
+float stretchScale(const glm::vec3* rest, const glm::vec3* posed, const uint32_t* triangles, size_t faceCount)
+{
+    double worst = 1.0;
+    for (size_t f = 0; f < faceCount; ++f) {
+        const uint32_t* t = triangles + 3 * f;
+        const glm::dvec3 r1 = glm::dvec3(rest[t[1]]) - glm::dvec3(rest[t[0]]),
+                         r2 = glm::dvec3(rest[t[2]]) - glm::dvec3(rest[t[0]]);
+        const glm::dvec3 p1 = glm::dvec3(posed[t[1]]) - glm::dvec3(posed[t[0]]),
+                         p2 = glm::dvec3(posed[t[2]]) - glm::dvec3(posed[t[0]]);
+        // The map M (r1 -> p1, r2 -> p2) has M^T M's eigenvalues those of
+        // R^-1 P, R and P the two edges' Gram matrices.
+        const double a = glm::dot(r1, r1), b = glm::dot(r1, r2), c = glm::dot(r2, r2);
+        const double d = a * c - b * b;
+        if (!(d > 1e-12 * (a + c) * (a + c)))
+            continue;  // degenerate at rest: no plane to map
+        const double pa = glm::dot(p1, p1), pb = glm::dot(p1, p2), pc = glm::dot(p2, p2);
+        const double trace = (c * pa - 2.0 * b * pb + a * pc) / d, det = (pa * pc - pb * pb) / d;
+        const double top = 0.5 * (trace + std::sqrt(std::max(0.0, trace * trace - 4.0 * det)));
+        if (std::isfinite(top))
+            worst = std::max(worst, std::sqrt(top));
+    }
+    return float(worst);
+}
+
 float skinScale(const float* m, size_t count)
 {
     float worst = 1.0f;

@@ -244,6 +244,13 @@ private:
 /// (1 for none): how much a skinned pose can stretch a distance.
 float skinScale(const float* matrices4x4, size_t count);
 
+/// The largest singular value (1 at least) of any control face's map from
+/// its rest triangle to its posed one, in its plane: how much a pose given
+/// as positions (an engine's own deformation) stretches a distance on the
+/// control mesh.  Faces degenerate at rest are skipped.
+float stretchScale(const glm::vec3* restPositions, const glm::vec3* posedPositions, const uint32_t* triangles,
+                   size_t faceCount);
+
 /// The triangles of a control face at level `level` whose three edges are
 /// drawn at edgeLevels[k] <= level (edge k from corner k to corner k + 1), as
 /// slots of the finest tile (tileSlot(i, j, 2^finest)), counter-clockwise.
