@@ -491,12 +491,26 @@ Status LevelChooser::init(const Plan& plan, const float* displacements, const gl
     restCount_ = controlCount;
     slots_ = size_t(R + 1) * (R + 2) / 2;
     controlTriangles_ = plan.controlTriangles();
+    smooth_ = plan.scheme() == Scheme::Smooth;
     controlCount_ = plan.controlVertexCount();
     const size_t nf = controlTriangles_.size() / 3;
     restLocal_.assign(9 * nf, 0.0f);
     restFramed_.assign(nf, 0.0f);
+    restGram_.assign(4 * nf, 0.0f);
     for (size_t f = 0; f < nf; ++f) {
         const uint32_t* c = &controlTriangles_[3 * f];
+        // The Gram matrix of the rest triangle's two edges from corner 0
+        // and its inverse determinant (0: degenerate, nothing to stretch).
+        const glm::dvec3 e1 = glm::dvec3(controlPositions[c[1]]) - glm::dvec3(controlPositions[c[0]]),
+                         e2 = glm::dvec3(controlPositions[c[2]]) - glm::dvec3(controlPositions[c[0]]);
+        const double g11 = glm::dot(e1, e1), g12 = glm::dot(e1, e2), g22 = glm::dot(e2, e2);
+        const double det = g11 * g22 - g12 * g12;
+        if (det > 1e-12 * (g11 + g22) * (g11 + g22)) {
+            restGram_[f] = float(g11);
+            restGram_[nf + f] = float(g12);
+            restGram_[2 * nf + f] = float(g22);
+            restGram_[3 * nf + f] = float(1.0 / det);
+        }
         glm::mat3 frame;
         if (!triangleFrame(controlPositions[c[0]], controlPositions[c[1]], controlPositions[c[2]], &frame))
             continue;
@@ -612,33 +626,9 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(own_) + bytes(edgeCosines_) + bytes(faceNeighbours_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(stretches_) + bytes(restGram_) + bytes(own_) + bytes(edgeCosines_) + bytes(faceNeighbours_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
-}
-
-float stretchScale(const glm::vec3* rest, const glm::vec3* posed, const uint32_t* triangles, size_t faceCount)
-{
-    double worst = 1.0;
-    for (size_t f = 0; f < faceCount; ++f) {
-        const uint32_t* t = triangles + 3 * f;
-        const glm::dvec3 r1 = glm::dvec3(rest[t[1]]) - glm::dvec3(rest[t[0]]),
-                         r2 = glm::dvec3(rest[t[2]]) - glm::dvec3(rest[t[0]]);
-        const glm::dvec3 p1 = glm::dvec3(posed[t[1]]) - glm::dvec3(posed[t[0]]),
-                         p2 = glm::dvec3(posed[t[2]]) - glm::dvec3(posed[t[0]]);
-        // The map M (r1 -> p1, r2 -> p2) has M^T M's eigenvalues those of
-        // R^-1 P, R and P the two edges' Gram matrices.
-        const double a = glm::dot(r1, r1), b = glm::dot(r1, r2), c = glm::dot(r2, r2);
-        const double d = a * c - b * b;
-        if (!(d > 1e-12 * (a + c) * (a + c)))
-            continue;  // degenerate at rest: no plane to map
-        const double pa = glm::dot(p1, p1), pb = glm::dot(p1, p2), pc = glm::dot(p2, p2);
-        const double trace = (c * pa - 2.0 * b * pb + a * pc) / d, det = (pa * pc - pb * pb) / d;
-        const double top = 0.5 * (trace + std::sqrt(std::max(0.0, trace * trace - 4.0 * det)));
-        if (std::isfinite(top))
-            worst = std::max(worst, std::sqrt(top));
-    }
-    return float(worst);
 }
 
 float skinScale(const float* m, size_t count)
@@ -738,6 +728,25 @@ STRATA_KERNEL_CLONES void leastCosines(size_t n, const float* __restrict p, cons
     }
 }
 
+// Per face, how far the pose stretches its triangle: the largest singular
+// value (at least 1) of the map from its rest edges to its posed ones, in
+// its plane, from the rest Gram matrix and inverse determinant `gram` (4
+// rows; a 0 determinant stretches nothing).  Corners p: gatherCorners rows.
+STRATA_KERNEL_CLONES void faceStretches(size_t n, const float* __restrict p, const float* __restrict gram,
+                                        float* __restrict out)
+{
+    for (size_t f = 0; f < n; ++f) {
+        const float ux = p[3 * n + f] - p[f], uy = p[4 * n + f] - p[n + f], uz = p[5 * n + f] - p[2 * n + f];
+        const float vx = p[6 * n + f] - p[f], vy = p[7 * n + f] - p[n + f], vz = p[8 * n + f] - p[2 * n + f];
+        const float pa = ux * ux + uy * uy + uz * uz, pb = ux * vx + uy * vy + uz * vz, pc = vx * vx + vy * vy + vz * vz;
+        const float a = gram[f], b = gram[n + f], c = gram[2 * n + f], inverse = gram[3 * n + f];
+        // M^T M has the eigenvalues of R^-1 P (R, P: the Gram matrices).
+        const float trace = (c * pa - 2.0f * b * pb + a * pc) * inverse, det = (pa * pc - pb * pb) * inverse;
+        const float top = 0.5f * (trace + std::sqrt(std::max(0.0f, trace * trace - 4.0f * det)));
+        out[f] = std::sqrt(std::max(1.0f, top));  // NaN: max keeps 1
+    }
+}
+
 // The choice's angular bounds (see choose) as cosines: a sphere wholly
 // behind the eye (its nearest direction 1.5707 rad off the axis or more),
 // and one reaching the eye's plane (its farthest 1.5697 rad or more);
@@ -752,21 +761,31 @@ constexpr float kBehindCosine = 9.6277392e-05f, kEyePlaneCosine = 0.00109632395f
 // width, so every point in front of the eye is held to the tolerance, as
 // maxScreenDeviation measures), 0 when the sphere is wholly behind the
 // eye.  A bent face (cosines, when not null: its smallest) counts its errors
-// 1 + twice its angle larger.  Every case is computed and one selected, so
-// the loop vectorises.  p: the corners' gatherCorners rows.
+// 1 + twice its angle larger.  A stretched one (its stretch, where larger
+// than the pose's scale) counts its sphere that much larger and, in the
+// smooth scheme, its errors: a level's error there is the limit surface's
+// curvature between its grid points, which the stretch scales; in the
+// linear scheme the base surface is flat on a face and the error is the
+// displacement's alone, along the posed normals (the bend's part).
+// Every case is computed and one selected, so the loop vectorises.  p: the
+// corners' gatherCorners rows.
 struct GainView {
     glm::vec3 eye, forward;
     float k, poseScale;
+    float stretchErrors;  // 1 in the smooth scheme (a stretch scales the errors too), else 0
 };
 STRATA_KERNEL_CLONES void gainsFor(size_t n, const float* __restrict p, const float* __restrict reach,
-                                   const float* __restrict cosines, GainView v, float* __restrict out)
+                                   const float* __restrict cosines, const float* __restrict stretches, GainView v,
+                                   float* __restrict out)
 {
     const float infinity = std::numeric_limits<float>::infinity();
     for (size_t f = 0; f < n; ++f) {
         const float qx = (p[f] + p[3 * n + f] + p[6 * n + f]) / 3.0f - v.eye.x;
         const float qy = (p[n + f] + p[4 * n + f] + p[7 * n + f]) / 3.0f - v.eye.y;
         const float qz = (p[2 * n + f] + p[5 * n + f] + p[8 * n + f]) / 3.0f - v.eye.z;
-        const float r = reach[f] * v.poseScale;
+        const float scale = std::max(v.poseScale, stretches[f]);
+        const float r = reach[f] * scale;
+        const float errorScale = v.poseScale + v.stretchErrors * (scale - v.poseScale);  // no branch: it vectorises
         const float d = std::sqrt(qx * qx + qy * qy + qz * qz);
         // The cosines of axis - spread and axis + spread, from the axis's
         // cosine and the spread's sine (r / d).  An angle in [0, 3pi/2] is
@@ -777,7 +796,7 @@ STRATA_KERNEL_CLONES void gainsFor(size_t n, const float* __restrict p, const fl
         const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
         const float ss = std::min(1.0f, r / d), cs = std::sqrt(std::max(0.0f, 1.0f - ss * ss));
         const float inner = ca * cs + sa * ss, outer = ca * cs - sa * ss;
-        float g = v.k * v.poseScale / ((d - r) * outer * outer);
+        float g = v.k * errorScale / ((d - r) * outer * outer);
         g = outer <= kEyePlaneCosine ? infinity : g;
         g = ca <= cs && inner <= kBehindCosine ? 0.0f : g;
         g = d > r ? g : infinity;
@@ -927,6 +946,30 @@ void LevelChooser::stitch(uint8_t* quarters, float pixelError, bool fromLast)
     }
 }
 
+// Per face the smallest of its own value and its edge neighbours' (every
+// face around a non-manifold edge): a bend or stretch reaches across edges
+// (a smooth surface's stencils do).
+void LevelChooser::spreadLeast(const float* own, std::vector<float>* out)
+{
+    const size_t nf = errors_.faceCount;
+    out->resize(nf);
+    float* o = out->data();
+    if (!faceNeighbours_.empty()) {
+        const uint32_t* nb = faceNeighbours_.data();
+        for (size_t f = 0; f < nf; ++f)
+            o[f] = std::min({own[f], own[nb[3 * f]], own[nb[3 * f + 1]], own[nb[3 * f + 2]]});
+        return;
+    }
+    edgeCosines_.assign(edges_.edgeCount(), std::numeric_limits<float>::infinity());
+    for (size_t e = 0; e < edges_.edgeCount(); ++e)
+        for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
+            edgeCosines_[e] = std::min(edgeCosines_[e], own[edges_.cornersOf(e)[m] / 3]);
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t* e = &edgeOf_[3 * f];
+        o[f] = std::min({own[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+    }
+}
+
 Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixelError, const glm::vec3* controlPositions,
                             size_t controlCount, float poseScale, const glm::vec3* controlNormals,
                             const uint8_t* previous, uint64_t poseStamp)
@@ -973,24 +1016,21 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
         own_.resize(nf);
         leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), own_.data());
-        cosines_.resize(nf);
-        if (!faceNeighbours_.empty()) {
-            const uint32_t* nb = faceNeighbours_.data();
-            for (size_t f = 0; f < nf; ++f)
-                cosines_[f] = std::min({own_[f], own_[nb[3 * f]], own_[nb[3 * f + 1]], own_[nb[3 * f + 2]]});
-        } else {
-            edgeCosines_.assign(edges_.edgeCount(), 1.0f);
-            for (size_t e = 0; e < edges_.edgeCount(); ++e)
-                for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
-                    edgeCosines_[e] = std::min(edgeCosines_[e], own_[edges_.cornersOf(e)[m] / 3]);
-            for (size_t f = 0; f < nf; ++f) {
-                const uint32_t* e = &edgeOf_[3 * f];
-                cosines_[f] = std::min({own_[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
-            }
-        }
+        spreadLeast(own_.data(), &cosines_);
+        // Negated, the largest stretch spreads as the smallest cosine.
+        faceStretches(nf, corners_.data(), restGram_.data(), own_.data());
+        for (float& v : own_)
+            v = -v;
+        spreadLeast(own_.data(), &stretches_);
+        for (float& v : stretches_)
+            v = -v;
     }
-    gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr,
-             GainView{cam.eye, cam.forward, cam.k, poseScale}, gains_.data());
+    if (!bent) {  // no normals to tell a new pose by: the stretch, measured again
+        stretches_.resize(nf);
+        faceStretches(nf, corners_.data(), restGram_.data(), stretches_.data());
+    }
+    gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr, stretches_.data(),
+             GainView{cam.eye, cam.forward, cam.k, poseScale, smooth_ ? 1.0f : 0.0f}, gains_.data());
     // What the picking and stitching aim at: the tolerance, or, where this
     // choice follows levels chosen before (a view or pose that moves),
     // kMotionTolerance of it (see choose).

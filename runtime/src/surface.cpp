@@ -227,7 +227,6 @@ Status Surface::setRestPose()
     if (Status st = adoptPending("the rest pose", ""); !st)
         return st;
     skinMatrices_.clear();
-    deformed_ = false;
     return Status::ok();
 }
 
@@ -257,7 +256,6 @@ Status Surface::setAnimationTime(int animation, float time)
         ++poseVersion_;
     }
     skinMatrices_ = animator_->skinMatrices();
-    deformed_ = false;
     return Status::ok();
 }
 
@@ -277,7 +275,6 @@ Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
     if (Status st = adoptPending("the skinned pose", "the joint matrices overflow it"); !st)
         return st;
     skinMatrices_.assign(matrices, matrices + count);
-    deformed_ = false;
     return Status::ok();
 }
 
@@ -290,7 +287,6 @@ Status Surface::setControlPositions(const glm::vec3* positions, size_t count)
     if (Status st = adoptPending("the control positions", ""); !st)
         return st;
     skinMatrices_.clear();
-    deformed_ = true;
     return Status::ok();
 }
 
@@ -353,19 +349,7 @@ Status Surface::chooseFaceLevels(const ViewSpec& view, float pixelError)
                           view.fovYDegrees == chosenView_.fovYDegrees && view.heightPx == chosenView_.heightPx;
     if (held && sameView && pixelError == chosenTolerance_ && poseVersion_ == chosenPose_)
         return Status::ok();
-    // How far the pose stretches the errors measured at rest: the skin's
-    // matrices bound it, and a pose given as positions measures its own.
-    float scale = 1.0f;
-    if (!skinMatrices_.empty()) {
-        scale = skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
-    } else if (deformed_) {
-        if (stretchPose_ != poseVersion_) {
-            stretch_ = stretchScale(mesh_.positions.data(), controlPositions_.data(), mesh_.triangles.data(),
-                                    mesh_.faceCount());
-            stretchPose_ = poseVersion_;
-        }
-        scale = stretch_;
-    }
+    const float scale = skinMatrices_.empty() ? 1.0f : skinScale(&skinMatrices_[0][0][0], skinMatrices_.size());
     if (Status st = chooser_->choose(chosen_.data(), view, pixelError, controlPositions_.data(), controlPositions_.size(),
                                      scale, controlNormals_.data(), held ? adaptive_->quarterLevels().data() : nullptr,
                                      poseVersion_);

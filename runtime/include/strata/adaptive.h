@@ -137,6 +137,14 @@ public:
     /// normal tilts with it, at the point and at the drawn corners, and a
     /// smooth surface's stencils reach across the face's edges.
     ///
+    /// A face the pose stretches (the largest singular value of the map from
+    /// its rest triangle to its posed one, or its neighbours' where larger,
+    /// where it exceeds poseScale) counts its bounding sphere that many
+    /// times larger and, in the smooth scheme, its errors too (the limit
+    /// surface's curvature between grid points grows with it; a linear
+    /// face is flat, its error the displacement's alone).  So a pose given
+    /// as control positions, with no skin to bound it, is counted as well.
+    ///
     /// `previous` (4 per face, or null): the levels chosen for the frame
     /// before.  Each face and quarter keeps its previous level while that
     /// level is within the tolerance and no finer than kHoldTolerance times
@@ -226,6 +234,11 @@ private:
     // Per face: pixels per unit of error in this view and pose; the cosine
     // of its bend's widest angle (its own or its neighbours'; see choose).
     std::vector<float> gains_, cosines_, own_, edgeCosines_;  // own_: each face's own bend, before its spread
+    // Per face: its rest edges' Gram matrix and inverse determinant (4 rows),
+    // and the pose's stretch of it, spread to its neighbours (see choose).
+    std::vector<float> restGram_, stretches_;
+    bool smooth_ = false;  // the plan's scheme
+    void spreadLeast(const float* own, std::vector<float>* out);
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for (no stamp)
     uint64_t bentStamp_ = 0;                              // or its stamp
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
@@ -243,13 +256,6 @@ private:
 /// The largest singular value of the upper 3x3 of any of `count` matrices
 /// (1 for none): how much a skinned pose can stretch a distance.
 float skinScale(const float* matrices4x4, size_t count);
-
-/// The largest singular value (1 at least) of any control face's map from
-/// its rest triangle to its posed one, in its plane: how much a pose given
-/// as positions (an engine's own deformation) stretches a distance on the
-/// control mesh.  Faces degenerate at rest are skipped.
-float stretchScale(const glm::vec3* restPositions, const glm::vec3* posedPositions, const uint32_t* triangles,
-                   size_t faceCount);
 
 /// The triangles of a control face at level `level` whose three edges are
 /// drawn at edgeLevels[k] <= level (edge k from corner k to corner k + 1), as

@@ -146,9 +146,9 @@ public:
     Status setQuarterLevels(const uint8_t* quarters, size_t count);
     /// Levels for a view of the current pose: per face (and quarter of a
     /// face) the smallest level within `pixelError` pixels of level() (errors
-    /// measured once, in the rest pose, at the first call; a pose's stretch
-    /// scales them: the skin matrices', or for control positions given,
-    /// stretchScale's).  Where the frame's levels came from the last
+    /// measured once, in the rest pose, at the first call; the pose's stretch
+    /// of each face, however the pose was given, and a skin's scale grow
+    /// them: LevelChooser::choose).  Where the frame's levels came from the last
     /// choice, each keeps its level while that still meets the tolerance
     /// and is not finer than LevelChooser::kHoldTolerance of it would
     /// choose, else takes the lowest within LevelChooser::kMotionTolerance
@@ -227,11 +227,6 @@ private:
     std::vector<glm::vec3> controlPositions_, controlNormals_;
     std::vector<glm::vec3> pendingPositions_, pendingNormals_;  // a pose before it is adopted
     std::vector<glm::mat4> skinMatrices_;
-    // A pose given as positions (setControlPositions): its stretch of the
-    // control mesh, measured for pose version stretchPose_.
-    bool deformed_ = false;
-    float stretch_ = 1.0f;
-    uint64_t stretchPose_ = 0;
 };
 
 }  // namespace strata
