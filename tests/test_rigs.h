@@ -116,6 +116,23 @@ inline AnimationChannel rotationKeys(int node, const std::vector<float>& times, 
 
 /// The example rig skinned to two joints ("hips", "chest") with one
 /// animation, "bend", that turns the chest 0.6 rad about z over 1 s.
+// An animation "grow" scaling nodes 0 and 1 (a joint and its child) by
+// 1e20 at every key: posed, their transforms overflow a float.
+inline Animation overflowingAnimation()
+{
+    Animation grow;
+    grow.name = "grow";
+    for (int node : {0, 1}) {
+        AnimationChannel c;
+        c.node = node;
+        c.path = AnimationPath::Scale;
+        c.times = {0.0f, 1.0f};
+        c.values = {1e20f, 1e20f, 1e20f, 1e20f, 1e20f, 1e20f};
+        grow.channels.push_back(c);
+    }
+    return grow;
+}
+
 inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
 {
     makeExampleRig(rig, map);

@@ -954,17 +954,7 @@ TEST(Scene, OverflowingPoseIsAnErrorNamingTheJoint)
     test::makeExampleRig(&rig, &map);
     test::twoJointSkin(&rig.skeleton, rig.mesh, "hip", "knee", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
                        [](const glm::vec3& p) { return p.y > 0.0f ? 1.0f : 0.0f; });
-    Animation grow;
-    grow.name = "grow";
-    for (int node : {0, 1}) {
-        AnimationChannel c;
-        c.node = node;
-        c.path = AnimationPath::Scale;
-        c.times = {0.0f, 1.0f};
-        c.values = {1e20f, 1e20f, 1e20f, 1e20f, 1e20f, 1e20f};
-        grow.channels.push_back(c);
-    }
-    rig.skeleton.animations.push_back(grow);
+    rig.skeleton.animations.push_back(test::overflowingAnimation());
     ASSERT_TRUE(finalizeSkeleton(&rig.skeleton, rig.mesh.positions.size()).isOk());
     const std::string dir = test::tempDir("scene_overflow");
     ASSERT_TRUE(io::saveRig(dir + "/huge.glb", rig, &map).isOk());

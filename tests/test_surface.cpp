@@ -324,17 +324,7 @@ TEST(Surface, PosesThatAreNotFiniteAreRefusedAndTheLastPoseKept)
     kept(s->setJointMatrices(wild.data(), wild.size()), "the joint matrices overflow it", "huge matrix");
     // An animation whose keys scale two nested joints by 1e20: the joint named.
     Rig grow = rig;
-    Animation a;
-    a.name = "grow";
-    for (int node = 0; node < 2; ++node) {
-        AnimationChannel c;
-        c.node = node;
-        c.path = AnimationPath::Scale;
-        c.times = {0.0f, 1.0f};
-        c.values = {1e20f, 1e20f, 1e20f, 1e20f, 1e20f, 1e20f};
-        a.channels.push_back(c);
-    }
-    grow.skeleton.animations.push_back(a);
+    grow.skeleton.animations.push_back(test::overflowingAnimation());
     std::unique_ptr<Surface> g;
     ASSERT_TRUE(Surface::create(&g, grow, &map).isOk());
     ASSERT_TRUE(g->setAnimationTime(0, 0.5f).isOk());
