@@ -82,6 +82,14 @@ static void closedForm(void)
     /* Wrong counts are refused with a message. */
     CHECK(strata_surface_set_control_positions(s, lifted, 3) == STRATA_INVALID_ARGUMENT);
     CHECK(strstr(strata_last_error(), "3 control positions") != NULL);
+    /* A pose that is not finite is refused, naming the vertex; the last pose stays. */
+    float broken[12];
+    memcpy(broken, lifted, sizeof(broken));
+    broken[7] = NAN;
+    CHECK(strata_surface_set_control_positions(s, broken, 4) == STRATA_INVALID_ARGUMENT);
+    CHECK(strstr(strata_last_error(), "control vertex 2") != NULL);
+    CHECK(strata_surface_evaluate(s, p, NULL) == STRATA_OK);
+    CHECK(fabsf(p[2] - 1.25f) < 1e-6f);
     CHECK(strata_surface_set_animation_time(s, 0, 0.0f) == STRATA_INVALID_ARGUMENT);
     free(p);
     free(nrm);
