@@ -3,6 +3,7 @@
 // undisplaced one where the detail is (nose, ears) and nowhere outside the
 // model.  Headless through EGL; the windowed path once under xvfb-run.
 #include "strata/io/png.h"
+#include "strata/io/rig_io.h"
 #include "test_rigs.h"
 
 #include <cstdlib>
@@ -148,6 +149,25 @@ TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("broken.glb"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("strata-view: error: "), std::string::npos) << r.output;
+    EXPECT_FALSE(test::fileExists(dir + "/out.png"));
+}
+
+// A pose that overflows (two nested joints scaled by 1e20) is refused, not
+// drawn as NaNs or as the last pose: one line naming the joint, no image.
+TEST(Viewer, OverflowingPoseIsAnErrorNamingTheJoint)
+{
+    Rig rig;
+    DisplacementMap map;
+    test::makeBendingExampleRig(&rig, &map);
+    rig.skeleton.animations.push_back(test::overflowingAnimation());
+    const std::string dir = test::tempDir("viewer_overflow");
+    ASSERT_TRUE(io::saveRig(dir + "/huge.glb", rig, &map).isOk());
+    const test::CommandResult r = test::runCommand(std::string(STRATA_VIEW_EXE) + " " + dir +
+                                                   "/huge.glb --anim grow --time 0.5 --headless --screenshot " + dir +
+                                                   "/out.png");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_NE(r.output.find("is not finite"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("(node 1 \"chest\")"), std::string::npos) << r.output;
     EXPECT_FALSE(test::fileExists(dir + "/out.png"));
 }
 

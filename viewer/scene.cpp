@@ -327,11 +327,15 @@ void Scene::update(float dt)
         // The paper's deformer needs a chain of joints: linear blend
         // skinning where the skin has none.
         cpu_->setSkinningMethod(settings.skinning);
-        if (!cpu_->setAnimationTime(settings.animation, start + settings.time) &&
-            settings.skinning == SkinningMethod::Segments) {
+        Status posed = cpu_->setAnimationTime(settings.animation, start + settings.time);
+        if (!posed && settings.skinning == SkinningMethod::Segments) {
             cpu_->setSkinningMethod(SkinningMethod::Linear);
-            cpu_->setAnimationTime(settings.animation, start + settings.time);
+            posed = cpu_->setAnimationTime(settings.animation, start + settings.time);
         }
+        // A pose refused (one that is not finite) leaves the last one drawn:
+        // say so rather than play on as if it were this time's.
+        if (!posed)
+            lastError_ = path_ + ": " + posed.message();
     }
     // Unanimated: the surface stays in the bind pose it was made in (and that
     // computeErrors sets), so the frame re-poses nothing.
