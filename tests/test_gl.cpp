@@ -335,10 +335,8 @@ TEST(Gpu, AdaptiveDrawCoversWhatTheUniformDrawCovers)
     ASSERT_NE(context(), nullptr);
     Rig rig;
     DisplacementMap map;
-    test::makeBendingExampleRig(&rig, &map);
-    std::unique_ptr<Surface> s;
-    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
-    ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+    std::unique_ptr<Surface> s = test::bendingSurfaceAt(0.5f, &rig, &map);
+    ASSERT_TRUE(s);
     std::unique_ptr<gl::GpuSurface> gpu;
     ASSERT_TRUE(gl::GpuSurface::create(&gpu, s->plan()).isOk());
     ASSERT_TRUE(gpu->setDisplacements(s->plan().displacements().data(), s->vertexCount()).isOk());

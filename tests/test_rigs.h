@@ -9,12 +9,14 @@
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
+#include "strata/surface.h"
 #include "test_util.h"
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -145,6 +147,17 @@ inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
     bend.end = 1.0f;
     rig->skeleton.animations.push_back(bend);
     ASSERT_TRUE(finalizeSkeleton(&rig->skeleton, rig->mesh.vertexCount()).isOk());
+}
+
+// The bending example rig's Surface (recommended level) posed at `time` of
+// its animation, or null; the rig and map come back for other surfaces.
+inline std::unique_ptr<Surface> bendingSurfaceAt(float time, Rig* rig, DisplacementMap* map)
+{
+    makeBendingExampleRig(rig, map);
+    std::unique_ptr<Surface> s;
+    if (!Surface::create(&s, *rig, map).isOk() || !s->setAnimationTime(0, time).isOk())
+        s.reset();
+    return s;
 }
 
 

@@ -266,10 +266,8 @@ TEST(Surface, PosesThatAreNotFiniteAreRefusedAndTheLastPoseKept)
 {
     Rig rig;
     DisplacementMap map;
-    test::makeBendingExampleRig(&rig, &map);
-    std::unique_ptr<Surface> s;
-    ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
-    ASSERT_TRUE(s->setAnimationTime(0, 0.5f).isOk());
+    std::unique_ptr<Surface> s = test::bendingSurfaceAt(0.5f, &rig, &map);
+    ASSERT_TRUE(s);
     const std::vector<glm::vec3> posed = s->controlPositions(), normals = s->controlNormals();
     const std::vector<glm::mat4> skin = s->skinMatrices();
     ViewSpec view;
