@@ -56,6 +56,21 @@ TEST(FrameAllocation, WarmFramesAllocateNothing)
             EXPECT_EQ(afterAdaptive - afterUniform, 0) << threads << " threads, frame " << frame;
         }
     }
+    // Posing, warm, by any setter: a pose is checked without making the
+    // message it would need if refused.
+    {
+        ASSERT_TRUE(s->setAnimationTime(0, 0.3f).isOk());
+        const std::vector<glm::mat4> skin = s->skinMatrices();
+        const std::vector<glm::vec3> control = s->controlPositions();
+        ASSERT_TRUE(s->setJointMatrices(skin.data(), skin.size()).isOk());
+        ASSERT_TRUE(s->setControlPositions(control.data(), control.size()).isOk());
+        const long before = gAllocations.load();
+        const bool posed = s->setAnimationTime(0, 0.7f).isOk() && s->setJointMatrices(skin.data(), skin.size()).isOk() &&
+                           s->setControlPositions(control.data(), control.size()).isOk() && s->setRestPose().isOk();
+        const long after = gAllocations.load();
+        ASSERT_TRUE(posed);
+        EXPECT_EQ(after - before, 0);
+    }
     // Choosing the same levels again reuses the frame's storage.
     ASSERT_TRUE(s->chooseFaceLevels(view, 1.0f).isOk());
     const long before = gAllocations.load();

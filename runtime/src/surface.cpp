@@ -178,12 +178,9 @@ std::string Surface::overflowingJoint(const glm::mat4* skin, size_t count) const
     return std::string();
 }
 
-Status Surface::checkPose(const std::vector<glm::vec3>& positions, const std::string& what,
+Status Surface::poseError(const std::vector<glm::vec3>& positions, size_t v, const std::string& what,
                           const std::string& cause)
 {
-    const size_t v = firstOutOfRange(positions);
-    if (v == positions.size())
-        return Status::ok();
     static_assert(kLargestCoordinate == 1e9f, "the message below names the bound");
     const glm::vec3 p = positions[v];
     const bool finite = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
@@ -194,10 +191,10 @@ Status Surface::checkPose(const std::vector<glm::vec3>& positions, const std::st
                       (cause.empty() ? std::string() : ": " + cause));
 }
 
-Status Surface::adoptPending(const std::string& what, const std::string& cause)
+Status Surface::adoptPending(const char* what, const char* cause)
 {
-    if (Status st = checkPose(pendingPositions_, what, cause); !st)
-        return st;
+    if (const size_t v = firstOutOfRange(pendingPositions_); v < pendingPositions_.size())
+        return poseError(pendingPositions_, v, what, cause);
     pendingNormals_.assign(pendingPositions_.size(), glm::vec3(0.0f));
     computeControlNormals(pendingNormals_.data(), pendingPositions_.data(), pendingPositions_.size(),
                           mesh_.triangles.data(), mesh_.faceCount());
@@ -242,12 +239,14 @@ Status Surface::setAnimationTime(int animation, float time)
     Status st = animator_->pose(animation, time, method_);
     if (!st)
         return st;
-    const std::vector<glm::mat4>& skin = animator_->skinMatrices();
-    const std::string joint = overflowingJoint(skin.data(), skin.size());
-    if (!(st = checkPose(animator_->positions(),
+    // Refused: the message (and the joint to blame) made only then.
+    if (const size_t v = firstOutOfRange(animator_->positions()); v < animator_->positions().size()) {
+        const std::vector<glm::mat4>& skin = animator_->skinMatrices();
+        const std::string joint = overflowingJoint(skin.data(), skin.size());
+        return poseError(animator_->positions(), v,
                          "the pose of animation " + std::to_string(animation) + " at " + seconds(time),
-                         joint.empty() ? std::string() : joint + " has a posed transform that overflows")))
-        return st;
+                         joint.empty() ? std::string() : joint + " has a posed transform that overflows");
+    }
     // The same pose again (a paused clip) keeps its version, and what a
     // choice measured for it.
     if (controlPositions_ != animator_->positions() || controlNormals_ != animator_->normals()) {
@@ -268,8 +267,7 @@ Status Surface::setJointMatrices(const glm::mat4* matrices, size_t count)
                                                        std::to_string(skeleton_.skin.joints.size()) + " joints");
     const std::string joint = overflowingJoint(matrices, count);
     if (!joint.empty())
-        return Status(StatusCode::InvalidArgument,
-                      "the joint matrices are not finite: " + joint + "'s is not; the last pose is kept");
+        return Status(StatusCode::InvalidArgument, "the joint matrices are not finite: " + joint + "'s is not");
     pendingPositions_.resize(mesh_.positions.size());
     skinLinear(pendingPositions_.data(), mesh_.positions.data(), mesh_.positions.size(), skeleton_.weights, matrices);
     if (Status st = adoptPending("the skinned pose", "the joint matrices overflow it"); !st)

@@ -193,13 +193,15 @@ public:
 
 private:
     Surface() = default;
-    // Every coordinate of a pose within +-kLargestCoordinate, or an error
-    // naming `what` (the pose), the first control vertex that is not, and
-    // `cause`.
-    static Status checkPose(const std::vector<glm::vec3>& positions, const std::string& what, const std::string& cause);
-    // pendingPositions_ (and their normals) become the pose, with a new
-    // pose version, where checkPose passes; otherwise the pose stays.
-    Status adoptPending(const std::string& what, const std::string& cause);
+    // The refusal of a pose whose control vertex v is not finite or lies
+    // beyond +-kLargestCoordinate, naming `what` (the pose), the vertex and
+    // `cause` (may be empty).
+    static Status poseError(const std::vector<glm::vec3>& positions, size_t v, const std::string& what,
+                            const std::string& cause);
+    // pendingPositions_ (and their normals) become the pose, with a new pose
+    // version, where every coordinate is within +-kLargestCoordinate;
+    // otherwise the pose stays (poseError).  No string is made unless refused.
+    Status adoptPending(const char* what, const char* cause);
     // The first joint whose skin matrix is not finite, as "joint J (node N
     // "NAME")", or empty.
     std::string overflowingJoint(const glm::mat4* skin, size_t count) const;
