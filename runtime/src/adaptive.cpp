@@ -626,7 +626,7 @@ size_t LevelChooser::bytes() const
         t += bytes(v);
     for (const auto& v : quarterTemplates_)
         t += bytes(v.second) + node;
-    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(stretches_) + bytes(restGram_) + bytes(own_) + bytes(edgeCosines_) + bytes(faceNeighbours_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
+    return t + bytes(errors_.error) + bytes(errors_.reach) + bytes(errors_.quarterError) + bytes(rest_) + bytes(restLocal_) + bytes(restFramed_) + bytes(lastStitched_) + bytes(seen_) + bytes(recheck_) + bytes(touched_) + bytes(moved_) + bytes(cosines_) + bytes(stretches_) + bytes(restGram_) + bytes(own_) + bytes(edgeSpread_) + bytes(faceNeighbours_) + bytes(bentPositions_) + bytes(bentNormals_) + bytes(corners_) + bytes(cornerNormals_) + bytes(lastQuarters_) + bytes(chosenGains_) + bytes(drawnErrors_) + bytes(tiles_) +
            bytes(controlTriangles_) + bytes(slotI_) + bytes(slotJ_) + bytes(edges_.corners) + bytes(edges_.offsets) +
            bytes(edgeOf_) + bytes(halves_) + bytes(gains_) + stitchedQuarters_.size() * node;
 }
@@ -946,27 +946,30 @@ void LevelChooser::stitch(uint8_t* quarters, float pixelError, bool fromLast)
     }
 }
 
-// Per face the smallest of its own value and its edge neighbours' (every
-// face around a non-manifold edge): a bend or stretch reaches across edges
-// (a smooth surface's stencils do).
-void LevelChooser::spreadLeast(const float* own, std::vector<float>* out)
+// Per face the smallest (kLeast) or largest of its own value and its edge
+// neighbours' (every face around a non-manifold edge): a bend or stretch
+// reaches across edges (a smooth surface's stencils do).
+template <bool kLeast>
+void LevelChooser::spread(const float* own, std::vector<float>* out)
 {
+    auto pick = [](std::initializer_list<float> v) { return kLeast ? std::min(v) : std::max(v); };
     const size_t nf = errors_.faceCount;
     out->resize(nf);
     float* o = out->data();
     if (!faceNeighbours_.empty()) {
         const uint32_t* nb = faceNeighbours_.data();
         for (size_t f = 0; f < nf; ++f)
-            o[f] = std::min({own[f], own[nb[3 * f]], own[nb[3 * f + 1]], own[nb[3 * f + 2]]});
+            o[f] = pick({own[f], own[nb[3 * f]], own[nb[3 * f + 1]], own[nb[3 * f + 2]]});
         return;
     }
-    edgeCosines_.assign(edges_.edgeCount(), std::numeric_limits<float>::infinity());
+    const float none = kLeast ? std::numeric_limits<float>::infinity() : -std::numeric_limits<float>::infinity();
+    edgeSpread_.assign(edges_.edgeCount(), none);
     for (size_t e = 0; e < edges_.edgeCount(); ++e)
         for (uint32_t m = 0; m < edges_.faceCountOf(e); ++m)
-            edgeCosines_[e] = std::min(edgeCosines_[e], own[edges_.cornersOf(e)[m] / 3]);
+            edgeSpread_[e] = pick({edgeSpread_[e], own[edges_.cornersOf(e)[m] / 3]});
     for (size_t f = 0; f < nf; ++f) {
         const uint32_t* e = &edgeOf_[3 * f];
-        o[f] = std::min({own[f], edgeCosines_[e[0]], edgeCosines_[e[1]], edgeCosines_[e[2]]});
+        o[f] = pick({own[f], edgeSpread_[e[0]], edgeSpread_[e[1]], edgeSpread_[e[2]]});
     }
 }
 
@@ -1016,14 +1019,9 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         gatherCorners(cornerNormals_.data(), controlNormals, controlTriangles_.data(), nf);
         own_.resize(nf);
         leastCosines(nf, corners_.data(), cornerNormals_.data(), restLocal_.data(), restFramed_.data(), own_.data());
-        spreadLeast(own_.data(), &cosines_);
-        // Negated, the largest stretch spreads as the smallest cosine.
+        spread<true>(own_.data(), &cosines_);
         faceStretches(nf, corners_.data(), restGram_.data(), own_.data());
-        for (float& v : own_)
-            v = -v;
-        spreadLeast(own_.data(), &stretches_);
-        for (float& v : stretches_)
-            v = -v;
+        spread<false>(own_.data(), &stretches_);
     }
     if (!bent) {  // no normals to tell a new pose by: the stretch, measured again
         stretches_.resize(nf);

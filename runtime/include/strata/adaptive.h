@@ -233,12 +233,15 @@ private:
     std::vector<std::pair<uint32_t, float>> lastStitched_;
     // Per face: pixels per unit of error in this view and pose; the cosine
     // of its bend's widest angle (its own or its neighbours'; see choose).
-    std::vector<float> gains_, cosines_, own_, edgeCosines_;  // own_: each face's own bend, before its spread
+    // own_: each face's own bend or stretch, before its spread; edgeSpread_:
+    // the spread's per-edge scratch where an edge has more than two faces.
+    std::vector<float> gains_, cosines_, own_, edgeSpread_;
     // Per face: its rest edges' Gram matrix and inverse determinant (4 rows),
     // and the pose's stretch of it, spread to its neighbours (see choose).
     std::vector<float> restGram_, stretches_;
     bool smooth_ = false;  // the plan's scheme
-    void spreadLeast(const float* own, std::vector<float>* out);
+    template <bool kLeast>
+    void spread(const float* own, std::vector<float>* out);
     std::vector<glm::vec3> bentPositions_, bentNormals_;  // the pose cosines_ is for (no stamp)
     uint64_t bentStamp_ = 0;                              // or its stamp
     std::vector<float> corners_, cornerNormals_;          // the pose's, a row per corner axis
