@@ -116,8 +116,6 @@ inline AnimationChannel rotationKeys(int node, const std::vector<float>& times, 
     return c;
 }
 
-/// The example rig skinned to two joints ("hips", "chest") with one
-/// animation, "bend", that turns the chest 0.6 rad about z over 1 s.
 // An animation "grow" scaling nodes 0 and 1 (a joint and its child) by
 // 1e20 at every key: posed, their transforms overflow a float.
 inline Animation overflowingAnimation()
@@ -135,6 +133,8 @@ inline Animation overflowingAnimation()
     return grow;
 }
 
+/// The example rig skinned to two joints ("hips", "chest") with one
+/// animation, "bend", that turns the chest 0.6 rad about z over 1 s.
 inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
 {
     makeExampleRig(rig, map);
