@@ -240,19 +240,6 @@ void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
     rig->displacement.scheme = scheme;
 }
 
-// The bending example rig's Surface in either scheme, posed at `time` (the
-// rig and map come back too, for surfaces of other levels).
-std::unique_ptr<Surface> posedSurface(Scheme scheme, float time, Rig* rig, DisplacementMap* map)
-{
-    makeRig(rig, map, scheme);
-    std::unique_ptr<Surface> s;
-    EXPECT_TRUE(Surface::create(&s, *rig, map).isOk());
-    if (s) {
-        EXPECT_TRUE(s->setAnimationTime(0, time).isOk());
-    }
-    return s;
-}
-
 // The tests' camera: a 40-degree, 1080-pixel-tall view of the origin from
 // `eye`.
 ViewSpec viewFrom(glm::vec3 eye)
@@ -532,7 +519,7 @@ TEST(Adaptive, OneLevelEverywhereIsTheUniformSurfaceOfThatLevel)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> fine = posedSurface(scheme, 0.7f, &rig, &map);
+        std::unique_ptr<Surface> fine = test::bendingSurfaceAt(0.7f, &rig, &map, scheme);
         ASSERT_TRUE(fine);
         for (int level = 0; level <= 4; ++level) {
             const std::string label = std::string(schemeName(scheme)) + " level " + std::to_string(level);
@@ -623,7 +610,7 @@ TEST(Adaptive, ViewChosenLevelsMeetTheirPixelToleranceWithFewerVertices)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> s = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> s = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
         ASSERT_TRUE(s);
         size_t previous = ~size_t(0);
         for (float distance : {3.0f, 8.0f, 30.0f, 100.0f}) {
@@ -686,7 +673,7 @@ TEST(Adaptive, LevelsHoldAcrossFramesOfAMovingPose)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> held = posedSurface(scheme, 0.0f, &rig, &map), fresh;
+        std::unique_ptr<Surface> held = test::bendingSurfaceAt(0.0f, &rig, &map, scheme), fresh;
         ASSERT_TRUE(held);
         ASSERT_TRUE(Surface::create(&fresh, rig, &map).isOk());
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 6.0f));
@@ -739,15 +726,15 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> reused = posedSurface(scheme, 0.0f, &rig, &map);
-        std::unique_ptr<Surface> driven = posedSurface(scheme, 0.0f, &rig, &map);
+        std::unique_ptr<Surface> reused = test::bendingSurfaceAt(0.0f, &rig, &map, scheme);
+        std::unique_ptr<Surface> driven = test::bendingSurfaceAt(0.0f, &rig, &map, scheme);
         ASSERT_TRUE(reused && driven);
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 3.0f));
         size_t differ = 0;
         std::vector<uint8_t> rest;
         for (float t : {0.0f, 0.5f, 0.501f, 0.501f, 1.0f, 0.0f}) {
             const std::string label = std::string(schemeName(scheme)) + " at " + std::to_string(t);
-            std::unique_ptr<Surface> fresh = posedSurface(scheme, t, &rig, &map);
+            std::unique_ptr<Surface> fresh = test::bendingSurfaceAt(t, &rig, &map, scheme);
             ASSERT_TRUE(fresh);
             ASSERT_TRUE(fresh->chooseFaceLevels(view, 1.0f).isOk());
             ASSERT_TRUE(reused->setAnimationTime(0, t).isOk());
@@ -760,7 +747,7 @@ TEST(Adaptive, AChoiceAfterAPoseChangeIsTheNewPosesChoice)
             view.eye.x = 0.3f;
             // The same poses given as control positions, to a surface that
             // keeps choosing and to one made for each.
-            std::unique_ptr<Surface> given = posedSurface(scheme, 0.0f, &rig, &map);
+            std::unique_ptr<Surface> given = test::bendingSurfaceAt(0.0f, &rig, &map, scheme);
             ASSERT_TRUE(given);
             ASSERT_TRUE(given->setControlPositions(fresh->controlPositions().data(), fresh->controlVertexCount()).isOk());
             ASSERT_TRUE(driven->setControlPositions(fresh->controlPositions().data(), fresh->controlVertexCount()).isOk());
@@ -804,13 +791,14 @@ TEST(Adaptive, AKeptChoiceStillMeetsItsTolerance)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> held = test::bendingSurfaceAt(0.5f, &rig, &map, scheme),
+                                 fresh = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
         ASSERT_TRUE(held && fresh);
         ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
         size_t heldVertices = 0, bandVertices = 0, repairs = 0;
         // A chooser of the test's own, made as the Surface makes its own;
         // asked afresh each frame, it makes every choice in full.
-        std::unique_ptr<Surface> rest = posedSurface(scheme, 0.0f, &rig, &map);
+        std::unique_ptr<Surface> rest = test::bendingSurfaceAt(0.0f, &rig, &map, scheme);
         ASSERT_TRUE(rest && rest->setRestPose().isOk());
         const int frames = 120;
         for (int frame = 0; frame < frames; ++frame) {
@@ -858,7 +846,8 @@ TEST(Adaptive, MovingAwayDropsLevelsToTheTolerance)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map), fresh = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> held = test::bendingSurfaceAt(0.5f, &rig, &map, scheme),
+                                 fresh = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
         ASSERT_TRUE(held && fresh);
         ViewSpec view = viewFrom(glm::vec3(0.0f, 0.0f, 1.0f));  // the eye set below
         auto freshAt = [&](float tolerance) {
@@ -890,9 +879,9 @@ TEST(Adaptive, FallsWaitUntilEnoughCouldFall)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> held = posedSurface(scheme, 0.5f, &rig, &map);
-        std::unique_ptr<Surface> full = posedSurface(scheme, 0.5f, &rig, &map);
-        std::unique_ptr<Surface> rest = posedSurface(scheme, 0.0f, &rig, &map);
+        std::unique_ptr<Surface> held = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
+        std::unique_ptr<Surface> full = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
+        std::unique_ptr<Surface> rest = test::bendingSurfaceAt(0.0f, &rig, &map, scheme);
         ASSERT_TRUE(held && full && rest && rest->setRestPose().isOk());
         ViewSpec view = viewFrom(glm::vec3(0.3f, 0.2f, 2.5f));
         ASSERT_TRUE(held->chooseFaceLevels(view, 1.0f).isOk());
@@ -938,7 +927,7 @@ TEST(Adaptive, APointAtTheEyesPlaneIsNoPixelsOffAtTheFinestLevel)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> s = posedSurface(scheme, 0.5f, &rig, &map);
+        std::unique_ptr<Surface> s = test::bendingSurfaceAt(0.5f, &rig, &map, scheme);
         ASSERT_TRUE(s);
         std::vector<glm::vec3> fine(s->vertexCount());
         ASSERT_TRUE(s->evaluate(fine.data(), nullptr, fine.size()).isOk());
@@ -1077,10 +1066,11 @@ TEST(Adaptive, StretchedPosesStayWithinTheTolerance)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        std::unique_ptr<Surface> bySkin = posedSurface(scheme, 0.6f, &rig, &map), byPositions;
+        std::unique_ptr<Surface> bySkin = test::bendingSurfaceAt(0.6f, &rig, &map, scheme), byPositions;
         ASSERT_TRUE(bySkin);
         ASSERT_TRUE(Surface::create(&byPositions, rig, &map).isOk());
-        ASSERT_TRUE(byPositions->setControlPositions(bySkin->controlPositions().data(), bySkin->controlVertexCount()).isOk());
+        const std::vector<glm::vec3>& posed = bySkin->controlPositions();
+        ASSERT_TRUE(byPositions->setControlPositions(posed.data(), posed.size()).isOk());
         for (float distance : {3.0f, 8.0f}) {
             const std::string label = std::string(schemeName(scheme)) + " bent, at " + std::to_string(distance);
             const ViewSpec view = viewFrom(glm::vec3(0.5f, 0.3f, distance));

@@ -149,11 +149,14 @@ inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
     ASSERT_TRUE(finalizeSkeleton(&rig->skeleton, rig->mesh.vertexCount()).isOk());
 }
 
-// The bending example rig's Surface (recommended level) posed at `time` of
-// its animation, or null; the rig and map come back for other surfaces.
-inline std::unique_ptr<Surface> bendingSurfaceAt(float time, Rig* rig, DisplacementMap* map)
+// The bending example rig's Surface (recommended level, in `scheme`) posed
+// at `time` of its animation, or null when either step fails; the rig and
+// map come back for other surfaces.
+inline std::unique_ptr<Surface> bendingSurfaceAt(float time, Rig* rig, DisplacementMap* map,
+                                                 Scheme scheme = Scheme::Linear)
 {
     makeBendingExampleRig(rig, map);
+    rig->displacement.scheme = scheme;
     std::unique_ptr<Surface> s;
     if (!Surface::create(&s, *rig, map).isOk() || !s->setAnimationTime(0, time).isOk())
         s.reset();
