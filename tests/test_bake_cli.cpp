@@ -942,12 +942,23 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         EXPECT_GE(materials.images[size_t(image)].width, 256);
         EXPECT_NE(result.summary.find("colour"), std::string::npos);
         // Posed: the bake measured every animation at 10 times, and the
-        // layered surface stays within 1% RMS of the diagonal of the source.
+        // layered surface stays within 0.55% (Fox's 200-face cage) and 0.2%
+        // (CesiumMan's 400) RMS of the diagonal of the source.  The cage is
+        // decimated in the capture's poses and its weights fitted over
+        // them; decimated at rest, with each cage vertex weighted as its
+        // nearest capture point, the worst frames were 0.67% and 0.33%.
         const nlohmann::json report = nlohmann::json::parse(result.report);
         ASSERT_TRUE(report.contains("posed")) << name;
         EXPECT_EQ(report["posed"]["frames"].size(), 10 * source.skeleton.animations.size());
+        const double posedBar = std::string(name) == "Fox.glb" ? 0.0055 : 0.002;
         for (const nlohmann::json& f : report["posed"]["frames"])
-            EXPECT_LT(f["rms"].get<double>(), 0.01) << name << " animation " << f["animation"] << " at " << f["time"];
+            EXPECT_LT(f["rms"].get<double>(), posedBar) << name << " animation " << f["animation"] << " at " << f["time"];
+        // The cage's weights were fitted over the animations, and moved the
+        // layered surface closer to the capture's motion than as carried.
+        ASSERT_TRUE(report.contains("skinFit")) << name;
+        EXPECT_GE(report["skinFit"]["poses"].get<int>(), 12) << name;
+        EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>()) << name;
+        EXPECT_NE(result.summary.find("the weights fitted over"), std::string::npos) << result.summary;
         // And it stands where the source stands: the same box when posed.
         std::unique_ptr<strata::Surface> layered, plain;
         strata::SurfaceOptions bare;

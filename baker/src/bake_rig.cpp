@@ -585,6 +585,7 @@ private:
         double rms = 0.0, max = 0.0;  // the larger side of each, model units
     };
     std::vector<FrameError> frames;
+    SkinFitReport skinFit;  // the cage's skin weights fitted over the animations (poses 0: not fitted)
     double framesMs = 0.0;
     Rig written_;                  // the rig as written, read back (loadWritten)
     DisplacementMap writtenMap_;   // ... and its map, when map-coded
@@ -630,16 +631,28 @@ void BakeJob::loadInputs()
     if (request.control == "auto") {
         if (controlFaces == 0)
             controlFaces = std::max<size_t>(200, high.faceCount() / 50);
+        loadCharacter();
         Progress p(progress, "simplifying the high-resolution mesh");
+        // A character's capture is decimated in its poses too, so that the
+        // cage keeps vertices where it bends.
+        auto posedCapture = [&] {
+            std::vector<glm::vec3> posed;
+            if (character) {
+                std::vector<glm::mat4> skins;
+                sampleSkinPoses(highRig.skeleton, &skins);
+                skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins,
+                              highRig.skeleton.skin.joints.size(), &posed, options.threads);
+            }
+            return posed;
+        };
         if (shared && !shared->simplifier)
-            shared->simplifier = std::make_unique<Simplifier>(shared->high);
+            shared->simplifier = std::make_unique<Simplifier>(shared->high, posedCapture());
         if (!(st = shared ? shared->simplifier->simplify(controlFaces, &control)
-                          : decimateToControlMesh(high, controlFaces, &control)))
+                          : decimateToControlMesh(high, controlFaces, &control, posedCapture())))
             throw BakeError(request.high + ": " + st.message());
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";
-        loadCharacter();
     } else {
         if (!(st = loadControlRig(request.control, &controlRig, request.maxMemoryMB)))
             throw BakeError(st.message());
@@ -788,6 +801,20 @@ void BakeJob::carryCharacter()
         throw BakeError(request.high + ": " + st.message());
     if (!(st = finalizeSkeleton(&carried, control.positions.size())))
         throw BakeError(request.high + ": " + st.message());
+    // Then fitted over the animations, on the layered surface at the rig's
+    // level or finer (level 3 at most, and under 32k points: the weights
+    // follow the capture's weight field, not the displacement's detail).
+    if (!carried.animations.empty()) {
+        Progress p(progress, "fitting the skin weights over the animations");
+        int level = std::max(1, std::min(3, std::max(recommended, 2)));
+        while (level > 1 && (control.faceCount() << (2 * level)) / 2 > (size_t(1) << 15))
+            --level;
+        std::unique_ptr<Plan> plan;
+        if (!(st = Plan::create(&plan, control, options.scheme, level)) || !(st = plan->setDisplacement(map)) ||
+            !(st = fitSkinWeights(*plan, control, high, highIndex, highRig.skeleton.weights, carried, &carried.weights,
+                                  &skinFit, options.threads)))
+            throw BakeError(request.high + ": fitting the cage's skin weights: " + st.message());
+    }
     rig.skeleton = std::move(carried);
 }
 
@@ -1366,9 +1393,17 @@ void BakeJob::summarize()
     result->summary += searchNote_;
     appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                 control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
-    if (character)
-        appendf(&result->summary, "  character     %zu joints, %zu animations and skin weights carried from the capture\n",
+    if (character) {
+        appendf(&result->summary,
+                "  character     %zu joints, %zu animations and skin weights carried from the capture",
                 rig.skeleton.skin.joints.size(), rig.skeleton.animations.size());
+        if (skinFit.poses > 0)
+            appendf(&result->summary,
+                    ", the weights fitted over %zu poses (the layered surface moves %.3g%% of the diagonal from the "
+                    "capture's motion, RMS; %.3g%% as carried)",
+                    skinFit.poses, 100.0 * skinFit.after / rep.diagonal, 100.0 * skinFit.before / rep.diagonal);
+        result->summary += "\n";
+    }
     if (!colourNote.empty())
         appendf(&result->summary, "  colour        %s\n", colourNote.c_str());
     appendf(&result->summary, "  map           %dx%d: %s\n", map.width, map.height, rep.sizeReason.c_str());
@@ -1487,6 +1522,11 @@ void BakeJob::writeReport()
             list.push_back({{"animation", f.animation}, {"time", f.time}, {"rms", f.rms / diag}, {"max", f.max / diag}});
         report["posed"] = {{"level", recommended}, {"frames", list}, {"ms", framesMs}};
     }
+    if (skinFit.poses > 0)
+        report["skinFit"] = {{"poses", skinFit.poses},
+                             {"points", skinFit.points},
+                             {"before", skinFit.before / diag},
+                             {"after", skinFit.after / diag}};
     report["tolerance"] = request.tolerance;
     report["tradeOff"] = tradeOff;
     report["scheme"] = schemeName(options.scheme);

@@ -231,16 +231,100 @@ std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
 
 }  // namespace
 
+// Quadric error summed over a character's poses (Mohr and Gleicher's
+// deformation-sensitive decimation): each vertex keeps one quadric of its
+// faces' planes at rest and one per pose, and a collapse onto v1 costs
+// the rest quadric's error at v1 plus the mean of the posed ones at v1's
+// posed places.  A joint's faces, flat at rest, fold when posed, so the
+// cage keeps vertices where the character bends (its skin is carried per
+// cage vertex, and a face that spans a bend cannot follow it).
+template <class MeshT>
+class ModPosedQuadricT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+public:
+    DECIMATING_MODULE(ModPosedQuadricT, MeshT, PosedQuadric);
+
+    explicit ModPosedQuadricT(MeshT& mesh) : Base(mesh, false) {}
+
+    // The capture posed (posed[q * count + c], capture vertex c in pose q)
+    // and the capture vertex of each mesh vertex.
+    void setPoses(const std::vector<glm::vec3>& posed, size_t count, std::vector<uint32_t> original)
+    {
+        poses_ = count ? posed.size() / count : 0;
+        at_.assign((poses_ + 1) * original.size(), OpenMesh::Vec3d(0.0));
+        for (size_t v = 0; v < original.size(); ++v) {
+            const auto p = Base::mesh().point(typename MeshT::VertexHandle(int(v)));
+            at_[v * (poses_ + 1)] = OpenMesh::Vec3d(p[0], p[1], p[2]);
+            for (size_t q = 0; q < poses_; ++q) {
+                const glm::vec3& x = posed[q * count + original[v]];
+                at_[v * (poses_ + 1) + q + 1] = OpenMesh::Vec3d(x.x, x.y, x.z);
+            }
+        }
+    }
+
+    void initialize() override
+    {
+        const size_t stride = poses_ + 1;
+        quadrics_.assign(stride * Base::mesh().n_vertices(), OpenMesh::Geometry::Quadricd());
+        for (auto f : Base::mesh().faces()) {
+            size_t v[3], k = 0;
+            for (auto vh : Base::mesh().fv_range(f))
+                v[k++] = size_t(vh.idx());
+            for (size_t q = 0; q < stride; ++q) {
+                const OpenMesh::Vec3d &a = at_[v[0] * stride + q], &b = at_[v[1] * stride + q],
+                                      &c = at_[v[2] * stride + q];
+                OpenMesh::Vec3d n = (b - a) % (c - a);
+                double area = n.norm();
+                if (!(area > FLT_MIN))
+                    continue;
+                n /= area;
+                area *= q == 0 ? 0.5 : 0.5 / double(poses_);
+                OpenMesh::Geometry::Quadricd quadric(n[0], n[1], n[2], -(a | n));
+                quadric *= area;
+                for (size_t corner : v)
+                    quadrics_[corner * stride + q] += quadric;
+            }
+        }
+    }
+
+    float collapse_priority(const CollapseInfo& ci) override
+    {
+        const size_t stride = poses_ + 1, v0 = size_t(ci.v0.idx()), v1 = size_t(ci.v1.idx());
+        double error = 0.0;
+        for (size_t q = 0; q < stride; ++q) {
+            OpenMesh::Geometry::Quadricd quadric = quadrics_[v0 * stride + q];
+            quadric += quadrics_[v1 * stride + q];
+            error += quadric(at_[v1 * stride + q]);
+        }
+        return float(error);
+    }
+
+    void postprocess_collapse(const CollapseInfo& ci) override
+    {
+        const size_t stride = poses_ + 1, v0 = size_t(ci.v0.idx()), v1 = size_t(ci.v1.idx());
+        for (size_t q = 0; q < stride; ++q)
+            quadrics_[v1 * stride + q] += quadrics_[v0 * stride + q];
+    }
+
+private:
+    size_t poses_ = 0;
+    std::vector<OpenMesh::Vec3d> at_;                              // per vertex: rest, then each pose
+    std::vector<OpenMesh::Geometry::Quadricd> quadrics_;           // the same layout
+};
+
 struct Simplifier::State {
     using Decimater = OpenMesh::Decimater::DecimaterT<OMesh>;
     OMesh om;
     std::unique_ptr<Decimater> decimater;
     OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
+    ModPosedQuadricT<OMesh>::Handle posedQuadric;  // a character's, instead of `quadric`
     OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
     size_t faces = 0;  // the live faces after the last simplify
 };
 
-Simplifier::Simplifier(const TriangleMesh& high) : high_(high) {}
+Simplifier::Simplifier(const TriangleMesh& high, std::vector<glm::vec3> posed)
+    : high_(high), posed_(std::move(posed))
+{
+}
 Simplifier::~Simplifier() = default;
 
 Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
@@ -264,10 +348,13 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
         // an automatic bake of a 100k-triangle scan).
         const std::vector<uint32_t> start = preSimplified(high_, std::max<size_t>(20000, 10 * targetFaces));
         std::vector<OMesh::VertexHandle> vh(high_.positions.size());
+        OpenMesh::VPropHandleT<uint32_t> original;  // the capture vertex of each mesh vertex
+        om.add_property(original);
         for (uint32_t v : start)
             if (!vh[v].is_valid()) {
                 const glm::vec3& p = high_.positions[v];
                 vh[v] = om.add_vertex(OMesh::Point(p.x, p.y, p.z));
+                om.property(original, vh[v]) = v;
             }
         // Complex (non-manifold) faces are refused by OpenMesh and simply not added.
         for (size_t f = 0; f < start.size() / 3; ++f)
@@ -278,7 +365,16 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
             return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
         state->decimater = std::make_unique<State::Decimater>(om);
         State::Decimater& decimater = *state->decimater;
-        decimater.add(state->quadric);
+        const size_t poses = posed_.size() / std::max<size_t>(1, high_.positions.size());
+        if (poses > 0 && posed_.size() == poses * high_.positions.size()) {
+            std::vector<uint32_t> kept;
+            for (auto v : om.vertices())
+                kept.push_back(om.property(original, v));
+            decimater.add(state->posedQuadric);
+            decimater.module(state->posedQuadric).setPoses(posed_, high_.positions.size(), std::move(kept));
+        } else {
+            decimater.add(state->quadric);
+        }
         decimater.add(state->flipping);
         decimater.module(state->flipping).set_max_normal_deviation(60.0);
         if (!decimater.initialize())
@@ -310,9 +406,10 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     return Status::ok();
 }
 
-Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out)
+Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out,
+                             std::vector<glm::vec3> posed)
 {
-    return Simplifier(high).simplify(targetFaces, out);
+    return Simplifier(high, std::move(posed)).simplify(targetFaces, out);
 }
 
 size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount)

@@ -42,8 +42,13 @@ Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB = 20
 /// a capture of more than max(20,000, 10 x targetFaces) triangles is first
 /// brought to that count by meshoptimizer's simplifier (held within 0.1% of
 /// its size), then OpenMesh's Decimater (with normal-flip protection) takes
-/// the last collapses.  No UVs.
-Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out);
+/// the last collapses.  No UVs.  A character's capture may come with its
+/// vertices posed (`posed`: posed[q * vertexCount + v], from skinPositions
+/// in skin_transfer.h): each collapse then costs its quadric error at rest
+/// plus the mean over the poses (deformation-sensitive decimation), so the
+/// cage keeps vertices where the character bends.
+Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out,
+                             std::vector<glm::vec3> posed = {});
 
 /// decimateToControlMesh for several face counts of one capture (the tries
 /// of --control auto's face-count search): a count at or below the last
@@ -54,7 +59,8 @@ Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, Contr
 /// count starts over.  `high` must outlive the simplifier.
 class Simplifier {
 public:
-    explicit Simplifier(const TriangleMesh& high);
+    /// `posed`: as decimateToControlMesh's.
+    explicit Simplifier(const TriangleMesh& high, std::vector<glm::vec3> posed = {});
     ~Simplifier();
     Simplifier(const Simplifier&) = delete;
     Simplifier& operator=(const Simplifier&) = delete;
@@ -63,6 +69,7 @@ public:
 private:
     struct State;  // OpenMesh's mesh and decimater (mesh_input.cpp)
     const TriangleMesh& high_;
+    std::vector<glm::vec3> posed_;
     std::unique_ptr<State> state_;
 };
 
