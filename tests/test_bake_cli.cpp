@@ -9,6 +9,7 @@
 #include "strata/io/rig_io.h"
 #include "strata/segment_deformer.h"
 #include "strata/surface.h"
+#include "test_rigs.h"
 #include "test_util.h"
 
 #include <atomic>
@@ -985,6 +986,38 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         EXPECT_LT(glm::length(alo - blo), 0.02f * diag) << name;
         EXPECT_LT(glm::length(ahi - bhi), 0.02f * diag) << name;
     }
+}
+
+// A character whose animation throws it out of range (two nested joints
+// scaled by 1e20: posed, its vertices overflow a float) cannot be played,
+// so --control auto refuses it before decimating in its poses: one line
+// naming the capture, the animation and the vertex, and no rig written.
+TEST(BakeLibrary, AutomaticCageRefusesACharacterPosedOutOfRange)
+{
+    using namespace strata;
+    Rig capture;
+    DisplacementMap unused;
+    test::makeExampleRig(&capture, &unused);
+    capture.hasDisplacement = false;
+    capture.mesh.uvs.clear();
+    capture.mesh.uvIndices.clear();
+    test::twoJointSkin(&capture.skeleton, capture.mesh, "hip", "knee", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
+                       [](const glm::vec3& p) { return p.y > 0.0f ? 1.0f : 0.0f; });
+    capture.skeleton.animations.push_back(test::overflowingAnimation());
+    ASSERT_TRUE(finalizeSkeleton(&capture.skeleton, capture.mesh.positions.size()).isOk());
+    const std::string dir = test::tempDir("bake_character_overflow");
+    ASSERT_TRUE(io::saveRig(dir + "/huge.glb", capture).isOk());
+    baker::BakeRequest request;
+    request.high = dir + "/huge.glb";
+    request.control = "auto";
+    request.output = dir + "/rig.glb";
+    baker::BakeResult result;
+    const Status st = baker::bakeRig(request, &result);
+    ASSERT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find(dir + "/huge.glb: animation 0 (grow)"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("cannot be played"), std::string::npos) << st.message();
+    EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
+    EXPECT_FALSE(test::fileExists(dir + "/rig.glb"));
 }
 
 // --control auto where the capture's topology is thin: a torus whose tube

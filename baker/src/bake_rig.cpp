@@ -639,9 +639,29 @@ void BakeJob::loadInputs()
             std::vector<glm::vec3> posed;
             if (character) {
                 std::vector<glm::mat4> skins;
-                sampleSkinPoses(highRig.skeleton, &skins);
+                std::vector<std::pair<size_t, float>> times;
+                sampleSkinPoses(highRig.skeleton, &skins, &times);
                 skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins,
                               highRig.skeleton.skin.joints.size(), &posed, options.threads);
+                // A pose that throws the capture out of range (past it the
+                // runtime refuses the pose) is refused here, before the
+                // decimation weighs it.
+                const float far = Surface::kLargestCoordinate;
+                for (size_t i = 0; i < posed.size(); ++i) {
+                    const glm::vec3& x = posed[i];
+                    if (std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z) && std::abs(x.x) <= far &&
+                        std::abs(x.y) <= far && std::abs(x.z) <= far)
+                        continue;
+                    const size_t pose = i / high.positions.size();
+                    const Animation& an = highRig.skeleton.animations[times[pose].first];
+                    char what[240];
+                    std::snprintf(what, sizeof(what),
+                                  "animation %zu (%s) at %.6g s poses vertex %zu at (%.6g, %.6g, %.6g), beyond "
+                                  "+-%.0e or not finite: the character cannot be played",
+                                  times[pose].first, an.name.c_str(), double(times[pose].second),
+                                  i % high.positions.size(), double(x.x), double(x.y), double(x.z), double(far));
+                    throw BakeError(request.high + ": " + what);
+                }
             }
             return posed;
         };

@@ -213,9 +213,12 @@ glm::vec3 transformPoint(const glm::mat4& m, const glm::vec3& p) { return glm::v
 
 }  // namespace
 
-void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins)
+void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
+                     std::vector<std::pair<size_t, float>>* poseTimes)
 {
     skins->clear();
+    if (poseTimes)
+        poseTimes->clear();
     const size_t nj = skeleton.skin.joints.size();
     if (skeleton.animations.empty() || nj == 0 || skeleton.order.size() != skeleton.nodes.size())
         return;
@@ -243,6 +246,8 @@ void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins)
         computeWorldMatrices(world.data(), skeleton, local.data());
         computeSkinMatrices(skins->data() + q * nj, skeleton, world.data());
     }
+    if (poseTimes)
+        *poseTimes = std::move(times);
 }
 
 void skinPositions(const glm::vec3* positions, size_t count, const VertexWeights& weights,

@@ -9,6 +9,7 @@
 #include "strata/plan.h"
 #include "strata/status.h"
 
+#include <utility>
 #include <vector>
 
 namespace strata {
@@ -34,7 +35,9 @@ struct SkinFitReport {
 /// decimation weighs): 12 evenly spaced times of every animation, between
 /// its ends, at most 48 in all.  Each pose's skin matrices, pose-major
 /// (skeleton.skin.joints.size() per pose); empty without animations.
-void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins);
+/// `times`, when given, receives each pose's animation and time.
+void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
+                     std::vector<std::pair<size_t, float>>* times = nullptr);
 
 /// `count` positions, skinned by `weights` (one set per position), posed by
 /// linear blend skinning at each pose of `skins` (jointCount matrices a
