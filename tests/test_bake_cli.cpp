@@ -960,6 +960,9 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         EXPECT_GE(report["skinFit"]["poses"].get<int>(), 12) << name;
         EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>()) << name;
         EXPECT_NE(result.summary.find("the weights fitted over"), std::string::npos) << result.summary;
+        // The first line gives the worst posed frame beside the rest pose's closed loop.
+        EXPECT_NE(result.summary.substr(0, result.summary.find('\n')).find("; posed, "), std::string::npos)
+            << result.summary;
         // And it stands where the source stands: the same box when posed.
         std::unique_ptr<strata::Surface> layered, plain;
         strata::SurfaceOptions bare;

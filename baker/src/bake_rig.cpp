@@ -1400,6 +1400,16 @@ void BakeJob::summarize()
                               recommended, 100.0 * request.tolerance);
             promise = buf;
         }
+    // A character's closed loop is its rest pose: how far it moves from its
+    // source (the worst of the frames measured below) goes beside it.
+    if (!frames.empty() && diag > 0.0) {
+        const FrameError& worst = *std::max_element(frames.begin(), frames.end(),
+                                                    [](const FrameError& a, const FrameError& b) { return a.rms < b.rms; });
+        char buf[200];
+        std::snprintf(buf, sizeof(buf), "; posed, %.4g%% RMS from the source at worst (animation %d at %.3g s)",
+                      100.0 * worst.rms / diag, worst.animation, double(worst.time));
+        promise += buf;
+    }
     appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)%s\n", request.high.c_str(), request.control.c_str(),
                  schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str(), promise.c_str());
     appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
