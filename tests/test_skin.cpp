@@ -20,6 +20,32 @@ using namespace strata::baker;
 
 namespace {
 
+// The skin matrices of `skeleton`'s first animation at `time`.
+std::vector<glm::mat4> skinsAt(const Skeleton& skeleton, float time)
+{
+    Skeleton at = skeleton;
+    at.animations.resize(1);
+    at.animations[0].start = at.animations[0].end = time;
+    std::vector<glm::mat4> skins;
+    sampleSkinPoses(at, &skins);  // every pose at `time`: the first kept
+    skins.resize(at.skin.joints.size());
+    return skins;
+}
+
+// RMS distance from `points` to the triangles over `surface`.
+double rmsDistance(const std::vector<glm::vec3>& points, const std::vector<glm::vec3>& surface,
+                   const std::vector<uint32_t>& triangles)
+{
+    TriangleIndex index;
+    index.build(surface.data(), triangles.data(), triangles.size() / 3);
+    double sum = 0.0;
+    for (const glm::vec3& p : points) {
+        const double d = index.nearest(glm::dvec3(p));
+        sum += d * d;
+    }
+    return std::sqrt(sum / double(points.size()));
+}
+
 // A helper joint that turns a narrow band of a sphere: the capture is a
 // level-1 icosphere cage refined to level 3 (so the layered surface at
 // rest is the capture exactly, and posed it differs only by its skin),
@@ -59,44 +85,22 @@ struct BendingSphere {
         index.build(capture.positions.data(), capture.triangles.data(), capture.faceCount());
     }
 
-    // Linear blend skinning of `positions` at `time` with `weights`.
-    std::vector<glm::vec3> posed(const std::vector<glm::vec3>& positions, const VertexWeights& weights,
-                                 float time) const
-    {
-        std::vector<NodeTransform> local(skeleton.nodes.size());
-        std::vector<glm::mat4> world(skeleton.nodes.size()), skins(skeleton.skin.joints.size());
-        sampleAnimation(local.data(), skeleton, &skeleton.animations[0], time);
-        computeWorldMatrices(world.data(), skeleton, local.data());
-        computeSkinMatrices(skins.data(), skeleton, world.data());
-        std::vector<glm::vec3> out(positions.size(), glm::vec3(0.0f));
-        const size_t k = size_t(weights.influences);
-        for (size_t v = 0; v < positions.size(); ++v)
-            for (size_t i = 0; i < k; ++i)
-                out[v] += weights.weights[v * k + i] *
-                          glm::vec3(skins[weights.joints[v * k + i]] * glm::vec4(positions[v], 1.0f));
-        return out;
-    }
-
     // RMS distance from the layered surface's points, the cage posed with
     // `weights` at `time`, to the capture posed with its own.
     double posedRms(const VertexWeights& weights, float time) const
     {
-        const std::vector<glm::vec3> cagePosed = posed(cage.positions, weights, time);
+        const std::vector<glm::mat4> skins = skinsAt(skeleton, time);
+        std::vector<glm::vec3> cagePosed, capturePosed;
+        skinPositions(cage.positions.data(), cage.vertexCount(), weights, skins, skins.size(), &cagePosed);
+        skinPositions(capture.positions.data(), capture.positions.size(), skeleton.weights, skins, skins.size(),
+                      &capturePosed);
         std::vector<glm::vec3> normals(cage.vertexCount()), points(plan->refinedVertexCount());
         computeControlNormals(normals.data(), cagePosed.data(), normals.size(), cage.triangles.data(),
                               cage.faceCount());
         EXPECT_TRUE(plan->evaluate(points.data(), nullptr, 0, points.size(), cagePosed.data(), normals.data(),
                                    normals.size())
                         .isOk());
-        const std::vector<glm::vec3> capturePosed = posed(capture.positions, skeleton.weights, time);
-        TriangleIndex posedIndex;
-        posedIndex.build(capturePosed.data(), capture.triangles.data(), capture.faceCount());
-        double sum = 0.0;
-        for (const glm::vec3& p : points) {
-            const double d = posedIndex.nearest(glm::dvec3(p));
-            sum += d * d;
-        }
-        return std::sqrt(sum / double(points.size()));
+        return rmsDistance(points, capturePosed, capture.triangles);
     }
 };
 
@@ -245,21 +249,11 @@ struct BendingTube {
         index.build(capture.positions.data(), capture.triangles.data(), capture.faceCount());
         VertexWeights weights;
         EXPECT_TRUE(transferSkinWeights(cage, capture, index, skeleton.weights, &weights).isOk());
-        Skeleton end = skeleton;
-        end.animations[0].start = end.animations[0].end = 1.0f;  // one pose, the last key
-        std::vector<glm::mat4> skins;
-        sampleSkinPoses(end, &skins);
+        const std::vector<glm::mat4> skins = skinsAt(skeleton, 1.0f);
         std::vector<glm::vec3> cagePosed, capturePosed;
         skinPositions(cage.positions.data(), cage.vertexCount(), weights, skins, 2, &cagePosed);
         skinPositions(capture.positions.data(), capture.positions.size(), skeleton.weights, skins, 2, &capturePosed);
-        TriangleIndex posedCage;
-        posedCage.build(cagePosed.data(), cage.triangles.data(), cage.faceCount());
-        double sum = 0.0;
-        for (const glm::vec3& p : capturePosed) {
-            const double d = posedCage.nearest(glm::dvec3(p));
-            sum += d * d;
-        }
-        return std::sqrt(sum / double(capturePosed.size()));
+        return rmsDistance(capturePosed, cagePosed, cage.triangles);
     }
 };
 
