@@ -15,6 +15,7 @@
 #include <cctype>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -255,6 +256,48 @@ TEST(Png, RefusesChunksLongerThanTheFile)
     st = io::decodePngGray(reinterpret_cast<const unsigned char*>(png.data()), png.size(), "ok.png", &w, &h, &bits,
                            &samples, 8, 8);
     EXPECT_NE(st.message().find("image is 4x4 but the rig declares 8x8"), std::string::npos) << st.message();
+}
+
+// A colour texture is stored as the smaller of JPEG and PNG: flat colours
+// (a low-poly character's palette) as a lossless PNG that reads back
+// exactly, a photograph-like texture as JPEG, anything with alpha as PNG.
+TEST(Png, ColourImagesTakeTheSmallerCoding)
+{
+    const int side = 256;
+    std::vector<uint8_t> flat(size_t(side) * side * 4, 255), noisy = flat;
+    uint32_t seed = 12345;
+    for (int y = 0; y < side; ++y)
+        for (int x = 0; x < side; ++x) {
+            uint8_t* f = &flat[4 * (size_t(y) * side + size_t(x))];
+            f[0] = x < side / 2 ? 230 : 80;  // four flat patches
+            f[1] = y < side / 2 ? 120 : 40;
+            f[2] = 20;
+            uint8_t* n = &noisy[4 * (size_t(y) * side + size_t(x))];
+            for (int c = 0; c < 3; ++c) {
+                seed = seed * 1664525u + 1013904223u;
+                n[c] = uint8_t((x + y * (c + 1)) / 3 + int(seed >> 28));  // a gradient with grain
+            }
+        }
+    std::string bytes, mime, png;
+    ASSERT_TRUE(io::encodeColourImage(side, side, flat, 90, &bytes, &mime).isOk());
+    EXPECT_EQ(mime, "image/png");
+    const std::string path = test::tempDir("colour_coding") + "/flat.png";
+    std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+    int w = 0, h = 0;
+    std::vector<uint8_t> rgb;
+    ASSERT_TRUE(io::readPngRgb(path, &w, &h, &rgb).isOk());
+    ASSERT_EQ(rgb.size(), size_t(side) * side * 3);
+    for (size_t i = 0; i < size_t(side) * side; ++i)
+        ASSERT_TRUE(std::equal(&rgb[3 * i], &rgb[3 * i] + 3, &flat[4 * i])) << i;
+
+    ASSERT_TRUE(io::encodeColourImage(side, side, noisy, 90, &bytes, &mime).isOk());
+    EXPECT_EQ(mime, "image/jpeg");
+    ASSERT_TRUE(io::encodePngRgba(side, side, noisy, &png).isOk());
+    EXPECT_LT(bytes.size(), png.size());
+
+    noisy[3] = 128;  // one translucent texel: PNG keeps the alpha
+    ASSERT_TRUE(io::encodeColourImage(side, side, noisy, 90, &bytes, &mime).isOk());
+    EXPECT_EQ(mime, "image/png");
 }
 
 TEST(Rig, RoundTripsThroughGlbAndGltf)

@@ -191,6 +191,14 @@ Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba
         &out, width, height, 4, rgba.data(), std::clamp(quality, 1, 100));
     if (!ok || out.empty())
         return Status(StatusCode::IoError, "JPEG encoding failed");
+    // A texture of flat colours (a low-poly character's palette) is smaller
+    // as a PNG, and lossless: the smaller of the two is kept.
+    std::string png;
+    if (encodePngRgba(width, height, rgba, &png) && png.size() <= out.size()) {
+        *bytes = std::move(png);
+        *mimeType = "image/png";
+        return Status::ok();
+    }
     *bytes = std::move(out);
     *mimeType = "image/jpeg";
     return Status::ok();

@@ -29,8 +29,10 @@ Status decodePngGray(const unsigned char* data, size_t size, const std::string& 
 /// Encodes an 8-bit colour PNG in memory from 4 bytes per pixel (RGB when
 /// every alpha is 255, else RGBA).
 Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png);
-/// A colour texture for glTF from 4 bytes per pixel: JPEG at `quality`
-/// (1..100) when every alpha is 255, else an RGBA PNG; *mimeType says which.
+/// A colour texture for glTF from 4 bytes per pixel: when every alpha is
+/// 255, JPEG at `quality` (1..100) or an RGB PNG, whichever is smaller (a
+/// texture of flat colours is smaller as a lossless PNG); else an RGBA PNG.
+/// *mimeType says which.
 Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba, int quality, std::string* bytes,
                          std::string* mimeType);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
