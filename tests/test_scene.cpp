@@ -596,6 +596,56 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
         EXPECT_LT(f["rms"].get<double>(), 0.01) << "at " << f["time"];
 }
 
+// --control auto re-bakes a character's colour into one base colour texture
+// with the factors of the material most of it wears (metallic, roughness,
+// alpha mode and cutoff, sidedness).  What that cannot carry (here a normal
+// and an occlusion texture, an emissive colour, a material extension) is
+// named in one line, not dropped silently.
+TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_material_features");
+    tinygltf::TinyGLTF io;
+    tinygltf::Model m;
+    std::string err, warn;
+    ASSERT_TRUE(io.LoadBinaryFromFile(&m, &err, &warn, man)) << err;
+    ASSERT_EQ(m.materials.size(), 1u);
+    tinygltf::Material& mat = m.materials[0];
+    mat.normalTexture.index = 0;
+    mat.occlusionTexture.index = 0;
+    mat.emissiveFactor = {0.1, 0.0, 0.0};
+    mat.pbrMetallicRoughness.metallicFactor = 0.125;
+    mat.pbrMetallicRoughness.roughnessFactor = 0.25;
+    mat.alphaMode = "MASK";
+    mat.alphaCutoff = 0.375;
+    tinygltf::Value::Object strength;
+    strength["emissiveStrength"] = tinygltf::Value(2.0);
+    mat.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
+    m.extensionsUsed.push_back("KHR_materials_emissive_strength");
+    const std::string input = dir + "/man.glb", rigPath = dir + "/rig.glb";
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input +
+                                                   " --control auto --control-faces 400 -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    const size_t at = r.output.find("not carried: ");
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
+    for (const char* what : {"normal textures (1 material)", "occlusion textures (1 material)",
+                             "emissive colours (1 material)", "KHR_materials_emissive_strength (1 material)"})
+        EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
+    EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
+    // The rig's material keeps the factors.
+    tinygltf::Model rig;
+    ASSERT_TRUE(io.LoadBinaryFromFile(&rig, &err, &warn, rigPath)) << err;
+    ASSERT_FALSE(rig.materials.empty());
+    const tinygltf::Material& out = rig.materials[0];
+    EXPECT_EQ(out.pbrMetallicRoughness.metallicFactor, 0.125);
+    EXPECT_EQ(out.pbrMetallicRoughness.roughnessFactor, 0.25);
+    EXPECT_EQ(out.alphaMode, "MASK");
+    EXPECT_EQ(out.alphaCutoff, 0.375);
+    EXPECT_GE(out.pbrMetallicRoughness.baseColorTexture.index, 0);
+}
+
 TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");

@@ -894,8 +894,22 @@ void BakeJob::carryColour()
     std::vector<size_t> uses(sm.materials.size(), 0);
     for (int m : faceMaterial)
         ++uses[size_t(m)];
-    const io::MaterialInfo& main = sm.materials[size_t(std::max_element(uses.begin(), uses.end()) - uses.begin())];
+    const size_t mainIndex = size_t(std::max_element(uses.begin(), uses.end()) - uses.begin());
+    const io::MaterialInfo& main = sm.materials[mainIndex];
     baseColour.doubleSided = main.doubleSided;
+    baseColour.metallic = main.metallic;
+    baseColour.roughness = main.roughness;
+    baseColour.alphaMode = main.alphaMode == io::AlphaMode::Mask    ? "MASK"
+                           : main.alphaMode == io::AlphaMode::Blend ? "BLEND"
+                                                                    : "OPAQUE";
+    baseColour.alphaCutoff = main.alphaCutoff;
+    // What one texture and one material's factors cannot carry is named.
+    const std::string left = io::featuresBeyondBaseColour(
+        highRig, mainIndex + 1 < sm.materials.size() ? int(mainIndex) : -1);  // the last is glTF's default
+    if (!left.empty())
+        warn("%s: --control auto carries the colour as one base colour texture with the factors of the material "
+             "most of it wears; not carried: %s",
+             request.high.c_str(), left.c_str());
     writeOptions.baseColour = &baseColour;
     char note[200];
     std::snprintf(note, sizeof(note), "%zu material%s carried as one %dx%d base colour texture in the cage's UVs",

@@ -7,6 +7,7 @@
 #include <stb/stb_image.h>
 
 #include <algorithm>
+#include <map>
 
 namespace strata {
 namespace io {
@@ -64,6 +65,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                                                                                            : AlphaMode::Opaque;
         mat.alphaCutoff = float(in.alphaCutoff);
         mat.doubleSided = in.doubleSided;
+        mat.metallic = float(in.pbrMetallicRoughness.metallicFactor);
+        mat.roughness = float(in.pbrMetallicRoughness.roughnessFactor);
         s.materials.push_back(mat);
     }
     const int defaultMaterial = int(s.materials.size());
@@ -112,6 +115,61 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     }
     *out = std::move(s);
     return Status::ok();
+}
+
+std::string featuresBeyondBaseColour(const Rig& rig, int main)
+{
+    if (!rig.source)
+        return std::string();
+    const tinygltf::Model& m = rig.source->model;
+    // Only the materials and primitives the rig's parts use count.
+    std::vector<bool> usedMaterial(m.materials.size(), false);
+    size_t colours = 0;
+    for (const RigPart& part : rig.parts) {
+        if (part.mesh < 0 || size_t(part.mesh) >= m.meshes.size() || part.primitive < 0 ||
+            size_t(part.primitive) >= m.meshes[size_t(part.mesh)].primitives.size())
+            continue;
+        const tinygltf::Primitive& prim = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
+        if (prim.material >= 0 && size_t(prim.material) < m.materials.size())
+            usedMaterial[size_t(prim.material)] = true;
+        colours += prim.attributes.count("COLOR_0");
+    }
+    std::map<std::string, size_t> counts;  // feature -> materials
+    const tinygltf::Material* kept =
+        main >= 0 && size_t(main) < m.materials.size() ? &m.materials[size_t(main)] : nullptr;
+    for (size_t i = 0; i < m.materials.size(); ++i) {
+        if (!usedMaterial[i])
+            continue;
+        const tinygltf::Material& in = m.materials[i];
+        const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
+        if (in.normalTexture.index >= 0)
+            ++counts["normal textures"];
+        if (in.occlusionTexture.index >= 0)
+            ++counts["occlusion textures"];
+        if (in.emissiveTexture.index >= 0)
+            ++counts["emissive textures"];
+        else if (in.emissiveFactor.size() == 3 &&
+                 (in.emissiveFactor[0] != 0.0 || in.emissiveFactor[1] != 0.0 || in.emissiveFactor[2] != 0.0))
+            ++counts["emissive colours"];
+        if (pbr.metallicRoughnessTexture.index >= 0)
+            ++counts["metallic-roughness textures"];
+        if (pbr.baseColorTexture.extensions.count("KHR_texture_transform"))
+            ++counts["texture transforms"];
+        for (const auto& e : in.extensions)
+            ++counts[e.first];
+        if (kept && (pbr.metallicFactor != kept->pbrMetallicRoughness.metallicFactor ||
+                     pbr.roughnessFactor != kept->pbrMetallicRoughness.roughnessFactor))
+            ++counts["other metallic or roughness factors"];
+        if (kept && (in.alphaMode != kept->alphaMode || in.doubleSided != kept->doubleSided))
+            ++counts["other alpha modes or sidedness"];
+    }
+    std::string out;
+    for (const auto& [what, n] : counts)
+        out += (out.empty() ? "" : ", ") + what + " (" + std::to_string(n) + (n == 1 ? " material)" : " materials)");
+    if (colours)
+        out += (out.empty() ? "" : ", ") + std::string("vertex colours (") + std::to_string(colours) +
+               (colours == 1 ? " primitive)" : " primitives)");
+    return out;
 }
 
 }  // namespace io

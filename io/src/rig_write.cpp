@@ -561,7 +561,14 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
         model.materials.emplace_back();
     tinygltf::Material& material = model.materials[0];
     material.pbrMetallicRoughness.baseColorTexture.index = int(model.textures.size() - 1);
+    material.pbrMetallicRoughness.metallicFactor = double(colour.metallic);
+    material.pbrMetallicRoughness.roughnessFactor = double(colour.roughness);
     material.doubleSided = colour.doubleSided;
+    if (colour.alphaMode == "MASK" || colour.alphaMode == "BLEND") {
+        material.alphaMode = colour.alphaMode;
+        if (colour.alphaMode == "MASK")
+            material.alphaCutoff = double(colour.alphaCutoff);
+    }
     for (tinygltf::Primitive& p : model.meshes[0].primitives)
         p.material = 0;
     return Status::ok();

@@ -26,6 +26,7 @@ struct MaterialInfo {
     AlphaMode alphaMode = AlphaMode::Opaque;
     float alphaCutoff = 0.5f;
     bool doubleSided = false;
+    float metallic = 1.0f, roughness = 1.0f;  ///< metallicFactor, roughnessFactor (glTF's defaults)
 };
 
 struct ImageRGBA {
@@ -44,6 +45,16 @@ struct SceneMaterials {
 /// other sources get the default material for every part.  Images that
 /// cannot be decoded become untextured (a warning says which).
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings = nullptr);
+
+/// What a re-bake of a glTF scene's colour into one base colour texture (and
+/// one material's factors) leaves behind, as a list for one line: normal,
+/// occlusion, emissive and metallic-roughness textures, an emissive colour,
+/// vertex colours, texture transforms, material extensions, materials whose
+/// metallic, roughness, alpha mode or sidedness differ from `main` (the
+/// material whose factors are kept), each with how many materials or
+/// primitives have it.  Empty when nothing is left behind, or the rig is not
+/// from glTF.
+std::string featuresBeyondBaseColour(const Rig& rig, int main);
 
 }  // namespace io
 }  // namespace strata

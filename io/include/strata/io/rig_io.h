@@ -97,8 +97,11 @@ Status loadRigQuantizedMap(const std::filesystem::path& rigPath, const Rig& rig,
 struct BaseColourTexture {
     std::string name;
     int width = 0, height = 0;
-    std::vector<uint8_t> rgba;  ///< 4 bytes per texel, row 0 first (v = 0); JPEG-coded when opaque
+    std::vector<uint8_t> rgba;  ///< 4 bytes per texel, row 0 first (v = 0); JPEG or PNG, whichever is smaller, when opaque
     bool doubleSided = false;
+    float metallic = 0.0f, roughness = 0.6f;  ///< the material's factors
+    std::string alphaMode = "OPAQUE";          ///< glTF's OPAQUE, MASK or BLEND
+    float alphaCutoff = 0.5f;                  ///< MASK's cutoff
 };
 
 struct RigWriteOptions {
