@@ -598,9 +598,10 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 
 // --control auto re-bakes a character's colour into one base colour texture
 // with the factors of the material most of it wears (metallic, roughness,
-// alpha mode and cutoff, sidedness).  What that cannot carry (here a normal
-// and an occlusion texture, an emissive colour, a material extension) is
-// named in one line, not dropped silently.
+// alpha mode and cutoff, sidedness).  What that and one skinned mesh cannot
+// carry (here a normal and an occlusion texture, an emissive colour, a
+// material extension, a morph target and a camera) is named in one line,
+// not dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -622,6 +623,15 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     strength["emissiveStrength"] = tinygltf::Value(2.0);
     mat.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
     m.extensionsUsed.push_back("KHR_materials_emissive_strength");
+    // A morph target (its position offsets: the positions themselves) and a camera.
+    tinygltf::Primitive& prim = m.meshes[0].primitives[0];
+    prim.targets.push_back({{"POSITION", prim.attributes.at("POSITION")}});
+    m.meshes[0].weights = {0.0};
+    tinygltf::Camera camera;
+    camera.type = "perspective";
+    camera.perspective.yfov = 0.8;
+    camera.perspective.znear = 0.1;
+    m.cameras.push_back(camera);
     const std::string input = dir + "/man.glb", rigPath = dir + "/rig.glb";
     ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
     const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input +
@@ -631,7 +641,8 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     ASSERT_NE(at, std::string::npos) << r.output;
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
     for (const char* what : {"normal textures (1 material)", "occlusion textures (1 material)",
-                             "emissive colours (1 material)", "KHR_materials_emissive_strength (1 material)"})
+                             "emissive colours (1 material)", "KHR_materials_emissive_strength (1 material)",
+                             "morph targets (1 primitive)", "cameras (1 camera)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
     // The rig's material keeps the factors.

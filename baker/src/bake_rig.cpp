@@ -807,6 +807,22 @@ void BakeJob::loadCharacter()
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
              request.high.c_str());
+    // What one texture with one material's factors (the material most of
+    // the capture wears, as carryColour takes it) and one skinned mesh
+    // cannot carry is named.
+    int mainMaterial = -1;
+    if (coloured) {
+        std::vector<size_t> faces(captureMaterials.materials.size(), 0);
+        for (size_t p = 0; p < highRig.parts.size() && p < captureMaterials.partMaterial.size(); ++p)
+            faces[size_t(captureMaterials.partMaterial[p])] += highRig.parts[p].faceCount;
+        const size_t most = size_t(std::max_element(faces.begin(), faces.end()) - faces.begin());
+        mainMaterial = most + 1 < faces.size() ? int(most) : -1;  // the last is glTF's default
+    }
+    const std::string left = io::featuresNotCarried(highRig, mainMaterial);
+    if (!left.empty())
+        warn("%s: --control auto makes one skinned mesh with one base colour texture and the factors of the "
+             "material most of the capture wears; not carried: %s",
+             request.high.c_str(), left.c_str());
 }
 
 // The capture's skeleton on the cage: the same nodes, joints, inverse bind
@@ -903,13 +919,6 @@ void BakeJob::carryColour()
                            : main.alphaMode == io::AlphaMode::Blend ? "BLEND"
                                                                     : "OPAQUE";
     baseColour.alphaCutoff = main.alphaCutoff;
-    // What one texture and one material's factors cannot carry is named.
-    const std::string left = io::featuresBeyondBaseColour(
-        highRig, mainIndex + 1 < sm.materials.size() ? int(mainIndex) : -1);  // the last is glTF's default
-    if (!left.empty())
-        warn("%s: --control auto carries the colour as one base colour texture with the factors of the material "
-             "most of it wears; not carried: %s",
-             request.high.c_str(), left.c_str());
     writeOptions.baseColour = &baseColour;
     char note[200];
     std::snprintf(note, sizeof(note), "%zu material%s carried as one %dx%d base colour texture in the cage's UVs",

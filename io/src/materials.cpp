@@ -117,14 +117,14 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     return Status::ok();
 }
 
-std::string featuresBeyondBaseColour(const Rig& rig, int main)
+std::string featuresNotCarried(const Rig& rig, int main)
 {
     if (!rig.source)
         return std::string();
     const tinygltf::Model& m = rig.source->model;
     // Only the materials and primitives the rig's parts use count.
     std::vector<bool> usedMaterial(m.materials.size(), false);
-    size_t colours = 0;
+    size_t colours = 0, morphs = 0;
     for (const RigPart& part : rig.parts) {
         if (part.mesh < 0 || size_t(part.mesh) >= m.meshes.size() || part.primitive < 0 ||
             size_t(part.primitive) >= m.meshes[size_t(part.mesh)].primitives.size())
@@ -133,6 +133,7 @@ std::string featuresBeyondBaseColour(const Rig& rig, int main)
         if (prim.material >= 0 && size_t(prim.material) < m.materials.size())
             usedMaterial[size_t(prim.material)] = true;
         colours += prim.attributes.count("COLOR_0");
+        morphs += !prim.targets.empty();
     }
     std::map<std::string, size_t> counts;  // feature -> materials
     const tinygltf::Material* kept =
@@ -166,9 +167,15 @@ std::string featuresBeyondBaseColour(const Rig& rig, int main)
     std::string out;
     for (const auto& [what, n] : counts)
         out += (out.empty() ? "" : ", ") + what + " (" + std::to_string(n) + (n == 1 ? " material)" : " materials)");
-    if (colours)
-        out += (out.empty() ? "" : ", ") + std::string("vertex colours (") + std::to_string(colours) +
-               (colours == 1 ? " primitive)" : " primitives)");
+    auto add = [&](size_t n, const char* what, const char* one, const char* many) {
+        if (n)
+            out += (out.empty() ? "" : ", ") + std::string(what) + " (" + std::to_string(n) + " " + (n == 1 ? one : many) +
+                   ")";
+    };
+    add(colours, "vertex colours", "primitive", "primitives");
+    add(morphs, "morph targets", "primitive", "primitives");
+    add(m.cameras.size(), "cameras", "camera", "cameras");
+    add(m.lights.size(), "lights", "light", "lights");
     return out;
 }
 

@@ -46,15 +46,16 @@ struct SceneMaterials {
 /// cannot be decoded become untextured (a warning says which).
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings = nullptr);
 
-/// What a re-bake of a glTF scene's colour into one base colour texture (and
-/// one material's factors) leaves behind, as a list for one line: normal,
-/// occlusion, emissive and metallic-roughness textures, an emissive colour,
-/// vertex colours, texture transforms, material extensions, materials whose
-/// metallic, roughness, alpha mode or sidedness differ from `main` (the
-/// material whose factors are kept), each with how many materials or
-/// primitives have it.  Empty when nothing is left behind, or the rig is not
-/// from glTF.
-std::string featuresBeyondBaseColour(const Rig& rig, int main);
+/// What an automatic cage made from a glTF scene leaves behind (its colour
+/// re-baked into one base colour texture with one material's factors, its
+/// shape one skinned mesh), as a list for one line: normal, occlusion,
+/// emissive and metallic-roughness textures, an emissive colour, texture
+/// transforms, material extensions, materials whose metallic, roughness,
+/// alpha mode or sidedness differ from `main` (the material whose factors
+/// are kept; -1: none), vertex colours, morph targets, cameras and lights,
+/// each with how many materials, primitives or nodes have it.  Empty when
+/// nothing is left behind, or the rig is not from glTF.
+std::string featuresNotCarried(const Rig& rig, int main);
 
 }  // namespace io
 }  // namespace strata
