@@ -641,6 +641,22 @@ void BakeJob::loadInputs()
                 std::vector<glm::mat4> skins;
                 std::vector<std::pair<size_t, float>> times;
                 sampleSkinPoses(highRig.skeleton, &skins, &times);
+                // At most 256 MB of posed positions (a million-vertex
+                // capture takes 22 of the poses, evenly spread).
+                const size_t nj = highRig.skeleton.skin.joints.size(), poses = nj ? skins.size() / nj : 0;
+                const size_t room = std::max<size_t>(
+                    1, (size_t(256) << 20) / (sizeof(glm::vec3) * std::max<size_t>(1, high.positions.size())));
+                if (poses > room) {
+                    std::vector<glm::mat4> kept;
+                    std::vector<std::pair<size_t, float>> keptTimes;
+                    for (size_t i = 0; i < room; ++i) {
+                        const size_t q = i * poses / room;
+                        kept.insert(kept.end(), skins.begin() + long(q * nj), skins.begin() + long((q + 1) * nj));
+                        keptTimes.push_back(times[q]);
+                    }
+                    skins.swap(kept);
+                    times.swap(keptTimes);
+                }
                 skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins,
                               highRig.skeleton.skin.joints.size(), &posed, options.threads);
                 // A pose that throws the capture out of range (past it the
