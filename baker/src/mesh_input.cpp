@@ -246,16 +246,20 @@ public:
     explicit ModPosedQuadricT(MeshT& mesh) : Base(mesh, false) {}
 
     // The capture posed (posed[q * count + c], capture vertex c in pose q)
-    // and the capture vertex of each mesh vertex.
+    // and the capture vertex of each mesh vertex.  Poses past what 256 MB
+    // of places and quadrics hold are thinned evenly.
     void setPoses(const std::vector<glm::vec3>& posed, size_t count, std::vector<uint32_t> original)
     {
-        poses_ = count ? posed.size() / count : 0;
+        const size_t given = count ? posed.size() / count : 0;
+        const size_t perPose = (sizeof(OpenMesh::Vec3d) + sizeof(OpenMesh::Geometry::Quadricd)) *
+                               std::max<size_t>(1, original.size());
+        poses_ = std::min(given, std::max<size_t>(1, (size_t(256) << 20) / perPose) - 1);
         at_.assign((poses_ + 1) * original.size(), OpenMesh::Vec3d(0.0));
         for (size_t v = 0; v < original.size(); ++v) {
             const auto p = Base::mesh().point(typename MeshT::VertexHandle(int(v)));
             at_[v * (poses_ + 1)] = OpenMesh::Vec3d(p[0], p[1], p[2]);
             for (size_t q = 0; q < poses_; ++q) {
-                const glm::vec3& x = posed[q * count + original[v]];
+                const glm::vec3& x = posed[q * given / poses_ * count + original[v]];
                 at_[v * (poses_ + 1) + q + 1] = OpenMesh::Vec3d(x.x, x.y, x.z);
             }
         }
