@@ -286,3 +286,38 @@ TEST(SkinFit, DecimatingInThePosesKeepsTheBend)
     const double rest = tube.posedRms(atRest), poses = tube.posedRms(inPoses);
     EXPECT_LT(poses, 0.1 * rest) << rest << " -> " << poses;
 }
+
+// The poses' skin matrices stay within 64 MB: a skin of 65,535 joints (the
+// most a rig may have) has room for 16 poses, shared by its animations,
+// where a small one takes 12 times an animation up to 48.
+TEST(SkinFit, PosesOfAHugeSkinStayWithinTheirBudget)
+{
+    Skeleton huge;
+    const size_t joints = 65535;
+    huge.nodes.resize(joints);
+    for (size_t j = 0; j < joints; ++j) {
+        huge.skin.joints.push_back(int(j));
+        huge.skin.inverseBindMatrices.emplace_back(1.0f);
+    }
+    Animation turn;
+    turn.channels.push_back(test::rotationKeys(
+        0, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(1.0f, glm::vec3(0.0f, 0.0f, 1.0f))}));
+    turn.end = 1.0f;
+    for (int a = 0; a < 5; ++a)
+        huge.animations.push_back(turn);
+    huge.weights.influences = 4;
+    ASSERT_TRUE(finalizeSkeleton(&huge, 0).isOk());
+    std::vector<glm::mat4> skins;
+    std::vector<std::pair<size_t, float>> times;
+    sampleSkinPoses(huge, &skins, &times);
+    EXPECT_EQ(times.size(), 15u);  // room for 16: 3 times for each of the 5 animations
+    EXPECT_EQ(skins.size(), 15u * joints);
+    EXPECT_LE(skins.size() * sizeof(glm::mat4), size_t(64) << 20);
+    EXPECT_EQ(times.front().first, 0u);  // every animation has its share
+    EXPECT_EQ(times.back().first, 4u);
+
+    huge.skin.joints.resize(2);
+    huge.skin.inverseBindMatrices.resize(2);
+    sampleSkinPoses(huge, &skins, &times);
+    EXPECT_EQ(times.size(), 45u);  // 9 times for each of the 5 animations (48 / 5)
+}

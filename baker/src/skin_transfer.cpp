@@ -225,17 +225,19 @@ void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
     // Evenly spaced times of every animation, between its ends (the bake
     // measures at the ends and at ninths).
     std::vector<std::pair<size_t, float>> times;
+    // At most 64 MB of skin matrices (a skin of 65,535 joints takes 16 poses).
+    const size_t most = std::min(kMaxPoses, std::max<size_t>(1, (size_t(64) << 20) / (sizeof(glm::mat4) * nj)));
     const size_t perAnimation =
-        std::max<size_t>(1, std::min(kTimesPerAnimation, kMaxPoses / skeleton.animations.size()));
+        std::max<size_t>(1, std::min(kTimesPerAnimation, most / skeleton.animations.size()));
     for (size_t a = 0; a < skeleton.animations.size(); ++a)
         for (size_t i = 0; i < perAnimation; ++i) {
             const Animation& an = skeleton.animations[a];
             times.push_back({a, an.start + (an.end - an.start) * (float(i) + 0.5f) / float(perAnimation)});
         }
-    if (times.size() > kMaxPoses) {  // many animations: every one, fewer times
+    if (times.size() > most) {  // many animations: every one, fewer times
         std::vector<std::pair<size_t, float>> kept;
-        for (size_t i = 0; i < kMaxPoses; ++i)
-            kept.push_back(times[i * times.size() / kMaxPoses]);
+        for (size_t i = 0; i < most; ++i)
+            kept.push_back(times[i * times.size() / most]);
         times.swap(kept);
     }
     skins->resize(times.size() * nj);

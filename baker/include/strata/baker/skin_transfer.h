@@ -33,7 +33,8 @@ struct SkinFitReport {
 
 /// The poses fitSkinWeights fits over (and the automatic cage's
 /// decimation weighs): 12 evenly spaced times of every animation, between
-/// its ends, at most 48 in all.  Each pose's skin matrices, pose-major
+/// its ends, at most 48 in all (fewer where their skin matrices would pass
+/// 64 MB: 16 for 65,535 joints).  Each pose's skin matrices, pose-major
 /// (skeleton.skin.joints.size() per pose); empty without animations.
 /// `times`, when given, receives each pose's animation and time.
 void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
