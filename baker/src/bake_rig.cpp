@@ -488,6 +488,7 @@ private:
     Status encodeAt(int level, std::string* bytes);
     void runPhases(const std::pair<void (BakeJob::*)(), double>* phases, size_t count);
     void loadCharacter();
+    std::vector<glm::vec3> posedCapture() const;
     void carryCharacter();
     void carryColour();
     void settleLevel();
@@ -635,52 +636,6 @@ void BakeJob::loadInputs()
         Progress p(progress, "simplifying the high-resolution mesh");
         // A character's capture is decimated in its poses too, so that the
         // cage keeps vertices where it bends.
-        auto posedCapture = [&] {
-            std::vector<glm::vec3> posed;
-            if (character) {
-                std::vector<glm::mat4> skins;
-                std::vector<std::pair<size_t, float>> times;
-                sampleSkinPoses(highRig.skeleton, &skins, &times);
-                // At most 256 MB of posed positions (a million-vertex
-                // capture takes 22 of the poses, evenly spread).
-                const size_t nj = highRig.skeleton.skin.joints.size(), poses = nj ? skins.size() / nj : 0;
-                const size_t room = std::max<size_t>(
-                    1, (size_t(256) << 20) / (sizeof(glm::vec3) * std::max<size_t>(1, high.positions.size())));
-                if (poses > room) {
-                    std::vector<glm::mat4> kept;
-                    std::vector<std::pair<size_t, float>> keptTimes;
-                    for (size_t i = 0; i < room; ++i) {
-                        const size_t q = i * poses / room;
-                        kept.insert(kept.end(), skins.begin() + long(q * nj), skins.begin() + long((q + 1) * nj));
-                        keptTimes.push_back(times[q]);
-                    }
-                    skins.swap(kept);
-                    times.swap(keptTimes);
-                }
-                skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins,
-                              highRig.skeleton.skin.joints.size(), &posed, options.threads);
-                // A pose that throws the capture out of range (past it the
-                // runtime refuses the pose) is refused here, before the
-                // decimation weighs it.
-                const float far = Surface::kLargestCoordinate;
-                for (size_t i = 0; i < posed.size(); ++i) {
-                    const glm::vec3& x = posed[i];
-                    if (std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z) && std::abs(x.x) <= far &&
-                        std::abs(x.y) <= far && std::abs(x.z) <= far)
-                        continue;
-                    const size_t pose = i / high.positions.size();
-                    const Animation& an = highRig.skeleton.animations[times[pose].first];
-                    char what[240];
-                    std::snprintf(what, sizeof(what),
-                                  "animation %zu (%s) at %.6g s poses vertex %zu at (%.6g, %.6g, %.6g), beyond "
-                                  "+-%.0e or not finite: the character cannot be played",
-                                  times[pose].first, an.name.c_str(), double(times[pose].second),
-                                  i % high.positions.size(), double(x.x), double(x.y), double(x.z), double(far));
-                    throw BakeError(request.high + ": " + what);
-                }
-            }
-            return posed;
-        };
         if (shared && !shared->simplifier)
             shared->simplifier = std::make_unique<Simplifier>(shared->high, posedCapture());
         if (!(st = shared ? shared->simplifier->simplify(controlFaces, &control)
@@ -741,6 +696,54 @@ void BakeJob::loadInputs()
         controlRig.source.reset();  // the document's own skin is replaced: write the control mesh anew
     }
     loadMs = msSince(t0);
+}
+
+// A character's capture posed at sampleSkinPoses' poses, pose-major (empty
+// for a capture that is not one), for the decimation to weigh: at most
+// 256 MB of positions (a million-vertex capture takes 22 of the poses,
+// evenly spread).  A pose that throws the capture out of range (past it the
+// runtime refuses the pose) is refused here, by name.
+std::vector<glm::vec3> BakeJob::posedCapture() const
+{
+    std::vector<glm::vec3> posed;
+    if (!character)
+        return posed;
+    std::vector<glm::mat4> skins;
+    std::vector<std::pair<size_t, float>> times;
+    sampleSkinPoses(highRig.skeleton, &skins, &times);
+    const size_t nj = highRig.skeleton.skin.joints.size(), poses = nj ? skins.size() / nj : 0;
+    const size_t room = std::max<size_t>(
+        1, (size_t(256) << 20) / (sizeof(glm::vec3) * std::max<size_t>(1, high.positions.size())));
+    if (poses > room) {
+        std::vector<glm::mat4> kept;
+        std::vector<std::pair<size_t, float>> keptTimes;
+        for (size_t i = 0; i < room; ++i) {
+            const size_t q = i * poses / room;
+            kept.insert(kept.end(), skins.begin() + long(q * nj), skins.begin() + long((q + 1) * nj));
+            keptTimes.push_back(times[q]);
+        }
+        skins.swap(kept);
+        times.swap(keptTimes);
+    }
+    skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins, nj, &posed,
+                  options.threads);
+    const float far = Surface::kLargestCoordinate;
+    for (size_t i = 0; i < posed.size(); ++i) {
+        const glm::vec3& x = posed[i];
+        if (std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z) && std::abs(x.x) <= far &&
+            std::abs(x.y) <= far && std::abs(x.z) <= far)
+            continue;
+        const size_t pose = i / high.positions.size();
+        const Animation& an = highRig.skeleton.animations[times[pose].first];
+        char what[240];
+        std::snprintf(what, sizeof(what),
+                      "animation %zu (%s) at %.6g s poses vertex %zu at (%.6g, %.6g, %.6g), beyond +-%.0e or not "
+                      "finite: the character cannot be played",
+                      times[pose].first, an.name.c_str(), double(times[pose].second), i % high.positions.size(),
+                      double(x.x), double(x.y), double(x.z), double(far));
+        throw BakeError(request.high + ": " + what);
+    }
+    return posed;
 }
 
 // The rig written for a character against the character itself, posed as
