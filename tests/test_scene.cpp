@@ -600,8 +600,8 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 // with the factors of the material most of it wears (metallic, roughness,
 // alpha mode and cutoff, sidedness).  What that and one skinned mesh cannot
 // carry (here a normal and an occlusion texture, an emissive colour, a
-// material extension, a morph target and a camera) is named in one line,
-// not dropped silently.
+// material extension, a morph target, a camera and a point primitive) is
+// named in one line, not dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -627,6 +627,10 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     tinygltf::Primitive& prim = m.meshes[0].primitives[0];
     prim.targets.push_back({{"POSITION", prim.attributes.at("POSITION")}});
     m.meshes[0].weights = {0.0};
+    tinygltf::Primitive points;  // and a point primitive beside the triangles
+    points.mode = TINYGLTF_MODE_POINTS;
+    points.attributes["POSITION"] = prim.attributes.at("POSITION");
+    m.meshes[0].primitives.push_back(points);
     tinygltf::Camera camera;
     camera.type = "perspective";
     camera.perspective.yfov = 0.8;
@@ -642,8 +646,11 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
     for (const char* what : {"normal textures (1 material)", "occlusion textures (1 material)",
                              "emissive colours (1 material)", "KHR_materials_emissive_strength (1 material)",
-                             "morph targets (1 primitive)", "cameras (1 camera)"})
+                             "morph targets (1 primitive)", "cameras (1 camera)",
+                             "point and line primitives (1 primitive)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
+    // Not the control's "kept in the file": an automatic cage keeps none of them.
+    EXPECT_EQ(r.output.find("kept in the file"), std::string::npos) << r.output;
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
     // The rig's material keeps the factors.
     tinygltf::Model rig;

@@ -814,7 +814,8 @@ void BakeJob::loadCharacter()
         throw BakeError(request.high + ": the capture and its character do not weld to the same vertices");
     character = !highRig.skeleton.empty() && !highRig.skeleton.weights.weights.empty();
     for (const std::string& w : highRig.warnings)
-        warn("%s: %s", request.high.c_str(), w.c_str());
+        if (w.find("point or line primitives are kept in the file") == std::string::npos)  // not here: named below
+            warn("%s: %s", request.high.c_str(), w.c_str());
     std::vector<std::string> warnings;
     if (highRig.source && io::loadSceneMaterials(highRig, &captureMaterials, &warnings)) {
         for (const std::string& w : warnings)

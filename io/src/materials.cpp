@@ -172,7 +172,12 @@ std::string featuresNotCarried(const Rig& rig, int main)
             out += (out.empty() ? "" : ", ") + std::string(what) + " (" + std::to_string(n) + " " + (n == 1 ? one : many) +
                    ")";
     };
+    size_t lines = 0;  // point and line primitives (the rig reader keeps them only in a control's file)
+    for (const tinygltf::Mesh& mesh : m.meshes)
+        for (const tinygltf::Primitive& prim : mesh.primitives)
+            lines += prim.mode >= TINYGLTF_MODE_POINTS && prim.mode <= TINYGLTF_MODE_LINE_STRIP;
     add(colours, "vertex colours", "primitive", "primitives");
+    add(lines, "point and line primitives", "primitive", "primitives");
     add(morphs, "morph targets", "primitive", "primitives");
     add(m.cameras.size(), "cameras", "camera", "cameras");
     add(m.lights.size(), "lights", "light", "lights");

@@ -52,7 +52,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// emissive and metallic-roughness textures, an emissive colour, texture
 /// transforms, material extensions, materials whose metallic, roughness,
 /// alpha mode or sidedness differ from `main` (the material whose factors
-/// are kept; -1: none), vertex colours, morph targets, cameras and lights,
+/// are kept; -1: none), vertex colours, point and line primitives, morph
+/// targets, cameras and lights,
 /// each with how many materials, primitives or nodes have it.  Empty when
 /// nothing is left behind, or the rig is not from glTF.
 std::string featuresNotCarried(const Rig& rig, int main);
