@@ -727,12 +727,8 @@ std::vector<glm::vec3> BakeJob::posedCapture() const
     }
     skinPositions(high.positions.data(), high.positions.size(), highRig.skeleton.weights, skins, nj, &posed,
                   options.threads);
-    const float far = Surface::kLargestCoordinate;
-    for (size_t i = 0; i < posed.size(); ++i) {
+    if (const size_t i = Surface::firstOutOfRange(posed.data(), posed.size()); i < posed.size()) {
         const glm::vec3& x = posed[i];
-        if (std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.z) && std::abs(x.x) <= far &&
-            std::abs(x.y) <= far && std::abs(x.z) <= far)
-            continue;
         const size_t pose = i / high.positions.size();
         const Animation& an = highRig.skeleton.animations[times[pose].first];
         char what[240];
@@ -740,7 +736,7 @@ std::vector<glm::vec3> BakeJob::posedCapture() const
                       "animation %zu (%s) at %.6g s poses vertex %zu at (%.6g, %.6g, %.6g), beyond +-%.0e or not "
                       "finite: the character cannot be played",
                       times[pose].first, an.name.c_str(), double(times[pose].second), i % high.positions.size(),
-                      double(x.x), double(x.y), double(x.z), double(far));
+                      double(x.x), double(x.y), double(x.z), double(Surface::kLargestCoordinate));
         throw BakeError(request.high + ": " + what);
     }
     return posed;

@@ -255,20 +255,11 @@ void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
 void skinPositions(const glm::vec3* positions, size_t count, const VertexWeights& weights,
                    const std::vector<glm::mat4>& skins, size_t jointCount, std::vector<glm::vec3>* out, int threads)
 {
-    const size_t poses = jointCount ? skins.size() / jointCount : 0, k = size_t(weights.influences);
+    const size_t poses = jointCount ? skins.size() / jointCount : 0;
     out->assign(poses * count, glm::vec3(0.0f));
-    parallelFor(count, threads, [&](size_t begin, size_t end) {
-        for (size_t v = begin; v < end; ++v)
-            for (size_t q = 0; q < poses; ++q) {
-                glm::vec3 sum(0.0f);
-                for (size_t i = 0; i < k; ++i) {
-                    const float w = weights.weights[v * k + i];
-                    const uint16_t j = weights.joints[v * k + i];
-                    if (w != 0.0f && j < jointCount)
-                        sum += w * transformPoint(skins[q * jointCount + j], positions[v]);
-                }
-                (*out)[q * count + v] = sum;
-            }
+    parallelFor(poses, threads, [&](size_t begin, size_t end) {
+        for (size_t q = begin; q < end; ++q)
+            skinLinear(out->data() + q * count, positions, count, weights, skins.data() + q * jointCount);
     });
 }
 

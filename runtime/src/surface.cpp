@@ -124,23 +124,6 @@ void Surface::refinedUVs(std::vector<glm::vec2>* values, std::vector<uint32_t>* 
 
 namespace {
 
-// The first of `values` with a coordinate that is not finite or lies
-// beyond +-Surface::kLargestCoordinate, or values.size(): a pass without
-// branches first (it vectorises), the search only where it fails.
-size_t firstOutOfRange(const std::vector<glm::vec3>& values)
-{
-    const float* f = values.empty() ? nullptr : &values[0].x;
-    int bad = 0;
-    for (size_t i = 0; i < 3 * values.size(); ++i)
-        bad |= int(!(std::fabs(f[i]) <= Surface::kLargestCoordinate));
-    if (!bad)
-        return values.size();
-    size_t i = 0;
-    while (std::fabs(f[i]) <= Surface::kLargestCoordinate)
-        ++i;
-    return i / 3;
-}
-
 std::string seconds(float t)
 {
     char text[32];
@@ -156,6 +139,22 @@ std::string printed(const glm::vec3& p)
 }
 
 }  // namespace
+
+size_t Surface::firstOutOfRange(const glm::vec3* values, size_t count)
+{
+    // A pass without branches first (it vectorises), the search only where
+    // it fails.
+    const float* f = count ? &values[0].x : nullptr;
+    int bad = 0;
+    for (size_t i = 0; i < 3 * count; ++i)
+        bad |= int(!(std::fabs(f[i]) <= kLargestCoordinate));
+    if (!bad)
+        return count;
+    size_t i = 0;
+    while (std::fabs(f[i]) <= kLargestCoordinate)
+        ++i;
+    return i / 3;
+}
 
 std::string Surface::overflowingJoint(const glm::mat4* skin, size_t count) const
 {
@@ -193,7 +192,8 @@ Status Surface::poseError(const std::vector<glm::vec3>& positions, size_t v, con
 
 Status Surface::adoptPending(const char* what, const char* cause)
 {
-    if (const size_t v = firstOutOfRange(pendingPositions_); v < pendingPositions_.size())
+    if (const size_t v = firstOutOfRange(pendingPositions_.data(), pendingPositions_.size());
+        v < pendingPositions_.size())
         return poseError(pendingPositions_, v, what, cause);
     pendingNormals_.assign(pendingPositions_.size(), glm::vec3(0.0f));
     computeControlNormals(pendingNormals_.data(), pendingPositions_.data(), pendingPositions_.size(),
@@ -240,10 +240,11 @@ Status Surface::setAnimationTime(int animation, float time)
     if (!st)
         return st;
     // Refused: the message (and the joint to blame) made only then.
-    if (const size_t v = firstOutOfRange(animator_->positions()); v < animator_->positions().size()) {
+    const std::vector<glm::vec3>& posed = animator_->positions();
+    if (const size_t v = firstOutOfRange(posed.data(), posed.size()); v < posed.size()) {
         const std::vector<glm::mat4>& skin = animator_->skinMatrices();
         const std::string joint = overflowingJoint(skin.data(), skin.size());
-        return poseError(animator_->positions(), v,
+        return poseError(posed, v,
                          "the pose of animation " + std::to_string(animation) + " at " + seconds(time),
                          joint.empty() ? std::string() : joint + " has a posed transform that overflows");
     }

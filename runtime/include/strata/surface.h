@@ -114,6 +114,10 @@ public:
     /// squares a product of two coordinate differences, which overflows a
     /// float (to a zero or NaN normal) from about 1e9.5.
     static constexpr float kLargestCoordinate = 1e9f;
+    /// The first of `count` positions with a coordinate that is not finite
+    /// or lies beyond +-kLargestCoordinate, or `count` when none does: what
+    /// a pose setter refuses (a baker posing a capture checks the same).
+    static size_t firstOutOfRange(const glm::vec3* values, size_t count);
     /// The rig's animation `animation` at `time` seconds (-1: the nodes' rest
     /// pose), skinned with options.method.
     ///

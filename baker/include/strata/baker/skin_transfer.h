@@ -40,8 +40,9 @@ struct SkinFitReport {
 void sampleSkinPoses(const Skeleton& skeleton, std::vector<glm::mat4>* skins,
                      std::vector<std::pair<size_t, float>>* times = nullptr);
 
-/// `count` positions, skinned by `weights` (one set per position), posed by
-/// linear blend skinning at each pose of `skins` (jointCount matrices a
+/// `count` positions, skinned by `weights` (one set per position, each
+/// joint below jointCount, as finalizeSkeleton checks), posed by the
+/// runtime's skinLinear at each pose of `skins` (jointCount matrices a
 /// pose): out[pose * count + v].
 void skinPositions(const glm::vec3* positions, size_t count, const VertexWeights& weights,
                    const std::vector<glm::mat4>& skins, size_t jointCount, std::vector<glm::vec3>* out,
