@@ -22,6 +22,12 @@ namespace {
 
 using JointWeights = std::vector<std::pair<uint16_t, double>>;  // joint, weight
 
+// Strongest first, ties by joint.
+bool strongerFirst(const std::pair<uint16_t, double>& x, const std::pair<uint16_t, double>& y)
+{
+    return x.second != y.second ? x.second > y.second : x.first < y.first;
+}
+
 // The capture's weights at barycentrics (b1, b2) of its triangle `face`:
 // its corners' joints blended, strongest first (ties by joint).
 void captureWeightsAt(JointWeights* sum, const TriangleMesh& high, const VertexWeights& hw, uint32_t face, double b1,
@@ -44,9 +50,28 @@ void captureWeightsAt(JointWeights* sum, const TriangleMesh& high, const VertexW
                 it->second += bary[c] * double(wi);
         }
     }
-    std::sort(sum->begin(), sum->end(), [](const auto& x, const auto& y) {
-        return x.second != y.second ? x.second > y.second : x.first < y.first;
-    });
+    std::sort(sum->begin(), sum->end(), strongerFirst);
+}
+
+// Keeps the `most` strongest of `sum` and writes them, normalised to sum to
+// 1, into one vertex's slots (strongest first, the rest 0); false, writing
+// nothing, where they weigh nothing.
+bool writeStrongest(JointWeights* sum, size_t most, uint16_t* joints, float* weights)
+{
+    std::sort(sum->begin(), sum->end(), strongerFirst);
+    if (sum->size() > most)
+        sum->resize(most);
+    double total = 0.0;
+    for (const auto& e : *sum)
+        total += e.second;
+    if (!(total > 0.0))
+        return false;
+    for (size_t i = 0; i < most; ++i) {
+        const bool set = i < sum->size();
+        joints[i] = set ? (*sum)[i].first : 0;
+        weights[i] = set ? float((*sum)[i].second / total) : 0.0f;
+    }
+    return true;
 }
 
 }  // namespace
@@ -72,18 +97,7 @@ Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, co
             return false;
         JointWeights sum;
         captureWeightsAt(&sum, high, highWeights, face, b1, b2);
-        if (sum.size() > size_t(k))
-            sum.resize(size_t(k));
-        double total = 0.0;
-        for (const auto& e : sum)
-            total += e.second;
-        if (!(total > 0.0))
-            return false;
-        for (size_t i = 0; i < sum.size(); ++i) {
-            w.joints[v * size_t(k) + i] = sum[i].first;
-            w.weights[v * size_t(k) + i] = float(sum[i].second / total);
-        }
-        return true;
+        return writeStrongest(&sum, size_t(k), &w.joints[v * size_t(k)], &w.weights[v * size_t(k)]);
     };
     parallelFor(n, threads, [&](size_t begin, size_t end) {
         for (size_t v = begin; v < end; ++v)
@@ -499,29 +513,13 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
     rep.after = std::sqrt(total / count);
 
     // The weights, strongest first in each vertex's slots.
+    JointWeights fitted;
     for (size_t k = 0; k < nc; ++k) {
-        const int m = candidateCount[k];
-        if (m == 0)
-            continue;
-        std::vector<std::pair<double, uint16_t>> order;
-        for (int i = 0; i < m; ++i)
+        fitted.clear();
+        for (int i = 0; i < candidateCount[k]; ++i)
             if (current[k * kMaxCandidates + size_t(i)] > 0.0)
-                order.push_back({current[k * kMaxCandidates + size_t(i)], candidates[k * kMaxCandidates + size_t(i)]});
-        std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
-            return a.first != b.first ? a.first > b.first : a.second < b.second;
-        });
-        if (order.size() > size_t(most))
-            order.resize(size_t(most));
-        double sum = 0.0;
-        for (const auto& o : order)
-            sum += o.first;
-        if (!(sum > 0.0))
-            continue;
-        for (int i = 0; i < most; ++i) {
-            const bool set = size_t(i) < order.size();
-            weights->joints[k * size_t(most) + size_t(i)] = set ? order[size_t(i)].second : 0;
-            weights->weights[k * size_t(most) + size_t(i)] = set ? float(order[size_t(i)].first / sum) : 0.0f;
-        }
+                fitted.push_back({candidates[k * kMaxCandidates + size_t(i)], current[k * kMaxCandidates + size_t(i)]});
+        writeStrongest(&fitted, size_t(most), &weights->joints[k * size_t(most)], &weights->weights[k * size_t(most)]);
     }
     if (report)
         *report = rep;
