@@ -550,6 +550,8 @@ private:
     bool character = false;
     io::SceneMaterials captureMaterials;  // a textured capture's materials and decoded images
     bool coloured = false;                // ... carried as one base colour texture in the cage's UVs
+    std::vector<int> faceMaterial;        // ... per capture face, its material (glTF's default, the last, where none)
+    size_t mainMaterial = 0;              // ... the one most of the capture's faces wear
     io::BaseColourTexture baseColour;
     std::string colourNote;
     ControlMesh bare;   // the control mesh that atlas layouts start from
@@ -823,18 +825,22 @@ void BakeJob::loadCharacter()
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
              request.high.c_str());
-    // What one texture with one material's factors (the material most of
-    // the capture wears, as carryColour takes it) and one skinned mesh
-    // cannot carry is named.
-    int mainMaterial = -1;
     if (coloured) {
-        std::vector<size_t> faces(captureMaterials.materials.size(), 0);
-        for (size_t p = 0; p < highRig.parts.size() && p < captureMaterials.partMaterial.size(); ++p)
-            faces[size_t(captureMaterials.partMaterial[p])] += highRig.parts[p].faceCount;
-        const size_t most = size_t(std::max_element(faces.begin(), faces.end()) - faces.begin());
-        mainMaterial = most + 1 < faces.size() ? int(most) : -1;  // the last is glTF's default
+        const io::SceneMaterials& sm = captureMaterials;
+        faceMaterial.assign(high.faceCount(), int(sm.materials.size()) - 1);
+        for (size_t p = 0; p < highRig.parts.size() && p < sm.partMaterial.size(); ++p)
+            for (uint32_t f = 0; f < highRig.parts[p].faceCount; ++f)
+                if (size_t(highRig.parts[p].firstFace + f) < faceMaterial.size())
+                    faceMaterial[highRig.parts[p].firstFace + f] = sm.partMaterial[p];
+        std::vector<size_t> uses(sm.materials.size(), 0);
+        for (int m : faceMaterial)
+            ++uses[size_t(m)];
+        mainMaterial = size_t(std::max_element(uses.begin(), uses.end()) - uses.begin());
     }
-    const std::string left = io::featuresNotCarried(highRig, mainMaterial);
+    // What one texture with the main material's factors and one skinned
+    // mesh cannot carry is named.
+    const bool mainIsTheFiles = coloured && mainMaterial + 1 < captureMaterials.materials.size();  // not the default
+    const std::string left = io::featuresNotCarried(highRig, mainIsTheFiles ? int(mainMaterial) : -1);
     if (!left.empty())
         warn("%s: --control auto makes one skinned mesh with one base colour texture and the factors of the "
              "material most of the capture wears; not carried: %s",
@@ -876,11 +882,6 @@ void BakeJob::carryCharacter()
 void BakeJob::carryColour()
 {
     const io::SceneMaterials& sm = captureMaterials;
-    std::vector<int> faceMaterial(high.faceCount(), int(sm.materials.size()) - 1);
-    for (size_t p = 0; p < highRig.parts.size() && p < sm.partMaterial.size(); ++p)
-        for (uint32_t f = 0; f < highRig.parts[p].faceCount; ++f)
-            if (size_t(highRig.parts[p].firstFace + f) < faceMaterial.size())
-                faceMaterial[highRig.parts[p].firstFace + f] = sm.partMaterial[p];
     int largest = 0;
     for (const io::ImageRGBA& im : sm.images)
         largest = std::max({largest, im.width, im.height});
@@ -923,11 +924,7 @@ void BakeJob::carryColour()
     baseColour.height = image.height;
     baseColour.rgba = std::move(image.rgba);
     // The other factors of the material most of the capture wears.
-    std::vector<size_t> uses(sm.materials.size(), 0);
-    for (int m : faceMaterial)
-        ++uses[size_t(m)];
-    const size_t mainIndex = size_t(std::max_element(uses.begin(), uses.end()) - uses.begin());
-    const io::MaterialInfo& main = sm.materials[mainIndex];
+    const io::MaterialInfo& main = sm.materials[mainMaterial];
     baseColour.doubleSided = main.doubleSided;
     baseColour.metallic = main.metallic;
     baseColour.roughness = main.roughness;
