@@ -864,7 +864,7 @@ void BakeJob::carryCharacter()
     // follow the capture's weight field, not the displacement's detail).
     if (!carried.animations.empty()) {
         Progress p(progress, "fitting the skin weights over the animations");
-        int level = std::max(1, std::min(3, std::max(recommended, 2)));
+        int level = std::min(3, std::max(recommended, 2));
         while (level > 1 && (control.faceCount() << (2 * level)) / 2 > (size_t(1) << 15))
             --level;
         std::unique_ptr<Plan> plan;

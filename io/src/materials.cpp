@@ -165,13 +165,12 @@ std::string featuresNotCarried(const Rig& rig, int main)
             ++counts["other alpha modes or sidedness"];
     }
     std::string out;
-    for (const auto& [what, n] : counts)
-        out += (out.empty() ? "" : ", ") + what + " (" + std::to_string(n) + (n == 1 ? " material)" : " materials)");
-    auto add = [&](size_t n, const char* what, const char* one, const char* many) {
+    auto add = [&](size_t n, const std::string& what, const char* one, const char* many) {
         if (n)
-            out += (out.empty() ? "" : ", ") + std::string(what) + " (" + std::to_string(n) + " " + (n == 1 ? one : many) +
-                   ")";
+            out += (out.empty() ? "" : ", ") + what + " (" + std::to_string(n) + " " + (n == 1 ? one : many) + ")";
     };
+    for (const auto& [what, n] : counts)
+        add(n, what, "material", "materials");
     size_t lines = 0;  // point and line primitives (the rig reader keeps them only in a control's file)
     for (const tinygltf::Mesh& mesh : m.meshes)
         for (const tinygltf::Primitive& prim : mesh.primitives)
