@@ -234,12 +234,6 @@ std::map<std::pair<uint32_t, uint32_t>, int> edgeUses(const std::vector<uint32_t
     return uses;
 }
 
-void makeRig(Rig* rig, DisplacementMap* map, Scheme scheme)
-{
-    test::makeBendingExampleRig(rig, map);
-    rig->displacement.scheme = scheme;
-}
-
 // The tests' camera: a 40-degree, 1080-pixel-tall view of the origin from
 // `eye`.
 ViewSpec viewFrom(glm::vec3 eye)
@@ -329,7 +323,7 @@ TEST(Adaptive, RandomLevelMixesAreClosedInBothSchemesAnimated)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        makeRig(&rig, &map, scheme);
+        test::makeBendingExampleRig(&rig, &map, scheme);
         std::unique_ptr<Surface> s;
         ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
         ASSERT_EQ(s->level(), 4);
@@ -374,7 +368,7 @@ TEST(Adaptive, RandomQuarterMixesOnAnOpenMeshKeepItsTopology)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        makeRig(&rig, &map, scheme);
+        test::makeBendingExampleRig(&rig, &map, scheme);
         ControlMesh& m = rig.mesh;
         std::vector<uint32_t> triangles, uvIndices;
         for (size_t f = 0; f < m.faceCount(); ++f) {
@@ -453,7 +447,7 @@ TEST(Adaptive, RandomQuarterMixesStitchAcrossANonManifoldEdge)
     for (Scheme scheme : {Scheme::Linear, Scheme::Smooth}) {
         Rig rig;
         DisplacementMap map;
-        makeRig(&rig, &map, scheme);
+        test::makeBendingExampleRig(&rig, &map, scheme);
         ControlMesh& m = rig.mesh;
         const uint32_t a = m.triangles[0], b = m.triangles[1];
         const glm::vec3 mid = 0.5f * (m.positions[a] + m.positions[b]);
@@ -566,7 +560,7 @@ TEST(Adaptive, LevelErrorsShrinkToZeroAtTheFinestLevel)
 {
     Rig rig;
     DisplacementMap map;
-    makeRig(&rig, &map, Scheme::Linear);
+    test::makeBendingExampleRig(&rig, &map, Scheme::Linear);
     std::unique_ptr<Surface> s;
     ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
     const FaceLevelErrors& e = s->faceLevelErrors();
@@ -958,7 +952,7 @@ TEST(Adaptive, BadLevelsAndViewsAreRefused)
 {
     Rig rig;
     DisplacementMap map;
-    makeRig(&rig, &map, Scheme::Linear);
+    test::makeBendingExampleRig(&rig, &map, Scheme::Linear);
     std::unique_ptr<Surface> s;
     ASSERT_TRUE(Surface::create(&s, rig, &map).isOk());
     std::vector<uint8_t> levels(rig.mesh.faceCount(), 2);
@@ -997,7 +991,7 @@ TEST(Adaptive, ReconstructViewWritesAClosedMeshWithinItsTolerance)
     const std::string dir = test::tempDir("adaptive_view");
     Rig rig;
     DisplacementMap map;
-    makeRig(&rig, &map, Scheme::Linear);
+    test::makeBendingExampleRig(&rig, &map, Scheme::Linear);
     rig.displacement.uri = "bend.exr";
     ASSERT_TRUE(io::writeDisplacementExr(dir + "/bend.exr", map).isOk());
     ASSERT_TRUE(io::saveRig(dir + "/bend.glb", rig).isOk());

@@ -134,10 +134,12 @@ inline Animation overflowingAnimation()
 }
 
 /// The example rig skinned to two joints ("hips", "chest") with one
-/// animation, "bend", that turns the chest 0.6 rad about z over 1 s.
-inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
+/// animation, "bend", that turns the chest 0.6 rad about z over 1 s, its
+/// layer in `scheme`.
+inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map, Scheme scheme = Scheme::Linear)
 {
     makeExampleRig(rig, map);
+    rig->displacement.scheme = scheme;
     twoJointSkin(&rig->skeleton, rig->mesh, "hips", "chest", glm::vec3(0.0f), glm::vec3(0.0f, 0.5f, 0.0f),
                  [](const glm::vec3& p) { return glm::clamp(p.y + 0.5f, 0.0f, 1.0f); });
     Animation bend;
@@ -155,8 +157,7 @@ inline void makeBendingExampleRig(Rig* rig, DisplacementMap* map)
 inline std::unique_ptr<Surface> bendingSurfaceAt(float time, Rig* rig, DisplacementMap* map,
                                                  Scheme scheme = Scheme::Linear)
 {
-    makeBendingExampleRig(rig, map);
-    rig->displacement.scheme = scheme;
+    makeBendingExampleRig(rig, map, scheme);
     std::unique_ptr<Surface> s;
     if (!Surface::create(&s, *rig, map).isOk() || !s->setAnimationTime(0, time).isOk())
         s.reset();
