@@ -323,6 +323,11 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
     std::vector<uint16_t> pointJoint(np * hk, 0);
     std::vector<float> pointWeight(np * hk, 0.0f);
     std::vector<uint8_t> used(np, 0);
+    // And where that point is: its triangle and barycentrics, and the
+    // point's base from it (the capture moves its triangle's corners each
+    // by its own blend of joints, and the point between them).
+    std::vector<uint32_t> pointFace(np, 0);
+    std::vector<glm::vec3> pointBary(np, glm::vec3(0.0f)), pointOffset(np, glm::vec3(0.0f));
     parallelFor(np, threads, [&](size_t begin, size_t end) {
         JointWeights sum;
         for (size_t p = begin; p < end; ++p) {
@@ -342,6 +347,14 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
                 pointWeight[p * hk + i] = float(sum[i].second / total);
             }
             used[p] = 1;
+            pointFace[p] = face;
+            pointBary[p] = glm::vec3(float(1.0 - b1 - b2), float(b1), float(b2));
+            glm::vec3 base(0.0f), x(0.0f);
+            for (uint32_t e = stencils.offsets[p]; e < stencils.offsets[p + 1]; ++e)
+                base += stencilWeight(e) * cage.positions[stencils.indices[e]];
+            for (int c = 0; c < 3; ++c)
+                x += pointBary[p][c] * high.positions[high.triangles[3 * size_t(face) + size_t(c)]];
+            pointOffset[p] = base - x;
         }
     });
     // Each cage vertex's points and stencil weights.
@@ -369,22 +382,36 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
     }
 
     // The residuals, pose-major: where the cage moves each point less where
-    // the capture moves it.
+    // the capture moves it.  The capture's point moves as its triangle's
+    // corners do, each by its own blend of joints (not by the blended
+    // weights, which differ where a large triangle spans a joint); the
+    // point's offset from it is carried by the blend at the point.
+    const size_t hi = size_t(highWeights.influences);
     std::vector<glm::vec3> posedCage, residual(P * np, glm::vec3(0.0f));
     skinPositions(cage.positions.data(), nc, *weights, skins, nj, &posedCage, threads);
     parallelFor(np, threads, [&](size_t begin, size_t end) {
         for (size_t p = begin; p < end; ++p) {
             if (!used[p])
                 continue;
-            glm::vec3 base(0.0f);
-            for (uint32_t e = stencils.offsets[p]; e < stencils.offsets[p + 1]; ++e)
-                base += stencilWeight(e) * cage.positions[stencils.indices[e]];
             for (size_t q = 0; q < P; ++q) {
                 glm::vec3 r(0.0f);
                 for (uint32_t e = stencils.offsets[p]; e < stencils.offsets[p + 1]; ++e)
                     r += stencilWeight(e) * posedCage[q * nc + stencils.indices[e]];
-                for (size_t i = 0; i < hk && pointWeight[p * hk + i] > 0.0f; ++i)
-                    r -= pointWeight[p * hk + i] * transformPoint(skins[q * nj + pointJoint[p * hk + i]], base);
+                for (size_t c = 0; c < 3; ++c) {
+                    const size_t hv = high.triangles[3 * size_t(pointFace[p]) + c];
+                    const glm::vec3 at = high.positions[hv] + pointOffset[p];
+                    float total = 0.0f;
+                    glm::vec3 moved(0.0f);
+                    for (size_t i = 0; i < hi; ++i) {
+                        const float wi = highWeights.weights[hv * hi + i];
+                        if (wi > 0.0f && highWeights.joints[hv * hi + i] < nj) {
+                            moved += wi * transformPoint(skins[q * nj + highWeights.joints[hv * hi + i]], at);
+                            total += wi;
+                        }
+                    }
+                    // A corner that weighs nothing stays where it is.
+                    r -= pointBary[p][int(c)] * (total > 0.0f ? moved / total : at);
+                }
                 residual[q * np + p] = r;
             }
         }
