@@ -908,8 +908,10 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         request.control = "auto";
         request.output = dir + "/rig.glb";
         request.options.threads = 2;
-        // Fox takes the default face count search; CesiumMan a fixed cage
-        // (the search is the same code, and three bakes cost a sanitizer build minutes).
+        // Fox takes the default face count search (its 576 triangles are
+        // fewer than 1,000: the search may take them whole); CesiumMan a
+        // fixed cage (the search is the same code, and three bakes cost a
+        // sanitizer build minutes).
         if (std::string(name) == "CesiumMan.glb")
             request.controlFaces = 400;
         strata::baker::BakeResult result;
@@ -943,22 +945,29 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         EXPECT_GE(materials.images[size_t(image)].width, 256);
         EXPECT_NE(result.summary.find("colour"), std::string::npos);
         // Posed: the bake measured every animation at 10 times, and the
-        // layered surface stays within 0.55% (Fox's 200-face cage) and 0.2%
-        // (CesiumMan's 400) RMS of the diagonal of the source.  The cage is
-        // decimated in the capture's poses and its weights fitted over
-        // them; decimated at rest, with each cage vertex weighted as its
-        // nearest capture point, the worst frames were 0.67% and 0.33%.
+        // layered surface stays within the default tolerance, 0.01% (Fox,
+        // taken whole), and 0.2% (CesiumMan's 400 faces) RMS of the
+        // diagonal of the source.  The cage is decimated in the capture's
+        // poses and its weights fitted over them; decimated at rest, with
+        // each cage vertex weighted as its nearest capture point, the worst
+        // frames were 0.67% (Fox on the 200 faces the search then stopped
+        // at) and 0.33%.
+        const bool fox = std::string(name) == "Fox.glb";
         const nlohmann::json report = nlohmann::json::parse(result.report);
         ASSERT_TRUE(report.contains("posed")) << name;
         EXPECT_EQ(report["posed"]["frames"].size(), 10 * source.skeleton.animations.size());
-        const double posedBar = std::string(name) == "Fox.glb" ? 0.0055 : 0.002;
+        const double posedBar = fox ? 0.0001 : 0.002;
         for (const nlohmann::json& f : report["posed"]["frames"])
             EXPECT_LT(f["rms"].get<double>(), posedBar) << name << " animation " << f["animation"] << " at " << f["time"];
         // The cage's weights were fitted over the animations, and moved the
-        // layered surface closer to the capture's motion than as carried.
+        // layered surface closer to the capture's motion than as carried
+        // (Fox's, its capture's own, moved it as the capture moves already).
         ASSERT_TRUE(report.contains("skinFit")) << name;
         EXPECT_GE(report["skinFit"]["poses"].get<int>(), 12) << name;
-        EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>()) << name;
+        if (fox)
+            EXPECT_LT(report["skinFit"]["after"].get<double>(), 1e-6);
+        else
+            EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>());
         EXPECT_NE(result.summary.find("the weights fitted over"), std::string::npos) << result.summary;
         // The first line gives the worst posed frame beside the rest pose's closed loop.
         EXPECT_NE(result.summary.substr(0, result.summary.find('\n')).find("; posed, "), std::string::npos)

@@ -1940,14 +1940,16 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
 }  // namespace
 
 // An automatic control mesh's face count follows from the tolerance: the
-// fewest faces whose bake reaches it in the closed loop, or the most
-// accurate tried when none does.  The first try is at a fiftieth of the
-// capture's faces (at least 200); each next one is predicted where the
-// error before quantisation, a power of the face count through the tries
-// nearest the tolerance (until two tries give it, 1 going up and 2 going
-// down), crosses the tolerance, with 10% to spare, between 200 and a fifth
-// of the capture (and, going up, at most twice the faces until two tries
-// measure the power).  A try that met two levels or more below the
+// smallest rig (in practice the fewest faces) whose bake reaches it in the
+// closed loop, or the most accurate tried when none does.  The first try is
+// at a fiftieth of the capture's faces (at least 200); each next one is
+// predicted where the error before quantisation, a power of the face count
+// through the tries nearest the tolerance (until two tries give it, 1 going
+// up and 2 going down), crosses the tolerance, with 10% to spare, between
+// 200 and a fifth of the capture, or up to 1,000 faces, the whole of a
+// smaller capture (a low-polygon character's joints need nearly all its
+// faces to bend like it), and, going up, at most twice the faces until two
+// tries measure the power.  A try that met two levels or more below the
 // paper's level is nearly all cage: the next takes a quarter of its faces.
 // The search stops when the answer is settled: the fewest that met and the
 // most that missed are within 15% of each other, the prediction saves
@@ -1998,10 +2000,16 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                 met = &t;
         return met;
     };
-    // The fewest faces that met the tolerance, else the smallest error
-    // (else, none measured, the first try).
+    // The smallest rig that met the tolerance (ties: the fewer faces; a
+    // cage near the capture's own density can need so little of a map that
+    // more faces cost fewer bytes), else the smallest error (else, none
+    // measured, the first try).
     auto choice = [&]() -> Try* {
-        Try* chosen = fewestThatMet();
+        Try* chosen = nullptr;
+        for (Try& t : tries)
+            if (meets(t) &&
+                (!chosen || t.bytes < chosen->bytes || (t.bytes == chosen->bytes && t.faces < chosen->faces)))
+                chosen = &t;
         if (!chosen)
             for (Try& t : tries)
                 if (t.rms >= 0.0 && (!chosen || t.rms < chosen->rms))
@@ -2057,7 +2065,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
     const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
-    const size_t most = std::max(first, shared.high.faceCount() / 5);
+    const size_t faces = shared.high.faceCount();
+    const size_t most = std::max({first, faces / 5, std::min<size_t>(faces, 1000)});
     if (Status st = attempt(first); !st)
         return st;  // the first try failed (or the bake was cancelled): its message is the bake's
     for (int more = 0; more < 5; ++more) {
