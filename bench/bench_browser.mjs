@@ -45,8 +45,11 @@ function run(tool, args) {
 
 const characters = ['Fox', 'CesiumMan'];
 const levels = [2, 3];
+// Fox on 200 faces, as in this table's earlier runs: left to the search it
+// takes its 576 triangles whole (level 0, nothing displaced).
 for (const name of characters) {
-  run('strata-bake', ['--high', path.join(data, `${name}.glb`), '--control', 'auto', '-o', path.join(work, `${name}.glb`)]);
+  run('strata-bake', ['--high', path.join(data, `${name}.glb`), '--control', 'auto', '-o', path.join(work, `${name}.glb`)]
+    .concat(name === 'Fox' ? ['--control-faces', '200'] : []));
   for (const level of levels)
     run('strata-reconstruct', [path.join(work, `${name}.glb`), '--level', String(level), '-o',
       path.join(work, `${name}_L${level}_detailed.glb`)]);
