@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A character through --control auto, against its source, as it moves.
 
-    python3 bench/bench_character.py [--build build] [--work DIR] [--times 3]
+    python3 bench/bench_character.py [--build build] [--work DIR] [--times 3] [--bake-args "FLAGS"]
 
 Bakes Fox and CesiumMan (tests/data) with `strata-bake --control auto`,
 then for every animation prints the bake's own per-frame geometry (RMS and
@@ -87,6 +87,7 @@ def main():
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
     ap.add_argument("--work", default="")
     ap.add_argument("--times", type=int, default=3)
+    ap.add_argument("--bake-args", default="", help="more strata-bake flags, e.g. \"--control-faces 200\"")
     args = ap.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="strata-character-")
     os.makedirs(work, exist_ok=True)
@@ -99,7 +100,8 @@ def main():
         source = os.path.join(ROOT, "tests", "data", name + ".glb")
         rig = os.path.join(work, name + ".glb")
         report = os.path.join(work, name + ".json")
-        subprocess.run([bake, "--high", source, "--control", "auto", "-o", rig, "--report", report],
+        subprocess.run([bake, "--high", source, "--control", "auto", "-o", rig, "--report", report] +
+                       args.bake_args.split(),
                        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         rep = json.load(open(report))
         frames = rep["posed"]["frames"]

@@ -15,6 +15,7 @@
 #include <atomic>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -909,7 +910,7 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         request.output = dir + "/rig.glb";
         request.options.threads = 2;
         // Fox takes the default face count search (its 576 triangles are
-        // fewer than 1,000: the search may take them whole); CesiumMan a
+        // fewer than 1,000: the search may go up to all of them); CesiumMan a
         // fixed cage (the search is the same code, and three bakes cost a
         // sanitizer build minutes).
         if (std::string(name) == "CesiumMan.glb")
@@ -944,30 +945,32 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         ASSERT_GE(image, 0) << name;
         EXPECT_GE(materials.images[size_t(image)].width, 256);
         EXPECT_NE(result.summary.find("colour"), std::string::npos);
+        // Fox's texture is flat colours: re-baked in them, as an indexed
+        // PNG, the rig is smaller than the source (it was 26% larger with
+        // the texture read bilinear, 17% on 200 faces).
+        if (std::string(name) == "Fox.glb") {
+            EXPECT_LT(std::filesystem::file_size(dir + "/rig.glb"), std::filesystem::file_size(character));
+        }
         // Posed: the bake measured every animation at 10 times, and the
-        // layered surface stays within the default tolerance, 0.01% (Fox,
-        // taken whole), and 0.2% (CesiumMan's 400 faces) RMS of the
-        // diagonal of the source.  The cage is decimated in the capture's
-        // poses and its weights fitted over them; decimated at rest, with
-        // each cage vertex weighted as its nearest capture point, the worst
-        // frames were 0.67% (Fox on the 200 faces the search then stopped
-        // at) and 0.33%.
+        // layered surface stays within 0.05% (Fox, on the 480 of its 576
+        // faces that meet the default 0.01% at rest) and 0.2% (CesiumMan's
+        // 400 faces) RMS of the diagonal of the source.  The cage is
+        // decimated in the capture's poses and its weights fitted over
+        // them; decimated at rest, with each cage vertex weighted as its
+        // nearest capture point, the worst frames were 0.67% (Fox on the
+        // 200 faces the search then stopped at) and 0.33%.
         const bool fox = std::string(name) == "Fox.glb";
         const nlohmann::json report = nlohmann::json::parse(result.report);
         ASSERT_TRUE(report.contains("posed")) << name;
         EXPECT_EQ(report["posed"]["frames"].size(), 10 * source.skeleton.animations.size());
-        const double posedBar = fox ? 0.0001 : 0.002;
+        const double posedBar = fox ? 0.0005 : 0.002;
         for (const nlohmann::json& f : report["posed"]["frames"])
             EXPECT_LT(f["rms"].get<double>(), posedBar) << name << " animation " << f["animation"] << " at " << f["time"];
         // The cage's weights were fitted over the animations, and moved the
-        // layered surface closer to the capture's motion than as carried
-        // (Fox's, its capture's own, moved it as the capture moves already).
+        // layered surface closer to the capture's motion than as carried.
         ASSERT_TRUE(report.contains("skinFit")) << name;
         EXPECT_GE(report["skinFit"]["poses"].get<int>(), 12) << name;
-        if (fox)
-            EXPECT_LT(report["skinFit"]["after"].get<double>(), 1e-6);
-        else
-            EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>());
+        EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>()) << name;
         EXPECT_NE(result.summary.find("the weights fitted over"), std::string::npos) << result.summary;
         // The first line gives the worst posed frame beside the rest pose's closed loop.
         EXPECT_NE(result.summary.substr(0, result.summary.find('\n')).find("; posed, "), std::string::npos)

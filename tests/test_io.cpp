@@ -11,6 +11,7 @@
 #include "test_util.h"
 
 #include <nlohmann/json.hpp>
+#include <stb/stb_image.h>
 
 #include <cctype>
 #include <cstring>
@@ -298,6 +299,54 @@ TEST(Png, ColourImagesTakeTheSmallerCoding)
     noisy[3] = 128;  // one translucent texel: PNG keeps the alpha
     ASSERT_TRUE(io::encodeColourImage(side, side, noisy, 90, &bytes, &mime).isOk());
     EXPECT_EQ(mime, "image/png");
+}
+
+// An image of at most 256 colours (a low-poly character's palette) is coded
+// indexed, a byte a pixel, and decodes to the same colours, translucent ones
+// included (tRNS); one more colour and it is RGB.
+TEST(Png, FewColoursAreCodedIndexed)
+{
+    const int side = 128;
+    std::vector<uint8_t> image(size_t(side) * side * 4, 255);
+    for (int y = 0; y < side; ++y)
+        for (int x = 0; x < side; ++x) {
+            uint8_t* p = &image[4 * (size_t(y) * side + size_t(x))];
+            const int patch = (x / 16) + 8 * (y / 16);  // 64 patches, 64 colours
+            p[0] = uint8_t(patch * 4);
+            p[1] = uint8_t(255 - patch * 3);
+            p[2] = uint8_t(patch % 7 * 30);
+            p[3] = patch == 5 ? 100 : 255;
+        }
+    std::vector<uint32_t> colours;
+    ASSERT_TRUE(io::paletteOf(image, &colours));
+    EXPECT_EQ(colours.size(), 64u);
+    EXPECT_TRUE(std::is_sorted(colours.begin(), colours.end()));
+    std::string png, rgba;
+    ASSERT_TRUE(io::encodePngRgba(side, side, image, &png).isOk());
+    ASSERT_GT(png.size(), 26u);
+    EXPECT_EQ(png[25], 3) << "colour type";
+    EXPECT_NE(png.find("PLTE"), std::string::npos);
+    EXPECT_NE(png.find("tRNS"), std::string::npos);
+    int w = 0, h = 0, comp = 0;
+    stbi_uc* px = stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(png.data()), int(png.size()), &w, &h, &comp, 4);
+    ASSERT_NE(px, nullptr);
+    ASSERT_EQ(w, side);
+    ASSERT_EQ(h, side);
+    EXPECT_TRUE(std::equal(image.begin(), image.end(), px));
+    stbi_image_free(px);
+
+    // 257 colours (the 64, one more and 192 shades of red in the first
+    // patch): no palette, and RGBA (one is translucent).
+    std::vector<uint8_t> more = image;
+    more[0] = 1;
+    more[1] = 2;
+    more[2] = 3;
+    for (int i = 1; i <= 192; ++i)
+        more[4 * size_t(i)] = uint8_t(i);
+    EXPECT_FALSE(io::paletteOf(more, &colours));
+    EXPECT_TRUE(colours.empty());
+    ASSERT_TRUE(io::encodePngRgba(side, side, more, &png).isOk());
+    EXPECT_EQ(png[25], 6) << "colour type";
 }
 
 TEST(Rig, RoundTripsThroughGlbAndGltf)

@@ -56,11 +56,13 @@ void filterRow(int type, const uint8_t* row, const uint8_t* prev, size_t n, size
     }
 }
 
-// colourType 0 = grey, 2 = RGB, 6 = RGBA; rows already laid out big-endian.  Each row
-// takes the filter with the smallest sum of absolute residuals (libpng's
-// heuristic), which suits smooth displacement maps.
+// colourType 0 = grey, 2 = RGB, 3 = indexed (its PLTE and tRNS chunks
+// given as `palette`), 6 = RGBA; rows already laid out big-endian.  Each
+// row takes the filter with the smallest sum of absolute residuals
+// (libpng's heuristic), which suits smooth displacement maps; indexed rows
+// are not filtered (their bytes are names, not amounts, as libpng does).
 Status encodePng(int width, int height, int bits, int colourType, int channels, const std::vector<uint8_t>& rowBytes,
-                 std::string* out)
+                 std::string* out, const std::string& palette = std::string())
 {
     if (width <= 0 || height <= 0)
         return Status(StatusCode::InvalidArgument, "empty image");
@@ -74,7 +76,7 @@ Status encodePng(int width, int height, int bits, int colourType, int channels, 
         const uint8_t* prev = y > 0 ? row - stride : nullptr;
         long bestCost = -1;
         int bestType = 0;
-        for (int type = 0; type <= 4; ++type) {
+        for (int type = 0; type <= (colourType == 3 ? 0 : 4); ++type) {
             filterRow(type, row, prev, stride, bpp, trial.data());
             long cost = 0;
             for (uint8_t v : trial)
@@ -102,6 +104,7 @@ Status encodePng(int width, int height, int bits, int colourType, int channels, 
     ihdr += char(colourType);
     ihdr += std::string(3, '\0');  // compression, filter, interlace
     chunk(*out, "IHDR", ihdr);
+    *out += palette;
     chunk(*out, "IDAT", z);
     chunk(*out, "IEND", std::string());
     return Status::ok();
@@ -156,10 +159,83 @@ Status writePngGray(const std::filesystem::path& pathFile, int width, int height
     return writePng(path, width, height, bits, 0, 1, bytes);
 }
 
+bool paletteOf(const std::vector<uint8_t>& rgba, std::vector<uint32_t>* colours)
+{
+    // An open-addressed set of 1,024 slots, given up at the 257th colour.
+    constexpr size_t kSlots = 1024;
+    std::vector<uint32_t> key(kSlots, 0);
+    std::vector<uint8_t> used(kSlots, 0);
+    colours->clear();
+    uint32_t last = 0;
+    for (size_t i = 0; i + 3 < rgba.size(); i += 4) {
+        uint32_t c;
+        std::memcpy(&c, &rgba[i], 4);
+        if (i > 0 && c == last)
+            continue;
+        last = c;
+        size_t h = size_t((c * 2654435761u) >> 22);  // the top 10 bits
+        while (used[h] && key[h] != c)
+            h = (h + 1) & (kSlots - 1);
+        if (used[h])
+            continue;
+        if (colours->size() == 256) {
+            colours->clear();
+            return false;
+        }
+        used[h] = 1;
+        key[h] = c;
+        colours->push_back(c);
+    }
+    std::sort(colours->begin(), colours->end());
+    return true;
+}
+
+namespace {
+
+// An image of at most 256 colours (a palette of flat colours, as a
+// low-poly character's texture is) as an indexed PNG: a byte a pixel where
+// RGB takes three, its colours exact.  False, writing nothing, for more
+// colours.
+bool encodeIndexed(int width, int height, const std::vector<uint8_t>& rgba, std::string* png)
+{
+    std::vector<uint32_t> colours;
+    if (!paletteOf(rgba, &colours))
+        return false;
+    std::string plte, trns;
+    bool translucent = false;
+    for (uint32_t c : colours) {
+        uint8_t px[4];
+        std::memcpy(px, &c, 4);
+        plte.append(reinterpret_cast<const char*>(px), 3);
+        trns += char(px[3]);
+        translucent = translucent || px[3] != 255;
+    }
+    std::string chunks;
+    chunk(chunks, "PLTE", plte);
+    if (translucent)
+        chunk(chunks, "tRNS", trns);
+    std::vector<uint8_t> indices(rgba.size() / 4);
+    uint32_t last = 0;
+    uint8_t lastIndex = 0;
+    for (size_t i = 0; i < indices.size(); ++i) {
+        uint32_t c;
+        std::memcpy(&c, &rgba[4 * i], 4);
+        if (i == 0 || c != last)
+            lastIndex = uint8_t(std::lower_bound(colours.begin(), colours.end(), c) - colours.begin());
+        last = c;
+        indices[i] = lastIndex;
+    }
+    return encodePng(width, height, 8, 3, 1, indices, png, chunks).isOk();
+}
+
+}  // namespace
+
 Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png)
 {
     if (rgba.size() != size_t(std::max(width, 0)) * size_t(std::max(height, 0)) * 4)
         return Status(StatusCode::InvalidArgument, "pixel count does not match the image size");
+    if (encodeIndexed(width, height, rgba, png))
+        return Status::ok();
     bool opaque = true;
     for (size_t i = 3; i < rgba.size() && opaque; i += 4)
         opaque = rgba[i] == 255;

@@ -26,8 +26,13 @@ Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t
 /// otherwise buy gigabytes of decoder memory).
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
                      std::vector<uint16_t>* samples, int expectWidth = 0, int expectHeight = 0);
-/// Encodes an 8-bit colour PNG in memory from 4 bytes per pixel (RGB when
-/// every alpha is 255, else RGBA).
+/// The distinct colours of an RGBA image (4 bytes a pixel, each read as one
+/// native uint32), sorted, when there are at most 256 (a palette); false,
+/// `colours` empty, when there are more.
+bool paletteOf(const std::vector<uint8_t>& rgba, std::vector<uint32_t>* colours);
+/// Encodes an 8-bit colour PNG in memory from 4 bytes per pixel: indexed
+/// when the image has at most 256 colours, else RGB when every alpha is
+/// 255, else RGBA.
 Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png);
 /// A colour texture for glTF from 4 bytes per pixel: when every alpha is
 /// 255, JPEG at `quality` (1..100) or an RGB PNG, whichever is smaller (a
