@@ -25,7 +25,8 @@ namespace {
 const char* kHelp =
     "--tolerance (default 0.01%: RMS distance over the diagonal, both directions) picks the\n"
     "smallest map size and level that reach it in the closed loop (--size forces a size), and\n"
-    "for --control auto the fewest cage faces that do (--control-faces fixes the count).\n"
+    "for --control auto the cage faces of the smallest rig that does (--control-faces fixes\n"
+    "the count).\n"
     "The rig is one self-contained file: control mesh, UVs, skin, animations and the\n"
     "displacement layer (STRATA_layered_displacement).  --exr, --png8/--png16 and --layers\n"
     "also write the map beside it for pipelines.  Every option: strata-bake --help-options\n"

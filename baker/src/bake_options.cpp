@@ -60,10 +60,11 @@ const std::vector<BakeOption> kOptions = {
      true},
     {"--tolerance", "tolerance", "float | str", "E|P%", nullptr, "0.0001 (0.01%)",
      "RMS distance over the diagonal, both directions, that the smallest map size and level must reach in the "
-     "closed loop (and, for --control auto, the fewest cage faces); a fraction or a percentage; 0: the paper's "
-     "rules.", false},
+     "closed loop (and, for --control auto, the smallest rig's cage faces); a fraction or a percentage; 0: the "
+     "paper's rules.", false},
     {"--control-faces", "control_faces", "int", "K", nullptr, "from the tolerance",
-     "--control auto: the cage's face count (4..10000000), instead of the fewest that reach the tolerance.", false},
+     "--control auto: the cage's face count (4..10000000), instead of the smallest rig's that reaches the "
+     "tolerance.", false},
     {"--uv", "uv", "str", "keep|auto", nullptr, "keep the control's UVs when they can carry a map",
      "auto: lay out an atlas even when the control has UVs.", false},
     {"--size", "size", "int | str", "auto|N", nullptr, "auto (from the tolerance)",
