@@ -2029,10 +2029,10 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
 // predicted where the error before quantisation, a power of the face count
 // through the tries nearest the tolerance (until two tries give it, 1 going
 // up and 2 going down), crosses the tolerance, with 10% to spare, between
-// 200 and a fifth of the capture, or up to 1,000 faces, the whole of a
-// smaller capture (a low-polygon character's joints need nearly all its
-// faces to bend like it), and, going up, at most twice the faces until two
-// tries measure the power.  A try that met two levels or more below the
+// 200 and a fifth of the capture or 1,000 faces, whichever is more (all of
+// a capture smaller than that: a low-polygon character's joints need
+// nearly all its faces to bend like it), and, going up, at most twice the
+// faces until two tries measure the power.  A try that met two levels or more below the
 // paper's level is nearly all cage: the next takes a quarter of its faces.
 // The search stops when the answer is settled: the fewest that met and the
 // most that missed are within 15% of each other, the prediction saves
@@ -2147,8 +2147,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     // The capture, loaded once for every try (its face count sets the first).
     if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
-    const size_t first = std::max<size_t>(200, shared.high.faceCount() / 50);
     const size_t faces = shared.high.faceCount();
+    const size_t first = std::max<size_t>(200, faces / 50);
     const size_t most = std::max({first, faces / 5, std::min<size_t>(faces, 1000)});
     if (Status st = attempt(first); !st)
         return st;  // the first try failed (or the bake was cancelled): its message is the bake's
