@@ -892,6 +892,33 @@ TEST(BakeCli, AHopelessSmoothSchemeIsNotFitted)
     EXPECT_NE(reason.find("not fitted for itself"), std::string::npos) << reason;
 }
 
+// A capture smaller than the search's first try (SimpleSkin's 8
+// triangles) is taken whole from the first try, and the stage says so:
+// its cage is the capture, posed exactly as the source.
+TEST(BakeLibrary, AutomaticCageOfATinyCaptureIsTheCapture)
+{
+    STRATA_REQUIRE_DATA(character, "SimpleSkin.gltf");
+    const std::string dir = strata::test::tempDir("bake_tiny");
+    strata::baker::BakeRequest request;
+    request.high = character;
+    request.control = "auto";
+    request.output = dir + "/rig.glb";
+    std::vector<std::string> stages;
+    const strata::baker::BakeProgress progress = [&](const char* stage, double) { stages.push_back(stage); };
+    strata::baker::BakeResult result;
+    const strata::Status st = strata::baker::bakeRig(request, &result, &progress);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_FALSE(stages.empty());
+    EXPECT_EQ(stages.front(), "baking onto an automatic cage of 8 faces");
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+    EXPECT_EQ(rig.mesh.faceCount(), 8u);
+    const nlohmann::json report = nlohmann::json::parse(result.report);
+    ASSERT_TRUE(report.contains("posed"));
+    for (const nlohmann::json& f : report["posed"]["frames"])
+        EXPECT_LT(f["rms"].get<double>(), 1e-6) << "at " << f["time"];
+}
+
 // --control auto on a skinned, textured, animated glTF character: the rig
 // keeps the character.  Its skeleton (the same joints and inverse bind
 // matrices), every animation, a skin on every cage vertex and the colour
