@@ -121,7 +121,7 @@ bool flattenConformal(const Chart& c, const ControlMesh& mesh, const std::vector
         glm::dvec2 u[3];
         for (int k = 0; k < 3; ++k)
             u[k] = (*points)[size_t(local[mesh.triangles[3 * size_t(f) + size_t(k)]])];
-        const double area = (u[1].x - u[0].x) * (u[2].y - u[0].y) - (u[1].y - u[0].y) * (u[2].x - u[0].x);
+        const double area = orient2(u[0], u[1], u[2]);
         if (!(area > 0.0) || !std::isfinite(area))
             return false;
     }

@@ -95,7 +95,7 @@ Status checkUVs(const ControlMesh& control, int size)
         glm::dvec2 t[3];
         for (int k = 0; k < 3; ++k)
             t[k] = glm::dvec2(control.uvs[control.uvIndices[3 * f + k]]) * double(size);
-        double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        double area = orient2(t[0], t[1], t[2]);
         if (area < 0.0) {
             std::swap(t[1], t[2]);
             area = -area;

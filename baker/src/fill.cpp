@@ -21,7 +21,7 @@ std::vector<int32_t> chartOwners(const BakeSurface& s, int size, int rings, size
         glm::dvec2 t[3];
         for (int k = 0; k < 3; ++k)
             t[k] = glm::dvec2(s.uvs[s.uvIndices[3 * f + k]]) * double(size);
-        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        const double area = orient2(t[0], t[1], t[2]);
         if (area == 0.0)
             continue;
         const TexelRect r = texelRect(t, size, size);

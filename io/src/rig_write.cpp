@@ -241,7 +241,7 @@ std::vector<uint8_t> usedTexels(const ControlMesh& mesh, int width, int height)
             const glm::vec2 uv = mesh.uvs[mesh.uvIndices[3 * f + size_t(k)]];
             t[k] = glm::dvec2(double(uv.x) * width, double(uv.y) * height);
         }
-        const double area = (t[1].x - t[0].x) * (t[2].y - t[0].y) - (t[1].y - t[0].y) * (t[2].x - t[0].x);
+        const double area = orient2(t[0], t[1], t[2]);
         const TexelRect r = texelRect(t, width, height, reach);
         for (int y = r.y0; y <= r.y1; ++y)
             for (int x = r.x0; x <= r.x1; ++x) {

@@ -6,6 +6,8 @@
 // baker's colour transfer).
 #pragma once
 
+#include "strata/plane.h"
+
 #include <glm/vec2.hpp>
 
 #include <algorithm>
@@ -40,7 +42,7 @@ void forEachTexelInUVTriangle(const glm::vec2 uv[3], int width, int height, F&& 
     glm::dvec2 p[3];
     for (int k = 0; k < 3; ++k)  // texel-centre space: texel (x, y) at (x, y)
         p[k] = glm::dvec2(double(uv[k].x) * width - 0.5, double(uv[k].y) * height - 0.5);
-    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+    const double area = orient2(p[0], p[1], p[2]);
     if (!(std::fabs(area) > 0.0))
         return;
     const int x0 = std::max(0, int(std::ceil(std::min({p[0].x, p[1].x, p[2].x}))));
@@ -50,8 +52,8 @@ void forEachTexelInUVTriangle(const glm::vec2 uv[3], int width, int height, F&& 
     for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) {
             const glm::dvec2 q(x, y);
-            const double b1 = ((q.x - p[0].x) * (p[2].y - p[0].y) - (q.y - p[0].y) * (p[2].x - p[0].x)) / area;
-            const double b2 = ((p[1].x - p[0].x) * (q.y - p[0].y) - (p[1].y - p[0].y) * (q.x - p[0].x)) / area;
+            const double b1 = orient2(p[0], q, p[2]) / area;
+            const double b2 = orient2(p[0], p[1], q) / area;
             const double b0 = 1.0 - b1 - b2;
             const double eps = -1e-9;
             if (b0 < eps || b1 < eps || b2 < eps)
