@@ -65,6 +65,17 @@ double posedDistance(const Plan& plan, const ControlMesh& cage, const VertexWeig
     return rmsDistance(points, capturePosed, capture.triangles);
 }
 
+// "bend": joint 1 (the child) turns 0.8 rad about z over a second.
+Animation bendAnimation()
+{
+    Animation bend;
+    bend.name = "bend";
+    bend.channels.push_back(test::rotationKeys(
+        1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.8f, glm::vec3(0.0f, 0.0f, 1.0f))}));
+    bend.end = 1.0f;
+    return bend;
+}
+
 // A helper joint that turns a narrow band of a sphere: the capture is a
 // level-1 icosphere cage refined to level 3 (so the layered surface at
 // rest is the capture exactly, and posed it differs only by its skin),
@@ -94,12 +105,7 @@ struct BendingSphere {
         asMesh.positions = capture.positions;
         test::twoJointSkin(&skeleton, asMesh, "root", "child", glm::vec3(0.0f), glm::vec3(0.0f),
                            [](const glm::vec3& p) { return 1.0f - glm::smoothstep(0.0f, 0.1f, std::abs(p.y)); });
-        Animation bend;
-        bend.name = "bend";
-        bend.channels.push_back(test::rotationKeys(
-            1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.8f, glm::vec3(0.0f, 0.0f, 1.0f))}));
-        bend.end = 1.0f;
-        skeleton.animations.push_back(bend);
+        skeleton.animations.push_back(bendAnimation());
         EXPECT_TRUE(finalizeSkeleton(&skeleton, capture.positions.size()).isOk());
         index.build(capture.positions.data(), capture.triangles.data(), capture.faceCount());
     }
@@ -179,12 +185,7 @@ TEST(SkinFit, ACaptureAsItsOwnCageKeepsItsMotion)
     Skeleton skeleton;
     test::twoJointSkin(&skeleton, cage, "root", "child", glm::vec3(0.0f), glm::vec3(0.0f),
                        [](const glm::vec3& p) { return p.y > 0.05f ? 1.0f : 0.0f; });
-    Animation bend;
-    bend.name = "bend";
-    bend.channels.push_back(test::rotationKeys(
-        1, {0.0f, 1.0f}, {glm::quat(1, 0, 0, 0), glm::angleAxis(0.8f, glm::vec3(0.0f, 0.0f, 1.0f))}));
-    bend.end = 1.0f;
-    skeleton.animations.push_back(bend);
+    skeleton.animations.push_back(bendAnimation());
     ASSERT_TRUE(finalizeSkeleton(&skeleton, capture.positions.size()).isOk());
     TriangleIndex index;
     index.build(capture.positions.data(), capture.triangles.data(), capture.faceCount());
