@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """A character through --control auto, against its source, as it moves.
 
-    python3 bench/bench_character.py [--build build] [--work DIR] [--times 3] [--bake-args "FLAGS"]
+    python3 bench/bench_character.py [--build build] [--work DIR] [--times 3] [--bake-args "FLAGS"] [CHARACTER ...]
 
-Bakes Fox and CesiumMan (tests/data) with `strata-bake --control auto`,
+Bakes Fox and CesiumMan (tests/data; or the glTF characters named) with `strata-bake --control auto`,
 then for every animation prints the bake's own per-frame geometry (RMS and
 maximum distance between the layered surface at the recommended level and
 the source's mesh, the larger side of each, over 10 evenly spaced times)
@@ -88,6 +88,8 @@ def main():
     ap.add_argument("--work", default="")
     ap.add_argument("--times", type=int, default=3)
     ap.add_argument("--bake-args", default="", help="more strata-bake flags, e.g. \"--control-faces 200\"")
+    ap.add_argument("characters", nargs="*", default=["Fox", "CesiumMan"],
+                    help="names in tests/data (Fox, CesiumMan) or paths to glTF characters")
     args = ap.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="strata-character-")
     os.makedirs(work, exist_ok=True)
@@ -96,8 +98,9 @@ def main():
     print("| character | animation | rig bytes | source bytes | level | RMS mean | RMS worst | max worst |"
           " PSNR (dB) at " + ", ".join(f"{k}/{args.times - 1}" for k in range(args.times)) + " of it |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for name in ("Fox", "CesiumMan"):
-        source = os.path.join(ROOT, "tests", "data", name + ".glb")
+    for character in args.characters:
+        source = character if os.path.exists(character) else os.path.join(ROOT, "tests", "data", character + ".glb")
+        name = os.path.splitext(os.path.basename(character))[0]
         rig = os.path.join(work, name + ".glb")
         report = os.path.join(work, name + ".json")
         subprocess.run([bake, "--high", source, "--control", "auto", "-o", rig, "--report", report] +
