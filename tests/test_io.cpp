@@ -328,7 +328,8 @@ TEST(Png, FewColoursAreCodedIndexed)
     EXPECT_NE(png.find("PLTE"), std::string::npos);
     EXPECT_NE(png.find("tRNS"), std::string::npos);
     int w = 0, h = 0, comp = 0;
-    stbi_uc* px = stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(png.data()), int(png.size()), &w, &h, &comp, 4);
+    stbi_uc* px =
+        stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(png.data()), int(png.size()), &w, &h, &comp, 4);
     ASSERT_NE(px, nullptr);
     ASSERT_EQ(w, side);
     ASSERT_EQ(h, side);

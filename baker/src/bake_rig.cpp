@@ -2148,7 +2148,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
     const size_t faces = shared.high.faceCount();
-    const size_t first = std::min(std::max<size_t>(200, faces / 50), std::max<size_t>(faces, 4));  // never past the capture
+    // The first try never asks past the capture (a cage has at least 4 faces).
+    const size_t first = std::min(std::max<size_t>(200, faces / 50), std::max<size_t>(faces, 4));
     const size_t most = std::max({first, faces / 5, std::min<size_t>(faces, 1000)});
     if (Status st = attempt(first); !st)
         return st;  // the first try failed (or the bake was cancelled): its message is the bake's
