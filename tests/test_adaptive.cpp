@@ -1091,5 +1091,64 @@ TEST(Adaptive, StretchedPosesStayWithinTheTolerance)
     }
 }
 
+// A pose given without its control normals still counts each face's
+// stretch as the larger of its own and its neighbours' (a smooth
+// surface's stencils reach across its edges): where nothing bends (a flat
+// grid, one vertex slid along it), the choice is the one made with the
+// normals.  And a chooser asked about other poses in between measures the
+// pose again: the stretches of a pose given without normals once stood
+// for the bends and stretches kept for the last pose given with them.
+TEST(Adaptive, APoseWithoutNormalsSpreadsItsStretchAsWithThem)
+{
+    // A flat 8 x 8 grid in z = 0, UV = (x, y), displaced by a sine.
+    const int n = 8;
+    ControlMesh grid;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+            grid.positions.emplace_back(float(i) / n - 0.5f, float(j) / n - 0.5f, 0.0f);
+            grid.uvs.emplace_back(float(i) / n, float(j) / n);
+        }
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+            for (uint32_t v : {a, b, d, a, d, c})
+                grid.triangles.push_back(v);
+        }
+    grid.uvIndices = grid.triangles;
+    DisplacementMap map;
+    map.width = map.height = 256;
+    for (int y = 0; y < map.height; ++y)
+        for (int x = 0; x < map.width; ++x)
+            map.texels.push_back(0.01f * std::sin(0.2f * float(x)) * std::sin(0.2f * float(y)));
+    std::unique_ptr<Plan> plan;
+    ASSERT_TRUE(Plan::create(&plan, grid, Scheme::Smooth, 4).isOk());
+    ASSERT_TRUE(plan->setDisplacement(map).isOk());
+    const std::vector<glm::vec3> up(grid.positions.size(), glm::vec3(0.0f, 0.0f, 1.0f));
+    auto chooser = [&] {
+        auto c = std::make_unique<LevelChooser>();
+        EXPECT_TRUE(c->init(*plan, nullptr, grid.positions.data(), up.data(), up.size()).isOk());
+        return c;
+    };
+    // An interior vertex slid most of a cell along the grid: its six faces
+    // stretch, nothing turns.
+    std::vector<glm::vec3> posed = grid.positions;
+    posed[size_t(4 * (n + 1) + 4)] += glm::vec3(0.9f / n, 0.6f / n, 0.0f);
+    const size_t count = posed.size(), quarters = 4 * grid.faceCount();
+    const std::unique_ptr<LevelChooser> asked = chooser();  // every pose in turn
+    for (float distance : {3.0f, 6.0f}) {
+        const ViewSpec view = viewFrom(glm::vec3(0.2f, 0.3f, distance));
+        std::vector<uint8_t> with(quarters), without(quarters), rest(quarters), again(quarters);
+        ASSERT_TRUE(chooser()->choose(with.data(), view, 1.0f, posed.data(), count, 1.0f, up.data()).isOk());
+        ASSERT_TRUE(chooser()->choose(without.data(), view, 1.0f, posed.data(), count, 1.0f, nullptr).isOk());
+        ASSERT_TRUE(chooser()->choose(rest.data(), view, 1.0f, grid.positions.data(), count, 1.0f, up.data()).isOk());
+        EXPECT_NE(with, rest) << "eye at " << distance << ": the stretch should change the levels";
+        EXPECT_EQ(with, without) << "eye at " << distance;
+        ASSERT_TRUE(asked->choose(again.data(), view, 1.0f, posed.data(), count, 1.0f, up.data()).isOk());
+        EXPECT_EQ(again, with) << "eye at " << distance;
+        ASSERT_TRUE(asked->choose(again.data(), view, 1.0f, grid.positions.data(), count, 1.0f, nullptr).isOk());
+        EXPECT_EQ(again, rest) << "eye at " << distance;
+    }
+}
+
 }  // namespace
 }  // namespace strata

@@ -1023,9 +1023,16 @@ Status LevelChooser::choose(uint8_t* quarters, const ViewSpec& view, float pixel
         faceStretches(nf, corners_.data(), restGram_.data(), own_.data());
         spread<false>(own_.data(), &stretches_);
     }
-    if (!bent) {  // no normals to tell a new pose by: the stretch, measured again
-        stretches_.resize(nf);
-        faceStretches(nf, corners_.data(), restGram_.data(), stretches_.data());
+    if (!bent) {
+        // No normals to tell a new pose by: the stretch, measured again and
+        // spread as with them; the bends and stretches kept for the last
+        // pose with normals no longer stand (stretches_ is this pose's).
+        bentStamp_ = 0;
+        bentPositions_.clear();
+        bentNormals_.clear();
+        own_.resize(nf);
+        faceStretches(nf, corners_.data(), restGram_.data(), own_.data());
+        spread<false>(own_.data(), &stretches_);
     }
     gainsFor(nf, corners_.data(), errors_.reach.data(), bent ? cosines_.data() : nullptr, stretches_.data(),
              GainView{cam.eye, cam.forward, cam.k, poseScale, smooth_ ? 1.0f : 0.0f}, gains_.data());
