@@ -1100,21 +1100,11 @@ TEST(Adaptive, StretchedPosesStayWithinTheTolerance)
 // for the bends and stretches kept for the last pose given with them.
 TEST(Adaptive, APoseWithoutNormalsSpreadsItsStretchAsWithThem)
 {
-    // A flat 8 x 8 grid in z = 0, UV = (x, y), displaced by a sine.
+    // A flat 8 x 8 grid in z = 0 about the origin, UV = (x, y), displaced by a sine.
     const int n = 8;
-    ControlMesh grid;
-    for (int j = 0; j <= n; ++j)
-        for (int i = 0; i <= n; ++i) {
-            grid.positions.emplace_back(float(i) / n - 0.5f, float(j) / n - 0.5f, 0.0f);
-            grid.uvs.emplace_back(float(i) / n, float(j) / n);
-        }
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) {
-            const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
-            for (uint32_t v : {a, b, d, a, d, c})
-                grid.triangles.push_back(v);
-        }
-    grid.uvIndices = grid.triangles;
+    ControlMesh grid = test::makeGrid(n);
+    for (glm::vec3& p : grid.positions)
+        p -= glm::vec3(0.5f, 0.5f, 0.0f);
     DisplacementMap map;
     map.width = map.height = 256;
     for (int y = 0; y < map.height; ++y)

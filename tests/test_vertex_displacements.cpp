@@ -9,6 +9,7 @@
 #include "strata/plan.h"
 #include "strata/rig.h"
 #include "strata/vertex_displacements.h"
+#include "test_rigs.h"
 
 #include <gtest/gtest.h>
 
@@ -20,25 +21,6 @@
 using namespace strata;
 
 namespace {
-
-// The unit square as a grid of n x n cells, two triangles each, UV = (x, y).
-ControlMesh makeGrid(int n)
-{
-    ControlMesh m;
-    for (int y = 0; y <= n; ++y)
-        for (int x = 0; x <= n; ++x) {
-            m.positions.push_back(glm::vec3(float(x) / float(n), float(y) / float(n), 0.0f));
-            m.uvs.push_back(glm::vec2(float(x) / float(n), float(y) / float(n)));
-        }
-    auto id = [n](int x, int y) { return uint32_t(y * (n + 1) + x); };
-    for (int y = 0; y < n; ++y)
-        for (int x = 0; x < n; ++x) {
-            for (uint32_t v : {id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y), id(x + 1, y + 1), id(x, y + 1)})
-                m.triangles.push_back(v);
-        }
-    m.uvIndices = m.triangles;
-    return m;
-}
 
 std::vector<glm::vec3> flatPositions(const ControlMesh& m, int level)
 {
@@ -144,7 +126,7 @@ TEST(VertexDisplacements, RasterisedMapMatchesTheValuesInsideCharts)
     // A linear function of UV, stored at level 2 on a grid whose UVs are its
     // positions: every texel centre inside the square holds f(uv) exactly
     // (interpolating a linear function), and the gutter repeats the border.
-    const ControlMesh mesh = makeGrid(3);
+    const ControlMesh mesh = test::makeGrid(3);
     const int level = 2;
     std::unique_ptr<Plan> plan;
     ASSERT_TRUE(Plan::create(&plan, mesh, Scheme::Linear, level).isOk());
@@ -183,7 +165,7 @@ TEST(VertexDisplacements, RasterisedMapMatchesTheValuesInsideCharts)
 TEST(VertexDisplacements, RigAppliesItsValuesAtAnyLevel)
 {
     Rig rig;
-    rig.mesh = makeGrid(2);
+    rig.mesh = test::makeGrid(2);
     rig.hasDisplacement = true;
     rig.displacement.vertexLevel = 1;
     std::unique_ptr<Plan> stored;
