@@ -326,6 +326,14 @@ double fileSize(const std::string& path)
 // Where the summary's time line goes until every phase has run.
 constexpr const char* kTimePlaceholder = "  time          (measured when the bake ends)";
 
+// An automatic cage's face count where nothing else sets it, and the
+// face-count search's first try: a fiftieth of the capture's faces, at
+// least 200, never past the capture (a cage has at least 4 faces).
+size_t firstCageFaces(size_t captureFaces)
+{
+    return std::min(std::max<size_t>(200, captureFaces / 50), std::max<size_t>(captureFaces, 4));
+}
+
 // One bake: its state, shared by the phases that make() and deliver() call
 // in turn.  make() bakes the rig in memory (load, prepare the cage and
 // atlas, choose the scheme, search the map size, encode the rig and settle
@@ -634,7 +642,7 @@ void BakeJob::loadInputs()
     }
     if (request.control == "auto") {
         if (controlFaces == 0)
-            controlFaces = std::max<size_t>(200, high.faceCount() / 50);
+            controlFaces = firstCageFaces(high.faceCount());
         loadCharacter();
         Progress p(progress, "simplifying the high-resolution mesh");
         // A character's capture is decimated in its poses too, so that the
@@ -2148,8 +2156,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     if (!loadHighMesh(request.high, &shared.high, &shared.highStats, request.maxMemoryMB))
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
     const size_t faces = shared.high.faceCount();
-    // The first try never asks past the capture (a cage has at least 4 faces).
-    const size_t first = std::min(std::max<size_t>(200, faces / 50), std::max<size_t>(faces, 4));
+    const size_t first = firstCageFaces(faces);
     const size_t most = std::max({first, faces / 5, std::min<size_t>(faces, 1000)});
     if (Status st = attempt(first); !st)
         return st;  // the first try failed (or the bake was cancelled): its message is the bake's
