@@ -45,8 +45,9 @@ Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB = 20
 /// the last collapses.  No UVs.  A character's capture may come with its
 /// vertices posed (`posed`: posed[q * vertexCount + v], from skinPositions
 /// in skin_transfer.h): each collapse then costs its quadric error at rest
-/// plus the mean over the poses (deformation-sensitive decimation), so the
-/// cage keeps vertices where the character bends.
+/// plus the mean over the poses and the largest of them
+/// (deformation-sensitive decimation), so the cage keeps vertices where the
+/// character bends.
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out,
                              std::vector<glm::vec3> posed = {});
 

@@ -35,9 +35,9 @@ bool paletteOf(const std::vector<uint8_t>& rgba, std::vector<uint32_t>* colours)
 /// 255, else RGBA.
 Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png);
 /// A colour texture for glTF from 4 bytes per pixel: when every alpha is
-/// 255, JPEG at `quality` (1..100) or an RGB PNG, whichever is smaller (a
-/// texture of flat colours is smaller as a lossless PNG); else an RGBA PNG.
-/// *mimeType says which.
+/// 255, JPEG at `quality` (1..100) or a PNG (encodePngRgba's), whichever is
+/// smaller (a texture of flat colours is smaller as a lossless PNG); else
+/// encodePngRgba's PNG.  *mimeType says which.
 Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba, int quality, std::string* bytes,
                          std::string* mimeType);
 /// Writes an 8-bit RGB PNG (3 bytes per pixel).
