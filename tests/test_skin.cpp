@@ -234,8 +234,8 @@ TEST(SkinFit, NothingToFitLeavesTheWeights)
     EXPECT_EQ(fitted.weights, carried.weights);
 }
 
-// Weights that do not match the cage, or name a joint the skin lacks, are
-// refused by name.
+// Weights that do not match the cage, or name a joint the skin lacks (the
+// cage's or the capture's), are refused by name.
 TEST(SkinFit, MismatchedInputsAreRefused)
 {
     BendingSphere s;
@@ -250,6 +250,14 @@ TEST(SkinFit, MismatchedInputsAreRefused)
     st = fitSkinWeights(*s.plan, s.cage, s.capture, s.index, s.skeleton.weights, s.skeleton, &badJoint);
     EXPECT_EQ(st.code(), StatusCode::InvalidArgument);
     EXPECT_NE(st.message().find("joint 7"), std::string::npos) << st.message();
+    // A capture weight that names a joint the skin lacks, where it weighs something.
+    VertexWeights badCapture = s.skeleton.weights;
+    badCapture.joints[0] = 9;
+    badCapture.weights[0] = std::max(badCapture.weights[0], 0.5f);
+    VertexWeights fitted = carried;
+    st = fitSkinWeights(*s.plan, s.cage, s.capture, s.index, badCapture, s.skeleton, &fitted);
+    EXPECT_EQ(st.code(), StatusCode::InvalidArgument);
+    EXPECT_NE(st.message().find("capture weight names joint 9"), std::string::npos) << st.message();
 }
 
 namespace {

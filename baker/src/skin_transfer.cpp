@@ -301,6 +301,11 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
             return Status(StatusCode::InvalidArgument, "fitSkinWeights: a cage weight names joint " +
                                                            std::to_string(weights->joints[i]) + " of " +
                                                            std::to_string(nj));
+    for (size_t i = 0; i < highWeights.joints.size(); ++i)
+        if (highWeights.weights[i] > 0.0f && highWeights.joints[i] >= nj)
+            return Status(StatusCode::InvalidArgument, "fitSkinWeights: a capture weight names joint " +
+                                                           std::to_string(highWeights.joints[i]) + " of " +
+                                                           std::to_string(nj));
 
     std::vector<glm::mat4> skins;
     sampleSkinPoses(skeleton, &skins);
@@ -404,7 +409,7 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
                     glm::vec3 moved(0.0f);
                     for (size_t i = 0; i < hi; ++i) {
                         const float wi = highWeights.weights[hv * hi + i];
-                        if (wi > 0.0f && highWeights.joints[hv * hi + i] < nj) {
+                        if (wi > 0.0f) {
                             moved += wi * transformPoint(skins[q * nj + highWeights.joints[hv * hi + i]], at);
                             total += wi;
                         }
