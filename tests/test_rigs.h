@@ -10,6 +10,7 @@
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 #include "strata/surface.h"
+#include "test_grid.h"
 #include "test_util.h"
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -22,25 +23,6 @@
 
 namespace strata {
 namespace test {
-
-/// The unit square as a grid of n x n cells, two triangles each, UV = (x, y).
-inline ControlMesh makeGrid(int n)
-{
-    ControlMesh m;
-    for (int y = 0; y <= n; ++y)
-        for (int x = 0; x <= n; ++x) {
-            m.positions.push_back(glm::vec3(float(x) / float(n), float(y) / float(n), 0.0f));
-            m.uvs.push_back(glm::vec2(float(x) / float(n), float(y) / float(n)));
-        }
-    auto id = [n](int x, int y) { return uint32_t(y * (n + 1) + x); };
-    for (int y = 0; y < n; ++y)
-        for (int x = 0; x < n; ++x) {
-            for (uint32_t v : {id(x, y), id(x + 1, y), id(x + 1, y + 1), id(x, y), id(x + 1, y + 1), id(x, y + 1)})
-                m.triangles.push_back(v);
-        }
-    m.uvIndices = m.triangles;
-    return m;
-}
 
 /// The built-in example's rig: icosphere(1) with a per-triangle atlas and
 /// the closed-form head map at mapSize^2.

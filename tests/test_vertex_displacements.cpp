@@ -9,7 +9,7 @@
 #include "strata/plan.h"
 #include "strata/rig.h"
 #include "strata/vertex_displacements.h"
-#include "test_rigs.h"
+#include "test_grid.h"
 
 #include <gtest/gtest.h>
 
