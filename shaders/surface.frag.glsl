@@ -8,6 +8,7 @@ in float v_error;
 in vec2 v_materialUV;
 
 uniform int u_colorMode;       // 0 shaded, 1 displacement, 2 error, 3 flat (wireframe)
+uniform int u_flatShading;     // 1: lit by the triangle's own plane (a glTF primitive without normals)
 uniform vec2 u_colorRange;     // value range mapped onto the colour ramp
 uniform vec3 u_eye;
 uniform vec3 u_baseColor;
@@ -40,7 +41,7 @@ void main()
         o_color = vec4(u_baseColor, 1.0);
         return;
     }
-    vec3 n = normalize(v_normal);
+    vec3 n = u_flatShading != 0 ? normalize(cross(dFdx(v_position), dFdy(v_position))) : normalize(v_normal);
     vec3 view = normalize(u_eye - v_position);
     if (dot(n, view) < 0.0)
         n = -n;  // back faces of open meshes

@@ -978,6 +978,17 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         if (std::string(name) == "Fox.glb") {
             EXPECT_LT(std::filesystem::file_size(dir + "/rig.glb"), std::filesystem::file_size(character));
         }
+        // Shading: Fox has no NORMAL, so glTF draws it with face normals,
+        // and its rig says so; CesiumMan has normals and draws smooth.  The
+        // source's parts read as glTF shades them.
+        const bool flatSource = std::string(name) == "Fox.glb";
+        for (const strata::RigPart& part : source.parts)
+            EXPECT_EQ(part.flat, flatSource) << name << " " << part.name;
+        EXPECT_EQ(rig.displacement.flatShading, flatSource) << name;
+        for (const strata::RigPart& part : rig.parts)
+            EXPECT_EQ(part.flat, flatSource) << name << " " << part.name;
+        EXPECT_EQ(nlohmann::json::parse(result.report)["shading"], flatSource ? "flat" : "smooth") << name;
+        EXPECT_EQ(result.summary.find("shading       flat") != std::string::npos, flatSource) << result.summary;
         // Posed: the bake measured every animation at 10 times, and the
         // layered surface stays within 0.05% (Fox, on the 480 of its 576
         // faces that meet the default 0.01% at rest) and 0.2% (CesiumMan's

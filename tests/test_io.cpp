@@ -893,6 +893,46 @@ TEST(Rig, RejectsBrokenGltf)
     expectError("rig.txt", "whatever", "not a .glb or .gltf");
 }
 
+// The layer's optional "shading": written only when flat, read back, and
+// any other value than "flat" or "smooth" refused by name.  Plain glTF
+// parts are flat exactly where a primitive has no NORMAL (Fox has none,
+// CesiumMan has them), as glTF draws them.
+TEST(Rig, ShadingIsGltfsForPlainFilesAndTheLayersForRigs)
+{
+    const std::string dir = test::tempDir("rig_shading");
+    Rig rig = exampleRig(64);
+    ASSERT_TRUE(io::saveRig(dir + "/smooth.gltf", rig).isOk());
+    EXPECT_EQ(readText(dir + "/smooth.gltf").find("\"shading\""), std::string::npos);
+    Rig back;
+    ASSERT_TRUE(io::loadRig(dir + "/smooth.gltf", &back).isOk());
+    EXPECT_FALSE(back.displacement.flatShading);
+    for (const RigPart& part : back.parts)
+        EXPECT_FALSE(part.flat) << "a control mesh without NORMAL is not flat unless its layer says so";
+    rig.displacement.flatShading = true;
+    ASSERT_TRUE(io::saveRig(dir + "/flat.gltf", rig).isOk());
+    ASSERT_TRUE(io::loadRig(dir + "/flat.gltf", &back).isOk());
+    EXPECT_TRUE(back.displacement.flatShading);
+    ASSERT_FALSE(back.parts.empty());
+    for (const RigPart& part : back.parts)
+        EXPECT_TRUE(part.flat);
+    std::string text = readText(dir + "/flat.gltf");
+    const size_t at = text.find("\"flat\"", text.find("\"shading\""));
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, std::strlen("\"flat\""), "\"faceted\"");
+    writeText(dir + "/faceted.gltf", text);
+    const Status st = io::loadRig(dir + "/faceted.gltf", &back);
+    EXPECT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("faceted.gltf: shading \"faceted\""), std::string::npos) << st.message();
+    for (const char* name : {"Fox.glb", "CesiumMan.glb"}) {
+        STRATA_REQUIRE_DATA(path, name);
+        Rig plain;
+        ASSERT_TRUE(io::loadRig(path, &plain).isOk());
+        ASSERT_FALSE(plain.parts.empty());
+        for (const RigPart& part : plain.parts)
+            EXPECT_EQ(part.flat, std::string(name) == "Fox.glb") << name << " " << part.name;
+    }
+}
+
 TEST(Rig, WeldsSplitVerticesOfPlainGltf)
 {
     STRATA_REQUIRE_DATA(path, "Fox.glb");

@@ -497,8 +497,9 @@ namespace {
 
 // CesiumMan laid out as a production file is: its primitive split into
 // `parts` primitives, each with its own vertices (so the parts meet along
-// open seams) and its own material, a tint of the original.
-bool splitIntoParts(const std::string& source, const std::string& path, int parts)
+// open seams) and its own material, a tint of the original.  The first
+// `flat` parts are left without NORMAL (glTF draws them flat).
+bool splitIntoParts(const std::string& source, const std::string& path, int parts, int flat = 0)
 {
     tinygltf::TinyGLTF io;
     tinygltf::Model m;
@@ -519,6 +520,8 @@ bool splitIntoParts(const std::string& source, const std::string& path, int part
         tinygltf::Primitive p;
         p.mode = TINYGLTF_MODE_TRIANGLES;
         for (const auto& [name, accessor] : whole.attributes) {
+            if (name == "NORMAL" && k < flat)
+                continue;
             const tinygltf::Accessor& a = m.accessors[size_t(accessor)];
             const size_t elem = size_t(tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType)) *
                                        tinygltf::GetNumComponentsInType(uint32_t(a.type)));
@@ -567,13 +570,14 @@ bool splitIntoParts(const std::string& source, const std::string& path, int part
 // production file's layout, as the held-out 59-primitive character has it),
 // through --control auto: one cage for all of them that keeps the skin and
 // the animation, carries the parts' colours as one texture, and poses within
-// 1% of the source.
+// 1% of the source.  Ten parts have no NORMAL: the one cage cannot draw
+// them flat and the rest smooth, and says so in one line.
 TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_many_parts");
     const std::string input = dir + "/parts.glb", rigPath = dir + "/rig.glb";
-    ASSERT_TRUE(splitIntoParts(man, input, 59));
+    ASSERT_TRUE(splitIntoParts(man, input, 59, 10));
     const test::CommandResult r =
         test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control auto --control-faces 400 -o " +
                          rigPath + " --report " + dir + "/report.json");
@@ -585,6 +589,13 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
     EXPECT_EQ(rig.skeleton.skin.joints.size(), source.skeleton.skin.joints.size());
     EXPECT_EQ(rig.skeleton.animations.size(), source.skeleton.animations.size());
     EXPECT_NE(r.output.find("materials carried as one"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("10 of its 59 primitives have no NORMAL (glTF draws them flat); the automatic cage is one "
+                            "mesh, drawn smooth"),
+              std::string::npos)
+        << r.output;
+    EXPECT_FALSE(rig.displacement.flatShading);
+    for (size_t p = 0; p < source.parts.size(); ++p)
+        EXPECT_EQ(source.parts[p].flat, p < 10) << p;
     io::SceneMaterials materials;
     ASSERT_TRUE(io::loadSceneMaterials(rig, &materials).isOk());
     ASSERT_FALSE(materials.materials.empty());
@@ -738,6 +749,58 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
     }
 }
 
+// glTF draws a primitive without NORMAL with face normals.  Fox has none:
+// baked onto itself, its rig says its capture was drawn flat, so its parts
+// (which, as every control mesh, have no NORMAL) read as flat, its render
+// mesh's parts are flat, and its reconstructed scene leaves NORMAL out so
+// that any viewer draws it flat too.  A rig whose layer does not say so
+// (every control mesh lacks NORMAL) is drawn smooth.
+TEST(Scene, AFlatShadedCaptureGivesAFlatShadedRig)
+{
+    STRATA_REQUIRE_DATA(fox, "Fox.glb");
+    const std::string dir = test::tempDir("scene_flat");
+    const std::string rigPath = dir + "/fox.glb", out = dir + "/fox_scene.glb";
+    test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + fox + " --control " + fox +
+                                             " --error-levels none -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("shading       flat"), std::string::npos) << r.output;
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(rigPath, &rig).isOk());
+    EXPECT_TRUE(rig.displacement.flatShading);
+    ASSERT_FALSE(rig.parts.empty());
+    for (const RigPart& part : rig.parts)
+        EXPECT_TRUE(part.flat) << part.name;
+    std::unique_ptr<Surface> surface;
+    ASSERT_TRUE(Surface::create(&surface, rig, nullptr).isOk());
+    io::RenderMesh layout;
+    ASSERT_TRUE(io::buildRenderMesh(rig, surface->plan(), &layout).isOk());
+    ASSERT_FALSE(layout.parts.empty());
+    for (const io::RenderPart& part : layout.parts)
+        EXPECT_TRUE(part.flat);
+    r = test::runCommand(std::string(STRATA_RECONSTRUCT_EXE) + " " + rigPath + " -o " + out);
+    ASSERT_EQ(r.code, 0) << r.output;
+    tinygltf::TinyGLTF loader;
+    tinygltf::Model m;
+    std::string err, warn;
+    ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, out)) << err;
+    for (const tinygltf::Mesh& mesh : m.meshes)
+        for (const tinygltf::Primitive& p : mesh.primitives)
+            EXPECT_FALSE(p.attributes.count("NORMAL")) << mesh.name;
+    int code = 0;
+    const std::string report = test::runGltfValidator({out}, &code);
+    EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+    // The same rig, its layer made smooth: the parts draw smooth.
+    rig.displacement.flatShading = false;
+    for (RigPart& part : rig.parts)
+        part.flat = false;
+    ASSERT_TRUE(io::saveRig(dir + "/smooth.glb", rig).isOk());
+    Rig smooth;
+    ASSERT_TRUE(io::loadRig(dir + "/smooth.glb", &smooth).isOk());
+    EXPECT_FALSE(smooth.displacement.flatShading);
+    for (const RigPart& part : smooth.parts)
+        EXPECT_FALSE(part.flat) << part.name;
+}
+
 TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -772,6 +835,7 @@ TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
             for (const tinygltf::Primitive& p : mesh.primitives) {
                 triangles += m.accessors[size_t(p.indices)].count / 3;
                 EXPECT_TRUE(p.attributes.count("TEXCOORD_0")) << mesh.name;
+                EXPECT_TRUE(p.attributes.count("NORMAL")) << mesh.name << ": CesiumMan is drawn smooth";
             }
         EXPECT_EQ(triangles, rig.mesh.faceCount() << (2 * level));
         for (const tinygltf::Primitive& p : m.meshes[0].primitives) {

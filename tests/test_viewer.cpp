@@ -243,6 +243,24 @@ TEST(ViewerRealData, FoxIsDrawnWithItsTexture)
     EXPECT_LT(meanDifference(uniform, adaptive, cu.x0, cu.y0, cu.x1, cu.y1), 8.0);
 }
 
+// glTF draws a primitive without NORMAL with face normals.  Fox has none:
+// refined on its flat triangles (linear scheme), each pixel's shade depends
+// on its triangle's plane alone, so level 2 draws as level 0 does.
+// CesiumMan has normals and is drawn smooth: the shading normals of its
+// refined vertices change with the level, and so does the picture.
+TEST(ViewerRealData, APrimitiveWithoutNormalsIsShadedFlat)
+{
+    STRATA_REQUIRE_DATA(fox, "Fox.glb");
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("viewer_flat");
+    const Image fox0 = shoot(fox, "--level 0", dir + "/fox0.png");
+    const Image fox2 = shoot(fox, "--level 2 --scheme linear", dir + "/fox2.png");
+    const Image man0 = shoot(man, "--level 0", dir + "/man0.png");
+    const Image man2 = shoot(man, "--level 2 --scheme linear", dir + "/man2.png");
+    EXPECT_LT(meanDifference(fox0, fox2, 0, 0, 320, 240), 0.05);
+    EXPECT_GT(meanDifference(man0, man2, 0, 0, 320, 240), 0.2);
+}
+
 TEST(ViewerRealData, CesiumManIsFramedStandingOnTheGrid)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");

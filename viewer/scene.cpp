@@ -226,7 +226,8 @@ Status Scene::uploadMaterials()
     for (size_t p = 0; p < rig_->parts.size(); ++p) {
         const RigPart& part = rig_->parts[p];
         if (part.faceCount)
-            ranges.push_back({size_t(part.firstFace) * per, size_t(part.faceCount) * per, materials_.partMaterial[p]});
+            ranges.push_back(
+                {size_t(part.firstFace) * per, size_t(part.faceCount) * per, materials_.partMaterial[p], part.flat});
     }
     return surface_->setMaterials(mats, ranges, corners);
 }
@@ -402,6 +403,10 @@ void Scene::render(int width, int height)
     p.eye = eye;
     p.colorMode = settings.colorMode;
     p.wireframe = settings.wireframe;
+    // Without material ranges (false colour, --no-materials) the surface is
+    // flat where every part is.
+    p.flatShading = !rig_->parts.empty() && std::all_of(rig_->parts.begin(), rig_->parts.end(),
+                                                        [](const RigPart& part) { return part.flat; });
     if (settings.colorMode == gl::ColorMode::Displacement)
         p.colorRange = glm::vec2(dMin_ * settings.scale, dMax_ * settings.scale);
     else if (settings.colorMode == gl::ColorMode::Error)
@@ -453,7 +458,7 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
         while (t < faces.size() && faces[t] < size_t(part.firstFace) + part.faceCount)
             ++t;
         if (t > first)
-            ranges.push_back({first, t - first, materials_.partMaterial[p]});
+            ranges.push_back({first, t - first, materials_.partMaterial[p], part.flat});
     }
     return surface_->setAdaptiveMaterials(ranges, corners);
 }

@@ -834,6 +834,12 @@ void BakeJob::loadCharacter()
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
              request.high.c_str());
+    const size_t flatParts =
+        size_t(std::count_if(highRig.parts.begin(), highRig.parts.end(), [](const RigPart& p) { return p.flat; }));
+    if (flatParts > 0 && flatParts < highRig.parts.size())
+        warn("%s: %zu of its %zu primitives have no NORMAL (glTF draws them flat); the automatic cage is one mesh, "
+             "drawn smooth",
+             request.high.c_str(), flatParts, highRig.parts.size());
     if (coloured) {
         const io::SceneMaterials& sm = captureMaterials;
         faceMaterial.assign(high.faceCount(), int(sm.materials.size()) - 1);
@@ -1354,6 +1360,7 @@ void BakeJob::encodeRig()
     rig.displacement = DisplacementInfo();
     rig.displacement.scheme = options.scheme;
     rig.displacement.recommendedLevel = recommended;
+    rig.displacement.flatShading = highStats.drawnFlat;
     if (request.pngBits) {
         // The quantised PNG (written beside the rig by writeOutputs), named
         // in the rig.
@@ -1547,6 +1554,8 @@ void BakeJob::summarize()
                     "triangles, %zu non-manifold edges\n",
                     highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
                     highStats.nonManifoldEdges);
+    if (highStats.drawnFlat)
+        appendf(&result->summary, "  shading       flat, as glTF draws the capture (no primitive has NORMAL)\n");
     result->summary += searchNote_;
     appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
                 control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
@@ -1687,6 +1696,7 @@ void BakeJob::writeReport()
     report["tolerance"] = request.tolerance;
     report["tradeOff"] = tradeOff;
     report["scheme"] = schemeName(options.scheme);
+    report["shading"] = highStats.drawnFlat ? "flat" : "smooth";
     report["recommendedLevel"] = recommended;
     report["timeMs"] = {{"load", loadMs}, {"mapping", rep.times.mapping}, {"rasterize", rep.times.rasterize},
                         {"dilate", rep.times.dilate}, {"fit", fitMs}, {"schemeChoice", schemeMs},

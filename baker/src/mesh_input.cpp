@@ -121,7 +121,7 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     } else if (ext == ".glb" || ext == ".gltf") {
         io::LoadOptions options;
         options.maxMemoryMB = maxMemoryMB;
-        if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles, options)))
+        if (!(st = io::loadGltfTriangles(path, &mesh.positions, &mesh.triangles, options, &s.drawnFlat)))
             return st;
     } else if (ext == ".ply" || ext == ".stl" || ext == ".off") {
         // Strata's own bounded reader: untrusted bytes never reach OpenMesh.

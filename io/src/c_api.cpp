@@ -534,6 +534,11 @@ StrataStatus strata_render_mesh_part(const StrataRenderMesh* mesh, size_t index,
     return STRATA_OK;
 }
 
+int strata_render_mesh_part_flat(const StrataRenderMesh* mesh, size_t index)
+{
+    return mesh && index < mesh->layout.parts.size() && mesh->layout.parts[index].flat ? 1 : 0;
+}
+
 size_t strata_render_mesh_attribute_count(const StrataRenderMesh* mesh)
 {
     return mesh ? mesh->layout.attributes.size() : 0;

@@ -180,6 +180,7 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
         rp.mesh = part.mesh;
         rp.primitive = part.primitive;
         rp.material = part.material;
+        rp.flat = part.flat;
         covered += part.faceCount;
         if (size_t(rp.firstIndex) + rp.indexCount > rm.indices.size())
             return Status(StatusCode::InvalidData, part.name + ": its faces lie outside the control mesh");

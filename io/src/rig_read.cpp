@@ -217,6 +217,13 @@ Status parseStrataBlock(const tinygltf::Value& block, bool extension, const std:
     if (weighting != "angle")
         return Status(StatusCode::Unsupported, path + ": normal weighting \"" + printable(weighting, 40) +
                                                    "\" is not supported");
+    if (const tinygltf::Value* shading = member(block, "shading")) {
+        const std::string how = shading->IsString() ? shading->Get<std::string>() : std::string("?");
+        if (how != "flat" && how != "smooth")
+            return Status(StatusCode::InvalidData, path + ": shading \"" + printable(how, 40) +
+                                                       "\" is not one of \"flat\" and \"smooth\"");
+        info->flatShading = how == "flat";
+    }
     if (const tinygltf::Value* q = member(block, "quantizedMap")) {
         double bits = 0, dmin = 0, dmax = 0;
         if (!(st = stringField(*q, "uri", path, &info->quantized.uri)) || !(st = numberField(*q, "bits", path, &bits)) ||
@@ -262,7 +269,7 @@ uint64_t uvHash(const std::vector<glm::vec2>& uvs)
 using namespace rigfile;
 
 Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles,
-                         const LoadOptions& options)
+                         const LoadOptions& options, bool* flat)
 {
     const std::string path = pathFile.string();
     SourceDocument doc;
@@ -276,6 +283,8 @@ Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm:
         return Status(StatusCode::InvalidData, path + ": every triangle is degenerate");
     *positions = std::move(scene.rig.mesh.positions);
     *triangles = std::move(scene.rig.mesh.triangles);
+    if (flat)
+        *flat = std::all_of(scene.rig.parts.begin(), scene.rig.parts.end(), [](const RigPart& p) { return p.flat; });
     return Status::ok();
 }
 
@@ -643,6 +652,10 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         rig.displacement = DisplacementInfo();
     } else if (scene.blockMesh >= 0) {
         rig.hasDisplacement = true;
+        // A rig's control mesh has no normals of its own: its primitives
+        // without NORMAL are flat only where the capture was.
+        for (RigPart& part : rig.parts)
+            part.flat = part.flat && rig.displacement.flatShading;
     } else if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), kLayerExtension) !=
                model.extensionsUsed.end()) {
         rig.warnings.push_back(std::string("declares ") + kLayerExtension +

@@ -240,6 +240,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             part.node = firstNode[m];
             part.material = prim.material;
             part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
+            part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
             part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
             part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
                         " primitive " + std::to_string(p);

@@ -68,6 +68,8 @@ tinygltf::Value layerBlockValue(const DisplacementInfo& d, const ControlMesh& me
     block["displacementGeometryOffset"] = tinygltf::Value(jsonFloat(d.offset));
     block["scheme"] = tinygltf::Value(std::string(schemeName(d.scheme)));
     block["recommendedLevel"] = tinygltf::Value(d.recommendedLevel);
+    if (d.flatShading)
+        block["shading"] = tinygltf::Value(std::string("flat"));
     if (d.vertexLevel >= 0) {
         tinygltf::Value::Object vertices;
         vertices["accessor"] = tinygltf::Value(d.vertexAccessor);

@@ -147,8 +147,12 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
         attributes["POSITION"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
         model.accessors.back().minValues = lo;
         model.accessors.back().maxValues = hi;
-        view = appendBufferView(model, nrm.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
-        attributes["NORMAL"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+        // A flat part keeps no NORMAL, so that viewers shade it flat as
+        // glTF asks (the capture was drawn so).
+        if (!part.flat) {
+            view = appendBufferView(model, nrm.data(), nv * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+            attributes["NORMAL"] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+        }
         // Per-corner attributes (material UVs, colours, custom data), refined
         // linearly inside each control face.
         for (const auto& [name, acc] : prim.attributes) {

@@ -342,7 +342,8 @@ export class StrataRenderMesh {
     const parts = [];
     for (let i = 0; i < count; ++i) {
       const raw = r.withScratch(Int32Array, 5, (ptr) => r.check(r.module._strata_render_mesh_part(this.handle, i, ptr)));
-      parts.push({ firstIndex: raw[0] >>> 0, indexCount: raw[1] >>> 0, mesh: raw[2], primitive: raw[3], material: raw[4] });
+      parts.push({ firstIndex: raw[0] >>> 0, indexCount: raw[1] >>> 0, mesh: raw[2], primitive: raw[3], material: raw[4],
+        flat: r.module._strata_render_mesh_part_flat(this.handle, i) !== 0 });
     }
     return parts;
   }

@@ -110,7 +110,7 @@ const ATTRIBUTE_NAMES = { TEXCOORD_0: 'uv', TEXCOORD_1: 'uv1', TEXCOORD_2: 'uv2'
 /// as the scene updates its matrices, so an AnimationMixer drives it with no
 /// further call), with one material group per glTF primitive.
 export class StrataSurfaceMesh extends Mesh {
-  /// materialFor(part): the material of a part ({ mesh, primitive, material }).
+  /// materialFor(part): the material of a part ({ mesh, primitive, material, flat }).
   constructor(runtime, rig, nodes, materialFor, cage, level) {
     super(new BufferGeometry());
     this.isStrataSurfaceMesh = true;
@@ -383,11 +383,24 @@ export class StrataLoaderPlugin {
       const nodes = [];
       for (let j = 0; j < rig.jointCount; ++j) nodes.push(await parser.getDependency('node', rig.jointNode(j)));
       // Materials per part, as three.js set them up for the cage.
+      // GLTFLoader shades a primitive without NORMAL flat, which every
+      // control mesh is: the surface is flat only where the rig says its
+      // capture was (part.flat), so the cage's material is copied with the
+      // surface's own shading where the two differ.
       const cage = [];
+      const shaded = new Map();
       const materialFor = (part) => {
         const mesh = primitiveMesh.get(`${part.mesh}/${part.primitive}`);
         if (mesh && !cage.includes(mesh)) cage.push(mesh);
-        return mesh ? mesh.material : new MeshStandardMaterial();
+        const material = mesh ? mesh.material : new MeshStandardMaterial();
+        if (Boolean(material.flatShading) === part.flat) return material;
+        const key = `${material.uuid}/${part.flat}`;
+        if (!shaded.has(key)) {
+          const copy = material.clone();
+          copy.flatShading = part.flat;
+          shaded.set(key, copy);
+        }
+        return shaded.get(key);
       };
       const surface = new StrataSurfaceMesh(runtime, rig, nodes, materialFor, cage, this.options.level ?? 'recommended');
       for (const c of cage) c.visible = false;

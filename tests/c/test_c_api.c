@@ -205,10 +205,15 @@ static void renderMesh(const StrataRig* rig, StrataSurface* s, const float* pose
         CHECK(part.first_index == covered);
         covered += part.index_count;
         CHECK(part.mesh >= 0 && part.primitive >= 0);
+        /* A control mesh has no NORMAL, but this rig's layer does not say
+         * its capture was drawn flat: the surface is drawn smooth. */
+        CHECK(strata_render_mesh_part_flat(m, k) == 0);
     }
     CHECK(covered == indices);
     StrataRenderPart none;
     CHECK(strata_render_mesh_part(m, 99, &none) == STRATA_INVALID_ARGUMENT);
+    CHECK(strata_render_mesh_part_flat(m, 99) == 0);
+    CHECK(strata_render_mesh_part_flat(NULL, 0) == 0);
     float* d = (float*)malloc(count * sizeof(float));
     CHECK(strata_surface_displacements(s, d) == STRATA_OK);
     for (uint32_t i = 0; i < count; ++i)

@@ -184,6 +184,11 @@ StrataStatus strata_render_mesh_indices(const StrataRenderMesh* mesh, uint32_t* 
 StrataStatus strata_render_mesh_refined_vertices(const StrataRenderMesh* mesh, uint32_t* dst);
 size_t strata_render_mesh_part_count(const StrataRenderMesh* mesh);
 StrataStatus strata_render_mesh_part(const StrataRenderMesh* mesh, size_t index, StrataRenderPart* out);
+/** 1 when part `index` is drawn with face normals (flat shading): a glTF
+ *  primitive without NORMAL, which glTF shades flat, in a plain file or in a
+ *  rig baked from a capture drawn so; 0 when it is drawn with the surface's
+ *  normals, or out of range. */
+int strata_render_mesh_part_flat(const StrataRenderMesh* mesh, size_t index);
 /** Refined per-corner attributes (TEXCOORD_n, COLOR_n, _CUSTOM). */
 size_t strata_render_mesh_attribute_count(const StrataRenderMesh* mesh);
 /** Name of attribute `index` (valid while the mesh lives), or NULL. */

@@ -39,6 +39,10 @@ struct DisplacementInfo {
     float offset = 0.0f;        ///< displacementGeometryOffset
     Scheme scheme = Scheme::Linear;
     int recommendedLevel = 3;
+    /// The layer's "shading": "flat": the capture was drawn with face normals
+    /// (a glTF capture without NORMAL), so the rig's primitives without
+    /// NORMAL are drawn so too.  False: the displaced surface is drawn smooth.
+    bool flatShading = false;
     /// Encoding "vertex" (format versions 3 and 4): the map's samples at the refined
     /// vertices of `vertexLevel`, decoded by the loader (d, in model units;
     /// vertex_displacements.h).  width/height then give the size of the map
@@ -64,6 +68,11 @@ struct RigPart {
     int node = -1;                  ///< the node that instances it (its first), or -1
     int material = -1;              ///< glTF material, -1 for the default one
     bool skinned = false;           ///< the node has a skin (else rigid on its node)
+    /// Drawn with face normals: a glTF primitive without NORMAL, which glTF
+    /// shades flat, in a plain file or in a rig whose layer says its capture
+    /// was drawn so (DisplacementInfo::flatShading).  Runtime normals stay
+    /// smooth; this is the renderer's choice of which to shade with.
+    bool flat = false;
     glm::mat4 toScene{1.0f};        ///< mesh space -> the control mesh's space at rest
     uint32_t firstFace = 0, faceCount = 0;      ///< its faces in mesh.triangles
     uint32_t firstVertex = 0, vertexCount = 0;  ///< its file vertices (sourceVertex)

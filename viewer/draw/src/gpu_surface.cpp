@@ -222,6 +222,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform4fv(glGetUniformLocation(prog, "u_materialColor"), 1, glm::value_ptr(m.material.baseColor));
         glUniform1i(glGetUniformLocation(prog, "u_hasTexture"), m.texture ? 1 : 0);
         glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
+        glUniform1i(glGetUniformLocation(prog, "u_flatShading"), r.flat ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
         glBindTextureUnit(1, m.texture);
         glDrawArrays(GL_TRIANGLES, GLint(3 * r.firstFace), GLsizei(3 * r.faceCount));
@@ -243,6 +244,7 @@ void GpuSurface::setDrawUniforms(GLuint prog, const DrawParams& p, ColorMode mod
     glUniform2fv(glGetUniformLocation(prog, "u_colorRange"), 1, glm::value_ptr(p.colorRange));
     glUniform3fv(glGetUniformLocation(prog, "u_baseColor"), 1, glm::value_ptr(p.baseColor));
     glUniform1i(glGetUniformLocation(prog, "u_colorMode"), int(mode));
+    glUniform1i(glGetUniformLocation(prog, "u_flatShading"), p.flatShading ? 1 : 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
 }

@@ -19,6 +19,9 @@ struct HighMeshStats {
     size_t duplicateVertices = 0;   ///< vertices at the exact position of an earlier one
     size_t degenerateTriangles = 0; ///< zero area (skipped by the rasteriser)
     size_t nonManifoldEdges = 0;    ///< edges with more than two faces (harmless to the bake)
+    /// A glTF capture none of whose triangle primitives has NORMAL: glTF
+    /// draws it with face normals, and its rig says so (DisplacementInfo::flatShading).
+    bool drawnFlat = false;
 };
 
 /// Reads OBJ (own reader), PLY / STL / OFF (OpenMesh, polygons

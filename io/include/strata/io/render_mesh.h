@@ -31,6 +31,7 @@ struct RenderPart {
     uint32_t firstIndex = 0, indexCount = 0;  ///< its range of RenderMesh::indices
     int mesh = -1, primitive = -1;            ///< glTF mesh and primitive (-1: not from glTF)
     int material = -1;                        ///< glTF material, -1 for the default one
+    bool flat = false;                        ///< drawn with face normals (RigPart::flat)
 };
 
 /// A per-corner attribute of the source primitives (TEXCOORD_n, COLOR_n,

@@ -68,8 +68,10 @@ Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, co
 /// Loads every triangle primitive of any glTF scene (as loadRig places them)
 /// as one triangle soup welded by exact position, without the control-mesh checks (a captured
 /// high-resolution mesh may be non-manifold; the baker tolerates that).
+/// `flat`, when given, is set when no triangle primitive has NORMAL (glTF
+/// then draws the scene with face normals).
 Status loadGltfTriangles(const std::filesystem::path& path, std::vector<glm::vec3>* positions, std::vector<uint32_t>* triangles,
-                         const LoadOptions& options = LoadOptions());
+                         const LoadOptions& options = LoadOptions(), bool* flat = nullptr);
 
 /// Loads the rig's displacement map: the embedded image (format version 2)
 /// or the EXR its URI names beside the rig; checks its size against the rig

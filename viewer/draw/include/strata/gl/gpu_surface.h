@@ -33,6 +33,9 @@ struct DrawParams {
     glm::vec2 colorRange{0.0f, 1.0f};
     glm::vec3 baseColor{0.78f, 0.74f, 0.70f};
     bool wireframe = false;  ///< overlay the refined triangles' edges
+    /// Shade with face normals (each triangle's own plane) instead of the
+    /// surface's normals, where no material range says otherwise.
+    bool flatShading = false;
 };
 
 /// A material as the draw pass applies it (glTF metallic-roughness reduced
@@ -50,6 +53,7 @@ struct SurfaceMaterial {
 struct MaterialRange {
     size_t firstFace = 0, faceCount = 0;
     int material = 0;
+    bool flat = false;  ///< shaded with face normals (a glTF primitive drawn flat)
 };
 
 /// Stage times of the last update() and draw(), in milliseconds, as
