@@ -17,6 +17,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -323,6 +324,15 @@ PYBIND11_MODULE(_strata, m)
         .def_property_readonly("recommended_level",
                                [](const PyRig& r) { return r.rig.hasDisplacement ? r.rig.displacement.recommendedLevel : 0; })
         .def_property_readonly("scheme", [](const PyRig& r) { return std::string(schemeName(r.rig.displacement.scheme)); })
+        .def_property_readonly(
+            "shading",
+            [](const PyRig& r) {
+                const auto flat = std::count_if(r.rig.parts.begin(), r.rig.parts.end(),
+                                                [](const RigPart& p) { return p.flat; });
+                return std::string(flat == 0 ? "smooth" : size_t(flat) == r.rig.parts.size() ? "flat" : "mixed");
+            },
+            "\"flat\" when the surface is drawn with face normals (a glTF capture without NORMAL, which glTF "
+            "draws so), \"smooth\" with the surface's normals, \"mixed\" when only some primitives are flat.")
         .def_property_readonly("control_vertex_count", [](const PyRig& r) { return r.rig.mesh.positions.size(); })
         .def_property_readonly("warnings", [](const PyRig& r) { return r.rig.warnings; })
         .def("reconstruct", &PyRig::reconstruct, py::arg("level") = py::none(), py::arg("animation") = py::none(),

@@ -89,6 +89,8 @@ def test_reconstruction_is_the_bumpy_sphere(baked):
     rig = strata.load_rig(str(d / "rig.glb"))
     assert rig.recommended_level == report["recommendedLevel"]
     assert rig.joint_names == [] and rig.animations == []
+    # An OBJ capture is drawn smooth (only a glTF one without NORMAL is flat).
+    assert rig.shading == "smooth" and report["shading"] == "smooth"
     v, t = rig.reconstruct(level=4)
     assert v.dtype == np.float32 and v.shape[1] == 3
     assert t.dtype == np.uint32 and t.shape == (80 * 4 ** 4, 3)
@@ -117,6 +119,12 @@ def test_a_view_gives_the_adaptive_mesh(baked):
     with pytest.raises(strata.Error, match="not a view"):
         rig.reconstruct(view=((0.0, 0.0, 1.0), (0.0, 0.0, 1.0), 45.0, 1080.0))
     assert level >= 1
+
+
+def test_shading_is_as_gltf_draws_the_file():
+    # Fox has no NORMAL (glTF draws it with face normals), CesiumMan has them.
+    assert strata.load_rig(os.path.join(SHARED, "Fox.glb")).shading == "flat"
+    assert strata.load_rig(os.path.join(SHARED, "CesiumMan.glb")).shading == "smooth"
 
 
 def test_same_numbers_as_strata_reconstruct(baked, tmp_path):
