@@ -789,6 +789,13 @@ TEST(Scene, AFlatShadedCaptureGivesAFlatShadedRig)
     int code = 0;
     const std::string report = test::runGltfValidator({out}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+    // That scene as the capture of a new character: still drawn flat, and
+    // a capture is not warned of a layer it never needed (Strata wrote it).
+    r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + out + " --control auto --control-faces 200 -o " +
+                         dir + "/again.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("shading       flat"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("displacement is gone"), std::string::npos) << r.output;
     // The same rig, its layer made smooth: the parts draw smooth.
     rig.displacement.flatShading = false;
     for (RigPart& part : rig.parts)

@@ -28,7 +28,9 @@ struct BakeRequest {
     std::string high;        ///< captured mesh: .obj .ply .stl .off .glb .gltf
     std::string control;     ///< control mesh or rig (.obj .glb .gltf), or "auto"
     std::string output;      ///< RIG.glb or RIG.gltf
-    size_t controlFaces = 0; ///< "auto" control: face count (0: from the tolerance, the fewest of 200.. a fifth of the capture's that reach it, predicted from a first try at a fiftieth)
+    /// "auto" control: face count (0: from the tolerance, the smallest rig of 200.. a fifth of the
+    /// capture's faces that reaches it, predicted from a first try at a fiftieth; none: the capture itself)
+    size_t controlFaces = 0;
     std::string uv;          ///< "keep", "auto", or "" (keep the control's UVs when they can carry a map)
     BakeOptions options;     ///< map size (0: from the tolerance), scheme, overlap policy, threads
     bool schemeGiven = false;  ///< options.scheme was chosen; else the bake measures both
