@@ -11,6 +11,8 @@
 //     it) and both characters (CesiumMan also re-coded by glTF
 //     Transform's meshopt with Strata's extension), each level the rig
 //     recommends and one above.
+// And Fox and CesiumMan through the plugin against their sources as three.js
+// draws them (PSNR, one camera and pose, each with the shading glTF gives it).
 // Needs the native tools (STRATA_BUILD_DIR, default ../build) and the WASM
 // module (npm test builds it first).
 import assert from 'node:assert/strict';
@@ -290,6 +292,65 @@ window.adaptiveDraw = async (url) => {
     nearPsnr: psnr(near, uniform), farPsnr: psnr(farAdaptive, farUniform),
   };
 };
+// The source as three.js draws it, beside its rig through the plugin: one
+// camera (framed on the source), the same lights, both posed at \`time\` by
+// an AnimationMixer; PSNR over the pixels either draws.  Then the rig again
+// with each surface material's shading turned over (flat for smooth):
+// the rig as loaded must be the closer of the two.
+window.lookalike = async (sourceUrl, rigUrl, time) => {
+  const px = 384;
+  const renderer = new THREE.WebGLRenderer({ antialias: false });
+  renderer.setSize(px, px);
+  const target = new THREE.WebGLRenderTarget(px, px);
+  const stage = async (url, plugin) => {
+    const loader = new GLTFLoader();
+    if (plugin) loader.register((parser) => new StrataLoaderPlugin(parser, {}));
+    const gltf = await loader.loadAsync(url);
+    const scene = new THREE.Scene();
+    scene.background = new THREE.Color(0, 0, 0);
+    scene.add(gltf.scene);
+    scene.add(new THREE.AmbientLight(0xffffff, 0.6));
+    const sun = new THREE.DirectionalLight(0xffffff, 2.5);
+    sun.position.set(1, 2, 3);
+    scene.add(sun);
+    const mixer = new THREE.AnimationMixer(gltf.scene);
+    mixer.clipAction(gltf.animations[0]).play();
+    mixer.setTime(time);
+    scene.traverse((o) => { o.frustumCulled = false; });
+    scene.updateMatrixWorld(true);
+    return { scene, gltf };
+  };
+  const source = await stage(sourceUrl, false), rig = await stage(rigUrl, true);
+  const box = new THREE.Box3().setFromObject(source.gltf.scene);
+  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
+  const camera = new THREE.PerspectiveCamera(35, 1, 0.01 * size, 100 * size);
+  camera.position.copy(centre).add(new THREE.Vector3(0.5 * size, 0.25 * size, 1.2 * size));
+  camera.lookAt(centre);
+  const draw = (scene) => {
+    renderer.setRenderTarget(target);
+    renderer.render(scene, camera);
+    const out = new Uint8Array(4 * px * px);
+    renderer.readRenderTargetPixels(target, 0, 0, px, px, out);
+    renderer.setRenderTarget(null);
+    return out;
+  };
+  const psnr = (a, b) => {
+    let se = 0, n = 0;
+    for (let i = 0; i < a.length; i += 4) {
+      if (!(a[i] || a[i + 1] || a[i + 2] || b[i] || b[i + 1] || b[i + 2])) continue;
+      for (let c = 0; c < 3; ++c) se += (a[i + c] - b[i + c]) ** 2;
+      n += 3;
+    }
+    return n ? 10 * Math.log10(255 * 255 / Math.max(se / n, 1e-12)) : 0;
+  };
+  const a = draw(source.scene), b = draw(rig.scene);
+  const mesh = rig.gltf.userData.strata;
+  const materials = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
+  const flat = materials.map((m) => Boolean(m.flatShading));
+  for (const m of materials) { m.flatShading = !m.flatShading; m.needsUpdate = true; }
+  const c = draw(rig.scene);
+  return { psnr: psnr(a, b), turned: psnr(a, c), flat };
+};
 window.refuse = async (url) => {
   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
   loader.register((parser) => new StrataLoaderPlugin(parser, { name: url }));
@@ -320,13 +381,17 @@ before(async () => {
   run(path.join(root, 'js', 'node_modules', '.bin', 'gltf-transform'), ['copy', path.join(work, 'spot.glb'),
     path.join(work, 'external', 'spot_external.gltf'), '--config', path.join(root, 'js', 'gltf-transform.config.mjs')]);
   rigs.push({ name: 'external/spot_external', ext: '.gltf', scheme: 'smooth' });
-  // Fox on 200 faces: left to the search it takes its 576 triangles whole,
-  // at level 0, where an adaptive choice has nothing to choose.
+  // Fox on 200 faces: left to the search it takes 480 of its 576 faces at
+  // level 1, where an adaptive choice has little to choose.
   for (const name of ['Fox', 'CesiumMan']) {
     run(tool('strata-bake'), ['--high', path.join(data, `${name}.glb`), '--control', 'auto', '-o',
       path.join(work, `${name}.glb`)].concat(name === 'Fox' ? ['--control-faces', '200'] : []));
     rigs.push({ name, animated: true });
+    fs.copyFileSync(path.join(data, `${name}.glb`), path.join(work, `${name}_source.glb`));
   }
+  // Fox with default flags too (480 of its 576 faces, level 1), as a user bakes it.
+  run(tool('strata-bake'), ['--high', path.join(data, 'Fox.glb'), '--control', 'auto', '-o',
+    path.join(work, 'Fox_default.glb')]);
   // Through glTF Transform with Strata's extension: meshopt re-codes the
   // character and the layer is carried (the baked mesh rebuilt and checked).
   run(path.join(root, 'js', 'node_modules', '.bin', 'gltf-transform'), ['meshopt', path.join(work, 'CesiumMan.glb'),
@@ -445,6 +510,21 @@ test('three.js draws the adaptive frame textured, through the plugin', async () 
       `${got.drawn.triangles} triangles; against the uniform draw ${got.adaptivePsnr.toFixed(1)} dB PSNR ` +
       `(without its texture ${got.untexturedPsnr.toFixed(1)} dB); 2.5x farther ${got.far} vertices, ` +
       `${got.farPsnr.toFixed(1)} dB, in the same buffers`);
+  }
+});
+
+test('three.js draws a character through the plugin as it draws its source', async () => {
+  for (const [name, rig] of [['Fox', 'Fox_default'], ['CesiumMan', 'CesiumMan']]) {
+    const got = await tab.evaluate((s, r) => window.lookalike(s, r, 0.5), `/work/${name}_source.glb`, `/work/${rig}.glb`);
+    assert.deepEqual(tab.errors, []);
+    // GLTFLoader draws Fox (no NORMAL) flat and CesiumMan smooth; so does
+    // the plugin draw their rigs, and the other shading is farther off.
+    assert.ok(got.flat.every((f) => f === (name === 'Fox')), `${name}: flatShading ${got.flat}`);
+    assert.ok(got.psnr >= got.turned + 1, `${name}: ${got.psnr.toFixed(1)} dB against the source, ` +
+      `${got.turned.toFixed(1)} dB with the shading turned over`);
+    assert.ok(got.psnr >= 20, `${name}: ${got.psnr.toFixed(1)} dB against the source`);
+    console.log(`${name} in three.js through the plugin against its source in three.js: ${got.psnr.toFixed(1)} dB ` +
+      `(the other shading: ${got.turned.toFixed(1)} dB)`);
   }
 });
 
