@@ -114,6 +114,46 @@ import { StrataLoaderPlugin } from 'strata-layered/three';
 const b64 = (f) => { const u = new Uint8Array(f.buffer, f.byteOffset, f.byteLength); let s = '';
   for (let i = 0; i < u.length; i += 0x8000) s += String.fromCharCode.apply(null, u.subarray(i, i + 0x8000)); return btoa(s); };
 const refined = (mesh) => b64(mesh.geometry.attributes.position.array.slice(0, 3 * mesh.refinedVertexCount));
+// A scene of the object under an ambient light and a sun, on a flat background.
+const litScene = (object, background, ambient, sunIntensity) => {
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color(...background);
+  scene.add(object);
+  scene.add(new THREE.AmbientLight(0xffffff, ambient));
+  const sun = new THREE.DirectionalLight(0xffffff, sunIntensity);
+  sun.position.set(1, 2, 3);
+  scene.add(sun);
+  return scene;
+};
+// A camera looking at the object's box from its centre plus offset times its diagonal.
+const framing = (object, fov, offset) => {
+  const box = new THREE.Box3().setFromObject(object);
+  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
+  const camera = new THREE.PerspectiveCamera(fov, 1, 0.01 * size, 100 * size);
+  camera.position.copy(centre).add(new THREE.Vector3(...offset).multiplyScalar(size));
+  camera.lookAt(centre);
+  return { camera, centre };
+};
+// What the renderer draws of the scene into the target (px x px), read back as RGBA.
+const readBack = (renderer, target, scene, camera, px) => {
+  renderer.setRenderTarget(target);
+  renderer.render(scene, camera);
+  const out = new Uint8Array(4 * px * px);
+  renderer.readRenderTargetPixels(target, 0, 0, px, px, out);
+  renderer.setRenderTarget(null);
+  return out;
+};
+// PSNR (dB) of two RGBA pictures over every pixel, or (blank) over the
+// pixels either draws: not pure black in both.
+const psnr = (a, b, blank = false) => {
+  let se = 0, n = 0;
+  for (let i = 0; i < a.length; i += 4) {
+    if (blank && !(a[i] || a[i + 1] || a[i + 2] || b[i] || b[i + 1] || b[i + 2])) continue;
+    for (let c = 0; c < 3; ++c) se += (a[i + c] - b[i + c]) ** 2;
+    n += 3;
+  }
+  return n ? 10 * Math.log10(255 * 255 / Math.max(se / n, 1e-12)) : 0;
+};
 window.probe = async (url, level, time) => {
   const draco = new DRACOLoader().setDecoderPath('/js/node_modules/three/examples/jsm/libs/draco/');
   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder).setDRACOLoader(draco);
@@ -176,13 +216,7 @@ window.adaptiveDraw = async (url) => {
   loader.register((parser) => new StrataLoaderPlugin(parser, {}));
   const gltf = await loader.loadAsync(url);
   const mesh = gltf.userData.strata;
-  const scene = new THREE.Scene();
-  scene.background = new THREE.Color(0.2, 0.2, 0.25);
-  scene.add(gltf.scene);
-  scene.add(new THREE.AmbientLight(0xffffff, 1.0));
-  const sun = new THREE.DirectionalLight(0xffffff, 2.0);
-  sun.position.set(1, 2, 3);
-  scene.add(sun);
+  const scene = litScene(gltf.scene, [0.2, 0.2, 0.25], 1.0, 2.0);
   scene.updateMatrixWorld(true);
   // The geometry's box holds the pose drawn, and not much more (what a
   // page frames its camera by, and three culls by).
@@ -197,28 +231,12 @@ window.adaptiveDraw = async (url) => {
     return b.containsBox(d) && b.getSize(new THREE.Vector3()).length() <= 1.25 * d.getSize(new THREE.Vector3()).length();
   };
   const boxed = holds();
-  const box = new THREE.Box3().setFromObject(mesh);
-  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
-  const camera = new THREE.PerspectiveCamera(40, 1, 0.01 * size, 100 * size);
-  camera.position.copy(centre).add(new THREE.Vector3(0.3 * size, 0.2 * size, 1.4 * size));
-  camera.lookAt(centre);
+  const { camera, centre } = framing(mesh, 40, [0.3, 0.2, 1.4]);
   const px = 512;
   const renderer = new THREE.WebGLRenderer({ antialias: false });
   renderer.setSize(px, px);
   const target = new THREE.WebGLRenderTarget(px, px);
-  const draw = () => {
-    renderer.setRenderTarget(target);
-    renderer.render(scene, camera);
-    const out = new Uint8Array(4 * px * px);
-    renderer.readRenderTargetPixels(target, 0, 0, px, px, out);
-    renderer.setRenderTarget(null);
-    return out;
-  };
-  const psnr = (a, b) => {
-    let se = 0;
-    for (let i = 0; i < a.length; ++i) if (i % 4 !== 3) se += (a[i] - b[i]) ** 2;
-    return 10 * Math.log10(255 * 255 / (se / (0.75 * a.length)));
-  };
+  const draw = () => readBack(renderer, target, scene, camera, px);
   const uniform = draw();
   const uniformVertices = mesh.refinedVertexCount;
   const drawn = mesh.setView(camera, { heightPx: px, pixelError: 1 });
@@ -306,13 +324,7 @@ window.lookalike = async (sourceUrl, rigUrl, time) => {
     const loader = new GLTFLoader();
     if (plugin) loader.register((parser) => new StrataLoaderPlugin(parser, {}));
     const gltf = await loader.loadAsync(url);
-    const scene = new THREE.Scene();
-    scene.background = new THREE.Color(0, 0, 0);
-    scene.add(gltf.scene);
-    scene.add(new THREE.AmbientLight(0xffffff, 0.6));
-    const sun = new THREE.DirectionalLight(0xffffff, 2.5);
-    sun.position.set(1, 2, 3);
-    scene.add(sun);
+    const scene = litScene(gltf.scene, [0, 0, 0], 0.6, 2.5);
     const mixer = new THREE.AnimationMixer(gltf.scene);
     mixer.clipAction(gltf.animations[0]).play();
     mixer.setTime(time);
@@ -321,35 +333,15 @@ window.lookalike = async (sourceUrl, rigUrl, time) => {
     return { scene, gltf };
   };
   const source = await stage(sourceUrl, false), rig = await stage(rigUrl, true);
-  const box = new THREE.Box3().setFromObject(source.gltf.scene);
-  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3()).length();
-  const camera = new THREE.PerspectiveCamera(35, 1, 0.01 * size, 100 * size);
-  camera.position.copy(centre).add(new THREE.Vector3(0.5 * size, 0.25 * size, 1.2 * size));
-  camera.lookAt(centre);
-  const draw = (scene) => {
-    renderer.setRenderTarget(target);
-    renderer.render(scene, camera);
-    const out = new Uint8Array(4 * px * px);
-    renderer.readRenderTargetPixels(target, 0, 0, px, px, out);
-    renderer.setRenderTarget(null);
-    return out;
-  };
-  const psnr = (a, b) => {
-    let se = 0, n = 0;
-    for (let i = 0; i < a.length; i += 4) {
-      if (!(a[i] || a[i + 1] || a[i + 2] || b[i] || b[i + 1] || b[i + 2])) continue;
-      for (let c = 0; c < 3; ++c) se += (a[i + c] - b[i + c]) ** 2;
-      n += 3;
-    }
-    return n ? 10 * Math.log10(255 * 255 / Math.max(se / n, 1e-12)) : 0;
-  };
+  const { camera } = framing(source.gltf.scene, 35, [0.5, 0.25, 1.2]);
+  const draw = (scene) => readBack(renderer, target, scene, camera, px);
   const a = draw(source.scene), b = draw(rig.scene);
   const mesh = rig.gltf.userData.strata;
   const materials = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
   const flat = materials.map((m) => Boolean(m.flatShading));
   for (const m of materials) { m.flatShading = !m.flatShading; m.needsUpdate = true; }
   const c = draw(rig.scene);
-  return { psnr: psnr(a, b), turned: psnr(a, c), flat };
+  return { psnr: psnr(a, b, true), turned: psnr(a, c, true), flat };
 };
 window.refuse = async (url) => {
   const loader = new GLTFLoader().setMeshoptDecoder(MeshoptDecoder);
