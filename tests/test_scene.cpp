@@ -789,6 +789,22 @@ TEST(Scene, AFlatShadedCaptureGivesAFlatShadedRig)
     int code = 0;
     const std::string report = test::runGltfValidator({out}, &code);
     EXPECT_NE(report.find("0 errors, 0 warnings"), std::string::npos) << report;
+    // Posed, and one view's adaptive mesh, as glTF meshes: no NORMAL either;
+    // as OBJ the normals stay (data, not a shading rule).
+    const std::string posed = dir + "/posed.glb", view = dir + "/view.glb", obj = dir + "/posed.obj";
+    for (const std::string& args : {" --anim 0 --time 0.5 -o " + posed, " --view 0,0.5,3:0,0.3,0:40:1080 -o " + view,
+                                    " --anim 0 --time 0.5 -o " + obj}) {
+        r = test::runCommand(std::string(STRATA_RECONSTRUCT_EXE) + " " + rigPath + args);
+        ASSERT_EQ(r.code, 0) << r.output;
+    }
+    for (const std::string& file : {posed, view}) {
+        tinygltf::Model pm;
+        ASSERT_TRUE(loader.LoadBinaryFromFile(&pm, &err, &warn, file)) << err;
+        for (const tinygltf::Mesh& mesh : pm.meshes)
+            for (const tinygltf::Primitive& p : mesh.primitives)
+                EXPECT_FALSE(p.attributes.count("NORMAL")) << file;
+    }
+    EXPECT_NE(test::readText(obj).find("\nvn "), std::string::npos);
     // That scene as the capture of a new character: still drawn flat, and
     // a capture is not warned of a layer it never needed (Strata wrote it).
     r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + out + " --control auto --control-faces 200 -o " +

@@ -18,6 +18,7 @@
 #include "strata/io/rig_io.h"
 #include "strata/segment_deformer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <cmath>
@@ -260,6 +261,10 @@ int main(int argc, char** argv)
         const std::string outExt = io::extensionOf(outPath);
         const bool scene = !frames && !posed && !staticMesh && !haveView && rig.source && skeletonPath.empty() &&
                            (outExt == ".glb" || outExt == ".gltf");
+        // glTF draws a mesh without NORMAL with face normals: a rig whose
+        // capture was drawn so (every part flat) keeps none in a glTF mesh.
+        const bool normals = !(outExt == ".glb" || outExt == ".gltf") || rig.parts.empty() ||
+                             !std::all_of(rig.parts.begin(), rig.parts.end(), [](const RigPart& p) { return p.flat; });
         std::error_code mkdirError;
         if (!io::directoryOf(outPath).empty())
             std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);
@@ -297,7 +302,7 @@ int main(int argc, char** argv)
             if (!(st = io::reconstructView(&adaptive, rec, view, pixelError)))
                 throw cli::Error(rigPath + ": --view: " + st.message());
             const auto v1 = std::chrono::steady_clock::now();
-            if (!(st = io::writeAdaptiveView(outPath, rec, adaptive)))
+            if (!(st = io::writeAdaptiveView(outPath, rec, adaptive, normals)))
                 throw cli::Error(st.message());
             std::string levels;
             for (size_t l = 0; l < adaptive.facesPerLevel.size(); ++l)
@@ -320,7 +325,8 @@ int main(int argc, char** argv)
         if (!frames) {
             checkFinite(posed ? &pose : nullptr);
             std::vector<std::string> notes;
-            if (!(st = scene ? io::writeReconstructedScene(outPath, rig, rec, &notes) : io::writeReconstruction(outPath, rec)))
+            if (!(st = scene ? io::writeReconstructedScene(outPath, rig, rec, &notes)
+                             : io::writeReconstruction(outPath, rec, normals)))
                 throw cli::Error(st.message());
             for (const std::string& n : notes)
                 std::fprintf(stderr, "strata-reconstruct: note: %s: %s\n", outPath.c_str(), n.c_str());
@@ -342,7 +348,7 @@ int main(int argc, char** argv)
             char suffix[16];
             std::snprintf(suffix, sizeof(suffix), "_%04d", f);
             const std::string framePath = base + suffix + ext;
-            if (!(st = io::writeReconstruction(framePath, rec))) {
+            if (!(st = io::writeReconstruction(framePath, rec, normals))) {
                 for (const std::string& p : written)
                     std::remove(p.c_str());
                 throw cli::Error(st.message());

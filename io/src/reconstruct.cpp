@@ -84,7 +84,7 @@ Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& v
     return Status::ok();
 }
 
-Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view)
+Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view, bool normals)
 {
     if (!rec.surface)
         return Status(StatusCode::InvalidArgument, "writeAdaptiveView: no reconstruction");
@@ -93,7 +93,7 @@ Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec,
         return Status(StatusCode::InvalidArgument, "writeAdaptiveView: the view is not the surface's current frame");
     MeshView mesh;
     mesh.positions = view.positions.data();
-    mesh.normals = view.normals.size() == view.positions.size() ? view.normals.data() : nullptr;
+    mesh.normals = normals && view.normals.size() == view.positions.size() ? view.normals.data() : nullptr;
     mesh.vertexCount = view.positions.size();
     mesh.triangles = frame.triangles().data();
     mesh.faceCount = frame.triangleCount();
@@ -135,13 +135,13 @@ double reconstructionPeakBytes(const Rig& rig, Scheme scheme, int level, const s
     return base + perVertex * vertices + 8.0 * mapTexels;
 }
 
-Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstruction& rec)
+Status writeReconstruction(const std::filesystem::path& pathFile, const Reconstruction& rec, bool normals)
 {
     const std::string path = pathFile.string();
     const Plan& plan = rec.plan();
     MeshView view;
     view.positions = rec.positions.data();
-    view.normals = rec.normals.data();
+    view.normals = normals ? rec.normals.data() : nullptr;
     view.vertexCount = rec.positions.size();
     view.triangles = plan.refinedTriangles().data();
     view.faceCount = plan.refinedFaceCount();

@@ -59,12 +59,15 @@ struct AdaptiveView {
 Status reconstructView(AdaptiveView* out, Reconstruction& rec, const ViewSpec& view, float pixelError,
                        bool measure = true);
 
-/// Writes an adaptive view (positions, shading normals, UVs per corner when
-/// the rig has them) by extension.
-Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view);
+/// Writes an adaptive view (positions, shading normals unless `normals` is
+/// false, UVs per corner when the rig has them) by extension.
+Status writeAdaptiveView(const std::filesystem::path& path, Reconstruction& rec, const AdaptiveView& view,
+                         bool normals = true);
 
-/// Writes a reconstruction (positions, shading normals, refined UVs) by extension.
-Status writeReconstruction(const std::filesystem::path& path, const Reconstruction& rec);
+/// Writes a reconstruction (positions, shading normals unless `normals` is
+/// false, refined UVs) by extension.  Without normals a glTF viewer draws
+/// the mesh with face normals (a rig whose parts are all RigPart::flat).
+Status writeReconstruction(const std::filesystem::path& path, const Reconstruction& rec, bool normals = true);
 
 /// Writes a bind-pose reconstruction of a rig loaded from glTF as the rig's
 /// own scene (.glb/.gltf): every control primitive replaced by its refined,
