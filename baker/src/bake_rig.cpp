@@ -3,6 +3,7 @@
 // strata-bake and the Python module parse their arguments into a
 // BakeRequest and call bakeRig; nothing here prints.
 #include "strata/baker/bake_rig.h"
+#include "strata/baker/picture.h"
 #include "strata/baker/skin_transfer.h"
 #include "strata/surface.h"
 #include "strata/baker/texture_transfer.h"
@@ -595,6 +596,7 @@ private:
         int animation = 0;
         float time = 0.0f;
         double rms = 0.0, max = 0.0;  // the larger side of each, model units
+        double psnr = 0.0;            // both drawn at one camera and pose (picture.h), dB
     };
     std::vector<FrameError> frames;
     SkinFitReport skinFit;  // the cage's skin weights fitted over the animations (poses 0: not fitted)
@@ -756,7 +758,9 @@ std::vector<glm::vec3> BakeJob::posedCapture() const
 // The rig written for a character against the character itself, posed as
 // it moves: for every animation, at 10 evenly spaced times, the layered
 // surface at the recommended level and the source's own mesh, each
-// sampled by area and measured to the other.
+// sampled by area and measured to the other, and both drawn (picture.h:
+// textured, lit, smooth or flat as glTF draws each part) at one camera
+// framing the source, compared by PSNR.
 void BakeJob::measureFrames()
 {
     if (!character)
@@ -774,14 +778,23 @@ void BakeJob::measureFrames()
     if (!st)
         throw BakeError(request.output + ": the character rig does not pose against its source: " + st.message());
     std::vector<glm::vec3> a(layered->vertexCount()), b(source->vertexCount());
+    std::vector<glm::vec3> na(a.size()), nb(b.size());
     TriangleIndex ia, ib;
+    // Laid out for pictures once: the rig's parts and materials, the source's.
+    io::RenderMesh layoutA, layoutB;
+    io::SceneMaterials materialsA, materialsB;
+    if (!(st = io::buildRenderMesh(written_, layered->plan(), &layoutA)) ||
+        !(st = io::buildRenderMesh(highRig, source->plan(), &layoutB)) ||
+        !(st = io::loadSceneMaterials(written_, &materialsA)) || !(st = io::loadSceneMaterials(highRig, &materialsB)))
+        throw BakeError(request.output + ": laying the character out for its pictures: " + st.message());
+    std::vector<uint8_t> pictureA, pictureB;
     for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
         const Animation& an = highRig.skeleton.animations[anim];
         for (int k = 0; k < 10; ++k) {
             const float t = an.start + (an.end - an.start) * float(k) / 9.0f;
             if (!(st = layered->setAnimationTime(int(anim), t)) || !(st = source->setAnimationTime(int(anim), t)) ||
-                !(st = layered->evaluate(a.data(), nullptr, a.size(), options.threads)) ||
-                !(st = source->evaluate(b.data(), nullptr, b.size(), options.threads)))
+                !(st = layered->evaluate(a.data(), na.data(), a.size(), options.threads)) ||
+                !(st = source->evaluate(b.data(), nb.data(), b.size(), options.threads)))
                 throw BakeError(request.output + ": posing the character: " + st.message());
             ia.build(a.data(), layered->triangles().data(), layered->triangleCount(), options.threads);
             ib.build(b.data(), source->triangles().data(), source->triangleCount(), options.threads);
@@ -791,7 +804,16 @@ void BakeJob::measureFrames()
             const DistanceStats ba = sampleDistance(
                 areaSamples(b.data(), source->triangles().data(), source->triangleCount(), b.size() + source->triangleCount()),
                 ia, options.threads);
-            frames.push_back({int(anim), t, std::max(ab.rms, ba.rms), std::max(ab.max, ba.max)});
+            glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+            for (const glm::vec3& x : b) {
+                lo = glm::min(lo, x);
+                hi = glm::max(hi, x);
+            }
+            const PictureCamera camera = frameBox(lo, hi);
+            renderPicture(pictureOf(layoutA, a, na, materialsA), camera, &pictureA);
+            renderPicture(pictureOf(layoutB, b, nb, materialsB), camera, &pictureB);
+            frames.push_back({int(anim), t, std::max(ab.rms, ba.rms), std::max(ab.max, ba.max),
+                              picturePsnr(pictureA, pictureB)});
         }
     }
     framesMs = msSince(t0);
@@ -998,21 +1020,7 @@ void BakeJob::carryColour()
         glm::dvec2 uv(0.0);
         for (int k = 0; k < 3; ++k)
             uv += w[k] * glm::dvec2(sm.fileUVs[highRig.fileCorners[3 * size_t(face) + size_t(k)]]);
-        // Bilinear, repeating (glTF's default sampler).
-        const double x = uv.x * im.width - 0.5, y = uv.y * im.height - 0.5;
-        const double fx = std::floor(x), fy = std::floor(y);
-        auto texel = [&](double tx, double ty) {
-            const long ix = long(tx) % im.width, iy = long(ty) % im.height;
-            const size_t i = 4 * (size_t(iy < 0 ? iy + im.height : iy) * size_t(im.width) +
-                                  size_t(ix < 0 ? ix + im.width : ix));
-            return glm::dvec4(im.rgba[i], im.rgba[i + 1], im.rgba[i + 2], im.rgba[i + 3]) / 255.0;
-        };
-        if (flat[size_t(m.image)])
-            return c * glm::vec4(texel(std::floor(x + 0.5), std::floor(y + 0.5)));
-        const double ax = x - fx, ay = y - fy;
-        const glm::dvec4 t = (1 - ax) * (1 - ay) * texel(fx, fy) + ax * (1 - ay) * texel(fx + 1, fy) +
-                             (1 - ax) * ay * texel(fx, fy + 1) + ax * ay * texel(fx + 1, fy + 1);
-        return c * glm::vec4(t);
+        return c * glm::vec4(io::sampleImage(im, uv, flat[size_t(m.image)] != 0));
     };
     ColorImage image;
     Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);
@@ -1629,22 +1637,27 @@ void BakeJob::summarize()
                         100.0 * e.backwardMax / diag);
     }
     if (!frames.empty()) {
-        appendf(&result->summary, "  posed against the source (level %d, 10 times per animation; the larger side; "
-                                  "distance / diagonal)\n", recommended);
-        appendf(&result->summary, "    animation                | RMS mean  RMS worst | max worst\n");
+        appendf(&result->summary,
+                "  posed against the source (level %d, 10 times per animation; the larger side; distance / diagonal; "
+                "both drawn at 256x256, one camera, textured and lit)\n",
+                recommended);
+        appendf(&result->summary,
+                "    animation                | RMS mean  RMS worst | max worst | picture PSNR mean, worst\n");
         for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
-            double mean = 0.0, worstRms = 0.0, worstMax = 0.0;
+            double mean = 0.0, worstRms = 0.0, worstMax = 0.0, psnr = 0.0, worstPsnr = 1e300;
             int n = 0;
             for (const FrameError& f : frames)
                 if (f.animation == int(anim)) {
                     mean += f.rms;
                     worstRms = std::max(worstRms, f.rms);
                     worstMax = std::max(worstMax, f.max);
+                    psnr += f.psnr;
+                    worstPsnr = std::min(worstPsnr, f.psnr);
                     ++n;
                 }
-            appendf(&result->summary, "    %-24.24s | %8.4f%% %8.4f%% | %8.4f%%\n",
+            appendf(&result->summary, "    %-24.24s | %8.4f%% %8.4f%% | %8.4f%% | %5.1f dB, %5.1f dB\n",
                     highRig.skeleton.animations[anim].name.c_str(), 100.0 * mean / std::max(n, 1) / diag,
-                    100.0 * worstRms / diag, 100.0 * worstMax / diag);
+                    100.0 * worstRms / diag, 100.0 * worstMax / diag, psnr / std::max(n, 1), n ? worstPsnr : 0.0);
         }
     }
 }
@@ -1689,7 +1702,11 @@ void BakeJob::writeReport()
     if (!frames.empty()) {
         nlohmann::json list = nlohmann::json::array();
         for (const FrameError& f : frames)
-            list.push_back({{"animation", f.animation}, {"time", f.time}, {"rms", f.rms / diag}, {"max", f.max / diag}});
+            list.push_back({{"animation", f.animation},
+                            {"time", f.time},
+                            {"rms", f.rms / diag},
+                            {"max", f.max / diag},
+                            {"psnr", f.psnr}});
         report["posed"] = {{"level", recommended}, {"frames", list}, {"ms", framesMs}};
     }
     if (skinFit.poses > 0)

@@ -7,6 +7,7 @@
 #include <stb/stb_image.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 
 namespace strata {
@@ -32,6 +33,28 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
 }
 
 }  // namespace
+
+glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
+{
+    const int w = image.width, h = image.height;
+    if (w <= 0 || h <= 0 || image.rgba.size() < 4 * size_t(w) * size_t(h))
+        return glm::dvec4(1.0);
+    const double x = uv.x * w - 0.5, y = uv.y * h - 0.5;
+    auto texel = [&](double tx, double ty) {
+        // Wrapped in doubles first: a UV far outside [0, 1] stays in range.
+        const double wx = tx - std::floor(tx / w) * w, wy = ty - std::floor(ty / h) * h;
+        const size_t ix = std::min(size_t(wx), size_t(w - 1)), iy = std::min(size_t(wy), size_t(h - 1));
+        const size_t i = 4 * (iy * size_t(w) + ix);
+        return glm::dvec4(image.rgba[i], image.rgba[i + 1], image.rgba[i + 2], image.rgba[i + 3]) / 255.0;
+    };
+    if (!std::isfinite(x) || !std::isfinite(y))
+        return texel(0.0, 0.0);
+    if (nearest)
+        return texel(std::floor(x + 0.5), std::floor(y + 0.5));
+    const double fx = std::floor(x), fy = std::floor(y), ax = x - fx, ay = y - fy;
+    return (1 - ax) * (1 - ay) * texel(fx, fy) + ax * (1 - ay) * texel(fx + 1, fy) + (1 - ax) * ay * texel(fx, fy + 1) +
+           ax * ay * texel(fx + 1, fy + 1);
+}
 
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
 {

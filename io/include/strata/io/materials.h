@@ -8,6 +8,8 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec4.hpp>
+#include <glm/ext/vector_double2.hpp>
+#include <glm/ext/vector_double4.hpp>
 
 #include <cstdint>
 #include <string>
@@ -40,6 +42,11 @@ struct SceneMaterials {
     std::vector<int> partMaterial;        ///< per rig.parts entry: index into materials
     std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour UVs ((0, 0) without)
 };
+
+/// The image at UV `uv` as glTF's default sampler reads it: bilinear,
+/// repeating (texel (x, y) centred at ((x + 0.5) / width, (y + 0.5) / height)),
+/// or its nearest texel when `nearest`; RGBA in 0..1.  An empty image reads 1.
+glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest = false);
 
 /// Reads the materials of a rig loaded from glTF (rig.source).  Rigs from
 /// other sources get the default material for every part.  Images that

@@ -1,0 +1,200 @@
+// The baker's CPU pictures (picture.h) and glTF's default sampler
+// (io::sampleImage), in closed form: a square facing the eye lit at a known
+// angle, a texture's rows where glTF puts them, the nearer of two squares,
+// flat parts that ignore their normals, and PSNR of known differences.
+#include "strata/baker/picture.h"
+#include "strata/io/materials.h"
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+
+using namespace strata;
+
+namespace {
+
+// A square of side 2 at depth z (the plane z = const, facing +Z), centred on
+// the axis, its UVs (0, 0) at the top left as the eye sees it (glTF's v down).
+void addSquare(baker::PictureMesh* m, float z, glm::vec4 colour, std::vector<float>* uvs = nullptr)
+{
+    const uint32_t base = uint32_t(m->positions.size());
+    const glm::vec3 corners[4] = {{-1, 1, z}, {1, 1, z}, {1, -1, z}, {-1, -1, z}};
+    const float uv[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+    for (int k = 0; k < 4; ++k) {
+        m->positions.push_back(corners[k]);
+        m->normals.push_back(glm::vec3(0, 0, 1));
+        if (uvs) {
+            uvs->push_back(uv[2 * k]);
+            uvs->push_back(uv[2 * k + 1]);
+        }
+    }
+    baker::PicturePart part;
+    part.firstTriangle = m->triangles.size() / 3;
+    part.triangleCount = 2;
+    part.colour = colour;
+    m->parts.push_back(part);
+    for (uint32_t i : {0u, 3u, 2u, 0u, 2u, 1u})
+        m->triangles.push_back(base + i);
+}
+
+baker::PictureCamera frontCamera()
+{
+    baker::PictureCamera c;
+    c.eye = glm::vec3(0, 0, 4);
+    c.target = glm::vec3(0, 0, 0);
+    c.fovYDegrees = 60.0f;
+    c.size = 64;
+    return c;
+}
+
+const uint8_t* pixel(const std::vector<uint8_t>& rgb, int size, int x, int y)
+{
+    return &rgb[3 * (size_t(y) * size_t(size) + size_t(x))];
+}
+
+// The shade of a surface facing the eye along +Z: ambient 0.3 plus 0.7 of
+// the light's cosine, the light over the eye's shoulder (picture.cpp).
+double facingShade()
+{
+    const glm::dvec3 light = glm::normalize(glm::dvec3(0.0, 0.0, 1.0) + glm::dvec3(0.3, 0.6, 0.0));
+    return 0.3 + 0.7 * light.z;
+}
+
+}  // namespace
+
+TEST(Picture, ASquareFacingTheEyeIsItsColourTimesTheShade)
+{
+    baker::PictureMesh a, b;
+    addSquare(&a, 0.0f, glm::vec4(100.0f / 255.0f, 50.0f / 255.0f, 200.0f / 255.0f, 1.0f));
+    addSquare(&b, 0.0f, glm::vec4(110.0f / 255.0f, 50.0f / 255.0f, 200.0f / 255.0f, 1.0f));
+    const baker::PictureCamera camera = frontCamera();
+    std::vector<uint8_t> pa, pb, none;
+    baker::renderPicture(a, camera, &pa);
+    baker::renderPicture(b, camera, &pb);
+    ASSERT_EQ(pa.size(), 3u * 64 * 64);
+    // The centre is the square's colour times the shade; a corner is empty.
+    const double shade = facingShade();
+    const uint8_t* c = pixel(pa, 64, 32, 32);
+    EXPECT_EQ(int(c[0]), int(std::lround(100.0 * shade)));
+    EXPECT_EQ(int(c[1]), int(std::lround(50.0 * shade)));
+    EXPECT_EQ(int(c[2]), int(std::lround(200.0 * shade)));
+    EXPECT_EQ(int(pixel(pa, 64, 0, 0)[0]), 0);
+    // The square spans 2 of the 2 tan(30) * 4 = 4.62 units the view shows:
+    // 64 * 2 / 4.62 = 27.7 pixels across.
+    int across = 0;
+    for (int x = 0; x < 64; ++x)
+        across += pixel(pa, 64, x, 32)[2] != 0;
+    EXPECT_NEAR(across, 64.0 * 2.0 / (8.0 * std::tan(glm::radians(30.0))), 1.5);
+    // PSNR: only the red channel differs, by the shaded step, over every
+    // pixel the square covers.
+    const int step = int(std::lround(110.0 * shade)) - int(std::lround(100.0 * shade));
+    EXPECT_NEAR(baker::picturePsnr(pa, pb), 10.0 * std::log10(255.0 * 255.0 / (step * step / 3.0)), 1e-9);
+    EXPECT_EQ(baker::picturePsnr(pa, pa), 99.0);
+    baker::renderPicture(baker::PictureMesh(), camera, &none);
+    EXPECT_EQ(baker::picturePsnr(none, none), 0.0);
+    EXPECT_EQ(baker::picturePsnr(pa, std::vector<uint8_t>(5)), 0.0);
+}
+
+TEST(Picture, TheNearerSquareIsDrawnWhicheverComesFirst)
+{
+    for (bool nearFirst : {true, false}) {
+        baker::PictureMesh m;
+        const glm::vec4 red(1, 0, 0, 1), blue(0, 0, 1, 1);
+        if (nearFirst) {
+            addSquare(&m, 0.5f, red);
+            addSquare(&m, -0.5f, blue);
+        } else {
+            addSquare(&m, -0.5f, blue);
+            addSquare(&m, 0.5f, red);
+        }
+        std::vector<uint8_t> p;
+        baker::renderPicture(m, frontCamera(), &p);
+        const uint8_t* c = pixel(p, 64, 32, 32);
+        EXPECT_GT(int(c[0]), 0) << nearFirst;
+        EXPECT_EQ(int(c[2]), 0) << nearFirst;
+    }
+}
+
+TEST(Picture, TexturesAreReadWhereGltfPutsTheirRows)
+{
+    // Row 0 (v = 0) red, the rest green: the top of the square is red.
+    io::ImageRGBA image;
+    image.width = 4;
+    image.height = 4;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x)
+            for (uint8_t v : {uint8_t(y < 2 ? 255 : 0), uint8_t(y < 2 ? 0 : 255), uint8_t(0), uint8_t(255)})
+                image.rgba.push_back(v);
+    baker::PictureMesh m;
+    std::vector<float> uvs;
+    addSquare(&m, 0.0f, glm::vec4(1.0f), &uvs);
+    m.parts[0].uvs = uvs.data();
+    m.parts[0].image = &image;
+    std::vector<uint8_t> p;
+    baker::renderPicture(m, frontCamera(), &p);
+    const uint8_t* top = pixel(p, 64, 32, 22);
+    const uint8_t* bottom = pixel(p, 64, 32, 42);
+    // (Bilinear and repeating: near the square's top edge the last row, green,
+    // blends in a little.)
+    EXPECT_GT(int(top[0]), 200);
+    EXPECT_LT(int(top[1]), 20);
+    EXPECT_LT(int(bottom[0]), 20);
+    EXPECT_GT(int(bottom[1]), 200);
+}
+
+TEST(Picture, FlatPartsTakeTheirFacesNormal)
+{
+    // Normals pointing away at a slant: smooth, the square is darker than
+    // facing; flat, it is exactly the facing shade, its normals unread.
+    baker::PictureMesh m;
+    addSquare(&m, 0.0f, glm::vec4(1.0f));
+    for (glm::vec3& n : m.normals)
+        n = glm::vec3(-1.0f, -1.0f, 0.2f);
+    std::vector<uint8_t> smooth, flat;
+    baker::renderPicture(m, frontCamera(), &smooth);
+    m.parts[0].flat = true;
+    baker::renderPicture(m, frontCamera(), &flat);
+    EXPECT_EQ(int(pixel(flat, 64, 32, 32)[0]), int(std::lround(255.0 * facingShade())));
+    EXPECT_LT(int(pixel(smooth, 64, 32, 32)[0]), int(pixel(flat, 64, 32, 32)[0]) - 40);
+}
+
+TEST(Picture, FramingKeepsTheBoxInView)
+{
+    const glm::vec3 lo(-3, 0, -1), hi(1, 8, 2);
+    const baker::PictureCamera c = baker::frameBox(lo, hi, 128);
+    EXPECT_EQ(c.size, 128);
+    EXPECT_EQ(c.target, 0.5f * (lo + hi));
+    // Seen from the front (+Z), a little from the side and above.
+    const glm::vec3 d = glm::normalize(c.eye - c.target);
+    EXPECT_GT(d.z, 0.8f);
+    EXPECT_GT(d.x, 0.0f);
+    EXPECT_GT(d.y, 0.0f);
+    // The box's sphere fits the view: its angular radius is 45% of the field.
+    const float radius = 0.5f * glm::length(hi - lo);
+    EXPECT_NEAR(std::asin(radius / glm::length(c.eye - c.target)), 0.45f * glm::radians(c.fovYDegrees), 1e-5f);
+}
+
+TEST(Sampler, BilinearRepeatingAndNearestAsGltfsDefaultSampler)
+{
+    io::ImageRGBA image;
+    image.width = 2;
+    image.height = 1;
+    image.rgba = {0, 0, 0, 255, 200, 100, 50, 255};
+    // Texel centres read their texels; halfway between them, the mean.
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.25, 0.5}).r, 0.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.75, 0.5}).r, 200.0 / 255.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.5, 0.5}).g, 50.0 / 255.0);
+    // Repeating: the texture's edge blends its last texel with its first,
+    // and a UV whole units away reads the same.
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.0, 0.5}).r, 100.0 / 255.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {-2.25, 3.5}).r, io::sampleImage(image, {0.75, 0.5}).r);
+    // Nearest: the texel whose square holds the UV.
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.45, 0.5}, true).r, 0.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.55, 0.5}, true).r, 200.0 / 255.0);
+    // No image reads white; a UV that is not a number reads a texel.
+    EXPECT_EQ(io::sampleImage(io::ImageRGBA(), {0.5, 0.5}), glm::dvec4(1.0));
+    const glm::dvec4 nan = io::sampleImage(image, {std::nan(""), 0.5});
+    EXPECT_TRUE(std::isfinite(nan.r));
+}
