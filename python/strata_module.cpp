@@ -17,7 +17,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -327,9 +326,8 @@ PYBIND11_MODULE(_strata, m)
         .def_property_readonly(
             "shading",
             [](const PyRig& r) {
-                const auto flat = std::count_if(r.rig.parts.begin(), r.rig.parts.end(),
-                                                [](const RigPart& p) { return p.flat; });
-                return std::string(flat == 0 ? "smooth" : size_t(flat) == r.rig.parts.size() ? "flat" : "mixed");
+                const size_t flat = flatPartCount(r.rig);
+                return std::string(flat == 0 ? "smooth" : flat == r.rig.parts.size() ? "flat" : "mixed");
             },
             "\"flat\" when the surface is drawn with face normals (a glTF capture without NORMAL, which glTF "
             "draws so), \"smooth\" with the surface's normals, \"mixed\" when only some primitives are flat.")

@@ -18,7 +18,6 @@
 #include "strata/io/rig_io.h"
 #include "strata/segment_deformer.h"
 
-#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <cmath>
@@ -263,8 +262,7 @@ int main(int argc, char** argv)
                            (outExt == ".glb" || outExt == ".gltf");
         // glTF draws a mesh without NORMAL with face normals: a rig whose
         // capture was drawn so (every part flat) keeps none in a glTF mesh.
-        const bool normals = !(outExt == ".glb" || outExt == ".gltf") || rig.parts.empty() ||
-                             !std::all_of(rig.parts.begin(), rig.parts.end(), [](const RigPart& p) { return p.flat; });
+        const bool normals = !(outExt == ".glb" || outExt == ".gltf") || !allPartsFlat(rig);
         std::error_code mkdirError;
         if (!io::directoryOf(outPath).empty())
             std::filesystem::create_directories(io::directoryOf(outPath), mkdirError);

@@ -405,8 +405,7 @@ void Scene::render(int width, int height)
     p.wireframe = settings.wireframe;
     // Without material ranges (false colour, --no-materials) the surface is
     // flat where every part is.
-    p.flatShading = !rig_->parts.empty() && std::all_of(rig_->parts.begin(), rig_->parts.end(),
-                                                        [](const RigPart& part) { return part.flat; });
+    p.flatShading = allPartsFlat(*rig_);
     if (settings.colorMode == gl::ColorMode::Displacement)
         p.colorRange = glm::vec2(dMin_ * settings.scale, dMax_ * settings.scale);
     else if (settings.colorMode == gl::ColorMode::Error)

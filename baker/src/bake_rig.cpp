@@ -804,11 +804,8 @@ void BakeJob::measureFrames()
             const DistanceStats ba = sampleDistance(
                 areaSamples(b.data(), source->triangles().data(), source->triangleCount(), b.size() + source->triangleCount()),
                 ia, options.threads);
-            glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-            for (const glm::vec3& x : b) {
-                lo = glm::min(lo, x);
-                hi = glm::max(hi, x);
-            }
+            glm::vec3 lo, hi;
+            source->bounds(&lo, &hi);  // undisplaced at level 0: the posed source's own box
             const PictureCamera camera = frameBox(lo, hi);
             renderPicture(pictureOf(layoutA, a, na, materialsA), camera, &pictureA);
             renderPicture(pictureOf(layoutB, b, nb, materialsB), camera, &pictureB);
@@ -860,8 +857,7 @@ void BakeJob::loadCharacter()
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
              request.high.c_str());
-    const size_t flatParts =
-        size_t(std::count_if(highRig.parts.begin(), highRig.parts.end(), [](const RigPart& p) { return p.flat; }));
+    const size_t flatParts = flatPartCount(highRig);
     if (flatParts > 0 && flatParts < highRig.parts.size())
         warn("%s: %zu of its %zu primitives have no NORMAL (glTF draws them flat); the automatic cage is one mesh, "
              "drawn smooth",

@@ -284,7 +284,7 @@ Status loadGltfTriangles(const std::filesystem::path& pathFile, std::vector<glm:
     *positions = std::move(scene.rig.mesh.positions);
     *triangles = std::move(scene.rig.mesh.triangles);
     if (flat)
-        *flat = std::all_of(scene.rig.parts.begin(), scene.rig.parts.end(), [](const RigPart& p) { return p.flat; });
+        *flat = allPartsFlat(scene.rig);
     return Status::ok();
 }
 

@@ -100,6 +100,22 @@ struct Rig {
     std::vector<std::string> warnings;  ///< tolerated problems found while loading
 };
 
+/// How many of the rig's parts are drawn with face normals (RigPart::flat).
+inline size_t flatPartCount(const Rig& rig)
+{
+    size_t n = 0;
+    for (const RigPart& part : rig.parts)
+        n += part.flat ? 1 : 0;
+    return n;
+}
+
+/// Whether the rig is drawn with face normals throughout: it has parts, and
+/// every one is flat.
+inline bool allPartsFlat(const Rig& rig)
+{
+    return !rig.parts.empty() && flatPartCount(rig) == rig.parts.size();
+}
+
 /// True when the rig's displacement is sampled from a map that must be
 /// loaded first (io::loadRigDisplacementMap); false when it has none or
 /// stores its values per vertex (which applyRigDisplacement reads alone; such
