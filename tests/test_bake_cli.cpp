@@ -13,6 +13,7 @@
 #include "test_util.h"
 
 #include <atomic>
+#include <chrono>
 
 #include <cmath>
 #include <filesystem>
@@ -346,9 +347,19 @@ TEST(BakeCli, TheFaceCountSearchDeliversTheChosenBake)
     request.report = dir + "/report.json";
     request.tolerance = 0.01;
     strata::baker::BakeResult result;
+    const auto start = std::chrono::steady_clock::now();
     const strata::Status st = strata::baker::bakeRig(request, &result);
+    const double wallS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ASSERT_TRUE(st.isOk()) << st.message();
     EXPECT_NE(result.summary.find("the chosen one delivered"), std::string::npos) << result.summary;
+    // The time line adds up to the whole call, the other tries included
+    // (it gave the delivered bake's time alone, a third of the wall).
+    const size_t timeAt = result.summary.find("  time          ");
+    ASSERT_NE(timeAt, std::string::npos) << result.summary;
+    const double lineS = std::atof(result.summary.c_str() + timeAt + 16);
+    EXPECT_NE(result.summary.find("the other cage tries", timeAt), std::string::npos) << result.summary;
+    EXPECT_GT(lineS, 0.9 * wallS - 0.05) << result.summary;
+    EXPECT_LE(lineS, wallS + 0.05) << result.summary;
     ASSERT_EQ(result.written.size(), 2u);
     EXPECT_EQ(result.written[0], dir + "/rig.gltf");
     EXPECT_EQ(result.written[1], dir + "/report.json");

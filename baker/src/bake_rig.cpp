@@ -369,9 +369,11 @@ public:
 
     // Writes, summarises, reports and commits; `searchNote` (the
     // face-count search's lines) goes into the summary after its first
-    // lines, and `searchReport` into the report.
+    // lines, and `searchReport` into the report.  `triesMs` is the wall
+    // time the search spent outside this bake (loading the capture, the
+    // other tries): the time line then adds up to the whole command.
     void deliver(BakeResult* out, const std::string& searchNote = std::string(),
-                 const nlohmann::json& searchReport = nlohmann::json())
+                 const nlohmann::json& searchReport = nlohmann::json(), double triesMs = 0.0)
     {
         static const std::pair<void (BakeJob::*)(), double> phases[] = {{&BakeJob::writeOutputs, 0.01},
                                                                          {&BakeJob::summarize, 0.01},
@@ -383,14 +385,19 @@ public:
         runPhases(phases, std::size(phases));
         // The summary's time line, now that every phase has run: its parts
         // add up to the bake's whole wall time.
-        const double totalMs = bakeMs_ + msSince(t0);
-        const double partsMs = loadMs + prepareMs + schemeMs + searchMs + encodeMs + errorMs + framesMs + writeMs;
+        const double totalMs = triesMs + bakeMs_ + msSince(t0);
+        const double partsMs =
+            triesMs + loadMs + prepareMs + schemeMs + searchMs + encodeMs + errorMs + framesMs + writeMs;
         std::string line;
+        appendf(&line, "  time          %.1f s in all: ", totalMs / 1000.0);
+        if (triesMs > 0.0)
+            appendf(&line, "the capture's load and the other cage tries %.0f ms, then the chosen cage's bake: ",
+                    triesMs);
         appendf(&line,
-                "  time          %.1f s in all: load %.0f ms, atlas and capture index %.0f ms, scheme %.0f ms (cage "
+                "load %.0f ms, atlas and capture index %.0f ms, scheme %.0f ms (cage "
                 "fits %.0f ms of it), map size and level %.0f ms (its last bake: mapping %.0f ms, raster %.0f ms, "
                 "dilation %.0f ms), encode %.0f ms, closed loop %.0f ms",
-                totalMs / 1000.0, loadMs, prepareMs, schemeMs, fitMs, searchMs, rep.times.mapping, rep.times.rasterize,
+                loadMs, prepareMs, schemeMs, fitMs, searchMs, rep.times.mapping, rep.times.rasterize,
                 rep.times.dilate, encodeMs, errorMs);
         if (framesMs > 0.0)
             appendf(&line, ", posed frames %.0f ms", framesMs);
@@ -412,6 +419,8 @@ public:
                 return e.rms() / rep.diagonal;
         return -1.0;
     }
+    // make()'s wall time.
+    double wallMs() const { return bakeMs_; }
     // Where the progress of the phases still to run goes (null: nowhere).
     void reportTo(FractionSpan* span) { fraction = span; }
 
@@ -2335,9 +2344,11 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                                 {"failure", t.failure}});
     }
     note += "\n";
+    // The search's wall time outside the delivered bake, for its time line.
+    const double searchMs = msSince(searchStart);
     if (reusable)
         return guarded(request, [&] {
-            chosen->job->deliver(result, note, searchReport);
+            chosen->job->deliver(result, note, searchReport, searchMs - chosen->job->wallMs());
             whole.at(1.0);
         });
     BakeRequest r = request;
@@ -2348,7 +2359,7 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
     return guarded(request, [&] {
         BakeJob job(r, progress, &shared, &last);
         job.make();
-        job.deliver(result, note, searchReport);
+        job.deliver(result, note, searchReport, searchMs);
         whole.at(1.0);
     });
 }
