@@ -73,6 +73,41 @@ void rasterGrid(const int gi[3], const int gj[3], int R, const Fn& fn)
         }
 }
 
+// floor(n / d) for d > 0.
+inline int floorDiv(int n, int d) { return n >= 0 ? n / d : -((-n + d - 1) / d); }
+
+// Calls fn(t, i0, j0, i1, j1, s) at every point where the grid segment from
+// (ai, aj) to (bi, bj) crosses an edge of the finest lattice between its
+// points: t along the segment, on the lattice edge from (i0, j0) to
+// (i1, j1), s along that edge (0 < s < 1).  A segment along a lattice line
+// (a nested level's edge) crosses none.  A stitched triangle's edge cuts
+// the finest triangles it passes over; the drawn surface and the finest one
+// are both linear on each piece of a finest triangle that a drawn triangle
+// covers, so their largest distance there is at the piece's corners: the
+// finest vertices inside the drawn triangle, its own corners and these
+// crossings.
+template <typename Fn>
+void forEachCrossing(int ai, int aj, int bi, int bj, const Fn& fn)
+{
+    int di = bi - ai, dj = bj - aj;
+    if (di == 0 || dj == 0 || di + dj == 0)
+        return;
+    // Lines i = c (j = aj + (c - ai) dj / di), j = c, and i + j = c.
+    auto lines = [&](int from, int along, int otherFrom, int otherAlong, auto edge) {
+        const int sign = along > 0 ? 1 : -1, d = sign * along;
+        for (int k = 1; k < d; ++k) {
+            const int c = from + sign * k;
+            const int n = otherFrom * d + k * otherAlong;  // the other coordinate times d (t = k / d)
+            const int o = floorDiv(n, d), r = n - o * d;
+            if (r != 0)
+                edge(double(k) / double(d), c, o, double(r) / double(d));
+        }
+    };
+    lines(ai, di, aj, dj, [&](double t, int c, int o, double f) { fn(t, c, o, c, o + 1, f); });
+    lines(aj, dj, ai, di, [&](double t, int c, int o, double f) { fn(t, o, c, o + 1, c, f); });
+    lines(ai + aj, di + dj, ai, di, [&](double t, int c, int o, double f) { fn(t, o, c - o, o + 1, c - o - 1, f); });
+}
+
 // The orthonormal camera frame of a view and its projection to pixels.
 struct Camera {
     glm::vec3 eye, forward, right, up;
@@ -443,6 +478,15 @@ float LevelChooser::templateError(const std::vector<uint16_t>& t, size_t face) c
             const glm::vec3 drawn = (float(w[0]) * q[0] + float(w[1]) * q[1] + float(w[2]) * q[2]) / float(area);
             worst = std::max(worst, glm::length(p[tile[tileSlot(uint32_t(i), uint32_t(j), R)]] - drawn));
         });
+        for (int e = 0; e < 3; ++e) {
+            const int b = (e + 1) % 3;
+            forEachCrossing(gi[e], gj[e], gi[b], gj[b], [&](double along, int i0, int j0, int i1, int j1, double f) {
+                const glm::vec3 drawn = q[e] + float(along) * (q[b] - q[e]);
+                const glm::vec3 a = p[tile[tileSlot(uint32_t(i0), uint32_t(j0), R)]];
+                const glm::vec3 fine = a + float(f) * (p[tile[tileSlot(uint32_t(i1), uint32_t(j1), R)]] - a);
+                worst = std::max(worst, glm::length(fine - drawn));
+            });
+        }
     }
     return worst;
 }
@@ -1773,12 +1817,12 @@ Status AdaptiveFrame::evaluate(glm::vec3* positions, glm::vec3* normals, const f
 }
 
 float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions,
-                                        const ViewSpec& view) const
+                                        const ViewSpec& view, int subdivision) const
 {
-    if (!view.valid() || !framePositions || !finePositions)
+    if (!view.valid() || !framePositions || !finePositions || subdivision < 1)
         return 0.0f;
     const Camera cam(view);
-    const int R = 1 << finest_;
+    const int R = 1 << finest_, m = subdivision;
     float worst = 0.0f;
     const size_t nt = triangles_.size() / 3;
     for (size_t t = 0; t < nt; ++t) {
@@ -1787,9 +1831,23 @@ float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const g
         const int gi[3] = {slotI_[cs[0]], slotI_[cs[1]], slotI_[cs[2]]}, gj[3] = {slotJ_[cs[0]], slotJ_[cs[1]], slotJ_[cs[2]]};
         const uint32_t* v = &triangles_[3 * t];
         const glm::dvec3 p[3] = {framePositions[v[0]], framePositions[v[1]], framePositions[v[2]]};
-        rasterGrid(gi, gj, R, [&](int i, int j, const int w[3], int area) {
-            const glm::dvec3 drawn = (double(w[0]) * p[0] + double(w[1]) * p[1] + double(w[2]) * p[2]) / double(area);
-            const glm::dvec3 fine(finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]]);
+        const int si[3] = {m * gi[0], m * gi[1], m * gi[2]}, sj[3] = {m * gj[0], m * gj[1], m * gj[2]};
+        // The finest surface at lattice point (I, J) / m: its triangle's
+        // interpolation there (the cell's lower triangle below the cell's
+        // diagonal i + j = const, else the upper one).
+        auto fineAt = [&](int I, int J) {
+            auto at = [&](int i, int j) {
+                return glm::dvec3(finePositions[tile[tileSlot(uint32_t(i), uint32_t(j), uint32_t(R))]]);
+            };
+            const int i = I / m, j = J / m, a = I - m * i, b = J - m * j;
+            if (a == 0 && b == 0)
+                return at(i, j);
+            const double da = double(a) / m, db = double(b) / m;
+            if (a + b <= m)
+                return (1.0 - da - db) * at(i, j) + da * at(i + 1, j) + db * at(i, j + 1);
+            return (da + db - 1.0) * at(i + 1, j + 1) + (1.0 - da) * at(i, j + 1) + (1.0 - db) * at(i + 1, j);
+        };
+        auto measure = [&](const glm::dvec3& drawn, const glm::dvec3& fine) {
             // Points a few float steps apart are one point: two evaluation
             // orders of the same vertex differ so (the smooth scheme's tile
             // pass against its stencils, 1e-7 at 0.75), and a point
@@ -1802,7 +1860,18 @@ float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const g
             double xa, ya, xb, yb, da, depth;
             if (apart > ulps && cam.project(drawn, &xa, &ya, &da) && cam.project(fine, &xb, &yb, &depth))
                 worst = std::max(worst, float(std::max(std::hypot(xa - xb, ya - yb), apart * double(cam.k) / depth)));
+        };
+        rasterGrid(si, sj, m * R, [&](int i, int j, const int w[3], int area) {
+            measure((double(w[0]) * p[0] + double(w[1]) * p[1] + double(w[2]) * p[2]) / double(area), fineAt(i, j));
         });
+        for (int e = 0; e < 3; ++e) {
+            const int b = (e + 1) % 3;
+            forEachCrossing(gi[e], gj[e], gi[b], gj[b], [&](double along, int i0, int j0, int i1, int j1, double f) {
+                const glm::dvec3 a(finePositions[tile[tileSlot(uint32_t(i0), uint32_t(j0), uint32_t(R))]]);
+                const glm::dvec3 c(finePositions[tile[tileSlot(uint32_t(i1), uint32_t(j1), uint32_t(R))]]);
+                measure(p[e] + along * (p[b] - p[e]), a + f * (c - a));
+            });
+        }
     }
     return worst;
 }

@@ -109,8 +109,9 @@ struct FaceLevelErrors {
 /// on its own part.  Then, while a quarter's stitched tile (its strips along
 /// coarser edges, and the corners where two meet) strays past the
 /// tolerance, the coarsest neighbour across its coarsest edge goes up a
-/// level: that error is measured exactly for the tile as drawn, once per
-/// quarter and combination, and remembered.
+/// level: that error is measured exactly for the tile as drawn (at the
+/// finest vertices and where its fans' edges cross the finest edges), once
+/// per quarter and combination, and remembered.
 class LevelChooser {
 public:
     LevelChooser();
@@ -340,9 +341,12 @@ public:
                     int threads = 1);
 
     /// The largest deviation, in pixels of `view`, of this frame from the
-    /// finest surface.  At every finest-level vertex of a control face, the
+    /// finest surface.  At every finest-level vertex of a control face, and
+    /// wherever a frame triangle's edge crosses a finest edge (a stitched
+    /// triangle's do, between the finest vertices; both surfaces are linear
+    /// on each piece between, so these are where their distance peaks), the
     /// frame triangle's point at the same grid place (the surface as drawn
-    /// there) against the vertex: the larger of the distance between their
+    /// there) against the finest surface's: the larger of the distance between their
     /// projections and their distance in space seen at the vertex's depth
     /// (a deviation along the line of sight moves no pixel but changes
     /// depth and shading).  Points behind the eye are skipped, and points a
@@ -352,7 +356,13 @@ public:
     /// Computed in double.
     /// \param framePositions  vertexCount() positions from evaluate()
     /// \param finePositions   the plan's refinedVertexCount() positions in the same pose
-    float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view) const;
+    /// \param subdivision     samples on a lattice this many times finer
+    ///                        than the finest level's (the finest surface
+    ///                        interpolated there): a stitched triangle's
+    ///                        edges cross the finest triangles between
+    ///                        their vertices, where 1 does not look
+    float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view,
+                             int subdivision = 1) const;
 
     size_t bytes() const;
 
