@@ -1822,7 +1822,7 @@ float AdaptiveFrame::maxScreenDeviation(const glm::vec3* framePositions, const g
     if (!view.valid() || !framePositions || !finePositions || subdivision < 1)
         return 0.0f;
     const Camera cam(view);
-    const int R = 1 << finest_, m = subdivision;
+    const int R = 1 << finest_, m = std::min(subdivision, 64);
     float worst = 0.0f;
     const size_t nt = triangles_.size() / 3;
     for (size_t t = 0; t < nt; ++t) {

@@ -356,11 +356,11 @@ public:
     /// Computed in double.
     /// \param framePositions  vertexCount() positions from evaluate()
     /// \param finePositions   the plan's refinedVertexCount() positions in the same pose
-    /// \param subdivision     samples on a lattice this many times finer
-    ///                        than the finest level's (the finest surface
-    ///                        interpolated there): a stitched triangle's
-    ///                        edges cross the finest triangles between
-    ///                        their vertices, where 1 does not look
+    /// \param subdivision     also samples on a lattice this many times
+    ///                        finer than the finest level's (1..64; the
+    ///                        finest surface interpolated there): a check
+    ///                        of the crossings, which find no less (tests,
+    ///                        bench_runtime)
     float maxScreenDeviation(const glm::vec3* framePositions, const glm::vec3* finePositions, const ViewSpec& view,
                              int subdivision = 1) const;
 
