@@ -89,7 +89,7 @@ inline int floorDiv(int n, int d) { return n >= 0 ? n / d : -((-n + d - 1) / d);
 template <typename Fn>
 void forEachCrossing(int ai, int aj, int bi, int bj, const Fn& fn)
 {
-    int di = bi - ai, dj = bj - aj;
+    const int di = bi - ai, dj = bj - aj;
     if (di == 0 || dj == 0 || di + dj == 0)
         return;
     // Lines i = c (j = aj + (c - ai) dj / di), j = c, and i + j = c.
