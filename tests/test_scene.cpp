@@ -1048,6 +1048,164 @@ TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
     }
 }
 
+// KHR_texture_transform, as its specification's example reads: offset
+// (0, 1), a quarter turn and half the scale draw the unit square from the
+// image's lower-left quadrant, turned; a file's transform (and its texCoord)
+// reaches every vertex's UV, and a malformed one is named and ignored.
+TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
+{
+    io::MaterialInfo m;
+    m.uvOffset = glm::vec2(0.0f, 1.0f);
+    m.uvRotation = 1.57079632679f;
+    m.uvScale = glm::vec2(0.5f);
+    const glm::vec2 corners[4][2] = {{{0, 0}, {0, 1}}, {{1, 0}, {0, 0.5f}}, {{0, 1}, {0.5f, 1}}, {{1, 1}, {0.5f, 0.5f}}};
+    for (const auto& c : corners) {
+        EXPECT_NEAR(m.textureUV(c[0]).x, c[1].x, 1e-6f);
+        EXPECT_NEAR(m.textureUV(c[0]).y, c[1].y, 1e-6f);
+    }
+
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_texture_transform");
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    Rig plain;
+    ASSERT_TRUE(io::loadRig(man, &plain).isOk());
+    io::SceneMaterials before;
+    ASSERT_TRUE(io::loadSceneMaterials(plain, &before).isOk());
+    tinygltf::Value::Object t;
+    t["offset"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(0.25), tinygltf::Value(-0.5)});
+    t["scale"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(2.0), tinygltf::Value(3.0)});
+    t["rotation"] = tinygltf::Value(0.5);
+    model.materials[0].pbrMetallicRoughness.baseColorTexture.extensions["KHR_texture_transform"] = tinygltf::Value(t);
+    model.extensionsUsed.push_back("KHR_texture_transform");
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/moved.glb", true, true, false, true));
+    Rig moved;
+    ASSERT_TRUE(io::loadRig(dir + "/moved.glb", &moved).isOk());
+    io::SceneMaterials after;
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(io::loadSceneMaterials(moved, &after, &warnings).isOk());
+    EXPECT_TRUE(warnings.empty());
+    const io::MaterialInfo& mat = after.materials[0];
+    EXPECT_EQ(mat.uvScale, glm::vec2(2.0f, 3.0f));
+    ASSERT_EQ(after.fileUVs.size(), before.fileUVs.size());
+    for (size_t v = 0; v < after.fileUVs.size(); v += 97) {
+        const glm::vec2 s = glm::vec2(2.0f, 3.0f) * before.fileUVs[v];
+        const glm::vec2 expected(0.25f + std::cos(0.5f) * s.x + std::sin(0.5f) * s.y,
+                                 -0.5f - std::sin(0.5f) * s.x + std::cos(0.5f) * s.y);
+        EXPECT_NEAR(after.fileUVs[v].x, expected.x, 1e-5f) << v;
+        EXPECT_NEAR(after.fileUVs[v].y, expected.y, 1e-5f) << v;
+    }
+    // Not numbers: named once, and the UVs read as they are.
+    t["scale"] = tinygltf::Value(std::string("big"));
+    model.materials[0].pbrMetallicRoughness.baseColorTexture.extensions["KHR_texture_transform"] = tinygltf::Value(t);
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/bad.glb", true, true, false, true));
+    ASSERT_TRUE(io::loadRig(dir + "/bad.glb", &moved).isOk());
+    ASSERT_TRUE(io::loadSceneMaterials(moved, &after, &warnings).isOk());
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("KHR_texture_transform is not numbers"), std::string::npos) << warnings[0];
+    EXPECT_EQ(after.fileUVs[5], before.fileUVs[5]);
+}
+
+// A skin whose joints place its meshes at different scales at rest has no
+// one scale to read its bind space at: it is read as it is, and named once.
+TEST(Scene, ASkinOfManyScalesIsNamed)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_skin_scales");
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    const tinygltf::Accessor& a = model.accessors[size_t(model.skins[0].inverseBindMatrices)];
+    const tinygltf::BufferView& view = model.bufferViews[size_t(a.bufferView)];
+    float* m = reinterpret_cast<float*>(model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset);
+    for (int k = 0; k < 12; ++k)
+        m[k] *= 2.0f;  // joint 0's inverse bind matrix: twice the scale
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/scales.glb", true, true, false, true));
+    Rig rig, source;
+    ASSERT_TRUE(io::loadRig(dir + "/scales.glb", &rig).isOk());
+    ASSERT_TRUE(io::loadRig(man, &source).isOk());
+    ASSERT_EQ(rig.warnings.size(), 1u);
+    EXPECT_NE(rig.warnings[0].find("skin 0 places its meshes at scales 1 to 2 at rest"), std::string::npos)
+        << rig.warnings[0];
+    EXPECT_EQ(rig.mesh.positions, source.mesh.positions);
+}
+
+// gltfpack, as a web pipeline runs it, quantises a character: integer
+// positions whose dequantisation it folds into the inverse bind matrices
+// (a 1e-4 scale), and UVs whose dequantisation is the base colour
+// texture's KHR_texture_transform.  --control auto bakes such a capture at
+// the scene's scale (a displacement baked in the integer units blew the
+// posed rig up 20x, while the bake's own figures, relative to that bind
+// space's diagonal, read 0.05%), and carries its colour through the
+// transform (the pictures were 5 dB apart).
+TEST(Scene, AGltfpackedCharacterBakesAtItsScenesScale)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    if (std::system("command -v gltfpack >/dev/null 2>&1") != 0)
+        GTEST_FAIL() << "gltfpack is not installed (cmake/install-deps.sh installs it)";
+    const std::string dir = test::tempDir("scene_gltfpacked_character");
+    const std::string packed = dir + "/packed.glb", rigPath = dir + "/rig.glb";
+    test::CommandResult r = test::runCommand("gltfpack -i '" + man + "' -o '" + packed + "'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string bytes = test::readText(packed);
+    ASSERT_NE(bytes.find("KHR_mesh_quantization"), std::string::npos);
+    ASSERT_NE(bytes.find("KHR_texture_transform"), std::string::npos);
+    Rig source, quantised;
+    ASSERT_TRUE(io::loadRig(man, &source).isOk());
+    ASSERT_TRUE(io::loadRig(packed, &quantised).isOk());
+    EXPECT_TRUE(quantised.warnings.empty()) << quantised.warnings[0];
+    // Read at the scene's scale: the same bind-space size as the source's.
+    EXPECT_NEAR(test::boundingBoxDiagonal(quantised.mesh), test::boundingBoxDiagonal(source.mesh),
+                0.01f * test::boundingBoxDiagonal(source.mesh));
+
+    r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + packed + "' --control auto --control-faces 400 -o '" +
+                         rigPath + "' --report '" + dir + "/report.json'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(r.output.find("texture transforms"), std::string::npos) << r.output;
+    const json report = json::parse(test::readText(dir + "/report.json"));
+    ASSERT_EQ(report["posed"]["frames"].size(), 10u);
+    for (const json& f : report["posed"]["frames"]) {
+        EXPECT_LT(f["rms"].get<double>(), 0.002) << "at " << f["time"];
+        EXPECT_GT(f["psnr"].get<double>(), 17.0) << "at " << f["time"];
+    }
+    // Posed by the runtime, the rig stands where the unpacked source does.
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(rigPath, &rig).isOk());
+    DisplacementMap map;
+    io::loadRigDisplacementMap(rigPath, rig, &map);
+    std::unique_ptr<Surface> layered, original;
+    SurfaceOptions plain;
+    plain.displace = false;
+    plain.level = 0;
+    ASSERT_TRUE(Surface::create(&layered, rig, &map).isOk());
+    ASSERT_TRUE(Surface::create(&original, source, nullptr, plain).isOk());
+    for (float t : {0.25f, 1.0f, 1.75f}) {
+        ASSERT_TRUE(layered->setAnimationTime(0, t).isOk());
+        ASSERT_TRUE(original->setAnimationTime(0, t).isOk());
+        // The boxes of the evaluated surfaces (bounds() pads the layered
+        // one by its displacement's range).
+        auto box = [](Surface& s, glm::vec3* lo, glm::vec3* hi) {
+            std::vector<glm::vec3> p(s.vertexCount());
+            ASSERT_TRUE(s.evaluate(p.data(), nullptr, p.size()).isOk());
+            *lo = glm::vec3(1e30f);
+            *hi = glm::vec3(-1e30f);
+            for (const glm::vec3& q : p) {
+                *lo = glm::min(*lo, q);
+                *hi = glm::max(*hi, q);
+            }
+        };
+        glm::vec3 lo, hi, slo, shi;
+        box(*layered, &lo, &hi);
+        box(*original, &slo, &shi);
+        const float diag = glm::length(shi - slo);
+        EXPECT_LT(glm::length(lo - slo), 0.02f * diag) << "at " << t;
+        EXPECT_LT(glm::length(hi - shi), 0.02f * diag) << "at " << t;
+    }
+}
+
 TEST(Scene, SkinWith256JointsRoundTripsAndPoses)
 {
     // A ribbon of 256 quads along x, quad k skinned to joint k of a

@@ -94,7 +94,8 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                     normal = -normal;  // either side drawn, lit from the front
                 glm::dvec4 colour(part.colour);
                 if (part.image && part.uvs)
-                    colour *= io::sampleImage(*part.image, uv);
+                    colour *= io::sampleImage(*part.image,
+                                              part.material ? glm::dvec2(part.material->textureUV(glm::vec2(uv))) : uv);
                 const double lit = 0.3 + 0.7 * std::max(0.0, glm::dot(normal, glm::dvec3(light)));
                 depth[at] = float(z);
                 for (int k = 0; k < 3; ++k)
@@ -154,8 +155,10 @@ PictureMesh pictureOf(const io::RenderMesh& layout, const std::vector<glm::vec3>
                 for (const io::RenderAttribute& a : layout.attributes)
                     if (a.name == set && a.components == 2 && a.values.size() == 2 * layout.vertexCount())
                         part.uvs = a.values.data();
-                if (part.uvs)
+                if (part.uvs) {
                     part.image = &materials.images[size_t(info.image)];
+                    part.material = &info;
+                }
             }
         }
         m.parts.push_back(part);

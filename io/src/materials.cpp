@@ -32,7 +32,48 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
     return i < doc.imageBytes.size() ? doc.imageBytes[i] : std::vector<unsigned char>();
 }
 
+// KHR_texture_transform of a texture reference, into `mat`; false (mat
+// unchanged) when its values are not finite numbers of the right shape.
+bool readTextureTransform(const tinygltf::ExtensionMap& extensions, MaterialInfo* mat)
+{
+    const auto it = extensions.find("KHR_texture_transform");
+    if (it == extensions.end() || !it->second.IsObject())
+        return true;
+    const tinygltf::Value& t = it->second;
+    MaterialInfo m = *mat;
+    auto number = [](const tinygltf::Value& v, float* out) {
+        if (!v.IsNumber() && !v.IsInt())
+            return false;
+        const double d = v.IsInt() ? double(v.Get<int>()) : v.Get<double>();
+        *out = float(d);
+        return std::isfinite(d) && std::isfinite(*out);
+    };
+    auto pair = [&](const char* key, glm::vec2* out) {
+        if (!t.Has(key))
+            return true;
+        const tinygltf::Value& a = t.Get(key);
+        return a.IsArray() && a.ArrayLen() == 2 && number(a.Get(0), &out->x) && number(a.Get(1), &out->y);
+    };
+    if (!pair("offset", &m.uvOffset) || !pair("scale", &m.uvScale) ||
+        (t.Has("rotation") && !number(t.Get("rotation"), &m.uvRotation)))
+        return false;
+    if (t.Has("texCoord")) {
+        if (!t.Get("texCoord").IsInt() || t.Get("texCoord").Get<int>() < 0 || t.Get("texCoord").Get<int>() > 7)
+            return false;
+        m.texCoord = t.Get("texCoord").Get<int>();
+    }
+    *mat = m;
+    return true;
+}
+
 }  // namespace
+
+glm::vec2 MaterialInfo::textureUV(glm::vec2 uv) const
+{
+    const glm::vec2 s = uvScale * uv;
+    const float c = std::cos(uvRotation), n = std::sin(uvRotation);
+    return uvOffset + glm::vec2(c * s.x + n * s.y, c * s.y - n * s.x);
+}
 
 glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
 {
@@ -83,6 +124,9 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 used[size_t(src)] = true;
             }
             mat.texCoord = std::clamp(in.pbrMetallicRoughness.baseColorTexture.texCoord, 0, 7);
+            if (!readTextureTransform(in.pbrMetallicRoughness.baseColorTexture.extensions, &mat) && warnings)
+                warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
+                                    "): its KHR_texture_transform is not numbers of the right shape; ignored");
         }
         mat.alphaMode = in.alphaMode == "MASK" ? AlphaMode::Mask : in.alphaMode == "BLEND" ? AlphaMode::Blend
                                                                                            : AlphaMode::Opaque;
@@ -134,7 +178,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             continue;
         }
         for (uint32_t v = 0; v < part.vertexCount; ++v)
-            s.fileUVs[part.firstVertex + v] = glm::vec2(uv[2 * v], uv[2 * v + 1]);
+            s.fileUVs[part.firstVertex + v] = mat.textureUV(glm::vec2(uv[2 * v], uv[2 * v + 1]));
     }
     *out = std::move(s);
     return Status::ok();
@@ -177,8 +221,6 @@ std::string featuresNotCarried(const Rig& rig, int main)
             ++counts["emissive colours"];
         if (pbr.metallicRoughnessTexture.index >= 0)
             ++counts["metallic-roughness textures"];
-        if (pbr.baseColorTexture.extensions.count("KHR_texture_transform"))
-            ++counts["texture transforms"];
         for (const auto& e : in.extensions)
             ++counts[e.first];
         if (kept && (pbr.metallicFactor != kept->pbrMetallicRoughness.metallicFactor ||

@@ -82,6 +82,7 @@ struct SceneGeometry {
     size_t passThrough = 0;  // point and line primitives, kept untouched
     size_t missingUV = 0;    // triangle parts without the displacement UV set
     std::string firstMissingUV;
+    bool bindScaleWarned = false;  // a skin's joints disagree on the bind space's scale (said once)
     std::vector<uint32_t> fileTriangles;      // every triangle in file vertices, degenerate ones included
     std::vector<uint32_t> fileTriangleParts;  // per file triangle: its part
 };

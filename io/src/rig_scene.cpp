@@ -186,6 +186,52 @@ void weldFileVertices(const std::vector<float>& pos, std::vector<glm::vec2>&& uv
     }
 }
 
+// The one uniform scale that skin `skin` puts between its meshes' bind
+// space and the scene at rest: every joint's rest world matrix times its
+// inverse bind matrix a similarity of that scale.  gltfpack puts its
+// position dequantisation there, and exporters an armature's unit scale.
+// A displacement is baked in bind space and applied to the posed surface,
+// so the bind space is read at the scene's scale (RigPart::toScene; the
+// inverse bind matrices take the scale out again: readSkeleton).  1 where
+// the joints disagree: then *spread holds the smallest and largest scale.
+float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<glm::mat4>& world, glm::vec2* spread)
+{
+    *spread = glm::vec2(1.0f);
+    if (skin < 0 || size_t(skin) >= model.skins.size())
+        return 1.0f;
+    const tinygltf::Skin& sk = model.skins[size_t(skin)];
+    std::vector<float> m;
+    if (sk.joints.empty() || sk.inverseBindMatrices < 0 ||
+        !readFloatAccessor(model, sk.inverseBindMatrices, 16, "inverseBindMatrices", &m) ||
+        m.size() < 16 * sk.joints.size())
+        return 1.0f;  // the skeleton reader names what is wrong
+    float lo = std::numeric_limits<float>::max(), hi = 0.0f;
+    bool similar = true;
+    for (size_t j = 0; j < sk.joints.size(); ++j) {
+        const int node = sk.joints[j];
+        if (node < 0 || size_t(node) >= world.size())
+            return 1.0f;
+        glm::mat4 ibm;
+        for (int k = 0; k < 16; ++k)
+            ibm[k / 4][k % 4] = m[16 * j + size_t(k)];
+        const glm::mat3 a(world[size_t(node)] * ibm);
+        const float c[3] = {glm::length(a[0]), glm::length(a[1]), glm::length(a[2])};
+        const float mean = (c[0] + c[1] + c[2]) / 3.0f;
+        if (!std::isfinite(mean) || !(mean > 0.0f))
+            return 1.0f;
+        for (int k = 0; k < 3; ++k)
+            similar = similar && std::fabs(c[k] - mean) <= 1e-3f * mean &&
+                      std::fabs(glm::dot(a[k], a[(k + 1) % 3])) <= 1e-3f * mean * mean;
+        lo = std::min(lo, mean);
+        hi = std::max(hi, mean);
+    }
+    *spread = glm::vec2(lo, hi);
+    if (!similar || hi - lo > 1e-3f * hi)
+        return 1.0f;
+    const float scale = 0.5f * (lo + hi);
+    return std::fabs(scale - 1.0f) <= 1e-4f ? 1.0f : scale;
+}
+
 Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
 {
     const tinygltf::Model& model = doc.model;
@@ -242,6 +288,21 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
             part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
             part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
+            if (part.skinned) {
+                glm::vec2 spread;
+                const int skin = model.nodes[size_t(part.node)].skin;
+                const float scale = bindSpaceScale(model, skin, world, &spread);
+                part.toScene = glm::scale(glm::mat4(1.0f), glm::vec3(scale));
+                if (scale == 1.0f && spread.y - spread.x > 0.01f * spread.y && !out->bindScaleWarned) {
+                    out->bindScaleWarned = true;
+                    char line[200];
+                    std::snprintf(line, sizeof(line),
+                                  "skin %d places its meshes at scales %.4g to %.4g at rest, not one: a displacement "
+                                  "baked in their bind space poses off by that ratio",
+                                  skin, double(spread.x), double(spread.y));
+                    rig.warnings.push_back(line);
+                }
+            }
             part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
                         " primitive " + std::to_string(p);
             const std::string what = path + ": " + part.name;

@@ -104,6 +104,17 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
         } else {
             sk.skin.inverseBindMatrices.assign(sk.skin.joints.size(), glm::mat4(1.0f));
         }
+        // The bind space was read at the scene's scale (bindSpaceScale):
+        // the inverse bind matrices take that scale out again.
+        for (const RigPart& part : rig->parts)
+            if (part.skinned) {
+                if (part.toScene != glm::mat4(1.0f)) {
+                    const glm::mat4 fromScene = glm::inverse(part.toScene);
+                    for (glm::mat4& ibm : sk.skin.inverseBindMatrices)
+                        ibm = ibm * fromScene;
+                }
+                break;
+            }
         // Influences per file vertex, then per topological vertex (its first copy).
         int sets = 1;
         for (size_t p = 0; p < rig->parts.size(); ++p)

@@ -25,6 +25,7 @@ struct PicturePart {
     glm::vec4 colour{1.0f};                ///< base colour factor
     const io::ImageRGBA* image = nullptr;  ///< base colour texture, or null
     const float* uvs = nullptr;            ///< 2 per vertex (the texture's UV set), or null
+    const io::MaterialInfo* material = nullptr;  ///< its texture's UV transform (null: none)
     bool flat = false;                     ///< face normals (glTF's rule for a primitive without NORMAL)
 };
 

@@ -24,7 +24,13 @@ struct MaterialInfo {
     std::string name;
     glm::vec4 baseColor{1.0f};  ///< baseColorFactor
     int image = -1;             ///< index into SceneMaterials::images of the base colour texture, or -1
-    int texCoord = 0;           ///< the TEXCOORD_n set the texture uses
+    int texCoord = 0;           ///< the TEXCOORD_n set the texture uses (KHR_texture_transform's when it names one)
+    /// KHR_texture_transform on the base colour texture (identity without):
+    /// uv' = uvOffset + R(uvRotation) (uvScale * uv), R turning counter-clockwise.
+    glm::vec2 uvOffset{0.0f}, uvScale{1.0f};
+    float uvRotation = 0.0f;
+    /// The texture's UV for a vertex's `uv` (the transform above applied).
+    glm::vec2 textureUV(glm::vec2 uv) const;
     AlphaMode alphaMode = AlphaMode::Opaque;
     float alphaCutoff = 0.5f;
     bool doubleSided = false;
@@ -40,7 +46,8 @@ struct SceneMaterials {
     std::vector<MaterialInfo> materials;  ///< the file's materials, plus glTF's default one last
     std::vector<ImageRGBA> images;        ///< decoded base colour images (same indices as the file's images)
     std::vector<int> partMaterial;        ///< per rig.parts entry: index into materials
-    std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour UVs ((0, 0) without)
+    std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour texture's UVs, transformed
+                                          ///< (MaterialInfo::textureUV); (0, 0) without
 };
 
 /// The image at UV `uv` as glTF's default sampler reads it: bilinear,
@@ -56,8 +63,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// What an automatic cage made from a glTF scene leaves behind (its colour
 /// re-baked into one base colour texture with one material's factors, its
 /// shape one skinned mesh), as a list for one line: normal, occlusion,
-/// emissive and metallic-roughness textures, an emissive colour, texture
-/// transforms, material extensions, materials whose metallic, roughness,
+/// emissive and metallic-roughness textures, an emissive colour,
+/// material extensions, materials whose metallic, roughness,
 /// alpha mode or sidedness differ from `main` (the material whose factors
 /// are kept; -1: none), vertex colours, point and line primitives, morph
 /// targets, cameras and lights,
