@@ -1128,9 +1128,21 @@ TEST(Scene, ASkinOfManyScalesIsNamed)
     ASSERT_TRUE(io::loadRig(dir + "/scales.glb", &rig).isOk());
     ASSERT_TRUE(io::loadRig(man, &source).isOk());
     ASSERT_EQ(rig.warnings.size(), 1u);
-    EXPECT_NE(rig.warnings[0].find("skin 0 places its meshes at scales 1 to 2 at rest"), std::string::npos)
+    EXPECT_NE(rig.warnings[0].find("skin 0 places its meshes at scales 1 to 2 at rest (by joint or axis)"),
+              std::string::npos)
         << rig.warnings[0];
     EXPECT_EQ(rig.mesh.positions, source.mesh.positions);
+    // One scale for every joint, but not the same along every axis.
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    m = reinterpret_cast<float*>(model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset);
+    for (size_t j = 0; j < a.count; ++j)
+        for (int r = 0; r < 4; ++r)
+            m[16 * j + 8 + size_t(r)] *= 0.5f;  // every inverse bind matrix's third column: half
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/axes.glb", true, true, false, true));
+    ASSERT_TRUE(io::loadRig(dir + "/axes.glb", &rig).isOk());
+    ASSERT_EQ(rig.warnings.size(), 1u);
+    EXPECT_NE(rig.warnings[0].find("skin 0 places its meshes at scales 0.5 to 1 at rest"), std::string::npos)
+        << rig.warnings[0];
 }
 
 // gltfpack, as a web pipeline runs it, quantises a character: integer

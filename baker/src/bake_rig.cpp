@@ -324,6 +324,10 @@ double fileSize(const std::string& path)
     return ec ? 0.0 : double(bytes);
 }
 
+// Below this picture PSNR (dB) against its source, a character's rig is
+// said not to look like it, in the summary's first line.
+constexpr double kLooksAlikeDb = 12.0;
+
 // Where the summary's time line goes until every phase has run.
 constexpr const char* kTimePlaceholder = "  time          (measured when the bake ends)";
 
@@ -1560,6 +1564,17 @@ void BakeJob::summarize()
         std::snprintf(buf, sizeof(buf), "; posed, %.4g%% RMS from the source at worst (animation %d at %.3g s)",
                       100.0 * worst.rms / diag, worst.animation, double(worst.time));
         promise += buf;
+        // The pictures as a last check: a rig posed in the wrong units, or
+        // coloured through the wrong UVs, measured near its source in a
+        // space of its own, but its pictures were 1-7 dB from the source's
+        // (a rig that looks like its source: 19-36 dB).
+        const FrameError& unlike = *std::min_element(
+            frames.begin(), frames.end(), [](const FrameError& a, const FrameError& b) { return a.psnr < b.psnr; });
+        if (unlike.psnr < kLooksAlikeDb) {
+            std::snprintf(buf, sizeof(buf), "; DOES NOT LOOK LIKE ITS SOURCE: picture PSNR %.3g dB (animation %d at %.3g s)",
+                          unlike.psnr, unlike.animation, double(unlike.time));
+            promise += buf;
+        }
     }
     appendf(&result->summary, "strata-bake: %s onto %s (%s scheme%s%s)%s\n", request.high.c_str(), request.control.c_str(),
                  schemeName(options.scheme), schemeReason.empty() ? "" : ": ", schemeReason.c_str(), promise.c_str());

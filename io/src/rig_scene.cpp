@@ -193,7 +193,8 @@ void weldFileVertices(const std::vector<float>& pos, std::vector<glm::vec2>&& uv
 // A displacement is baked in bind space and applied to the posed surface,
 // so the bind space is read at the scene's scale (RigPart::toScene; the
 // inverse bind matrices take the scale out again: readSkeleton).  1 where
-// the joints disagree: then *spread holds the smallest and largest scale.
+// there is no one uniform scale: then *spread holds the smallest and
+// largest scale any joint gives along any axis.
 float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<glm::mat4>& world, glm::vec2* spread)
 {
     *spread = glm::vec2(1.0f);
@@ -219,14 +220,15 @@ float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<g
         const float mean = (c[0] + c[1] + c[2]) / 3.0f;
         if (!std::isfinite(mean) || !(mean > 0.0f))
             return 1.0f;
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             similar = similar && std::fabs(c[k] - mean) <= 1e-3f * mean &&
                       std::fabs(glm::dot(a[k], a[(k + 1) % 3])) <= 1e-3f * mean * mean;
-        lo = std::min(lo, mean);
-        hi = std::max(hi, mean);
+            lo = std::min(lo, c[k]);
+            hi = std::max(hi, c[k]);
+        }
     }
     *spread = glm::vec2(lo, hi);
-    if (!similar || hi - lo > 1e-3f * hi)
+    if (!similar || hi - lo > 2e-3f * hi)
         return 1.0f;
     const float scale = 0.5f * (lo + hi);
     return std::fabs(scale - 1.0f) <= 1e-4f ? 1.0f : scale;
@@ -297,8 +299,8 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                     out->bindScaleWarned = true;
                     char line[200];
                     std::snprintf(line, sizeof(line),
-                                  "skin %d places its meshes at scales %.4g to %.4g at rest, not one: a displacement "
-                                  "baked in their bind space poses off by that ratio",
+                                  "skin %d places its meshes at scales %.4g to %.4g at rest (by joint or axis), not "
+                                  "one: a displacement baked in their bind space poses off by up to that ratio",
                                   skin, double(spread.x), double(spread.y));
                     rig.warnings.push_back(line);
                 }
