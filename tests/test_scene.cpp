@@ -1143,6 +1143,33 @@ TEST(Scene, ASkinOfManyScalesIsNamed)
     ASSERT_EQ(rig.warnings.size(), 1u);
     EXPECT_NE(rig.warnings[0].find("skin 0 places its meshes at scales 0.5 to 1 at rest"), std::string::npos)
         << rig.warnings[0];
+
+    // A bind space squashed 1000x along one axis (positions along it 1000x
+    // smaller, the inverse bind matrices 1000x larger there: the file poses
+    // as CesiumMan does) cannot be read at one scale: a character baked in
+    // it poses with its displacements squashed, and the bake says so in its
+    // first line as well as naming the skin (its pictures 9 dB from the
+    // source's; the RMS, of the squashed space's diagonal, 4.7%).
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    m = reinterpret_cast<float*>(model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset);
+    for (size_t j = 0; j < a.count; ++j)
+        for (int r = 0; r < 4; ++r)
+            m[16 * j + 8 + size_t(r)] *= 1000.0f;
+    tinygltf::Accessor& pa = model.accessors[size_t(model.meshes[0].primitives[0].attributes.at("POSITION"))];
+    const tinygltf::BufferView& pv = model.bufferViews[size_t(pa.bufferView)];
+    const size_t stride = pv.byteStride ? pv.byteStride : 12;
+    unsigned char* p = model.buffers[size_t(pv.buffer)].data.data() + pv.byteOffset + pa.byteOffset;
+    for (size_t v = 0; v < pa.count; ++v)
+        reinterpret_cast<float*>(p + v * stride)[2] *= 0.001f;
+    pa.minValues[2] *= 0.001;
+    pa.maxValues[2] *= 0.001;
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/squashed.glb", true, true, false, true));
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
+                                                   "/squashed.glb' --control auto --control-faces 400 -o '" + dir +
+                                                   "/rig.glb'");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("skin 0 places its meshes at scales"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("DOES NOT LOOK LIKE ITS SOURCE: picture PSNR"), std::string::npos) << r.output;
 }
 
 // gltfpack, as a web pipeline runs it, quantises a character: integer
