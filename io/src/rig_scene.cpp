@@ -192,7 +192,7 @@ void weldFileVertices(const std::vector<float>& pos, std::vector<glm::vec2>&& uv
 // position dequantisation there, and exporters an armature's unit scale.
 // A displacement is baked in bind space and applied to the posed surface,
 // so the bind space is read at the scene's scale (RigPart::toScene; the
-// inverse bind matrices take the scale out again: readSkeleton).  1 where
+// inverse bind matrices take the scale out again: loadSkeleton).  1 where
 // there is no one uniform scale: then *spread holds the smallest and
 // largest scale any joint gives along any axis.
 float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<glm::mat4>& world, glm::vec2* spread)
@@ -272,6 +272,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     std::vector<uint32_t> tri;  // file-vertex triangles
     std::vector<uint32_t> partOfTri;
     const std::string uvName = "TEXCOORD_" + std::to_string(texCoord);
+    std::map<int, float> skinScales;  // per skin: bindSpaceScale, measured once
     for (size_t m = 0; m < model.meshes.size(); ++m) {
         if (legacy && int(m) != out->blockMesh)
             continue;
@@ -291,9 +292,12 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
             part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
             if (part.skinned) {
-                glm::vec2 spread;
+                glm::vec2 spread(1.0f);
                 const int skin = model.nodes[size_t(part.node)].skin;
-                const float scale = bindSpaceScale(model, skin, world, &spread);
+                auto known = skinScales.find(skin);
+                if (known == skinScales.end())
+                    known = skinScales.emplace(skin, bindSpaceScale(model, skin, world, &spread)).first;
+                const float scale = known->second;
                 part.toScene = glm::scale(glm::mat4(1.0f), glm::vec3(scale));
                 if (scale == 1.0f && spread.y - spread.x > 0.01f * spread.y && !out->bindScaleWarned) {
                     out->bindScaleWarned = true;
