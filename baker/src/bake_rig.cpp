@@ -793,12 +793,16 @@ void BakeJob::measureFrames()
     std::vector<glm::vec3> a(layered->vertexCount()), b(source->vertexCount());
     std::vector<glm::vec3> na(a.size()), nb(b.size());
     TriangleIndex ia, ib;
-    // Laid out for pictures once: the rig's parts and materials, the source's.
+    // Laid out for pictures once: the rig's parts and materials, the
+    // source's (its materials and decoded images as loadCharacter read them,
+    // which always hold glTF's default material; read here only if that failed).
     io::RenderMesh layoutA, layoutB;
-    io::SceneMaterials materialsA, materialsB;
+    io::SceneMaterials materialsA, sourceMaterials;
+    const io::SceneMaterials& materialsB = captureMaterials.materials.empty() ? sourceMaterials : captureMaterials;
     if (!(st = io::buildRenderMesh(written_, layered->plan(), &layoutA)) ||
         !(st = io::buildRenderMesh(highRig, source->plan(), &layoutB)) ||
-        !(st = io::loadSceneMaterials(written_, &materialsA)) || !(st = io::loadSceneMaterials(highRig, &materialsB)))
+        !(st = io::loadSceneMaterials(written_, &materialsA)) ||
+        (captureMaterials.materials.empty() && !(st = io::loadSceneMaterials(highRig, &sourceMaterials))))
         throw BakeError(request.output + ": laying the character out for its pictures: " + st.message());
     std::vector<uint8_t> pictureA, pictureB;
     for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
@@ -2334,10 +2338,12 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         if (Status tried = attempt(faces); tried.code() == StatusCode::Cancelled)
             return tried;
     Try* chosen = choice();
+    // The search's wall time (outside the delivered bake, for its time line).
+    const double searchMs = msSince(searchStart);
     // The search's lines for the summary and the report.
     char took[160];
     std::snprintf(took, sizeof(took), "%zu tr%s in %.1f s%s", tries.size(), tries.size() == 1 ? "y" : "ies",
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - searchStart).count(),
+                  searchMs / 1000.0,
                   reusable ? ", the chosen one delivered" : ", then the chosen count baked again with the map images");
     std::string note = "  cage faces    from the tolerance, " + std::string(took) +
                        " (closed-loop RMS / diagonal, rig bytes):";
@@ -2359,8 +2365,6 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
                                 {"failure", t.failure}});
     }
     note += "\n";
-    // The search's wall time outside the delivered bake, for its time line.
-    const double searchMs = msSince(searchStart);
     if (reusable)
         return guarded(request, [&] {
             chosen->job->deliver(result, note, searchReport, searchMs - chosen->job->wallMs());
