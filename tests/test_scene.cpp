@@ -7,6 +7,7 @@
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/materials.h"
+#include "strata/io/mesh_io.h"
 #include "strata/io/render_mesh.h"
 #include "strata/io/rig_io.h"
 #include "test_rigs.h"
@@ -1014,6 +1015,20 @@ TEST(Scene, StrippedRigsFailLoudlyOrWarn)
     ASSERT_TRUE(io::loadRig(dir + "/noblock2.glb", &out).isOk());
     ASSERT_EQ(out.warnings.size(), 1u);
     EXPECT_NE(out.warnings[0].find("the displacement is gone"), std::string::npos) << out.warnings[0];
+    // A surface Strata reconstructed never had a layer: it loads (as a
+    // capture or a cage) without the warning, and a tool that needs a rig
+    // says what it is rather than that a layer was stripped.
+    io::MeshView view;
+    view.positions = rig.mesh.positions.data();
+    view.vertexCount = rig.mesh.positions.size();
+    view.triangles = rig.mesh.triangles.data();
+    view.faceCount = rig.mesh.faceCount();
+    ASSERT_TRUE(io::writeMesh(dir + "/surface.glb", view).isOk());
+    ASSERT_TRUE(io::loadRig(dir + "/surface.glb", &out).isOk());
+    EXPECT_FALSE(out.hasDisplacement);
+    EXPECT_TRUE(out.warnings.empty()) << out.warnings[0];
+    EXPECT_NE(io::missingLayerCause(out).find("a displaced surface Strata reconstructed"), std::string::npos)
+        << io::missingLayerCause(out);
 }
 
 TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)

@@ -734,19 +734,19 @@ void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* note
 }
 
 
-Status prepareForWriting(const std::string& path, tinygltf::Model& model)
+Status prepareForWriting(const std::string& path, tinygltf::Model& model, bool surface)
 {
     Status st = packBuffers(model);
     if (!st)
         return Status(st.code(), path + ": " + st.message());
     model.asset.version = "2.0";
-    model.asset.generator = "Strata " STRATA_VERSION;
+    model.asset.generator = surface ? STRATA_SURFACE_GENERATOR : STRATA_RIG_GENERATOR;
     return Status::ok();
 }
 
-Status packAndWrite(const std::string& path, tinygltf::Model& model)
+Status packAndWrite(const std::string& path, tinygltf::Model& model, bool surface)
 {
-    Status st = prepareForWriting(path, model);
+    Status st = prepareForWriting(path, model, surface);
     return st ? writeGltfModel(path, model) : st;
 }
 

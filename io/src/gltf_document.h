@@ -112,11 +112,21 @@ Status packBuffers(tinygltf::Model& model);
 /// the glTF-Validator warns otherwise).
 void rootSkinnedMeshNodes(tinygltf::Model& model, std::vector<std::string>* notes);
 
-/// packBuffers and Strata as the generator: what every writer does first.
-Status prepareForWriting(const std::string& path, tinygltf::Model& model);
+/// asset.generator of a rig: "Strata <version>".
+#define STRATA_RIG_GENERATOR "Strata " STRATA_VERSION
+/// asset.generator of what Strata writes that is not a rig (a reconstructed
+/// surface or scene, a mesh): the rig's, then kSurfaceGeneratorSuffix, so a
+/// reader tells a surface that never had a layer from a rig that lost it.
+#define STRATA_SURFACE_SUFFIX " (a displaced surface, no layer)"
+constexpr const char* kSurfaceGeneratorSuffix = STRATA_SURFACE_SUFFIX;
+#define STRATA_SURFACE_GENERATOR STRATA_RIG_GENERATOR STRATA_SURFACE_SUFFIX
+
+/// packBuffers and Strata as the generator (a rig's, or with `surface` a
+/// surface's): what every writer does first.
+Status prepareForWriting(const std::string& path, tinygltf::Model& model, bool surface = false);
 
 /// prepareForWriting, then an atomic write (.glb/.gltf).
-Status packAndWrite(const std::string& path, tinygltf::Model& model);
+Status packAndWrite(const std::string& path, tinygltf::Model& model, bool surface = false);
 
 /// As packAndWrite, for .glb, with vertex attributes and triangle indices
 /// coded by EXT_meshopt_compression (no uncompressed fallback).

@@ -3,6 +3,7 @@
 #include "gltf_mesh_writer.h"
 
 #include "gltf_accessor.h"
+#include "gltf_document.h"
 
 #include "strata/io/file.h"
 
@@ -86,7 +87,7 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
 
     tinygltf::Model model;
     model.asset.version = "2.0";
-    model.asset.generator = "Strata " STRATA_VERSION;
+    model.asset.generator = STRATA_SURFACE_GENERATOR;
     model.buffers.resize(1);
     tinygltf::Primitive prim;
     prim.mode = TINYGLTF_MODE_TRIANGLES;

@@ -67,6 +67,15 @@ bool writtenByStrata(const tinygltf::Model& model)
     return model.asset.generator.rfind("Strata", 0) == 0;
 }
 
+// A surface or scene Strata reconstructed (or another mesh it wrote): never
+// a rig, so it has no layer to lose.
+bool strataSurface(const tinygltf::Model& model)
+{
+    const std::string& g = model.asset.generator;
+    const size_t n = std::char_traits<char>::length(kSurfaceGeneratorSuffix);
+    return writtenByStrata(model) && g.size() >= n && g.compare(g.size() - n, n, kSurfaceGeneratorSuffix) == 0;
+}
+
 std::string generatorName(const tinygltf::Model& model)
 {
     return model.asset.generator.empty() ? std::string("a tool that names no generator")
@@ -363,6 +372,8 @@ std::string missingLayerCause(const Rig& rig)
     if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), kLayerExtension) !=
         model.extensionsUsed.end())
         return std::string("it declares ") + kLayerExtension + " but no mesh carries the layer: a tool dropped it";
+    if (strataSurface(model))
+        return "it is a displaced surface Strata reconstructed, its detail already in its triangles, not a rig";
     if (writtenByStrata(model))
         return "Strata wrote it, but its displacement layer is gone: another tool stripped it";
     return "written by " + generatorName(model) + ", a tool that drops " + kLayerExtension +
@@ -660,7 +671,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                model.extensionsUsed.end()) {
         rig.warnings.push_back(std::string("declares ") + kLayerExtension +
                                " but no mesh carries the layer (dropped by another tool?): the displacement is gone");
-    } else if (writtenByStrata(model)) {
+    } else if (writtenByStrata(model) && !strataSurface(model)) {
         rig.warnings.push_back("written by " + printable(model.asset.generator, 40) +
                                " but has no displacement layer (stripped by another tool?): the displacement is gone");
     } else if (hasOrphanGreyImage(*doc)) {

@@ -218,7 +218,7 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
     if (notes && droppedTargets)
         notes->push_back(std::to_string(droppedTargets) + " primitives had morph targets, which are not refined yet");
     rootSkinnedMeshNodes(model, notes);
-    return packAndWrite(path, model);
+    return packAndWrite(path, model, true);
 }
 
 }  // namespace io
