@@ -35,10 +35,26 @@ fetch() {  # fetch PACKAGE FOLDER: Debian's source of PACKAGE unpacked as deps/F
   rm -rf "$work" && mkdir -p "$work"
   if ! (cd "$work" && apt-get source --download-only "$package" >/dev/null 2>&1); then
     enable_sources
-    (cd "$work" && apt-get source --download-only "$package" >/dev/null) || {
+    # The newest version first; a mirror may list a security update's
+    # source it does not serve (libzstd 1.5.4+dfsg2-5+deb12u1, 404 on
+    # 2026-11-29): then each older version the index lists.
+    local fetched=0 version
+    if (cd "$work" && apt-get source --download-only "$package" >/dev/null 2>&1); then
+      fetched=1
+    else
+      for version in $(apt-cache showsrc "$package" | sed -n 's/^Version: //p' | sort -rV); do
+        rm -rf "$work" && mkdir -p "$work"
+        if (cd "$work" && apt-get source --download-only "$package=$version" >/dev/null 2>&1); then
+          echo "strata: took Debian's source of $package $version (a newer one listed could not be fetched)" >&2
+          fetched=1
+          break
+        fi
+      done
+    fi
+    if [ "$fetched" = 0 ]; then
       echo "strata: could not fetch Debian's source of $package (apt-get source; enable deb-src lines)" >&2
       exit 1
-    }
+    fi
   fi
   local archive
   archive="$(ls "$work"/*.orig.tar.* | grep -v '\.asc$' | head -1)"
