@@ -1575,8 +1575,10 @@ void BakeJob::summarize()
         // the face-count search does not judge: said where it goes past, not
         // left to read (CesiumMan: 2.7x at 0.01%, 1,000 faces).
         if (metAtRest && worst.rms / diag > request.tolerance) {
-            std::snprintf(buf, sizeof(buf), ", %.2gx --tolerance: the skin carried to the cage (the tolerance is met at "
-                          "rest; more %s carry it closer)", worst.rms / diag / request.tolerance,
+            std::snprintf(buf, sizeof(buf),
+                          ", %.2gx --tolerance: the skin carried to the cage (the tolerance is met at rest; more %s "
+                          "carry it closer)",
+                          worst.rms / diag / request.tolerance,
                           request.control == "auto" ? "--control-faces" : "control faces");
             promise += buf;
         }
