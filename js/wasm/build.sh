@@ -38,19 +38,17 @@ fetch() {  # fetch PACKAGE FOLDER: Debian's source of PACKAGE unpacked as deps/F
     # The newest version first; a mirror may list a security update's
     # source it does not serve (libzstd 1.5.4+dfsg2-5+deb12u1, 404 on
     # 2026-11-29): then each older version the index lists.
-    local fetched=0 version
-    if (cd "$work" && apt-get source --download-only "$package" >/dev/null 2>&1); then
-      fetched=1
-    else
-      for version in $(apt-cache showsrc "$package" | sed -n 's/^Version: //p' | sort -rV); do
-        rm -rf "$work" && mkdir -p "$work"
-        if (cd "$work" && apt-get source --download-only "$package=$version" >/dev/null 2>&1); then
-          echo "strata: took Debian's source of $package $version (a newer one listed could not be fetched)" >&2
-          fetched=1
-          break
-        fi
-      done
-    fi
+    local fetched=0 newest="" version
+    for version in $(apt-cache showsrc "$package" | sed -n 's/^Version: //p' | sort -rV); do
+      [ -n "$newest" ] || newest="$version"
+      rm -rf "$work" && mkdir -p "$work"
+      if (cd "$work" && apt-get source --download-only "$package=$version" >/dev/null 2>&1); then
+        [ "$version" = "$newest" ] ||
+          echo "strata: took Debian's source of $package $version ($newest is listed but could not be fetched)" >&2
+        fetched=1
+        break
+      fi
+    done
     if [ "$fetched" = 0 ]; then
       echo "strata: could not fetch Debian's source of $package (apt-get source; enable deb-src lines)" >&2
       exit 1
