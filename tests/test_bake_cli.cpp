@@ -499,6 +499,70 @@ TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
 // the capture, a rig named through a folder that does not exist
 // ("z/../control.glb"), and no folder is made before the checks pass.  A
 // report that is a folder fails before any output (rig, EXR) is replaced.
+// Vertices no triangle uses (faces deleted by an editor that keeps their
+// vertices, a stray point) are no surface.  They are left out of the capture
+// and of an OBJ control mesh before anything maps, fits or measures them,
+// and the summary says so.  A head with a hole cut into it, the hole's
+// vertices left floating over it and one stray vertex far away, baked onto
+// itself, is its own surface: no error, and the diagonal is the surface's.
+// (The control mesh's unused vertices made the rig fail its own check; the
+// capture's were fitted towards: 0.055% RMS on spot cut so.)
+TEST(BakeCli, VerticesNoTriangleUsesAreLeftOut)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_cli_unused");
+    ControlMesh head = examples::makeHead(3);
+    head.uvs.clear();
+    head.uvIndices.clear();
+    glm::vec3 lo = head.positions[0], hi = lo;
+    for (const glm::vec3& p : head.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const float diagonal = glm::length(hi - lo);
+    // The faces whose corners all lie within a fifth of the diagonal of
+    // vertex 0 are cut; their vertices stay in the file.
+    std::vector<uint32_t> kept;
+    for (size_t f = 0; f < head.faceCount(); ++f) {
+        bool near = true;
+        for (int k = 0; k < 3; ++k)
+            near = near && glm::length(head.positions[head.triangles[3 * f + size_t(k)]] - head.positions[0]) <
+                               0.2f * diagonal;
+        if (!near)
+            kept.insert(kept.end(), &head.triangles[3 * f], &head.triangles[3 * f] + 3);
+    }
+    ASSERT_LT(kept.size(), head.triangles.size());
+    head.triangles = kept;
+    std::set<uint32_t> used(kept.begin(), kept.end());
+    const size_t unused = head.positions.size() + 1 - used.size();
+    head.positions.push_back(hi + 100.0f * (hi - lo));  // the stray vertex
+    writeObj(dir + "/cut.obj", head);
+
+    const Result r = run("--high " + dir + "/cut.obj --control " + dir + "/cut.obj --error-levels 0 --report " + dir +
+                         "/report.json -o " + dir + "/rig.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find(std::to_string(unused) + " vertices no triangle uses (left out)"), std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("cut.obj: " + std::to_string(unused) + " vertices no triangle uses left out"),
+              std::string::npos)
+        << r.output;
+    const nlohmann::json report = nlohmann::json::parse(test::readText(dir + "/report.json"));
+    EXPECT_EQ(report["high"]["vertices"].get<size_t>(), used.size());
+    EXPECT_EQ(report["high"]["unreferencedVertices"].get<size_t>(), unused);
+    EXPECT_EQ(report["control"]["vertices"].get<size_t>(), used.size());
+    // The surface's own diagonal (the head's, or less where the cut took
+    // an extreme), not the stray vertex's 100 diagonals.
+    EXPECT_LE(report["high"]["diagonal"].get<double>(), 1.0001 * double(diagonal));
+    ASSERT_FALSE(report["closedLoop"].empty());
+    for (const nlohmann::json& level : report["closedLoop"]) {
+        EXPECT_LT(level["forwardRms"].get<double>(), 1e-6) << level;
+        EXPECT_LT(level["backwardRms"].get<double>(), 1e-6) << level;
+    }
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &rig).isOk());
+    EXPECT_EQ(rig.mesh.positions.size(), used.size());
+}
+
 TEST(BakeCli, InputsAreNeverOverwrittenAndFailuresLeaveNothing)
 {
     const std::string dir = strata::test::tempDir("bake_cli_overwrite");

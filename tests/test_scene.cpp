@@ -608,6 +608,43 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
         EXPECT_LT(f["rms"].get<double>(), 0.01) << "at " << f["time"];
 }
 
+// A character whose file keeps vertices no triangle uses (faces deleted in
+// an editor, their skinned vertices left in the buffer): they are left out
+// of the capture and of the character read from it alike, skin weights
+// with them, so the cage still takes the character's skin and animation.
+TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_unused_vertices");
+    const std::string input = dir + "/cut.glb", rigPath = dir + "/rig.glb";
+    {
+        tinygltf::Model m;
+        tinygltf::Primitive p;
+        std::vector<uint32_t> idx;
+        ASSERT_TRUE(takeFirstPrimitive(man, &m, &p, &idx));
+        // Every fifth run of 40 faces is cut; the vertices stay.
+        std::vector<uint32_t> kept;
+        for (size_t f = 0; f < idx.size() / 3; ++f)
+            if ((f / 40) % 5 != 0)
+                kept.insert(kept.end(), &idx[3 * f], &idx[3 * f] + 3);
+        p.indices = addAccessor(m, kept.data(), kept.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                TINYGLTF_TYPE_SCALAR, kept.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        m.meshes[0].primitives.push_back(p);
+        tinygltf::TinyGLTF io;
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
+    }
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input +
+                                                   " --control auto --control-faces 400 -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find(" vertices no triangle uses (left out)"), std::string::npos) << r.output;
+    Rig source, rig;
+    ASSERT_TRUE(io::loadRig(input, &source).isOk());
+    ASSERT_TRUE(io::loadRig(rigPath, &rig).isOk());
+    EXPECT_EQ(rig.skeleton.skin.joints.size(), source.skeleton.skin.joints.size());
+    EXPECT_EQ(rig.skeleton.animations.size(), source.skeleton.animations.size());
+    EXPECT_EQ(rig.skeleton.weights.joints.size(), rig.mesh.positions.size() * size_t(rig.skeleton.weights.influences));
+}
+
 // --control auto re-bakes a character's colour into one base colour texture
 // with the factors of the material most of it wears (metallic, roughness,
 // alpha mode and cutoff, sidedness).  What that and one skinned mesh cannot

@@ -852,7 +852,10 @@ void BakeJob::loadCharacter()
         highRig = Rig();
         return;
     }
-    // The same scene reader welds both: the capture's vertices are the rig's.
+    // The same scene reader welds both, and the vertices no triangle uses
+    // are left out of both: the capture's vertices are the rig's.
+    if (!(st = keepCaptureVertices(&highRig, highStats)))
+        throw BakeError(request.high + ": " + st.message());
     if (highRig.mesh.positions.size() != high.positions.size())
         throw BakeError(request.high + ": the capture and its character do not weld to the same vertices");
     character = !highRig.skeleton.empty() && !highRig.skeleton.weights.weights.empty();
@@ -1599,11 +1602,11 @@ void BakeJob::summarize()
     appendf(&result->summary, "  high-res      %zu vertices, %zu triangles (median edge %.4g)\n", rep.highVertices,
                 rep.highTriangles, rep.typicalEdge);
     if (highStats.polygonsTriangulated || highStats.duplicateVertices || highStats.degenerateTriangles ||
-        highStats.nonManifoldEdges)
+        highStats.nonManifoldEdges || highStats.unreferencedVertices)
         appendf(&result->summary, "  tolerated     %zu polygons triangulated, %zu duplicate vertices, %zu degenerate "
-                    "triangles, %zu non-manifold edges\n",
+                    "triangles, %zu non-manifold edges, %zu vertices no triangle uses (left out)\n",
                     highStats.polygonsTriangulated, highStats.duplicateVertices, highStats.degenerateTriangles,
-                    highStats.nonManifoldEdges);
+                    highStats.nonManifoldEdges, highStats.unreferencedVertices);
     if (highStats.drawnFlat)
         appendf(&result->summary, "  shading       flat, as glTF draws the capture (no primitive has NORMAL)\n");
     result->summary += searchNote_;
@@ -1711,7 +1714,8 @@ void BakeJob::writeReport()
                       {"polygonsTriangulated", highStats.polygonsTriangulated},
                       {"duplicateVertices", highStats.duplicateVertices},
                       {"degenerateTriangles", highStats.degenerateTriangles},
-                      {"nonManifoldEdges", highStats.nonManifoldEdges}};
+                      {"nonManifoldEdges", highStats.nonManifoldEdges},
+                      {"unreferencedVertices", highStats.unreferencedVertices}};
     report["control"] = {{"path", request.control},
                          {"vertices", control.positions.size()},
                          {"triangles", control.faceCount()},

@@ -100,6 +100,41 @@ Status checkReadBudget(const std::string& path, double maxMemoryMB)
                                                    " MB budget (raise it with --max-memory MB)");
 }
 
+// Leaves out the vertices no triangle uses, renumbering the rest in order;
+// returns how many, and (kept, when not null and any were left out) the
+// old number of each vertex kept.  In a capture such a vertex is no
+// surface, yet the mapping, the fit and the capture's size would take it
+// for one (a hole cut into a scan leaves its vertices floating over it, and
+// the cage was fitted towards them).  A control mesh's glTF vertices are its
+// triangles' corners, so such a vertex could not be written: the rig would
+// number its layer for one mesh and hold another.  Indices must be in range.
+template <typename Mesh>
+size_t dropUnreferencedVertices(Mesh* mesh, std::vector<uint32_t>* kept = nullptr)
+{
+    std::vector<uint32_t> renumbered(mesh->positions.size(), ~0u);
+    for (uint32_t v : mesh->triangles)
+        renumbered[v] = 0;
+    uint32_t next = 0;
+    for (size_t v = 0; v < renumbered.size(); ++v)
+        if (renumbered[v] == 0) {
+            renumbered[v] = next;
+            mesh->positions[next++] = mesh->positions[v];
+        }
+    const size_t dropped = mesh->positions.size() - next;
+    if (dropped == 0)
+        return 0;
+    mesh->positions.resize(next);
+    for (uint32_t& v : mesh->triangles)
+        v = renumbered[v];
+    if (kept) {
+        kept->clear();
+        for (size_t v = 0; v < renumbered.size(); ++v)
+            if (renumbered[v] != ~0u)
+                kept->push_back(uint32_t(v));
+    }
+    return dropped;
+}
+
 }  // namespace
 
 Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats, double maxMemoryMB)
@@ -137,10 +172,32 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     }
     if (!(st = checkHighMesh(mesh)))
         return Status(st.code(), path + ": " + st.message());
+    s.unreferencedVertices = dropUnreferencedVertices(&mesh, &s.keptVertices);
     countTolerated(mesh, &s);
     *out = std::move(mesh);
     if (stats)
         *stats = s;
+    return Status::ok();
+}
+
+Status keepCaptureVertices(Rig* rig, const HighMeshStats& stats)
+{
+    if (stats.keptVertices.empty())
+        return Status::ok();
+    const size_t before = rig->mesh.positions.size();
+    std::vector<uint32_t> kept;
+    if (dropUnreferencedVertices(&rig->mesh, &kept) != stats.unreferencedVertices || kept != stats.keptVertices)
+        return Status(StatusCode::InvalidData, "the capture and its character do not leave out the same unused vertices");
+    VertexWeights& w = rig->skeleton.weights;
+    const size_t k = size_t(std::max(0, w.influences));
+    if (k > 0 && w.joints.size() == before * k && w.weights.size() == before * k) {
+        for (size_t v = 0; v < kept.size(); ++v) {
+            std::copy_n(&w.joints[k * kept[v]], k, &w.joints[k * v]);
+            std::copy_n(&w.weights[k * kept[v]], k, &w.weights[k * v]);
+        }
+        w.joints.resize(k * kept.size());
+        w.weights.resize(k * kept.size());
+    }
     return Status::ok();
 }
 
@@ -168,6 +225,11 @@ Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB)
     }
     if (!(st = validateControlMesh(rig.mesh)))
         return Status(st.code(), path + ": not a usable control mesh: " + st.message());
+    // (A glTF's vertices stay: the rig is written as its source document.)
+    if (ext == ".obj")
+        if (const size_t dropped = dropUnreferencedVertices(&rig.mesh))
+            rig.warnings.push_back(std::to_string(dropped) + (dropped == 1 ? " vertex" : " vertices") +
+                                   " no triangle uses left out");
     *out = std::move(rig);
     return Status::ok();
 }

@@ -19,15 +19,25 @@ struct HighMeshStats {
     size_t duplicateVertices = 0;   ///< vertices at the exact position of an earlier one
     size_t degenerateTriangles = 0; ///< zero area (skipped by the rasteriser)
     size_t nonManifoldEdges = 0;    ///< edges with more than two faces (harmless to the bake)
+    size_t unreferencedVertices = 0; ///< used by no triangle: left out
+    /// When any were left out: per vertex kept, its number in the file's mesh.
+    std::vector<uint32_t> keptVertices;
     /// A glTF capture none of whose triangle primitives has NORMAL: glTF
     /// draws it with face normals, and its rig says so (DisplacementInfo::flatShading).
     bool drawnFlat = false;
 };
 
-/// Reads OBJ (own reader), PLY / STL / OFF (OpenMesh, polygons
-/// triangulated) or glTF / GLB.  Errors name the file.  A file whose
-/// reading would take more than maxMemoryMB is refused before it is read.
+/// Reads OBJ, PLY / STL / OFF (Strata's bounded readers, polygons
+/// triangulated) or glTF / GLB.  Vertices no triangle uses are left out
+/// (stats says how many, and which were kept).  Errors name the file.  A
+/// file whose reading would take more than maxMemoryMB is refused before it
+/// is read.
 Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* stats, double maxMemoryMB = 2048.0);
+
+/// Leaves out of a rig read from a capture (loadControlRig of the same
+/// file) the vertices loadHighMesh left out of its mesh (`stats`), with
+/// their skin weights, so that both number the same vertices.
+Status keepCaptureVertices(Rig* rig, const HighMeshStats& stats);
 
 /// Reads a control mesh: OBJ (with UVs when present) or glTF / GLB (a rig or
 /// any triangle mesh).  A glTF's skin, skeleton and animations go to
