@@ -563,6 +563,34 @@ TEST(BakeCli, VerticesNoTriangleUsesAreLeftOut)
     EXPECT_EQ(rig.mesh.positions.size(), used.size());
 }
 
+// A capture left far from the origin (a scan in survey coordinates) has
+// lost in 32-bit floats what no bake gives back; the bake says so, with the
+// rounding as a share of the capture's size.  The same head at the origin
+// is not warned about.
+TEST(BakeCli, ACaptureFarFromTheOriginIsNamed)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_cli_far");
+    ControlMesh high = examples::makeHead(3), control = examples::makeIcosphere(1);
+    writeObj(dir + "/near.obj", high);
+    writeObj(dir + "/near_control.obj", control);
+    for (ControlMesh* m : {&high, &control})
+        for (glm::vec3& p : m->positions)
+            p += glm::vec3(2.0e5f, 0.0f, 0.0f);
+    writeObj(dir + "/far.obj", high);
+    writeObj(dir + "/far_control.obj", control);
+    const Result far = run("--high " + dir + "/far.obj --control " + dir + "/far_control.obj --error-levels none -o " +
+                           dir + "/far.glb");
+    ASSERT_EQ(far.code, 0) << far.output;
+    // Floats at 2e5 are 1/64 apart: a head about 3.5 across loses 0.45% of it.
+    EXPECT_NE(far.output.find("far.obj: its coordinates reach 2e+05 from the origin"), std::string::npos) << far.output;
+    EXPECT_NE(far.output.find("are 0.0156 apart"), std::string::npos) << far.output;
+    const Result near = run("--high " + dir + "/near.obj --control " + dir + "/near_control.obj --error-levels none -o " +
+                            dir + "/near.glb");
+    ASSERT_EQ(near.code, 0) << near.output;
+    EXPECT_EQ(near.output.find("from the origin"), std::string::npos) << near.output;
+}
+
 TEST(BakeCli, InputsAreNeverOverwrittenAndFailuresLeaveNothing)
 {
     const std::string dir = strata::test::tempDir("bake_cli_overwrite");

@@ -533,6 +533,30 @@ private:
         result->warnings.push_back(w);
     }
 
+    // A capture far from the origin against its size has lost, in 32-bit
+    // floats (Strata's and glTF's), what no bake can give back: a scan left
+    // in survey coordinates.  Said where the rounding alone is over a tenth
+    // of the default tolerance.
+    void warnIfFarFromTheOrigin()
+    {
+        if (high.positions.empty())
+            return;
+        glm::vec3 lo = high.positions[0], hi = lo;
+        float farthest = 0.0f;
+        for (const glm::vec3& p : high.positions) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+            farthest = std::max({farthest, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+        }
+        const double diagonal = double(glm::length(hi - lo));
+        const double step = double(std::nextafter(farthest, std::numeric_limits<float>::infinity()) - farthest);
+        if (diagonal > 0.0 && step > 1e-5 * diagonal)
+            warn("%s: its coordinates reach %.3g from the origin, %.3g times its size, where 32-bit floats (Strata's "
+                 "and glTF's) are %.3g apart, %.2g%% of its diagonal: no bake comes closer to it than that; move it "
+                 "to the origin first (a node's translation can carry it back)",
+                 request.high.c_str(), double(farthest), double(farthest) / diagonal, step, 100.0 * step / diagonal);
+    }
+
     const BakeRequest request;  // a copy: a search's tries outlive the request it made
     BakeResult own_;
     BakeResult* result = &own_;  // filled as the phases run; deliver() hands it over
@@ -655,6 +679,7 @@ void BakeJob::loadInputs()
     } else if (!(st = loadHighMesh(request.high, &high, &highStats, request.maxMemoryMB))) {
         throw BakeError(st.message());
     }
+    warnIfFarFromTheOrigin();
     if (request.control == "auto") {
         if (controlFaces == 0)
             controlFaces = firstCageFaces(high.faceCount());
