@@ -1195,6 +1195,51 @@ TEST(Simplifier, ASeamOfCoincidentVerticesIsNoBoundary)
     EXPECT_LE(rmsToCage(fromCut), 1.2 * rmsToCage(fromWhole));
 }
 
+// An open capture (a scan with holes) keeps its rims in the cage: each
+// boundary edge holds the plane through it square to its face.  A sphere
+// (radius 1) with its cap above z = 0.8 cut away, a rim of radius 0.6:
+// decimated with plain quadrics the rim's chords cut across the hole and
+// the cage's faces there lie over no capture at all.  Decimated to 300
+// faces, the cage lies no farther from the cut sphere than the whole
+// sphere's cage of as many faces per area lies from it.
+TEST(Simplifier, AnOpenCapturesRimIsKept)
+{
+    const ControlMesh sphere = strata::examples::makeIcosphere(5);
+    strata::baker::TriangleMesh cut;
+    cut.positions = sphere.positions;
+    for (size_t f = 0; f < sphere.faceCount(); ++f) {
+        bool cap = true;
+        for (int k = 0; k < 3; ++k)
+            cap = cap && sphere.positions[sphere.triangles[3 * f + size_t(k)]].z > 0.8f;
+        if (!cap)
+            cut.triangles.insert(cut.triangles.end(), &sphere.triangles[3 * f], &sphere.triangles[3 * f] + 3);
+    }
+    ASSERT_GT(strata::baker::countBoundaryEdges(cut.triangles.data(), cut.faceCount()), 0u);
+    ControlMesh cage;
+    ASSERT_TRUE(strata::baker::decimateToControlMesh(cut, 300, &cage).isOk());
+    std::set<uint32_t> rim;
+    const strata::EdgeGroups edges = strata::groupEdges(cage.triangles.data(), cage.faceCount());
+    for (size_t e = 0; e < edges.edgeCount(); ++e)
+        if (edges.faceCountOf(e) == 1) {
+            const uint32_t c = edges.corners[edges.offsets[e]];
+            rim.insert({cage.triangles[c], cage.triangles[c / 3 * 3 + (c % 3 + 1) % 3]});
+        }
+    auto farthest = [](const ControlMesh& from, const strata::baker::TriangleMesh& to) {
+        strata::baker::TriangleIndex index;
+        index.build(to.positions.data(), to.triangles.data(), to.faceCount());
+        return strata::baker::sampleDistance(
+                   strata::baker::areaSamples(from.positions.data(), from.triangles.data(), from.faceCount(), 20000),
+                   index, 1, 1.0)
+            .max;
+    };
+    strata::baker::TriangleMesh whole;
+    whole.positions = sphere.positions;
+    whole.triangles = sphere.triangles;
+    ControlMesh wholeCage;  // the cut keeps 90% of the sphere's area
+    ASSERT_TRUE(strata::baker::decimateToControlMesh(whole, 333, &wholeCage).isOk());
+    EXPECT_LE(farthest(cage, cut), 1.25 * farthest(wholeCage, whole)) << rim.size() << " rim vertices";
+}
+
 // The face-count search's simplifier: a smaller count continues the last
 // one's collapses (the same greedy order, with the quadrics accumulated so
 // far) and gives the mesh a decimation of the whole capture to that count
