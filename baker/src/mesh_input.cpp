@@ -484,9 +484,9 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
         bool open = false;
         for (auto e : om.edges())
             open = open || om.is_boundary(e);
-        // An open static capture (a scan with holes) takes the quadrics
-        // with its rims held (kBoundaryWeight); a closed one, OpenMesh's
-        // own (the same face quadrics: the same cages as before).
+        // An open capture (a scan with holes, a character open at the neck)
+        // holds its rims (kBoundaryWeight); a closed static one takes
+        // OpenMesh's own quadrics (the same face quadrics, the same cages).
         if (posed || open) {
             std::vector<uint32_t> kept;
             for (auto v : om.vertices())
@@ -494,7 +494,7 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
             decimater.add(state->posedQuadric);
             decimater.module(state->posedQuadric)
                 .setPoses(posed ? posed_ : std::vector<glm::vec3>(), high_.positions.size(), std::move(kept));
-            if (!posed)
+            if (open)
                 decimater.module(state->posedQuadric).setBoundaryWeight(kBoundaryWeight);
         } else {
             decimater.add(state->quadric);
