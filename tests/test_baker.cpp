@@ -1240,6 +1240,48 @@ TEST(Simplifier, AnOpenCapturesRimIsKept)
     EXPECT_LE(farthest(cage, cut), 1.25 * farthest(wholeCage, whole)) << rim.size() << " rim vertices";
 }
 
+// A capture with a patch of faces turned against the rest (as some
+// exporters write them) decimates to a closed cage, every face the same way
+// round as its neighbours.  OpenMesh refuses a face that meets its
+// neighbour the wrong way round, so the patch's rim was cut open: even the
+// capture itself as its cage had holes.
+TEST(Simplifier, AFlippedPatchIsTurnedBack)
+{
+    const ControlMesh head = strata::examples::makeHead(4);
+    strata::baker::TriangleMesh high;
+    high.positions = head.positions;
+    high.triangles = head.triangles;
+    size_t flipped = 0;
+    for (size_t f = 0; f < high.faceCount(); ++f)
+        if (glm::length(high.positions[high.triangles[3 * f]] - high.positions[0]) < 0.5f) {
+            std::swap(high.triangles[3 * f + 1], high.triangles[3 * f + 2]);
+            ++flipped;
+        }
+    ASSERT_GT(flipped, 50u);
+    ASSERT_LT(2 * flipped, high.faceCount());
+    for (size_t faces : {size_t(400), high.faceCount()}) {
+        ControlMesh cage;
+        ASSERT_TRUE(strata::baker::decimateToControlMesh(high, faces, &cage).isOk());
+        EXPECT_EQ(cage.faceCount(), faces);
+        const strata::EdgeGroups edges = strata::groupEdges(cage.triangles.data(), cage.faceCount());
+        size_t open = 0, sameWay = 0;
+        for (size_t e = 0; e < edges.edgeCount(); ++e) {
+            open += edges.faceCountOf(e) != 2;
+            if (edges.faceCountOf(e) == 2)
+                sameWay += cage.triangles[edges.cornersOf(e)[0]] == cage.triangles[edges.cornersOf(e)[1]];
+        }
+        EXPECT_EQ(open, 0u) << faces;
+        EXPECT_EQ(sameWay, 0u) << faces;
+        // Turned as most of the capture was: outward, a positive volume.
+        double volume = 0.0;
+        for (size_t f = 0; f < cage.faceCount(); ++f)
+            volume += double(glm::dot(cage.positions[cage.triangles[3 * f]],
+                                      glm::cross(cage.positions[cage.triangles[3 * f + 1]],
+                                                 cage.positions[cage.triangles[3 * f + 2]])));
+        EXPECT_GT(volume, 0.0) << faces;
+    }
+}
+
 // The face-count search's simplifier: a smaller count continues the last
 // one's collapses (the same greedy order, with the quadrics accumulated so
 // far) and gives the mesh a decimation of the whole capture to that count
