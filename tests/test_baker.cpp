@@ -1282,6 +1282,35 @@ TEST(Simplifier, AFlippedPatchIsTurnedBack)
     }
 }
 
+// Faces OpenMesh cannot join (fins on an edge two faces already share) are
+// counted, for the bake to name; a face repeated on the same corners,
+// either way round, is no more surface and is not counted.
+TEST(Simplifier, FinsAreCountedAndRepeatsAreNot)
+{
+    const ControlMesh head = strata::examples::makeHead(3);
+    strata::baker::TriangleMesh high;
+    high.positions = head.positions;
+    high.triangles = head.triangles;
+    const size_t nf = high.faceCount();
+    for (size_t f = 0; f < 20; ++f) {
+        const uint32_t a = head.triangles[3 * f * 7], b = head.triangles[3 * f * 7 + 1];
+        high.positions.push_back(0.5f * (head.positions[a] + head.positions[b]) * 1.3f);
+        high.triangles.insert(high.triangles.end(), {a, b, uint32_t(high.positions.size() - 1)});
+    }
+    for (size_t f = 0; f < 30; ++f) {
+        const uint32_t* t = &head.triangles[3 * (f * 11 + 3)];
+        if (f % 2)
+            high.triangles.insert(high.triangles.end(), {t[0], t[1], t[2]});
+        else
+            high.triangles.insert(high.triangles.end(), {t[0], t[2], t[1]});
+    }
+    strata::baker::Simplifier simplifier(high);
+    ControlMesh cage;
+    ASSERT_TRUE(simplifier.simplify(nf, &cage).isOk());
+    EXPECT_EQ(simplifier.refusedFaces(), 20u);
+    EXPECT_EQ(cage.faceCount(), nf);
+}
+
 // The face-count search's simplifier: a smaller count continues the last
 // one's collapses (the same greedy order, with the quadrics accumulated so
 // far) and gives the mesh a decimation of the whole capture to that count

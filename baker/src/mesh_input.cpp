@@ -489,6 +489,7 @@ struct Simplifier::State {
     ModPosedQuadricT<OMesh>::Handle posedQuadric;  // a character's, instead of `quadric`
     OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
     size_t faces = 0;  // the live faces after the last simplify
+    size_t refused = 0;  // the capture's faces OpenMesh could not join
 };
 
 Simplifier::Simplifier(const TriangleMesh& high, std::vector<glm::vec3> posed)
@@ -526,9 +527,28 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
                 vh[v] = om.add_vertex(OMesh::Point(p.x, p.y, p.z));
                 om.property(original, vh[v]) = v;
             }
-        // Complex (non-manifold) faces are refused by OpenMesh and simply not added.
+        // A face on the corners of an earlier one (a duplicate, either way
+        // round) is no more surface; a face OpenMesh cannot join to the rest
+        // (a fin on an edge two faces already share, a second fan at a
+        // vertex) is counted: the cage goes without it.  (Given corners of
+        // its own, it would be a crack of coincident vertices, which the
+        // rig's glTF welds: a rig that does not load back.)
+        std::vector<std::array<uint32_t, 3>> sorted(start.size() / 3);
+        std::vector<uint32_t> order(sorted.size());
+        for (uint32_t f = 0; f < order.size(); ++f) {
+            sorted[f] = {start[3 * f], start[3 * f + 1], start[3 * f + 2]};
+            std::sort(sorted[f].begin(), sorted[f].end());
+            order[f] = f;
+        }
+        std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return sorted[a] < sorted[b]; });
+        std::vector<uint8_t> repeated(sorted.size(), 0);
+        for (size_t i = 1; i < order.size(); ++i)
+            repeated[order[i]] = sorted[order[i]] == sorted[order[i - 1]];
+        state->refused = 0;
         for (size_t f = 0; f < start.size() / 3; ++f)
-            om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]);
+            if (!repeated[f])
+                state->refused +=
+                    !om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]).is_valid();
         om.delete_isolated_vertices();
         om.garbage_collection();
         if (om.n_faces() == 0)
@@ -564,6 +584,7 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     }
     // The decimater counts the faces it starts from with the deleted ones
     // (n_faces() before a garbage collection): those are added to the target.
+    refusedFaces_ = state_->refused;
     state_->decimater->decimate_to_faces(0, targetFaces + (state_->om.n_faces() - state_->faces));
     // The mesh the decimater works on keeps its deleted elements (a later,
     // smaller count continues from it); a copy is compacted and read.

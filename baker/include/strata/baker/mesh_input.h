@@ -79,12 +79,17 @@ public:
     Simplifier(const Simplifier&) = delete;
     Simplifier& operator=(const Simplifier&) = delete;
     Status simplify(size_t targetFaces, ControlMesh* out);
+    /// The capture's faces (duplicates aside) the last simplify could not
+    /// join to the mesh it decimates (non-manifold: a fin on an edge two
+    /// faces already share, a second fan at a vertex): no cage has them.
+    size_t refusedFaces() const { return refusedFaces_; }
 
 private:
     struct State;  // OpenMesh's mesh and decimater (mesh_input.cpp)
     const TriangleMesh& high_;
     std::vector<glm::vec3> posed_;
     std::unique_ptr<State> state_;
+    size_t refusedFaces_ = 0;
 };
 
 /// Number of edges used by exactly one triangle (0 for a closed mesh).
