@@ -1283,8 +1283,9 @@ TEST(Simplifier, AFlippedPatchIsTurnedBack)
 }
 
 // Faces OpenMesh cannot join (fins on an edge two faces already share) are
-// counted, for the bake to name; a face repeated on the same corners,
-// either way round, is no more surface and is not counted.
+// kept aside and join every cage as they are, their corners kept through
+// the collapses; a face repeated on the same corners, either way round, is
+// no more surface and is left out.
 TEST(Simplifier, FinsAreCountedAndRepeatsAreNot)
 {
     const ControlMesh head = strata::examples::makeHead(3);
@@ -1305,10 +1306,28 @@ TEST(Simplifier, FinsAreCountedAndRepeatsAreNot)
             high.triangles.insert(high.triangles.end(), {t[0], t[2], t[1]});
     }
     strata::baker::Simplifier simplifier(high);
-    ControlMesh cage;
-    ASSERT_TRUE(simplifier.simplify(nf, &cage).isOk());
-    EXPECT_EQ(simplifier.refusedFaces(), 20u);
-    EXPECT_EQ(cage.faceCount(), nf);
+    for (size_t faces : {nf + 20, size_t(300)}) {
+        ControlMesh cage;
+        ASSERT_TRUE(simplifier.simplify(faces, &cage).isOk());
+        EXPECT_EQ(simplifier.refusedFaces(), 20u);
+        EXPECT_EQ(cage.faceCount(), faces);
+        // Every fin is in the cage, on its corners' places.
+        std::set<std::array<float, 9>> faceSet;
+        for (size_t f = 0; f < cage.faceCount(); ++f) {
+            std::array<float, 9> c;
+            for (size_t k = 0; k < 3; ++k)
+                for (int i = 0; i < 3; ++i)
+                    c[3 * k + size_t(i)] = cage.positions[cage.triangles[3 * f + k]][i];
+            faceSet.insert(c);
+        }
+        for (size_t f = nf; f < nf + 20; ++f) {
+            std::array<float, 9> c;
+            for (size_t k = 0; k < 3; ++k)
+                for (int i = 0; i < 3; ++i)
+                    c[3 * k + size_t(i)] = high.positions[high.triangles[3 * f + k]][i];
+            EXPECT_EQ(faceSet.count(c), 1u) << "fin " << f - nf << " with " << faces << " faces";
+        }
+    }
 }
 
 // The face-count search's simplifier: a smaller count continues the last

@@ -695,10 +695,6 @@ void BakeJob::loadInputs()
         Simplifier& simplifier = shared ? *shared->simplifier : *own;
         if (!(st = simplifier.simplify(controlFaces, &control)))
             throw BakeError(request.high + ": " + st.message());
-        if (const size_t refused = simplifier.refusedFaces())
-            warn("%s: %zu of its faces cannot join the automatic cage (non-manifold: a fin on an edge two faces "
-                 "already share, or a second fan of faces at a vertex), which goes without them: the rig misses them",
-                 request.high.c_str(), refused);
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";

@@ -489,7 +489,8 @@ struct Simplifier::State {
     ModPosedQuadricT<OMesh>::Handle posedQuadric;  // a character's, instead of `quadric`
     OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
     size_t faces = 0;  // the live faces after the last simplify
-    size_t refused = 0;  // the capture's faces OpenMesh could not join
+    std::vector<uint32_t> refused;  // the capture's faces OpenMesh could not join, 3 corners each
+    OpenMesh::VPropHandleT<uint32_t> original;  // the capture vertex of each mesh vertex
 };
 
 Simplifier::Simplifier(const TriangleMesh& high, std::vector<glm::vec3> posed)
@@ -503,7 +504,7 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     QuietOpenMesh quiet;
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
-    if (!state_ || targetFaces > state_->faces) {
+    if (!state_ || targetFaces > state_->faces + state_->refused.size() / 3) {
         auto state = std::make_unique<State>();
         OMesh& om = state->om;
         // Deleting (isolated vertices, collapsed elements) needs status flags.
@@ -528,11 +529,14 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
                 om.property(original, vh[v]) = v;
             }
         // A face on the corners of an earlier one (a duplicate, either way
-        // round) is no more surface; a face OpenMesh cannot join to the rest
-        // (a fin on an edge two faces already share, a second fan at a
-        // vertex) is counted: the cage goes without it.  (Given corners of
-        // its own, it would be a crack of coincident vertices, which the
-        // rig's glTF welds: a rig that does not load back.)
+        // round) is no more surface.  A face OpenMesh cannot join to the
+        // rest (a fin on an edge two faces already share, a second fan at a
+        // vertex) is kept aside: its corners are locked against collapses,
+        // and it joins every cage as it is (the runtime refines any
+        // topology).  Given corners of its own instead, it would be a crack
+        // of coincident vertices, which the rig's glTF welds: a rig that
+        // does not load back.  Spot with 50 fins: 0.073% RMS on the capture
+        // itself without them, 0.0000% with them.
         std::vector<std::array<uint32_t, 3>> sorted(start.size() / 3);
         std::vector<uint32_t> order(sorted.size());
         for (uint32_t f = 0; f < order.size(); ++f) {
@@ -544,15 +548,23 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
         std::vector<uint8_t> repeated(sorted.size(), 0);
         for (size_t i = 1; i < order.size(); ++i)
             repeated[order[i]] = sorted[order[i]] == sorted[order[i - 1]];
-        state->refused = 0;
+        state->refused.clear();
         for (size_t f = 0; f < start.size() / 3; ++f)
-            if (!repeated[f])
-                state->refused +=
-                    !om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]).is_valid();
+            if (!repeated[f] && !om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]).is_valid())
+                state->refused.insert(state->refused.end(), &start[3 * f], &start[3 * f] + 3);
         om.delete_isolated_vertices();
         om.garbage_collection();
         if (om.n_faces() == 0)
             return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
+        if (!state->refused.empty()) {
+            std::vector<uint8_t> corner(high_.positions.size(), 0);
+            for (uint32_t v : state->refused)
+                corner[v] = 1;
+            for (auto v : om.vertices())
+                if (corner[om.property(original, v)])
+                    om.status(v).set_locked(true);
+        }
+        state->original = original;
         state->decimater = std::make_unique<State::Decimater>(om);
         State::Decimater& decimater = *state->decimater;
         const size_t poses = posed_.size() / std::max<size_t>(1, high_.positions.size());
@@ -584,8 +596,10 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     }
     // The decimater counts the faces it starts from with the deleted ones
     // (n_faces() before a garbage collection): those are added to the target.
-    refusedFaces_ = state_->refused;
-    state_->decimater->decimate_to_faces(0, targetFaces + (state_->om.n_faces() - state_->faces));
+    // The faces kept aside count towards the target.
+    refusedFaces_ = state_->refused.size() / 3;
+    const size_t decimated = std::max<size_t>(4, targetFaces > refusedFaces_ ? targetFaces - refusedFaces_ : 0);
+    state_->decimater->decimate_to_faces(0, decimated + (state_->om.n_faces() - state_->faces));
     // The mesh the decimater works on keeps its deleted elements (a later,
     // smaller count continues from it); a copy is compacted and read.
     OMesh om = state_->om;
@@ -600,6 +614,19 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     for (auto f : om.faces())
         for (auto v : om.fv_range(f))
             cm.triangles.push_back(uint32_t(v.idx()));
+    // The faces kept aside, on their locked corners (or corners of their own).
+    if (!state_->refused.empty()) {
+        std::vector<int64_t> at(high_.positions.size(), -1);
+        for (auto v : om.vertices())
+            at[om.property(state_->original, v)] = v.idx();
+        for (uint32_t c : state_->refused) {
+            if (at[c] < 0) {
+                at[c] = int64_t(cm.positions.size());
+                cm.positions.push_back(high_.positions[c]);
+            }
+            cm.triangles.push_back(uint32_t(at[c]));
+        }
+    }
     Status st = validateControlMesh(cm);
     if (!st)
         return Status(st.code(), "the simplified control mesh is unusable: " + st.message());

@@ -81,7 +81,8 @@ public:
     Status simplify(size_t targetFaces, ControlMesh* out);
     /// The capture's faces (duplicates aside) the last simplify could not
     /// join to the mesh it decimates (non-manifold: a fin on an edge two
-    /// faces already share, a second fan at a vertex): no cage has them.
+    /// faces already share, a second fan at a vertex): their corners are
+    /// kept through the collapses and every cage has them as they are.
     size_t refusedFaces() const { return refusedFaces_; }
 
 private:
