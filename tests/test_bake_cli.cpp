@@ -563,6 +563,41 @@ TEST(BakeCli, VerticesNoTriangleUsesAreLeftOut)
     EXPECT_EQ(rig.mesh.positions.size(), used.size());
 }
 
+// An OBJ control mesh split at its seams (a glTF converted to OBJ, or a
+// triangle soup: every triangle its own three vertices) is welded, as a
+// glTF control is by the scene reader: it bakes as the shared-vertex mesh
+// does.  Its cracks were taken for holes and capped (a soup icosphere: every
+// triangle a "hole", closed with three more).
+TEST(BakeCli, AControlMeshSplitAtItsSeamsIsWelded)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_cli_soup");
+    writeInputs(dir);
+    const ControlMesh control = examples::makeIcosphere(1);
+    ControlMesh soup;
+    for (uint32_t v : control.triangles) {
+        soup.positions.push_back(control.positions[v]);
+        soup.triangles.push_back(uint32_t(soup.triangles.size()));
+    }
+    writeObj(dir + "/soup.obj", soup);
+    const Result shared = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 0 --report " +
+                              dir + "/shared.json -o " + dir + "/shared.glb");
+    ASSERT_EQ(shared.code, 0) << shared.output;
+    const Result split = run("--high " + dir + "/high.obj --control " + dir + "/soup.obj --error-levels 0 --report " +
+                             dir + "/soup.json -o " + dir + "/soup.glb");
+    ASSERT_EQ(split.code, 0) << split.output;
+    EXPECT_NE(split.output.find(std::to_string(soup.positions.size() - control.positions.size()) +
+                                " vertices at the place of another (a mesh split at its seams) are one with it"),
+              std::string::npos)
+        << split.output;
+    EXPECT_EQ(split.output.find("boundary loop"), std::string::npos) << split.output;
+    const nlohmann::json a = nlohmann::json::parse(test::readText(dir + "/shared.json")),
+                         b = nlohmann::json::parse(test::readText(dir + "/soup.json"));
+    EXPECT_EQ(b["control"]["vertices"], a["control"]["vertices"]);
+    EXPECT_EQ(b["control"]["triangles"], a["control"]["triangles"]);
+    EXPECT_EQ(b["closedLoop"], a["closedLoop"]);
+}
+
 // A capture left far from the origin (a scan in survey coordinates) has
 // lost in 32-bit floats what no bake gives back; the bake says so, with the
 // rounding as a share of the capture's size.  The same head at the origin
