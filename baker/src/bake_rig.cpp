@@ -689,11 +689,8 @@ void BakeJob::loadInputs()
         // cage keeps vertices where it bends.
         if (shared && !shared->simplifier)
             shared->simplifier = std::make_unique<Simplifier>(shared->high, posedCapture());
-        std::unique_ptr<Simplifier> own;
-        if (!shared)
-            own = std::make_unique<Simplifier>(high, posedCapture());
-        Simplifier& simplifier = shared ? *shared->simplifier : *own;
-        if (!(st = simplifier.simplify(controlFaces, &control)))
+        if (!(st = shared ? shared->simplifier->simplify(controlFaces, &control)
+                          : decimateToControlMesh(high, controlFaces, &control, posedCapture())))
             throw BakeError(request.high + ": " + st.message());
         if (uvMode == "keep")
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");

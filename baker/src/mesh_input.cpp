@@ -65,6 +65,33 @@ std::vector<uint32_t> firstAtPosition(const std::vector<glm::vec3>& positions)
     return first;
 }
 
+// Renumbers each face's corners to the first vertex at their position
+// (firstAtPosition's `first`) and leaves out the faces two of whose corners
+// become one, with their UV corners when `uvIndices` is not null; returns
+// how many faces were left out.
+size_t weldFaces(const std::vector<uint32_t>& first, std::vector<uint32_t>* triangles,
+                 std::vector<uint32_t>* uvIndices = nullptr)
+{
+    std::vector<uint32_t>& t = *triangles;
+    const size_t nf = t.size() / 3;
+    size_t kept = 0;
+    for (size_t f = 0; f < nf; ++f) {
+        const uint32_t a = first[t[3 * f]], b = first[t[3 * f + 1]], c = first[t[3 * f + 2]];
+        if (a == b || b == c || c == a)
+            continue;
+        t[3 * kept] = a;
+        t[3 * kept + 1] = b;
+        t[3 * kept + 2] = c;
+        if (uvIndices)
+            std::copy_n(&(*uvIndices)[3 * f], 3, &(*uvIndices)[3 * kept]);
+        ++kept;
+    }
+    t.resize(3 * kept);
+    if (uvIndices)
+        uvIndices->resize(3 * kept);
+    return nf - kept;
+}
+
 void countTolerated(const TriangleMesh& m, HighMeshStats* s)
 {
     // The mesh holds no NaN: equal bits are equal positions.
@@ -234,25 +261,9 @@ Status loadControlRig(const std::string& path, Rig* out, double maxMemoryMB)
     if (ext == ".obj") {
         ControlMesh& m = rig.mesh;
         const std::vector<uint32_t> first = firstAtPosition(m.positions);
-        size_t kept = 0;  // faces two of whose corners become one are left out
-        for (size_t f = 0; f < m.faceCount(); ++f) {
-            const uint32_t a = first[m.triangles[3 * f]], b = first[m.triangles[3 * f + 1]],
-                           c = first[m.triangles[3 * f + 2]];
-            if (a == b || b == c || c == a)
-                continue;
-            m.triangles[3 * kept] = a;
-            m.triangles[3 * kept + 1] = b;
-            m.triangles[3 * kept + 2] = c;
-            if (m.hasUVs())
-                std::copy_n(&m.uvIndices[3 * f], 3, &m.uvIndices[3 * kept]);
-            ++kept;
-        }
-        if (kept < m.faceCount()) {
-            rig.warnings.push_back(std::to_string(m.faceCount() - kept) +
+        if (const size_t collapsed = weldFaces(first, &m.triangles, m.hasUVs() ? &m.uvIndices : nullptr)) {
+            rig.warnings.push_back(std::to_string(collapsed) +
                                    " triangles with two corners at one place (zero area) are left out");
-            m.triangles.resize(3 * kept);
-            if (m.hasUVs())
-                m.uvIndices.resize(3 * kept);
             if (!(st = validateControlMesh(m)))
                 return Status(st.code(), path + ": not a usable control mesh: " + st.message());
         }
@@ -367,15 +378,8 @@ std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
     // kept apart, a seam is a boundary the decimation must keep whole, and
     // the cage carries it as a crack of coincident vertices (which a glTF
     // tool then welds).  Triangles that collapse in the welding are dropped.
-    const std::vector<uint32_t> weld = firstAtPosition(high.positions);
-    std::vector<uint32_t> welded;
-    welded.reserve(high.triangles.size());
-    for (size_t f = 0; f < high.faceCount(); ++f) {
-        const uint32_t a = weld[high.triangles[3 * f]], b = weld[high.triangles[3 * f + 1]],
-                       c = weld[high.triangles[3 * f + 2]];
-        if (a != b && b != c && c != a)
-            welded.insert(welded.end(), {a, b, c});
-    }
+    std::vector<uint32_t> welded = high.triangles;
+    weldFaces(firstAtPosition(high.positions), &welded);
     orientConsistently(&welded);
     if (welded.size() / 3 <= faces)
         return welded;
@@ -542,7 +546,7 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     QuietOpenMesh quiet;
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
-    if (!state_ || targetFaces > state_->faces + state_->refused.size() / 3) {
+    if (!state_ || targetFaces > state_->faces + refusedFaces()) {
         auto state = std::make_unique<State>();
         OMesh& om = state->om;
         // Deleting (isolated vertices, collapsed elements) needs status flags.
@@ -635,8 +639,8 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     // The decimater counts the faces it starts from with the deleted ones
     // (n_faces() before a garbage collection): those are added to the target.
     // The faces kept aside count towards the target.
-    refusedFaces_ = state_->refused.size() / 3;
-    const size_t decimated = std::max<size_t>(4, targetFaces > refusedFaces_ ? targetFaces - refusedFaces_ : 0);
+    const size_t refused = refusedFaces();
+    const size_t decimated = std::max<size_t>(4, targetFaces > refused ? targetFaces - refused : 0);
     state_->decimater->decimate_to_faces(0, decimated + (state_->om.n_faces() - state_->faces));
     // The mesh the decimater works on keeps its deleted elements (a later,
     // smaller count continues from it); a copy is compacted and read.
@@ -670,6 +674,11 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
         return Status(st.code(), "the simplified control mesh is unusable: " + st.message());
     *out = std::move(cm);
     return Status::ok();
+}
+
+size_t Simplifier::refusedFaces() const
+{
+    return state_ ? state_->refused.size() / 3 : 0;
 }
 
 Status decimateToControlMesh(const TriangleMesh& high, size_t targetFaces, ControlMesh* out,

@@ -83,14 +83,13 @@ public:
     /// join to the mesh it decimates (non-manifold: a fin on an edge two
     /// faces already share, a second fan at a vertex): their corners are
     /// kept through the collapses and every cage has them as they are.
-    size_t refusedFaces() const { return refusedFaces_; }
+    size_t refusedFaces() const;
 
 private:
     struct State;  // OpenMesh's mesh and decimater (mesh_input.cpp)
     const TriangleMesh& high_;
     std::vector<glm::vec3> posed_;
     std::unique_ptr<State> state_;
-    size_t refusedFaces_ = 0;
 };
 
 /// Number of edges used by exactly one triangle (0 for a closed mesh).
