@@ -157,8 +157,10 @@ function updateStats() {
   if (m) {
     const rig = m.rig;
     lines.push(`control: ${rig.controlVertexCount} vertices, scheme ${rig.scheme}`);
-    if (state.adaptive)
-      lines.push(`adaptive within ${$('pixelError').value} px, up to level ${m.level}:`,
+    // The tolerance the last frame was drawn at, not the slider's (which
+    // may have moved since): the figures beside it are that frame's.
+    if (state.adaptive && state.adaptive.pixelError !== undefined)
+      lines.push(`adaptive within ${state.adaptive.pixelError} px, up to level ${m.level}:`,
         `  ${m.refinedVertexCount} of ${m.surface.vertexCount} vertices,`);
     else
       lines.push(`level ${m.level} (recommended ${rig.recommendedLevel}): ${m.refinedVertexCount} vertices,`);
@@ -401,7 +403,9 @@ renderer.setAnimationLoop(() => {
   scene.updateMatrixWorld();
   if (state.adaptive && state.surface) {
     try {
-      state.surface.setView(camera, { pixelError: Number($('pixelError').value), heightPx: renderer.domElement.height });
+      const pixelError = Number($('pixelError').value);
+      state.surface.setView(camera, { pixelError, heightPx: renderer.domElement.height });
+      state.adaptive.pixelError = pixelError;
       if (state.falseColour && state.colouredVersion !== state.surface.adaptiveVersionShown) applyFalseColour();
     } catch (e) {
       message(e.message);
