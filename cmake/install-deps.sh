@@ -12,6 +12,7 @@ packages=(
   libegl-dev libegl1-mesa-dev libgl1-mesa-dri libosmesa6-dev xvfb xauth libimgui-dev
   draco gltfpack blender chromium emscripten
   nodejs npm
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -5,22 +5,22 @@
 #   bash tools/fuzz.sh 3600          # each target an hour
 #   bash tools/fuzz.sh 60 fuzz_mesh  # one target
 # A crash, leak or timeout stops with a non-zero exit and leaves the input
-# in build-fuzz/artifacts/; turn it into a regression test.
+# in BUILD/artifacts/ (build-fuzz by default); turn it into a regression test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(fuzz_rig fuzz_mesh fuzz_joints fuzz_map fuzz_exr fuzz_bake_input)
-bash cmake/install-deps.sh
-if ! command -v clang++ >/dev/null 2>&1 || ! ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
-  sudo=""
-  [ "$(id -u)" -eq 0 ] || sudo="sudo"
-  echo "strata: installing clang and its libFuzzer runtime" >&2
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev >/dev/null
+bash cmake/install-deps.sh  # clang and its libFuzzer runtime among them
+# Any build configured with -DSTRATA_FUZZ=ON will do (.ci/run passes its
+# sanitizer build, whose libraries are instrumented for both); by default
+# one of its own, of which only the fuzz targets are built.
+build="${STRATA_FUZZ_BUILD_DIR:-build-fuzz}"
+if ! grep -qs '^STRATA_FUZZ:BOOL=ON' "$build/CMakeCache.txt"; then
+  CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSTRATA_FUZZ=ON \
+    -DSTRATA_BUILD_BENCH=OFF >/dev/null
 fi
-build=build-fuzz
-CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSTRATA_FUZZ=ON >/dev/null
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
 mkdir -p "$build/artifacts"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1

@@ -4,7 +4,9 @@
 #   STRATA_BUILD_DIR (default build), STRATA_BUILD_TYPE (default Release),
 #   STRATA_SANITIZE (e.g. address,undefined), STRATA_WERROR (ON/OFF),
 #   STRATA_CTEST_EXCLUDE (a ctest -E regex: tests this pass leaves to another;
-#   .ci/run's sanitizer pass leaves it the release pass's slowest repeats).
+#   .ci/run's sanitizer pass leaves it the release pass's slowest repeats),
+#   STRATA_FUZZ (ON: the libFuzzer targets too, for tools/fuzz.sh; needs
+#   CC=clang CXX=clang++).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash cmake/install-deps.sh
@@ -17,7 +19,7 @@ if command -v ccache >/dev/null 2>&1; then
 fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE="${STRATA_BUILD_TYPE:-Release}" \
   -DSTRATA_WERROR="${STRATA_WERROR:-OFF}" -DSTRATA_SANITIZE="${STRATA_SANITIZE:-}" \
-  -DSTRATA_BUILD_BENCH="${STRATA_BENCH:-ON}" -DSTRATA_BUILD_TESTS=ON >/dev/null
+  -DSTRATA_BUILD_BENCH="${STRATA_BENCH:-ON}" -DSTRATA_FUZZ="${STRATA_FUZZ:-OFF}" -DSTRATA_BUILD_TESTS=ON >/dev/null
 cmake --build "$build" -j "$(nproc)"
 # A skipped test is not a passed one: ctest exits 0 on skips, so its log is
 # read too (every test runs from a fresh clone; none may skip).
