@@ -46,12 +46,9 @@ void writeObj(const std::string& path, const strata::ControlMesh& mesh)
     ASSERT_TRUE(strata::io::writeMesh(path, v).isOk()) << path;
 }
 
-// A detailed head over a sphere, as OBJ files: control (icosphere 1) and high (icosphere 4).
-// Bakes whose subject is not the map size search (files, errors, welds,
-// warnings) name a size: the search over writeInputs' head (sizes up to
-// 2048) is 85% of a default bake's time, ten times over under the sanitizers.
-const std::string kFixedSize = "--size 512";
+using strata::test::kFixedMapSizeFlag;
 
+// A detailed head over a sphere, as OBJ files: control (icosphere 1) and high (icosphere 4).
 void writeInputs(const std::string& dir)
 {
     using namespace strata;
@@ -195,7 +192,7 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     // the same surface up to the map's own sampling.
     const std::string pngRig = dir + "/png/rig.glb";
     r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none --map-coding png " +
-            kFixedSize + " -o " + pngRig);
+            kFixedMapSizeFlag + " -o " + pngRig);
     ASSERT_EQ(r.code, 0) << r.output;
     strata::Rig png;
     ASSERT_TRUE(strata::io::loadRig(pngRig, &png).isOk());
@@ -232,7 +229,7 @@ TEST(BakeCli, OneSelfContainedFileIntoANewFolder)
     EXPECT_LT(radialRms(ra.positions), 1.1 * radialRms(rb.positions) + 1e-5)
         << radialRms(ra.positions) << " vs " << radialRms(rb.positions);
     // --report - writes the JSON to stdout; --version answers.
-    r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 " + kFixedSize +
+    r = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 1 " + kFixedMapSizeFlag +
             " --report - -o " + rig);
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("\"closedLoop\""), std::string::npos) << r.output;
@@ -492,7 +489,7 @@ TEST(BakeCli, AFailedRebakeKeepsThePreviousRig)
     const std::string dir = strata::test::tempDir("bake_cli_rebake");
     writeInputs(dir);
     const std::string args = "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none";
-    ASSERT_EQ(run(args + " " + kFixedSize + " -o " + dir + "/rig.glb").code, 0);
+    ASSERT_EQ(run(args + " " + kFixedMapSizeFlag + " -o " + dir + "/rig.glb").code, 0);
     const std::string before = strata::test::readText(dir + "/rig.glb");
     ASSERT_FALSE(before.empty());
     const Result r = run(args + " --size 256 --report " + dir + "/nodir/r.json -o " + dir + "/rig.glb");
@@ -587,10 +584,10 @@ TEST(BakeCli, AControlMeshSplitAtItsSeamsIsWelded)
     }
     writeObj(dir + "/soup.obj", soup);
     const Result shared = run("--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels 0 " +
-                              kFixedSize + " --report " + dir + "/shared.json -o " + dir + "/shared.glb");
+                              kFixedMapSizeFlag + " --report " + dir + "/shared.json -o " + dir + "/shared.glb");
     ASSERT_EQ(shared.code, 0) << shared.output;
     const Result split = run("--high " + dir + "/high.obj --control " + dir + "/soup.obj --error-levels 0 " +
-                             kFixedSize + " --report " + dir + "/soup.json -o " + dir + "/soup.glb");
+                             kFixedMapSizeFlag + " --report " + dir + "/soup.json -o " + dir + "/soup.glb");
     ASSERT_EQ(split.code, 0) << split.output;
     EXPECT_NE(split.output.find(std::to_string(soup.positions.size() - control.positions.size()) +
                                 " vertices at the place of another (a mesh split at its seams) are one with it"),
@@ -621,13 +618,13 @@ TEST(BakeCli, ACaptureFarFromTheOriginIsNamed)
     writeObj(dir + "/far.obj", high);
     writeObj(dir + "/far_control.obj", control);
     const Result far = run("--high " + dir + "/far.obj --control " + dir + "/far_control.obj --error-levels none " +
-                           kFixedSize + " -o " + dir + "/far.glb");
+                           kFixedMapSizeFlag + " -o " + dir + "/far.glb");
     ASSERT_EQ(far.code, 0) << far.output;
     // Floats at 2e5 are 1/64 apart: a head about 3.5 across loses 0.45% of it.
     EXPECT_NE(far.output.find("far.obj: its coordinates reach 2e+05 from the origin"), std::string::npos) << far.output;
     EXPECT_NE(far.output.find("are 0.0156 apart"), std::string::npos) << far.output;
     const Result near = run("--high " + dir + "/near.obj --control " + dir + "/near_control.obj --error-levels none " +
-                            kFixedSize + " -o " + dir + "/near.glb");
+                            kFixedMapSizeFlag + " -o " + dir + "/near.glb");
     ASSERT_EQ(near.code, 0) << near.output;
     EXPECT_EQ(near.output.find("from the origin"), std::string::npos) << near.output;
 }
@@ -638,7 +635,7 @@ TEST(BakeCli, InputsAreNeverOverwrittenAndFailuresLeaveNothing)
     writeInputs(dir);
     const std::string high = strata::test::readText(dir + "/high.obj");
     const std::string args =
-        "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none " + kFixedSize;
+        "--high " + dir + "/high.obj --control " + dir + "/control.obj --error-levels none " + kFixedMapSizeFlag;
     Result r = run(args + " --report " + dir + "/high.obj -o " + dir + "/rig.glb");
     EXPECT_EQ(r.code, 2) << r.output;
     EXPECT_NE(r.output.find("would overwrite the input"), std::string::npos) << r.output;
@@ -678,7 +675,7 @@ TEST(BakeCli, ARigWhoseLayerNoLongerMatchesBakesAgain)
 {
     const std::string dir = strata::test::tempDir("bake_cli_stale");
     writeInputs(dir);
-    const std::string args = "--high " + dir + "/high.obj --error-levels none " + kFixedSize;
+    const std::string args = "--high " + dir + "/high.obj --error-levels none " + kFixedMapSizeFlag;
     ASSERT_EQ(run(args + " --control " + dir + "/control.obj -o " + dir + "/rig.glb").code, 0);
     const std::string glb = strata::test::readText(dir + "/rig.glb");
     nlohmann::json doc = strata::test::glbJson(glb);

@@ -246,7 +246,7 @@ TEST(Fit, MapImagesKeepTheCageAsDrawn)
     STRATA_REQUIRE_DATA(control, "spot_control_mesh.obj");
     BakeRequest request = pairRequest(high, control, "fit_exr", "spot.glb");
     request.exr = true;
-    request.options.size = 512;  // the size search is not what this asks about
+    request.options.size = test::kFixedMapSize;  // the size search is not what this asks about
     BakeResult result;
     ASSERT_TRUE(bakeRig(request, &result).isOk());
     EXPECT_NE(result.summary.find("cage kept as drawn"), std::string::npos) << result.summary;

@@ -567,18 +567,14 @@ bool splitIntoParts(const std::string& source, const std::string& path, int part
 
 }  // namespace
 
+using test::kFixedMapSizeFlag;
+
 // A character in many parts, each with its own vertices and material (a
 // production file's layout, as the held-out 59-primitive character has it),
 // through --control auto: one cage for all of them that keeps the skin and
 // the animation, carries the parts' colours as one texture, and poses within
 // 1% of the source.  Ten parts have no NORMAL: the one cage cannot draw
 // them flat and the rest smooth, and says so in one line.
-// What a character's automatic cage carries (parts, unused vertices,
-// material features) does not hang on the map size: those bakes name one,
-// where the size search would cost them half their time (ten times over
-// under the sanitizers).
-const std::string kCarrySize = "--size 512";
-
 TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -587,7 +583,7 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
     ASSERT_TRUE(splitIntoParts(man, input, 59, 10));
     const test::CommandResult r =
         test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control auto --control-faces 400 " +
-                         kCarrySize + " -o " + rigPath + " --report " + dir + "/report.json");
+                         kFixedMapSizeFlag + " -o " + rigPath + " --report " + dir + "/report.json");
     ASSERT_EQ(r.code, 0) << r.output;
     Rig source, rig;
     ASSERT_TRUE(io::loadRig(input, &source).isOk());
@@ -640,7 +636,7 @@ TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
         ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
     }
     const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input +
-                                                   " --control auto --control-faces 400 " + kCarrySize + " -o " +
+                                                   " --control auto --control-faces 400 " + kFixedMapSizeFlag + " -o " +
                                                    rigPath);
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find(" vertices no triangle uses (left out)"), std::string::npos) << r.output;
@@ -695,7 +691,7 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     const std::string input = dir + "/man.glb", rigPath = dir + "/rig.glb";
     ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
     const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input +
-                                                   " --control auto --control-faces 400 " + kCarrySize + " -o " +
+                                                   " --control auto --control-faces 400 " + kFixedMapSizeFlag + " -o " +
                                                    rigPath);
     ASSERT_EQ(r.code, 0) << r.output;
     const size_t at = r.output.find("not carried: ");

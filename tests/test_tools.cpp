@@ -244,7 +244,8 @@ TEST(Examples, EngineProgramsDrawWhatStrataReconstructWrites)
     const std::string bake = STRATA_BAKE_EXE;
     auto q = [](const std::string& s) { return "'" + s + "'"; };
     ASSERT_EQ(run(bake + " --high " + q(data + "/spot_triangulated.obj") + " --control " +
-                  q(data + "/spot_control_mesh.obj") + " --size 512 -o " + q(dir + "/spot.glb"))
+                  q(data + "/spot_control_mesh.obj") + " " + strata::test::kFixedMapSizeFlag + " -o " +
+                  q(dir + "/spot.glb"))
                   .code,
               0);
     ASSERT_EQ(run(bake + " --high " + q(data + "/CesiumMan.glb") + " --control " + q(data + "/CesiumMan.glb") +

@@ -22,6 +22,13 @@
 namespace strata {
 namespace test {
 
+// The map size of bakes whose subject is not the map-size search (files,
+// errors, welds, warnings, what a character's cage carries): the search
+// over a detailed capture tries sizes up to 2048 and is most of a default
+// bake's time, ten times over under the sanitizers.
+constexpr int kFixedMapSize = 512;
+inline const std::string kFixedMapSizeFlag = "--size " + std::to_string(kFixedMapSize);
+
 /// Path of a third-party asset in tests/data (STRATA_SHARED_DATA), or "" when it is missing.
 inline std::string sharedData(const std::string& name)
 {
