@@ -16,7 +16,7 @@
 // A cell that exits 0 with another surface fails the run (exit 1).  A tool
 // that cannot open or write the file is recorded as such (it is the tool's
 // limit, not a wrong surface).  --markdown writes the table.
-import { spawn, spawnSync } from 'node:child_process';
+import { fork, spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -134,10 +134,48 @@ const rigs = [
     '--control', path.join(data, 'spot_control_mesh.obj'), '--map-coding', 'png']],
 ];
 
-// The tools: [name, with config, function(in, out) -> {code, out}].
-const gt = (args, withConfig) => (input, output) =>
-  runAsync(gltfTransform, [args[0], input, output, ...args.slice(1), ...(withConfig ? ['--config', config] : [])],
+// glTF Transform's CLI, as installed: the matrix's cells go to CLI programs
+// kept running (tools/gltf-transform-worker.mjs), each loaded with or without
+// the config as \`gltf-transform\` loads it; the openers and the reads below
+// run the command itself.
+const workers = { config: [], none: [] };
+function startWorkers(withConfig, count) {
+  for (let i = 0; i < count; ++i) {
+    const child = fork(path.join(here, 'gltf-transform-worker.mjs'), withConfig ? ['--config', config] : [],
+                       { cwd: jsDir, silent: true });
+    child.stdout.resume();
+    child.stderr.resume();
+    const w = { child, waiting: new Map(), next: 0 };
+    w.ready = new Promise((resolve) => {
+      child.on('message', (m) => {
+        if (m.ready) return resolve();
+        w.waiting.get(m.id)(m);
+        w.waiting.delete(m.id);
+      });
+    });
+    child.on('exit', (code) => {
+      for (const done of w.waiting.values()) done({ code: -1, out: `the glTF Transform worker exited (${code})` });
+      w.waiting.clear();
+    });
+    workers[withConfig ? 'config' : 'none'].push(w);
+  }
+}
+async function gtRun(argv, withConfig) {
+  const pool = workers[withConfig ? 'config' : 'none'];
+  const w = pool.reduce((a, b) => (b.waiting.size < a.waiting.size ? b : a));
+  await w.ready;
+  return new Promise((resolve) => {
+    const id = w.next++;
+    w.waiting.set(id, resolve);
+    w.child.send({ id, argv: [...argv, ...(withConfig ? ['--config', config] : [])] });
+  });
+}
+const gt = (args, withConfig) => (input, output) => gtRun([args[0], input, output, ...args.slice(1)], withConfig);
+const gtCommand = (args, withConfig) => (input, output) =>
+  run(gltfTransform, [args[0], input, output, ...args.slice(1), ...(withConfig ? ['--config', config] : [])],
       { cwd: jsDir });
+
+// The tools: [name, with config, function(in, out) -> {code, out}].
 const transformCommands = [
   ['copy'], ['dedup'], ['prune'], ['resample'], ['sparse'], ['flatten'], ['center'], ['instance'],
   ['unweld'], ['weld'], ['reorder'], ['simplify'], ['optimize'], ['meshopt'], ['draco'], ['quantize'],
@@ -274,7 +312,10 @@ for (const [name, description, args] of rigs) {
     });
   }
 }
+startWorkers(true, os.cpus().length);
+startWorkers(false, os.cpus().length);
 await pool(jobs, os.cpus().length);
+for (const w of [...workers.config, ...workers.none]) w.child.kill();
 
 // A carried file that is then damaged or edited is refused with the cause:
 // spot reordered with the config (so it carries \`baked\` and the tags),
@@ -373,7 +414,7 @@ const openers = [
   ['Blender 3.4 importer (Debian)', [true, false, false], (i, o) =>
     run('blender', ['-b', '--factory-startup', '--python', path.join(root, 'tools', 'blender_roundtrip.py'), '--', i, o])],
   ['gltfpack (Debian)', [true, false, false], (i, o) => run('gltfpack', ['-i', i, '-o', o])],
-  ['glTF Transform 4.5 with the config', [true, true, true], gt(['copy'], true)],
+  ['glTF Transform 4.5 with the config', [true, true, true], gtCommand(['copy'], true)],
   ['strata-reconstruct', [true, true, true], (i, o) => run(reconstruct, [i, '-o', o.replace(/\.glb$/, '.obj')])],
 ];
 const codings = ['plain', 'meshopt', 'draco'];
