@@ -468,8 +468,11 @@ original rig's reconstruction.  A cell passes with the **same surface**
 file with one line naming the cause; **no cell may draw another surface
 with exit 0**.  "config" runs glTF Transform with
 \`--config js/gltf-transform.config.mjs\` (the STRATA_layered_displacement
-extension registered); "none" runs it as installed.  "tool cannot process
-it" is the tool's own refusal.
+extension registered); "none" runs it as installed.  Each cell is one command
+line of glTF Transform's CLI, run by its own program kept loaded between
+files (\`js/tools/gltf-transform-worker.mjs\`); the last table runs the
+\`gltf-transform\` command itself.  "tool cannot process it" is the tool's
+own refusal.
 
 ${table}
 Commands that renumber or move the control mesh (weld, unweld, reorder,
