@@ -30,7 +30,7 @@ uint32_t read32(const unsigned char* p)
     return v;
 }
 
-void put32(std::string& s, uint32_t v)
+void putLittleEndian32(std::string& s, uint32_t v)
 {
     s.append(reinterpret_cast<const char*>(&v), 4);
 }
@@ -41,14 +41,14 @@ std::string assembleGlb(std::string json, const std::vector<unsigned char>& bin)
     while (json.size() % 4)
         json.push_back(' ');
     std::string out = "glTF";
-    put32(out, 2);
+    putLittleEndian32(out, 2);
     const size_t binChunk = bin.empty() ? 0 : 8 + ((bin.size() + 3) & ~size_t(3));
-    put32(out, uint32_t(12 + 8 + json.size() + binChunk));
-    put32(out, uint32_t(json.size()));
+    putLittleEndian32(out, uint32_t(12 + 8 + json.size() + binChunk));
+    putLittleEndian32(out, uint32_t(json.size()));
     out += "JSON";
     out += json;
     if (!bin.empty()) {
-        put32(out, uint32_t((bin.size() + 3) & ~size_t(3)));
+        putLittleEndian32(out, uint32_t((bin.size() + 3) & ~size_t(3)));
         out += std::string("BIN\0", 4);
         out.append(reinterpret_cast<const char*>(bin.data()), bin.size());
         out.append((4 - bin.size() % 4) % 4, '\0');

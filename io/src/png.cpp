@@ -19,7 +19,7 @@ namespace strata {
 namespace io {
 namespace {
 
-void put32(std::string& out, uint32_t v)
+void putBigEndian32(std::string& out, uint32_t v)
 {
     out += char(v >> 24);
     out += char(v >> 16);
@@ -29,10 +29,10 @@ void put32(std::string& out, uint32_t v)
 
 void chunk(std::string& out, const char* type, const std::string& data)
 {
-    put32(out, uint32_t(data.size()));
+    putBigEndian32(out, uint32_t(data.size()));
     const std::string typed = std::string(type, 4) + data;
     out += typed;
-    put32(out, uint32_t(crc32(0, reinterpret_cast<const Bytef*>(typed.data()), uInt(typed.size()))));
+    putBigEndian32(out, uint32_t(crc32(0, reinterpret_cast<const Bytef*>(typed.data()), uInt(typed.size()))));
 }
 
 // PNG filter of one row (types 0-4, RFC 2083 6.2); bpp bytes per pixel.
@@ -98,8 +98,8 @@ Status encodePng(int width, int height, int bits, int colourType, int channels, 
     z.resize(zsize);
     *out = std::string("\x89PNG\r\n\x1a\n", 8);
     std::string ihdr;
-    put32(ihdr, uint32_t(width));
-    put32(ihdr, uint32_t(height));
+    putBigEndian32(ihdr, uint32_t(width));
+    putBigEndian32(ihdr, uint32_t(height));
     ihdr += char(bits);
     ihdr += char(colourType);
     ihdr += std::string(3, '\0');  // compression, filter, interlace
