@@ -8,6 +8,7 @@
 #include "strata/baker/distance.h"
 #include "strata/baker/fill.h"
 #include "mapping.h"
+#include "elapsed.h"
 #include "rasterize.h"
 #include "strata/baker/surface.h"
 #include "strata/normals.h"
@@ -23,14 +24,6 @@
 
 namespace strata {
 namespace baker {
-namespace {
-
-double msSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
 
 double medianEdgeLength(const TriangleMesh& mesh)
 {

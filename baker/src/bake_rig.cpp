@@ -10,6 +10,7 @@
 #include "strata/io/materials.h"
 
 #include "cancel.h"
+#include "elapsed.h"
 
 #include "strata/baker/atlas.h"
 #include "strata/baker/bake.h"
@@ -66,11 +67,6 @@ void appendf(std::string* out, const char* format, ...)
     va_end(args);
     if (n > 0)
         out->append(buffer, size_t(std::min(n, int(sizeof(buffer)) - 1)));
-}
-
-double msSince(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 Status cancelledStatus(const BakeRequest& request)
