@@ -6,7 +6,8 @@
 #   STRATA_CTEST_EXCLUDE (a ctest -E regex: tests this pass leaves to another;
 #   .ci/run's sanitizer pass leaves it the release pass's slowest repeats),
 #   STRATA_FUZZ (ON: the libFuzzer targets too, for tools/fuzz.sh; needs
-#   CC=clang CXX=clang++).
+#   CC=clang CXX=clang++), STRATA_UNITY_LIBS (ON: the libraries eight
+#   sources to a unit).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash cmake/install-deps.sh
@@ -19,7 +20,8 @@ if command -v ccache >/dev/null 2>&1; then
 fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE="${STRATA_BUILD_TYPE:-Release}" \
   -DSTRATA_WERROR="${STRATA_WERROR:-OFF}" -DSTRATA_SANITIZE="${STRATA_SANITIZE:-}" \
-  -DSTRATA_BUILD_BENCH="${STRATA_BENCH:-ON}" -DSTRATA_FUZZ="${STRATA_FUZZ:-OFF}" -DSTRATA_BUILD_TESTS=ON >/dev/null
+  -DSTRATA_BUILD_BENCH="${STRATA_BENCH:-ON}" -DSTRATA_FUZZ="${STRATA_FUZZ:-OFF}" \
+  -DSTRATA_UNITY_LIBS="${STRATA_UNITY_LIBS:-OFF}" -DSTRATA_BUILD_TESTS=ON >/dev/null
 cmake --build "$build" -j "$(nproc)"
 # A skipped test is not a passed one: ctest exits 0 on skips, so its log is
 # read too (every test runs from a fresh clone; none may skip).
