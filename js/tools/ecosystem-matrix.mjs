@@ -136,8 +136,9 @@ const rigs = [
 
 // glTF Transform's CLI, as installed: the matrix's cells go to CLI programs
 // kept running (tools/gltf-transform-worker.mjs), each loaded with or without
-// the config as \`gltf-transform\` loads it; the openers and the reads below
-// run the command itself.
+// the config as `gltf-transform` loads it; the openers and the reads below
+// run the command itself.  A worker that dies fails the cells it owed (a
+// crash is not the tool's refusal); the others go to the workers alive.
 const workers = { config: [], none: [] };
 function startWorkers(withConfig, count) {
   for (let i = 0; i < count; ++i) {
@@ -145,7 +146,7 @@ function startWorkers(withConfig, count) {
                        { cwd: jsDir, silent: true });
     child.stdout.resume();
     child.stderr.resume();
-    const w = { child, waiting: new Map(), next: 0 };
+    const w = { child, waiting: new Map(), next: 0, exited: false };
     w.ready = new Promise((resolve) => {
       child.on('message', (m) => {
         if (m.ready) return resolve();
@@ -153,17 +154,22 @@ function startWorkers(withConfig, count) {
         w.waiting.delete(m.id);
       });
     });
+    w.gone = new Promise((resolve) => child.once('exit', resolve));
+    child.on('error', () => {});
     child.on('exit', (code) => {
-      for (const done of w.waiting.values()) done({ code: -1, out: `the glTF Transform worker exited (${code})` });
+      w.exited = true;
+      for (const done of w.waiting.values()) done({ code: -1, died: true, out: `glTF Transform's CLI exited (${code})` });
       w.waiting.clear();
     });
     workers[withConfig ? 'config' : 'none'].push(w);
   }
 }
 async function gtRun(argv, withConfig) {
-  const pool = workers[withConfig ? 'config' : 'none'];
+  const pool = workers[withConfig ? 'config' : 'none'].filter((x) => !x.exited);
+  if (!pool.length) return { code: -1, died: true, out: "every glTF Transform CLI program has exited" };
   const w = pool.reduce((a, b) => (b.waiting.size < a.waiting.size ? b : a));
-  await w.ready;
+  await Promise.race([w.ready, w.gone]);
+  if (w.exited) return { code: -1, died: true, out: "glTF Transform's CLI exited before it started" };
   return new Promise((resolve) => {
     const id = w.next++;
     w.waiting.set(id, resolve);
@@ -251,6 +257,11 @@ for (const [name, description, args] of rigs) {
         return;
       }
       const t = await fn(rig, out);
+      if (t.died) {
+        put([name, tool, how, 'TOOL CRASHED', t.out]);
+        ++wrong;
+        return;
+      }
       if (t.code !== 0 || !fs.existsSync(out)) {
         const why = t.out.split('\n').map((l) => l.trim()).filter((l) =>
           /error|failed|requires|compressed/i.test(l)).pop() || `exit ${t.code}`;
@@ -340,6 +351,11 @@ const tampers = [];
     }],
   ];
   for (const [label, expect, edit] of cases) {
+    if (!fs.existsSync(carried)) {
+      ++wrong;
+      tampers.push([label, 'FAILED', 'glTF Transform reorder with the config wrote no file to edit']);
+      continue;
+    }
     const { json, bin } = readGlb(carried);
     edit(json);
     const file = path.join(work, `tampered_${label.replace(/[^a-z0-9]+/gi, '_')}.glb`);
