@@ -18,11 +18,13 @@
 
 #include <set>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <map>
 #include <tuple>
@@ -608,6 +610,176 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
     EXPECT_EQ(report["posed"]["frames"].size(), 10u);
     for (const json& f : report["posed"]["frames"])
         EXPECT_LT(f["rms"].get<double>(), 0.01) << "at " << f["time"];
+}
+
+namespace {
+
+enum class SecondSkin { Alike, Moved, Apart };
+
+// CesiumMan as converters that write a skin per mesh leave it: its
+// triangles in two meshes on two nodes, each with its own skin over the
+// same joints, the second listing them in reverse order.  Alike: both bind
+// the joints alike.  Moved: the second mesh's vertices are moved by a
+// transform T and its inverse bind matrices take T out again (a mesh node
+// whose bind transform the converter folded into its skin), so it poses the
+// same.  Apart: the second skin binds one joint elsewhere, which no
+// transform of its mesh reconciles with the first.
+bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin how)
+{
+    tinygltf::Model m;
+    tinygltf::Primitive whole;
+    std::vector<uint32_t> idx;
+    if (!takeFirstPrimitive(source, &m, &whole, &idx) || m.skins.size() != 1)
+        return false;
+    const size_t half = 3 * (idx.size() / 6);
+    tinygltf::Primitive a = whole, b = whole;
+    a.indices = addAccessor(m, idx.data(), half * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, half,
+                            TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    b.indices = addAccessor(m, idx.data() + half, (idx.size() - half) * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                            TINYGLTF_TYPE_SCALAR, idx.size() - half, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    m.meshes[0].primitives.push_back(a);
+    // The second skin: the joints reversed, each bound by M = IBM * T^-1.
+    const tinygltf::Skin first = m.skins[0];
+    const size_t nj = first.joints.size();
+    const std::vector<float> ibm = accessorData<float>(m, first.inverseBindMatrices, 16);
+    const glm::mat4 t = how == SecondSkin::Moved
+                            ? glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.3f, -0.2f, 0.1f)), 0.4f,
+                                          glm::vec3(0.0f, 0.0f, 1.0f))
+                            : glm::mat4(1.0f);
+    std::vector<float> ibm2(16 * nj);
+    tinygltf::Skin second;
+    second.name = "second";
+    for (size_t k = 0; k < nj; ++k) {
+        const size_t j = nj - 1 - k;
+        second.joints.push_back(first.joints[j]);
+        glm::mat4 mk = glm::make_mat4(&ibm[16 * j]) * glm::inverse(t);
+        if (how == SecondSkin::Apart && k == 3)
+            mk[3][0] += 0.05f;
+        std::memcpy(&ibm2[16 * k], &mk[0][0], 64);
+    }
+    second.inverseBindMatrices = addAccessor(m, ibm2.data(), ibm2.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                             TINYGLTF_TYPE_MAT4, nj, 0);
+    m.skins.push_back(second);
+    std::vector<uint16_t> joints = accessorData<uint16_t>(m, whole.attributes.at("JOINTS_0"), 4);
+    for (uint16_t& j : joints)
+        j = uint16_t(nj - 1 - j);
+    b.attributes["JOINTS_0"] = addAccessor(m, joints.data(), joints.size() * 2, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                           TINYGLTF_TYPE_VEC4, joints.size() / 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+    std::vector<float> xyz = accessorData<float>(m, whole.attributes.at("POSITION"), 3);
+    std::vector<double> lo(3, 1e30), hi(3, -1e30);
+    for (size_t v = 0; v < xyz.size() / 3; ++v) {
+        const glm::vec4 q = t * glm::vec4(xyz[3 * v], xyz[3 * v + 1], xyz[3 * v + 2], 1.0f);
+        for (int c = 0; c < 3; ++c) {
+            xyz[3 * v + size_t(c)] = q[c];
+            lo[size_t(c)] = std::min(lo[size_t(c)], double(q[c]));
+            hi[size_t(c)] = std::max(hi[size_t(c)], double(q[c]));
+        }
+    }
+    b.attributes["POSITION"] = addAccessor(m, xyz.data(), xyz.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                           TINYGLTF_TYPE_VEC3, xyz.size() / 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+    m.accessors.back().minValues = lo;
+    m.accessors.back().maxValues = hi;
+    b.attributes.erase("NORMAL");  // its normals would want T too; glTF draws it flat
+    tinygltf::Mesh lower;
+    lower.name = "lower";
+    lower.primitives.push_back(b);
+    m.meshes.push_back(lower);
+    tinygltf::Node node;
+    node.name = "lower";
+    node.mesh = int(m.meshes.size() - 1);
+    node.skin = 1;
+    m.nodes.push_back(node);
+    m.scenes[size_t(std::max(m.defaultScene, 0))].nodes.push_back(int(m.nodes.size() - 1));
+    tinygltf::TinyGLTF io;
+    return io.WriteGltfSceneToFile(&m, path, true, true, false, true);
+}
+
+// The largest distance from a point of `a` to the nearest point of `b`.
+float farthestFromNearest(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
+{
+    float worst = 0.0f;
+    for (const glm::vec3& p : a) {
+        float nearest = std::numeric_limits<float>::max();
+        for (const glm::vec3& q : b)
+            nearest = std::min(nearest, glm::length(p - q));
+        worst = std::max(worst, nearest);
+    }
+    return worst;
+}
+
+}  // namespace
+
+// A character whose meshes each have a skin of their own poses as one rig
+// with one skin (their union), welded where the meshes meet, whether its
+// skins bind the joints alike or one mesh's bind space is moved by its
+// skin; --control auto keeps its skin and animation.  Skins that bind a
+// joint in poses no transform reconciles are refused, naming the joint.
+TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_skin_per_mesh");
+    Rig source;
+    ASSERT_TRUE(io::loadRig(man, &source).isOk());
+    const Skeleton& sk = source.skeleton;
+    ASSERT_FALSE(sk.animations.empty());
+    io::Reconstruction expected;
+    io::Pose pose;
+    ASSERT_TRUE(io::reconstruct(&expected, source, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+    for (SecondSkin how : {SecondSkin::Alike, SecondSkin::Moved}) {
+        const std::string input = dir + (how == SecondSkin::Alike ? "/alike.glb" : "/moved.glb");
+        SCOPED_TRACE(input);
+        ASSERT_TRUE(skinPerMesh(man, input, how));
+        Rig rig;
+        const Status st = io::loadRig(input, &rig);
+        ASSERT_TRUE(st.isOk()) << st.message();
+        EXPECT_EQ(rig.skeleton.skin.joints.size(), sk.skin.joints.size());
+        EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size()) << "the meshes weld where they meet";
+        io::Reconstruction rec;
+        ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+        for (int k = 0; k <= 3; ++k) {
+            pose.animation = 0;
+            pose.time = sk.animations[0].start + (sk.animations[0].end - sk.animations[0].start) * float(k) / 3.0f;
+            ASSERT_TRUE(io::reconstructPose(&expected, pose).isOk());
+            ASSERT_TRUE(io::reconstructPose(&rec, pose).isOk());
+            EXPECT_LT(farthestFromNearest(rec.positions, expected.positions), 1e-5f) << "at " << pose.time;
+            EXPECT_LT(farthestFromNearest(expected.positions, rec.positions), 1e-5f) << "at " << pose.time;
+        }
+    }
+    // Its detailed scene keeps each mesh on its own skin's joints, so it
+    // poses as the one-skin character's detailed scene does.
+    std::vector<io::Reconstruction> posed(2);
+    for (int k = 0; k < 2; ++k) {
+        Rig rig, back;
+        ASSERT_TRUE(io::loadRig(k == 0 ? man : dir + "/moved.glb", &rig).isOk());
+        io::Reconstruction rec;
+        ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 1).isOk());
+        const std::string scene = dir + "/scene" + std::to_string(k) + ".glb";
+        ASSERT_TRUE(io::writeReconstructedScene(scene, rig, rec).isOk());
+        ASSERT_TRUE(io::loadRig(scene, &back).isOk());
+        pose.time = 0.5f * (sk.animations[0].start + sk.animations[0].end);
+        ASSERT_TRUE(io::reconstruct(&posed[size_t(k)], back, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+    }
+    EXPECT_LT(farthestFromNearest(posed[1].positions, posed[0].positions), 1e-5f);
+    EXPECT_LT(farthestFromNearest(posed[0].positions, posed[1].positions), 1e-5f);
+
+    const std::string rigPath = dir + "/rig.glb";
+    test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + dir +
+                                             "/moved.glb --control auto --control-faces 400 " + kFixedMapSizeFlag +
+                                             " -o " + rigPath);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(r.output.find("carries its shape only"), std::string::npos) << r.output;
+    Rig baked;
+    ASSERT_TRUE(io::loadRig(rigPath, &baked).isOk());
+    EXPECT_EQ(baked.skeleton.skin.joints.size(), sk.skin.joints.size());
+    EXPECT_EQ(baked.skeleton.animations.size(), sk.animations.size());
+
+    const std::string apart = dir + "/apart.glb";
+    ASSERT_TRUE(skinPerMesh(man, apart, SecondSkin::Apart));
+    Rig refused;
+    const Status st = io::loadRig(apart, &refused);
+    ASSERT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("apart.glb: skins 0 and 1 bind joint node "), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("no one transform of their meshes reconciles"), std::string::npos) << st.message();
 }
 
 // A character whose file keeps vertices no triangle uses (faces deleted in

@@ -73,6 +73,31 @@ int attributeOf(const tinygltf::Primitive& prim, const std::string& name);
 Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitive& prim, size_t vertexCount,
                           const std::string& what, std::vector<uint32_t>* out);
 
+/// The skins a scene's skinned parts use, as the one skin of a Strata rig:
+/// the first part's skin's joints, then each other skin's joints it lacks.
+/// Each skin binds its meshes in a bind space of its own; another skin's
+/// meshes are read into the first's through toFirst, the matrix M with
+/// first's inverse bind matrix times M equal to its own at every joint the
+/// two share (the identity where they bind them alike; exporters that write
+/// a skin per mesh do).  Where no one M fits, the skins do not unite.
+struct SkinUnion {
+    std::vector<int> skins;                      // the glTF skins, in the order the parts first use them
+    std::vector<int> joints;                     // per joint of the union: its node
+    std::vector<glm::mat4> inverseBindMatrices;  // per joint of the union, in the first skin's bind space
+    std::vector<std::vector<uint16_t>> jointOf;  // per skin in `skins`: its joint -> the union's
+    std::vector<glm::mat4> toFirst;              // per skin in `skins`: its bind space -> the first's
+
+    /// Where `skin` is in `skins`, or -1.
+    int indexOf(int skin) const;
+};
+
+/// The union of the skins `parts` use (none: an empty union).  Refuses a
+/// missing or jointless skin, a joint that is no node, too few inverse bind
+/// matrices, and skins no one transform takes to the first's bind space,
+/// naming the joint where they part.
+Status uniteSkins(const std::string& path, const tinygltf::Model& model, const std::vector<RigPart>& parts,
+                  SkinUnion* out);
+
 /// The whole scene's triangle geometry, welded, with one part per primitive.
 struct SceneGeometry {
     Rig rig;                 // mesh (not yet validated), sourceVertex, fileCorners, parts
@@ -83,6 +108,8 @@ struct SceneGeometry {
     size_t missingUV = 0;    // triangle parts without the displacement UV set
     std::string firstMissingUV;
     bool bindScaleWarned = false;  // a skin's joints disagree on the bind space's scale (said once)
+    SkinUnion skins;               // the skinned parts' skins as one (their vertices read into its bind space)
+    Status skinsUnited;            // why they could not be, for loadSkeleton to say (the geometry stands)
     std::vector<uint32_t> fileTriangles;      // every triangle in file vertices, degenerate ones included
     std::vector<uint32_t> fileTriangleParts;  // per file triangle: its part
 };
@@ -110,8 +137,8 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
 
 // ---- The skeleton (rig_skeleton.cpp) ----
 
-/// Nodes, the skin of the skinned parts (rigid parts ride on their node as
-/// an extra joint), per-vertex influences and animations.
+/// Nodes, the skinned parts' skins as one (scene.skins; rigid parts ride on
+/// their node as an extra joint), per-vertex influences and animations.
 Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const SceneGeometry& scene, Rig* rig);
 
 }  // namespace rigfile

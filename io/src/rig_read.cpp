@@ -575,8 +575,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
         // The skin's joints (not the rigid parts' extra joints after them)
         // bind the baked vertices: a tool that moved the bind space moved
         // the inverse bind matrices with it.
-        const int skin = doc->model.nodes[size_t(rig.skeleton.meshNode)].skin;
-        const size_t joints = skin >= 0 ? doc->model.skins[size_t(skin)].joints.size() : 0;
+        const size_t joints = scene.skins.joints.size();
         for (size_t j = 0; j < joints && j < rig.skeleton.skin.inverseBindMatrices.size(); ++j)
             rig.skeleton.skin.inverseBindMatrices[j] = rig.skeleton.skin.inverseBindMatrices[j] * bindFix;
     }

@@ -234,6 +234,63 @@ float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<g
     return std::fabs(scale - 1.0f) <= 1e-4f ? 1.0f : scale;
 }
 
+namespace {
+
+// Vertices read through another skin's bind space (moved[v]) carry its
+// transform's rounding: each one within a millionth of the scene's diagonal
+// of a vertex not moved takes that vertex's position, so that a seam split
+// between two skins welds as it would in one.
+void snapOntoUnmoved(std::vector<float>& pos, const std::vector<uint8_t>& moved)
+{
+    const size_t n = pos.size() / 3;
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (size_t v = 0; v < n; ++v) {
+        lo = glm::min(lo, glm::vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]));
+        hi = glm::max(hi, glm::vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]));
+    }
+    const float eps = 1e-6f * glm::length(hi - lo);
+    if (!(eps > 0.0f) || !std::isfinite(eps))
+        return;
+    auto cellOf = [&](size_t v, int c) { return int64_t(std::floor((pos[3 * v + size_t(c)] - lo[c]) / eps)); };
+    auto key = [](int64_t x, int64_t y, int64_t z) {
+        return uint64_t(x) * 0x9e3779b97f4a7c15ull ^ uint64_t(y) * 0xc2b2ae3d27d4eb4full ^ uint64_t(z) * 0x165667b19e3779f9ull;
+    };
+    std::unordered_multimap<uint64_t, uint32_t> cells;
+    for (size_t v = 0; v < n; ++v)
+        if (!moved[v])
+            cells.emplace(key(cellOf(v, 0), cellOf(v, 1), cellOf(v, 2)), uint32_t(v));
+    if (cells.empty())
+        return;
+    for (size_t v = 0; v < n; ++v) {
+        if (!moved[v])
+            continue;
+        const int64_t x = cellOf(v, 0), y = cellOf(v, 1), z = cellOf(v, 2);
+        float best = eps * eps;
+        int64_t nearest = -1;
+        for (int64_t dx = -1; dx <= 1; ++dx)
+            for (int64_t dy = -1; dy <= 1; ++dy)
+                for (int64_t dz = -1; dz <= 1; ++dz) {
+                    const auto range = cells.equal_range(key(x + dx, y + dy, z + dz));
+                    for (auto it = range.first; it != range.second; ++it) {
+                        const size_t u = it->second;
+                        const float d = glm::dot(glm::vec3(pos[3 * u] - pos[3 * v], pos[3 * u + 1] - pos[3 * v + 1],
+                                                           pos[3 * u + 2] - pos[3 * v + 2]),
+                                                 glm::vec3(pos[3 * u] - pos[3 * v], pos[3 * u + 1] - pos[3 * v + 1],
+                                                           pos[3 * u + 2] - pos[3 * v + 2]));
+                        if (d <= best) {
+                            best = d;
+                            nearest = int64_t(u);
+                        }
+                    }
+                }
+        if (nearest >= 0)
+            for (int c = 0; c < 3; ++c)
+                pos[3 * v + size_t(c)] = pos[3 * size_t(nearest) + size_t(c)];
+    }
+}
+
+}  // namespace
+
 Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
 {
     const tinygltf::Model& model = doc.model;
@@ -360,6 +417,42 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     const size_t nFile = pos.size() / 3;
     if (nFile == 0)
         return Status(StatusCode::InvalidData, path + ": the meshes have no vertices");
+
+    // Parts on other skins than the first part's are read into its bind
+    // space (SkinUnion).  Skins that do not unite leave the geometry as
+    // read: a capture still gives its shape (loadSkeleton refuses the rest).
+    out->skinsUnited = uniteSkins(path, model, rig.parts, &out->skins);
+    if (out->skinsUnited && out->skins.skins.size() > 1) {
+        glm::mat4 firstToScene(1.0f);
+        for (const RigPart& part : rig.parts)
+            if (part.skinned && model.nodes[size_t(part.node)].skin == out->skins.skins[0]) {
+                firstToScene = part.toScene;
+                break;
+            }
+        std::vector<uint8_t> moved(pos.size() / 3, 0);
+        for (RigPart& part : rig.parts) {
+            const int k = part.skinned ? out->skins.indexOf(model.nodes[size_t(part.node)].skin) : 0;
+            if (k <= 0)
+                continue;
+            const glm::mat4 toScene = firstToScene * out->skins.toFirst[size_t(k)];
+            const glm::mat4 move = toScene * glm::inverse(part.toScene);
+            part.toScene = toScene;
+            if (move == glm::mat4(1.0f))
+                continue;
+            for (size_t i = part.firstVertex; i < size_t(part.firstVertex) + part.vertexCount; ++i) {
+                const glm::vec4 q = move * glm::vec4(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2], 1.0f);
+                if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+                    return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
+                                                               std::to_string(i - part.firstVertex) +
+                                                               " is not finite in the first skin's bind space");
+                pos[3 * i] = q.x;
+                pos[3 * i + 1] = q.y;
+                pos[3 * i + 2] = q.z;
+                moved[i] = 1;
+            }
+        }
+        snapOntoUnmoved(pos, moved);
+    }
 
     out->fileTriangles = tri;
     out->fileTriangleParts = partOfTri;

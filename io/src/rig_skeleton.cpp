@@ -38,8 +38,110 @@ namespace io {
 
 namespace rigfile {
 
-// Nodes, the skin of the skinned parts (rigid parts ride on their node as an
-// extra joint), per-vertex influences and animations.
+int SkinUnion::indexOf(int skin) const
+{
+    const auto it = std::find(skins.begin(), skins.end(), skin);
+    return it == skins.end() ? -1 : int(it - skins.begin());
+}
+
+namespace {
+
+// Two inverse bind matrices the same within float rounding of their size.
+bool sameBinding(const glm::mat4& a, const glm::mat4& b)
+{
+    float size = 1.0f, apart = 0.0f;
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) {
+            size = std::max({size, std::fabs(a[c][r]), std::fabs(b[c][r])});
+            apart = std::max(apart, std::fabs(a[c][r] - b[c][r]));
+        }
+    return apart <= 1e-4f * size;
+}
+
+}  // namespace
+
+Status uniteSkins(const std::string& path, const tinygltf::Model& model, const std::vector<RigPart>& parts,
+                  SkinUnion* out)
+{
+    *out = SkinUnion();
+    for (const RigPart& part : parts)
+        if (part.skinned && part.node >= 0 && size_t(part.node) < model.nodes.size()) {
+            const int s = model.nodes[size_t(part.node)].skin;
+            if (out->indexOf(s) < 0)
+                out->skins.push_back(s);
+        }
+    std::map<int, uint16_t> unionJoint;  // node -> its joint in the union
+    for (size_t k = 0; k < out->skins.size(); ++k) {
+        const int skinIndex = out->skins[k];
+        if (skinIndex < 0 || size_t(skinIndex) >= model.skins.size())
+            return Status(StatusCode::InvalidData, path + ": a mesh node references missing skin " +
+                                                       std::to_string(skinIndex));
+        const tinygltf::Skin& skin = model.skins[size_t(skinIndex)];
+        const std::string what = path + ": skin " + std::to_string(skinIndex);
+        if (skin.joints.empty())
+            return Status(StatusCode::InvalidData, what + " has no joints");
+        for (int j : skin.joints)
+            if (j < 0 || size_t(j) >= model.nodes.size())
+                return Status(StatusCode::InvalidData, what + " names missing node " + std::to_string(j));
+        std::vector<glm::mat4> ibm(skin.joints.size(), glm::mat4(1.0f));
+        if (skin.inverseBindMatrices >= 0) {
+            std::vector<float> m;
+            Status st = readFloatAccessor(model, skin.inverseBindMatrices, 16, "inverseBindMatrices", &m);
+            if (!st)
+                return Status(st.code(), path + ": " + st.message());
+            if (m.size() / 16 < skin.joints.size())
+                return Status(StatusCode::InvalidData, path + ": inverseBindMatrices holds " +
+                                                           std::to_string(m.size() / 16) + " matrices for " +
+                                                           std::to_string(skin.joints.size()) + " joints");
+            for (size_t j = 0; j < skin.joints.size(); ++j)
+                for (int e = 0; e < 16; ++e)
+                    ibm[j][e / 4][e % 4] = m[16 * j + size_t(e)];
+        }
+        // M: exactly the identity where every joint the union has is bound
+        // alike (the same vertices weld across the skins), else from the
+        // first such joint; checked at every other below.
+        glm::mat4 toFirst(1.0f);
+        bool alike = true;
+        for (size_t j = 0; j < skin.joints.size() && alike; ++j) {
+            const auto it = unionJoint.find(skin.joints[j]);
+            alike = it == unionJoint.end() || sameBinding(out->inverseBindMatrices[it->second], ibm[j]);
+        }
+        for (size_t j = 0; j < skin.joints.size() && !alike; ++j) {
+            const auto it = unionJoint.find(skin.joints[j]);
+            if (it != unionJoint.end()) {
+                toFirst = glm::inverse(out->inverseBindMatrices[it->second]) * ibm[j];
+                break;
+            }
+        }
+        std::vector<uint16_t> jointOf(skin.joints.size());
+        for (size_t j = 0; j < skin.joints.size(); ++j) {
+            const int node = skin.joints[j];
+            const auto it = unionJoint.find(node);
+            if (it == unionJoint.end()) {
+                if (out->joints.size() >= 0xffff)
+                    return Status(StatusCode::InvalidData, path + ": the skins have too many joints");
+                jointOf[j] = uint16_t(out->joints.size());
+                unionJoint.emplace(node, jointOf[j]);
+                out->joints.push_back(node);
+                out->inverseBindMatrices.push_back(ibm[j] * glm::inverse(toFirst));
+            } else if (k > 0 && !sameBinding(out->inverseBindMatrices[it->second] * toFirst, ibm[j])) {
+                return Status(StatusCode::Unsupported,
+                              path + ": skins " + std::to_string(out->skins[0]) + " and " + std::to_string(skinIndex) +
+                                  " bind joint node " + std::to_string(node) + " (" +
+                                  printable(model.nodes[size_t(node)].name, 60) +
+                                  ") in poses no one transform of their meshes reconciles; a Strata rig has one skin");
+            } else {
+                jointOf[j] = it->second;
+            }
+        }
+        out->jointOf.push_back(std::move(jointOf));
+        out->toFirst.push_back(toFirst);
+    }
+    return Status::ok();
+}
+
+// Nodes, the skinned parts' skins as one (rigid parts ride on their node as
+// an extra joint), per-vertex influences and animations.
 Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const SceneGeometry& scene, Rig* rig)
 {
     Skeleton& sk = rig->skeleton;
@@ -63,47 +165,18 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
         for (int c : n.children)
             sk.nodes[size_t(c)].parent = int(i);  // checked by restWorldMatrices
     }
-    int skinIndex = -1;
+    if (!scene.skinsUnited)
+        return scene.skinsUnited;
+    const SkinUnion& skins = scene.skins;
     for (const RigPart& part : rig->parts)
         if (part.skinned) {
-            const int s = model.nodes[size_t(part.node)].skin;
-            if (skinIndex < 0) {
-                skinIndex = s;
-                sk.meshNode = part.node;
-            } else if (s != skinIndex) {
-                return Status(StatusCode::Unsupported, path + ": meshes use different skins (" + std::to_string(skinIndex) +
-                                                           " and " + std::to_string(s) +
-                                                           "); a Strata rig has one skin");
-            }
+            sk.meshNode = part.node;
+            break;
         }
     Status st;
-    if (skinIndex >= 0) {
-        if (size_t(skinIndex) >= model.skins.size())
-            return Status(StatusCode::InvalidData, path + ": a mesh node references missing skin " +
-                                                       std::to_string(skinIndex));
-        const tinygltf::Skin& skin = model.skins[size_t(skinIndex)];
-        sk.skin.joints = skin.joints;
-        if (sk.skin.joints.empty())
-            return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) + " has no joints");
-        for (int j : sk.skin.joints)
-            if (j < 0 || size_t(j) >= nn)
-                return Status(StatusCode::InvalidData, path + ": skin " + std::to_string(skinIndex) +
-                                                           " names missing node " + std::to_string(j));
-        if (skin.inverseBindMatrices >= 0) {
-            std::vector<float> m;
-            if (!(st = readFloatAccessor(model, skin.inverseBindMatrices, 16, "inverseBindMatrices", &m)))
-                return Status(st.code(), path + ": " + st.message());
-            if (m.size() / 16 < sk.skin.joints.size())
-                return Status(StatusCode::InvalidData, path + ": inverseBindMatrices holds " + std::to_string(m.size() / 16) +
-                                                           " matrices for " + std::to_string(sk.skin.joints.size()) +
-                                                           " joints");
-            sk.skin.inverseBindMatrices.resize(sk.skin.joints.size());
-            for (size_t j = 0; j < sk.skin.joints.size(); ++j)
-                for (int k = 0; k < 16; ++k)
-                    sk.skin.inverseBindMatrices[j][k / 4][k % 4] = m[16 * j + size_t(k)];
-        } else {
-            sk.skin.inverseBindMatrices.assign(sk.skin.joints.size(), glm::mat4(1.0f));
-        }
+    if (!skins.skins.empty()) {
+        sk.skin.joints = skins.joints;
+        sk.skin.inverseBindMatrices = skins.inverseBindMatrices;
         // The bind space was read at the scene's scale (bindSpaceScale):
         // the inverse bind matrices take that scale out again.
         for (const RigPart& part : rig->parts)
@@ -152,6 +225,10 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
             }
             if (attributeOf(prim, "JOINTS_0") < 0 || attributeOf(prim, "WEIGHTS_0") < 0)
                 return Status(StatusCode::InvalidData, path + ": " + part.name + " is skinned but has no JOINTS_0/WEIGHTS_0");
+            const int own = skins.indexOf(model.nodes[size_t(part.node)].skin);
+            if (own < 0)
+                return Status(StatusCode::InvalidData, path + ": " + part.name + "'s skin is not among the scene's");
+            const std::vector<uint16_t>& jointOf = skins.jointOf[size_t(own)];
             for (int set = 0; set < sets; ++set) {
                 const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
                 if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
@@ -168,17 +245,17 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
                     for (int k = 0; k < 4; ++k) {
                         const uint32_t j = joints[4 * v + uint32_t(k)];
                         const float w = weights[4 * v + uint32_t(k)];
-                        if (w != 0.0f && j >= skin.joints.size())
+                        if (w != 0.0f && j >= jointOf.size())
                             return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
                                                                        std::to_string(v) + " is skinned to joint " +
                                                                        std::to_string(j) + " of a " +
-                                                                       std::to_string(skin.joints.size()) +
+                                                                       std::to_string(jointOf.size()) +
                                                                        "-joint skin");
                         if (!(w >= 0.0f))
                             return Status(StatusCode::InvalidData, path + ": " + part.name + ": vertex " +
                                                                        std::to_string(v) + " has a negative skin weight");
                         const size_t slot = size_t(part.firstVertex + v) * size_t(inf) + size_t(4 * set + k);
-                        fileJoints[slot] = uint16_t(w != 0.0f ? j : 0);
+                        fileJoints[slot] = w != 0.0f ? jointOf[j] : uint16_t(0);
                         fileWeights[slot] = w;
                     }
             }

@@ -9,6 +9,7 @@
 #include "gltf_document.h"
 #include "gltf_mesh_writer.h"
 #include "refined_attributes.h"
+#include "rig_internal.h"
 
 #include <filesystem>
 #include <glm/geometric.hpp>
@@ -25,10 +26,12 @@ namespace {
 constexpr int kMaxInfluences = 8;
 
 // Skin influences of refined vertex v: the control vertices' influences
-// blended with its barycentric weights in its control face, joints at or
-// past `jointLimit` (Strata's own rigid-part joints) left out, the largest
-// kMaxInfluences kept and renormalised.
-int refinedInfluences(const Rig& rig, const SampleLocation& s, size_t jointLimit, uint16_t* joints, float* weights)
+// blended with its barycentric weights in its control face, as joints of
+// the part's own skin (ownJoint: per joint of the rig's skin, its joint in
+// that skin, or -1 for one it lacks, as Strata's own rigid-part joints),
+// the largest kMaxInfluences kept and renormalised.
+int refinedInfluences(const Rig& rig, const SampleLocation& s, const std::vector<int>& ownJoint, uint16_t* joints,
+                      float* weights)
 {
     const VertexWeights& vw = rig.skeleton.weights;
     const size_t inf = size_t(vw.influences);
@@ -44,9 +47,10 @@ int refinedInfluences(const Rig& rig, const SampleLocation& s, size_t jointLimit
             continue;
         for (size_t k = 0; k < inf; ++k) {
             const float w = vw.weights[cv * inf + k] * b;
-            const uint16_t j = vw.joints[cv * inf + k];
-            if (w <= 0.0f || j >= jointLimit)
+            const uint16_t rigJoint = vw.joints[cv * inf + k];
+            if (w <= 0.0f || rigJoint >= ownJoint.size() || ownJoint[rigJoint] < 0)
                 continue;
+            const uint16_t j = uint16_t(ownJoint[rigJoint]);
             int at = 0;
             while (at < n && acc[at].second != j)
                 ++at;
@@ -100,11 +104,11 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
     embedImages(model, imageBytes, notes);
 
     const size_t perFace = size_t(1) << (2 * level);
-    int skinIndex = -1;
-    for (const RigPart& part : rig.parts)
-        if (part.skinned && skinIndex < 0)
-            skinIndex = model.nodes[size_t(part.node)].skin;
-    const size_t jointLimit = skinIndex >= 0 ? model.skins[size_t(skinIndex)].joints.size() : 0;
+    // The rig's skin is the union of the file's (rigfile::SkinUnion): each
+    // part's influences go back to its own skin's joints.
+    rigfile::SkinUnion skins;
+    if (!(st = rigfile::uniteSkins(path, model, rig.parts, &skins)))
+        return st;
     size_t droppedTangents = 0, droppedTargets = 0;
     for (const RigPart& part : rig.parts) {
         if (part.faceCount == 0)
@@ -172,12 +176,17 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
             attributes[name] = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, type, nv);
         }
         // Skin influences, refined through the sample locations.
-        if (part.skinned && jointLimit > 0) {
+        const int skin = part.skinned ? skins.indexOf(model.nodes[size_t(part.node)].skin) : -1;
+        if (skin >= 0) {
+            std::vector<int> ownJoint(skins.joints.size(), -1);
+            const std::vector<uint16_t>& jointOf = skins.jointOf[size_t(skin)];
+            for (size_t j = 0; j < jointOf.size(); ++j)
+                ownJoint[jointOf[j]] = int(j);
             std::vector<uint16_t> joints(nv * kMaxInfluences);
             std::vector<float> weights(nv * kMaxInfluences);
             int most = 0;
             for (size_t i = 0; i < nv; ++i) {
-                const int n = refinedInfluences(rig, plan.sampleLocations()[refinedVertex[i]], jointLimit,
+                const int n = refinedInfluences(rig, plan.sampleLocations()[refinedVertex[i]], ownJoint,
                                                 &joints[i * kMaxInfluences], &weights[i * kMaxInfluences]);
                 if (n == 0)
                     return Status(StatusCode::InvalidData, what + ": a refined vertex has no skin weight");
