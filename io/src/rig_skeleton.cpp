@@ -46,16 +46,19 @@ int SkinUnion::indexOf(int skin) const
 
 namespace {
 
-// Two inverse bind matrices the same within float rounding of their size.
+// Two inverse bind matrices the same within float rounding of their size
+// (never where either holds a NaN or an infinity).
 bool sameBinding(const glm::mat4& a, const glm::mat4& b)
 {
-    float size = 1.0f, apart = 0.0f;
+    float size = 1.0f;
     for (int c = 0; c < 4; ++c)
-        for (int r = 0; r < 4; ++r) {
+        for (int r = 0; r < 4; ++r)
             size = std::max({size, std::fabs(a[c][r]), std::fabs(b[c][r])});
-            apart = std::max(apart, std::fabs(a[c][r] - b[c][r]));
-        }
-    return apart <= 1e-4f * size;
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r)
+            if (!(std::fabs(a[c][r] - b[c][r]) <= 1e-4f * size))
+                return false;
+    return true;
 }
 
 }  // namespace
@@ -113,6 +116,11 @@ Status uniteSkins(const std::string& path, const tinygltf::Model& model, const s
                 break;
             }
         }
+        for (int e = 0; e < 16; ++e)
+            if (!std::isfinite(toFirst[e / 4][e % 4]))
+                return Status(StatusCode::InvalidData,
+                              what + "'s inverse bind matrices are not invertible where skin " +
+                                  std::to_string(out->skins[0]) + "'s share its joints");
         std::vector<uint16_t> jointOf(skin.joints.size());
         for (size_t j = 0; j < skin.joints.size(); ++j) {
             const int node = skin.joints[j];
