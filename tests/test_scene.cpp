@@ -782,6 +782,131 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
     EXPECT_NE(st.message().find("no one transform of their meshes reconciles"), std::string::npos) << st.message();
 }
 
+// A mesh two nodes place (a pair of eyes, each on its own joint, one the
+// other's mirror) is read at both places, follows each node and faces
+// outward at each, as glTF draws it; before, the second place was dropped
+// without a word.  A third node outside the scene adds nothing.  A bake onto such a file as its own
+// control mesh, whose rig would need UVs of their own at each place, is
+// refused naming the mesh and its nodes.
+TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_mesh_placed_twice");
+    const std::string input = dir + "/eyes.glb";
+    tinygltf::Model m;
+    {
+        tinygltf::TinyGLTF io;
+        std::string err, warn;
+        ASSERT_TRUE(io.LoadBinaryFromFile(&m, &err, &warn, man)) << err;
+        const float s = 0.02f;
+        float eye[12] = {s, s, s, -s, -s, s, -s, s, -s, s, -s, -s};
+        uint16_t eyeIdx[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};  // counter-clockwise seen from outside
+        tinygltf::Primitive prim;
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        prim.attributes["POSITION"] = addAccessor(m, eye, sizeof(eye), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                  TINYGLTF_TYPE_VEC3, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+        m.accessors.back().minValues = {-s, -s, -s};
+        m.accessors.back().maxValues = {s, s, s};
+        prim.indices = addAccessor(m, eyeIdx, sizeof(eyeIdx), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                   TINYGLTF_TYPE_SCALAR, 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        tinygltf::Mesh mesh;
+        mesh.name = "eye";
+        mesh.primitives.push_back(prim);
+        m.meshes.push_back(mesh);
+        const std::vector<int>& joints = m.skins[0].joints;
+        for (int k = 0; k < 2; ++k) {
+            tinygltf::Node node;
+            node.name = k == 0 ? "eyeL" : "eyeR";
+            node.mesh = int(m.meshes.size() - 1);
+            node.translation = {k == 0 ? 0.05 : -0.05, 0.1, 0.0};
+            if (k == 1)
+                node.scale = {-1.0, 1.0, 1.0};  // the right eye mirrors the left, as exporters write it
+            m.nodes.push_back(node);
+            m.nodes[size_t(joints[k == 0 ? joints.size() - 1 : joints.size() - 2])].children.push_back(
+                int(m.nodes.size() - 1));
+        }
+        // A third node places it too, outside the scene: glTF does not draw it.
+        tinygltf::Node spare;
+        spare.name = "spare eye";
+        spare.mesh = int(m.meshes.size() - 1);
+        m.nodes.push_back(spare);
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
+    }
+    Rig source, rig;
+    ASSERT_TRUE(io::loadRig(man, &source).isOk());
+    ASSERT_TRUE(io::loadRig(input, &rig).isOk());
+    ASSERT_EQ(rig.parts.size(), source.parts.size() + 2);
+    const RigPart& left = rig.parts[rig.parts.size() - 2];
+    const RigPart& right = rig.parts.back();
+    EXPECT_EQ(left.mesh, right.mesh);
+    EXPECT_NE(left.node, right.node);
+    EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size() + 8);
+    // Both eyes face outward, the mirrored one too (glTF draws a mirrored
+    // node's triangles with their winding reversed).
+    for (const RigPart* eye : {&left, &right}) {
+        double volume = 0.0;
+        for (uint32_t f = eye->firstFace; f < eye->firstFace + eye->faceCount; ++f) {
+            const uint32_t* t = &rig.mesh.triangles[3 * size_t(f)];
+            volume += double(glm::dot(rig.mesh.positions[t[0]],
+                                      glm::cross(rig.mesh.positions[t[1]], rig.mesh.positions[t[2]])));
+        }
+        EXPECT_GT(volume, 0.0) << eye->name;
+    }
+    // Posed, every vertex where plain skinning of the file puts it: each
+    // eye on its own joint.
+    const Skeleton& sk = rig.skeleton;
+    ASSERT_FALSE(sk.animations.empty());
+    io::Reconstruction rec;
+    io::Pose pose;
+    pose.animation = 0;
+    pose.time = 0.5f * (sk.animations[0].start + sk.animations[0].end);
+    ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+    std::vector<NodeTransform> local(sk.nodes.size());
+    std::vector<glm::mat4> world(sk.nodes.size());
+    sampleAnimation(local.data(), sk, &sk.animations[0], pose.time);
+    computeWorldMatrices(world.data(), sk, local.data());
+    const std::vector<glm::vec3> lbs = plainLbs(m, rig, world);
+    ASSERT_EQ(lbs.size(), rig.sourceVertex.size());
+    float worst = 0.0f;
+    for (size_t f = 0; f < lbs.size(); ++f)
+        worst = std::max(worst, glm::length(lbs[f] - rec.positions[rig.sourceVertex[f]]));
+    EXPECT_LT(worst, 1e-5f);
+    const glm::vec3 apart = lbs[left.firstVertex] - lbs[right.firstVertex];
+    EXPECT_GT(glm::length(apart), 0.05f) << "the eyes are at two places";
+    // The detailed scene keeps the file's winding: the eye's mesh, which both
+    // nodes draw, faces outward in its own space.
+    io::Reconstruction fine;
+    ASSERT_TRUE(io::reconstruct(&fine, rig, nullptr, Scheme::Linear, 1).isOk());
+    ASSERT_TRUE(io::writeReconstructedScene(dir + "/scene.glb", rig, fine).isOk());
+    {
+        tinygltf::Model scene;
+        tinygltf::TinyGLTF io;
+        std::string err, warn;
+        ASSERT_TRUE(io.LoadBinaryFromFile(&scene, &err, &warn, dir + "/scene.glb")) << err;
+        const tinygltf::Primitive& prim = scene.meshes[size_t(left.mesh)].primitives[0];
+        const std::vector<float> p = accessorData<float>(scene, prim.attributes.at("POSITION"), 3);
+        const std::vector<uint32_t> tri = indicesOf(scene, prim.indices);
+        ASSERT_EQ(tri.size(), 4u * 12u);
+        double volume = 0.0;
+        for (size_t t = 0; t < tri.size(); t += 3) {
+            auto at = [&](size_t c) {
+                return glm::vec3(p[3 * tri[t + c]], p[3 * tri[t + c] + 1], p[3 * tri[t + c] + 2]);
+            };
+            volume += double(glm::dot(at(0), glm::cross(at(1), at(2))));
+        }
+        EXPECT_GT(volume, 0.0);
+    }
+
+    const test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control " +
+                                                   input + " -o " + dir + "/rig.glb");
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.output.find("eyes.glb: mesh " + std::to_string(left.mesh) + " (eye) is placed by nodes "),
+              std::string::npos)
+        << r.output;
+    EXPECT_NE(r.output.find("give each node its own copy of the mesh"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/rig.glb"));
+}
+
 // A character whose file keeps vertices no triangle uses (faces deleted in
 // an editor, their skinned vertices left in the buffer): they are left out
 // of the capture and of the character read from it alike, skin weights

@@ -692,7 +692,8 @@ void BakeJob::loadInputs()
             throw BakeError("--uv keep needs a control mesh with UVs; an automatic control mesh has none");
         uvMode = "auto";
     } else {
-        if (!(st = loadControlRig(request.control, &controlRig, request.maxMemoryMB)))
+        if (!(st = loadControlRig(request.control, &controlRig, request.maxMemoryMB)) ||
+            !(st = io::checkEachMeshPlacedOnce(request.control, controlRig)))
             throw BakeError(st.message());
         for (const std::string& w : controlRig.warnings)
             warn("%s: %s", request.control.c_str(), w.c_str());

@@ -67,6 +67,10 @@ glm::mat4 localMatrix(const tinygltf::Node& n);
 /// with two parents.
 Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, std::vector<int>* parentOut,
                          std::vector<glm::mat4>* world);
+/// The part's node mirrors it (its transform's determinant is negative):
+/// glTF draws its triangles with the winding reversed, and the control mesh
+/// holds them so (readSceneGeometry), outward as drawn.
+bool mirrors(const RigPart& part);
 /// The accessor of attribute `name`, or -1.
 int attributeOf(const tinygltf::Primitive& prim, const std::string& name);
 /// A triangle primitive's indices (or 0..n-1), checked against vertexCount.

@@ -400,6 +400,29 @@ Status loadControlForBake(const std::filesystem::path& pathFile, Rig* out, const
     return finishRig(path, std::move(doc), out, LayerCheck::DropStale, budgetBytes(options));
 }
 
+Status checkEachMeshPlacedOnce(const std::string& path, const Rig& rig)
+{
+    if (!rig.source)
+        return Status::ok();
+    const tinygltf::Model& model = rig.source->model;
+    std::map<std::pair<int, int>, int> placed;  // (mesh, primitive) -> the node that placed it first
+    for (const RigPart& part : rig.parts) {
+        const auto it = placed.emplace(std::make_pair(part.mesh, part.primitive), part.node);
+        if (it.second || part.node < 0 || it.first->second < 0)
+            continue;
+        auto nodeName = [&](int node) {
+            return std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) + ")";
+        };
+        return Status(StatusCode::Unsupported,
+                      path + ": mesh " + std::to_string(part.mesh) + " (" +
+                          printable(model.meshes[size_t(part.mesh)].name, 60) + ") is placed by nodes " +
+                          nodeName(it.first->second) + " and " + nodeName(part.node) +
+                          ", and a rig written as this file needs UVs of its own at each place: give each node its "
+                          "own copy of the mesh");
+    }
+    return Status::ok();
+}
+
 Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out,
                          const LoadOptions& options)
 {

@@ -21,6 +21,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 
 #include <sys/stat.h>
 
@@ -100,6 +101,11 @@ Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, 
                                                            ") has a non-finite transform");
     *parentOut = std::move(parent);
     return Status::ok();
+}
+
+bool mirrors(const RigPart& part)
+{
+    return glm::determinant(glm::mat3(part.toScene)) < 0.0f;
 }
 
 int attributeOf(const tinygltf::Primitive& prim, const std::string& name)
@@ -253,7 +259,8 @@ void snapOntoUnmoved(std::vector<float>& pos, const std::vector<uint8_t>& moved)
         return;
     auto cellOf = [&](size_t v, int c) { return int64_t(std::floor((pos[3 * v + size_t(c)] - lo[c]) / eps)); };
     auto key = [](int64_t x, int64_t y, int64_t z) {
-        return uint64_t(x) * 0x9e3779b97f4a7c15ull ^ uint64_t(y) * 0xc2b2ae3d27d4eb4full ^ uint64_t(z) * 0x165667b19e3779f9ull;
+        return uint64_t(x) * 0x9e3779b97f4a7c15ull ^ uint64_t(y) * 0xc2b2ae3d27d4eb4full ^
+               uint64_t(z) * 0x165667b19e3779f9ull;
     };
     std::unordered_multimap<uint64_t, uint32_t> cells;
     for (size_t v = 0; v < n; ++v)
@@ -314,14 +321,36 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             else if (!tc && member(*block, "displacementVertices"))
                 texCoord = -1;  // per-vertex values without UVs
         }
+    // Every node of the scene that draws each mesh: a mesh two nodes place
+    // (a pair of eyes, a row of buttons) is read once at each place.  A mesh
+    // only nodes outside the scene place is read at the first of them, and
+    // one no node places once as it is.
+    std::vector<uint8_t> inScene(model.nodes.size(), model.scenes.empty() ? 1 : 0);
+    if (!model.scenes.empty()) {
+        const bool named = model.defaultScene >= 0 && size_t(model.defaultScene) < model.scenes.size();
+        std::vector<int> stack = model.scenes[named ? size_t(model.defaultScene) : 0].nodes;
+        while (!stack.empty()) {  // restWorldMatrices refused cycles and shared children
+            const int n = stack.back();
+            stack.pop_back();
+            if (n < 0 || size_t(n) >= model.nodes.size() || inScene[size_t(n)])
+                continue;
+            inScene[size_t(n)] = 1;
+            stack.insert(stack.end(), model.nodes[size_t(n)].children.begin(), model.nodes[size_t(n)].children.end());
+        }
+    }
+    std::vector<std::vector<int>> nodesOf(model.meshes.size());
     std::vector<int> firstNode(model.meshes.size(), -1);
     for (size_t i = 0; i < model.nodes.size(); ++i) {
         const int m = model.nodes[i].mesh;
-        if (m >= 0 && size_t(m) < model.meshes.size() && firstNode[size_t(m)] < 0)
-            firstNode[size_t(m)] = int(i);
-        else if (m >= 0 && size_t(m) >= model.meshes.size())
+        if (m >= 0 && size_t(m) < model.meshes.size()) {
+            if (inScene[i])
+                nodesOf[size_t(m)].push_back(int(i));
+            if (firstNode[size_t(m)] < 0)
+                firstNode[size_t(m)] = int(i);
+        } else if (m >= 0) {
             return Status(StatusCode::InvalidData, path + ": node " + std::to_string(i) + " references missing mesh " +
                                                        std::to_string(m));
+        }
     }
     Rig& rig = out->rig;
     std::vector<float> pos;  // all file vertices, scene space
@@ -334,82 +363,90 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
         if (legacy && int(m) != out->blockMesh)
             continue;
         const tinygltf::Mesh& mesh = model.meshes[m];
-        for (size_t p = 0; p < mesh.primitives.size(); ++p) {
-            const tinygltf::Primitive& prim = mesh.primitives[p];
-            if (!isTriangles(prim.mode)) {
-                ++out->passThrough;
-                continue;
-            }
-            RigPart part;
-            part.mesh = int(m);
-            part.primitive = int(p);
-            part.node = firstNode[m];
-            part.material = prim.material;
-            part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
-            part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
-            part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
-            if (part.skinned) {
-                glm::vec2 spread(1.0f);
-                const int skin = model.nodes[size_t(part.node)].skin;
-                auto known = skinScales.find(skin);
-                if (known == skinScales.end())
-                    known = skinScales.emplace(skin, bindSpaceScale(model, skin, world, &spread)).first;
-                const float scale = known->second;
-                part.toScene = glm::scale(glm::mat4(1.0f), glm::vec3(scale));
-                if (scale == 1.0f && spread.y - spread.x > 0.01f * spread.y && !out->bindScaleWarned) {
-                    out->bindScaleWarned = true;
-                    char line[200];
-                    std::snprintf(line, sizeof(line),
-                                  "skin %d places its meshes at scales %.4g to %.4g at rest (by joint or axis), not "
-                                  "one: a displacement baked in their bind space poses off by up to that ratio",
-                                  skin, double(spread.x), double(spread.y));
-                    rig.warnings.push_back(line);
+        if (nodesOf[m].empty())
+            nodesOf[m].push_back(firstNode[m]);
+        for (size_t instance = 0; instance < nodesOf[m].size(); ++instance) {
+            for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+                const tinygltf::Primitive& prim = mesh.primitives[p];
+                if (!isTriangles(prim.mode)) {
+                    out->passThrough += instance == 0;
+                    continue;
                 }
-            }
-            part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
-                        " primitive " + std::to_string(p);
-            const std::string what = path + ": " + part.name;
-            if (attributeOf(prim, "POSITION") < 0)
-                return Status(StatusCode::InvalidData, what + " has no POSITION attribute");
-            std::vector<float> ppos, puv;
-            if (!(st = readFloatAccessor(model, attributeOf(prim, "POSITION"), 3, "POSITION", &ppos)))
-                return Status(st.code(), what + ": " + st.message());
-            const size_t n = ppos.size() / 3;
-            if (n == 0)
-                continue;
-            if (pos.size() / 3 + n >= 0x7fffffffu)
-                return Status(StatusCode::InvalidData, path + ": the scene has too many vertices");
-            const int uvAcc = texCoord >= 0 ? attributeOf(prim, uvName) : -1;
-            if (uvAcc >= 0) {
-                if (!(st = readFloatAccessor(model, uvAcc, 2, uvName, &puv)))
+                RigPart part;
+                part.mesh = int(m);
+                part.primitive = int(p);
+                part.node = nodesOf[m][instance];
+                part.material = prim.material;
+                part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
+                part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
+                part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
+                if (part.skinned) {
+                    glm::vec2 spread(1.0f);
+                    const int skin = model.nodes[size_t(part.node)].skin;
+                    auto known = skinScales.find(skin);
+                    if (known == skinScales.end())
+                        known = skinScales.emplace(skin, bindSpaceScale(model, skin, world, &spread)).first;
+                    const float scale = known->second;
+                    part.toScene = glm::scale(glm::mat4(1.0f), glm::vec3(scale));
+                    if (scale == 1.0f && spread.y - spread.x > 0.01f * spread.y && !out->bindScaleWarned) {
+                        out->bindScaleWarned = true;
+                        char line[200];
+                        std::snprintf(line, sizeof(line),
+                                      "skin %d places its meshes at scales %.4g to %.4g at rest (by joint or axis), "
+                                      "not one: a displacement baked in their bind space poses off by up to that ratio",
+                                      skin, double(spread.x), double(spread.y));
+                        rig.warnings.push_back(line);
+                    }
+                }
+                part.name = (mesh.name.empty() ? "mesh " + std::to_string(m) : "mesh " + printable(mesh.name, 60)) +
+                            " primitive " + std::to_string(p);
+                if (instance > 0)
+                    part.name += " on node " + std::to_string(part.node) + " (" +
+                                 printable(model.nodes[size_t(part.node)].name, 60) + ")";
+                const std::string what = path + ": " + part.name;
+                if (attributeOf(prim, "POSITION") < 0)
+                    return Status(StatusCode::InvalidData, what + " has no POSITION attribute");
+                std::vector<float> ppos, puv;
+                if (!(st = readFloatAccessor(model, attributeOf(prim, "POSITION"), 3, "POSITION", &ppos)))
                     return Status(st.code(), what + ": " + st.message());
-                if (puv.size() / 2 != n)
-                    return Status(StatusCode::InvalidData, what + ": " + uvName + " has " +
-                                                               std::to_string(puv.size() / 2) + " elements for " +
-                                                               std::to_string(n) + " vertices");
-            } else if (out->missingUV++ == 0) {
-                out->firstMissingUV = part.name;
-            }
-            std::vector<uint32_t> ptri;
-            if (!(st = primitiveTriangles(model, prim, n, what, &ptri)))
-                return st;
-            part.firstVertex = uint32_t(pos.size() / 3);
-            part.vertexCount = uint32_t(n);
-            for (size_t i = 0; i < n; ++i) {
-                const glm::vec4 q = part.toScene * glm::vec4(ppos[3 * i], ppos[3 * i + 1], ppos[3 * i + 2], 1.0f);
-                if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
-                    return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(i) +
-                                                               " is not finite in the scene's space");
-                pos.insert(pos.end(), {q.x, q.y, q.z});
-                uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
-            }
-            for (uint32_t i : ptri) {
-                tri.push_back(part.firstVertex + i);
-                if (tri.size() % 3 == 0)
+                const size_t n = ppos.size() / 3;
+                if (n == 0)
+                    continue;
+                if (pos.size() / 3 + n >= 0x7fffffffu)
+                    return Status(StatusCode::InvalidData, path + ": the scene has too many vertices");
+                const int uvAcc = texCoord >= 0 ? attributeOf(prim, uvName) : -1;
+                if (uvAcc >= 0) {
+                    if (!(st = readFloatAccessor(model, uvAcc, 2, uvName, &puv)))
+                        return Status(st.code(), what + ": " + st.message());
+                    if (puv.size() / 2 != n)
+                        return Status(StatusCode::InvalidData, what + ": " + uvName + " has " +
+                                                                   std::to_string(puv.size() / 2) + " elements for " +
+                                                                   std::to_string(n) + " vertices");
+                } else if (out->missingUV++ == 0) {
+                    out->firstMissingUV = part.name;
+                }
+                std::vector<uint32_t> ptri;
+                if (!(st = primitiveTriangles(model, prim, n, what, &ptri)))
+                    return st;
+                part.firstVertex = uint32_t(pos.size() / 3);
+                part.vertexCount = uint32_t(n);
+                for (size_t i = 0; i < n; ++i) {
+                    const glm::vec4 q = part.toScene * glm::vec4(ppos[3 * i], ppos[3 * i + 1], ppos[3 * i + 2], 1.0f);
+                    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+                        return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(i) +
+                                                                   " is not finite in the scene's space");
+                    pos.insert(pos.end(), {q.x, q.y, q.z});
+                    uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
+                }
+                const bool mirrored = mirrors(part);
+                for (size_t t = 0; t < ptri.size(); t += 3) {
+                    tri.insert(tri.end(), {part.firstVertex + ptri[t], part.firstVertex + ptri[t + (mirrored ? 2 : 1)],
+                                           part.firstVertex + ptri[t + (mirrored ? 1 : 2)]});
                     partOfTri.push_back(uint32_t(rig.parts.size()));
+                }
+                out->primitives.push_back(&prim);
+                rig.parts.push_back(std::move(part));
             }
-            out->primitives.push_back(&prim);
-            rig.parts.push_back(std::move(part));
         }
     }
     if (rig.parts.empty())

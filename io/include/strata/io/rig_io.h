@@ -60,6 +60,13 @@ Status loadRig(const std::filesystem::path& path, Rig* out, const LoadOptions& o
 /// the file, since the bake replaces it.
 Status loadControlForBake(const std::filesystem::path& path, Rig* out, const LoadOptions& options = LoadOptions());
 
+/// A glTF scene places a mesh wherever a node names it, and loadRig reads
+/// each placement as parts of its own.  A rig written as its source document
+/// (a bake onto this control mesh) keeps its layer's UVs in each part's
+/// primitive, so a mesh placed twice cannot be one: refused, naming the mesh
+/// and two of its nodes.  OK for a rig not read from glTF.
+Status checkEachMeshPlacedOnce(const std::string& path, const Rig& rig);
+
 /// loadRig from bytes in memory (.glb when `binary`, else .gltf JSON); no
 /// external file is read.  `name` is used in messages.
 Status loadRigFromMemory(const unsigned char* data, size_t size, bool binary, const std::string& name, Rig* out,
