@@ -176,7 +176,7 @@ TEST(Picture, FramingKeepsTheBoxInView)
     EXPECT_NEAR(std::asin(radius / glm::length(c.eye - c.target)), 0.45f * glm::radians(c.fovYDegrees), 1e-5f);
 }
 
-TEST(Sampler, BilinearRepeatingAndNearestAsGltfsDefaultSampler)
+TEST(Sampler, BilinearOrNearestWrappedAsGltfsSamplers)
 {
     io::ImageRGBA image;
     image.width = 2;
@@ -193,6 +193,16 @@ TEST(Sampler, BilinearRepeatingAndNearestAsGltfsDefaultSampler)
     // Nearest: the texel whose square holds the UV.
     EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.45, 0.5}, true).r, 0.0);
     EXPECT_DOUBLE_EQ(io::sampleImage(image, {0.55, 0.5}, true).r, 200.0 / 255.0);
+    // Clamped to its edge texels, or repeated as a mirror (a glTF sampler's
+    // other wrap modes): past u = 1, a mirror reads the last texel first.
+    using io::TextureWrap;
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.0, 0.5}, false, TextureWrap::ClampToEdge).r, 200.0 / 255.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {-3.0, 0.5}, false, TextureWrap::ClampToEdge).r, 0.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.25, 0.5}, true, TextureWrap::MirroredRepeat).r, 200.0 / 255.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.75, 0.5}, true, TextureWrap::MirroredRepeat).r, 0.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {-0.25, 0.5}, true, TextureWrap::MirroredRepeat).r, 0.0);
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.25, 0.5}, true).r, 0.0);  // repeating: the first texel again
+    EXPECT_DOUBLE_EQ(io::sampleImage(image, {1.0, 0.5}, false, TextureWrap::MirroredRepeat).r, 200.0 / 255.0);
     // No image reads white; a UV that is not a number reads a texel.
     EXPECT_EQ(io::sampleImage(io::ImageRGBA(), {0.5, 0.5}), glm::dvec4(1.0));
     const glm::dvec4 nan = io::sampleImage(image, {std::nan(""), 0.5});

@@ -1427,6 +1427,16 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     ASSERT_TRUE(io::loadRig(man, &plain).isOk());
     io::SceneMaterials before;
     ASSERT_TRUE(io::loadSceneMaterials(plain, &before).isOk());
+    // CesiumMan's sampler repeats (glTF's default); a sampler that mirrors
+    // along u and clamps along v is read so.
+    EXPECT_EQ(before.materials[0].wrapS, io::TextureWrap::Repeat);
+    EXPECT_EQ(before.materials[0].wrapT, io::TextureWrap::Repeat);
+    tinygltf::Sampler sampler;
+    sampler.wrapS = TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT;
+    sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    model.samplers.push_back(sampler);
+    model.textures[size_t(model.materials[0].pbrMetallicRoughness.baseColorTexture.index)].sampler =
+        int(model.samplers.size() - 1);
     tinygltf::Value::Object t;
     t["offset"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(0.25), tinygltf::Value(-0.5)});
     t["scale"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(2.0), tinygltf::Value(3.0)});
@@ -1442,6 +1452,8 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     EXPECT_TRUE(warnings.empty());
     const io::MaterialInfo& mat = after.materials[0];
     EXPECT_EQ(mat.uvScale, glm::vec2(2.0f, 3.0f));
+    EXPECT_EQ(mat.wrapS, io::TextureWrap::MirroredRepeat);
+    EXPECT_EQ(mat.wrapT, io::TextureWrap::ClampToEdge);
     ASSERT_EQ(after.fileUVs.size(), before.fileUVs.size());
     for (size_t v = 0; v < after.fileUVs.size(); v += 97) {
         const glm::vec2 s = glm::vec2(2.0f, 3.0f) * before.fileUVs[v];

@@ -218,6 +218,8 @@ Status Scene::uploadMaterials()
             g.textureWidth = im.width;
             g.textureHeight = im.height;
             g.textureRGBA = im.rgba.data();
+            g.wrapS = int(m.wrapS);
+            g.wrapT = int(m.wrapT);
         }
         mats.push_back(g);
     }

@@ -1058,7 +1058,7 @@ void BakeJob::carryColour()
         glm::dvec2 uv(0.0);
         for (int k = 0; k < 3; ++k)
             uv += w[k] * glm::dvec2(sm.fileUVs[highRig.fileCorners[3 * size_t(face) + size_t(k)]]);
-        return c * glm::vec4(io::sampleImage(im, uv, flat[size_t(m.image)] != 0));
+        return c * glm::vec4(io::sampleImage(im, uv, flat[size_t(m.image)] != 0, m.wrapS, m.wrapT));
     };
     ColorImage image;
     Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);

@@ -94,8 +94,10 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                     normal = -normal;  // either side drawn, lit from the front
                 glm::dvec4 colour(part.colour);
                 if (part.image && part.uvs)
-                    colour *= io::sampleImage(*part.image,
-                                              part.material ? glm::dvec2(part.material->textureUV(glm::vec2(uv))) : uv);
+                    colour *= part.material ? io::sampleImage(*part.image,
+                                                              glm::dvec2(part.material->textureUV(glm::vec2(uv))),
+                                                              false, part.material->wrapS, part.material->wrapT)
+                                            : io::sampleImage(*part.image, uv);
                 const double lit = 0.3 + 0.7 * std::max(0.0, glm::dot(normal, glm::dvec3(light)));
                 depth[at] = float(z);
                 for (int k = 0; k < 3; ++k)

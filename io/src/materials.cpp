@@ -75,16 +75,30 @@ glm::vec2 MaterialInfo::textureUV(glm::vec2 uv) const
     return uvOffset + glm::vec2(c * s.x + n * s.y, c * s.y - n * s.x);
 }
 
-glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
+glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest, TextureWrap wrapS,
+                       TextureWrap wrapT)
 {
     const int w = image.width, h = image.height;
     if (w <= 0 || h <= 0 || image.rgba.size() < 4 * size_t(w) * size_t(h))
         return glm::dvec4(1.0);
     const double x = uv.x * w - 0.5, y = uv.y * h - 0.5;
+    // Texel index t of an axis of n texels, wrapped in doubles first (a UV
+    // far outside [0, 1] stays in range).
+    auto wrap = [](double t, int n, TextureWrap mode) {
+        double at = t;
+        if (mode == TextureWrap::ClampToEdge) {
+            at = std::clamp(t, 0.0, double(n - 1));
+        } else if (mode == TextureWrap::MirroredRepeat) {
+            at = t - std::floor(t / (2.0 * n)) * (2.0 * n);  // [0, 2n): the image, then its mirror
+            if (at >= n)
+                at = 2.0 * n - 1.0 - at;
+        } else {
+            at = t - std::floor(t / n) * n;
+        }
+        return std::min(size_t(std::max(at, 0.0)), size_t(n - 1));
+    };
     auto texel = [&](double tx, double ty) {
-        // Wrapped in doubles first: a UV far outside [0, 1] stays in range.
-        const double wx = tx - std::floor(tx / w) * w, wy = ty - std::floor(ty / h) * h;
-        const size_t ix = std::min(size_t(wx), size_t(w - 1)), iy = std::min(size_t(wy), size_t(h - 1));
+        const size_t ix = wrap(tx, w, wrapS), iy = wrap(ty, h, wrapT);
         const size_t i = 4 * (iy * size_t(w) + ix);
         return glm::dvec4(image.rgba[i], image.rgba[i + 1], image.rgba[i + 2], image.rgba[i + 3]) / 255.0;
     };
@@ -124,6 +138,16 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 used[size_t(src)] = true;
             }
             mat.texCoord = std::clamp(in.pbrMetallicRoughness.baseColorTexture.texCoord, 0, 7);
+            const int sampler = m.textures[size_t(tex)].sampler;
+            if (sampler >= 0 && size_t(sampler) < m.samplers.size()) {
+                auto mode = [](int code) {
+                    return code == int(TextureWrap::ClampToEdge)      ? TextureWrap::ClampToEdge
+                           : code == int(TextureWrap::MirroredRepeat) ? TextureWrap::MirroredRepeat
+                                                                      : TextureWrap::Repeat;
+                };
+                mat.wrapS = mode(m.samplers[size_t(sampler)].wrapS);
+                mat.wrapT = mode(m.samplers[size_t(sampler)].wrapT);
+            }
             if (!readTextureTransform(in.pbrMetallicRoughness.baseColorTexture.extensions, &mat) && warnings)
                 warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
                                     "): its KHR_texture_transform is not numbers of the right shape; ignored");

@@ -138,8 +138,8 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
             glGenerateTextureMipmap(m.texture);
             glTextureParameteri(m.texture, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
             glTextureParameteri(m.texture, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_S, GL_REPEAT);
-            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_T, GL_REPEAT);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_S, in.wrapS);
+            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_T, in.wrapT);
         }
         m.material.textureRGBA = nullptr;
         materials_.push_back(m);

@@ -20,6 +20,10 @@ namespace io {
 
 enum class AlphaMode { Opaque = 0, Mask = 1, Blend = 2 };
 
+/// How a texture's sampler reads past [0, 1] (glTF's wrapS and wrapT, whose
+/// codes these are).
+enum class TextureWrap { Repeat = 10497, ClampToEdge = 33071, MirroredRepeat = 33648 };
+
 struct MaterialInfo {
     std::string name;
     glm::vec4 baseColor{1.0f};  ///< baseColorFactor
@@ -29,6 +33,8 @@ struct MaterialInfo {
     /// uv' = uvOffset + R(uvRotation) (uvScale * uv), R turning counter-clockwise.
     glm::vec2 uvOffset{0.0f}, uvScale{1.0f};
     float uvRotation = 0.0f;
+    /// The base colour texture's sampler, along u and v (glTF's default: repeat).
+    TextureWrap wrapS = TextureWrap::Repeat, wrapT = TextureWrap::Repeat;
     /// The texture's UV for a vertex's `uv` (the transform above applied).
     glm::vec2 textureUV(glm::vec2 uv) const;
     AlphaMode alphaMode = AlphaMode::Opaque;
@@ -50,10 +56,12 @@ struct SceneMaterials {
                                           ///< (MaterialInfo::textureUV); (0, 0) without
 };
 
-/// The image at UV `uv` as glTF's default sampler reads it: bilinear,
-/// repeating (texel (x, y) centred at ((x + 0.5) / width, (y + 0.5) / height)),
-/// or its nearest texel when `nearest`; RGBA in 0..1.  An empty image reads 1.
-glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest = false);
+/// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
+/// centred at ((x + 0.5) / width, (y + 0.5) / height)), or its nearest texel
+/// when `nearest`, past its edges as wrapS and wrapT say (glTF's default:
+/// repeating); RGBA in 0..1.  An empty image reads 1.
+glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool nearest = false,
+                       TextureWrap wrapS = TextureWrap::Repeat, TextureWrap wrapT = TextureWrap::Repeat);
 
 /// Reads the materials of a rig loaded from glTF (rig.source).  Rigs from
 /// other sources get the default material for every part.  Images that

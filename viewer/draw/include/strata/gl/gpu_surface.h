@@ -45,6 +45,7 @@ struct SurfaceMaterial {
     glm::vec4 baseColor{1.0f};
     int textureWidth = 0, textureHeight = 0;
     const uint8_t* textureRGBA = nullptr;  ///< null: untextured; copied at setMaterials()
+    int wrapS = 0x2901, wrapT = 0x2901;    ///< the texture's wrap modes (GL's codes, as glTF's samplers give them)
     int alphaMode = 0;                     ///< 0 opaque, 1 mask, 2 blend
     float alphaCutoff = 0.5f;
 };
