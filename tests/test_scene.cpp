@@ -286,6 +286,20 @@ int addAccessor(tinygltf::Model& m, const void* data, size_t bytes, int componen
     return int(m.accessors.size() - 1);
 }
 
+// A mesh of one primitive, on a new node of its own; returns the node.
+int addMeshNode(tinygltf::Model& m, const std::string& name, const tinygltf::Primitive& prim)
+{
+    tinygltf::Mesh mesh;
+    mesh.name = name;
+    mesh.primitives.push_back(prim);
+    m.meshes.push_back(mesh);
+    tinygltf::Node node;
+    node.name = name;
+    node.mesh = int(m.meshes.size() - 1);
+    m.nodes.push_back(node);
+    return int(m.nodes.size() - 1);
+}
+
 template <typename T>
 std::vector<T> accessorData(const tinygltf::Model& m, int index, int components)
 {
@@ -422,16 +436,9 @@ bool makeCharacter(const std::string& source, const std::string& path, size_t* f
                                                    TINYGLTF_TYPE_VEC2, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
     eyePrim.indices = addAccessor(m, eyeIdx, sizeof(eyeIdx), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                   TINYGLTF_TYPE_SCALAR, 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    tinygltf::Mesh eyeMesh;
-    eyeMesh.name = "eye";
-    eyeMesh.primitives.push_back(eyePrim);
-    m.meshes.push_back(eyeMesh);
-    tinygltf::Node eyeNode;
-    eyeNode.name = "eye";
-    eyeNode.mesh = int(m.meshes.size() - 1);
-    eyeNode.translation = {0.0, 0.1, 0.0};
-    m.nodes.push_back(eyeNode);
-    m.nodes[size_t(m.skins[0].joints.back())].children.push_back(int(m.nodes.size() - 1));
+    const int eyeNode = addMeshNode(m, "eye", eyePrim);
+    m.nodes[size_t(eyeNode)].translation = {0.0, 0.1, 0.0};
+    m.nodes[size_t(m.skins[0].joints.back())].children.push_back(eyeNode);
     return io.WriteGltfSceneToFile(&m, path, true, true, false, true);
 }
 
@@ -462,6 +469,17 @@ std::vector<glm::vec3> plainLbs(const tinygltf::Model& m, const Rig& rig, const 
         }
     }
     return out;
+}
+
+// plainLbs with the rig's skeleton posed by animation `a` at `time`.
+std::vector<glm::vec3> plainLbsAt(const tinygltf::Model& m, const Rig& rig, size_t a, float time)
+{
+    const Skeleton& sk = rig.skeleton;
+    std::vector<NodeTransform> local(sk.nodes.size());
+    std::vector<glm::mat4> world(sk.nodes.size());
+    sampleAnimation(local.data(), sk, &sk.animations[a], time);
+    computeWorldMatrices(world.data(), sk, local.data());
+    return plainLbs(m, rig, world);
 }
 
 // A glb read by tinygltf after its meshopt-coded views are decoded, as a
@@ -680,16 +698,9 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     m.accessors.back().minValues = lo;
     m.accessors.back().maxValues = hi;
     b.attributes.erase("NORMAL");  // its normals would want T too; glTF draws it flat
-    tinygltf::Mesh lower;
-    lower.name = "lower";
-    lower.primitives.push_back(b);
-    m.meshes.push_back(lower);
-    tinygltf::Node node;
-    node.name = "lower";
-    node.mesh = int(m.meshes.size() - 1);
-    node.skin = 1;
-    m.nodes.push_back(node);
-    m.scenes[size_t(std::max(m.defaultScene, 0))].nodes.push_back(int(m.nodes.size() - 1));
+    const int lower = addMeshNode(m, "lower", b);
+    m.nodes[size_t(lower)].skin = 1;
+    m.scenes[size_t(std::max(m.defaultScene, 0))].nodes.push_back(lower);
     tinygltf::TinyGLTF io;
     return io.WriteGltfSceneToFile(&m, path, true, true, false, true);
 }
@@ -809,27 +820,18 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
         m.accessors.back().maxValues = {s, s, s};
         prim.indices = addAccessor(m, eyeIdx, sizeof(eyeIdx), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                    TINYGLTF_TYPE_SCALAR, 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-        tinygltf::Mesh mesh;
-        mesh.name = "eye";
-        mesh.primitives.push_back(prim);
-        m.meshes.push_back(mesh);
-        const std::vector<int>& joints = m.skins[0].joints;
-        for (int k = 0; k < 2; ++k) {
-            tinygltf::Node node;
-            node.name = k == 0 ? "eyeL" : "eyeR";
-            node.mesh = int(m.meshes.size() - 1);
-            node.translation = {k == 0 ? 0.05 : -0.05, 0.1, 0.0};
-            if (k == 1)
-                node.scale = {-1.0, 1.0, 1.0};  // the right eye mirrors the left, as exporters write it
-            m.nodes.push_back(node);
-            m.nodes[size_t(joints[k == 0 ? joints.size() - 1 : joints.size() - 2])].children.push_back(
-                int(m.nodes.size() - 1));
-        }
-        // A third node places it too, outside the scene: glTF does not draw it.
-        tinygltf::Node spare;
-        spare.name = "spare eye";
-        spare.mesh = int(m.meshes.size() - 1);
+        // The left eye, the right one (its mirror, as exporters write it) and
+        // a third outside the scene, which glTF does not draw.
+        const int eyeL = addMeshNode(m, "eye", prim);
+        tinygltf::Node eyeR = m.nodes[size_t(eyeL)], spare = eyeR;
+        m.nodes[size_t(eyeL)].translation = {0.05, 0.1, 0.0};
+        eyeR.translation = {-0.05, 0.1, 0.0};
+        eyeR.scale = {-1.0, 1.0, 1.0};
+        m.nodes.push_back(eyeR);
         m.nodes.push_back(spare);
+        const std::vector<int>& joints = m.skins[0].joints;
+        m.nodes[size_t(joints[joints.size() - 1])].children.push_back(eyeL);
+        m.nodes[size_t(joints[joints.size() - 2])].children.push_back(eyeL + 1);
         ASSERT_TRUE(io.WriteGltfSceneToFile(&m, input, true, true, false, true));
     }
     Rig source, rig;
@@ -861,11 +863,7 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
     pose.animation = 0;
     pose.time = 0.5f * (sk.animations[0].start + sk.animations[0].end);
     ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
-    std::vector<NodeTransform> local(sk.nodes.size());
-    std::vector<glm::mat4> world(sk.nodes.size());
-    sampleAnimation(local.data(), sk, &sk.animations[0], pose.time);
-    computeWorldMatrices(world.data(), sk, local.data());
-    const std::vector<glm::vec3> lbs = plainLbs(m, rig, world);
+    const std::vector<glm::vec3> lbs = plainLbsAt(m, rig, 0, pose.time);
     ASSERT_EQ(lbs.size(), rig.sourceVertex.size());
     float worst = 0.0f;
     for (size_t f = 0; f < lbs.size(); ++f)
@@ -1074,11 +1072,7 @@ TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
                 if (level != 0)
                     continue;
                 // Level 0 of a self-bake is the posed control mesh: plain LBS of the file.
-                std::vector<NodeTransform> local(sk.nodes.size());
-                std::vector<glm::mat4> world(sk.nodes.size());
-                sampleAnimation(local.data(), sk, &sk.animations[a], pose.time);
-                computeWorldMatrices(world.data(), sk, local.data());
-                const std::vector<glm::vec3> lbs = plainLbs(source, rig, world);
+                const std::vector<glm::vec3> lbs = plainLbsAt(source, rig, a, pose.time);
                 ASSERT_EQ(lbs.size(), rig.sourceVertex.size());
                 float worst = 0.0f;
                 for (size_t f = 0; f < lbs.size(); ++f)
@@ -1215,17 +1209,11 @@ TEST(Scene, ReconstructedSceneIsASkinnedAnimatedCharacter)
         Rig written;
         ASSERT_TRUE(io::loadRig(out, &written).isOk());
         const Skeleton& wsk = written.skeleton;
-        std::vector<NodeTransform> local(wsk.nodes.size());
-        std::vector<glm::mat4> world(wsk.nodes.size());
         const float t = 0.5f * (wsk.animations[0].start + wsk.animations[0].end);
-        sampleAnimation(local.data(), wsk, &wsk.animations[0], t);
-        computeWorldMatrices(world.data(), wsk, local.data());
-        const std::vector<glm::vec3> played = plainLbs(m, written, world);
-        sampleAnimation(local.data(), sk, &sk.animations[0], t);
-        computeWorldMatrices(world.data(), sk, local.data());
+        const std::vector<glm::vec3> played = plainLbsAt(m, written, 0, t);
         tinygltf::Model rigModel;
         ASSERT_TRUE(loadPlainModel(rigPath, &rigModel));
-        const std::vector<glm::vec3> reference = plainLbs(rigModel, rig, world);
+        const std::vector<glm::vec3> reference = plainLbsAt(rigModel, rig, 0, t);
         // Match each played vertex to the reference vertex at the same rest
         // position (rigid parts went through their node's inverse and back:
         // equal to rounding).
