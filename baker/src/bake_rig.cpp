@@ -1554,10 +1554,24 @@ void BakeJob::summarize()
         else
             std::snprintf(what, sizeof(what), "as a plain glb (about %.1f KB: %zu vertices, %zu triangles%s)",
                           plain / 1024.0, hv, hf, extra > 0 ? ", with the rig's textures, animations and skins" : "");
-        if (rigBytes > plain && coloured)
+        // What the rig is most made of: its images, its animations (keyed
+        // as the capture keys them), or else its control mesh and layer.
+        io::CharacterBytes kinds;
+        if (rigBytes > plain) {
+            loadWritten();
+            kinds = io::characterBytesOf(written_);
+        }
+        const double images = double(kinds.images), animations = double(kinds.animations);
+        const double mesh = rigBytes - images - animations - double(kinds.skins);
+        if (rigBytes > plain && coloured && images >= std::max(animations, mesh))
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is the %dx%d base colour "
-                 "texture re-baked into the cage's UVs",
-                 request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height);
+                 "texture re-baked into the cage's UVs (%.1f KB)",
+                 request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height,
+                 images / 1024.0);
+        else if (rigBytes > plain && animations >= std::max(images, mesh))
+            warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is its animations "
+                 "(%.1f KB), keyed as the capture keys them",
+                 request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, animations / 1024.0);
         else if (rigBytes > plain)
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); its control mesh has %zu triangles, "
                  "and a coarser one (%s), or --mesh-coding meshopt or draco, makes a smaller rig",

@@ -333,15 +333,17 @@ bool hasOrphanGreyImage(const SourceDocument& doc)
 
 }  // namespace rigfile
 
-size_t characterBytes(const Rig& rig)
+CharacterBytes characterBytesOf(const Rig& rig)
 {
+    CharacterBytes out;
     if (!rig.source)
-        return 0;
+        return out;
     const tinygltf::Model& model = rig.source->model;
-    size_t total = 0;
+    std::vector<uint8_t> counted(model.accessors.size(), 0);  // an accessor two samplers share, once
     auto accessorBytes = [&](int a) {
-        if (a < 0 || size_t(a) >= model.accessors.size())
+        if (a < 0 || size_t(a) >= model.accessors.size() || counted[size_t(a)])
             return size_t(0);
+        counted[size_t(a)] = 1;
         const tinygltf::Accessor& acc = model.accessors[size_t(a)];
         const int c = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
         const int n = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
@@ -349,19 +351,25 @@ size_t characterBytes(const Rig& rig)
     };
     for (const tinygltf::Animation& an : model.animations)
         for (const tinygltf::AnimationSampler& sa : an.samplers)
-            total += accessorBytes(sa.input) + accessorBytes(sa.output);
+            out.animations += accessorBytes(sa.input) + accessorBytes(sa.output);
     for (const tinygltf::Skin& sk : model.skins)
-        total += accessorBytes(sk.inverseBindMatrices);
+        out.skins += accessorBytes(sk.inverseBindMatrices);
     for (size_t i = 0; i < model.images.size(); ++i) {
         if (int(i) == rig.displacement.image && rig.hasDisplacement)
             continue;
         const int v = model.images[i].bufferView;
         if (v >= 0 && size_t(v) < model.bufferViews.size())
-            total += model.bufferViews[size_t(v)].byteLength;
+            out.images += model.bufferViews[size_t(v)].byteLength;
         else if (i < rig.source->imageBytes.size())
-            total += rig.source->imageBytes[i].size();
+            out.images += rig.source->imageBytes[i].size();
     }
-    return total;
+    return out;
+}
+
+size_t characterBytes(const Rig& rig)
+{
+    const CharacterBytes b = characterBytesOf(rig);
+    return b.images + b.animations + b.skins;
 }
 
 std::string missingLayerCause(const Rig& rig)

@@ -30,6 +30,12 @@ std::string missingLayerCause(const Rig& rig);
 /// the same character carries too; 0 for other rigs.
 size_t characterBytes(const Rig& rig);
 
+/// characterBytes by kind (an accessor two animations share counted once).
+struct CharacterBytes {
+    size_t images = 0, animations = 0, skins = 0;
+};
+CharacterBytes characterBytesOf(const Rig& rig);
+
 /// What loading a file may cost.  Every count a file declares is checked
 /// against the bytes that back it; what it would then take in memory
 /// (decoded buffers, zeros a sparse or bufferView-less accessor stands for,
