@@ -23,6 +23,7 @@
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
+#include <tiny_gltf.h>
 
 namespace {
 
@@ -1106,6 +1107,34 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         ASSERT_EQ(rig.skeleton.animations.size(), source.skeleton.animations.size());
         for (size_t a = 0; a < source.skeleton.animations.size(); ++a)
             EXPECT_EQ(rig.skeleton.animations[a].channels.size(), source.skeleton.animations[a].channels.size());
+        // The keys as the source's, their times once for every channel keyed
+        // at them, all in two bufferViews (times and values).
+        {
+            tinygltf::Model m;
+            tinygltf::TinyGLTF gltf;
+            std::string err, warn;
+            ASSERT_TRUE(gltf.LoadBinaryFromFile(&m, &err, &warn, dir + "/rig.glb")) << err;
+            std::set<std::vector<float>> distinctTimes;
+            for (const strata::Animation& a : source.skeleton.animations)
+                for (const strata::AnimationChannel& c : a.channels)
+                    distinctTimes.insert(c.times);
+            std::set<int> inputs, views;
+            for (const tinygltf::Animation& a : m.animations)
+                for (const tinygltf::AnimationSampler& sa : a.samplers) {
+                    inputs.insert(sa.input);
+                    views.insert(m.accessors[size_t(sa.input)].bufferView);
+                    views.insert(m.accessors[size_t(sa.output)].bufferView);
+                }
+            EXPECT_EQ(inputs.size(), distinctTimes.size()) << name;
+            EXPECT_EQ(views.size(), 2u) << name;
+            for (size_t a = 0; a < source.skeleton.animations.size(); ++a)
+                for (size_t c = 0; c < source.skeleton.animations[a].channels.size(); ++c) {
+                    const strata::AnimationChannel& mine = rig.skeleton.animations[a].channels[c];
+                    const strata::AnimationChannel& theirs = source.skeleton.animations[a].channels[c];
+                    EXPECT_EQ(mine.times, theirs.times);
+                    EXPECT_EQ(mine.values, theirs.values);
+                }
+        }
         // Every cage vertex is skinned, its weights summing to 1.
         const strata::VertexWeights& w = rig.skeleton.weights;
         ASSERT_EQ(w.weights.size(), rig.mesh.vertexCount() * size_t(w.influences));

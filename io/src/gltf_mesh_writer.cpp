@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <sstream>
 
 namespace strata {
@@ -197,22 +198,35 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
         skin.inverseBindMatrices = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_MAT4,
                                                   skeleton->skin.inverseBindMatrices.size());
         model.skins.push_back(skin);
+        // Every animation's key times in one bufferView and its values in
+        // another; channels keyed at the same times (exporters key every
+        // joint alike) share one accessor of them.
+        std::vector<float> times, values;
+        std::map<std::vector<float>, int> timesAccessor;
+        std::vector<std::pair<int, size_t>> placed;  // accessor, its offset in floats (times or values)
         for (const Animation& a : skeleton->animations) {
             tinygltf::Animation anim;
             anim.name = a.name;
             for (const AnimationChannel& c : a.channels) {
                 tinygltf::AnimationSampler sa;
-                view = appendBufferView(model, c.times.data(), c.times.size() * 4, -1);
-                model.bufferViews.back().target = 0;
-                sa.input = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, c.times.size());
-                model.accessors.back().minValues = {double(c.times.front())};
-                model.accessors.back().maxValues = {double(c.times.back())};
+                auto known = timesAccessor.find(c.times);
+                if (known == timesAccessor.end()) {
+                    sa.input = appendAccessor(model, -1, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR,
+                                              c.times.size());
+                    model.accessors.back().minValues = {double(c.times.front())};
+                    model.accessors.back().maxValues = {double(c.times.back())};
+                    placed.push_back({sa.input, times.size()});
+                    times.insert(times.end(), c.times.begin(), c.times.end());
+                    timesAccessor.emplace(c.times, sa.input);
+                } else {
+                    sa.input = known->second;
+                }
                 const int comps = c.path == AnimationPath::Rotation ? 4 : 3;
-                view = appendBufferView(model, c.values.data(), c.values.size() * 4, -1);
-                model.bufferViews.back().target = 0;
-                sa.output = appendAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                sa.output = appendAccessor(model, -2, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                            comps == 4 ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3,
                                            c.values.size() / size_t(comps));
+                placed.push_back({sa.output, values.size()});
+                values.insert(values.end(), c.values.begin(), c.values.end());
                 sa.interpolation = c.interpolation == AnimationInterpolation::Step          ? "STEP"
                                    : c.interpolation == AnimationInterpolation::CubicSpline ? "CUBICSPLINE"
                                                                                             : "LINEAR";
@@ -226,6 +240,17 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
                 anim.channels.push_back(ch);
             }
             model.animations.push_back(anim);
+        }
+        if (!placed.empty()) {
+            const int timesView = appendBufferView(model, times.data(), times.size() * 4, -1);
+            model.bufferViews.back().target = 0;
+            const int valuesView = appendBufferView(model, values.data(), values.size() * 4, -1);
+            model.bufferViews.back().target = 0;
+            for (const auto& [accessor, offset] : placed) {
+                tinygltf::Accessor& acc = model.accessors[size_t(accessor)];
+                acc.bufferView = acc.bufferView == -1 ? timesView : valuesView;
+                acc.byteOffset = 4 * offset;
+            }
         }
     }
     if (skinned && skeleton->meshNode >= 0 && size_t(skeleton->meshNode) < skeleton->nodes.size() &&
