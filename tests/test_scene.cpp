@@ -612,8 +612,8 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
     EXPECT_EQ(rig.skeleton.skin.joints.size(), source.skeleton.skin.joints.size());
     EXPECT_EQ(rig.skeleton.animations.size(), source.skeleton.animations.size());
     EXPECT_NE(r.output.find("materials carried as one"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("10 of its 59 primitives have no NORMAL (glTF draws them flat); the automatic cage is one "
-                            "mesh, drawn smooth"),
+    EXPECT_NE(r.output.find("10 of its 59 primitives are drawn flat (no NORMAL, or their faces' normals); the "
+                            "automatic cage is one mesh, drawn smooth"),
               std::string::npos)
         << r.output;
     EXPECT_FALSE(rig.displacement.flatShading);
@@ -903,6 +903,51 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
         << r.output;
     EXPECT_NE(r.output.find("give each node its own copy of the mesh"), std::string::npos) << r.output;
     EXPECT_FALSE(std::filesystem::exists(dir + "/rig.glb"));
+}
+
+// A primitive whose normals are its faces' own (an exporter's faceted mesh,
+// its vertices split at every face: Blender writes Fox so) is drawn faceted,
+// as glTF draws it, like one without NORMAL; the same split mesh with
+// normals that vary across its faces is drawn smooth.
+TEST(Scene, NormalsThatAreTheFacesOwnDrawFlat)
+{
+    const std::string dir = test::tempDir("scene_faceted_normals");
+    const glm::vec3 corner[4] = {{1, 1, 1}, {-1, -1, 1}, {-1, 1, -1}, {1, -1, -1}};
+    const uint32_t faces[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    for (const bool faceted : {true, false}) {
+        std::vector<glm::vec3> p, n;
+        for (int f = 0; f < 4; ++f) {
+            const glm::vec3 a = corner[faces[3 * f]], b = corner[faces[3 * f + 1]], c = corner[faces[3 * f + 2]];
+            const glm::vec3 face = glm::normalize(glm::cross(b - a, c - a));
+            for (const glm::vec3& q : {a, b, c}) {
+                p.push_back(q);
+                n.push_back(faceted ? face : glm::normalize(q));  // smooth: the sphere's normal at each corner
+            }
+        }
+        tinygltf::Model m;
+        m.asset.version = "2.0";
+        m.buffers.resize(1);
+        tinygltf::Primitive prim;
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        prim.attributes["POSITION"] = addAccessor(m, p.data(), p.size() * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                  TINYGLTF_TYPE_VEC3, p.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+        m.accessors.back().minValues = {-1, -1, -1};
+        m.accessors.back().maxValues = {1, 1, 1};
+        prim.attributes["NORMAL"] = addAccessor(m, n.data(), n.size() * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                TINYGLTF_TYPE_VEC3, n.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+        const int node = addMeshNode(m, "tetrahedron", prim);
+        m.scenes.resize(1);
+        m.scenes[0].nodes.push_back(node);
+        m.defaultScene = 0;
+        const std::string path = dir + (faceted ? "/faceted.glb" : "/smooth.glb");
+        tinygltf::TinyGLTF io;
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, path, true, true, false, true));
+        Rig rig;
+        ASSERT_TRUE(io::loadRig(path, &rig).isOk());
+        ASSERT_EQ(rig.parts.size(), 1u);
+        EXPECT_EQ(rig.mesh.positions.size(), 4u) << "welded at its corners";
+        EXPECT_EQ(rig.parts[0].flat, faceted) << path;
+    }
 }
 
 // A character whose file keeps vertices no triangle uses (faces deleted in

@@ -901,8 +901,8 @@ void BakeJob::loadCharacter()
              request.high.c_str());
     const size_t flatParts = flatPartCount(highRig);
     if (flatParts > 0 && flatParts < highRig.parts.size())
-        warn("%s: %zu of its %zu primitives have no NORMAL (glTF draws them flat); the automatic cage is one mesh, "
-             "drawn smooth",
+        warn("%s: %zu of its %zu primitives are drawn flat (no NORMAL, or their faces' normals); the automatic cage "
+             "is one mesh, drawn smooth",
              request.high.c_str(), flatParts, highRig.parts.size());
     if (coloured) {
         const io::SceneMaterials& sm = captureMaterials;

@@ -242,6 +242,36 @@ float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<g
 
 namespace {
 
+// A primitive whose every corner's NORMAL is its triangle's own normal (to
+// about a degree, either way round): an exporter's faceted mesh, its
+// vertices split at every face.  glTF draws it faceted, as it draws a
+// primitive without NORMAL.  False where it has none, or none readable.
+bool facetedNormals(const tinygltf::Model& model, const tinygltf::Primitive& prim, const std::vector<float>& pos,
+                    const std::vector<uint32_t>& tri)
+{
+    const int accessor = attributeOf(prim, "NORMAL");
+    std::vector<float> normals;
+    if (accessor < 0 || !readFloatAccessor(model, accessor, 3, "NORMAL", &normals) || normals.size() != pos.size())
+        return false;
+    auto at = [](const std::vector<float>& v, uint32_t i) { return glm::vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]); };
+    size_t faces = 0;
+    for (size_t t = 0; t + 2 < tri.size(); t += 3) {
+        const glm::vec3 a = at(pos, tri[t]);
+        const glm::vec3 face = glm::cross(at(pos, tri[t + 1]) - a, at(pos, tri[t + 2]) - a);
+        const float area = glm::length(face);
+        if (!(area > 0.0f) || !std::isfinite(area))
+            continue;  // no direction of its own
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec3 n = at(normals, tri[t + size_t(k)]);
+            const float length = glm::length(n);
+            if (!(std::fabs(glm::dot(n, face)) >= 0.9998f * length * area))
+                return false;
+        }
+        ++faces;
+    }
+    return faces > 0;
+}
+
 // Vertices read through another skin's bind space (moved[v]) carry its
 // transform's rounding: each one within a millionth of the scene's diagonal
 // of a vertex not moved takes that vertex's position, so that a seam split
@@ -378,7 +408,9 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 part.node = nodesOf[m][instance];
                 part.material = prim.material;
                 part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
-                part.flat = attributeOf(prim, "NORMAL") < 0;  // glTF shades it flat (finishRig asks the layer)
+                // glTF shades it flat without NORMAL, and draws it faceted
+                // with its faces' normals (below; finishRig asks the layer).
+                part.flat = attributeOf(prim, "NORMAL") < 0;
                 part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
                 if (part.skinned) {
                     glm::vec2 spread(1.0f);
@@ -428,6 +460,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 std::vector<uint32_t> ptri;
                 if (!(st = primitiveTriangles(model, prim, n, what, &ptri)))
                     return st;
+                part.flat = part.flat || facetedNormals(model, prim, ppos, ptri);
                 part.firstVertex = uint32_t(pos.size() / 3);
                 part.vertexCount = uint32_t(n);
                 for (size_t i = 0; i < n; ++i) {
