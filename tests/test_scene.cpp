@@ -1506,6 +1506,37 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     EXPECT_EQ(after.fileUVs[5], before.fileUVs[5]);
 }
 
+// A base colour texture whose image only an extension names (a web
+// pipeline's WebP or KTX2, gltf-transform optimize's default) cannot be
+// read: the material is drawn in its factor alone, and the warning names
+// the extension, where the colour went without a word.
+TEST(Scene, ATextureOnlyAnExtensionNamesIsNamed)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_texture_extension");
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    tinygltf::Texture& texture = model.textures[size_t(model.materials[0].pbrMetallicRoughness.baseColorTexture.index)];
+    tinygltf::Value::Object webp;
+    webp["source"] = tinygltf::Value(texture.source);
+    texture.extensions["EXT_texture_webp"] = tinygltf::Value(webp);
+    texture.source = -1;
+    model.extensionsUsed.push_back("EXT_texture_webp");
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/webp.glb", true, true, false, true));
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/webp.glb", &rig).isOk());
+    io::SceneMaterials materials;
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(io::loadSceneMaterials(rig, &materials, &warnings).isOk());
+    EXPECT_EQ(materials.materials[0].image, -1);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("its base colour texture is only in EXT_texture_webp, an image Strata does not decode"),
+              std::string::npos)
+        << warnings[0];
+}
+
 // A skin whose joints place its meshes at different scales at rest has no
 // one scale to read its bind space at: it is read as it is, and named once.
 TEST(Scene, ASkinOfManyScalesIsNamed)

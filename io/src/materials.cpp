@@ -136,6 +136,18 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             if (src >= 0 && size_t(src) < m.images.size()) {
                 mat.image = src;
                 used[size_t(src)] = true;
+            } else if (warnings) {
+                // An image only an extension names (WebP, KTX2, AVIF, DDS:
+                // no PNG or JPEG fallback in `source`) is one stb cannot read.
+                std::string coded;
+                for (const auto& [name, value] : m.textures[size_t(tex)].extensions)
+                    coded += (coded.empty() ? "" : ", ") + name;
+                warnings->push_back("material " + std::to_string(s.materials.size()) + " (" +
+                                    printable(in.name, 60) + "): its base colour texture is " +
+                                    (coded.empty() ? std::string("no image")
+                                                   : "only in " + printable(coded, 120) +
+                                                         ", an image Strata does not decode") +
+                                    "; drawn in its colour factor alone");
             }
             mat.texCoord = std::clamp(in.pbrMetallicRoughness.baseColorTexture.texCoord, 0, 7);
             const int sampler = m.textures[size_t(tex)].sampler;
