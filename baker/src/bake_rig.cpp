@@ -2146,9 +2146,11 @@ Status bakeOnce(const BakeRequest& request, BakeResult* result, const BakeProgre
 // predicted where the error before quantisation, a power of the face count
 // through the tries nearest the tolerance (until two tries give it, 1 going
 // up and 2 going down), crosses the tolerance, with 10% to spare, between
-// 200 and a fifth of the capture or 1,000 faces, whichever is more (all of
-// a capture smaller than that: a low-polygon character's joints need
-// nearly all its faces to bend like it), and, going up, at most twice the
+// 200 and a fifth of the capture, 1,000 faces or half the capture up to
+// 2,000, whichever is more (all of a capture smaller than 1,000: a
+// low-polygon character's joints need nearly all its faces to bend like
+// it; half of one under 4,000, where a fifth or 1,000 faces missed by a
+// hair and the capture itself was twice the rig), and, going up, at most twice the
 // faces until two tries measure the power.  A try that met two levels or more below the
 // paper's level is nearly all cage: the next takes a quarter of its faces.
 // The search stops when the answer is settled: the fewest that met and the
@@ -2268,7 +2270,8 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         return bakeOnce(request, result, progress, nullptr, &whole);  // it reports the problem
     const size_t faces = shared.high.faceCount();
     const size_t first = firstCageFaces(faces);
-    const size_t most = std::max({first, faces / 5, std::min<size_t>(faces, 1000)});
+    const size_t most =
+        std::max({first, faces / 5, std::min<size_t>(faces, 1000), std::min<size_t>(faces / 2, 2000)});
     if (Status st = attempt(first); !st)
         return st;  // the first try failed (or the bake was cancelled): its message is the bake's
     for (int more = 0; more < 5; ++more) {
