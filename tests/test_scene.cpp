@@ -1537,6 +1537,43 @@ TEST(Scene, ATextureOnlyAnExtensionNamesIsNamed)
         << warnings[0];
 }
 
+// A material in KHR_materials_pbrSpecularGlossiness (older exports, many of
+// Sketchfab's): its diffuse colour and texture are read as the base colour,
+// where the colour was left white.
+TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_specular_glossiness");
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    Rig plain;
+    ASSERT_TRUE(io::loadRig(man, &plain).isOk());
+    io::SceneMaterials before;
+    ASSERT_TRUE(io::loadSceneMaterials(plain, &before).isOk());
+    tinygltf::Material& mat = model.materials[0];
+    tinygltf::Value::Object texture, sg;
+    texture["index"] = tinygltf::Value(mat.pbrMetallicRoughness.baseColorTexture.index);
+    sg["diffuseTexture"] = tinygltf::Value(texture);
+    sg["diffuseFactor"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(1.0), tinygltf::Value(0.5),
+                                                                 tinygltf::Value(0.25), tinygltf::Value(1.0)});
+    mat.extensions["KHR_materials_pbrSpecularGlossiness"] = tinygltf::Value(sg);
+    mat.pbrMetallicRoughness.baseColorTexture = tinygltf::TextureInfo();
+    model.extensionsUsed.push_back("KHR_materials_pbrSpecularGlossiness");
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/sg.glb", true, true, false, true));
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/sg.glb", &rig).isOk());
+    io::SceneMaterials after;
+    ASSERT_TRUE(io::loadSceneMaterials(rig, &after).isOk());
+    EXPECT_EQ(after.materials[0].image, before.materials[0].image);
+    EXPECT_GE(after.materials[0].image, 0);
+    EXPECT_EQ(after.materials[0].baseColor, glm::vec4(1.0f, 0.5f, 0.25f, 1.0f));
+    EXPECT_EQ(after.fileUVs, before.fileUVs);
+    EXPECT_NE(io::featuresNotCarried(rig, 0).find("its diffuse carried"), std::string::npos)
+        << io::featuresNotCarried(rig, 0);
+}
+
 // A skin whose joints place its meshes at different scales at rest has no
 // one scale to read its bind space at: it is read as it is, and named once.
 TEST(Scene, ASkinOfManyScalesIsNamed)

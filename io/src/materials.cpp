@@ -124,13 +124,41 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     const tinygltf::Model& m = rig.source->model;
     s.images.resize(m.images.size());
     std::vector<bool> used(m.images.size(), false);
+    tinygltf::ExtensionMap diffuseExtensions;  // a specular-glossiness diffuse texture's own
     for (const tinygltf::Material& in : m.materials) {
         MaterialInfo mat;
         mat.name = in.name;
         const std::vector<double>& f = in.pbrMetallicRoughness.baseColorFactor;
         if (f.size() == 4)
             mat.baseColor = glm::vec4(float(f[0]), float(f[1]), float(f[2]), float(f[3]));
-        const int tex = in.pbrMetallicRoughness.baseColorTexture.index;
+        int tex = in.pbrMetallicRoughness.baseColorTexture.index;
+        const tinygltf::ExtensionMap* texExtensions = &in.pbrMetallicRoughness.baseColorTexture.extensions;
+        int texCoord = in.pbrMetallicRoughness.baseColorTexture.texCoord;
+        // KHR_materials_pbrSpecularGlossiness (older exports, Sketchfab's
+        // among them): its diffuse colour and texture are the base colour.
+        const auto sg = in.extensions.find("KHR_materials_pbrSpecularGlossiness");
+        if (sg != in.extensions.end() && sg->second.IsObject()) {
+            const tinygltf::Value& d = sg->second.Get("diffuseFactor");
+            if (d.IsArray() && d.ArrayLen() == 4) {
+                glm::vec4 c;
+                bool numbers = true;
+                for (int k = 0; k < 4; ++k) {
+                    numbers = numbers && d.Get(k).IsNumber();
+                    c[k] = numbers ? float(d.Get(k).GetNumberAsDouble()) : 0.0f;
+                }
+                if (numbers && std::isfinite(c.x + c.y + c.z + c.w))
+                    mat.baseColor = c;
+            }
+            const tinygltf::Value& t = sg->second.Get("diffuseTexture");
+            if (tex < 0 && t.IsObject() && t.Get("index").IsInt()) {
+                tex = t.Get("index").Get<int>();
+                texCoord = t.Get("texCoord").IsInt() ? t.Get("texCoord").Get<int>() : 0;
+                diffuseExtensions.clear();  // its own KHR_texture_transform, read below
+                if (t.Get("extensions").IsObject() && t.Get("extensions").Has("KHR_texture_transform"))
+                    diffuseExtensions["KHR_texture_transform"] = t.Get("extensions").Get("KHR_texture_transform");
+                texExtensions = &diffuseExtensions;
+            }
+        }
         if (tex >= 0 && size_t(tex) < m.textures.size()) {
             const int src = m.textures[size_t(tex)].source;
             if (src >= 0 && size_t(src) < m.images.size()) {
@@ -149,7 +177,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                                                          ", an image Strata does not decode") +
                                     "; drawn in its colour factor alone");
             }
-            mat.texCoord = std::clamp(in.pbrMetallicRoughness.baseColorTexture.texCoord, 0, 7);
+            mat.texCoord = std::clamp(texCoord, 0, 7);
             const int sampler = m.textures[size_t(tex)].sampler;
             if (sampler >= 0 && size_t(sampler) < m.samplers.size()) {
                 auto mode = [](int code) {
@@ -160,7 +188,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 mat.wrapS = mode(m.samplers[size_t(sampler)].wrapS);
                 mat.wrapT = mode(m.samplers[size_t(sampler)].wrapT);
             }
-            if (!readTextureTransform(in.pbrMetallicRoughness.baseColorTexture.extensions, &mat) && warnings)
+            if (!readTextureTransform(*texExtensions, &mat) && warnings)
                 warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
                                     "): its KHR_texture_transform is not numbers of the right shape; ignored");
         }
@@ -258,7 +286,9 @@ std::string featuresNotCarried(const Rig& rig, int main)
         if (pbr.metallicRoughnessTexture.index >= 0)
             ++counts["metallic-roughness textures"];
         for (const auto& e : in.extensions)
-            ++counts[e.first];
+            ++counts[e.first == "KHR_materials_pbrSpecularGlossiness"
+                         ? "specular and glossiness (KHR_materials_pbrSpecularGlossiness, its diffuse carried)"
+                         : e.first];
         if (kept && (pbr.metallicFactor != kept->pbrMetallicRoughness.metallicFactor ||
                      pbr.roughnessFactor != kept->pbrMetallicRoughness.roughnessFactor))
             ++counts["other metallic or roughness factors"];
