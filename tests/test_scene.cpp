@@ -1434,6 +1434,36 @@ TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
     }
 }
 
+namespace {
+
+// A glTF file as tinygltf reads it, to edit.
+::testing::AssertionResult readModel(const std::string& path, tinygltf::Model* model)
+{
+    tinygltf::TinyGLTF gltf;
+    std::string err, warn;
+    if (!gltf.LoadBinaryFromFile(model, &err, &warn, path))
+        return ::testing::AssertionFailure() << path << ": " << err;
+    return ::testing::AssertionSuccess();
+}
+
+// An edited model written to `path`, then read back as a rig and its
+// materials, as the bake reads a capture's.
+::testing::AssertionResult writeAndReadMaterials(tinygltf::Model& model, const std::string& path, Rig* rig,
+                                                 io::SceneMaterials* materials,
+                                                 std::vector<std::string>* warnings = nullptr)
+{
+    tinygltf::TinyGLTF gltf;
+    if (!gltf.WriteGltfSceneToFile(&model, path, true, true, false, true))
+        return ::testing::AssertionFailure() << "cannot write " << path;
+    if (Status st = io::loadRig(path, rig); !st)
+        return ::testing::AssertionFailure() << st.message();
+    if (Status st = io::loadSceneMaterials(*rig, materials, warnings); !st)
+        return ::testing::AssertionFailure() << st.message();
+    return ::testing::AssertionSuccess();
+}
+
+}  // namespace
+
 // KHR_texture_transform, as its specification's example reads: offset
 // (0, 1), a quarter turn and half the scale draw the unit square from the
 // image's lower-left quadrant, turned; a file's transform (and its texCoord)
@@ -1452,14 +1482,11 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
 
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_texture_transform");
-    tinygltf::TinyGLTF gltf;
     tinygltf::Model model;
-    std::string err, warn;
-    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    ASSERT_TRUE(readModel(man, &model));
     Rig plain;
-    ASSERT_TRUE(io::loadRig(man, &plain).isOk());
     io::SceneMaterials before;
-    ASSERT_TRUE(io::loadSceneMaterials(plain, &before).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/plain.glb", &plain, &before));
     // CesiumMan's sampler repeats (glTF's default); a sampler that mirrors
     // along u and clamps along v is read so.
     EXPECT_EQ(before.materials[0].wrapS, io::TextureWrap::Repeat);
@@ -1476,12 +1503,10 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     t["rotation"] = tinygltf::Value(0.5);
     model.materials[0].pbrMetallicRoughness.baseColorTexture.extensions["KHR_texture_transform"] = tinygltf::Value(t);
     model.extensionsUsed.push_back("KHR_texture_transform");
-    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/moved.glb", true, true, false, true));
     Rig moved;
-    ASSERT_TRUE(io::loadRig(dir + "/moved.glb", &moved).isOk());
     io::SceneMaterials after;
     std::vector<std::string> warnings;
-    ASSERT_TRUE(io::loadSceneMaterials(moved, &after, &warnings).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/moved.glb", &moved, &after, &warnings));
     EXPECT_TRUE(warnings.empty());
     const io::MaterialInfo& mat = after.materials[0];
     EXPECT_EQ(mat.uvScale, glm::vec2(2.0f, 3.0f));
@@ -1498,9 +1523,7 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     // Not numbers: named once, and the UVs read as they are.
     t["scale"] = tinygltf::Value(std::string("big"));
     model.materials[0].pbrMetallicRoughness.baseColorTexture.extensions["KHR_texture_transform"] = tinygltf::Value(t);
-    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/bad.glb", true, true, false, true));
-    ASSERT_TRUE(io::loadRig(dir + "/bad.glb", &moved).isOk());
-    ASSERT_TRUE(io::loadSceneMaterials(moved, &after, &warnings).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/bad.glb", &moved, &after, &warnings));
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_NE(warnings[0].find("KHR_texture_transform is not numbers"), std::string::npos) << warnings[0];
     EXPECT_EQ(after.fileUVs[5], before.fileUVs[5]);
@@ -1514,22 +1537,18 @@ TEST(Scene, ATextureOnlyAnExtensionNamesIsNamed)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_texture_extension");
-    tinygltf::TinyGLTF gltf;
     tinygltf::Model model;
-    std::string err, warn;
-    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    ASSERT_TRUE(readModel(man, &model));
     tinygltf::Texture& texture = model.textures[size_t(model.materials[0].pbrMetallicRoughness.baseColorTexture.index)];
     tinygltf::Value::Object webp;
     webp["source"] = tinygltf::Value(texture.source);
     texture.extensions["EXT_texture_webp"] = tinygltf::Value(webp);
     texture.source = -1;
     model.extensionsUsed.push_back("EXT_texture_webp");
-    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/webp.glb", true, true, false, true));
     Rig rig;
-    ASSERT_TRUE(io::loadRig(dir + "/webp.glb", &rig).isOk());
     io::SceneMaterials materials;
     std::vector<std::string> warnings;
-    ASSERT_TRUE(io::loadSceneMaterials(rig, &materials, &warnings).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/webp.glb", &rig, &materials, &warnings));
     EXPECT_EQ(materials.materials[0].image, -1);
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_NE(warnings[0].find("its base colour texture is only in EXT_texture_webp, an image Strata does not decode"),
@@ -1544,14 +1563,11 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_specular_glossiness");
-    tinygltf::TinyGLTF gltf;
     tinygltf::Model model;
-    std::string err, warn;
-    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, man)) << err;
+    ASSERT_TRUE(readModel(man, &model));
     Rig plain;
-    ASSERT_TRUE(io::loadRig(man, &plain).isOk());
     io::SceneMaterials before;
-    ASSERT_TRUE(io::loadSceneMaterials(plain, &before).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/plain.glb", &plain, &before));
     tinygltf::Material& mat = model.materials[0];
     tinygltf::Value::Object texture, sg;
     texture["index"] = tinygltf::Value(mat.pbrMetallicRoughness.baseColorTexture.index);
@@ -1561,11 +1577,9 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
     mat.extensions["KHR_materials_pbrSpecularGlossiness"] = tinygltf::Value(sg);
     mat.pbrMetallicRoughness.baseColorTexture = tinygltf::TextureInfo();
     model.extensionsUsed.push_back("KHR_materials_pbrSpecularGlossiness");
-    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/sg.glb", true, true, false, true));
     Rig rig;
-    ASSERT_TRUE(io::loadRig(dir + "/sg.glb", &rig).isOk());
     io::SceneMaterials after;
-    ASSERT_TRUE(io::loadSceneMaterials(rig, &after).isOk());
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/sg.glb", &rig, &after));
     EXPECT_EQ(after.materials[0].image, before.materials[0].image);
     EXPECT_GE(after.materials[0].image, 0);
     EXPECT_EQ(after.materials[0].baseColor, glm::vec4(1.0f, 0.5f, 0.25f, 1.0f));
