@@ -796,9 +796,11 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
 // A mesh two nodes place (a pair of eyes, each on its own joint, one the
 // other's mirror) is read at both places, follows each node and faces
 // outward at each, as glTF draws it; before, the second place was dropped
-// without a word.  A third node outside the scene adds nothing.  A bake onto such a file as its own
-// control mesh, whose rig would need UVs of their own at each place, is
-// refused naming the mesh and its nodes.
+// without a word.  A third node outside the scene adds nothing; a fourth
+// that draws it through EXT_mesh_gpu_instancing is read where the node
+// places it, and named.  A bake onto such a file as its own control mesh,
+// whose rig would need UVs of their own at each place, is refused naming
+// the mesh and its nodes.
 TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -829,6 +831,18 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
         eyeR.scale = {-1.0, 1.0, 1.0};
         m.nodes.push_back(eyeR);
         m.nodes.push_back(spare);
+        // A fourth draws it at two more places, through GPU instancing.
+        const float shift[6] = {0.0f, 0.05f, 0.0f, 0.0f, -0.05f, 0.0f};
+        tinygltf::Value::Object instancing, attributes;
+        attributes["TRANSLATION"] = tinygltf::Value(addAccessor(m, shift, sizeof(shift), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                                TINYGLTF_TYPE_VEC3, 2, 0));
+        instancing["attributes"] = tinygltf::Value(attributes);
+        tinygltf::Node crowd = spare;
+        crowd.name = "instanced eyes";
+        crowd.extensions["EXT_mesh_gpu_instancing"] = tinygltf::Value(instancing);
+        m.nodes.push_back(crowd);
+        m.scenes[size_t(std::max(m.defaultScene, 0))].nodes.push_back(int(m.nodes.size() - 1));
+        m.extensionsUsed.push_back("EXT_mesh_gpu_instancing");
         const std::vector<int>& joints = m.skins[0].joints;
         m.nodes[size_t(joints[joints.size() - 1])].children.push_back(eyeL);
         m.nodes[size_t(joints[joints.size() - 2])].children.push_back(eyeL + 1);
@@ -837,12 +851,16 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
     Rig source, rig;
     ASSERT_TRUE(io::loadRig(man, &source).isOk());
     ASSERT_TRUE(io::loadRig(input, &rig).isOk());
-    ASSERT_EQ(rig.parts.size(), source.parts.size() + 2);
-    const RigPart& left = rig.parts[rig.parts.size() - 2];
-    const RigPart& right = rig.parts.back();
+    ASSERT_EQ(rig.parts.size(), source.parts.size() + 3);
+    const RigPart& left = rig.parts[rig.parts.size() - 3];
+    const RigPart& right = rig.parts[rig.parts.size() - 2];
+    EXPECT_NE(std::find(rig.warnings.begin(), rig.warnings.end(),
+                        "1 node draws its mesh at many places through EXT_mesh_gpu_instancing; read once each, where "
+                        "the node itself places it"),
+              rig.warnings.end());
     EXPECT_EQ(left.mesh, right.mesh);
     EXPECT_NE(left.node, right.node);
-    EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size() + 8);
+    EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size() + 12);
     // Both eyes face outward, the mirrored one too (glTF draws a mirrored
     // node's triangles with their winding reversed).
     for (const RigPart* eye : {&left, &right}) {

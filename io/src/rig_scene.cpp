@@ -383,6 +383,17 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
         }
     }
     Rig& rig = out->rig;
+    // EXT_mesh_gpu_instancing draws a node's mesh at every instance's
+    // transform; its fallback, the node's own place, is what is read.
+    size_t gpuInstanced = 0;
+    for (size_t i = 0; i < model.nodes.size(); ++i)
+        gpuInstanced += inScene[i] && model.nodes[i].mesh >= 0 &&
+                        model.nodes[i].extensions.count("EXT_mesh_gpu_instancing") > 0;
+    if (gpuInstanced)
+        rig.warnings.push_back(std::to_string(gpuInstanced) +
+                               (gpuInstanced == 1 ? " node draws its mesh" : " nodes draw their meshes") +
+                               " at many places through EXT_mesh_gpu_instancing; read once each, where the node "
+                               "itself places it");
     std::vector<float> pos;  // all file vertices, scene space
     std::vector<glm::vec2> uv;
     std::vector<uint32_t> tri;  // file-vertex triangles
