@@ -279,10 +279,11 @@ bool facetedNormals(const tinygltf::Model& model, const tinygltf::Primitive& pri
 void snapOntoUnmoved(std::vector<float>& pos, const std::vector<uint8_t>& moved)
 {
     const size_t n = pos.size() / 3;
+    auto at = [&](size_t v) { return glm::vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]); };
     glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
     for (size_t v = 0; v < n; ++v) {
-        lo = glm::min(lo, glm::vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]));
-        hi = glm::max(hi, glm::vec3(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]));
+        lo = glm::min(lo, at(v));
+        hi = glm::max(hi, at(v));
     }
     const float eps = 1e-6f * glm::length(hi - lo);
     if (!(eps > 0.0f) || !std::isfinite(eps))
@@ -310,10 +311,8 @@ void snapOntoUnmoved(std::vector<float>& pos, const std::vector<uint8_t>& moved)
                     const auto range = cells.equal_range(key(x + dx, y + dy, z + dz));
                     for (auto it = range.first; it != range.second; ++it) {
                         const size_t u = it->second;
-                        const float d = glm::dot(glm::vec3(pos[3 * u] - pos[3 * v], pos[3 * u + 1] - pos[3 * v + 1],
-                                                           pos[3 * u + 2] - pos[3 * v + 2]),
-                                                 glm::vec3(pos[3 * u] - pos[3 * v], pos[3 * u + 1] - pos[3 * v + 1],
-                                                           pos[3 * u + 2] - pos[3 * v + 2]));
+                        const glm::vec3 apart = at(u) - at(v);
+                        const float d = glm::dot(apart, apart);
                         if (d <= best) {
                             best = d;
                             nearest = int64_t(u);
