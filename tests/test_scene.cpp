@@ -1480,6 +1480,15 @@ namespace {
     return ::testing::AssertionSuccess();
 }
 
+// A file's model to edit, and its rig and materials as read unedited
+// (written back first, as the edits will be).
+::testing::AssertionResult readToEdit(const std::string& source, const std::string& dir, tinygltf::Model* model,
+                                      Rig* rig, io::SceneMaterials* materials)
+{
+    ::testing::AssertionResult read = readModel(source, model);
+    return read ? writeAndReadMaterials(*model, dir + "/unedited.glb", rig, materials) : read;
+}
+
 }  // namespace
 
 // KHR_texture_transform, as its specification's example reads: offset
@@ -1501,10 +1510,9 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_texture_transform");
     tinygltf::Model model;
-    ASSERT_TRUE(readModel(man, &model));
     Rig plain;
     io::SceneMaterials before;
-    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/plain.glb", &plain, &before));
+    ASSERT_TRUE(readToEdit(man, dir, &model, &plain, &before));
     // CesiumMan's sampler repeats (glTF's default); a sampler that mirrors
     // along u and clamps along v is read so.
     EXPECT_EQ(before.materials[0].wrapS, io::TextureWrap::Repeat);
@@ -1582,10 +1590,9 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_specular_glossiness");
     tinygltf::Model model;
-    ASSERT_TRUE(readModel(man, &model));
     Rig plain;
     io::SceneMaterials before;
-    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/plain.glb", &plain, &before));
+    ASSERT_TRUE(readToEdit(man, dir, &model, &plain, &before));
     tinygltf::Material& mat = model.materials[0];
     tinygltf::Value::Object texture, sg;
     texture["index"] = tinygltf::Value(mat.pbrMetallicRoughness.baseColorTexture.index);
