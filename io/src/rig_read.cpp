@@ -603,9 +603,9 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
     if (!(st = loadSkeleton(path, doc->model, scene, &rig)))
         return st;
     if (bindFix != glm::mat4(1.0f) && rig.skeleton.meshNode >= 0) {
-        // The skin's joints (not the rigid parts' extra joints after them)
-        // bind the baked vertices: a tool that moved the bind space moved
-        // the inverse bind matrices with it.
+        // The skins' joints (their union's, not the rigid parts' extra
+        // joints after them) bind the baked vertices: a tool that moved the
+        // bind space moved the inverse bind matrices with it.
         const size_t joints = scene.skins.joints.size();
         for (size_t j = 0; j < joints && j < rig.skeleton.skin.inverseBindMatrices.size(); ++j)
             rig.skeleton.skin.inverseBindMatrices[j] = rig.skeleton.skin.inverseBindMatrices[j] * bindFix;
