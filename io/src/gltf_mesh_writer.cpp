@@ -203,7 +203,8 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
         // joint alike) share one accessor of them.
         std::vector<float> times, values;
         std::map<std::vector<float>, int> timesAccessor;
-        std::vector<std::pair<int, size_t>> placed;  // accessor, its offset in floats (times or values)
+        // Accessor, and its offset in floats in `times` or in `values`.
+        std::vector<std::pair<int, size_t>> timesPlaced, valuesPlaced;
         for (const Animation& a : skeleton->animations) {
             tinygltf::Animation anim;
             anim.name = a.name;
@@ -215,17 +216,17 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
                                               c.times.size());
                     model.accessors.back().minValues = {double(c.times.front())};
                     model.accessors.back().maxValues = {double(c.times.back())};
-                    placed.push_back({sa.input, times.size()});
+                    timesPlaced.push_back({sa.input, times.size()});
                     times.insert(times.end(), c.times.begin(), c.times.end());
                     timesAccessor.emplace(c.times, sa.input);
                 } else {
                     sa.input = known->second;
                 }
                 const int comps = c.path == AnimationPath::Rotation ? 4 : 3;
-                sa.output = appendAccessor(model, -2, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                sa.output = appendAccessor(model, -1, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                            comps == 4 ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3,
                                            c.values.size() / size_t(comps));
-                placed.push_back({sa.output, values.size()});
+                valuesPlaced.push_back({sa.output, values.size()});
                 values.insert(values.end(), c.values.begin(), c.values.end());
                 sa.interpolation = c.interpolation == AnimationInterpolation::Step          ? "STEP"
                                    : c.interpolation == AnimationInterpolation::CubicSpline ? "CUBICSPLINE"
@@ -241,17 +242,19 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
             }
             model.animations.push_back(anim);
         }
-        if (!placed.empty()) {
-            const int timesView = appendBufferView(model, times.data(), times.size() * 4, -1);
-            model.bufferViews.back().target = 0;
-            const int valuesView = appendBufferView(model, values.data(), values.size() * 4, -1);
+        // Each list of keys in one bufferView, its accessors at their offsets.
+        auto place = [&](const std::vector<float>& data, const std::vector<std::pair<int, size_t>>& placed) {
+            if (placed.empty())
+                return;
+            const int keyView = appendBufferView(model, data.data(), data.size() * 4, -1);
             model.bufferViews.back().target = 0;
             for (const auto& [accessor, offset] : placed) {
-                tinygltf::Accessor& acc = model.accessors[size_t(accessor)];
-                acc.bufferView = acc.bufferView == -1 ? timesView : valuesView;
-                acc.byteOffset = 4 * offset;
+                model.accessors[size_t(accessor)].bufferView = keyView;
+                model.accessors[size_t(accessor)].byteOffset = 4 * offset;
             }
-        }
+        };
+        place(times, timesPlaced);
+        place(values, valuesPlaced);
     }
     if (skinned && skeleton->meshNode >= 0 && size_t(skeleton->meshNode) < skeleton->nodes.size() &&
         skeleton->nodes[size_t(skeleton->meshNode)].parent < 0) {

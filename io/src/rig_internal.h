@@ -71,6 +71,9 @@ Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, 
 /// glTF draws its triangles with the winding reversed, and the control mesh
 /// holds them so (readSceneGeometry), outward as drawn.
 bool mirrors(const RigPart& part);
+/// Turns every triangle of a triangle list the other way round (corners 1
+/// and 2 swapped): a mirrored part's file order <-> its control-mesh order.
+void reverseWinding(std::vector<uint32_t>* triangles);
 /// The accessor of attribute `name`, or -1.
 int attributeOf(const tinygltf::Primitive& prim, const std::string& name);
 /// A triangle primitive's indices (or 0..n-1), checked against vertexCount.

@@ -108,6 +108,12 @@ bool mirrors(const RigPart& part)
     return glm::determinant(glm::mat3(part.toScene)) < 0.0f;
 }
 
+void reverseWinding(std::vector<uint32_t>* triangles)
+{
+    for (size_t t = 0; t + 2 < triangles->size(); t += 3)
+        std::swap((*triangles)[t + 1], (*triangles)[t + 2]);
+}
+
 int attributeOf(const tinygltf::Primitive& prim, const std::string& name)
 {
     auto it = prim.attributes.find(name);
@@ -369,11 +375,16 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     }
     std::vector<std::vector<int>> nodesOf(model.meshes.size());
     std::vector<int> firstNode(model.meshes.size(), -1);
+    // EXT_mesh_gpu_instancing draws a node's mesh at every instance's
+    // transform; its fallback, the node's own place, is what is read.
+    size_t gpuInstanced = 0;
     for (size_t i = 0; i < model.nodes.size(); ++i) {
         const int m = model.nodes[i].mesh;
         if (m >= 0 && size_t(m) < model.meshes.size()) {
-            if (inScene[i])
+            if (inScene[i]) {
                 nodesOf[size_t(m)].push_back(int(i));
+                gpuInstanced += model.nodes[i].extensions.count("EXT_mesh_gpu_instancing");
+            }
             if (firstNode[size_t(m)] < 0)
                 firstNode[size_t(m)] = int(i);
         } else if (m >= 0) {
@@ -382,12 +393,6 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
         }
     }
     Rig& rig = out->rig;
-    // EXT_mesh_gpu_instancing draws a node's mesh at every instance's
-    // transform; its fallback, the node's own place, is what is read.
-    size_t gpuInstanced = 0;
-    for (size_t i = 0; i < model.nodes.size(); ++i)
-        gpuInstanced += inScene[i] && model.nodes[i].mesh >= 0 &&
-                        model.nodes[i].extensions.count("EXT_mesh_gpu_instancing") > 0;
     if (gpuInstanced)
         rig.warnings.push_back(std::to_string(gpuInstanced) +
                                (gpuInstanced == 1 ? " node draws its mesh" : " nodes draw their meshes") +
@@ -481,12 +486,11 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                     pos.insert(pos.end(), {q.x, q.y, q.z});
                     uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
                 }
-                const bool mirrored = mirrors(part);
-                for (size_t t = 0; t < ptri.size(); t += 3) {
-                    tri.insert(tri.end(), {part.firstVertex + ptri[t], part.firstVertex + ptri[t + (mirrored ? 2 : 1)],
-                                           part.firstVertex + ptri[t + (mirrored ? 1 : 2)]});
-                    partOfTri.push_back(uint32_t(rig.parts.size()));
-                }
+                if (mirrors(part))
+                    reverseWinding(&ptri);
+                for (uint32_t i : ptri)
+                    tri.push_back(part.firstVertex + i);
+                partOfTri.insert(partOfTri.end(), ptri.size() / 3, uint32_t(rig.parts.size()));
                 out->primitives.push_back(&prim);
                 rig.parts.push_back(std::move(part));
             }

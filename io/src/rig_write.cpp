@@ -176,8 +176,7 @@ Status reindexWithUVs(tinygltf::Model& model, const Rig& rig, const RigPart& par
     // back below.
     const bool mirrored = mirrors(part);
     if (mirrored)
-        for (size_t t = 0; t < tri.size(); t += 3)
-            std::swap(tri[t + 1], tri[t + 2]);
+        reverseWinding(&tri);
     const uint32_t none = 0xffffffffu;
     const size_t n = part.vertexCount;
     std::vector<uint32_t> primary(n, none), src(n), indices(tri.size());
@@ -213,8 +212,7 @@ Status reindexWithUVs(tinygltf::Model& model, const Rig& rig, const RigPart& par
         ++face;
     }
     if (mirrored)
-        for (size_t t = 0; t < indices.size(); t += 3)
-            std::swap(indices[t + 1], indices[t + 2]);
+        reverseWinding(&indices);
     std::vector<glm::vec2> uv(src.size(), glm::vec2(0.0f));
     for (size_t i = 0; i < src.size(); ++i) {
         const uint32_t u = i < n ? primary[i] : uvOf[i];

@@ -133,8 +133,7 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
         // A mirrored part's faces turn outward as drawn; the file's winding
         // is the other way (rigfile::mirrors).
         if (rigfile::mirrors(part))
-            for (size_t t = 0; t < indices.size(); t += 3)
-                std::swap(indices[t + 1], indices[t + 2]);
+            rigfile::reverseWinding(&indices);
         const size_t nv = refinedVertex.size();
         // Positions and normals in the mesh's own space.
         const glm::mat4 toMesh = glm::inverse(part.toScene);
