@@ -6,14 +6,16 @@ in vec3 v_normal;
 in float v_displacement;
 in float v_error;
 in vec2 v_materialUV;
+in vec4 v_vertexColour;
 
 uniform int u_colorMode;       // 0 shaded, 1 displacement, 2 error, 3 flat (wireframe)
 uniform int u_flatShading;     // 1: lit by the triangle's own plane (a glTF primitive without normals)
 uniform vec2 u_colorRange;     // value range mapped onto the colour ramp
 uniform vec3 u_eye;
 uniform vec3 u_baseColor;
-// The primitive's material (shaded view): glTF base colour factor times its
-// texture, alpha mode OPAQUE (0), MASK (1) or BLEND (2).
+// The primitive's material (shaded view): glTF's base colour, its factor
+// times its texture (sRGB-coded, read linear) times COLOR_0, shown
+// sRGB-coded; alpha mode OPAQUE (0), MASK (1) or BLEND (2).
 uniform int u_material;
 uniform vec4 u_materialColor;
 uniform int u_hasTexture;
@@ -27,6 +29,12 @@ out vec4 o_color;
 // Each adaptive triangle's control face level, the "error" colour mode's value.
 layout(std430, binding = 12) readonly buffer TriangleLevels { float triangleLevels[]; };
 #endif
+
+vec3 srgbEncode(vec3 c)
+{
+    c = clamp(c, 0.0, 1.0);
+    return mix(12.92 * c, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
 
 vec3 ramp(float t)
 {
@@ -48,12 +56,12 @@ void main()
     vec3 base = u_baseColor;
     float alpha = 1.0;
     if (u_colorMode == 0 && u_material != 0) {
-        vec4 c = u_materialColor;
+        vec4 c = u_materialColor * v_vertexColour;
         if (u_hasTexture != 0)
             c *= texture(u_baseColorTexture, v_materialUV);
         if (u_alphaMode == 1 && c.a < u_alphaCutoff)
             discard;
-        base = c.rgb;
+        base = srgbEncode(c.rgb);
         alpha = u_alphaMode == 2 ? c.a : 1.0;
     }
     if (u_colorMode == 1)

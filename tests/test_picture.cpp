@@ -66,9 +66,12 @@ double facingShade()
 
 TEST(Picture, ASquareFacingTheEyeIsItsColourTimesTheShade)
 {
+    // The colour is glTF's base colour factor, linear: drawn sRGB-coded
+    // (IEC 61966-2-1: 0.5 -> 0.735357, 0.2 -> 0.484529, 0.8 -> 0.906332,
+    // 0.55 -> 0.767376), then shaded.
     baker::PictureMesh a, b;
-    addSquare(&a, 0.0f, glm::vec4(100.0f / 255.0f, 50.0f / 255.0f, 200.0f / 255.0f, 1.0f));
-    addSquare(&b, 0.0f, glm::vec4(110.0f / 255.0f, 50.0f / 255.0f, 200.0f / 255.0f, 1.0f));
+    addSquare(&a, 0.0f, glm::vec4(0.5f, 0.2f, 0.8f, 1.0f));
+    addSquare(&b, 0.0f, glm::vec4(0.55f, 0.2f, 0.8f, 1.0f));
     const baker::PictureCamera camera = frontCamera();
     std::vector<uint8_t> pa, pb, none;
     baker::renderPicture(a, camera, &pa);
@@ -77,9 +80,9 @@ TEST(Picture, ASquareFacingTheEyeIsItsColourTimesTheShade)
     // The centre is the square's colour times the shade; a corner is empty.
     const double shade = facingShade();
     const uint8_t* c = pixel(pa, 64, 32, 32);
-    EXPECT_EQ(int(c[0]), int(std::lround(100.0 * shade)));
-    EXPECT_EQ(int(c[1]), int(std::lround(50.0 * shade)));
-    EXPECT_EQ(int(c[2]), int(std::lround(200.0 * shade)));
+    EXPECT_EQ(int(c[0]), int(std::lround(255.0 * 0.7353569830524495 * shade)));
+    EXPECT_EQ(int(c[1]), int(std::lround(255.0 * 0.48452920448170694 * shade)));
+    EXPECT_EQ(int(c[2]), int(std::lround(255.0 * 0.9063317533440594 * shade)));
     EXPECT_EQ(int(pixel(pa, 64, 0, 0)[0]), 0);
     // The square spans 2 of the 2 tan(30) * 4 = 4.62 units the view shows:
     // 64 * 2 / 4.62 = 27.7 pixels across.
@@ -89,7 +92,7 @@ TEST(Picture, ASquareFacingTheEyeIsItsColourTimesTheShade)
     EXPECT_NEAR(across, 64.0 * 2.0 / (8.0 * std::tan(glm::radians(30.0))), 1.5);
     // PSNR: only the red channel differs, by the shaded step, over every
     // pixel the square covers.
-    const int step = int(std::lround(110.0 * shade)) - int(std::lround(100.0 * shade));
+    const int step = int(std::lround(255.0 * 0.7673756580558262 * shade)) - int(c[0]);
     EXPECT_NEAR(baker::picturePsnr(pa, pb), 10.0 * std::log10(255.0 * 255.0 / (step * step / 3.0)), 1e-9);
     EXPECT_EQ(baker::picturePsnr(pa, pa), 99.0);
     baker::renderPicture(baker::PictureMesh(), camera, &none);
@@ -142,6 +145,56 @@ TEST(Picture, TexturesAreReadWhereGltfPutsTheirRows)
     EXPECT_LT(int(top[1]), 20);
     EXPECT_LT(int(bottom[0]), 20);
     EXPECT_GT(int(bottom[1]), 200);
+}
+
+// glTF's base colour: factor x decoded texture x COLOR_0, all linear, drawn
+// sRGB-coded.  A vertex colour of 0.5 under a factor of 1 draws as a factor
+// of 0.5; a texel coded 188 (0.5029 linear) under a factor of 1 draws as
+// 188; its colour halved by the vertex colours draws as linear 0.2514.
+TEST(Picture, VertexColoursAndTexturesMultiplyInLinear)
+{
+    const double shade = facingShade();
+    baker::PictureMesh factor, coloured, textured;
+    addSquare(&factor, 0.0f, glm::vec4(0.5f, 0.5f, 0.5f, 1.0f));
+    addSquare(&coloured, 0.0f, glm::vec4(1.0f));
+    const std::vector<float> half(16, 0.5f);
+    coloured.parts[0].colours = half.data();
+    coloured.parts[0].colourComponents = 4;
+    std::vector<uint8_t> a, b;
+    baker::renderPicture(factor, frontCamera(), &a);
+    baker::renderPicture(coloured, frontCamera(), &b);
+    EXPECT_EQ(int(pixel(a, 64, 32, 32)[0]), int(std::lround(255.0 * 0.7353569830524495 * shade)));
+    EXPECT_EQ(a, b);
+
+    io::ImageRGBA image;
+    image.width = image.height = 2;
+    image.rgba.assign(16, 188);
+    std::vector<float> uvs;
+    addSquare(&textured, 0.0f, glm::vec4(1.0f), &uvs);
+    textured.parts[0].uvs = uvs.data();
+    textured.parts[0].image = &image;
+    baker::renderPicture(textured, frontCamera(), &a);
+    EXPECT_EQ(int(pixel(a, 64, 32, 32)[1]), int(std::lround(188.0 * shade)));
+    const std::vector<float> rgb(12, 0.5f);  // RGB: alpha stays 1
+    textured.parts[0].colours = rgb.data();
+    textured.parts[0].colourComponents = 3;
+    baker::renderPicture(textured, frontCamera(), &a);
+    // sRGB of 0.5 x 0.502886 (188 decoded) = 0.251443: 0.538521.
+    EXPECT_EQ(int(pixel(a, 64, 32, 32)[1]), int(std::lround(255.0 * 0.538521 * shade)));
+}
+
+// The sRGB transfer (IEC 61966-2-1) at known points, and every 8-bit code
+// decoded and coded again is itself.
+TEST(Picture, SrgbCodingIsTheStandardsAndRoundTrips)
+{
+    EXPECT_NEAR(io::linearToSrgb(0.5), 0.7353569830524495, 1e-12);
+    EXPECT_NEAR(io::linearToSrgb(0.001), 0.01292, 1e-12);  // the linear segment
+    EXPECT_NEAR(io::srgbToLinear(188.0 / 255.0), 0.5028864580325687, 1e-12);
+    EXPECT_EQ(io::srgbToLinear(0.0), 0.0);
+    EXPECT_EQ(io::srgbToLinear(1.0), 1.0);
+    EXPECT_NEAR(io::linearToSrgb(2.0), 1.0, 1e-12);
+    for (int b = 0; b < 256; ++b)
+        EXPECT_EQ(std::lround(255.0 * io::linearToSrgb(io::srgbToLinear(b / 255.0))), b);
 }
 
 TEST(Picture, FlatPartsTakeTheirFacesNormal)

@@ -7,6 +7,7 @@
 #include "strata/baker/bake.h"
 #include "strata/baker/mesh_input.h"
 #include "strata/io/exr.h"
+#include "strata/io/png.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/rig_io.h"
 #include "strata/surface.h"
@@ -15,6 +16,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
+#include <tiny_gltf.h>
 
 #include <functional>
 #include <memory>
@@ -23,6 +25,103 @@
 
 namespace strata {
 namespace test {
+
+/// The colour of writeColouredSphere's COLOR_0 at a point: linear, a
+/// linear function of the direction.
+inline glm::vec4 colouredSphereColour(const glm::vec3& p)
+{
+    const glm::vec3 n = glm::normalize(p);
+    return glm::vec4(0.5f + 0.4f * n.x, 0.5f + 0.4f * n.y, 0.5f + 0.4f * n.z, 1.0f);
+}
+
+/// How writeColouredSphere colours its sphere.
+enum class SphereColour {
+    VertexAndFactor,   ///< COLOR_0 (colouredSphereColour, float RGBA) under a factor (0.5, 1, 1, 1)
+    HalfFactor,        ///< a base colour factor of linear 0.5 grey alone
+    HalfVertexColour,  ///< COLOR_0 of linear 0.5 grey (normalized bytes 128, RGB), a factor of 1
+    HalfTexture,       ///< a 2x2 texture of sRGB code 188 (linear 0.5029), a factor of 1
+};
+
+/// A unit sphere (icosphere 4) as a glb coloured as `how` says.
+inline bool writeColouredSphere(const std::string& path, SphereColour how = SphereColour::VertexAndFactor)
+{
+    const ControlMesh sphere = examples::makeIcosphere(4);
+    tinygltf::Model model;
+    model.asset.version = "2.0";
+    std::vector<unsigned char>& bytes = model.buffers.emplace_back().data;
+    const auto addView = [&](const void* data, size_t size, int target) {
+        tinygltf::BufferView v;
+        v.buffer = 0;
+        v.byteOffset = bytes.size();
+        v.byteLength = size;
+        v.target = target;
+        bytes.insert(bytes.end(), static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
+        model.bufferViews.push_back(v);
+        return int(model.bufferViews.size()) - 1;
+    };
+    const auto addAccessor = [&](int view, int componentType, int type, size_t count) {
+        tinygltf::Accessor a;
+        a.bufferView = view;
+        a.componentType = componentType;
+        a.type = type;
+        a.count = count;
+        model.accessors.push_back(a);
+        return int(model.accessors.size()) - 1;
+    };
+    tinygltf::Primitive prim;
+    prim.attributes["POSITION"] =
+        addAccessor(addView(sphere.positions.data(), sphere.positions.size() * 12, TINYGLTF_TARGET_ARRAY_BUFFER),
+                    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, sphere.positions.size());
+    model.accessors.back().minValues = {-1.0, -1.0, -1.0};
+    model.accessors.back().maxValues = {1.0, 1.0, 1.0};
+    tinygltf::Material material;
+    const size_t n = sphere.positions.size();
+    if (how == SphereColour::VertexAndFactor) {
+        std::vector<glm::vec4> colours;
+        for (const glm::vec3& p : sphere.positions)
+            colours.push_back(colouredSphereColour(p));
+        prim.attributes["COLOR_0"] = addAccessor(addView(colours.data(), n * 16, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                 TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, n);
+        material.pbrMetallicRoughness.baseColorFactor = {0.5, 1.0, 1.0, 1.0};
+    } else if (how == SphereColour::HalfFactor) {
+        material.pbrMetallicRoughness.baseColorFactor = {0.5, 0.5, 0.5, 1.0};
+    } else if (how == SphereColour::HalfVertexColour) {
+        const std::vector<uint8_t> grey(4 * n, 128);  // 128 / 255 = 0.502 linear; RGB padded to 4 bytes
+        prim.attributes["COLOR_0"] = addAccessor(addView(grey.data(), grey.size(), TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                 TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n);
+        model.bufferViews.back().byteStride = 4;
+        model.accessors.back().normalized = true;
+    } else {
+        const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
+        prim.attributes["TEXCOORD_0"] = addAccessor(addView(uvs.data(), n * 8, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, n);
+        std::string png;
+        if (!io::encodePngRgba(2, 2, std::vector<uint8_t>{188, 188, 188, 255, 188, 188, 188, 255, 188, 188, 188, 255,
+                                                         188, 188, 188, 255},
+                               &png))
+            return false;
+        while (bytes.size() % 4)
+            bytes.push_back(0);
+        tinygltf::Image image;
+        image.bufferView = addView(png.data(), png.size(), 0);
+        image.mimeType = "image/png";
+        model.images.push_back(image);
+        model.textures.emplace_back().source = 0;
+        material.pbrMetallicRoughness.baseColorTexture.index = 0;
+    }
+    prim.indices = addAccessor(
+        addView(sphere.triangles.data(), sphere.triangles.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, sphere.triangles.size());
+    prim.material = 0;
+    prim.mode = TINYGLTF_MODE_TRIANGLES;
+    model.materials.push_back(material);
+    model.meshes.emplace_back().primitives.push_back(prim);
+    model.nodes.emplace_back().mesh = 0;
+    model.scenes.emplace_back().nodes.push_back(0);
+    model.defaultScene = 0;
+    tinygltf::TinyGLTF gltf;
+    return gltf.WriteGltfSceneToFile(&model, path, true, true, false, true);
+}
 
 /// The built-in example's rig: icosphere(1) with a per-triangle atlas and
 /// the closed-form head map at mapSize^2.

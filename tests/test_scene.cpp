@@ -1613,6 +1613,63 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
         << io::featuresNotCarried(rig, 0);
 }
 
+// COLOR_0 as exporters write it (normalized unsigned bytes, RGB) is read
+// as linear RGBA per file vertex, alpha 1; one that is not a colour per
+// vertex is named and ignored.  A second set is named as not carried.
+TEST(Scene, VertexColoursAreRead)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_vertex_colours");
+    tinygltf::Model model;
+    Rig plain;
+    io::SceneMaterials before;
+    ASSERT_TRUE(readToEdit(man, dir, &model, &plain, &before));
+    EXPECT_TRUE(before.fileColours.empty());
+    tinygltf::Primitive& prim = model.meshes[0].primitives[0];
+    const size_t n = model.accessors[size_t(prim.attributes.at("POSITION"))].count;
+    std::vector<unsigned char>& bytes = model.buffers[0].data;
+    while (bytes.size() % 4)
+        bytes.push_back(0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = bytes.size();
+    view.byteLength = 4 * n;
+    view.byteStride = 4;  // RGB padded to 4 bytes, as the specification asks of byte attributes
+    for (size_t v = 0; v < n; ++v)
+        for (unsigned char c : {uint8_t(v % 256), uint8_t(255 - v % 256), uint8_t(51), uint8_t(0)})
+            bytes.push_back(c);
+    model.bufferViews.push_back(view);
+    tinygltf::Accessor colour;
+    colour.bufferView = int(model.bufferViews.size()) - 1;
+    colour.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    colour.normalized = true;
+    colour.type = TINYGLTF_TYPE_VEC3;
+    colour.count = n;
+    model.accessors.push_back(colour);
+    prim.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+    prim.attributes["COLOR_1"] = int(model.accessors.size()) - 1;
+    Rig rig;
+    io::SceneMaterials after;
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/colours.glb", &rig, &after, &warnings));
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+    ASSERT_EQ(after.fileColours.size(), rig.sourceVertex.size());
+    for (size_t v = 0; v < n; v += 37)
+        EXPECT_EQ(after.fileColours[v], glm::vec4(float(v % 256) / 255.0f, float(255 - v % 256) / 255.0f, 0.2f, 1.0f))
+            << v;
+    EXPECT_EQ(after.fileUVs, before.fileUVs);
+    const std::string left = io::featuresNotCarried(rig, 0);
+    EXPECT_NE(left.find("vertex colour sets past COLOR_0 (1 set)"), std::string::npos) << left;
+    // Two components are no colour.
+    model.accessors.back().type = TINYGLTF_TYPE_VEC2;
+    warnings.clear();
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/two.glb", &rig, &after, &warnings));
+    EXPECT_TRUE(after.fileColours.empty());
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("its COLOR_0 is not one RGB or RGBA colour per vertex; ignored"), std::string::npos)
+        << warnings[0];
+}
+
 // A skin whose joints place its meshes at different scales at rest has no
 // one scale to read its bind space at: it is read as it is, and named once.
 TEST(Scene, ASkinOfManyScalesIsNamed)

@@ -140,6 +140,45 @@ TEST(Viewer, AdaptiveModeDrawsTheSameHeadWithFewerVertices)
     EXPECT_GT(meanDifference(shaded, levels, cu.x0, cu.y0, cu.x1, cu.y1), 10.0);
 }
 
+// glTF's base colour is linear (factor x sRGB-decoded texture x COLOR_0)
+// and shown sRGB-coded.  Three ways to colour a sphere linear 0.5 grey (a
+// factor, COLOR_0, a texture coded 188) draw alike; a sphere coloured by
+// its factor and vertex colours together draws as its --control auto rig,
+// whose one texture carries that colour, and not as it does grey.
+// (strata-view drew COLOR_0 not at all and factors and textures each in
+// its own space: the texture 60 levels from the factor.)
+TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
+{
+    const std::string dir = test::tempDir("viewer_vertex_colours");
+    const auto shootSphere = [&](test::SphereColour how, const std::string& name, const std::string& flags = "") {
+        EXPECT_TRUE(test::writeColouredSphere(dir + "/" + name + ".glb", how));
+        return shoot(dir + "/" + name + ".glb", flags, dir + "/" + name + ".png");
+    };
+    const Image factor = shootSphere(test::SphereColour::HalfFactor, "factor");
+    const Image vertex = shootSphere(test::SphereColour::HalfVertexColour, "vertex");
+    const Image texture = shootSphere(test::SphereColour::HalfTexture, "texture");
+    const Coverage c = coverage(factor);
+    ASSERT_GT(c.fraction, 0.05);
+    const auto middle = [&](const Image& a, const Image& b) {  // the disc's middle half, away from its silhouette
+        const int w = (c.x1 - c.x0) / 4, h = (c.y1 - c.y0) / 4;
+        return meanDifference(a, b, c.x0 + w, c.y0 + h, c.x1 - w, c.y1 - h);
+    };
+    EXPECT_LT(middle(factor, vertex), 0.5);
+    EXPECT_LT(middle(factor, texture), 0.5);
+
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb"));
+    const test::CommandResult bake = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
+                                                      "/sphere.glb' --control auto -o '" + dir + "/rig.glb'");
+    ASSERT_EQ(bake.code, 0) << bake.output;
+    const Image source = shoot(dir + "/sphere.glb", "", dir + "/source.png");
+    const Image rig = shoot(dir + "/rig.glb", "", dir + "/rig.png");
+    const Image grey = shoot(dir + "/sphere.glb", "--no-materials", dir + "/grey.png");
+    EXPECT_LT(middle(source, rig), 3.0);
+    EXPECT_GT(middle(source, grey), 10.0);
+    std::printf("vertex %.2f texture %.2f rig %.2f grey %.2f\n", middle(factor, vertex), middle(factor, texture),
+                middle(source, rig), middle(source, grey));
+}
+
 TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)
 {
     const std::string dir = test::tempDir("viewer_bad");

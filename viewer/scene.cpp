@@ -201,11 +201,18 @@ Status Scene::uploadMaterials()
     if (!st)
         return st;
     std::vector<glm::vec2> corners(fv.corners.size());
+    std::vector<glm::vec4> colours(materials_.fileColours.empty() ? 0 : fv.corners.size());
     for (size_t c = 0; c < corners.size(); ++c) {
         glm::vec2 uv(0.0f);
-        for (uint32_t k = fv.offsets[fv.corners[c]]; k < fv.offsets[fv.corners[c] + 1]; ++k)
+        glm::vec4 colour(0.0f);
+        for (uint32_t k = fv.offsets[fv.corners[c]]; k < fv.offsets[fv.corners[c] + 1]; ++k) {
             uv += fv.weights[k] * materials_.fileUVs[fv.sources[k]];
+            if (!colours.empty())
+                colour += fv.weights[k] * materials_.fileColours[fv.sources[k]];
+        }
         corners[c] = uv;
+        if (!colours.empty())
+            colours[c] = colour;
     }
     std::vector<gl::SurfaceMaterial> mats;
     for (const io::MaterialInfo& m : materials_.materials) {
@@ -231,7 +238,7 @@ Status Scene::uploadMaterials()
             ranges.push_back(
                 {size_t(part.firstFace) * per, size_t(part.faceCount) * per, materials_.partMaterial[p], part.flat});
     }
-    return surface_->setMaterials(mats, ranges, corners);
+    return surface_->setMaterials(mats, ranges, corners, colours);
 }
 
 void Scene::computeErrors()
@@ -449,6 +456,23 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
     const std::vector<uint32_t>& faces = frame.triangleFaces();
     std::vector<glm::vec2> corners;
     frame.cornerUVs(&corners, materials_.fileUVs.data(), rig_->fileCorners.data());
+    // COLOR_0 interpolates as the UVs do: its red-green and blue-alpha halves
+    // through the same call.
+    std::vector<glm::vec4> colours;
+    if (!materials_.fileColours.empty()) {
+        std::vector<glm::vec2> rg(materials_.fileColours.size()), ba(rg.size()), half;
+        for (size_t v = 0; v < rg.size(); ++v) {
+            rg[v] = glm::vec2(materials_.fileColours[v].r, materials_.fileColours[v].g);
+            ba[v] = glm::vec2(materials_.fileColours[v].b, materials_.fileColours[v].a);
+        }
+        frame.cornerUVs(&half, rg.data(), rig_->fileCorners.data());
+        colours.resize(half.size());
+        for (size_t c = 0; c < half.size(); ++c)
+            colours[c] = glm::vec4(half[c], 0.0f, 0.0f);
+        frame.cornerUVs(&half, ba.data(), rig_->fileCorners.data());
+        for (size_t c = 0; c < half.size() && c < colours.size(); ++c)
+            colours[c] = glm::vec4(colours[c].r, colours[c].g, half[c]);
+    }
     std::vector<gl::MaterialRange> ranges;
     size_t t = 0;
     for (size_t p = 0; p < rig_->parts.size(); ++p) {
@@ -461,7 +485,7 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
         if (t > first)
             ranges.push_back({first, t - first, materials_.partMaterial[p], part.flat});
     }
-    return surface_->setAdaptiveMaterials(ranges, corners);
+    return surface_->setAdaptiveMaterials(ranges, corners, colours);
 }
 
 // The adaptive frame for this view: levels chosen for the current pose,

@@ -894,7 +894,7 @@ void BakeJob::loadCharacter()
             warn("%s: %s", request.high.c_str(), w.c_str());
         // Any material or texture: the colour is carried (a capture of
         // glTF's default material alone has nothing to carry).
-        coloured = captureMaterials.materials.size() > 1;
+        coloured = captureMaterials.materials.size() > 1 || !captureMaterials.fileColours.empty();
     }
     if (!character && !highRig.skeleton.empty())
         warn("%s: --control auto does not carry its skin onto the automatic cage: no vertex carries a weight",
@@ -1046,19 +1046,23 @@ void BakeJob::carryColour()
         flat[i] = flatColours(sm.images[i].rgba, &palette) ? 1 : 0;
         allFlat = allFlat && flat[i];
     }
+    // Linear, as glTF defines the base colour: factor x texture x COLOR_0.
     const CaptureColour colour = [&](uint32_t face, double b1, double b2) {
         const io::MaterialInfo& m = sm.materials[size_t(faceMaterial[face])];
-        glm::vec4 c = m.baseColor;
-        if (m.image < 0 || size_t(m.image) >= sm.images.size() || !corners)
-            return c;
-        const io::ImageRGBA& im = sm.images[size_t(m.image)];
-        if (im.width <= 0 || im.height <= 0)
-            return c;
+        if (!corners)
+            return glm::vec4(m.baseColor);
         const double w[3] = {1.0 - b1 - b2, b1, b2};
         glm::dvec2 uv(0.0);
-        for (int k = 0; k < 3; ++k)
-            uv += w[k] * glm::dvec2(sm.fileUVs[highRig.fileCorners[3 * size_t(face) + size_t(k)]]);
-        return c * glm::vec4(io::sampleImage(im, uv, flat[size_t(m.image)] != 0, m.wrapS, m.wrapT));
+        glm::dvec4 vertexColour(sm.fileColours.empty() ? 1.0 : 0.0);
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t file = highRig.fileCorners[3 * size_t(face) + size_t(k)];
+            uv += w[k] * glm::dvec2(sm.fileUVs[file]);
+            if (!sm.fileColours.empty())
+                vertexColour += w[k] * glm::dvec4(sm.fileColours[file]);
+        }
+        const bool textured = m.image >= 0 && size_t(m.image) < sm.images.size();
+        return glm::vec4(io::baseColourAt(m, textured ? &sm.images[size_t(m.image)] : nullptr, uv, vertexColour,
+                                          textured && flat[size_t(m.image)] != 0));
     };
     ColorImage image;
     Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);

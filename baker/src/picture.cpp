@@ -92,16 +92,29 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                 normal = length > 0.0 ? normal / length : glm::dvec3(0.0, 0.0, 1.0);
                 if (glm::dot(normal, glm::dvec3(camera.eye) - position) < 0.0)
                     normal = -normal;  // either side drawn, lit from the front
+                // glTF's base colour (linear: factor x decoded texture x
+                // COLOR_0), shown sRGB-coded, then lit.
                 glm::dvec4 colour(part.colour);
-                if (part.image && part.uvs)
-                    colour *= part.material ? io::sampleImage(*part.image,
-                                                              glm::dvec2(part.material->textureUV(glm::vec2(uv))),
-                                                              false, part.material->wrapS, part.material->wrapT)
-                                            : io::sampleImage(*part.image, uv);
+                if (part.colours)
+                    for (int ch = 0; ch < part.colourComponents; ++ch) {
+                        double value = 0.0;
+                        for (int k = 0; k < 3; ++k)
+                            value += wp[k] * double(part.colours[size_t(part.colourComponents) * v[k] + size_t(ch)]);
+                        colour[ch] *= value;
+                    }
+                if (part.image && part.uvs) {
+                    const glm::dvec4 texel =
+                        part.material ? io::sampleImage(*part.image, glm::dvec2(part.material->textureUV(glm::vec2(uv))),
+                                                        false, part.material->wrapS, part.material->wrapT)
+                                      : io::sampleImage(*part.image, uv);
+                    colour *= glm::dvec4(io::srgbToLinear(texel.r), io::srgbToLinear(texel.g),
+                                         io::srgbToLinear(texel.b), texel.a);
+                }
                 const double lit = 0.3 + 0.7 * std::max(0.0, glm::dot(normal, glm::dvec3(light)));
                 depth[at] = float(z);
                 for (int k = 0; k < 3; ++k)
-                    (*rgb)[3 * at + size_t(k)] = uint8_t(std::clamp(std::lround(255.0 * colour[k] * lit), 0L, 255L));
+                    (*rgb)[3 * at + size_t(k)] =
+                        uint8_t(std::clamp(std::lround(255.0 * io::linearToSrgb(colour[k]) * lit), 0L, 255L));
             });
         }
     }
@@ -163,6 +176,12 @@ PictureMesh pictureOf(const io::RenderMesh& layout, const std::vector<glm::vec3>
                 }
             }
         }
+        for (const io::RenderAttribute& a : layout.attributes)
+            if (a.name == "COLOR_0" && (a.components == 3 || a.components == 4) &&
+                a.values.size() == size_t(a.components) * layout.vertexCount()) {
+                part.colours = a.values.data();
+                part.colourComponents = a.components;
+            }
         m.parts.push_back(part);
     }
     return m;

@@ -5,6 +5,7 @@
 
 #include "parallel.h"
 #include "strata/baker/dilate.h"
+#include "strata/io/materials.h"
 #include "strata/normals.h"
 #include "strata/uv_raster.h"
 
@@ -87,8 +88,12 @@ Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const
             }
         std::vector<uint8_t> valid = covered;
         dilate(&channel[k], &valid, size, 8, n ? float(mean / double(n)) : 1.0f, threads);
-        for (size_t i = 0; i < texels; ++i)
-            image.rgba[4 * i + size_t(k)] = uint8_t(std::lround(std::clamp(channel[k][i], 0.0f, 1.0f) * 255.0f));
+        // Colour channels sRGB-coded, as glTF reads a base colour texture;
+        // alpha as it is.
+        for (size_t i = 0; i < texels; ++i) {
+            const double c = k < 3 ? io::linearToSrgb(channel[k][i]) : std::clamp(double(channel[k][i]), 0.0, 1.0);
+            image.rgba[4 * i + size_t(k)] = uint8_t(std::lround(c * 255.0));
+        }
     }
     *out = std::move(image);
     return Status::ok();

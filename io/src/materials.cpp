@@ -3,6 +3,7 @@
 
 #include "gltf_accessor.h"
 #include "gltf_document.h"
+#include "refined_attributes.h"
 
 #include <stb/stb_image.h>
 
@@ -111,6 +112,29 @@ glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool neares
            ax * ay * texel(fx + 1, fy + 1);
 }
 
+double srgbToLinear(double coded)
+{
+    const double c = std::clamp(coded, 0.0, 1.0);
+    return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+}
+
+double linearToSrgb(double linear)
+{
+    const double c = std::clamp(linear, 0.0, 1.0);
+    return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
+}
+
+glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
+                        const glm::dvec4& vertexColour, bool nearest)
+{
+    glm::dvec4 c = glm::dvec4(material.baseColor) * vertexColour;
+    if (image && image->width > 0 && image->height > 0) {
+        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
+        c *= glm::dvec4(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b), t.a);
+    }
+    return c;
+}
+
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
 {
     SceneMaterials s;
@@ -207,9 +231,12 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             continue;
         const std::vector<unsigned char> bytes = encodedImage(*rig.source, i);
         int w = 0, h = 0, comp = 0;
-        stbi_uc* px = bytes.empty() || bytes.size() > (size_t(1) << 30)
-                          ? nullptr
-                          : stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4);
+        // The header's size first: a hostile one would have the decoder
+        // allocate gigabytes before it finds no pixels behind it.
+        const bool readable = !bytes.empty() && bytes.size() <= (size_t(1) << 30) &&
+                              stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp) && w > 0 &&
+                              h > 0 && w <= 16384 && h <= 16384;
+        stbi_uc* px = readable ? stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4) : nullptr;
         if (!px || w > 16384 || h > 16384) {
             if (px)
                 stbi_image_free(px);
@@ -230,6 +257,23 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         const tinygltf::Primitive& prim = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
         const int mi = prim.material >= 0 && prim.material < defaultMaterial ? prim.material : defaultMaterial;
         s.partMaterial.push_back(mi);
+        // COLOR_0: VEC3 or VEC4, float or normalized integers.
+        if (const auto c = prim.attributes.find("COLOR_0"); c != prim.attributes.end()) {
+            const int components = attributeComponents(m, c->second);
+            std::vector<float> rgba;
+            if ((components != 3 && components != 4) || !readFloatAccessor(m, c->second, components, "COLOR_0", &rgba) ||
+                rgba.size() != size_t(components) * part.vertexCount) {
+                if (warnings)
+                    warnings->push_back(part.name + ": its COLOR_0 is not one RGB or RGBA colour per vertex; ignored");
+            } else {
+                if (s.fileColours.empty())
+                    s.fileColours.assign(rig.sourceVertex.size(), glm::vec4(1.0f));
+                for (uint32_t v = 0; v < part.vertexCount; ++v)
+                    for (int k = 0; k < components; ++k)
+                        s.fileColours[part.firstVertex + v][k] =
+                            std::clamp(rgba[size_t(components) * v + size_t(k)], 0.0f, 1.0f);
+            }
+        }
         const MaterialInfo& mat = s.materials[size_t(mi)];
         if (mat.image < 0)
             continue;
@@ -263,7 +307,8 @@ std::string featuresNotCarried(const Rig& rig, int main)
         const tinygltf::Primitive& prim = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
         if (prim.material >= 0 && size_t(prim.material) < m.materials.size())
             usedMaterial[size_t(prim.material)] = true;
-        colours += prim.attributes.count("COLOR_0");
+        for (const auto& a : prim.attributes)
+            colours += a.first.rfind("COLOR_", 0) == 0 && a.first != "COLOR_0";
         morphs += !prim.targets.empty();
     }
     std::map<std::string, size_t> counts;  // feature -> materials
@@ -306,7 +351,7 @@ std::string featuresNotCarried(const Rig& rig, int main)
     for (const tinygltf::Mesh& mesh : m.meshes)
         for (const tinygltf::Primitive& prim : mesh.primitives)
             lines += prim.mode >= TINYGLTF_MODE_POINTS && prim.mode <= TINYGLTF_MODE_LINE_STRIP;
-    add(colours, "vertex colours", "primitive", "primitives");
+    add(colours, "vertex colour sets past COLOR_0", "set", "sets");
     add(lines, "point and line primitives", "primitive", "primitives");
     add(morphs, "morph targets", "primitive", "primitives");
     add(m.cameras.size(), "cameras", "camera", "cameras");

@@ -198,7 +198,9 @@ Status buildRenderMesh(const Rig& rig, const Plan& plan, RenderMesh* out)
                 RenderAttribute a;
                 a.name = name;
                 a.components = comps;
-                a.values.assign(rm.refinedVertex.size() * size_t(comps), 0.0f);
+                // A part without the attribute reads 0, or white for a
+                // vertex colour (glTF draws a primitive without COLOR_0 so).
+                a.values.assign(rm.refinedVertex.size() * size_t(comps), name.rfind("COLOR_", 0) == 0 ? 1.0f : 0.0f);
                 rm.attributes.push_back(std::move(a));
             }
     }

@@ -21,6 +21,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import { after, before, test } from 'node:test';
+import { Document, NodeIO } from '@gltf-transform/core';
 import { importMap, launchChromium, openPage, root, serve } from '../tools/browser.mjs';
 
 const build = path.resolve(process.env.STRATA_BUILD_DIR || path.join(root, 'build'));
@@ -44,6 +45,36 @@ function readPly(file) {
   const p = new Float32Array(n * 3);
   for (let i = 0; i < n; ++i) for (let c = 0; c < 3; ++c) p[3 * i + c] = f[props * i + c];
   return p;
+}
+
+// A unit sphere (latitude-longitude, 64 x 32) coloured as glTF allows
+// without a texture: COLOR_0, linear, a linear function of the direction,
+// under a base colour factor that halves the red.
+async function writeColouredSphere(file) {
+  const positions = [], colours = [], indices = [];
+  const rows = 32, columns = 64;
+  for (let i = 0; i <= rows; ++i)
+    for (let j = 0; j <= columns; ++j) {
+      const theta = Math.PI * i / rows, phi = 2 * Math.PI * j / columns;
+      const p = [Math.sin(theta) * Math.cos(phi), Math.cos(theta), Math.sin(theta) * Math.sin(phi)];
+      positions.push(...p);
+      colours.push(...p.map((x) => 0.5 + 0.4 * x), 1);
+    }
+  for (let i = 0; i < rows; ++i)
+    for (let j = 0; j < columns; ++j) {
+      const a = i * (columns + 1) + j, b = a + columns + 1;
+      if (i > 0) indices.push(a, a + 1, b);
+      if (i < rows - 1) indices.push(a + 1, b + 1, b);
+    }
+  const doc = new Document();
+  const buffer = doc.createBuffer();
+  const primitive = doc.createPrimitive()
+    .setAttribute('POSITION', doc.createAccessor().setType('VEC3').setArray(new Float32Array(positions)).setBuffer(buffer))
+    .setAttribute('COLOR_0', doc.createAccessor().setType('VEC4').setArray(new Float32Array(colours)).setBuffer(buffer))
+    .setIndices(doc.createAccessor().setType('SCALAR').setArray(new Uint32Array(indices)).setBuffer(buffer))
+    .setMaterial(doc.createMaterial().setBaseColorFactor([0.5, 1, 1, 1]));
+  doc.createScene().addChild(doc.createNode().setMesh(doc.createMesh().addPrimitive(primitive)));
+  await new NodeIO().write(file, doc);
 }
 
 // A .glb with its JSON changed by edit(json).
@@ -325,9 +356,11 @@ window.lookalike = async (sourceUrl, rigUrl, time) => {
     if (plugin) loader.register((parser) => new StrataLoaderPlugin(parser, {}));
     const gltf = await loader.loadAsync(url);
     const scene = litScene(gltf.scene, [0, 0, 0], 0.6, 2.5);
-    const mixer = new THREE.AnimationMixer(gltf.scene);
-    mixer.clipAction(gltf.animations[0]).play();
-    mixer.setTime(time);
+    if (gltf.animations.length) {
+      const mixer = new THREE.AnimationMixer(gltf.scene);
+      mixer.clipAction(gltf.animations[0]).play();
+      mixer.setTime(time);
+    }
     scene.traverse((o) => { o.frustumCulled = false; });
     scene.updateMatrixWorld(true);
     return { scene, gltf };
@@ -392,6 +425,10 @@ before(async () => {
   // slerp, three interpolates and composes them as stored (|q| = 1 +- 3e-5),
   // so the mixer's pose differs from the rig's own by that scale.
   rigs.push({ name: 'CesiumMan_meshopt', animated: true, mixerBar: 1e-5 });
+  // A capture coloured by its vertex colours and factor alone.
+  await writeColouredSphere(path.join(work, 'Sphere_source.glb'));
+  run(tool('strata-bake'), ['--high', path.join(work, 'Sphere_source.glb'), '--control', 'auto', '-o',
+    path.join(work, 'Sphere.glb')]);
   server = await serve({ '/work/': work }, { '/page.html': page });
   browser = await launchChromium();
   tab = await openPage(browser, `${server.url}/page.html`);
@@ -518,6 +555,17 @@ test('three.js draws a character through the plugin as it draws its source', asy
     console.log(`${name} in three.js through the plugin against its source in three.js: ${got.psnr.toFixed(1)} dB ` +
       `(the other shading: ${got.turned.toFixed(1)} dB)`);
   }
+});
+
+// glTF's base colour is linear: factor x sRGB-decoded texture x COLOR_0.
+// The rig's one texture (sRGB-coded) carries a capture's vertex colours
+// and factor, so three.js draws the two alike.  (Before, the rig dropped
+// the vertex colours and stored the linear factor as sRGB: 14 dB.)
+test('three.js draws a capture coloured by vertex colours and its rig alike', async () => {
+  const got = await tab.evaluate((s, r) => window.lookalike(s, r, 0), '/work/Sphere_source.glb', '/work/Sphere.glb');
+  assert.deepEqual(tab.errors, []);
+  assert.ok(got.psnr >= 35, `the coloured sphere: ${got.psnr.toFixed(1)} dB against the source`);
+  console.log(`a sphere coloured by COLOR_0 and its factor, in three.js against its rig: ${got.psnr.toFixed(1)} dB`);
 });
 
 test('a rig whose layer no longer matches its mesh is refused with the cause', async () => {

@@ -26,7 +26,7 @@ std::string linesShaderSource(GLenum stage)
 namespace {
 
 // Binding points of the draw pass's own buffers (surface.vert.glsl).
-constexpr GLuint kErrors = 12, kCornerUVs = 14;
+constexpr GLuint kErrors = 12, kCornerUVs = 14, kCornerColours = 15;
 
 }  // namespace
 
@@ -66,7 +66,8 @@ Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bo
 
 GpuSurface::~GpuSurface()
 {
-    for (GLuint b : {errors_, feedback_, cornerUVs_, triangleLevels_, adaptiveCornerUVs_})
+    for (GLuint b : {errors_, feedback_, cornerUVs_, cornerColours_, triangleLevels_, adaptiveCornerUVs_,
+                     adaptiveCornerColours_})
         if (b)
             glDeleteBuffers(1, &b);
     glDeleteVertexArrays(1, &vao_);
@@ -113,12 +114,13 @@ bool rangesFit(const std::vector<MaterialRange>& ranges, size_t faces, size_t ma
 }  // namespace
 
 Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
-                                const std::vector<glm::vec2>& cornerUVs)
+                                const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours)
 {
     const size_t faceCount_ = faceCount();
-    if (cornerUVs.size() != 3 * faceCount_)
+    if (cornerUVs.size() != 3 * faceCount_ || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: " + std::to_string(cornerUVs.size()) +
-                                                       " corner UVs for " + std::to_string(faceCount_) + " faces");
+                                                       " corner UVs and " + std::to_string(cornerColours.size()) +
+                                                       " corner colours for " + std::to_string(faceCount_) + " faces");
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
     for (GpuMaterial& m : materials_)
@@ -132,7 +134,8 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
             int levels = 1;
             while ((std::max(in.textureWidth, in.textureHeight) >> levels) > 0)
                 ++levels;
-            glTextureStorage2D(m.texture, levels, GL_RGBA8, in.textureWidth, in.textureHeight);
+            // sRGB-coded, as glTF's base colour textures are: read linear.
+            glTextureStorage2D(m.texture, levels, GL_SRGB8_ALPHA8, in.textureWidth, in.textureHeight);
             glTextureSubImage2D(m.texture, 0, 0, 0, in.textureWidth, in.textureHeight, GL_RGBA, GL_UNSIGNED_BYTE,
                                 in.textureRGBA);
             glGenerateTextureMipmap(m.texture);
@@ -152,6 +155,14 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     glCreateBuffers(1, &cornerUVs_);
     glNamedBufferStorage(cornerUVs_, GLsizeiptr(std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2)),
                          cornerUVs.empty() ? nullptr : cornerUVs.data(), 0);
+    if (cornerColours_)
+        glDeleteBuffers(1, &cornerColours_);
+    cornerColours_ = 0;
+    if (!cornerColours.empty()) {
+        glCreateBuffers(1, &cornerColours_);
+        glNamedBufferStorage(cornerColours_, GLsizeiptr(cornerColours.size() * sizeof(glm::vec4)), cornerColours.data(),
+                             0);
+    }
     if (!cornerVao_)
         glCreateVertexArrays(1, &cornerVao_);  // no attributes: the shader reads buffers by corner
     return Status::ok();
@@ -182,15 +193,22 @@ void GpuSurface::sortBlendedLast(std::vector<MaterialRange>* ranges) const
     });
 }
 
-Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs)
+Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs,
+                                        const std::vector<glm::vec4>& cornerColours)
 {
     const size_t triangles = evaluator_->adaptiveTriangleCount();
-    if (cornerUVs.size() != 3 * triangles)
+    if (cornerUVs.size() != 3 * triangles || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()))
         return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: " + std::to_string(cornerUVs.size()) +
-                                                       " corner UVs for " + std::to_string(triangles) + " triangles");
+                                                       " corner UVs and " + std::to_string(cornerColours.size()) +
+                                                       " corner colours for " + std::to_string(triangles) +
+                                                       " triangles");
     if (!rangesFit(ranges, triangles, materials_.size()))
         return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: a triangle range is out of bounds");
     upload(&adaptiveCornerUVs_, &adaptiveCornerUVsCapacity_, cornerUVs.data(), cornerUVs.size() * sizeof(glm::vec2));
+    adaptiveHasColours_ = !cornerColours.empty();
+    if (adaptiveHasColours_)
+        upload(&adaptiveCornerColours_, &adaptiveCornerColoursCapacity_, cornerColours.data(),
+               cornerColours.size() * sizeof(glm::vec4));
     adaptiveRanges_ = ranges;
     sortBlendedLast(&adaptiveRanges_);
     return Status::ok();
@@ -199,8 +217,10 @@ Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges
 // The shaded view with materials: corner-ordered draws (gl_VertexID is a
 // corner of `triangles`), one per range.
 void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
-                               GLuint vao)
+                               GLuint cornerColours, GLuint vao)
 {
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerColours, cornerColours);
+    glUniform1i(glGetUniformLocation(prog, "u_hasColours"), cornerColours ? 1 : 0);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, evaluator_->buffer(kSampleUVs));
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kTriangles, triangles);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, errors_);
@@ -234,6 +254,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
     glBindTextureUnit(1, 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
+    glUniform1i(glGetUniformLocation(prog, "u_hasColours"), 0);
 }
 
 void GpuSurface::setDrawUniforms(GLuint prog, const DrawParams& p, ColorMode mode) const
@@ -339,7 +360,7 @@ void GpuSurface::drawAdaptive(const DrawParams& p)
     beginWireframe(p);
     if (p.colorMode == ColorMode::Shaded && !adaptiveRanges_.empty()) {
         drawMaterials(prog, adaptiveRanges_, e.adaptiveBuffer(AdaptiveBuffer::Triangles), adaptiveCornerUVs_,
-                      adaptiveVao_);
+                      adaptiveHasColours_ ? adaptiveCornerColours_ : 0, adaptiveVao_);
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, triangleLevels_);
         glBindVertexArray(adaptiveVao_);
     } else {
@@ -383,7 +404,7 @@ void GpuSurface::draw(const DrawParams& p)
     const auto drawAll = [&] { glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr); };
     beginWireframe(p);
     if (mode == ColorMode::Shaded && !materials_.empty()) {
-        drawMaterials(prog, ranges_, evaluator_->buffer(kTriangles), cornerUVs_, cornerVao_);
+        drawMaterials(prog, ranges_, evaluator_->buffer(kTriangles), cornerUVs_, cornerColours_, cornerVao_);
     } else {
         glBindVertexArray(vao_);
         drawAll();

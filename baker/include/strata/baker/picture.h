@@ -26,6 +26,8 @@ struct PicturePart {
     const io::ImageRGBA* image = nullptr;  ///< base colour texture, or null
     const float* uvs = nullptr;            ///< 2 per vertex (the texture's UV set), or null
     const io::MaterialInfo* material = nullptr;  ///< its texture's UV transform (null: none)
+    const float* colours = nullptr;        ///< COLOR_0 per vertex (linear), or null
+    int colourComponents = 0;              ///< 3 (RGB) or 4 (RGBA) per vertex in colours
     bool flat = false;                     ///< face normals (glTF's rule for a primitive without NORMAL)
 };
 

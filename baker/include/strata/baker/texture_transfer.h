@@ -23,7 +23,8 @@ struct ColorImage {
 };
 
 /// The capture's colour at a point of its triangle `face` (barycentrics b1,
-/// b2 of corners 1 and 2), RGBA in [0, 1].
+/// b2 of corners 1 and 2), linear RGBA in [0, 1] (glTF's base colour:
+/// factor, decoded texture and vertex colour multiplied).
 using CaptureColour = std::function<glm::vec4(uint32_t face, double b1, double b2)>;
 
 /// A size x size image of the capture's colour in the cage's UVs.  Each
@@ -32,7 +33,8 @@ using CaptureColour = std::function<glm::vec4(uint32_t face, double b1, double b
 /// along the blended vertex normals (paper eq. 2), whose nearest capture
 /// point (`capture`, the capture's index) gives the colour.  Texels outside
 /// every triangle take their nearest chart's colour (dilated), so filtering
-/// at chart borders never reads another colour.  Deterministic for any
+/// at chart borders never reads another colour.  The image is written as
+/// a glTF base colour texture is read: RGB sRGB-coded, alpha linear.  Deterministic for any
 /// thread count.
 Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
                       const CaptureColour& colour, int size, ColorImage* out, int threads = 1);

@@ -54,7 +54,24 @@ struct SceneMaterials {
     std::vector<int> partMaterial;        ///< per rig.parts entry: index into materials
     std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour texture's UVs, transformed
                                           ///< (MaterialInfo::textureUV); (0, 0) without
+    /// Per file vertex: its COLOR_0 as linear RGBA (RGB with alpha 1 from a
+    /// VEC3), white where a part has none; empty when no part has one.
+    std::vector<glm::vec4> fileColours;
 };
+
+/// The sRGB transfer function (IEC 61966-2-1) and its inverse, on one
+/// channel in [0, 1].  glTF's base colour textures are sRGB-coded; its
+/// base colour factors and vertex colours are linear.
+double srgbToLinear(double coded);
+double linearToSrgb(double linear);
+
+/// The base colour glTF draws with, linear RGBA: the material's factor
+/// times its texture at `uv` (a texture UV, MaterialInfo::textureUV's;
+/// sRGB-decoded; alpha as stored) times the vertex colour (`vertexColour`,
+/// linear; white without).  `image`: the material's decoded image, or
+/// null; `nearest` reads its nearest texel rather than bilinear.
+glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
+                        const glm::dvec4& vertexColour = glm::dvec4(1.0), bool nearest = false);
 
 /// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
 /// centred at ((x + 0.5) / width, (y + 0.5) / height)), or its nearest texel
@@ -74,8 +91,9 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// emissive and metallic-roughness textures, an emissive colour,
 /// material extensions, materials whose metallic, roughness,
 /// alpha mode or sidedness differ from `main` (the material whose factors
-/// are kept; -1: none), vertex colours, point and line primitives, morph
-/// targets, cameras and lights,
+/// are kept; -1: none), vertex colours other than COLOR_0 (which the
+/// re-baked texture carries), point and line primitives, morph targets,
+/// cameras and lights,
 /// each with how many materials, primitives or nodes have it.  Empty when
 /// nothing is left behind, or the rig is not from glTF.
 std::string featuresNotCarried(const Rig& rig, int main);

@@ -36,7 +36,7 @@ struct RenderPart {
 
 /// A per-corner attribute of the source primitives (TEXCOORD_n, COLOR_n,
 /// custom _NAME), refined linearly inside each control face; zero on
-/// parts that do not have it.
+/// parts that do not have it (a COLOR_n: white, as glTF draws them).
 struct RenderAttribute {
     std::string name;
     int components = 0;

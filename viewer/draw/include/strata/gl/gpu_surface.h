@@ -16,6 +16,7 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include <memory>
 #include <string>
@@ -91,11 +92,14 @@ public:
 
     /// Materials for the shaded view: ranges of refined faces, each drawn
     /// with its material, the texture sampled through cornerUVs (3 per
-    /// refined face, refined like the plan's UVs).  Without materials the
-    /// surface is drawn in DrawParams::baseColor.  Blended ranges are drawn
-    /// last, without depth writes.
+    /// refined face, refined like the plan's UVs) and multiplied by
+    /// cornerColours (linear RGBA, the same count; empty: white), as glTF
+    /// multiplies COLOR_0.  Textures are read as sRGB-coded, the factor and
+    /// colours as linear; the result is shown sRGB-coded.  Without
+    /// materials the surface is drawn in DrawParams::baseColor.  Blended
+    /// ranges are drawn last, without depth writes.
     Status setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
-                        const std::vector<glm::vec2>& cornerUVs);
+                        const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours = {});
 
     /// Uploads the control positions and normals (count must match the
     /// plan) and runs the evaluator's passes.
@@ -111,8 +115,10 @@ public:
     /// The shaded view of the adaptive frame set last with setMaterials'
     /// materials: ranges of the frame's triangles (each range's material
     /// an index into setMaterials' list), the texture sampled through
-    /// cornerUVs (3 per frame triangle).  Cleared by setAdaptive.
-    Status setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs);
+    /// cornerUVs (3 per frame triangle) times cornerColours (as
+    /// setMaterials).  Cleared by setAdaptive.
+    Status setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs,
+                                const std::vector<glm::vec4>& cornerColours = {});
     Status updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
     void drawAdaptive(const DrawParams& params);
 
@@ -131,8 +137,9 @@ public:
 private:
     GpuSurface() = default;
     // Corner-ordered draws of `ranges` (gl_VertexID a corner of `triangles`).
+    // cornerColours: 0 for none.
     void drawMaterials(GLuint program, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
-                       GLuint vao);
+                       GLuint cornerColours, GLuint vao);
     void sortBlendedLast(std::vector<MaterialRange>* ranges) const;
     void upload(GLuint* buffer, size_t* capacity, const void* data, size_t bytes);
     void takeTimings();  // the evaluator's stage times of the last update, when timing
@@ -150,14 +157,15 @@ private:
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
-    GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0;  // buffers of the draw pass only
+    GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0, cornerColours_ = 0;  // buffers of the draw pass only
     GLuint vao_ = 0, cornerVao_ = 0;
     GLuint surface_ = 0, feedbackProgram_ = 0;
     GLuint adaptiveProgram_ = 0, adaptiveVao_ = 0, triangleLevels_ = 0;  // the adaptive draw
     size_t triangleLevelsCapacity_ = 0;
     std::vector<MaterialRange> adaptiveRanges_;  // over the adaptive frame's triangles
-    GLuint adaptiveCornerUVs_ = 0;
-    size_t adaptiveCornerUVsCapacity_ = 0;
+    GLuint adaptiveCornerUVs_ = 0, adaptiveCornerColours_ = 0;
+    size_t adaptiveCornerUVsCapacity_ = 0, adaptiveCornerColoursCapacity_ = 0;
+    bool adaptiveHasColours_ = false;
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };
