@@ -632,7 +632,7 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 
 namespace {
 
-enum class SecondSkin { Alike, Moved, Apart };
+enum class SecondSkin { Alike, Moved, Mirrored, Apart };
 
 // CesiumMan as converters that write a skin per mesh leave it: its
 // triangles in two meshes on two nodes, each with its own skin over the
@@ -640,8 +640,9 @@ enum class SecondSkin { Alike, Moved, Apart };
 // the joints alike.  Moved: the second mesh's vertices are moved by a
 // transform T and its inverse bind matrices take T out again (a mesh node
 // whose bind transform the converter folded into its skin), so it poses the
-// same.  Apart: the second skin binds one joint elsewhere, which no
-// transform of its mesh reconciles with the first.
+// same.  Mirrored: so, with T a mirror (x -> -x) as well.  Apart: the
+// second skin binds one joint elsewhere, which no transform of its mesh
+// reconciles with the first.
 bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin how)
 {
     tinygltf::Model m;
@@ -660,10 +661,11 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     const tinygltf::Skin first = m.skins[0];
     const size_t nj = first.joints.size();
     const std::vector<float> ibm = accessorData<float>(m, first.inverseBindMatrices, 16);
-    const glm::mat4 t = how == SecondSkin::Moved
-                            ? glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.3f, -0.2f, 0.1f)), 0.4f,
-                                          glm::vec3(0.0f, 0.0f, 1.0f))
-                            : glm::mat4(1.0f);
+    glm::mat4 t(1.0f);
+    if (how == SecondSkin::Moved || how == SecondSkin::Mirrored)
+        t = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.3f, -0.2f, 0.1f)), 0.4f, glm::vec3(0.0f, 0.0f, 1.0f));
+    if (how == SecondSkin::Mirrored)
+        t = glm::scale(t, glm::vec3(-1.0f, 1.0f, 1.0f));
     std::vector<float> ibm2(16 * nj);
     tinygltf::Skin second;
     second.name = "second";
@@ -705,6 +707,18 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     return io.WriteGltfSceneToFile(&m, path, true, true, false, true);
 }
 
+// Sum over triangles of p0 . (p1 x p2) / 6: the enclosed volume of a closed
+// mesh, and of an open one still a figure whose sign follows each
+// triangle's winding.
+double signedVolume(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& triangles)
+{
+    double v = 0.0;
+    for (size_t t = 0; t + 2 < triangles.size(); t += 3)
+        v += glm::dot(glm::dvec3(p[triangles[t]]),
+                      glm::cross(glm::dvec3(p[triangles[t + 1]]), glm::dvec3(p[triangles[t + 2]]))) / 6.0;
+    return v;
+}
+
 // The largest distance from a point of `a` to the nearest point of `b`.
 float farthestFromNearest(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b)
 {
@@ -736,8 +750,11 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
     io::Reconstruction expected;
     io::Pose pose;
     ASSERT_TRUE(io::reconstruct(&expected, source, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
-    for (SecondSkin how : {SecondSkin::Alike, SecondSkin::Moved}) {
-        const std::string input = dir + (how == SecondSkin::Alike ? "/alike.glb" : "/moved.glb");
+    const double volume = signedVolume(source.mesh.positions, source.mesh.triangles);
+    for (SecondSkin how : {SecondSkin::Alike, SecondSkin::Moved, SecondSkin::Mirrored}) {
+        const std::string input = dir + (how == SecondSkin::Alike   ? "/alike.glb"
+                                         : how == SecondSkin::Moved ? "/moved.glb"
+                                                                    : "/mirrored.glb");
         SCOPED_TRACE(input);
         ASSERT_TRUE(skinPerMesh(man, input, how));
         Rig rig;
@@ -745,6 +762,8 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
         ASSERT_TRUE(st.isOk()) << st.message();
         EXPECT_EQ(rig.skeleton.skin.joints.size(), sk.skin.joints.size());
         EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size()) << "the meshes weld where they meet";
+        // Every triangle wound as the one-skin character's (as glTF draws it).
+        EXPECT_NEAR(signedVolume(rig.mesh.positions, rig.mesh.triangles), volume, 1e-4 * std::abs(volume));
         io::Reconstruction rec;
         ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
         for (int k = 0; k <= 3; ++k) {
@@ -757,11 +776,13 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
         }
     }
     // Its detailed scene keeps each mesh on its own skin's joints, so it
-    // poses as the one-skin character's detailed scene does.
-    std::vector<io::Reconstruction> posed(2);
-    for (int k = 0; k < 2; ++k) {
+    // poses as the one-skin character's detailed scene does, its triangles
+    // wound alike.
+    std::vector<io::Reconstruction> posed(3);
+    std::vector<double> volumes(3);
+    for (int k = 0; k < 3; ++k) {
         Rig rig, back;
-        ASSERT_TRUE(io::loadRig(k == 0 ? man : dir + "/moved.glb", &rig).isOk());
+        ASSERT_TRUE(io::loadRig(k == 0 ? man : dir + (k == 1 ? "/moved.glb" : "/mirrored.glb"), &rig).isOk());
         io::Reconstruction rec;
         ASSERT_TRUE(io::reconstruct(&rec, rig, nullptr, Scheme::Linear, 1).isOk());
         const std::string scene = dir + "/scene" + std::to_string(k) + ".glb";
@@ -769,9 +790,13 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
         ASSERT_TRUE(io::loadRig(scene, &back).isOk());
         pose.time = 0.5f * (sk.animations[0].start + sk.animations[0].end);
         ASSERT_TRUE(io::reconstruct(&posed[size_t(k)], back, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+        volumes[size_t(k)] = signedVolume(back.mesh.positions, back.mesh.triangles);
     }
-    EXPECT_LT(farthestFromNearest(posed[1].positions, posed[0].positions), 1e-5f);
-    EXPECT_LT(farthestFromNearest(posed[0].positions, posed[1].positions), 1e-5f);
+    for (int k = 1; k < 3; ++k) {
+        EXPECT_LT(farthestFromNearest(posed[size_t(k)].positions, posed[0].positions), 1e-5f) << k;
+        EXPECT_LT(farthestFromNearest(posed[0].positions, posed[size_t(k)].positions), 1e-5f) << k;
+        EXPECT_NEAR(volumes[size_t(k)], volumes[0], 1e-4 * std::abs(volumes[0])) << k;
+    }
 
     const std::string rigPath = dir + "/rig.glb";
     test::CommandResult r = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + dir +

@@ -69,7 +69,10 @@ Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, 
                          std::vector<glm::mat4>* world);
 /// The part's node mirrors it (its transform's determinant is negative):
 /// glTF draws its triangles with the winding reversed, and the control mesh
-/// holds them so (readSceneGeometry), outward as drawn.
+/// holds them so (readSceneGeometry), outward as drawn.  Never a skinned
+/// part: its node's transform does not place it, and its skin's matrices
+/// move its vertices where glTF draws them, mirror or not, in their file
+/// order (a second skin's toScene may mirror: the order stays).
 bool mirrors(const RigPart& part);
 /// Turns every triangle of a triangle list the other way round (corners 1
 /// and 2 swapped): a mirrored part's file order <-> its control-mesh order.

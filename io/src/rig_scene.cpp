@@ -105,7 +105,7 @@ Status restWorldMatrices(const std::string& path, const tinygltf::Model& model, 
 
 bool mirrors(const RigPart& part)
 {
-    return glm::determinant(glm::mat3(part.toScene)) < 0.0f;
+    return !part.skinned && glm::determinant(glm::mat3(part.toScene)) < 0.0f;
 }
 
 void reverseWinding(std::vector<uint32_t>* triangles)
