@@ -1243,51 +1243,77 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
 // colours (a linear function of the point) re-bakes into one texture
 // that, read back as glTF reads it (sRGB-decoded), is that product at
 // every cage face's centre.  Before, the factor and the colours were
-// dropped or stored as if they were sRGB: a 0.5 factor drew as 0.21.
+// dropped or stored as if they were sRGB: a 0.5 factor drew as 0.21.  The
+// same sphere as a PLY scan with 8-bit sRGB vertex colours (no factor),
+// which was re-baked with no colour at all, keeps its colours too.
 TEST(BakeLibrary, AutomaticCageCarriesVertexColoursAndLinearFactors)
 {
     const std::string dir = strata::test::tempDir("bake_vertex_colours");
     ASSERT_TRUE(strata::test::writeColouredSphere(dir + "/sphere.glb"));
     const auto colourAt = strata::test::colouredSphereColour;
-
-    strata::baker::BakeRequest request;
-    request.high = dir + "/sphere.glb";
-    request.control = "auto";
-    request.output = dir + "/rig.glb";
-    strata::baker::BakeResult result;
-    const strata::Status st = strata::baker::bakeRig(request, &result);
-    ASSERT_TRUE(st.isOk()) << st.message();
-    for (const std::string& w : result.warnings)
-        EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
-    strata::Rig rig;
-    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
-    strata::io::SceneMaterials sm;
-    ASSERT_TRUE(strata::io::loadSceneMaterials(rig, &sm).isOk());
-    ASSERT_GE(sm.materials.size(), 2u);
-    const strata::io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
-    ASSERT_GE(carried.image, 0);
-    EXPECT_EQ(carried.baseColor, glm::vec4(1.0f));
-    const strata::io::ImageRGBA& image = sm.images[size_t(carried.image)];
-    ASSERT_EQ(rig.fileCorners.size(), rig.mesh.triangles.size());
-    double worst = 0.0, sum = 0.0;
-    for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
-        glm::dvec2 uv(0.0);
-        glm::vec3 centre(0.0f);
-        for (int k = 0; k < 3; ++k) {
-            uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
-            centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
+    {
+        const strata::ControlMesh sphere = strata::examples::makeIcosphere(4);
+        std::ostringstream ply;
+        ply << "ply\nformat ascii 1.0\nelement vertex " << sphere.positions.size()
+            << "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
+               "property uchar blue\nelement face "
+            << sphere.faceCount() << "\nproperty list uchar int vertex_indices\nend_header\n";
+        for (const glm::vec3& p : sphere.positions) {
+            const glm::vec4 c = colourAt(p);
+            ply << p.x << ' ' << p.y << ' ' << p.z;
+            for (int k = 0; k < 3; ++k)
+                ply << ' ' << std::lround(255.0 * strata::io::linearToSrgb(c[k]));
+            ply << '\n';
         }
-        const glm::dvec4 drawn = strata::io::baseColourAt(carried, &image, uv);
-        const glm::vec4 expected = glm::vec4(0.5f, 1.0f, 1.0f, 1.0f) * colourAt(centre);
-        for (int k = 0; k < 3; ++k) {
-            worst = std::max(worst, std::abs(drawn[k] - double(expected[k])));
-            sum += std::abs(drawn[k] - double(expected[k]));
-        }
+        for (size_t f = 0; f < sphere.faceCount(); ++f)
+            ply << "3 " << sphere.triangles[3 * f] << ' ' << sphere.triangles[3 * f + 1] << ' '
+                << sphere.triangles[3 * f + 2] << '\n';
+        writeText(dir + "/sphere.ply", ply.str());
     }
-    // The colour changes by 0.4 across the radius; texels of 1/256 and the
-    // 8-bit coding leave under 1%, 2.4% at worst.
-    EXPECT_LT(worst, 0.03);
-    EXPECT_LT(sum / double(3 * rig.mesh.faceCount()), 0.01);
+    for (const std::string input : {"sphere.glb", "sphere.ply"}) {
+        SCOPED_TRACE(input);
+        const glm::vec4 factor = input == "sphere.glb" ? glm::vec4(0.5f, 1.0f, 1.0f, 1.0f) : glm::vec4(1.0f);
+        strata::baker::BakeRequest request;
+        request.high = dir + "/" + input;
+        request.control = "auto";
+        request.output = dir + "/rig.glb";
+        strata::baker::BakeResult result;
+        const strata::Status st = strata::baker::bakeRig(request, &result);
+        ASSERT_TRUE(st.isOk()) << st.message();
+        for (const std::string& w : result.warnings)
+            EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
+        EXPECT_NE(result.summary.find("vertex colours carried as one 256x256 base colour texture"), std::string::npos)
+            << result.summary;
+        strata::Rig rig;
+        ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+        strata::io::SceneMaterials sm;
+        ASSERT_TRUE(strata::io::loadSceneMaterials(rig, &sm).isOk());
+        ASSERT_GE(sm.materials.size(), 2u);
+        const strata::io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
+        ASSERT_GE(carried.image, 0);
+        EXPECT_EQ(carried.baseColor, glm::vec4(1.0f));
+        const strata::io::ImageRGBA& image = sm.images[size_t(carried.image)];
+        ASSERT_EQ(rig.fileCorners.size(), rig.mesh.triangles.size());
+        double worst = 0.0, sum = 0.0;
+        for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
+            glm::dvec2 uv(0.0);
+            glm::vec3 centre(0.0f);
+            for (int k = 0; k < 3; ++k) {
+                uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
+                centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
+            }
+            const glm::dvec4 drawn = strata::io::baseColourAt(carried, &image, uv);
+            const glm::vec4 expected = factor * colourAt(centre);
+            for (int k = 0; k < 3; ++k) {
+                worst = std::max(worst, std::abs(drawn[k] - double(expected[k])));
+                sum += std::abs(drawn[k] - double(expected[k]));
+            }
+        }
+        // The colour changes by 0.4 across the radius; texels of 1/256 and the
+        // 8-bit coding leave under 1%, 2.4% at worst.
+        EXPECT_LT(worst, 0.03);
+        EXPECT_LT(sum / double(3 * rig.mesh.faceCount()), 0.01);
+    }
 }
 
 // A character whose animation throws it out of range (two nested joints

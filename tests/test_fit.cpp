@@ -23,7 +23,7 @@ namespace {
 TriangleMesh sphereCapture(int subdivisions)
 {
     const ControlMesh m = examples::makeIcosphere(subdivisions);
-    return TriangleMesh{m.positions, m.triangles};
+    return TriangleMesh{m.positions, m.triangles, {}};
 }
 
 // RMS of |radius - 1| over a scheme's refined vertices at `level`.

@@ -219,3 +219,76 @@ TEST(PolygonReader, HostileFilesAreOneClearError)
         EXPECT_EQ(st.message().find('\n'), std::string::npos) << st.message();
     }
 }
+
+// Vertex colours as scanners and MeshLab write them: a PLY's red, green and
+// blue (uchar, ushort or float; alpha optional) and an OBJ's "v x y z r g b"
+// (0..1, or 0..255 where any value passes 1), sRGB-coded, read as linear
+// RGBA (code 188 of 255 is 0.5029, 128 is 0.2158).  A lone red is no colour.
+TEST(PolygonReader, VertexColoursReadAsLinear)
+{
+    const std::string dir = test::tempDir("polygon_reader_colours");
+    const double l188 = 0.5028864580325687, l128 = 0.21586050011389926;
+    for (const std::string format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+        std::string s = "ply\nformat " + format + " 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                        "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+                        "property float alpha\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        const bool ascii = format == "ascii", big = format == "binary_big_endian";
+        for (int v = 0; v < 3; ++v) {
+            const float p[3] = {float(v == 1), float(v == 2), 0.0f};
+            const uint8_t rgb[3] = {188, uint8_t(v == 0 ? 128 : 0), 255};
+            if (ascii) {
+                s += std::to_string(p[0]) + " " + std::to_string(p[1]) + " 0 188 " + std::to_string(rgb[1]) +
+                     " 255 0.5\n";
+            } else {
+                for (float x : p)
+                    put<float>(s, x, big);
+                for (uint8_t c : rgb)
+                    put<uint8_t>(s, c, big);
+                put<float>(s, 0.5f, big);
+            }
+        }
+        if (ascii) {
+            s += "3 0 1 2\n";
+        } else {
+            put<uint8_t>(s, 3, big);
+            for (int32_t i : {0, 1, 2})
+                put<int32_t>(s, i, big);
+        }
+        test::writeText(dir + "/c.ply", s);
+        io::PolygonMesh m;
+        const Status st = io::readPolygonMesh(dir + "/c.ply", &m);
+        ASSERT_TRUE(st.isOk()) << format << ": " << st.message();
+        ASSERT_EQ(m.colours.size(), 3u) << format;
+        EXPECT_NEAR(m.colours[0].r, l188, 1e-6) << format;
+        EXPECT_NEAR(m.colours[0].g, l128, 1e-6) << format;
+        EXPECT_EQ(m.colours[1].g, 0.0f) << format;
+        EXPECT_NEAR(m.colours[2].b, 1.0, 1e-6) << format;
+        EXPECT_EQ(m.colours[2].a, 0.5f) << format;
+    }
+    // A cube whose vertices carry red alone has no colours.
+    test::writeText(dir + "/red.ply", plyCube("ascii"));
+    io::PolygonMesh cube;
+    ASSERT_TRUE(io::readPolygonMesh(dir + "/red.ply", &cube).isOk());
+    EXPECT_TRUE(cube.colours.empty());
+
+    // OBJ: 0..1, then 0..255; a vertex without a colour is white; four
+    // numbers are a position and w, not a colour.
+    for (const std::string& values : {std::string("0.737255 0.501961 1"), std::string("188 128 255")}) {
+        test::writeText(dir + "/c.obj", "v 0 0 0 " + values + "\nv 1 0 0\nv 0 1 0 1\nf 1 2 3\n");
+        ControlMesh mesh;
+        io::ObjReadInfo info;
+        ASSERT_TRUE(io::readObj(dir + "/c.obj", &mesh, &info).isOk()) << values;
+        ASSERT_EQ(info.colours.size(), 3u) << values;
+        EXPECT_NEAR(info.colours[0].r, l188, 1e-4) << values;
+        EXPECT_NEAR(info.colours[0].g, l128, 1e-4) << values;
+        EXPECT_NEAR(info.colours[0].b, 1.0, 1e-6) << values;
+        EXPECT_EQ(info.colours[0].a, 1.0f) << values;
+        EXPECT_EQ(info.colours[1], glm::vec4(1.0f)) << values;
+        EXPECT_EQ(info.colours[2], glm::vec4(1.0f)) << values;
+    }
+    test::writeText(dir + "/plain.obj", "v 0 0 0 1\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    ControlMesh mesh;
+    io::ObjReadInfo info;
+    ASSERT_TRUE(io::readObj(dir + "/plain.obj", &mesh, &info).isOk());
+    EXPECT_TRUE(info.colours.empty());
+}

@@ -862,8 +862,10 @@ void BakeJob::measureFrames()
 void BakeJob::loadCharacter()
 {
     const std::string ext = io::extensionOf(request.high);
-    if (ext != ".glb" && ext != ".gltf")
+    if (ext != ".glb" && ext != ".gltf") {
+        coloured = !high.colours.empty();  // a PLY's or OBJ's vertex colours
         return;
+    }
     // The capture read as a rig (its skeleton, materials).  Where the rig
     // reader refuses what the mesh reader took (two skins, for one), the
     // shape is baked as before and the one line says what is not carried.
@@ -1018,15 +1020,21 @@ void snapToPalette(std::vector<uint8_t>* rgba, const std::vector<uint32_t>& pale
     }
 }
 
-// The capture's colour (every material's base colour factor and texture)
-// as one texture in the cage's UVs, at the resolution of its largest
-// texture (256 to 2048 texels a side).
+// The capture's colour (every material's base colour factor and texture,
+// its vertex colours) as one texture in the cage's UVs, at the resolution
+// of its largest texture, or about a texel per vertex where the vertices
+// carry colours (256 to 2048 texels a side).
 void BakeJob::carryColour()
 {
     const io::SceneMaterials& sm = captureMaterials;
     int largest = 0;
     for (const io::ImageRGBA& im : sm.images)
         largest = std::max({largest, im.width, im.height});
+    // Vertex colours vary from vertex to vertex: a texel per capture vertex
+    // or so (1.5 for the atlas's gutters and packing).
+    const bool vertexColours = !sm.fileColours.empty() || !high.colours.empty();
+    if (vertexColours)
+        largest = std::max(largest, int(std::ceil(std::sqrt(1.5 * double(high.positions.size())))));
     int side = 256;
     while (side < largest && side < 2048)
         side *= 2;
@@ -1046,8 +1054,16 @@ void BakeJob::carryColour()
         flat[i] = flatColours(sm.images[i].rgba, &palette) ? 1 : 0;
         allFlat = allFlat && flat[i];
     }
-    // Linear, as glTF defines the base colour: factor x texture x COLOR_0.
+    // Linear, as glTF defines the base colour: factor x texture x COLOR_0;
+    // a PLY's or OBJ's vertex colours alone.
     const CaptureColour colour = [&](uint32_t face, double b1, double b2) {
+        if (sm.materials.empty()) {
+            glm::vec4 c(0.0f);
+            const float w[3] = {float(1.0 - b1 - b2), float(b1), float(b2)};
+            for (int k = 0; k < 3; ++k)
+                c += w[k] * high.colours[high.triangles[3 * size_t(face) + size_t(k)]];
+            return c;
+        }
         const io::MaterialInfo& m = sm.materials[size_t(faceMaterial[face])];
         if (!corners)
             return glm::vec4(m.baseColor);
@@ -1074,8 +1090,10 @@ void BakeJob::carryColour()
     baseColour.width = image.width;
     baseColour.height = image.height;
     baseColour.rgba = std::move(image.rgba);
-    // The other factors of the material most of the capture wears.
-    const io::MaterialInfo& main = sm.materials[mainMaterial];
+    // The other factors of the material most of the capture wears (glTF's
+    // default material's for a capture with none).
+    const io::MaterialInfo fallback;
+    const io::MaterialInfo& main = mainMaterial < sm.materials.size() ? sm.materials[mainMaterial] : fallback;
     baseColour.doubleSided = main.doubleSided;
     baseColour.metallic = main.metallic;
     baseColour.roughness = main.roughness;
@@ -1085,8 +1103,13 @@ void BakeJob::carryColour()
     baseColour.alphaCutoff = main.alphaCutoff;
     writeOptions.baseColour = &baseColour;
     char note[200];
-    std::snprintf(note, sizeof(note), "%zu material%s carried as one %dx%d base colour texture in the cage's UVs",
-                  sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s", side, side);
+    if (sm.materials.empty())
+        std::snprintf(note, sizeof(note), "its vertex colours carried as one %dx%d base colour texture in the cage's UVs",
+                      side, side);
+    else
+        std::snprintf(note, sizeof(note), "%zu material%s%s carried as one %dx%d base colour texture in the cage's UVs",
+                      sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s",
+                      vertexColours ? " and vertex colours" : "", side, side);
     colourNote = note;
 }
 

@@ -179,6 +179,7 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
             return st;
         mesh.positions = std::move(cm.positions);
         mesh.triangles = std::move(cm.triangles);
+        mesh.colours = std::move(info.colours);
         s.polygonsTriangulated = info.triangulated;
     } else if (ext == ".glb" || ext == ".gltf") {
         io::LoadOptions options;
@@ -192,6 +193,7 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
             return st;
         mesh.positions = std::move(pm.positions);
         mesh.triangles = std::move(pm.triangles);
+        mesh.colours = std::move(pm.colours);
         s.polygonsTriangulated = pm.polygonsTriangulated;
     } else {
         return Status(StatusCode::InvalidArgument,
@@ -200,6 +202,11 @@ Status loadHighMesh(const std::string& path, TriangleMesh* out, HighMeshStats* s
     if (!(st = checkHighMesh(mesh)))
         return Status(st.code(), path + ": " + st.message());
     s.unreferencedVertices = dropUnreferencedVertices(&mesh, &s.keptVertices);
+    if (s.unreferencedVertices > 0 && !mesh.colours.empty()) {
+        for (size_t v = 0; v < s.keptVertices.size(); ++v)
+            mesh.colours[v] = mesh.colours[s.keptVertices[v]];
+        mesh.colours.resize(s.keptVertices.size());
+    }
     countTolerated(mesh, &s);
     *out = std::move(mesh);
     if (stats)

@@ -2,6 +2,7 @@
 #include "strata/io/mesh_io.h"
 
 #include "strata/io/file.h"
+#include "strata/io/materials.h"
 #include "mesh_writers.h"
 #include "strata/plane.h"
 
@@ -92,6 +93,7 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& path,
     bytes.push_back(0);
     ControlMesh mesh;
     ObjReadInfo stats;
+    std::vector<glm::vec4> colours;  // as read; -1: none given, alpha -2: none given
     bool anyUV = false, anyNoUV = false;
     std::vector<uint32_t> fv, ft;
     const char* p = reinterpret_cast<const char*>(bytes.data());
@@ -119,6 +121,17 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& path,
             glm::vec3 v;
             if (!parseFloat(s, &v.x) || !parseFloat(s, &v.y) || !parseFloat(s, &v.z))
                 return lineError(path, lineNo, "vertex position is not three finite numbers");
+            // "v x y z r g b [a]": a vertex colour (a fourth number alone is w).
+            glm::vec4 colour(1.0f);
+            int extra = 0;
+            while (extra < 4 && parseFloat(s, &colour[extra]))
+                ++extra;
+            if (extra >= 3) {
+                if (colours.empty())
+                    colours.assign(mesh.positions.size(), glm::vec4(-1.0f));  // white, coded below
+                colours.resize(mesh.positions.size(), glm::vec4(-1.0f));
+                colours.push_back(extra == 3 ? glm::vec4(glm::vec3(colour), -2.0f) : colour);
+            }
             mesh.positions.push_back(v);
         } else if (s[0] == 'v' && s[1] == 't' && (s[2] == ' ' || s[2] == '\t')) {
             s += 3;
@@ -205,6 +218,25 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& path,
         return Status(StatusCode::InvalidData, path + ": some faces have texture coordinates and some do not");
     if (!anyUV)
         mesh.uvs.clear();
+    if (!colours.empty()) {
+        // Coded 0..1, or 0..255 where any value passes 1; sRGB, to linear.
+        colours.resize(mesh.positions.size(), glm::vec4(-1.0f));
+        float largest = 0.0f;
+        for (const glm::vec4& c : colours)
+            largest = std::max({largest, c.r, c.g, c.b, c.a});
+        const double scale = largest > 1.0f ? 1.0 / 255.0 : 1.0;
+        stats.colours.resize(colours.size());
+        for (size_t i = 0; i < colours.size(); ++i) {
+            const glm::vec4& c = colours[i];
+            if (c.r < -0.5f) {
+                stats.colours[i] = glm::vec4(1.0f);
+                continue;
+            }
+            const auto channel = [&](float x) { return float(srgbToLinear(std::clamp(double(x) * scale, 0.0, 1.0))); };
+            stats.colours[i] = glm::vec4(channel(c.r), channel(c.g), channel(c.b),
+                                         c.a < -1.5f ? 1.0f : float(std::clamp(double(c.a) * scale, 0.0, 1.0)));
+        }
+    }
     *out = std::move(mesh);
     if (info)
         *info = stats;

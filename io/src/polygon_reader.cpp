@@ -6,10 +6,12 @@
 #include "strata/io/mesh_io.h"
 
 #include "strata/io/file.h"
+#include "strata/io/materials.h"
 #include "weld.h"
 
-#include <filesystem>
+#include <algorithm>
 #include <cerrno>
+#include <filesystem>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -361,6 +363,25 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
                 xyz[a] = int(k);
     if (xyz[0] < 0 || xyz[1] < 0 || xyz[2] < 0)
         return fail(path, "the PLY vertex element has no x, y and z");
+    // Vertex colours: red, green and blue (alpha optional), as scanners and
+    // MeshLab write them; integers coded over their type's range.
+    int rgba[4] = {-1, -1, -1, -1};
+    double colourScale[4] = {1.0, 1.0, 1.0, 1.0};
+    static const char* const kColourNames[4] = {"red", "green", "blue", "alpha"};
+    for (size_t k = 0; k < vertexElement->properties.size(); ++k)
+        for (int a = 0; a < 4; ++a) {
+            const PlyProperty& prop = vertexElement->properties[k];
+            if (prop.countType == PlyType::None &&
+                (prop.name == kColourNames[a] || prop.name == std::string("diffuse_") + kColourNames[a])) {
+                rgba[a] = int(k);
+                colourScale[a] = prop.type == PlyType::UInt8 || prop.type == PlyType::Int8     ? 1.0 / 255.0
+                                 : prop.type == PlyType::UInt16 || prop.type == PlyType::Int16 ? 1.0 / 65535.0
+                                 : prop.type == PlyType::Float32 || prop.type == PlyType::Float64
+                                     ? 1.0
+                                     : 1.0 / 4294967295.0;
+            }
+        }
+    const bool coloured = rgba[0] >= 0 && rgba[1] >= 0 && rgba[2] >= 0;
     size_t nv = 0;
     c.p = bytes.data() + dataStart;
     const bool big = format == 2;
@@ -378,7 +399,7 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
             out->positions.reserve(e.count);
         if (isFace)
             out->triangles.reserve(out->triangles.size() + 3 * std::min(e.count, c.left() / 4));
-        if (format == 1 && (isVertex || isFace)) {
+        if (format == 1 && (isFace || (isVertex && !coloured))) {
             Status st;
             if (readPlyFast(path, e, isVertex, xyz, nv, c, out, &st)) {
                 if (!st)
@@ -393,8 +414,11 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
             wantedList[k] = isFace && isIndexList(e.properties[k].name);
         std::vector<double> values;
         std::vector<long> idx;
+        if (isVertex && coloured)
+            out->colours.reserve(e.count);
         for (size_t i = 0; i < e.count; ++i) {
             glm::dvec3 p(0.0);
+            glm::dvec4 colour(1.0);
             for (size_t k = 0; k < e.properties.size(); ++k) {
                 const PlyProperty& prop = e.properties[k];
                 if (prop.countType == PlyType::None) {
@@ -405,6 +429,9 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
                     for (int a = 0; a < 3; ++a)
                         if (isVertex && int(k) == xyz[a])
                             p[a] = v;
+                    for (int a = 0; a < 4; ++a)
+                        if (isVertex && coloured && int(k) == rgba[a])
+                            colour[a] = std::isfinite(v) ? std::clamp(v * colourScale[a], 0.0, 1.0) : 0.0;
                     continue;
                 }
                 double n = 0.0;
@@ -438,6 +465,9 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
                 if (!std::isfinite(f.x) || !std::isfinite(f.y) || !std::isfinite(f.z))
                     return fail(path, "vertex " + std::to_string(i) + " is not finite");
                 out->positions.push_back(f);
+                if (coloured)
+                    out->colours.emplace_back(float(srgbToLinear(colour.r)), float(srgbToLinear(colour.g)),
+                                              float(srgbToLinear(colour.b)), float(colour.a));
             }
         }
         if (isVertex)

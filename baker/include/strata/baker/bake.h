@@ -9,6 +9,8 @@
 #include "strata/vertex_displacements.h"
 #include "strata/status.h"
 
+#include <glm/vec4.hpp>
+
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,6 +38,9 @@ struct RasterStats {
 struct TriangleMesh {
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> triangles;
+    /// Per vertex, linear RGBA: a PLY's or OBJ's vertex colours (loadHighMesh),
+    /// which --control auto re-bakes into the rig's texture; empty without.
+    std::vector<glm::vec4> colours;
     size_t faceCount() const { return triangles.size() / 3; }
 };
 

@@ -8,6 +8,7 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include <string>
 #include <vector>
@@ -19,6 +20,10 @@ struct ObjReadInfo {
     size_t polygons = 0;      ///< faces in the file
     size_t triangulated = 0;  ///< of which had more than 3 corners (fan-triangulated)
     size_t degenerate = 0;    ///< triangles dropped because they repeat a vertex (zero area)
+    /// Per vertex: its colour (`v x y z r g b`, as MeshLab and scanners
+    /// write it: sRGB-coded 0..1, or 0..255 where any value passes 1),
+    /// linear RGBA; white for a vertex without.  Empty when none has one.
+    std::vector<glm::vec4> colours;
 };
 
 /// Reads an OBJ as a control mesh: `v` positions, `vt` UVs (flipped to
@@ -36,6 +41,10 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& name,
 struct PolygonMesh {
     std::vector<glm::vec3> positions;
     std::vector<uint32_t> triangles;
+    /// Per vertex: a PLY vertex's red, green, blue (and alpha), sRGB-coded
+    /// as scanners write them (integers over their range, floats 0..1), as
+    /// linear RGBA.  Empty without (and for OFF and STL).
+    std::vector<glm::vec4> colours;
     size_t polygonsTriangulated = 0;  ///< faces with more than 3 corners
 };
 
