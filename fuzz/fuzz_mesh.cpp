@@ -15,7 +15,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     --size;
     if (kind == 0) {
         ControlMesh mesh;
-        io::parseObj(data, size, "fuzz.obj", &mesh);
+        io::ObjReadInfo info;  // its vertex colours too
+        io::parseObj(data, size, "fuzz.obj", &mesh, &info);
     } else {
         static const char* const formats[] = {".ply", ".off", ".stl"};
         io::PolygonMesh mesh;
