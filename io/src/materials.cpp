@@ -232,10 +232,13 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         const std::vector<unsigned char> bytes = encodedImage(*rig.source, i);
         int w = 0, h = 0, comp = 0;
         // The header's size first: a hostile one would have the decoder
-        // allocate gigabytes before it finds no pixels behind it.
+        // allocate gigabytes before it finds no pixels behind it.  Nor can
+        // an image expand past deflate's limit (about 1032:1; a flat 4096^2
+        // PNG is 64 MB from 64 KB): at most 2048x its bytes, plus 16 MB.
         const bool readable = !bytes.empty() && bytes.size() <= (size_t(1) << 30) &&
                               stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp) && w > 0 &&
-                              h > 0 && w <= 16384 && h <= 16384;
+                              h > 0 && w <= 16384 && h <= 16384 &&
+                              4 * size_t(w) * size_t(h) <= 2048 * bytes.size() + (size_t(16) << 20);
         stbi_uc* px = readable ? stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4) : nullptr;
         if (!px || w > 16384 || h > 16384) {
             if (px)
