@@ -1316,6 +1316,70 @@ TEST(BakeLibrary, AutomaticCageCarriesVertexColoursAndLinearFactors)
     }
 }
 
+// A capture of two materials, one rough and dull, one metallic, smoother
+// and glowing orange: the rig's one material carries both as glTF reads
+// them, a metallic-roughness texture (G roughness, B metallic) under
+// factors of 1 and an emissive texture (sRGB) under a factor of 1, each
+// cage face's centre reading its half's values.  Before, the rig took the
+// factors of the material most of the capture wears and named the rest.
+TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
+{
+    using strata::test::kBottomMaterial;
+    using strata::test::kTopMaterial;
+    const std::string dir = strata::test::tempDir("bake_two_materials");
+    ASSERT_TRUE(strata::test::writeColouredSphere(dir + "/sphere.glb", strata::test::SphereColour::TwoMaterials));
+    strata::baker::BakeRequest request;
+    request.high = dir + "/sphere.glb";
+    request.control = "auto";
+    request.output = dir + "/rig.glb";
+    strata::baker::BakeResult result;
+    const strata::Status st = strata::baker::bakeRig(request, &result);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    for (const std::string& w : result.warnings)
+        EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
+    EXPECT_NE(result.summary.find("with metallic-roughness and emissive ones"), std::string::npos) << result.summary;
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, dir + "/rig.glb")) << err;
+    ASSERT_FALSE(model.materials.empty());
+    const tinygltf::Material& written = model.materials[0];
+    EXPECT_EQ(written.pbrMetallicRoughness.metallicFactor, 1.0);
+    EXPECT_EQ(written.pbrMetallicRoughness.roughnessFactor, 1.0);
+    EXPECT_EQ(written.emissiveFactor, std::vector<double>({1.0, 1.0, 1.0}));
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+    strata::io::SceneMaterials sm;
+    ASSERT_TRUE(strata::io::loadSceneMaterials(rig, &sm).isOk());
+    const strata::io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
+    ASSERT_GE(carried.metallicRoughnessImage, 0);
+    ASSERT_GE(carried.emissiveImage, 0);
+    ASSERT_EQ(rig.fileCorners.size(), rig.mesh.triangles.size());
+    size_t checked = 0;
+    double worst = 0.0;
+    for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
+        glm::dvec2 uv(0.0);
+        glm::vec3 centre(0.0f);
+        for (int k = 0; k < 3; ++k) {
+            uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
+            centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
+        }
+        if (std::abs(centre.y) < 0.15f)
+            continue;  // a face over the seam between the halves
+        const float* expected = centre.y > 0.0f ? kTopMaterial : kBottomMaterial;
+        const glm::dvec2 mr = strata::io::metallicRoughnessAt(
+            carried, &sm.images[size_t(carried.metallicRoughnessImage)], uv);
+        const glm::dvec3 e = strata::io::emissiveAt(carried, &sm.images[size_t(carried.emissiveImage)], uv);
+        const double errors[5] = {mr.x - expected[0], mr.y - expected[1], e.r - expected[2], e.g - expected[3],
+                                  e.b - expected[4]};
+        for (double d : errors)
+            worst = std::max(worst, std::abs(d));
+        ++checked;
+    }
+    EXPECT_GT(checked, rig.mesh.faceCount() / 2);
+    EXPECT_LT(worst, 0.01);  // 8-bit texels
+}
+
 // A character whose animation throws it out of range (two nested joints
 // scaled by 1e20: posed, its vertices overflow a float) cannot be played,
 // so --control auto refuses it before decimating in its poses: one line

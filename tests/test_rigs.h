@@ -40,7 +40,15 @@ enum class SphereColour {
     HalfFactor,        ///< a base colour factor of linear 0.5 grey alone
     HalfVertexColour,  ///< COLOR_0 of linear 0.5 grey (normalized bytes 128, RGB), a factor of 1
     HalfTexture,       ///< a 2x2 texture of sRGB code 188 (linear 0.5029), a factor of 1
+    /// Two materials, each on the faces whose centre lies above (y > 0) or
+    /// below: kTopMaterial and kBottomMaterial's metallic, roughness and
+    /// emissive factors, a white base colour.
+    TwoMaterials,
 };
+
+/// TwoMaterials' factors: metallic, roughness, emissive red, green, blue.
+constexpr float kTopMaterial[5] = {0.0f, 0.2f, 0.0f, 0.0f, 0.0f};
+constexpr float kBottomMaterial[5] = {1.0f, 0.9f, 1.0f, 0.5f, 0.0f};
 
 /// A unit sphere (icosphere 4) as a glb coloured as `how` says.
 inline bool writeColouredSphere(const std::string& path, SphereColour how = SphereColour::VertexAndFactor)
@@ -50,6 +58,8 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
     model.asset.version = "2.0";
     std::vector<unsigned char>& bytes = model.buffers.emplace_back().data;
     const auto addView = [&](const void* data, size_t size, int target) {
+        while (bytes.size() % 4)
+            bytes.push_back(0);  // every view aligned for its floats and indices
         tinygltf::BufferView v;
         v.buffer = 0;
         v.byteOffset = bytes.size();
@@ -91,6 +101,15 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
                                                  TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n);
         model.bufferViews.back().byteStride = 4;
         model.accessors.back().normalized = true;
+    } else if (how == SphereColour::TwoMaterials) {
+        tinygltf::Material bottom;
+        for (const float* f : {kTopMaterial, kBottomMaterial}) {
+            tinygltf::Material& m = f == kTopMaterial ? material : bottom;
+            m.pbrMetallicRoughness.metallicFactor = f[0];
+            m.pbrMetallicRoughness.roughnessFactor = f[1];
+            m.emissiveFactor = {f[2], f[3], f[4]};
+        }
+        model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
         const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
         prim.attributes["TEXCOORD_0"] = addAccessor(addView(uvs.data(), n * 8, TINYGLTF_TARGET_ARRAY_BUFFER),
@@ -100,8 +119,6 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
                                                          188, 188, 188, 255},
                                &png))
             return false;
-        while (bytes.size() % 4)
-            bytes.push_back(0);
         tinygltf::Image image;
         image.bufferView = addView(png.data(), png.size(), 0);
         image.mimeType = "image/png";
@@ -109,13 +126,24 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.textures.emplace_back().source = 0;
         material.pbrMetallicRoughness.baseColorTexture.index = 0;
     }
-    prim.indices = addAccessor(
-        addView(sphere.triangles.data(), sphere.triangles.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
-        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, sphere.triangles.size());
-    prim.material = 0;
+    std::vector<uint32_t> halves[2];  // faces above y = 0, then below
+    for (size_t f = 0; f < sphere.faceCount(); ++f) {
+        const uint32_t* t = &sphere.triangles[3 * f];
+        const float y = sphere.positions[t[0]].y + sphere.positions[t[1]].y + sphere.positions[t[2]].y;
+        std::vector<uint32_t>& half = halves[how == SphereColour::TwoMaterials && y < 0.0f ? 1 : 0];
+        half.insert(half.end(), t, t + 3);
+    }
     prim.mode = TINYGLTF_MODE_TRIANGLES;
-    model.materials.push_back(material);
-    model.meshes.emplace_back().primitives.push_back(prim);
+    model.materials.insert(model.materials.begin(), material);
+    tinygltf::Mesh& mesh = model.meshes.emplace_back();
+    for (int h = 0; h < 2; ++h) {
+        if (halves[h].empty())
+            continue;
+        prim.indices = addAccessor(addView(halves[h].data(), halves[h].size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, halves[h].size());
+        prim.material = h;
+        mesh.primitives.push_back(prim);
+    }
     model.nodes.emplace_back().mesh = 0;
     model.scenes.emplace_back().nodes.push_back(0);
     model.defaultScene = 0;

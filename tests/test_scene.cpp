@@ -1032,11 +1032,11 @@ TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
 }
 
 // --control auto re-bakes a character's colour into one base colour texture
-// with the factors of the material most of it wears (metallic, roughness,
-// alpha mode and cutoff, sidedness).  What that and one skinned mesh cannot
-// carry (here a normal and an occlusion texture, an emissive colour, a
-// material extension, a morph target, a camera and a point primitive) is
-// named in one line, not dropped silently.
+// (an emissive colour into an emissive one) with the factors of the material
+// most of it wears (metallic, roughness, alpha mode and cutoff, sidedness).
+// What that and one skinned mesh cannot carry (here a normal and an
+// occlusion texture, a material extension, a morph target, a camera and a
+// point primitive) is named in one line, not dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -1081,13 +1081,14 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     ASSERT_NE(at, std::string::npos) << r.output;
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
     for (const char* what : {"normal textures (1 material)", "occlusion textures (1 material)",
-                             "emissive colours (1 material)", "KHR_materials_emissive_strength (1 material)",
+                             "KHR_materials_emissive_strength (1 material)",
                              "morph targets (1 primitive)", "cameras (1 camera)",
                              "point and line primitives (1 primitive)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
     // Not the control's "kept in the file": an automatic cage keeps none of them.
     EXPECT_EQ(r.output.find("kept in the file"), std::string::npos) << r.output;
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
+    EXPECT_EQ(line.find("emissive colour"), std::string::npos) << line;
     // The rig's material keeps the factors.
     tinygltf::Model rig;
     ASSERT_TRUE(io.LoadBinaryFromFile(&rig, &err, &warn, rigPath)) << err;
@@ -1098,6 +1099,9 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     EXPECT_EQ(out.alphaMode, "MASK");
     EXPECT_EQ(out.alphaCutoff, 0.375);
     EXPECT_GE(out.pbrMetallicRoughness.baseColorTexture.index, 0);
+    EXPECT_EQ(out.pbrMetallicRoughness.metallicRoughnessTexture.index, -1);
+    EXPECT_GE(out.emissiveTexture.index, 0);
+    EXPECT_EQ(out.emissiveFactor, std::vector<double>({1.0, 1.0, 1.0}));
 }
 
 TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
@@ -1636,6 +1640,53 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
     EXPECT_EQ(after.fileUVs, before.fileUVs);
     EXPECT_NE(io::featuresNotCarried(rig, 0).find("its diffuse carried"), std::string::npos)
         << io::featuresNotCarried(rig, 0);
+}
+
+// A material's metallic-roughness and emissive textures are read through
+// its base colour texture's UVs where they share its set and transform; one
+// on another set is counted, and named among what is not carried.
+TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_pbr_textures");
+    tinygltf::Model model;
+    Rig plain;
+    io::SceneMaterials before;
+    ASSERT_TRUE(readToEdit(man, dir, &model, &plain, &before));
+    tinygltf::Material& mat = model.materials[0];
+    const int texture = mat.pbrMetallicRoughness.baseColorTexture.index;
+    ASSERT_GE(texture, 0);
+    mat.pbrMetallicRoughness.metallicRoughnessTexture.index = texture;
+    mat.emissiveTexture.index = texture;
+    mat.emissiveFactor = {1.0, 0.5, 0.25};
+    Rig rig;
+    io::SceneMaterials after;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/pbr.glb", &rig, &after));
+    const io::MaterialInfo& m = after.materials[0];
+    EXPECT_EQ(m.metallicRoughnessImage, m.image);
+    EXPECT_EQ(m.emissiveImage, m.image);
+    EXPECT_EQ(m.emissive, glm::vec3(1.0f, 0.5f, 0.25f));
+    EXPECT_EQ(m.unreadTextures, 0);
+    EXPECT_EQ(after.fileUVs, before.fileUVs);
+    // The texture's texel at a UV, through each reading.
+    const io::ImageRGBA& image = after.images[size_t(m.image)];
+    const glm::dvec2 uv = glm::dvec2(after.fileUVs[7]);
+    const glm::dvec4 t = io::sampleImage(image, uv);
+    const glm::dvec2 mr = io::metallicRoughnessAt(m, &image, uv);
+    EXPECT_NEAR(mr.x, m.metallic * t.b, 1e-12);
+    EXPECT_NEAR(mr.y, m.roughness * t.g, 1e-12);
+    EXPECT_NEAR(io::emissiveAt(m, &image, uv).g, 0.5 * io::srgbToLinear(t.g), 1e-6);
+    EXPECT_EQ(io::featuresNotCarried(rig, 0, &after).find("metallic-roughness"), std::string::npos);
+    // On another UV set: not read, and named.
+    mat.emissiveTexture.texCoord = 1;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/other_set.glb", &rig, &after));
+    EXPECT_EQ(after.materials[0].emissiveImage, -1);
+    EXPECT_EQ(after.materials[0].unreadTextures, 1);
+    EXPECT_NE(io::featuresNotCarried(rig, 0, &after)
+                  .find("metallic-roughness or emissive textures on another UV set than the base colour's, or not "
+                        "decoded (1 material)"),
+              std::string::npos)
+        << io::featuresNotCarried(rig, 0, &after);
 }
 
 // COLOR_0 as exporters write it (normalized unsigned bytes, RGB) is read

@@ -918,13 +918,15 @@ void BakeJob::loadCharacter()
             ++uses[size_t(m)];
         mainMaterial = size_t(std::max_element(uses.begin(), uses.end()) - uses.begin());
     }
-    // What one texture with the main material's factors and one skinned
-    // mesh cannot carry is named.
+    // What one material's re-baked textures and one skinned mesh cannot
+    // carry is named.
     const bool mainIsTheFiles = coloured && mainMaterial + 1 < captureMaterials.materials.size();  // not the default
-    const std::string left = io::featuresNotCarried(highRig, mainIsTheFiles ? int(mainMaterial) : -1);
+    const std::string left =
+        io::featuresNotCarried(highRig, mainIsTheFiles ? int(mainMaterial) : -1, &captureMaterials);
     if (!left.empty())
-        warn("%s: --control auto makes one skinned mesh with one base colour texture and the factors of the "
-             "material most of the capture wears; not carried: %s",
+        warn("%s: --control auto makes one skinned mesh of one material, its base colour, metallic, roughness and "
+             "emissive re-baked into textures, its alpha mode and sidedness the material most of the capture "
+             "wears; not carried: %s",
              request.high.c_str(), left.c_str());
 }
 
@@ -1042,18 +1044,61 @@ void BakeJob::carryColour()
     // An image of flat colours (laid out by hand, as a low-poly
     // character's are) is read at its nearest texel: its colours stay
     // exact and few, where bilinear reads would blend new ones along every
-    // edge.  Where every image is, the re-baked texture's rare colours (its
-    // sources' antialiased edges, its gutters' blends) then take the nearest
-    // of its 256 most common, and it is coded as an indexed PNG.  Fox's
-    // rig: 205 -> 140 KB (its 576-face cage), 191 -> 124 KB (200 faces),
-    // rendered within 1.1 dB PSNR of the bilinear re-bake.
+    // edge.  Where every base colour image is, the re-baked texture's rare
+    // colours (its sources' antialiased edges, its gutters' blends) then take
+    // the nearest of its 256 most common, and it is coded as an indexed PNG.
+    // Fox's rig: 205 -> 140 KB (its 576-face cage), 191 -> 124 KB (200
+    // faces), rendered within 1.1 dB PSNR of the bilinear re-bake.
     std::vector<uint8_t> flat(sm.images.size(), 0);
     std::vector<uint32_t> palette;
-    bool allFlat = true;
-    for (size_t i = 0; i < sm.images.size(); ++i) {
+    for (size_t i = 0; i < sm.images.size(); ++i)
         flat[i] = flatColours(sm.images[i].rgba, &palette) ? 1 : 0;
-        allFlat = allFlat && flat[i];
+    bool allFlat = true;
+    for (const io::MaterialInfo& m : sm.materials)
+        allFlat = allFlat && (m.image < 0 || size_t(m.image) >= flat.size() || flat[size_t(m.image)]);
+    // The metallic-roughness and emissive the capture's materials draw with
+    // (glTF's: factors times textures) become textures of their own where
+    // they vary: materials of different factors, or any such texture.
+    std::vector<uint8_t> usedMaterial(sm.materials.size(), 0);
+    for (int m : faceMaterial)
+        if (m >= 0 && size_t(m) < usedMaterial.size())
+            usedMaterial[size_t(m)] = 1;
+    bool varyingMR = false, emits = false;
+    const io::MaterialInfo* firstUsed = nullptr;
+    for (size_t i = 0; i < sm.materials.size(); ++i) {
+        if (!usedMaterial[i])
+            continue;
+        const io::MaterialInfo& m = sm.materials[i];
+        if (!firstUsed)
+            firstUsed = &m;
+        varyingMR = varyingMR || m.metallicRoughnessImage >= 0 || m.metallic != firstUsed->metallic ||
+                    m.roughness != firstUsed->roughness;
+        emits = emits || m.emissiveImage >= 0 || m.emissive != glm::vec3(0.0f);
     }
+    // A capture point's material, texture UV and vertex colour.
+    struct Point {
+        const io::MaterialInfo* material;
+        glm::dvec2 uv;
+        glm::dvec4 vertexColour;
+    };
+    const auto pointOf = [&](uint32_t face, double b1, double b2) {
+        Point p{&sm.materials[size_t(faceMaterial[face])], glm::dvec2(0.0),
+                glm::dvec4(sm.fileColours.empty() ? 1.0 : 0.0)};
+        const double w[3] = {1.0 - b1 - b2, b1, b2};
+        for (int k = 0; k < 3 && corners; ++k) {
+            const uint32_t file = highRig.fileCorners[3 * size_t(face) + size_t(k)];
+            p.uv += w[k] * glm::dvec2(sm.fileUVs[file]);
+            if (!sm.fileColours.empty())
+                p.vertexColour += w[k] * glm::dvec4(sm.fileColours[file]);
+        }
+        if (!corners)
+            p.vertexColour = glm::dvec4(1.0);
+        return p;
+    };
+    const auto imageOf = [&](int index) {
+        return index >= 0 && size_t(index) < sm.images.size() ? &sm.images[size_t(index)] : nullptr;
+    };
+    const auto nearest = [&](int index) { return index >= 0 && size_t(index) < flat.size() && flat[size_t(index)]; };
     // Linear, as glTF defines the base colour: factor x texture x COLOR_0;
     // a PLY's or OBJ's vertex colours alone.
     const CaptureColour colour = [&](uint32_t face, double b1, double b2) {
@@ -1064,26 +1109,43 @@ void BakeJob::carryColour()
                 c += w[k] * high.colours[high.triangles[3 * size_t(face) + size_t(k)]];
             return c;
         }
-        const io::MaterialInfo& m = sm.materials[size_t(faceMaterial[face])];
+        const Point p = pointOf(face, b1, b2);
+        const io::MaterialInfo& m = *p.material;
         if (!corners)
             return glm::vec4(m.baseColor);
-        const double w[3] = {1.0 - b1 - b2, b1, b2};
-        glm::dvec2 uv(0.0);
-        glm::dvec4 vertexColour(sm.fileColours.empty() ? 1.0 : 0.0);
-        for (int k = 0; k < 3; ++k) {
-            const uint32_t file = highRig.fileCorners[3 * size_t(face) + size_t(k)];
-            uv += w[k] * glm::dvec2(sm.fileUVs[file]);
-            if (!sm.fileColours.empty())
-                vertexColour += w[k] * glm::dvec4(sm.fileColours[file]);
-        }
-        const bool textured = m.image >= 0 && size_t(m.image) < sm.images.size();
-        return glm::vec4(io::baseColourAt(m, textured ? &sm.images[size_t(m.image)] : nullptr, uv, vertexColour,
-                                          textured && flat[size_t(m.image)] != 0));
+        return glm::vec4(io::baseColourAt(m, imageOf(m.image), p.uv, p.vertexColour, nearest(m.image)));
     };
-    ColorImage image;
-    Status st = transferColour(control, map, highIndex, colour, side, &image, options.threads);
+    std::vector<ColourLayer> textures{{colour, true}};
+    if (varyingMR)  // G roughness, B metallic, as glTF reads them
+        textures.push_back({[&](uint32_t face, double b1, double b2) {
+                              const Point p = pointOf(face, b1, b2);
+                              const int image = corners ? p.material->metallicRoughnessImage : -1;
+                              const glm::dvec2 mr = io::metallicRoughnessAt(*p.material, imageOf(image), p.uv,
+                                                                            nearest(image));
+                              return glm::vec4(1.0f, float(mr.y), float(mr.x), 1.0f);
+                          },
+                          false});
+    if (emits)
+        textures.push_back({[&](uint32_t face, double b1, double b2) {
+                              const Point p = pointOf(face, b1, b2);
+                              const int image = corners ? p.material->emissiveImage : -1;
+                              return glm::vec4(glm::vec3(io::emissiveAt(*p.material, imageOf(image), p.uv,
+                                                                        nearest(image))),
+                                               1.0f);
+                          },
+                          true});
+    std::vector<ColorImage> images;
+    Status st = transferColours(control, map, highIndex, textures, side, &images, options.threads);
     if (!st)
         throw BakeError(request.high + ": " + st.message());
+    ColorImage& image = images[0];
+    size_t next = 1;
+    if (varyingMR)
+        baseColour.metallicRoughness = std::move(images[next++].rgba);
+    if (emits) {
+        baseColour.emissiveRGBA = std::move(images[next++].rgba);
+        baseColour.emissive[0] = baseColour.emissive[1] = baseColour.emissive[2] = 1.0f;
+    }
     if (allFlat && flatColours(image.rgba, &palette))
         snapToPalette(&image.rgba, palette);
     baseColour.name = "base_colour";
@@ -1095,8 +1157,8 @@ void BakeJob::carryColour()
     const io::MaterialInfo fallback;
     const io::MaterialInfo& main = mainMaterial < sm.materials.size() ? sm.materials[mainMaterial] : fallback;
     baseColour.doubleSided = main.doubleSided;
-    baseColour.metallic = main.metallic;
-    baseColour.roughness = main.roughness;
+    baseColour.metallic = varyingMR ? 1.0f : main.metallic;  // the texture holds them
+    baseColour.roughness = varyingMR ? 1.0f : main.roughness;
     baseColour.alphaMode = main.alphaMode == io::AlphaMode::Mask    ? "MASK"
                            : main.alphaMode == io::AlphaMode::Blend ? "BLEND"
                                                                     : "OPAQUE";
@@ -1107,9 +1169,13 @@ void BakeJob::carryColour()
         std::snprintf(note, sizeof(note), "its vertex colours carried as one %dx%d base colour texture in the cage's UVs",
                       side, side);
     else
-        std::snprintf(note, sizeof(note), "%zu material%s%s carried as one %dx%d base colour texture in the cage's UVs",
+        std::snprintf(note, sizeof(note), "%zu material%s%s carried as one %dx%d base colour texture%s in the cage's UVs",
                       sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s",
-                      vertexColours ? " and vertex colours" : "", side, side);
+                      vertexColours ? " and vertex colours" : "", side, side,
+                      varyingMR && emits ? " with metallic-roughness and emissive ones"
+                      : varyingMR        ? " with a metallic-roughness one"
+                      : emits            ? " with an emissive one"
+                                         : "");
     colourNote = note;
 }
 

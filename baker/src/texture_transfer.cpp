@@ -20,8 +20,23 @@ namespace baker {
 Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
                       const CaptureColour& colour, int size, ColorImage* out, int threads)
 {
-    if (!out || size <= 0 || size > 16384 || !cage.hasUVs() || !colour)
-        return Status(StatusCode::InvalidArgument, "transferColour: a cage with UVs, a colour and a size are needed");
+    if (!out)
+        return Status(StatusCode::InvalidArgument, "transferColour: an output image is needed");
+    std::vector<ColorImage> images;
+    Status st = transferColours(cage, map, capture, {ColourLayer{colour, true}}, size, &images, threads);
+    if (st)
+        *out = std::move(images[0]);
+    return st;
+}
+
+Status transferColours(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
+                       const std::vector<ColourLayer>& layers, int size, std::vector<ColorImage>* out, int threads)
+{
+    bool callable = !layers.empty();
+    for (const ColourLayer& l : layers)
+        callable = callable && bool(l.colour);
+    if (!out || size <= 0 || size > 16384 || !cage.hasUVs() || !callable)
+        return Status(StatusCode::InvalidArgument, "transferColours: a cage with UVs, colours and a size are needed");
     const size_t texels = size_t(size) * size_t(size);
     // Each texel's cage triangle and its barycentrics there.
     std::vector<int32_t> faceOf(texels, -1);
@@ -41,7 +56,8 @@ Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const
     std::vector<glm::vec3> normals(cage.vertexCount());
     computeControlNormals(normals.data(), cage.positions.data(), normals.size(), cage.triangles.data(),
                           cage.faceCount());
-    std::vector<float> channel[4];
+    const size_t nl = layers.size();
+    std::vector<std::vector<float>> channel(4 * nl);  // layer l's channel k: 4 l + k
     for (std::vector<float>& c : channel)
         c.assign(texels, 0.0f);
     parallelFor(texels, threads, [&](size_t begin, size_t end) {
@@ -66,36 +82,43 @@ Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const
             if (capture.nearest(q, &face, &b1, &b2, hint) < 0.0)
                 continue;
             hint = int64_t(face);
-            const glm::vec4 c = glm::clamp(colour(face, b1, b2), glm::vec4(0.0f), glm::vec4(1.0f));
-            for (int k = 0; k < 4; ++k)
-                channel[k][i] = c[k];
+            for (size_t l = 0; l < nl; ++l) {
+                const glm::vec4 c = glm::clamp(layers[l].colour(face, b1, b2), glm::vec4(0.0f), glm::vec4(1.0f));
+                for (size_t k = 0; k < 4; ++k)
+                    channel[4 * l + k][i] = c[int(k)];
+            }
         }
     });
     // Gutters: each channel grown from the texels the triangles cover.
     std::vector<uint8_t> covered(texels);
     for (size_t i = 0; i < texels; ++i)
         covered[i] = faceOf[i] >= 0;
-    ColorImage image;
-    image.width = image.height = size;
-    image.rgba.assign(texels * 4, 255);
-    for (int k = 0; k < 4; ++k) {
-        double mean = 0.0;
-        size_t n = 0;
-        for (size_t i = 0; i < texels; ++i)
-            if (covered[i]) {
-                mean += channel[k][i];
-                ++n;
+    out->assign(nl, ColorImage());
+    for (size_t l = 0; l < nl; ++l) {
+        ColorImage& image = (*out)[l];
+        image.width = image.height = size;
+        image.rgba.assign(texels * 4, 255);
+        for (size_t k = 0; k < 4; ++k) {
+            std::vector<float>& values = channel[4 * l + k];
+            double mean = 0.0;
+            size_t n = 0;
+            for (size_t i = 0; i < texels; ++i)
+                if (covered[i]) {
+                    mean += values[i];
+                    ++n;
+                }
+            std::vector<uint8_t> valid = covered;
+            dilate(&values, &valid, size, 8, n ? float(mean / double(n)) : 1.0f, threads);
+            // Colour channels sRGB-coded where the layer is a colour, as glTF
+            // reads a base colour or emissive texture; alpha as it is.
+            const bool coded = layers[l].srgb && k < 3;
+            for (size_t i = 0; i < texels; ++i) {
+                const double c = coded ? io::linearToSrgb(values[i]) : std::clamp(double(values[i]), 0.0, 1.0);
+                image.rgba[4 * i + k] = uint8_t(std::lround(c * 255.0));
             }
-        std::vector<uint8_t> valid = covered;
-        dilate(&channel[k], &valid, size, 8, n ? float(mean / double(n)) : 1.0f, threads);
-        // Colour channels sRGB-coded, as glTF reads a base colour texture;
-        // alpha as it is.
-        for (size_t i = 0; i < texels; ++i) {
-            const double c = k < 3 ? io::linearToSrgb(channel[k][i]) : std::clamp(double(channel[k][i]), 0.0, 1.0);
-            image.rgba[4 * i + size_t(k)] = uint8_t(std::lround(c * 255.0));
+            std::vector<float>().swap(values);
         }
     }
-    *out = std::move(image);
     return Status::ok();
 }
 

@@ -33,6 +33,21 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
     return i < doc.imageBytes.size() ? doc.imageBytes[i] : std::vector<unsigned char>();
 }
 
+// Texture `tex`'s sampler's wraps, into `mat` (glTF's default: repeat).
+void samplerOf(const tinygltf::Model& m, int tex, MaterialInfo* mat)
+{
+    const int sampler = m.textures[size_t(tex)].sampler;
+    if (sampler < 0 || size_t(sampler) >= m.samplers.size())
+        return;
+    auto mode = [](int code) {
+        return code == int(TextureWrap::ClampToEdge)      ? TextureWrap::ClampToEdge
+               : code == int(TextureWrap::MirroredRepeat) ? TextureWrap::MirroredRepeat
+                                                          : TextureWrap::Repeat;
+    };
+    mat->wrapS = mode(m.samplers[size_t(sampler)].wrapS);
+    mat->wrapT = mode(m.samplers[size_t(sampler)].wrapT);
+}
+
 // KHR_texture_transform of a texture reference, into `mat`; false (mat
 // unchanged) when its values are not finite numbers of the right shape.
 bool readTextureTransform(const tinygltf::ExtensionMap& extensions, MaterialInfo* mat)
@@ -135,6 +150,26 @@ glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, co
     return c;
 }
 
+glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest)
+{
+    glm::dvec2 mr(material.metallic, material.roughness);
+    if (image && image->width > 0 && image->height > 0) {
+        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
+        mr *= glm::dvec2(t.b, t.g);
+    }
+    return mr;
+}
+
+glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest)
+{
+    glm::dvec3 e(material.emissive);
+    if (image && image->width > 0 && image->height > 0) {
+        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
+        e *= glm::dvec3(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b));
+    }
+    return e;
+}
+
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
 {
     SceneMaterials s;
@@ -202,20 +237,43 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                                     "; drawn in its colour factor alone");
             }
             mat.texCoord = std::clamp(texCoord, 0, 7);
-            const int sampler = m.textures[size_t(tex)].sampler;
-            if (sampler >= 0 && size_t(sampler) < m.samplers.size()) {
-                auto mode = [](int code) {
-                    return code == int(TextureWrap::ClampToEdge)      ? TextureWrap::ClampToEdge
-                           : code == int(TextureWrap::MirroredRepeat) ? TextureWrap::MirroredRepeat
-                                                                      : TextureWrap::Repeat;
-                };
-                mat.wrapS = mode(m.samplers[size_t(sampler)].wrapS);
-                mat.wrapT = mode(m.samplers[size_t(sampler)].wrapT);
-            }
+            samplerOf(m, tex, &mat);
             if (!readTextureTransform(*texExtensions, &mat) && warnings)
                 warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
                                     "): its KHR_texture_transform is not numbers of the right shape; ignored");
         }
+        // The metallic-roughness and emissive textures, read through the
+        // base colour texture's UVs (the first texture's, without one).
+        const auto alongside = [&](const tinygltf::TextureInfo& info, int* image) {
+            if (info.index < 0 || size_t(info.index) >= m.textures.size())
+                return;
+            const int src = m.textures[size_t(info.index)].source;
+            MaterialInfo probe;
+            probe.texCoord = std::clamp(info.texCoord, 0, 7);
+            if (src < 0 || size_t(src) >= m.images.size() || !readTextureTransform(info.extensions, &probe)) {
+                ++mat.unreadTextures;
+                return;
+            }
+            if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0) {
+                mat.texCoord = probe.texCoord;
+                mat.uvOffset = probe.uvOffset;
+                mat.uvScale = probe.uvScale;
+                mat.uvRotation = probe.uvRotation;
+                samplerOf(m, info.index, &mat);
+            } else if (probe.texCoord != mat.texCoord || probe.uvOffset != mat.uvOffset ||
+                       probe.uvScale != mat.uvScale || probe.uvRotation != mat.uvRotation) {
+                ++mat.unreadTextures;
+                return;
+            }
+            *image = src;
+            used[size_t(src)] = true;
+        };
+        alongside(in.pbrMetallicRoughness.metallicRoughnessTexture, &mat.metallicRoughnessImage);
+        alongside(in.emissiveTexture, &mat.emissiveImage);
+        if (in.emissiveFactor.size() == 3 && std::isfinite(in.emissiveFactor[0] + in.emissiveFactor[1] + in.emissiveFactor[2]))
+            mat.emissive = glm::clamp(glm::vec3(float(in.emissiveFactor[0]), float(in.emissiveFactor[1]),
+                                                float(in.emissiveFactor[2])),
+                                      glm::vec3(0.0f), glm::vec3(1.0f));
         mat.alphaMode = in.alphaMode == "MASK" ? AlphaMode::Mask : in.alphaMode == "BLEND" ? AlphaMode::Blend
                                                                                            : AlphaMode::Opaque;
         mat.alphaCutoff = float(in.alphaCutoff);
@@ -246,9 +304,14 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             if (warnings)
                 warnings->push_back("image " + std::to_string(i) + " (" + printable(m.images[i].name, 60) +
                                     ") cannot be decoded; drawn untextured");
-            for (MaterialInfo& mat : s.materials)
+            for (MaterialInfo& mat : s.materials) {
                 if (mat.image == int(i))
                     mat.image = -1;
+                if (mat.metallicRoughnessImage == int(i))
+                    mat.metallicRoughnessImage = -1;
+                if (mat.emissiveImage == int(i))
+                    mat.emissiveImage = -1;
+            }
             continue;
         }
         s.images[i].width = w;
@@ -278,7 +341,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             }
         }
         const MaterialInfo& mat = s.materials[size_t(mi)];
-        if (mat.image < 0)
+        if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0)
             continue;
         auto it = prim.attributes.find("TEXCOORD_" + std::to_string(mat.texCoord));
         std::vector<float> uv;
@@ -295,7 +358,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     return Status::ok();
 }
 
-std::string featuresNotCarried(const Rig& rig, int main)
+std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* materials)
 {
     if (!rig.source)
         return std::string();
@@ -321,25 +384,17 @@ std::string featuresNotCarried(const Rig& rig, int main)
         if (!usedMaterial[i])
             continue;
         const tinygltf::Material& in = m.materials[i];
-        const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
         if (in.normalTexture.index >= 0)
             ++counts["normal textures"];
         if (in.occlusionTexture.index >= 0)
             ++counts["occlusion textures"];
-        if (in.emissiveTexture.index >= 0)
-            ++counts["emissive textures"];
-        else if (in.emissiveFactor.size() == 3 &&
-                 (in.emissiveFactor[0] != 0.0 || in.emissiveFactor[1] != 0.0 || in.emissiveFactor[2] != 0.0))
-            ++counts["emissive colours"];
-        if (pbr.metallicRoughnessTexture.index >= 0)
-            ++counts["metallic-roughness textures"];
+        if (materials && i < materials->materials.size() && materials->materials[i].unreadTextures > 0)
+            ++counts["metallic-roughness or emissive textures on another UV set than the base colour's, or not "
+                     "decoded"];
         for (const auto& e : in.extensions)
             ++counts[e.first == "KHR_materials_pbrSpecularGlossiness"
                          ? "specular and glossiness (KHR_materials_pbrSpecularGlossiness, its diffuse carried)"
                          : e.first];
-        if (kept && (pbr.metallicFactor != kept->pbrMetallicRoughness.metallicFactor ||
-                     pbr.roughnessFactor != kept->pbrMetallicRoughness.roughnessFactor))
-            ++counts["other metallic or roughness factors"];
         if (kept && (in.alphaMode != kept->alphaMode || in.doubleSided != kept->doubleSided))
             ++counts["other alpha modes or sidedness"];
     }

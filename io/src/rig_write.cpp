@@ -546,31 +546,47 @@ Status embedVertexValues(tinygltf::Model& model, const ControlMesh& mesh, int le
 // embedded PNG, on every primitive of mesh 0.
 Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
 {
-    std::string bytes, mimeType;
-    Status st = encodeColourImage(colour.width, colour.height, colour.rgba, 90, &bytes, &mimeType);
-    if (!st)
-        return Status(st.code(), "the base colour texture: " + st.message());
-    const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
-    model.bufferViews[size_t(view)].target = 0;
-    tinygltf::Image image;
-    image.name = colour.name.empty() ? "base_colour" : colour.name;
-    image.mimeType = mimeType;
-    image.bufferView = view;
-    model.images.push_back(image);
     tinygltf::Sampler sampler;
     sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
     sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
     sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
     model.samplers.push_back(sampler);
-    tinygltf::Texture texture;
-    texture.source = int(model.images.size() - 1);
-    texture.sampler = int(model.samplers.size() - 1);
-    model.textures.push_back(texture);
+    // Each image a texture through that sampler; the texture's index.
+    const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, int* index) {
+        std::string bytes, mimeType;
+        Status st = encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
+        if (!st)
+            return Status(st.code(), "the " + name + " texture: " + st.message());
+        const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
+        model.bufferViews[size_t(view)].target = 0;
+        tinygltf::Image image;
+        image.name = name;
+        image.mimeType = mimeType;
+        image.bufferView = view;
+        model.images.push_back(image);
+        tinygltf::Texture texture;
+        texture.source = int(model.images.size() - 1);
+        texture.sampler = int(model.samplers.size() - 1);
+        model.textures.push_back(texture);
+        *index = int(model.textures.size() - 1);
+        return Status::ok();
+    };
     // The control mesh's own material (every primitive of mesh 0 wears it).
     if (model.materials.empty())
         model.materials.emplace_back();
+    int base = -1, mr = -1, emissive = -1;
+    Status st = addTexture(colour.rgba, colour.name.empty() ? "base_colour" : colour.name, &base);
+    if (st && !colour.metallicRoughness.empty())
+        st = addTexture(colour.metallicRoughness, "metallic_roughness", &mr);
+    if (st && !colour.emissiveRGBA.empty())
+        st = addTexture(colour.emissiveRGBA, "emissive", &emissive);
+    if (!st)
+        return st;
     tinygltf::Material& material = model.materials[0];
-    material.pbrMetallicRoughness.baseColorTexture.index = int(model.textures.size() - 1);
+    material.pbrMetallicRoughness.baseColorTexture.index = base;
+    material.pbrMetallicRoughness.metallicRoughnessTexture.index = mr;
+    material.emissiveTexture.index = emissive;
+    material.emissiveFactor = {double(colour.emissive[0]), double(colour.emissive[1]), double(colour.emissive[2])};
     material.pbrMetallicRoughness.metallicFactor = double(colour.metallic);
     material.pbrMetallicRoughness.roughnessFactor = double(colour.roughness);
     material.doubleSided = colour.doubleSided;

@@ -39,5 +39,18 @@ using CaptureColour = std::function<glm::vec4(uint32_t face, double b1, double b
 Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
                       const CaptureColour& colour, int size, ColorImage* out, int threads = 1);
 
+/// One image transferColours makes: its values at a capture point, and how
+/// they are coded.
+struct ColourLayer {
+    CaptureColour colour;
+    bool srgb = true;  ///< RGB sRGB-coded (base colour, emissive); false: as they are (metallic-roughness)
+};
+
+/// transferColour for several images at once, one nearest-point query per
+/// texel for all of them: `out` gets one image per layer, in order.
+Status transferColours(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
+                       const std::vector<ColourLayer>& layers, int size, std::vector<ColorImage>* out,
+                       int threads = 1);
+
 }  // namespace baker
 }  // namespace strata

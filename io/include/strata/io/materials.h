@@ -41,6 +41,16 @@ struct MaterialInfo {
     float alphaCutoff = 0.5f;
     bool doubleSided = false;
     float metallic = 1.0f, roughness = 1.0f;  ///< metallicFactor, roughnessFactor (glTF's defaults)
+    glm::vec3 emissive{0.0f};                 ///< emissiveFactor (linear)
+    /// The metallic-roughness texture (G roughness, B metallic, linear) and
+    /// the emissive texture (sRGB-coded), indices into SceneMaterials::images
+    /// (-1: none), read through the same UVs, transform and sampler as the
+    /// base colour texture (texCoord and the rest above: the first of the
+    /// three a material has sets them).
+    int metallicRoughnessImage = -1, emissiveImage = -1;
+    /// Of those two, how many are on another UV set or transform than the
+    /// first texture's, or have no image Strata decodes (not read).
+    int unreadTextures = 0;
 };
 
 struct ImageRGBA {
@@ -73,6 +83,16 @@ double linearToSrgb(double linear);
 glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
                         const glm::dvec4& vertexColour = glm::dvec4(1.0), bool nearest = false);
 
+/// The metallic (x) and roughness (y) glTF draws with at `uv` (a texture
+/// UV): the factors times the metallic-roughness texture's B and G
+/// (`image`: its decoded image, or null).
+glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
+                               bool nearest = false);
+
+/// The emissive colour glTF draws with at `uv`, linear RGB: the factor
+/// times the emissive texture (sRGB-decoded; `image` or null).
+glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
+
 /// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
 /// centred at ((x + 0.5) / width, (y + 0.5) / height)), or its nearest texel
 /// when `nearest`, past its edges as wrapS and wrapT say (glTF's default:
@@ -85,18 +105,19 @@ glm::dvec4 sampleImage(const ImageRGBA& image, const glm::dvec2& uv, bool neares
 /// cannot be decoded become untextured (a warning says which).
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings = nullptr);
 
-/// What an automatic cage made from a glTF scene leaves behind (its colour
-/// re-baked into one base colour texture with one material's factors, its
-/// shape one skinned mesh), as a list for one line: normal, occlusion,
-/// emissive and metallic-roughness textures, an emissive colour,
-/// material extensions, materials whose metallic, roughness,
-/// alpha mode or sidedness differ from `main` (the material whose factors
-/// are kept; -1: none), vertex colours other than COLOR_0 (which the
-/// re-baked texture carries), point and line primitives, morph targets,
-/// cameras and lights,
-/// each with how many materials, primitives or nodes have it.  Empty when
-/// nothing is left behind, or the rig is not from glTF.
-std::string featuresNotCarried(const Rig& rig, int main);
+/// What an automatic cage made from a glTF scene leaves behind (its base
+/// colour, metallic, roughness and emissive re-baked into textures of one
+/// material with `main`'s alpha mode and sidedness, its shape one skinned
+/// mesh), as a list for one line: normal and occlusion textures,
+/// metallic-roughness and emissive textures not read (on another UV set or
+/// transform than the material's base colour texture, or no image Strata
+/// decodes; `materials` says, where given), material extensions,
+/// materials whose alpha mode or sidedness differ from `main` (-1: none),
+/// vertex colours other than COLOR_0 (which the re-baked texture carries),
+/// point and line primitives, morph targets, cameras and lights, each with
+/// how many materials, primitives or nodes have it.  Empty when nothing is
+/// left behind, or the rig is not from glTF.
+std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* materials = nullptr);
 
 }  // namespace io
 }  // namespace strata

@@ -117,6 +117,12 @@ struct BaseColourTexture {
     float metallic = 0.0f, roughness = 0.6f;  ///< the material's factors
     std::string alphaMode = "OPAQUE";          ///< glTF's OPAQUE, MASK or BLEND
     float alphaCutoff = 0.5f;                  ///< MASK's cutoff
+    /// Optional, width x height RGBA like rgba: a metallic-roughness
+    /// texture (G roughness, B metallic, linear), written with the factors
+    /// above, and an emissive texture (sRGB-coded RGB), written with
+    /// `emissive` as its factor; empty: none.
+    std::vector<uint8_t> metallicRoughness, emissiveRGBA;
+    float emissive[3] = {0.0f, 0.0f, 0.0f};  ///< emissiveFactor
 };
 
 struct RigWriteOptions {
