@@ -1032,10 +1032,11 @@ TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
 }
 
 // --control auto re-bakes a character's colour into one base colour texture
-// (an emissive colour into an emissive one) with the factors of the material
-// most of it wears (metallic, roughness, alpha mode and cutoff, sidedness).
-// What that and one skinned mesh cannot carry (here a normal and an
-// occlusion texture, a material extension, a morph target, a camera and a
+// (an emissive colour into an emissive one, an occlusion texture into a
+// metallic-roughness one's R, under the metallic and roughness factors it
+// then holds) with the alpha mode and cutoff and sidedness of the material
+// most of it wears.  What that and one skinned mesh cannot carry (here a
+// normal texture, a material extension, a morph target, a camera and a
 // point primitive) is named in one line, not dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
@@ -1080,8 +1081,7 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     const size_t at = r.output.find("not carried: ");
     ASSERT_NE(at, std::string::npos) << r.output;
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
-    for (const char* what : {"normal textures (1 material)", "occlusion textures (1 material)",
-                             "KHR_materials_emissive_strength (1 material)",
+    for (const char* what : {"normal textures (1 material)", "KHR_materials_emissive_strength (1 material)",
                              "morph targets (1 primitive)", "cameras (1 camera)",
                              "point and line primitives (1 primitive)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
@@ -1089,19 +1089,39 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     EXPECT_EQ(r.output.find("kept in the file"), std::string::npos) << r.output;
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
     EXPECT_EQ(line.find("emissive colour"), std::string::npos) << line;
+    EXPECT_EQ(line.find("occlusion"), std::string::npos) << line;
     // The rig's material keeps the factors.
     tinygltf::Model rig;
     ASSERT_TRUE(io.LoadBinaryFromFile(&rig, &err, &warn, rigPath)) << err;
     ASSERT_FALSE(rig.materials.empty());
     const tinygltf::Material& out = rig.materials[0];
-    EXPECT_EQ(out.pbrMetallicRoughness.metallicFactor, 0.125);
-    EXPECT_EQ(out.pbrMetallicRoughness.roughnessFactor, 0.25);
     EXPECT_EQ(out.alphaMode, "MASK");
     EXPECT_EQ(out.alphaCutoff, 0.375);
     EXPECT_GE(out.pbrMetallicRoughness.baseColorTexture.index, 0);
-    EXPECT_EQ(out.pbrMetallicRoughness.metallicRoughnessTexture.index, -1);
     EXPECT_GE(out.emissiveTexture.index, 0);
     EXPECT_EQ(out.emissiveFactor, std::vector<double>({1.0, 1.0, 1.0}));
+    // The occlusion in the metallic-roughness texture's R, the factors in
+    // its G and B: roughness 0.25 (64 of 255), metallic 0.125 (32); a PNG,
+    // so every texel exactly.
+    EXPECT_EQ(out.pbrMetallicRoughness.metallicFactor, 1.0);
+    EXPECT_EQ(out.pbrMetallicRoughness.roughnessFactor, 1.0);
+    ASSERT_GE(out.pbrMetallicRoughness.metallicRoughnessTexture.index, 0);
+    EXPECT_EQ(out.occlusionTexture.index, out.pbrMetallicRoughness.metallicRoughnessTexture.index);
+    Rig baked;
+    io::SceneMaterials materials;
+    ASSERT_TRUE(io::loadRig(rigPath, &baked).isOk());
+    ASSERT_TRUE(io::loadSceneMaterials(baked, &materials).isOk());
+    const int orm = materials.materials[0].metallicRoughnessImage;
+    ASSERT_GE(orm, 0);
+    EXPECT_EQ(materials.materials[0].occlusionImage, orm);
+    const io::ImageRGBA& image = materials.images[size_t(orm)];
+    size_t factors = 0, shaded = 0;
+    for (size_t i = 0; i + 3 < image.rgba.size(); i += 4) {
+        factors += image.rgba[i + 1] == 64 && image.rgba[i + 2] == 32;
+        shaded += image.rgba[i] < 255;
+    }
+    EXPECT_EQ(factors, image.rgba.size() / 4);
+    EXPECT_GT(shaded, image.rgba.size() / 8) << "CesiumMan's texture, its occlusion here, is not white";
 }
 
 TEST(Scene, MultiPrimitiveNonManifoldCharacterBakesOntoItself)
@@ -1642,9 +1662,10 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
         << io::featuresNotCarried(rig, 0);
 }
 
-// A material's metallic-roughness and emissive textures are read through
-// its base colour texture's UVs where they share its set and transform; one
-// on another set is counted, and named among what is not carried.
+// A material's metallic-roughness, emissive and occlusion textures are read
+// through its base colour texture's UVs where they share its set and
+// transform; one on another set is counted, and named among what is not
+// carried.
 TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -1659,12 +1680,16 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     mat.pbrMetallicRoughness.metallicRoughnessTexture.index = texture;
     mat.emissiveTexture.index = texture;
     mat.emissiveFactor = {1.0, 0.5, 0.25};
+    mat.occlusionTexture.index = texture;
+    mat.occlusionTexture.strength = 0.5;
     Rig rig;
     io::SceneMaterials after;
     ASSERT_TRUE(writeAndReadMaterials(model, dir + "/pbr.glb", &rig, &after));
     const io::MaterialInfo& m = after.materials[0];
     EXPECT_EQ(m.metallicRoughnessImage, m.image);
     EXPECT_EQ(m.emissiveImage, m.image);
+    EXPECT_EQ(m.occlusionImage, m.image);
+    EXPECT_EQ(m.occlusionStrength, 0.5f);
     EXPECT_EQ(m.emissive, glm::vec3(1.0f, 0.5f, 0.25f));
     EXPECT_EQ(m.unreadTextures, 0);
     EXPECT_EQ(after.fileUVs, before.fileUVs);
@@ -1676,6 +1701,7 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     EXPECT_NEAR(mr.x, m.metallic * t.b, 1e-12);
     EXPECT_NEAR(mr.y, m.roughness * t.g, 1e-12);
     EXPECT_NEAR(io::emissiveAt(m, &image, uv).g, 0.5 * io::srgbToLinear(t.g), 1e-6);
+    EXPECT_NEAR(io::occlusionAt(m, &image, uv), 1.0 + 0.5 * (t.r - 1.0), 1e-12);
     EXPECT_EQ(io::featuresNotCarried(rig, 0, &after).find("metallic-roughness"), std::string::npos);
     // On another UV set: not read, and named.
     mat.emissiveTexture.texCoord = 1;
@@ -1683,8 +1709,8 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     EXPECT_EQ(after.materials[0].emissiveImage, -1);
     EXPECT_EQ(after.materials[0].unreadTextures, 1);
     EXPECT_NE(io::featuresNotCarried(rig, 0, &after)
-                  .find("metallic-roughness or emissive textures on another UV set than the base colour's, or not "
-                        "decoded (1 material)"),
+                  .find("metallic-roughness, emissive or occlusion textures on another UV set than the base "
+                        "colour's, or not decoded (1 material)"),
               std::string::npos)
         << io::featuresNotCarried(rig, 0, &after);
 }

@@ -1056,14 +1056,16 @@ void BakeJob::carryColour()
     bool allFlat = true;
     for (const io::MaterialInfo& m : sm.materials)
         allFlat = allFlat && (m.image < 0 || size_t(m.image) >= flat.size() || flat[size_t(m.image)]);
-    // The metallic-roughness and emissive the capture's materials draw with
-    // (glTF's: factors times textures) become textures of their own where
-    // they vary: materials of different factors, or any such texture.
+    // The metallic-roughness, occlusion and emissive the capture's materials
+    // draw with (glTF's: factors times textures) become textures of their
+    // own where they vary: materials of different factors, or any such
+    // texture (occlusion in the metallic-roughness texture's R, as glTF's
+    // ORM packing has it).
     std::vector<uint8_t> usedMaterial(sm.materials.size(), 0);
     for (int m : faceMaterial)
         if (m >= 0 && size_t(m) < usedMaterial.size())
             usedMaterial[size_t(m)] = 1;
-    bool varyingMR = false, emits = false;
+    bool varyingMR = false, emits = false, occludes = false;
     const io::MaterialInfo* firstUsed = nullptr;
     for (size_t i = 0; i < sm.materials.size(); ++i) {
         if (!usedMaterial[i])
@@ -1074,7 +1076,9 @@ void BakeJob::carryColour()
         varyingMR = varyingMR || m.metallicRoughnessImage >= 0 || m.metallic != firstUsed->metallic ||
                     m.roughness != firstUsed->roughness;
         emits = emits || m.emissiveImage >= 0 || m.emissive != glm::vec3(0.0f);
+        occludes = occludes || m.occlusionImage >= 0;
     }
+    varyingMR = varyingMR || occludes;
     // A capture point's material, texture UV and vertex colour.
     struct Point {
         const io::MaterialInfo* material;
@@ -1116,13 +1120,15 @@ void BakeJob::carryColour()
         return glm::vec4(io::baseColourAt(m, imageOf(m.image), p.uv, p.vertexColour, nearest(m.image)));
     };
     std::vector<ColourLayer> textures{{colour, true}};
-    if (varyingMR)  // G roughness, B metallic, as glTF reads them
+    if (varyingMR)  // R occlusion, G roughness, B metallic, as glTF reads them
         textures.push_back({[&](uint32_t face, double b1, double b2) {
                               const Point p = pointOf(face, b1, b2);
-                              const int image = corners ? p.material->metallicRoughnessImage : -1;
-                              const glm::dvec2 mr = io::metallicRoughnessAt(*p.material, imageOf(image), p.uv,
-                                                                            nearest(image));
-                              return glm::vec4(1.0f, float(mr.y), float(mr.x), 1.0f);
+                              const io::MaterialInfo& m = *p.material;
+                              const int image = corners ? m.metallicRoughnessImage : -1;
+                              const int ao = corners ? m.occlusionImage : -1;
+                              const glm::dvec2 mr = io::metallicRoughnessAt(m, imageOf(image), p.uv, nearest(image));
+                              const double occlusion = io::occlusionAt(m, imageOf(ao), p.uv, nearest(ao));
+                              return glm::vec4(float(occlusion), float(mr.y), float(mr.x), 1.0f);
                           },
                           false});
     if (emits)
@@ -1142,6 +1148,7 @@ void BakeJob::carryColour()
     size_t next = 1;
     if (varyingMR)
         baseColour.metallicRoughness = std::move(images[next++].rgba);
+    baseColour.occlusion = occludes;
     if (emits) {
         baseColour.emissiveRGBA = std::move(images[next++].rgba);
         baseColour.emissive[0] = baseColour.emissive[1] = baseColour.emissive[2] = 1.0f;
@@ -1166,10 +1173,11 @@ void BakeJob::carryColour()
     writeOptions.baseColour = &baseColour;
     char note[200];
     if (sm.materials.empty())
-        std::snprintf(note, sizeof(note), "its vertex colours carried as one %dx%d base colour texture in the cage's UVs",
-                      side, side);
+        std::snprintf(note, sizeof(note),
+                      "its vertex colours carried as one %dx%d base colour texture in the cage's UVs", side, side);
     else
-        std::snprintf(note, sizeof(note), "%zu material%s%s carried as one %dx%d base colour texture%s in the cage's UVs",
+        std::snprintf(note, sizeof(note),
+                      "%zu material%s%s carried as one %dx%d base colour texture%s in the cage's UVs",
                       sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s",
                       vertexColours ? " and vertex colours" : "", side, side,
                       varyingMR && emits ? " with metallic-roughness and emissive ones"

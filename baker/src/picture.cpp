@@ -103,10 +103,11 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                         colour[ch] *= value;
                     }
                 if (part.image && part.uvs) {
+                    const io::MaterialInfo* mat = part.material;
                     const glm::dvec4 texel =
-                        part.material ? io::sampleImage(*part.image, glm::dvec2(part.material->textureUV(glm::vec2(uv))),
-                                                        false, part.material->wrapS, part.material->wrapT)
-                                      : io::sampleImage(*part.image, uv);
+                        mat ? io::sampleImage(*part.image, glm::dvec2(mat->textureUV(glm::vec2(uv))), false,
+                                              mat->wrapS, mat->wrapT)
+                            : io::sampleImage(*part.image, uv);
                     colour *= glm::dvec4(io::srgbToLinear(texel.r), io::srgbToLinear(texel.g),
                                          io::srgbToLinear(texel.b), texel.a);
                 }

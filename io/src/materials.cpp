@@ -170,6 +170,14 @@ glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, cons
     return e;
 }
 
+double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest)
+{
+    if (!image || image->width <= 0 || image->height <= 0)
+        return 1.0;
+    const double r = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT).r;
+    return 1.0 + double(material.occlusionStrength) * (r - 1.0);
+}
+
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
 {
     SceneMaterials s;
@@ -242,8 +250,9 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
                                     "): its KHR_texture_transform is not numbers of the right shape; ignored");
         }
-        // The metallic-roughness and emissive textures, read through the
-        // base colour texture's UVs (the first texture's, without one).
+        // The metallic-roughness, emissive and occlusion textures, read
+        // through the base colour texture's UVs (the first texture's,
+        // without one).
         const auto alongside = [&](const tinygltf::TextureInfo& info, int* image) {
             if (info.index < 0 || size_t(info.index) >= m.textures.size())
                 return;
@@ -254,7 +263,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 ++mat.unreadTextures;
                 return;
             }
-            if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0) {
+            if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0 && mat.occlusionImage < 0) {
                 mat.texCoord = probe.texCoord;
                 mat.uvOffset = probe.uvOffset;
                 mat.uvScale = probe.uvScale;
@@ -270,10 +279,17 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         };
         alongside(in.pbrMetallicRoughness.metallicRoughnessTexture, &mat.metallicRoughnessImage);
         alongside(in.emissiveTexture, &mat.emissiveImage);
-        if (in.emissiveFactor.size() == 3 && std::isfinite(in.emissiveFactor[0] + in.emissiveFactor[1] + in.emissiveFactor[2]))
-            mat.emissive = glm::clamp(glm::vec3(float(in.emissiveFactor[0]), float(in.emissiveFactor[1]),
-                                                float(in.emissiveFactor[2])),
-                                      glm::vec3(0.0f), glm::vec3(1.0f));
+        tinygltf::TextureInfo occlusion;
+        occlusion.index = in.occlusionTexture.index;
+        occlusion.texCoord = in.occlusionTexture.texCoord;
+        occlusion.extensions = in.occlusionTexture.extensions;
+        alongside(occlusion, &mat.occlusionImage);
+        if (std::isfinite(in.occlusionTexture.strength))
+            mat.occlusionStrength = float(std::clamp(in.occlusionTexture.strength, 0.0, 1.0));
+        const std::vector<double>& ef = in.emissiveFactor;
+        if (ef.size() == 3 && std::isfinite(ef[0] + ef[1] + ef[2]))
+            mat.emissive = glm::clamp(glm::vec3(float(ef[0]), float(ef[1]), float(ef[2])), glm::vec3(0.0f),
+                                      glm::vec3(1.0f));
         mat.alphaMode = in.alphaMode == "MASK" ? AlphaMode::Mask : in.alphaMode == "BLEND" ? AlphaMode::Blend
                                                                                            : AlphaMode::Opaque;
         mat.alphaCutoff = float(in.alphaCutoff);
@@ -311,6 +327,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                     mat.metallicRoughnessImage = -1;
                 if (mat.emissiveImage == int(i))
                     mat.emissiveImage = -1;
+                if (mat.occlusionImage == int(i))
+                    mat.occlusionImage = -1;
             }
             continue;
         }
@@ -327,7 +345,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         if (const auto c = prim.attributes.find("COLOR_0"); c != prim.attributes.end()) {
             const int components = attributeComponents(m, c->second);
             std::vector<float> rgba;
-            if ((components != 3 && components != 4) || !readFloatAccessor(m, c->second, components, "COLOR_0", &rgba) ||
+            if ((components != 3 && components != 4) ||
+                !readFloatAccessor(m, c->second, components, "COLOR_0", &rgba) ||
                 rgba.size() != size_t(components) * part.vertexCount) {
                 if (warnings)
                     warnings->push_back(part.name + ": its COLOR_0 is not one RGB or RGBA colour per vertex; ignored");
@@ -341,7 +360,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             }
         }
         const MaterialInfo& mat = s.materials[size_t(mi)];
-        if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0)
+        if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0 && mat.occlusionImage < 0)
             continue;
         auto it = prim.attributes.find("TEXCOORD_" + std::to_string(mat.texCoord));
         std::vector<float> uv;
@@ -386,11 +405,11 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
         const tinygltf::Material& in = m.materials[i];
         if (in.normalTexture.index >= 0)
             ++counts["normal textures"];
-        if (in.occlusionTexture.index >= 0)
+        if (!materials && in.occlusionTexture.index >= 0)
             ++counts["occlusion textures"];
         if (materials && i < materials->materials.size() && materials->materials[i].unreadTextures > 0)
-            ++counts["metallic-roughness or emissive textures on another UV set than the base colour's, or not "
-                     "decoded"];
+            ++counts["metallic-roughness, emissive or occlusion textures on another UV set than the base colour's, "
+                     "or not decoded"];
         for (const auto& e : in.extensions)
             ++counts[e.first == "KHR_materials_pbrSpecularGlossiness"
                          ? "specular and glossiness (KHR_materials_pbrSpecularGlossiness, its diffuse carried)"

@@ -552,9 +552,14 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
     model.samplers.push_back(sampler);
     // Each image a texture through that sampler; the texture's index.
+    // Colours as JPEG or PNG, whichever is smaller; metallic, roughness and
+    // occlusion, values rather than colours, as PNG (JPEG's chroma would
+    // move one channel's values by the others').
     const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, int* index) {
-        std::string bytes, mimeType;
-        Status st = encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
+        std::string bytes, mimeType = "image/png";
+        Status st = &rgba == &colour.metallicRoughness
+                        ? encodePngRgba(colour.width, colour.height, rgba, &bytes)
+                        : encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
         if (!st)
             return Status(st.code(), "the " + name + " texture: " + st.message());
         const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
@@ -585,6 +590,7 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     tinygltf::Material& material = model.materials[0];
     material.pbrMetallicRoughness.baseColorTexture.index = base;
     material.pbrMetallicRoughness.metallicRoughnessTexture.index = mr;
+    material.occlusionTexture.index = colour.occlusion ? mr : -1;  // its R: an ORM texture
     material.emissiveTexture.index = emissive;
     material.emissiveFactor = {double(colour.emissive[0]), double(colour.emissive[1]), double(colour.emissive[2])};
     material.pbrMetallicRoughness.metallicFactor = double(colour.metallic);

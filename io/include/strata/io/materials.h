@@ -42,13 +42,14 @@ struct MaterialInfo {
     bool doubleSided = false;
     float metallic = 1.0f, roughness = 1.0f;  ///< metallicFactor, roughnessFactor (glTF's defaults)
     glm::vec3 emissive{0.0f};                 ///< emissiveFactor (linear)
-    /// The metallic-roughness texture (G roughness, B metallic, linear) and
-    /// the emissive texture (sRGB-coded), indices into SceneMaterials::images
-    /// (-1: none), read through the same UVs, transform and sampler as the
-    /// base colour texture (texCoord and the rest above: the first of the
-    /// three a material has sets them).
-    int metallicRoughnessImage = -1, emissiveImage = -1;
-    /// Of those two, how many are on another UV set or transform than the
+    /// The metallic-roughness texture (G roughness, B metallic, linear), the
+    /// emissive texture (sRGB-coded) and the occlusion texture (R, linear),
+    /// indices into SceneMaterials::images (-1: none), read through the same
+    /// UVs, transform and sampler as the base colour texture (texCoord and
+    /// the rest above: the first of the four a material has sets them).
+    int metallicRoughnessImage = -1, emissiveImage = -1, occlusionImage = -1;
+    float occlusionStrength = 1.0f;  ///< the occlusion texture's strength
+    /// Of those three, how many are on another UV set or transform than the
     /// first texture's, or have no image Strata decodes (not read).
     int unreadTextures = 0;
 };
@@ -93,6 +94,10 @@ glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* im
 /// times the emissive texture (sRGB-decoded; `image` or null).
 glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
 
+/// The ambient occlusion glTF draws with at `uv`: 1 + strength x (R - 1) of
+/// the occlusion texture (`image`), 1 without.
+double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
+
 /// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
 /// centred at ((x + 0.5) / width, (y + 0.5) / height)), or its nearest texel
 /// when `nearest`, past its edges as wrapS and wrapT say (glTF's default:
@@ -108,8 +113,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// What an automatic cage made from a glTF scene leaves behind (its base
 /// colour, metallic, roughness and emissive re-baked into textures of one
 /// material with `main`'s alpha mode and sidedness, its shape one skinned
-/// mesh), as a list for one line: normal and occlusion textures,
-/// metallic-roughness and emissive textures not read (on another UV set or
+/// mesh), as a list for one line: normal textures, metallic-roughness,
+/// emissive and occlusion textures not read (on another UV set or
 /// transform than the material's base colour texture, or no image Strata
 /// decodes; `materials` says, where given), material extensions,
 /// materials whose alpha mode or sidedness differ from `main` (-1: none),

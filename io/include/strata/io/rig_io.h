@@ -119,9 +119,11 @@ struct BaseColourTexture {
     float alphaCutoff = 0.5f;                  ///< MASK's cutoff
     /// Optional, width x height RGBA like rgba: a metallic-roughness
     /// texture (G roughness, B metallic, linear), written with the factors
-    /// above, and an emissive texture (sRGB-coded RGB), written with
-    /// `emissive` as its factor; empty: none.
+    /// above (and as the occlusion texture, its R, where `occlusion`), and
+    /// an emissive texture (sRGB-coded RGB), written with `emissive` as its
+    /// factor; empty: none.
     std::vector<uint8_t> metallicRoughness, emissiveRGBA;
+    bool occlusion = false;
     float emissive[3] = {0.0f, 0.0f, 0.0f};  ///< emissiveFactor
 };
 
