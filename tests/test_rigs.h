@@ -82,8 +82,15 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
     prim.attributes["POSITION"] =
         addAccessor(addView(sphere.positions.data(), sphere.positions.size() * 12, TINYGLTF_TARGET_ARRAY_BUFFER),
                     TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, sphere.positions.size());
-    model.accessors.back().minValues = {-1.0, -1.0, -1.0};
-    model.accessors.back().maxValues = {1.0, 1.0, 1.0};
+    std::vector<double>& lo = model.accessors.back().minValues;
+    std::vector<double>& hi = model.accessors.back().maxValues;
+    lo.assign(3, 1e30);
+    hi.assign(3, -1e30);
+    for (const glm::vec3& p : sphere.positions)
+        for (size_t c = 0; c < 3; ++c) {
+            lo[c] = std::min(lo[c], double(p[int(c)]));
+            hi[c] = std::max(hi[c], double(p[int(c)]));
+        }
     tinygltf::Material material;
     const size_t n = sphere.positions.size();
     if (how == SphereColour::VertexAndFactor) {
