@@ -1314,6 +1314,19 @@ TEST(BakeLibrary, AutomaticCageCarriesVertexColoursAndLinearFactors)
         EXPECT_LT(worst, 0.03);
         EXPECT_LT(sum / double(3 * rig.mesh.faceCount()), 0.01);
     }
+    // Onto a given control mesh, which keeps its own materials: said.
+    writeObj(dir + "/control.obj", strata::examples::makeIcosphere(1));
+    strata::baker::BakeRequest given;
+    given.high = dir + "/sphere.ply";
+    given.control = dir + "/control.obj";
+    given.output = dir + "/given.glb";
+    strata::baker::BakeResult result;
+    ASSERT_TRUE(strata::baker::bakeRig(given, &result).isOk());
+    bool said = false;
+    for (const std::string& w : result.warnings)
+        said = said || w.find("sphere.ply: its vertex colours are not carried onto a given control mesh") !=
+                           std::string::npos;
+    EXPECT_TRUE(said);
 }
 
 // A capture of two materials, one rough and dull, one metallic, smoother

@@ -697,6 +697,10 @@ void BakeJob::loadInputs()
             throw BakeError(st.message());
         for (const std::string& w : controlRig.warnings)
             warn("%s: %s", request.control.c_str(), w.c_str());
+        if (!high.colours.empty())
+            warn("%s: its vertex colours are not carried onto a given control mesh, which keeps its own materials "
+                 "(--control auto re-bakes them into the rig's texture)",
+                 request.high.c_str());
         control = controlRig.mesh;
         skeleton = controlRig.skeleton;
         checkOneFrame();
