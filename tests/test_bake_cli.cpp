@@ -1391,6 +1391,15 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     }
     EXPECT_GT(checked, rig.mesh.faceCount() / 2);
     EXPECT_LT(worst, 0.01);  // 8-bit texels
+    // Factors, not textures: each image holds the two materials' values
+    // alone (its gutters snapped to them), a PNG of two colours.
+    for (int image : {carried.metallicRoughnessImage, carried.emissiveImage}) {
+        std::set<uint32_t> colours;
+        const std::vector<uint8_t>& rgba = sm.images[size_t(image)].rgba;
+        for (size_t i = 0; i + 3 < rgba.size(); i += 4)
+            colours.insert(uint32_t(rgba[i]) | uint32_t(rgba[i + 1]) << 8 | uint32_t(rgba[i + 2]) << 16);
+        EXPECT_EQ(colours.size(), 2u) << "image " << image;
+    }
 }
 
 // A character whose animation throws it out of range (two nested joints

@@ -1149,6 +1149,44 @@ void BakeJob::carryColour()
     if (!st)
         throw BakeError(request.high + ": " + st.message());
     ColorImage& image = images[0];
+    // Metallic, roughness and emission are factors per material more often
+    // than textures: such an image holds one value a material, and every
+    // texel takes the nearest of those (the gutters' blends, and the fill
+    // past them, which no draw reads), so it codes as an indexed PNG of few
+    // colours (the 59-material CesiumMan: 215 + 62 KB as RGB PNG, 75 + 15 KB
+    // so).  Read from textures, it does so where they are flat.
+    const auto code = [](double linear, bool srgb) {
+        return uint32_t(std::lround(255.0 * (srgb ? io::linearToSrgb(linear) : std::clamp(linear, 0.0, 1.0))));
+    };
+    const auto rgbaCode = [](uint32_t r, uint32_t g, uint32_t b) {
+        const uint8_t c[4] = {uint8_t(r), uint8_t(g), uint8_t(b), 255};
+        uint32_t v;
+        std::memcpy(&v, c, 4);
+        return v;
+    };
+    std::vector<uint32_t> mrValues, emissiveValues;
+    bool mrTextured = false, emissiveTextured = false;
+    for (size_t i = 0; i < sm.materials.size(); ++i)
+        if (usedMaterial[i]) {
+            const io::MaterialInfo& m = sm.materials[i];
+            mrTextured = mrTextured || m.metallicRoughnessImage >= 0 || m.occlusionImage >= 0;
+            emissiveTextured = emissiveTextured || m.emissiveImage >= 0;
+            mrValues.push_back(rgbaCode(255, code(m.roughness, false), code(m.metallic, false)));
+            emissiveValues.push_back(
+                rgbaCode(code(m.emissive.r, true), code(m.emissive.g, true), code(m.emissive.b, true)));
+        }
+    for (size_t k = 1; k < images.size(); ++k) {
+        const bool isMR = k == 1 && varyingMR;
+        if (isMR ? mrTextured : emissiveTextured) {
+            if (flatColours(images[k].rgba, &palette))
+                snapToPalette(&images[k].rgba, palette);
+            continue;
+        }
+        std::vector<uint32_t> values = isMR ? mrValues : emissiveValues;
+        std::sort(values.begin(), values.end());
+        values.erase(std::unique(values.begin(), values.end()), values.end());
+        snapToPalette(&images[k].rgba, values);
+    }
     size_t next = 1;
     if (varyingMR)
         baseColour.metallicRoughness = std::move(images[next++].rgba);
