@@ -22,6 +22,10 @@ uniform int u_hasTexture;
 uniform sampler2D u_baseColorTexture;
 uniform int u_alphaMode;
 uniform float u_alphaCutoff;
+// Its emissive colour (linear) times its emissive texture, added lit or not.
+uniform vec3 u_emissive;
+uniform int u_hasEmissiveTexture;
+uniform sampler2D u_emissiveTexture;
 
 out vec4 o_color;
 
@@ -53,7 +57,7 @@ void main()
     vec3 view = normalize(u_eye - v_position);
     if (dot(n, view) < 0.0)
         n = -n;  // back faces of open meshes
-    vec3 base = u_baseColor;
+    vec3 base = u_baseColor, emitted = vec3(0.0);
     float alpha = 1.0;
     if (u_colorMode == 0 && u_material != 0) {
         vec4 c = u_materialColor * v_vertexColour;
@@ -63,6 +67,10 @@ void main()
             discard;
         base = srgbEncode(c.rgb);
         alpha = u_alphaMode == 2 ? c.a : 1.0;
+        emitted = u_emissive;
+        if (u_hasEmissiveTexture != 0)
+            emitted *= texture(u_emissiveTexture, v_materialUV).rgb;
+        emitted = srgbEncode(emitted);
     }
     if (u_colorMode == 1)
         base = ramp((v_displacement - u_colorRange.x) / max(u_colorRange.y - u_colorRange.x, 1e-12));
@@ -80,5 +88,5 @@ void main()
     float hemi = 0.5 + 0.5 * n.y;
     vec3 ambient = mix(vec3(0.18, 0.16, 0.14), vec3(0.32, 0.36, 0.42), hemi);
     float specular = pow(max(dot(reflect(-key, n), view), 0.0), 40.0) * 0.25;
-    o_color = vec4(base * (ambient + diffuse) + vec3(specular), alpha);
+    o_color = vec4(min(base * (ambient + diffuse) + vec3(specular) + emitted, vec3(1.0)), alpha);
 }

@@ -1391,6 +1391,16 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     }
     EXPECT_GT(checked, rig.mesh.faceCount() / 2);
     EXPECT_LT(worst, 0.01);  // 8-bit texels
+    // Under a budget the re-bake's textures would pass (three 256^2 need
+    // about 4.8 MB): one line, naming them, and no rig.
+    request.output = dir + "/over_budget.glb";
+    request.maxMemoryMB = 3.0;
+    const strata::Status over = strata::baker::bakeRig(request, &result);
+    EXPECT_FALSE(over.isOk());
+    EXPECT_NE(over.message().find("re-baking its materials into 3 256^2 textures needs about 4 MB, over the 3 MB"),
+              std::string::npos)
+        << over.message();
+    EXPECT_FALSE(strata::test::fileExists(dir + "/over_budget.glb"));
     // Factors, not textures: each image holds the two materials' values
     // alone (its gutters snapped to them), a PNG of two colours.
     for (int image : {carried.metallicRoughnessImage, carried.emissiveImage}) {

@@ -146,7 +146,7 @@ TEST(Viewer, AdaptiveModeDrawsTheSameHeadWithFewerVertices)
 // its factor and vertex colours together draws as its --control auto rig,
 // whose one texture carries that colour, and not as it does grey.
 // (strata-view drew COLOR_0 not at all and factors and textures each in
-// its own space: the texture 60 levels from the factor.)
+// its own space: the texture 60 levels from the factor; and no emission.)
 TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
 {
     const std::string dir = test::tempDir("viewer_vertex_colours");
@@ -175,6 +175,32 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
     const Image grey = shoot(dir + "/sphere.glb", "--no-materials", dir + "/grey.png");
     EXPECT_LT(middle(source, rig), 3.0);
     EXPECT_GT(middle(source, grey), 10.0);
+
+    // Emission, added to the lit colour: the sphere whose bottom glows
+    // orange by its material's factor draws as its rig, which glows by an
+    // emissive texture, and both glow (red well over blue) over a tenth of
+    // the disc's box (18% from this camera, which looks down on it).
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/two.glb", test::SphereColour::TwoMaterials));
+    const test::CommandResult bakeTwo = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
+                                                         "/two.glb' --control auto -o '" + dir + "/two_rig.glb'");
+    ASSERT_EQ(bakeTwo.code, 0) << bakeTwo.output;
+    const Image two = shoot(dir + "/two.glb", "", dir + "/two.png");
+    const Image twoRig = shoot(dir + "/two_rig.glb", "", dir + "/two_rig.png");
+    const auto glowing = [&](const Image& img) {
+        size_t n = 0, disc = 0;
+        for (int y = c.y0; y <= c.y1; ++y)
+            for (int x = c.x0; x <= c.x1; ++x) {
+                const uint8_t* p = img.at(x, y);
+                if (isBackground(p))
+                    continue;
+                ++disc;
+                n += p[0] > 200 && p[0] > p[2] + 120;
+            }
+        return disc ? double(n) / double(disc) : 0.0;
+    };
+    EXPECT_GT(glowing(two), 0.1);
+    EXPECT_GT(glowing(twoRig), 0.1);
+    EXPECT_LT(middle(two, twoRig), 4.0);
     std::printf("vertex %.2f texture %.2f rig %.2f grey %.2f\n", middle(factor, vertex), middle(factor, texture),
                 middle(source, rig), middle(source, grey));
 }

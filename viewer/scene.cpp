@@ -228,6 +228,15 @@ Status Scene::uploadMaterials()
             g.wrapS = int(m.wrapS);
             g.wrapT = int(m.wrapT);
         }
+        g.emissive = m.emissive;
+        if (m.emissiveImage >= 0 && !materials_.images[size_t(m.emissiveImage)].rgba.empty()) {
+            const io::ImageRGBA& im = materials_.images[size_t(m.emissiveImage)];
+            g.emissiveWidth = im.width;
+            g.emissiveHeight = im.height;
+            g.emissiveRGBA = im.rgba.data();
+            g.wrapS = int(m.wrapS);
+            g.wrapT = int(m.wrapT);
+        }
         mats.push_back(g);
     }
     const size_t per = size_t(1) << (2 * settings.level);

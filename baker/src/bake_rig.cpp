@@ -1144,6 +1144,14 @@ void BakeJob::carryColour()
                                                1.0f);
                           },
                           true});
+    // Per texel: its face and barycentrics (16 bytes), four float channels
+    // and four bytes a texture.
+    const double needMB = double(side) * double(side) * (16.0 + 20.0 * double(textures.size())) / (1024.0 * 1024.0);
+    if (needMB > request.maxMemoryMB)
+        throw BakeError(request.high + ": re-baking its materials into " + std::to_string(textures.size()) + " " +
+                        std::to_string(side) + "^2 textures needs about " + std::to_string(long(needMB)) +
+                        " MB, over the " + std::to_string(long(request.maxMemoryMB)) +
+                        " MB budget (raise it with --max-memory MB)");
     std::vector<ColorImage> images;
     Status st = transferColours(control, map, highIndex, textures, side, &images, options.threads);
     if (!st)

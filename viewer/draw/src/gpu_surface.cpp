@@ -123,28 +123,36 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
                                                        " corner colours for " + std::to_string(faceCount_) + " faces");
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
-    for (GpuMaterial& m : materials_)
+    for (GpuMaterial& m : materials_) {
         glDeleteTextures(1, &m.texture);
+        glDeleteTextures(1, &m.emissiveTexture);
+    }
     materials_.clear();
+    // sRGB-coded, as glTF's base colour and emissive textures are: read linear.
+    const auto texture = [](const uint8_t* rgba, int width, int height, int wrapS, int wrapT) {
+        GLuint t = 0;
+        glCreateTextures(GL_TEXTURE_2D, 1, &t);
+        int levels = 1;
+        while ((std::max(width, height) >> levels) > 0)
+            ++levels;
+        glTextureStorage2D(t, levels, GL_SRGB8_ALPHA8, width, height);
+        glTextureSubImage2D(t, 0, 0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+        glGenerateTextureMipmap(t);
+        glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTextureParameteri(t, GL_TEXTURE_WRAP_S, wrapS);
+        glTextureParameteri(t, GL_TEXTURE_WRAP_T, wrapT);
+        return t;
+    };
     for (const SurfaceMaterial& in : materials) {
         GpuMaterial m;
         m.material = in;
-        if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0) {
-            glCreateTextures(GL_TEXTURE_2D, 1, &m.texture);
-            int levels = 1;
-            while ((std::max(in.textureWidth, in.textureHeight) >> levels) > 0)
-                ++levels;
-            // sRGB-coded, as glTF's base colour textures are: read linear.
-            glTextureStorage2D(m.texture, levels, GL_SRGB8_ALPHA8, in.textureWidth, in.textureHeight);
-            glTextureSubImage2D(m.texture, 0, 0, 0, in.textureWidth, in.textureHeight, GL_RGBA, GL_UNSIGNED_BYTE,
-                                in.textureRGBA);
-            glGenerateTextureMipmap(m.texture);
-            glTextureParameteri(m.texture, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-            glTextureParameteri(m.texture, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_S, in.wrapS);
-            glTextureParameteri(m.texture, GL_TEXTURE_WRAP_T, in.wrapT);
-        }
+        if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0)
+            m.texture = texture(in.textureRGBA, in.textureWidth, in.textureHeight, in.wrapS, in.wrapT);
+        if (in.emissiveRGBA && in.emissiveWidth > 0 && in.emissiveHeight > 0)
+            m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight, in.wrapS, in.wrapT);
         m.material.textureRGBA = nullptr;
+        m.material.emissiveRGBA = nullptr;
         materials_.push_back(m);
     }
     ranges_ = ranges;
@@ -227,6 +235,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerUVs, cornerUVs);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 1);
     glUniform1i(glGetUniformLocation(prog, "u_baseColorTexture"), 1);
+    glUniform1i(glGetUniformLocation(prog, "u_emissiveTexture"), 2);
     glBindVertexArray(vao);
     bool blending = false;
     for (const MaterialRange& r : ranges) {
@@ -242,6 +251,9 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform4fv(glGetUniformLocation(prog, "u_materialColor"), 1, glm::value_ptr(m.material.baseColor));
         glUniform1i(glGetUniformLocation(prog, "u_hasTexture"), m.texture ? 1 : 0);
         glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
+        glUniform3fv(glGetUniformLocation(prog, "u_emissive"), 1, glm::value_ptr(m.material.emissive));
+        glUniform1i(glGetUniformLocation(prog, "u_hasEmissiveTexture"), m.emissiveTexture ? 1 : 0);
+        glBindTextureUnit(2, m.emissiveTexture);
         glUniform1i(glGetUniformLocation(prog, "u_flatShading"), r.flat ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
         glBindTextureUnit(1, m.texture);
@@ -252,6 +264,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glDepthMask(GL_TRUE);
     }
     glBindTextureUnit(1, 0);
+    glBindTextureUnit(2, 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_hasColours"), 0);

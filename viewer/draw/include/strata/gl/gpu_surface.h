@@ -49,6 +49,12 @@ struct SurfaceMaterial {
     int wrapS = 0x2901, wrapT = 0x2901;    ///< the texture's wrap modes (GL's codes, as glTF's samplers give them)
     int alphaMode = 0;                     ///< 0 opaque, 1 mask, 2 blend
     float alphaCutoff = 0.5f;
+    /// glTF's emissive colour (linear), times its texture (sRGB-coded, read
+    /// through the base colour texture's UVs and size; null: none), added
+    /// to the lit colour.
+    glm::vec3 emissive{0.0f};
+    int emissiveWidth = 0, emissiveHeight = 0;
+    const uint8_t* emissiveRGBA = nullptr;  ///< copied at setMaterials()
 };
 
 /// A run of refined faces drawn with one material.
@@ -153,7 +159,7 @@ private:
     size_t ownBytes_ = 0;
     struct GpuMaterial {
         SurfaceMaterial material;
-        GLuint texture = 0;
+        GLuint texture = 0, emissiveTexture = 0;
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
