@@ -1238,6 +1238,29 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
     }
 }
 
+namespace {
+
+// `high` baked with --control auto to `out`, which must leave nothing of its
+// materials named as not carried; the summary into *summary.
+::testing::AssertionResult bakeCarryingEverything(const std::string& high, const std::string& out,
+                                                  std::string* summary)
+{
+    strata::baker::BakeRequest request;
+    request.high = high;
+    request.control = "auto";
+    request.output = out;
+    strata::baker::BakeResult result;
+    if (const strata::Status st = strata::baker::bakeRig(request, &result); !st)
+        return ::testing::AssertionFailure() << st.message();
+    for (const std::string& w : result.warnings)
+        if (w.find("not carried") != std::string::npos)
+            return ::testing::AssertionFailure() << w;
+    *summary = result.summary;
+    return ::testing::AssertionSuccess();
+}
+
+}  // namespace
+
 // glTF's base colour is linear: factor x sRGB-decoded texture x COLOR_0.
 // A sphere coloured only by a factor (red halved) and by per-vertex
 // colours (a linear function of the point) re-bakes into one texture
@@ -1273,17 +1296,10 @@ TEST(BakeLibrary, AutomaticCageCarriesVertexColoursAndLinearFactors)
     for (const std::string input : {"sphere.glb", "sphere.ply"}) {
         SCOPED_TRACE(input);
         const glm::vec4 factor = input == "sphere.glb" ? glm::vec4(0.5f, 1.0f, 1.0f, 1.0f) : glm::vec4(1.0f);
-        strata::baker::BakeRequest request;
-        request.high = dir + "/" + input;
-        request.control = "auto";
-        request.output = dir + "/rig.glb";
-        strata::baker::BakeResult result;
-        const strata::Status st = strata::baker::bakeRig(request, &result);
-        ASSERT_TRUE(st.isOk()) << st.message();
-        for (const std::string& w : result.warnings)
-            EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
-        EXPECT_NE(result.summary.find("vertex colours carried as one 256x256 base colour texture"), std::string::npos)
-            << result.summary;
+        std::string summary;
+        ASSERT_TRUE(bakeCarryingEverything(dir + "/" + input, dir + "/rig.glb", &summary));
+        EXPECT_NE(summary.find("vertex colours carried as one 256x256 base colour texture"), std::string::npos)
+            << summary;
         strata::Rig rig;
         ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
         strata::io::SceneMaterials sm;
@@ -1341,16 +1357,9 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     using strata::test::kTopMaterial;
     const std::string dir = strata::test::tempDir("bake_two_materials");
     ASSERT_TRUE(strata::test::writeColouredSphere(dir + "/sphere.glb", strata::test::SphereColour::TwoMaterials));
-    strata::baker::BakeRequest request;
-    request.high = dir + "/sphere.glb";
-    request.control = "auto";
-    request.output = dir + "/rig.glb";
-    strata::baker::BakeResult result;
-    const strata::Status st = strata::baker::bakeRig(request, &result);
-    ASSERT_TRUE(st.isOk()) << st.message();
-    for (const std::string& w : result.warnings)
-        EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
-    EXPECT_NE(result.summary.find("with metallic-roughness and emissive ones"), std::string::npos) << result.summary;
+    std::string summary;
+    ASSERT_TRUE(bakeCarryingEverything(dir + "/sphere.glb", dir + "/rig.glb", &summary));
+    EXPECT_NE(summary.find("with metallic-roughness and emissive ones"), std::string::npos) << summary;
     tinygltf::TinyGLTF gltf;
     tinygltf::Model model;
     std::string err, warn;
@@ -1393,8 +1402,12 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     EXPECT_LT(worst, 0.01);  // 8-bit texels
     // Under a budget the re-bake's textures would pass (three 256^2 need
     // about 4.8 MB): one line, naming them, and no rig.
+    strata::baker::BakeRequest request;
+    request.high = dir + "/sphere.glb";
+    request.control = "auto";
     request.output = dir + "/over_budget.glb";
     request.maxMemoryMB = 3.0;
+    strata::baker::BakeResult result;
     const strata::Status over = strata::baker::bakeRig(request, &result);
     EXPECT_FALSE(over.isOk());
     EXPECT_NE(over.message().find("re-baking its materials into 3 256^2 textures needs about 4 MB, over the 3 MB"),

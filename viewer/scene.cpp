@@ -220,23 +220,19 @@ Status Scene::uploadMaterials()
         g.baseColor = m.baseColor;
         g.alphaMode = int(m.alphaMode);
         g.alphaCutoff = m.alphaCutoff;
-        if (m.image >= 0 && !materials_.images[size_t(m.image)].rgba.empty()) {
-            const io::ImageRGBA& im = materials_.images[size_t(m.image)];
-            g.textureWidth = im.width;
-            g.textureHeight = im.height;
-            g.textureRGBA = im.rgba.data();
-            g.wrapS = int(m.wrapS);
-            g.wrapT = int(m.wrapT);
-        }
         g.emissive = m.emissive;
-        if (m.emissiveImage >= 0 && !materials_.images[size_t(m.emissiveImage)].rgba.empty()) {
-            const io::ImageRGBA& im = materials_.images[size_t(m.emissiveImage)];
-            g.emissiveWidth = im.width;
-            g.emissiveHeight = im.height;
-            g.emissiveRGBA = im.rgba.data();
-            g.wrapS = int(m.wrapS);
-            g.wrapT = int(m.wrapT);
-        }
+        g.wrapS = int(m.wrapS);  // every texture of the material is read through the same sampler
+        g.wrapT = int(m.wrapT);
+        const auto image = [&](int index, int* width, int* height, const uint8_t** rgba) {
+            if (index < 0 || size_t(index) >= materials_.images.size() || materials_.images[size_t(index)].rgba.empty())
+                return;
+            const io::ImageRGBA& im = materials_.images[size_t(index)];
+            *width = im.width;
+            *height = im.height;
+            *rgba = im.rgba.data();
+        };
+        image(m.image, &g.textureWidth, &g.textureHeight, &g.textureRGBA);
+        image(m.emissiveImage, &g.emissiveWidth, &g.emissiveHeight, &g.emissiveRGBA);
         mats.push_back(g);
     }
     const size_t per = size_t(1) << (2 * settings.level);
