@@ -1259,6 +1259,19 @@ namespace {
     return ::testing::AssertionSuccess();
 }
 
+// The centre of a rig's face f: its texture UV (the material's, through
+// the file's corners) and its point on the cage.
+void faceCentre(const strata::Rig& rig, const strata::io::SceneMaterials& sm, size_t f, glm::dvec2* uv,
+                glm::vec3* centre)
+{
+    *uv = glm::dvec2(0.0);
+    *centre = glm::vec3(0.0f);
+    for (int k = 0; k < 3; ++k) {
+        *uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
+        *centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
+    }
+}
+
 }  // namespace
 
 // glTF's base colour is linear: factor x sRGB-decoded texture x COLOR_0.
@@ -1312,12 +1325,9 @@ TEST(BakeLibrary, AutomaticCageCarriesVertexColoursAndLinearFactors)
         ASSERT_EQ(rig.fileCorners.size(), rig.mesh.triangles.size());
         double worst = 0.0, sum = 0.0;
         for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
-            glm::dvec2 uv(0.0);
-            glm::vec3 centre(0.0f);
-            for (int k = 0; k < 3; ++k) {
-                uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
-                centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
-            }
+            glm::dvec2 uv;
+            glm::vec3 centre;
+            faceCentre(rig, sm, f, &uv, &centre);
             const glm::dvec4 drawn = strata::io::baseColourAt(carried, &image, uv);
             const glm::vec4 expected = factor * colourAt(centre);
             for (int k = 0; k < 3; ++k) {
@@ -1380,12 +1390,9 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     size_t checked = 0;
     double worst = 0.0;
     for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
-        glm::dvec2 uv(0.0);
-        glm::vec3 centre(0.0f);
-        for (int k = 0; k < 3; ++k) {
-            uv += glm::dvec2(sm.fileUVs[rig.fileCorners[3 * f + size_t(k)]]) / 3.0;
-            centre += rig.mesh.positions[rig.mesh.triangles[3 * f + size_t(k)]] / 3.0f;
-        }
+        glm::dvec2 uv;
+        glm::vec3 centre;
+        faceCentre(rig, sm, f, &uv, &centre);
         if (std::abs(centre.y) < 0.15f)
             continue;  // a face over the seam between the halves
         const float* expected = centre.y > 0.0f ? kTopMaterial : kBottomMaterial;
