@@ -42,13 +42,15 @@ enum class SphereColour {
     HalfTexture,       ///< a 2x2 texture of sRGB code 188 (linear 0.5029), a factor of 1
     /// Two materials, each on the faces whose centre lies above (y > 0) or
     /// below: kTopMaterial and kBottomMaterial's metallic, roughness and
-    /// emissive factors, a white base colour.
+    /// emissive factors, a white base colour; the bottom's emission made
+    /// kBottomEmissiveStrength times stronger (KHR_materials_emissive_strength).
     TwoMaterials,
 };
 
 /// TwoMaterials' factors: metallic, roughness, emissive red, green, blue.
 constexpr float kTopMaterial[5] = {0.0f, 0.2f, 0.0f, 0.0f, 0.0f};
 constexpr float kBottomMaterial[5] = {1.0f, 0.9f, 1.0f, 0.5f, 0.0f};
+constexpr float kBottomEmissiveStrength = 3.0f;
 
 /// A unit sphere (icosphere 4) as a glb coloured as `how` says.
 inline bool writeColouredSphere(const std::string& path, SphereColour how = SphereColour::VertexAndFactor)
@@ -116,6 +118,10 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
             m.pbrMetallicRoughness.roughnessFactor = f[1];
             m.emissiveFactor = {f[2], f[3], f[4]};
         }
+        tinygltf::Value::Object strength;
+        strength["emissiveStrength"] = tinygltf::Value(double(kBottomEmissiveStrength));
+        bottom.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
+        model.extensionsUsed.push_back("KHR_materials_emissive_strength");
         model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
         const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));

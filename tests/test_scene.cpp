@@ -1032,12 +1032,13 @@ TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
 }
 
 // --control auto re-bakes a character's colour into one base colour texture
-// (an emissive colour into an emissive one, an occlusion texture into a
-// metallic-roughness one's R, under the metallic and roughness factors it
-// then holds) with the alpha mode and cutoff and sidedness of the material
-// most of it wears.  What that and one skinned mesh cannot carry (here a
-// normal texture, a material extension, a morph target, a camera and a
-// point primitive) is named in one line, not dropped silently.
+// (an emissive colour and its KHR_materials_emissive_strength into an
+// emissive one, an occlusion texture into a metallic-roughness one's R,
+// under the metallic and roughness factors it then holds) with the alpha
+// mode and cutoff and sidedness of the material most of it wears.  What
+// that and one skinned mesh cannot carry (here a normal texture, a morph
+// target, a camera and a point primitive) is named in one line, not
+// dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -1081,7 +1082,7 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     const size_t at = r.output.find("not carried: ");
     ASSERT_NE(at, std::string::npos) << r.output;
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
-    for (const char* what : {"normal textures (1 material)", "KHR_materials_emissive_strength (1 material)",
+    for (const char* what : {"normal textures (1 material)",
                              "morph targets (1 primitive)", "cameras (1 camera)",
                              "point and line primitives (1 primitive)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
@@ -1090,6 +1091,7 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
     EXPECT_EQ(line.find("emissive colour"), std::string::npos) << line;
     EXPECT_EQ(line.find("occlusion"), std::string::npos) << line;
+    EXPECT_EQ(line.find("emissive"), std::string::npos) << line;  // its strength carried too
     // The rig's material keeps the factors.
     tinygltf::Model rig;
     ASSERT_TRUE(io.LoadBinaryFromFile(&rig, &err, &warn, rigPath)) << err;
@@ -1111,6 +1113,16 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     io::SceneMaterials materials;
     ASSERT_TRUE(io::loadRig(rigPath, &baked).isOk());
     ASSERT_TRUE(io::loadSceneMaterials(baked, &materials).isOk());
+    // Emission 0.1 x strength 2 = 0.2, under 1: no strength on the rig, the
+    // texture's red sRGB-coded 0.2 (124) at every texel.
+    EXPECT_FALSE(out.extensions.count("KHR_materials_emissive_strength"));
+    const int glow = materials.materials[0].emissiveImage;
+    ASSERT_GE(glow, 0);
+    size_t reds = 0;
+    const std::vector<uint8_t>& emitted = materials.images[size_t(glow)].rgba;
+    for (size_t i = 0; i + 3 < emitted.size(); i += 4)
+        reds += emitted[i] == 124 && emitted[i + 1] == 0 && emitted[i + 2] == 0;
+    EXPECT_EQ(reds, emitted.size() / 4);
     const int orm = materials.materials[0].metallicRoughnessImage;
     ASSERT_GE(orm, 0);
     EXPECT_EQ(materials.materials[0].occlusionImage, orm);

@@ -1070,6 +1070,7 @@ void BakeJob::carryColour()
         if (m >= 0 && size_t(m) < usedMaterial.size())
             usedMaterial[size_t(m)] = 1;
     bool varyingMR = false, emits = false, occludes = false;
+    float emissiveScale = 1.0f;  // emission past 1 (KHR_materials_emissive_strength): the texture holds it over this
     const io::MaterialInfo* firstUsed = nullptr;
     for (size_t i = 0; i < sm.materials.size(); ++i) {
         if (!usedMaterial[i])
@@ -1080,6 +1081,7 @@ void BakeJob::carryColour()
         varyingMR = varyingMR || m.metallicRoughnessImage >= 0 || m.metallic != firstUsed->metallic ||
                     m.roughness != firstUsed->roughness;
         emits = emits || m.emissiveImage >= 0 || m.emissive != glm::vec3(0.0f);
+        emissiveScale = std::max({emissiveScale, m.emissive.r, m.emissive.g, m.emissive.b});
         occludes = occludes || m.occlusionImage >= 0;
     }
     varyingMR = varyingMR || occludes;
@@ -1140,7 +1142,8 @@ void BakeJob::carryColour()
                               const Point p = pointOf(face, b1, b2);
                               const int image = corners ? p.material->emissiveImage : -1;
                               return glm::vec4(glm::vec3(io::emissiveAt(*p.material, imageOf(image), p.uv,
-                                                                        nearest(image))),
+                                                                        nearest(image))) /
+                                                   emissiveScale,
                                                1.0f);
                           },
                           true});
@@ -1180,8 +1183,8 @@ void BakeJob::carryColour()
             mrTextured = mrTextured || m.metallicRoughnessImage >= 0 || m.occlusionImage >= 0;
             emissiveTextured = emissiveTextured || m.emissiveImage >= 0;
             mrValues.push_back(rgbaCode(255, code(m.roughness, false), code(m.metallic, false)));
-            emissiveValues.push_back(
-                rgbaCode(code(m.emissive.r, true), code(m.emissive.g, true), code(m.emissive.b, true)));
+            const glm::vec3 e = m.emissive / emissiveScale;
+            emissiveValues.push_back(rgbaCode(code(e.r, true), code(e.g, true), code(e.b, true)));
         }
     for (size_t k = 1; k < images.size(); ++k) {
         const bool isMR = k == 1 && varyingMR;
@@ -1202,6 +1205,7 @@ void BakeJob::carryColour()
     if (emits) {
         baseColour.emissiveRGBA = std::move(images[next++].rgba);
         baseColour.emissive[0] = baseColour.emissive[1] = baseColour.emissive[2] = 1.0f;
+        baseColour.emissiveStrength = emissiveScale;
     }
     if (allFlat && flatColours(image.rgba, &palette))
         snapToPalette(&image.rgba, palette);

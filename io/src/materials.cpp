@@ -290,6 +290,14 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         if (ef.size() == 3 && std::isfinite(ef[0] + ef[1] + ef[2]))
             mat.emissive = glm::clamp(glm::vec3(float(ef[0]), float(ef[1]), float(ef[2])), glm::vec3(0.0f),
                                       glm::vec3(1.0f));
+        // KHR_materials_emissive_strength scales it past 1 (up to 1000 here).
+        const auto strength = in.extensions.find("KHR_materials_emissive_strength");
+        if (strength != in.extensions.end() && strength->second.IsObject() &&
+            strength->second.Get("emissiveStrength").IsNumber()) {
+            const double k = strength->second.Get("emissiveStrength").GetNumberAsDouble();
+            if (std::isfinite(k) && k >= 0.0)
+                mat.emissive *= float(std::min(k, 1000.0));
+        }
         mat.alphaMode = in.alphaMode == "MASK" ? AlphaMode::Mask : in.alphaMode == "BLEND" ? AlphaMode::Blend
                                                                                            : AlphaMode::Opaque;
         mat.alphaCutoff = float(in.alphaCutoff);
@@ -411,9 +419,10 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
             ++counts["metallic-roughness, emissive or occlusion textures on another UV set than the base colour's, "
                      "or not decoded"];
         for (const auto& e : in.extensions)
-            ++counts[e.first == "KHR_materials_pbrSpecularGlossiness"
-                         ? "specular and glossiness (KHR_materials_pbrSpecularGlossiness, its diffuse carried)"
-                         : e.first];
+            if (e.first != "KHR_materials_emissive_strength")  // carried
+                ++counts[e.first == "KHR_materials_pbrSpecularGlossiness"
+                             ? "specular and glossiness (KHR_materials_pbrSpecularGlossiness, its diffuse carried)"
+                             : e.first];
         if (kept && (in.alphaMode != kept->alphaMode || in.doubleSided != kept->doubleSided))
             ++counts["other alpha modes or sidedness"];
     }

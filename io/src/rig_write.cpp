@@ -593,6 +593,14 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     material.occlusionTexture.index = colour.occlusion ? mr : -1;  // its R: an ORM texture
     material.emissiveTexture.index = emissive;
     material.emissiveFactor = {double(colour.emissive[0]), double(colour.emissive[1]), double(colour.emissive[2])};
+    if (colour.emissiveStrength > 1.0f) {
+        tinygltf::Value::Object strength;
+        strength["emissiveStrength"] = tinygltf::Value(double(colour.emissiveStrength));
+        material.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
+        if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), "KHR_materials_emissive_strength") ==
+            model.extensionsUsed.end())
+            model.extensionsUsed.push_back("KHR_materials_emissive_strength");
+    }
     material.pbrMetallicRoughness.metallicFactor = double(colour.metallic);
     material.pbrMetallicRoughness.roughnessFactor = double(colour.roughness);
     material.doubleSided = colour.doubleSided;

@@ -41,7 +41,7 @@ struct MaterialInfo {
     float alphaCutoff = 0.5f;
     bool doubleSided = false;
     float metallic = 1.0f, roughness = 1.0f;  ///< metallicFactor, roughnessFactor (glTF's defaults)
-    glm::vec3 emissive{0.0f};                 ///< emissiveFactor (linear)
+    glm::vec3 emissive{0.0f};  ///< emissiveFactor (linear), times KHR_materials_emissive_strength's strength
     /// The metallic-roughness texture (G roughness, B metallic, linear), the
     /// emissive texture (sRGB-coded) and the occlusion texture (R, linear),
     /// indices into SceneMaterials::images (-1: none), read through the same

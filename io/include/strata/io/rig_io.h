@@ -125,6 +125,7 @@ struct BaseColourTexture {
     std::vector<uint8_t> metallicRoughness, emissiveRGBA;
     bool occlusion = false;
     float emissive[3] = {0.0f, 0.0f, 0.0f};  ///< emissiveFactor
+    float emissiveStrength = 1.0f;            ///< past 1: written as KHR_materials_emissive_strength
 };
 
 struct RigWriteOptions {
