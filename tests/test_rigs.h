@@ -26,6 +26,40 @@
 namespace strata {
 namespace test {
 
+/// `bytes` of `data` as a new bufferView of buffer 0 (created if missing),
+/// 4-byte aligned; its index.
+inline int addBufferView(tinygltf::Model& m, const void* data, size_t bytes, int target)
+{
+    if (m.buffers.empty())
+        m.buffers.emplace_back();
+    std::vector<unsigned char>& buf = m.buffers[0].data;
+    while (buf.size() % 4)
+        buf.push_back(0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buf.size();
+    view.byteLength = bytes;
+    view.target = target;
+    const auto* p = static_cast<const unsigned char*>(data);
+    buf.insert(buf.end(), p, p + bytes);
+    m.bufferViews.push_back(view);
+    return int(m.bufferViews.size() - 1);
+}
+
+/// `count` elements of `data` (`bytes` of them) as an accessor over a new
+/// bufferView (addBufferView); its index.
+inline int addAccessor(tinygltf::Model& m, const void* data, size_t bytes, int componentType, int type, size_t count,
+                       int target)
+{
+    tinygltf::Accessor acc;
+    acc.bufferView = addBufferView(m, data, bytes, target);
+    acc.componentType = componentType;
+    acc.type = type;
+    acc.count = count;
+    m.accessors.push_back(acc);
+    return int(m.accessors.size() - 1);
+}
+
 /// The colour of writeColouredSphere's COLOR_0 at a point: linear, a
 /// linear function of the direction.
 inline glm::vec4 colouredSphereColour(const glm::vec3& p)
@@ -58,32 +92,11 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
     const ControlMesh sphere = examples::makeIcosphere(4);
     tinygltf::Model model;
     model.asset.version = "2.0";
-    std::vector<unsigned char>& bytes = model.buffers.emplace_back().data;
-    const auto addView = [&](const void* data, size_t size, int target) {
-        while (bytes.size() % 4)
-            bytes.push_back(0);  // every view aligned for its floats and indices
-        tinygltf::BufferView v;
-        v.buffer = 0;
-        v.byteOffset = bytes.size();
-        v.byteLength = size;
-        v.target = target;
-        bytes.insert(bytes.end(), static_cast<const unsigned char*>(data), static_cast<const unsigned char*>(data) + size);
-        model.bufferViews.push_back(v);
-        return int(model.bufferViews.size()) - 1;
-    };
-    const auto addAccessor = [&](int view, int componentType, int type, size_t count) {
-        tinygltf::Accessor a;
-        a.bufferView = view;
-        a.componentType = componentType;
-        a.type = type;
-        a.count = count;
-        model.accessors.push_back(a);
-        return int(model.accessors.size()) - 1;
-    };
+    constexpr int kVertices = TINYGLTF_TARGET_ARRAY_BUFFER;
     tinygltf::Primitive prim;
-    prim.attributes["POSITION"] =
-        addAccessor(addView(sphere.positions.data(), sphere.positions.size() * 12, TINYGLTF_TARGET_ARRAY_BUFFER),
-                    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, sphere.positions.size());
+    prim.attributes["POSITION"] = addAccessor(model, sphere.positions.data(), sphere.positions.size() * 12,
+                                              TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                                              sphere.positions.size(), kVertices);
     std::vector<double>& lo = model.accessors.back().minValues;
     std::vector<double>& hi = model.accessors.back().maxValues;
     lo.assign(3, 1e30);
@@ -99,15 +112,15 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         std::vector<glm::vec4> colours;
         for (const glm::vec3& p : sphere.positions)
             colours.push_back(colouredSphereColour(p));
-        prim.attributes["COLOR_0"] = addAccessor(addView(colours.data(), n * 16, TINYGLTF_TARGET_ARRAY_BUFFER),
-                                                 TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, n);
+        prim.attributes["COLOR_0"] = addAccessor(model, colours.data(), n * 16, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                 TINYGLTF_TYPE_VEC4, n, kVertices);
         material.pbrMetallicRoughness.baseColorFactor = {0.5, 1.0, 1.0, 1.0};
     } else if (how == SphereColour::HalfFactor) {
         material.pbrMetallicRoughness.baseColorFactor = {0.5, 0.5, 0.5, 1.0};
     } else if (how == SphereColour::HalfVertexColour) {
         const std::vector<uint8_t> grey(4 * n, 128);  // 128 / 255 = 0.502 linear; RGB padded to 4 bytes
-        prim.attributes["COLOR_0"] = addAccessor(addView(grey.data(), grey.size(), TINYGLTF_TARGET_ARRAY_BUFFER),
-                                                 TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n);
+        prim.attributes["COLOR_0"] = addAccessor(model, grey.data(), grey.size(), TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                                 TINYGLTF_TYPE_VEC3, n, kVertices);
         model.bufferViews.back().byteStride = 4;
         model.accessors.back().normalized = true;
     } else if (how == SphereColour::TwoMaterials) {
@@ -125,15 +138,15 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
         const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
-        prim.attributes["TEXCOORD_0"] = addAccessor(addView(uvs.data(), n * 8, TINYGLTF_TARGET_ARRAY_BUFFER),
-                                                    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, n);
+        prim.attributes["TEXCOORD_0"] = addAccessor(model, uvs.data(), n * 8, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                    TINYGLTF_TYPE_VEC2, n, kVertices);
         std::string png;
         if (!io::encodePngRgba(2, 2, std::vector<uint8_t>{188, 188, 188, 255, 188, 188, 188, 255, 188, 188, 188, 255,
                                                          188, 188, 188, 255},
                                &png))
             return false;
         tinygltf::Image image;
-        image.bufferView = addView(png.data(), png.size(), 0);
+        image.bufferView = addBufferView(model, png.data(), png.size(), 0);
         image.mimeType = "image/png";
         model.images.push_back(image);
         model.textures.emplace_back().source = 0;
@@ -152,8 +165,8 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
     for (int h = 0; h < 2; ++h) {
         if (halves[h].empty())
             continue;
-        prim.indices = addAccessor(addView(halves[h].data(), halves[h].size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
-                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, halves[h].size());
+        prim.indices = addAccessor(model, halves[h].data(), halves[h].size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                   TINYGLTF_TYPE_SCALAR, halves[h].size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
         prim.material = h;
         mesh.primitives.push_back(prim);
     }

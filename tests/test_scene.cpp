@@ -30,6 +30,8 @@
 #include <tuple>
 
 using namespace strata;
+using strata::test::addAccessor;
+using strata::test::addBufferView;
 using nlohmann::json;
 
 namespace {
@@ -262,29 +264,6 @@ TEST(Scene, CesiumManKeepsEverythingThroughABake)
 }
 
 namespace {
-
-int addAccessor(tinygltf::Model& m, const void* data, size_t bytes, int componentType, int type, size_t count,
-                int target)
-{
-    tinygltf::Buffer& buf = m.buffers[0];
-    while (buf.data.size() % 4)
-        buf.data.push_back(0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = buf.data.size();
-    view.byteLength = bytes;
-    view.target = target;
-    const auto* p = static_cast<const unsigned char*>(data);
-    buf.data.insert(buf.data.end(), p, p + bytes);
-    m.bufferViews.push_back(view);
-    tinygltf::Accessor acc;
-    acc.bufferView = int(m.bufferViews.size() - 1);
-    acc.componentType = componentType;
-    acc.type = type;
-    acc.count = count;
-    m.accessors.push_back(acc);
-    return int(m.accessors.size() - 1);
-}
 
 // A mesh of one primitive, on a new node of its own; returns the node.
 int addMeshNode(tinygltf::Model& m, const std::string& name, const tinygltf::Primitive& prim)
@@ -1741,26 +1720,15 @@ TEST(Scene, VertexColoursAreRead)
     EXPECT_TRUE(before.fileColours.empty());
     tinygltf::Primitive& prim = model.meshes[0].primitives[0];
     const size_t n = model.accessors[size_t(prim.attributes.at("POSITION"))].count;
-    std::vector<unsigned char>& bytes = model.buffers[0].data;
-    while (bytes.size() % 4)
-        bytes.push_back(0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = bytes.size();
-    view.byteLength = 4 * n;
-    view.byteStride = 4;  // RGB padded to 4 bytes, as the specification asks of byte attributes
+    std::vector<uint8_t> rgb;
     for (size_t v = 0; v < n; ++v)
-        for (unsigned char c : {uint8_t(v % 256), uint8_t(255 - v % 256), uint8_t(51), uint8_t(0)})
-            bytes.push_back(c);
-    model.bufferViews.push_back(view);
-    tinygltf::Accessor colour;
-    colour.bufferView = int(model.bufferViews.size()) - 1;
-    colour.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-    colour.normalized = true;
-    colour.type = TINYGLTF_TYPE_VEC3;
-    colour.count = n;
-    model.accessors.push_back(colour);
-    prim.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+        for (uint8_t c : {uint8_t(v % 256), uint8_t(255 - v % 256), uint8_t(51), uint8_t(0)})
+            rgb.push_back(c);
+    prim.attributes["COLOR_0"] = addAccessor(model, rgb.data(), rgb.size(), TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                             TINYGLTF_TYPE_VEC3, n, TINYGLTF_TARGET_ARRAY_BUFFER);
+    // RGB padded to 4 bytes, as the specification asks of byte attributes.
+    model.bufferViews[size_t(model.accessors.back().bufferView)].byteStride = 4;
+    model.accessors.back().normalized = true;
     prim.attributes["COLOR_1"] = int(model.accessors.size()) - 1;
     Rig rig;
     io::SceneMaterials after;

@@ -1069,22 +1069,22 @@ void BakeJob::carryColour()
     for (int m : faceMaterial)
         if (m >= 0 && size_t(m) < usedMaterial.size())
             usedMaterial[size_t(m)] = 1;
-    bool varyingMR = false, emits = false, occludes = false;
+    std::vector<const io::MaterialInfo*> used;
+    for (size_t i = 0; i < sm.materials.size(); ++i)
+        if (usedMaterial[i])
+            used.push_back(&sm.materials[i]);
+    bool varyingMR = false, emits = false, occludes = false, mrTextured = false, emissiveTextured = false;
     float emissiveScale = 1.0f;  // emission past 1 (KHR_materials_emissive_strength): the texture holds it over this
-    const io::MaterialInfo* firstUsed = nullptr;
-    for (size_t i = 0; i < sm.materials.size(); ++i) {
-        if (!usedMaterial[i])
-            continue;
-        const io::MaterialInfo& m = sm.materials[i];
-        if (!firstUsed)
-            firstUsed = &m;
-        varyingMR = varyingMR || m.metallicRoughnessImage >= 0 || m.metallic != firstUsed->metallic ||
-                    m.roughness != firstUsed->roughness;
-        emits = emits || m.emissiveImage >= 0 || m.emissive != glm::vec3(0.0f);
-        emissiveScale = std::max({emissiveScale, m.emissive.r, m.emissive.g, m.emissive.b});
-        occludes = occludes || m.occlusionImage >= 0;
+    for (const io::MaterialInfo* m : used) {
+        varyingMR = varyingMR || m->metallic != used[0]->metallic || m->roughness != used[0]->roughness;
+        mrTextured = mrTextured || m->metallicRoughnessImage >= 0 || m->occlusionImage >= 0;
+        occludes = occludes || m->occlusionImage >= 0;
+        emissiveTextured = emissiveTextured || m->emissiveImage >= 0;
+        emits = emits || m->emissive != glm::vec3(0.0f);
+        emissiveScale = std::max({emissiveScale, m->emissive.r, m->emissive.g, m->emissive.b});
     }
-    varyingMR = varyingMR || occludes;
+    varyingMR = varyingMR || mrTextured;
+    emits = emits || emissiveTextured;
     // A capture point's material, texture UV and vertex colour.
     struct Point {
         const io::MaterialInfo* material;
@@ -1176,16 +1176,11 @@ void BakeJob::carryColour()
         return v;
     };
     std::vector<uint32_t> mrValues, emissiveValues;
-    bool mrTextured = false, emissiveTextured = false;
-    for (size_t i = 0; i < sm.materials.size(); ++i)
-        if (usedMaterial[i]) {
-            const io::MaterialInfo& m = sm.materials[i];
-            mrTextured = mrTextured || m.metallicRoughnessImage >= 0 || m.occlusionImage >= 0;
-            emissiveTextured = emissiveTextured || m.emissiveImage >= 0;
-            mrValues.push_back(rgbaCode(255, code(m.roughness, false), code(m.metallic, false)));
-            const glm::vec3 e = m.emissive / emissiveScale;
-            emissiveValues.push_back(rgbaCode(code(e.r, true), code(e.g, true), code(e.b, true)));
-        }
+    for (const io::MaterialInfo* m : used) {
+        mrValues.push_back(rgbaCode(255, code(m->roughness, false), code(m->metallic, false)));
+        const glm::vec3 e = m->emissive / emissiveScale;
+        emissiveValues.push_back(rgbaCode(code(e.r, true), code(e.g, true), code(e.b, true)));
+    }
     for (size_t k = 1; k < images.size(); ++k) {
         const bool isMR = k == 1 && varyingMR;
         if (isMR ? mrTextured : emissiveTextured) {

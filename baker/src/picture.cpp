@@ -103,13 +103,10 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                         colour[ch] *= value;
                     }
                 if (part.image && part.uvs) {
-                    const io::MaterialInfo* mat = part.material;
-                    const glm::dvec4 texel =
-                        mat ? io::sampleImage(*part.image, glm::dvec2(mat->textureUV(glm::vec2(uv))), false,
-                                              mat->wrapS, mat->wrapT)
-                            : io::sampleImage(*part.image, uv);
-                    colour *= glm::dvec4(io::srgbToLinear(texel.r), io::srgbToLinear(texel.g),
-                                         io::srgbToLinear(texel.b), texel.a);
+                    const io::MaterialInfo plain;  // glTF's default sampler
+                    const io::MaterialInfo& mat = part.material ? *part.material : plain;
+                    colour *= io::sampleLinear(mat, *part.image,
+                                               part.material ? glm::dvec2(mat.textureUV(glm::vec2(uv))) : uv);
                 }
                 const double lit = 0.3 + 0.7 * std::max(0.0, glm::dot(normal, glm::dvec3(light)));
                 depth[at] = float(z);

@@ -139,14 +139,18 @@ double linearToSrgb(double linear)
     return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
 }
 
+glm::dvec4 sampleLinear(const MaterialInfo& material, const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
+{
+    const glm::dvec4 t = sampleImage(image, uv, nearest, material.wrapS, material.wrapT);
+    return glm::dvec4(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b), t.a);
+}
+
 glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
                         const glm::dvec4& vertexColour, bool nearest)
 {
     glm::dvec4 c = glm::dvec4(material.baseColor) * vertexColour;
-    if (image && image->width > 0 && image->height > 0) {
-        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
-        c *= glm::dvec4(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b), t.a);
-    }
+    if (image && image->width > 0 && image->height > 0)
+        c *= sampleLinear(material, *image, uv, nearest);
     return c;
 }
 
@@ -163,10 +167,8 @@ glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* im
 glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest)
 {
     glm::dvec3 e(material.emissive);
-    if (image && image->width > 0 && image->height > 0) {
-        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
-        e *= glm::dvec3(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b));
-    }
+    if (image && image->width > 0 && image->height > 0)
+        e *= glm::dvec3(sampleLinear(material, *image, uv, nearest));
     return e;
 }
 
@@ -253,22 +255,22 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         // The metallic-roughness, emissive and occlusion textures, read
         // through the base colour texture's UVs (the first texture's,
         // without one).
-        const auto alongside = [&](const tinygltf::TextureInfo& info, int* image) {
-            if (info.index < 0 || size_t(info.index) >= m.textures.size())
+        const auto alongside = [&](int index, int set, const tinygltf::ExtensionMap& extensions, int* image) {
+            if (index < 0 || size_t(index) >= m.textures.size())
                 return;
-            const int src = m.textures[size_t(info.index)].source;
+            const int src = m.textures[size_t(index)].source;
             MaterialInfo probe;
-            probe.texCoord = std::clamp(info.texCoord, 0, 7);
-            if (src < 0 || size_t(src) >= m.images.size() || !readTextureTransform(info.extensions, &probe)) {
+            probe.texCoord = std::clamp(set, 0, 7);
+            if (src < 0 || size_t(src) >= m.images.size() || !readTextureTransform(extensions, &probe)) {
                 ++mat.unreadTextures;
                 return;
             }
-            if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0 && mat.occlusionImage < 0) {
+            if (!mat.textured()) {
                 mat.texCoord = probe.texCoord;
                 mat.uvOffset = probe.uvOffset;
                 mat.uvScale = probe.uvScale;
                 mat.uvRotation = probe.uvRotation;
-                samplerOf(m, info.index, &mat);
+                samplerOf(m, index, &mat);
             } else if (probe.texCoord != mat.texCoord || probe.uvOffset != mat.uvOffset ||
                        probe.uvScale != mat.uvScale || probe.uvRotation != mat.uvRotation) {
                 ++mat.unreadTextures;
@@ -277,13 +279,12 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             *image = src;
             used[size_t(src)] = true;
         };
-        alongside(in.pbrMetallicRoughness.metallicRoughnessTexture, &mat.metallicRoughnessImage);
-        alongside(in.emissiveTexture, &mat.emissiveImage);
-        tinygltf::TextureInfo occlusion;
-        occlusion.index = in.occlusionTexture.index;
-        occlusion.texCoord = in.occlusionTexture.texCoord;
-        occlusion.extensions = in.occlusionTexture.extensions;
-        alongside(occlusion, &mat.occlusionImage);
+        const tinygltf::TextureInfo& mr = in.pbrMetallicRoughness.metallicRoughnessTexture;
+        alongside(mr.index, mr.texCoord, mr.extensions, &mat.metallicRoughnessImage);
+        alongside(in.emissiveTexture.index, in.emissiveTexture.texCoord, in.emissiveTexture.extensions,
+                  &mat.emissiveImage);
+        alongside(in.occlusionTexture.index, in.occlusionTexture.texCoord, in.occlusionTexture.extensions,
+                  &mat.occlusionImage);
         if (std::isfinite(in.occlusionTexture.strength))
             mat.occlusionStrength = float(std::clamp(in.occlusionTexture.strength, 0.0, 1.0));
         const std::vector<double>& ef = in.emissiveFactor;
@@ -328,16 +329,11 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             if (warnings)
                 warnings->push_back("image " + std::to_string(i) + " (" + printable(m.images[i].name, 60) +
                                     ") cannot be decoded; drawn untextured");
-            for (MaterialInfo& mat : s.materials) {
-                if (mat.image == int(i))
-                    mat.image = -1;
-                if (mat.metallicRoughnessImage == int(i))
-                    mat.metallicRoughnessImage = -1;
-                if (mat.emissiveImage == int(i))
-                    mat.emissiveImage = -1;
-                if (mat.occlusionImage == int(i))
-                    mat.occlusionImage = -1;
-            }
+            for (MaterialInfo& mat : s.materials)
+                for (int* texture :
+                     {&mat.image, &mat.metallicRoughnessImage, &mat.emissiveImage, &mat.occlusionImage})
+                    if (*texture == int(i))
+                        *texture = -1;
             continue;
         }
         s.images[i].width = w;
@@ -368,7 +364,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             }
         }
         const MaterialInfo& mat = s.materials[size_t(mi)];
-        if (mat.image < 0 && mat.metallicRoughnessImage < 0 && mat.emissiveImage < 0 && mat.occlusionImage < 0)
+        if (!mat.textured())
             continue;
         auto it = prim.attributes.find("TEXCOORD_" + std::to_string(mat.texCoord));
         std::vector<float> uv;

@@ -2,12 +2,7 @@
 # Fox and CesiumMan baked with --control auto, then opened in Blender 3.4's
 # glTF importer against their sources (character_plays.py).
 #   tests/blender/character_plays.sh BUILD_DIR WORK_DIR
-set -euo pipefail
-build=$1
-work=$2
-here=$(cd "$(dirname "$0")" && pwd)
-data=$here/../data
-mkdir -p "$work"
+source "$(dirname "$0")/prologue.sh" "$@"
 for name in Fox CesiumMan; do
   "$build/tools/strata-bake" --high "$data/$name.glb" --control auto -o "$work/$name.glb" >/dev/null
   blender -b --factory-startup --python "$here/character_plays.py" -- "$data/$name.glb" "$work/$name.glb" \

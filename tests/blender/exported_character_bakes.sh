@@ -7,12 +7,7 @@
 # were read as smooth), and smaller than the export (its animation keys'
 # times written once, not once per channel).
 #   tests/blender/exported_character_bakes.sh BUILD_DIR WORK_DIR
-set -euo pipefail
-build=$1
-work=$2
-here=$(cd "$(dirname "$0")" && pwd)
-data=$here/../data
-mkdir -p "$work"
+source "$(dirname "$0")/prologue.sh" "$@"
 blender -b --factory-startup --python "$here/../../tools/blender_roundtrip.py" -- "$data/Fox.glb" "$work/fox_blender.glb" \
   >"$work/blender.log" 2>&1 || { grep -E "FAILED|Error" "$work/blender.log" | head -5; exit 1; }
 "$build/tools/strata-bake" --high "$work/fox_blender.glb" --control auto -o "$work/rig.glb" \

@@ -7,11 +7,7 @@
 # (holding both halves' values) and its emission from an image (holding the
 # orange and black), as it finds them in the source's two materials' factors.
 #   tests/blender/materials_carried.sh BUILD_DIR WORK_DIR
-set -euo pipefail
-build=$1
-work=$2
-here=$(cd "$(dirname "$0")" && pwd)
-mkdir -p "$work"
+source "$(dirname "$0")/prologue.sh" "$@"
 python3 - "$work/spheres.glb" <<'PY'
 import json, math, struct, sys
 rows, columns = 32, 64

@@ -52,6 +52,11 @@ struct MaterialInfo {
     /// Of those three, how many are on another UV set or transform than the
     /// first texture's, or have no image Strata decodes (not read).
     int unreadTextures = 0;
+    /// Whether any of its four textures is read (its UVs are then needed).
+    bool textured() const
+    {
+        return image >= 0 || metallicRoughnessImage >= 0 || emissiveImage >= 0 || occlusionImage >= 0;
+    }
 };
 
 struct ImageRGBA {
@@ -75,6 +80,11 @@ struct SceneMaterials {
 /// base colour factors and vertex colours are linear.
 double srgbToLinear(double coded);
 double linearToSrgb(double linear);
+
+/// The image at `uv` through `material`'s sampler, its RGB sRGB-decoded
+/// (a base colour or emissive texture as glTF reads it), alpha as stored.
+glm::dvec4 sampleLinear(const MaterialInfo& material, const ImageRGBA& image, const glm::dvec2& uv,
+                        bool nearest = false);
 
 /// The base colour glTF draws with, linear RGBA: the material's factor
 /// times its texture at `uv` (a texture UV, MaterialInfo::textureUV's;
