@@ -6,6 +6,7 @@ in vec3 v_normal;
 in float v_displacement;
 in float v_error;
 in vec2 v_materialUV;
+in vec2 v_emissiveUV;  // the base colour's UVs, or a second set's
 in vec4 v_vertexColour;
 
 uniform int u_colorMode;       // 0 shaded, 1 displacement, 2 error, 3 flat (wireframe)
@@ -69,7 +70,7 @@ void main()
         alpha = u_alphaMode == 2 ? c.a : 1.0;
         emitted = u_emissive;
         if (u_hasEmissiveTexture != 0)
-            emitted *= texture(u_emissiveTexture, v_materialUV).rgb;
+            emitted *= texture(u_emissiveTexture, v_emissiveUV).rgb;
         emitted = srgbEncode(emitted);
     }
     if (u_colorMode == 1)

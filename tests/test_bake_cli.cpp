@@ -1437,6 +1437,60 @@ TEST(BakeLibrary, AutomaticCageCarriesEachMaterialsMetallicRoughnessAndEmissive)
     }
 }
 
+// Occlusion and emission read through TEXCOORD_1 (baked occlusion as
+// exporters write it), the base colour through TEXCOORD_0: the rig's
+// textures carry each, read back as glTF reads them, a ramp along x at every
+// cage face's centre.  Before, a texture on another UV set than the base
+// colour's was not read, and named as not carried.
+TEST(BakeLibrary, AutomaticCageCarriesTexturesOnASecondUVSet)
+{
+    const std::string dir = strata::test::tempDir("bake_second_uv_set");
+    ASSERT_TRUE(strata::test::writeColouredSphere(dir + "/sphere.glb", strata::test::SphereColour::SecondUVSet));
+    {
+        strata::Rig capture;
+        ASSERT_TRUE(strata::io::loadRig(dir + "/sphere.glb", &capture).isOk());
+        strata::io::SceneMaterials read;
+        ASSERT_TRUE(strata::io::loadSceneMaterials(capture, &read).isOk());
+        const strata::io::MaterialInfo& m = read.materials[0];
+        EXPECT_TRUE(m.hasSecond);
+        EXPECT_EQ(m.second.texCoord, 1);
+        EXPECT_EQ(m.occlusionChannel, 1);
+        EXPECT_EQ(m.emissiveChannel, 1);
+        EXPECT_EQ(m.unreadTextures, 0);
+        ASSERT_EQ(read.fileUVs2.size(), capture.sourceVertex.size());
+    }
+    std::string summary;
+    ASSERT_TRUE(bakeCarryingEverything(dir + "/sphere.glb", dir + "/rig.glb", &summary));
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/rig.glb", &rig).isOk());
+    strata::io::SceneMaterials sm;
+    ASSERT_TRUE(strata::io::loadSceneMaterials(rig, &sm).isOk());
+    const strata::io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
+    ASSERT_GE(carried.image, 0);
+    ASSERT_GE(carried.occlusionImage, 0);
+    ASSERT_GE(carried.emissiveImage, 0);
+    EXPECT_FALSE(carried.hasSecond);  // the rig reads everything through its one UV set
+    ASSERT_EQ(rig.fileCorners.size(), rig.mesh.triangles.size());
+    double worst = 0.0;
+    for (size_t f = 0; f < rig.mesh.faceCount(); ++f) {
+        glm::dvec2 uv;
+        glm::vec3 centre;
+        faceCentre(rig, sm, f, &uv, &centre);
+        const double ramp = double(strata::test::secondSetU(centre));
+        const double errors[3] = {
+            strata::io::baseColourAt(carried, &sm.images[size_t(carried.image)], uv).g -
+                strata::io::srgbToLinear(188.0 / 255.0),
+            strata::io::occlusionAt(carried, &sm.images[size_t(carried.occlusionImage)], uv) - ramp,
+            strata::io::emissiveAt(carried, &sm.images[size_t(carried.emissiveImage)], uv).r -
+                double(strata::test::kSecondSetEmissive) * strata::io::srgbToLinear(ramp)};
+        for (double d : errors)
+            worst = std::max(worst, std::abs(d));
+    }
+    // The ramp changes by 0.8 across the sphere: texels of 1/256 across a
+    // face's centre and 8-bit codes leave a few hundredths.
+    EXPECT_LT(worst, 0.03);
+}
+
 // A character whose animation throws it out of range (two nested joints
 // scaled by 1e20: posed, its vertices overflow a float) cannot be played,
 // so --control auto refuses it before decimating in its poses: one line

@@ -18,6 +18,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <tiny_gltf.h>
 
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <string>
@@ -79,7 +80,21 @@ enum class SphereColour {
     /// emissive factors, a white base colour; the bottom's emission made
     /// kBottomEmissiveStrength times stronger (KHR_materials_emissive_strength).
     TwoMaterials,
+    /// HalfTexture's base colour, with occlusion (strength 1) and emission
+    /// (a factor of kSecondSetEmissive, red) read from one texture on
+    /// TEXCOORD_1, as exporters write baked occlusion: a grey ramp whose
+    /// code at u is 255 u, through u = secondSetU(point), v = 0.5.
+    SecondUVSet,
 };
+
+/// SecondUVSet's emissive factor: red alone, under the lit grey's white.
+constexpr float kSecondSetEmissive = 0.4f;
+
+/// SecondUVSet's TEXCOORD_1 u at a point: a linear function of the direction.
+inline float secondSetU(const glm::vec3& p)
+{
+    return 0.5f + 0.4f * glm::normalize(p).x;
+}
 
 /// TwoMaterials' factors: metallic, roughness, emissive red, green, blue.
 constexpr float kTopMaterial[5] = {0.0f, 0.2f, 0.0f, 0.0f, 0.0f};
@@ -151,6 +166,31 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.images.push_back(image);
         model.textures.emplace_back().source = 0;
         material.pbrMetallicRoughness.baseColorTexture.index = 0;
+        if (how == SphereColour::SecondUVSet) {
+            std::vector<glm::vec2> second;
+            for (const glm::vec3& p : sphere.positions)
+                second.emplace_back(secondSetU(p), 0.5f);
+            prim.attributes["TEXCOORD_1"] = addAccessor(model, second.data(), n * 8, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                        TINYGLTF_TYPE_VEC2, n, kVertices);
+            constexpr int kRamp = 64;
+            std::vector<uint8_t> ramp;
+            for (int y = 0; y < 2; ++y)
+                for (int x = 0; x < kRamp; ++x)
+                    for (int k = 0; k < 4; ++k)
+                        ramp.push_back(k == 3 ? 255 : uint8_t(std::lround(255.0 * (x + 0.5) / kRamp)));
+            if (!io::encodePngRgba(kRamp, 2, ramp, &png))
+                return false;
+            tinygltf::Image rampImage;
+            rampImage.bufferView = addBufferView(model, png.data(), png.size(), 0);
+            rampImage.mimeType = "image/png";
+            model.images.push_back(rampImage);
+            model.textures.emplace_back().source = 1;
+            material.occlusionTexture.index = 1;
+            material.occlusionTexture.texCoord = 1;
+            material.emissiveTexture.index = 1;
+            material.emissiveTexture.texCoord = 1;
+            material.emissiveFactor = {double(kSecondSetEmissive), 0.0, 0.0};
+        }
     }
     std::vector<uint32_t> halves[2];  // faces above y = 0, then below
     for (size_t f = 0; f < sphere.faceCount(); ++f) {

@@ -1655,8 +1655,8 @@ TEST(Scene, ASpecularGlossinessMaterialsDiffuseIsItsColour)
 
 // A material's metallic-roughness, emissive and occlusion textures are read
 // through its base colour texture's UVs where they share its set and
-// transform; one on another set is counted, and named among what is not
-// carried.
+// transform, through a second channel where they do not; one on a third
+// set or transform is counted, and named among what is not carried.
 TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -1694,14 +1694,32 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     EXPECT_NEAR(io::emissiveAt(m, &image, uv).g, 0.5 * io::srgbToLinear(t.g), 1e-6);
     EXPECT_NEAR(io::occlusionAt(m, &image, uv), 1.0 + 0.5 * (t.r - 1.0), 1e-12);
     EXPECT_EQ(io::featuresNotCarried(rig, 0, &after).find("metallic-roughness"), std::string::npos);
-    // On another UV set: not read, and named.
+    // On another UV set: read through the second channel, that set's UVs.
     mat.emissiveTexture.texCoord = 1;
-    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/other_set.glb", &rig, &after));
-    EXPECT_EQ(after.materials[0].emissiveImage, -1);
+    for (tinygltf::Primitive& prim : model.meshes[0].primitives)
+        prim.attributes["TEXCOORD_1"] = prim.attributes.at("TEXCOORD_0");
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/other_set.glb", &rig, &after, &warnings));
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+    EXPECT_EQ(after.materials[0].emissiveImage, m.image);
+    EXPECT_EQ(after.materials[0].emissiveChannel, 1);
+    EXPECT_EQ(after.materials[0].occlusionChannel, 0);
+    EXPECT_TRUE(after.materials[0].hasSecond);
+    EXPECT_EQ(after.materials[0].unreadTextures, 0);
+    EXPECT_EQ(after.fileUVs2, before.fileUVs);
+    // A third set or transform: not read, and named.
+    tinygltf::Value::Object shift;
+    shift["offset"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(0.5), tinygltf::Value(0.0)});
+    mat.occlusionTexture.texCoord = 1;
+    mat.occlusionTexture.extensions["KHR_texture_transform"] = tinygltf::Value(shift);
+    model.extensionsUsed.push_back("KHR_texture_transform");
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/third.glb", &rig, &after));
+    EXPECT_EQ(after.materials[0].emissiveImage, m.image);
+    EXPECT_EQ(after.materials[0].occlusionImage, -1);
     EXPECT_EQ(after.materials[0].unreadTextures, 1);
     EXPECT_NE(io::featuresNotCarried(rig, 0, &after)
-                  .find("metallic-roughness, emissive or occlusion textures on another UV set than the base "
-                        "colour's, or not decoded (1 material)"),
+                  .find("metallic-roughness, emissive or occlusion textures on a third UV set or transform, or not "
+                        "decoded (1 material)"),
               std::string::npos)
         << io::featuresNotCarried(rig, 0, &after);
 }

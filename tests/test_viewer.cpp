@@ -201,8 +201,23 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
     EXPECT_GT(glowing(two), 0.1);
     EXPECT_GT(glowing(twoRig), 0.1);
     EXPECT_LT(middle(two, twoRig), 4.0);
-    std::printf("vertex %.2f texture %.2f rig %.2f grey %.2f\n", middle(factor, vertex), middle(factor, texture),
-                middle(source, rig), middle(source, grey));
+
+    // An emissive texture on TEXCOORD_1 (a ramp along x): the sphere draws
+    // as its rig, which carries the ramp through its one UV set, refined
+    // uniformly and adaptively.  (strata-view read it through the base
+    // colour's UVs, one texel of the ramp everywhere: 5 levels off.)
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/second.glb", test::SphereColour::SecondUVSet));
+    const test::CommandResult bakeSecond = test::runCommand(
+        std::string(STRATA_BAKE_EXE) + " --high '" + dir + "/second.glb' --control auto -o '" + dir + "/second_rig.glb'");
+    ASSERT_EQ(bakeSecond.code, 0) << bakeSecond.output;
+    const Image second = shoot(dir + "/second.glb", "", dir + "/second.png");
+    const Image secondAdaptive = shoot(dir + "/second.glb", "--adaptive --no-level-colours", dir + "/second_lod.png");
+    const Image secondRig = shoot(dir + "/second_rig.glb", "", dir + "/second_rig.png");
+    EXPECT_LT(middle(second, secondRig), 3.0);
+    EXPECT_LT(middle(secondAdaptive, secondRig), 3.0);
+    std::printf("vertex %.2f texture %.2f rig %.2f grey %.2f second set %.2f (adaptive %.2f)\n",
+                middle(factor, vertex), middle(factor, texture), middle(source, rig), middle(source, grey),
+                middle(second, secondRig), middle(secondAdaptive, secondRig));
 }
 
 TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)

@@ -200,17 +200,21 @@ Status Scene::uploadMaterials()
     Status st = refineFaceVarying(&fv, rig_->mesh, rig_->fileCorners.data(), rig_->sourceVertex.size(), settings.level);
     if (!st)
         return st;
-    std::vector<glm::vec2> corners(fv.corners.size());
+    std::vector<glm::vec2> corners(fv.corners.size()), corners2(materials_.fileUVs2.empty() ? 0 : corners.size());
     std::vector<glm::vec4> colours(materials_.fileColours.empty() ? 0 : fv.corners.size());
     for (size_t c = 0; c < corners.size(); ++c) {
-        glm::vec2 uv(0.0f);
+        glm::vec2 uv(0.0f), uv2(0.0f);
         glm::vec4 colour(0.0f);
         for (uint32_t k = fv.offsets[fv.corners[c]]; k < fv.offsets[fv.corners[c] + 1]; ++k) {
             uv += fv.weights[k] * materials_.fileUVs[fv.sources[k]];
+            if (!corners2.empty())
+                uv2 += fv.weights[k] * materials_.fileUVs2[fv.sources[k]];
             if (!colours.empty())
                 colour += fv.weights[k] * materials_.fileColours[fv.sources[k]];
         }
         corners[c] = uv;
+        if (!corners2.empty())
+            corners2[c] = uv2;
         if (!colours.empty())
             colours[c] = colour;
     }
@@ -221,7 +225,7 @@ Status Scene::uploadMaterials()
         g.alphaMode = int(m.alphaMode);
         g.alphaCutoff = m.alphaCutoff;
         g.emissive = m.emissive;
-        g.wrapS = int(m.wrapS);  // every texture of the material is read through the same sampler
+        g.wrapS = int(m.wrapS);  // the first UV channel's sampler
         g.wrapT = int(m.wrapT);
         const auto image = [&](int index, int* width, int* height, const uint8_t** rgba) {
             if (index < 0 || size_t(index) >= materials_.images.size() || materials_.images[size_t(index)].rgba.empty())
@@ -233,6 +237,9 @@ Status Scene::uploadMaterials()
         };
         image(m.image, &g.textureWidth, &g.textureHeight, &g.textureRGBA);
         image(m.emissiveImage, &g.emissiveWidth, &g.emissiveHeight, &g.emissiveRGBA);
+        g.emissiveSecond = m.emissiveChannel == 1;
+        g.emissiveWrapS = int(m.second.wrapS);
+        g.emissiveWrapT = int(m.second.wrapT);
         mats.push_back(g);
     }
     const size_t per = size_t(1) << (2 * settings.level);
@@ -243,7 +250,7 @@ Status Scene::uploadMaterials()
             ranges.push_back(
                 {size_t(part.firstFace) * per, size_t(part.faceCount) * per, materials_.partMaterial[p], part.flat});
     }
-    return surface_->setMaterials(mats, ranges, corners, colours);
+    return surface_->setMaterials(mats, ranges, corners, colours, corners2);
 }
 
 void Scene::computeErrors()
@@ -461,6 +468,9 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
     const std::vector<uint32_t>& faces = frame.triangleFaces();
     std::vector<glm::vec2> corners;
     frame.cornerUVs(&corners, materials_.fileUVs.data(), rig_->fileCorners.data());
+    std::vector<glm::vec2> corners2;  // the second UV channel's
+    if (!materials_.fileUVs2.empty())
+        frame.cornerUVs(&corners2, materials_.fileUVs2.data(), rig_->fileCorners.data());
     // COLOR_0 interpolates as the UVs do: its red-green and blue-alpha halves
     // through the same call.
     std::vector<glm::vec4> colours;
@@ -490,7 +500,7 @@ Status Scene::uploadAdaptiveMaterials(const AdaptiveFrame& frame)
         if (t > first)
             ranges.push_back({first, t - first, materials_.partMaterial[p], part.flat});
     }
-    return surface_->setAdaptiveMaterials(ranges, corners, colours);
+    return surface_->setAdaptiveMaterials(ranges, corners, colours, corners2);
 }
 
 // The adaptive frame for this view: levels chosen for the current pose,

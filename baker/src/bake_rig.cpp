@@ -1085,19 +1085,21 @@ void BakeJob::carryColour()
     }
     varyingMR = varyingMR || mrTextured;
     emits = emits || emissiveTextured;
-    // A capture point's material, texture UV and vertex colour.
+    // A capture point's material, texture UVs (its two channels) and vertex colour.
     struct Point {
         const io::MaterialInfo* material;
-        glm::dvec2 uv;
+        glm::dvec2 uv[2];
         glm::dvec4 vertexColour;
     };
     const auto pointOf = [&](uint32_t face, double b1, double b2) {
-        Point p{&sm.materials[size_t(faceMaterial[face])], glm::dvec2(0.0),
+        Point p{&sm.materials[size_t(faceMaterial[face])], {glm::dvec2(0.0), glm::dvec2(0.0)},
                 glm::dvec4(sm.fileColours.empty() ? 1.0 : 0.0)};
         const double w[3] = {1.0 - b1 - b2, b1, b2};
         for (int k = 0; k < 3 && corners; ++k) {
             const uint32_t file = highRig.fileCorners[3 * size_t(face) + size_t(k)];
-            p.uv += w[k] * glm::dvec2(sm.fileUVs[file]);
+            p.uv[0] += w[k] * glm::dvec2(sm.fileUVs[file]);
+            if (!sm.fileUVs2.empty())
+                p.uv[1] += w[k] * glm::dvec2(sm.fileUVs2[file]);
             if (!sm.fileColours.empty())
                 p.vertexColour += w[k] * glm::dvec4(sm.fileColours[file]);
         }
@@ -1123,7 +1125,7 @@ void BakeJob::carryColour()
         const io::MaterialInfo& m = *p.material;
         if (!corners)
             return glm::vec4(m.baseColor);
-        return glm::vec4(io::baseColourAt(m, imageOf(m.image), p.uv, p.vertexColour, nearest(m.image)));
+        return glm::vec4(io::baseColourAt(m, imageOf(m.image), p.uv[0], p.vertexColour, nearest(m.image)));
     };
     std::vector<ColourLayer> textures{{colour, true}};
     if (varyingMR)  // R occlusion, G roughness, B metallic, as glTF reads them
@@ -1132,8 +1134,10 @@ void BakeJob::carryColour()
                               const io::MaterialInfo& m = *p.material;
                               const int image = corners ? m.metallicRoughnessImage : -1;
                               const int ao = corners ? m.occlusionImage : -1;
-                              const glm::dvec2 mr = io::metallicRoughnessAt(m, imageOf(image), p.uv, nearest(image));
-                              const double occlusion = io::occlusionAt(m, imageOf(ao), p.uv, nearest(ao));
+                              const glm::dvec2 mr = io::metallicRoughnessAt(
+                                  m, imageOf(image), p.uv[m.metallicRoughnessChannel], nearest(image));
+                              const double occlusion =
+                                  io::occlusionAt(m, imageOf(ao), p.uv[m.occlusionChannel], nearest(ao));
                               return glm::vec4(float(occlusion), float(mr.y), float(mr.x), 1.0f);
                           },
                           false});
@@ -1141,7 +1145,8 @@ void BakeJob::carryColour()
         textures.push_back({[&](uint32_t face, double b1, double b2) {
                               const Point p = pointOf(face, b1, b2);
                               const int image = corners ? p.material->emissiveImage : -1;
-                              return glm::vec4(glm::vec3(io::emissiveAt(*p.material, imageOf(image), p.uv,
+                              const glm::dvec2 uv = p.uv[p.material->emissiveChannel];
+                              return glm::vec4(glm::vec3(io::emissiveAt(*p.material, imageOf(image), uv,
                                                                         nearest(image))) /
                                                    emissiveScale,
                                                1.0f);

@@ -34,7 +34,7 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
 }
 
 // Texture `tex`'s sampler's wraps, into `mat` (glTF's default: repeat).
-void samplerOf(const tinygltf::Model& m, int tex, MaterialInfo* mat)
+void samplerOf(const tinygltf::Model& m, int tex, TextureCoords* mat)
 {
     const int sampler = m.textures[size_t(tex)].sampler;
     if (sampler < 0 || size_t(sampler) >= m.samplers.size())
@@ -50,13 +50,13 @@ void samplerOf(const tinygltf::Model& m, int tex, MaterialInfo* mat)
 
 // KHR_texture_transform of a texture reference, into `mat`; false (mat
 // unchanged) when its values are not finite numbers of the right shape.
-bool readTextureTransform(const tinygltf::ExtensionMap& extensions, MaterialInfo* mat)
+bool readTextureTransform(const tinygltf::ExtensionMap& extensions, TextureCoords* mat)
 {
     const auto it = extensions.find("KHR_texture_transform");
     if (it == extensions.end() || !it->second.IsObject())
         return true;
     const tinygltf::Value& t = it->second;
-    MaterialInfo m = *mat;
+    TextureCoords m = *mat;
     auto number = [](const tinygltf::Value& v, float* out) {
         if (!v.IsNumber() && !v.IsInt())
             return false;
@@ -84,7 +84,7 @@ bool readTextureTransform(const tinygltf::ExtensionMap& extensions, MaterialInfo
 
 }  // namespace
 
-glm::vec2 MaterialInfo::textureUV(glm::vec2 uv) const
+glm::vec2 TextureCoords::textureUV(glm::vec2 uv) const
 {
     const glm::vec2 s = uvScale * uv;
     const float c = std::cos(uvRotation), n = std::sin(uvRotation);
@@ -139,7 +139,7 @@ double linearToSrgb(double linear)
     return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
 }
 
-glm::dvec4 sampleLinear(const MaterialInfo& material, const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
+glm::dvec4 sampleLinear(const TextureCoords& material, const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
 {
     const glm::dvec4 t = sampleImage(image, uv, nearest, material.wrapS, material.wrapT);
     return glm::dvec4(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b), t.a);
@@ -158,7 +158,8 @@ glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* im
 {
     glm::dvec2 mr(material.metallic, material.roughness);
     if (image && image->width > 0 && image->height > 0) {
-        const glm::dvec4 t = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT);
+        const TextureCoords& c = material.channel(material.metallicRoughnessChannel);
+        const glm::dvec4 t = sampleImage(*image, uv, nearest, c.wrapS, c.wrapT);
         mr *= glm::dvec2(t.b, t.g);
     }
     return mr;
@@ -168,7 +169,7 @@ glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, cons
 {
     glm::dvec3 e(material.emissive);
     if (image && image->width > 0 && image->height > 0)
-        e *= glm::dvec3(sampleLinear(material, *image, uv, nearest));
+        e *= glm::dvec3(sampleLinear(material.channel(material.emissiveChannel), *image, uv, nearest));
     return e;
 }
 
@@ -176,7 +177,8 @@ double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const g
 {
     if (!image || image->width <= 0 || image->height <= 0)
         return 1.0;
-    const double r = sampleImage(*image, uv, nearest, material.wrapS, material.wrapT).r;
+    const TextureCoords& c = material.channel(material.occlusionChannel);
+    const double r = sampleImage(*image, uv, nearest, c.wrapS, c.wrapT).r;
     return 1.0 + double(material.occlusionStrength) * (r - 1.0);
 }
 
@@ -252,39 +254,45 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 warnings->push_back("material " + std::to_string(s.materials.size()) + " (" + printable(in.name, 60) +
                                     "): its KHR_texture_transform is not numbers of the right shape; ignored");
         }
-        // The metallic-roughness, emissive and occlusion textures, read
+        // The metallic-roughness, emissive and occlusion textures, each read
         // through the base colour texture's UVs (the first texture's,
-        // without one).
-        const auto alongside = [&](int index, int set, const tinygltf::ExtensionMap& extensions, int* image) {
+        // without one) where it shares their set and transform, else
+        // through the second channel, which the first to differ sets.
+        const auto alongside = [&](int index, int set, const tinygltf::ExtensionMap& extensions, int* image,
+                                   int* channel) {
             if (index < 0 || size_t(index) >= m.textures.size())
                 return;
             const int src = m.textures[size_t(index)].source;
-            MaterialInfo probe;
+            TextureCoords probe;
             probe.texCoord = std::clamp(set, 0, 7);
             if (src < 0 || size_t(src) >= m.images.size() || !readTextureTransform(extensions, &probe)) {
                 ++mat.unreadTextures;
                 return;
             }
+            samplerOf(m, index, &probe);
             if (!mat.textured()) {
-                mat.texCoord = probe.texCoord;
-                mat.uvOffset = probe.uvOffset;
-                mat.uvScale = probe.uvScale;
-                mat.uvRotation = probe.uvRotation;
-                samplerOf(m, index, &mat);
-            } else if (probe.texCoord != mat.texCoord || probe.uvOffset != mat.uvOffset ||
-                       probe.uvScale != mat.uvScale || probe.uvRotation != mat.uvRotation) {
-                ++mat.unreadTextures;
+                static_cast<TextureCoords&>(mat) = probe;
+                *channel = 0;
+            } else if (probe.sameUVs(mat)) {
+                *channel = 0;
+            } else if (!mat.hasSecond || probe.sameUVs(mat.second)) {
+                if (!mat.hasSecond)
+                    mat.second = probe;
+                mat.hasSecond = true;
+                *channel = 1;
+            } else {
+                ++mat.unreadTextures;  // a third set or transform
                 return;
             }
             *image = src;
             used[size_t(src)] = true;
         };
         const tinygltf::TextureInfo& mr = in.pbrMetallicRoughness.metallicRoughnessTexture;
-        alongside(mr.index, mr.texCoord, mr.extensions, &mat.metallicRoughnessImage);
+        alongside(mr.index, mr.texCoord, mr.extensions, &mat.metallicRoughnessImage, &mat.metallicRoughnessChannel);
         alongside(in.emissiveTexture.index, in.emissiveTexture.texCoord, in.emissiveTexture.extensions,
-                  &mat.emissiveImage);
+                  &mat.emissiveImage, &mat.emissiveChannel);
         alongside(in.occlusionTexture.index, in.occlusionTexture.texCoord, in.occlusionTexture.extensions,
-                  &mat.occlusionImage);
+                  &mat.occlusionImage, &mat.occlusionChannel);
         if (std::isfinite(in.occlusionTexture.strength))
             mat.occlusionStrength = float(std::clamp(in.occlusionTexture.strength, 0.0, 1.0));
         const std::vector<double>& ef = in.emissiveFactor;
@@ -366,16 +374,24 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         const MaterialInfo& mat = s.materials[size_t(mi)];
         if (!mat.textured())
             continue;
-        auto it = prim.attributes.find("TEXCOORD_" + std::to_string(mat.texCoord));
-        std::vector<float> uv;
-        if (it == prim.attributes.end() || !readFloatAccessor(m, it->second, 2, it->first, &uv) ||
-            uv.size() != 2 * size_t(part.vertexCount)) {
-            if (warnings)
-                warnings->push_back(part.name + ": its material's texture has no usable UVs; drawn untextured");
-            continue;
+        for (int c = 0; c < (mat.hasSecond ? 2 : 1); ++c) {
+            const TextureCoords& coords = mat.channel(c);
+            auto it = prim.attributes.find("TEXCOORD_" + std::to_string(coords.texCoord));
+            std::vector<float> uv;
+            if (it == prim.attributes.end() || !readFloatAccessor(m, it->second, 2, it->first, &uv) ||
+                uv.size() != 2 * size_t(part.vertexCount)) {
+                if (warnings)
+                    warnings->push_back(part.name + ": its material's " + (c ? "second UV set" : "texture") +
+                                        " has no usable UVs (TEXCOORD_" + std::to_string(coords.texCoord) +
+                                        "); drawn untextured");
+                continue;
+            }
+            std::vector<glm::vec2>& to = c ? s.fileUVs2 : s.fileUVs;
+            if (to.empty())
+                to.assign(rig.sourceVertex.size(), glm::vec2(0.0f));
+            for (uint32_t v = 0; v < part.vertexCount; ++v)
+                to[part.firstVertex + v] = coords.textureUV(glm::vec2(uv[2 * v], uv[2 * v + 1]));
         }
-        for (uint32_t v = 0; v < part.vertexCount; ++v)
-            s.fileUVs[part.firstVertex + v] = mat.textureUV(glm::vec2(uv[2 * v], uv[2 * v + 1]));
     }
     *out = std::move(s);
     return Status::ok();
@@ -412,7 +428,7 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
         if (!materials && in.occlusionTexture.index >= 0)
             ++counts["occlusion textures"];
         if (materials && i < materials->materials.size() && materials->materials[i].unreadTextures > 0)
-            ++counts["metallic-roughness, emissive or occlusion textures on another UV set than the base colour's, "
+            ++counts["metallic-roughness, emissive or occlusion textures on a third UV set or transform, "
                      "or not decoded"];
         for (const auto& e : in.extensions)
             if (e.first != "KHR_materials_emissive_strength")  // carried

@@ -26,7 +26,7 @@ std::string linesShaderSource(GLenum stage)
 namespace {
 
 // Binding points of the draw pass's own buffers (surface.vert.glsl).
-constexpr GLuint kErrors = 12, kCornerUVs = 14, kCornerColours = 15;
+constexpr GLuint kErrors = 12, kCornerUVs = 14, kCornerColours = 15, kCornerUVs2 = 16;
 
 }  // namespace
 
@@ -66,8 +66,8 @@ Status GpuSurface::create(std::unique_ptr<GpuSurface>* out, const Plan& plan, bo
 
 GpuSurface::~GpuSurface()
 {
-    for (GLuint b : {errors_, feedback_, cornerUVs_, cornerColours_, triangleLevels_, adaptiveCornerUVs_,
-                     adaptiveCornerColours_})
+    for (GLuint b : {errors_, feedback_, cornerUVs_, cornerColours_, cornerUVs2_, triangleLevels_, adaptiveCornerUVs_,
+                     adaptiveCornerColours_, adaptiveCornerUVs2_})
         if (b)
             glDeleteBuffers(1, &b);
     glDeleteVertexArrays(1, &vao_);
@@ -114,13 +114,16 @@ bool rangesFit(const std::vector<MaterialRange>& ranges, size_t faces, size_t ma
 }  // namespace
 
 Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
-                                const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours)
+                                const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours,
+                                const std::vector<glm::vec2>& cornerUVs2)
 {
     const size_t faceCount_ = faceCount();
-    if (cornerUVs.size() != 3 * faceCount_ || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()))
+    if (cornerUVs.size() != 3 * faceCount_ || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()) ||
+        (!cornerUVs2.empty() && cornerUVs2.size() != cornerUVs.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: " + std::to_string(cornerUVs.size()) +
-                                                       " corner UVs and " + std::to_string(cornerColours.size()) +
-                                                       " corner colours for " + std::to_string(faceCount_) + " faces");
+                                                       " corner UVs, " + std::to_string(cornerColours.size()) +
+                                                       " corner colours and " + std::to_string(cornerUVs2.size()) +
+                                                       " second UVs for " + std::to_string(faceCount_) + " faces");
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
     for (GpuMaterial& m : materials_) {
@@ -150,7 +153,9 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
         if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0)
             m.texture = texture(in.textureRGBA, in.textureWidth, in.textureHeight, in.wrapS, in.wrapT);
         if (in.emissiveRGBA && in.emissiveWidth > 0 && in.emissiveHeight > 0)
-            m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight, in.wrapS, in.wrapT);
+            m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight,
+                                        in.emissiveSecond ? in.emissiveWrapS : in.wrapS,
+                                        in.emissiveSecond ? in.emissiveWrapT : in.wrapT);
         m.material.textureRGBA = nullptr;
         m.material.emissiveRGBA = nullptr;
         materials_.push_back(m);
@@ -163,14 +168,18 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     glCreateBuffers(1, &cornerUVs_);
     glNamedBufferStorage(cornerUVs_, GLsizeiptr(std::max<size_t>(cornerUVs.size(), 1) * sizeof(glm::vec2)),
                          cornerUVs.empty() ? nullptr : cornerUVs.data(), 0);
-    if (cornerColours_)
-        glDeleteBuffers(1, &cornerColours_);
-    cornerColours_ = 0;
-    if (!cornerColours.empty()) {
-        glCreateBuffers(1, &cornerColours_);
-        glNamedBufferStorage(cornerColours_, GLsizeiptr(cornerColours.size() * sizeof(glm::vec4)), cornerColours.data(),
-                             0);
-    }
+    // Optional per-corner data: a buffer where given, else none.
+    const auto optional = [](GLuint* buffer, const void* data, size_t bytes) {
+        if (*buffer)
+            glDeleteBuffers(1, buffer);
+        *buffer = 0;
+        if (bytes) {
+            glCreateBuffers(1, buffer);
+            glNamedBufferStorage(*buffer, GLsizeiptr(bytes), data, 0);
+        }
+    };
+    optional(&cornerColours_, cornerColours.data(), cornerColours.size() * sizeof(glm::vec4));
+    optional(&cornerUVs2_, cornerUVs2.data(), cornerUVs2.size() * sizeof(glm::vec2));
     if (!cornerVao_)
         glCreateVertexArrays(1, &cornerVao_);  // no attributes: the shader reads buffers by corner
     return Status::ok();
@@ -202,14 +211,16 @@ void GpuSurface::sortBlendedLast(std::vector<MaterialRange>* ranges) const
 }
 
 Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs,
-                                        const std::vector<glm::vec4>& cornerColours)
+                                        const std::vector<glm::vec4>& cornerColours,
+                                        const std::vector<glm::vec2>& cornerUVs2)
 {
     const size_t triangles = evaluator_->adaptiveTriangleCount();
-    if (cornerUVs.size() != 3 * triangles || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()))
+    if (cornerUVs.size() != 3 * triangles || (!cornerColours.empty() && cornerColours.size() != cornerUVs.size()) ||
+        (!cornerUVs2.empty() && cornerUVs2.size() != cornerUVs.size()))
         return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: " + std::to_string(cornerUVs.size()) +
-                                                       " corner UVs and " + std::to_string(cornerColours.size()) +
-                                                       " corner colours for " + std::to_string(triangles) +
-                                                       " triangles");
+                                                       " corner UVs, " + std::to_string(cornerColours.size()) +
+                                                       " corner colours and " + std::to_string(cornerUVs2.size()) +
+                                                       " second UVs for " + std::to_string(triangles) + " triangles");
     if (!rangesFit(ranges, triangles, materials_.size()))
         return Status(StatusCode::InvalidArgument, "setAdaptiveMaterials: a triangle range is out of bounds");
     upload(&adaptiveCornerUVs_, &adaptiveCornerUVsCapacity_, cornerUVs.data(), cornerUVs.size() * sizeof(glm::vec2));
@@ -217,6 +228,10 @@ Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges
     if (adaptiveHasColours_)
         upload(&adaptiveCornerColours_, &adaptiveCornerColoursCapacity_, cornerColours.data(),
                cornerColours.size() * sizeof(glm::vec4));
+    adaptiveHasUVs2_ = !cornerUVs2.empty();
+    if (adaptiveHasUVs2_)
+        upload(&adaptiveCornerUVs2_, &adaptiveCornerUVs2Capacity_, cornerUVs2.data(),
+               cornerUVs2.size() * sizeof(glm::vec2));
     adaptiveRanges_ = ranges;
     sortBlendedLast(&adaptiveRanges_);
     return Status::ok();
@@ -225,8 +240,9 @@ Status GpuSurface::setAdaptiveMaterials(const std::vector<MaterialRange>& ranges
 // The shaded view with materials: corner-ordered draws (gl_VertexID is a
 // corner of `triangles`), one per range.
 void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
-                               GLuint cornerColours, GLuint vao)
+                               GLuint cornerColours, GLuint cornerUVs2, GLuint vao)
 {
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerUVs2, cornerUVs2 ? cornerUVs2 : cornerUVs);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kCornerColours, cornerColours);
     glUniform1i(glGetUniformLocation(prog, "u_hasColours"), cornerColours ? 1 : 0);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kSampleUVs, evaluator_->buffer(kSampleUVs));
@@ -253,6 +269,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
         glUniform3fv(glGetUniformLocation(prog, "u_emissive"), 1, glm::value_ptr(m.material.emissive));
         glUniform1i(glGetUniformLocation(prog, "u_hasEmissiveTexture"), m.emissiveTexture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_emissiveSecond"), m.material.emissiveSecond && cornerUVs2 ? 1 : 0);
         glBindTextureUnit(2, m.emissiveTexture);
         glUniform1i(glGetUniformLocation(prog, "u_flatShading"), r.flat ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
@@ -373,7 +390,8 @@ void GpuSurface::drawAdaptive(const DrawParams& p)
     beginWireframe(p);
     if (p.colorMode == ColorMode::Shaded && !adaptiveRanges_.empty()) {
         drawMaterials(prog, adaptiveRanges_, e.adaptiveBuffer(AdaptiveBuffer::Triangles), adaptiveCornerUVs_,
-                      adaptiveHasColours_ ? adaptiveCornerColours_ : 0, adaptiveVao_);
+                      adaptiveHasColours_ ? adaptiveCornerColours_ : 0, adaptiveHasUVs2_ ? adaptiveCornerUVs2_ : 0,
+                      adaptiveVao_);
         glBindBufferBase(GL_SHADER_STORAGE_BUFFER, kErrors, triangleLevels_);
         glBindVertexArray(adaptiveVao_);
     } else {
@@ -417,7 +435,8 @@ void GpuSurface::draw(const DrawParams& p)
     const auto drawAll = [&] { glDrawElements(GL_TRIANGLES, GLsizei(3 * faceCount_), GL_UNSIGNED_INT, nullptr); };
     beginWireframe(p);
     if (mode == ColorMode::Shaded && !materials_.empty()) {
-        drawMaterials(prog, ranges_, evaluator_->buffer(kTriangles), cornerUVs_, cornerColours_, cornerVao_);
+        drawMaterials(prog, ranges_, evaluator_->buffer(kTriangles), cornerUVs_, cornerColours_, cornerUVs2_,
+                      cornerVao_);
     } else {
         glBindVertexArray(vao_);
         drawAll();

@@ -24,19 +24,34 @@ enum class AlphaMode { Opaque = 0, Mask = 1, Blend = 2 };
 /// codes these are).
 enum class TextureWrap { Repeat = 10497, ClampToEdge = 33071, MirroredRepeat = 33648 };
 
-struct MaterialInfo {
-    std::string name;
-    glm::vec4 baseColor{1.0f};  ///< baseColorFactor
-    int image = -1;             ///< index into SceneMaterials::images of the base colour texture, or -1
-    int texCoord = 0;           ///< the TEXCOORD_n set the texture uses (KHR_texture_transform's when it names one)
-    /// KHR_texture_transform on the base colour texture (identity without):
+/// Where a texture is read: its UV set, KHR_texture_transform and sampler.
+struct TextureCoords {
+    int texCoord = 0;  ///< the TEXCOORD_n set the texture uses (KHR_texture_transform's when it names one)
+    /// KHR_texture_transform (identity without):
     /// uv' = uvOffset + R(uvRotation) (uvScale * uv), R turning counter-clockwise.
     glm::vec2 uvOffset{0.0f}, uvScale{1.0f};
     float uvRotation = 0.0f;
-    /// The base colour texture's sampler, along u and v (glTF's default: repeat).
+    /// The texture's sampler, along u and v (glTF's default: repeat).
     TextureWrap wrapS = TextureWrap::Repeat, wrapT = TextureWrap::Repeat;
     /// The texture's UV for a vertex's `uv` (the transform above applied).
     glm::vec2 textureUV(glm::vec2 uv) const;
+    /// Whether `o` reads the same UVs (set and transform; the sampler aside).
+    bool sameUVs(const TextureCoords& o) const
+    {
+        return texCoord == o.texCoord && uvOffset == o.uvOffset && uvScale == o.uvScale && uvRotation == o.uvRotation;
+    }
+};
+
+/// A material's textures are read through at most two UV channels: the
+/// first (the TextureCoords a MaterialInfo is: the base colour texture's,
+/// or its first other texture's without one, SceneMaterials::fileUVs) and a
+/// second (MaterialInfo::second, SceneMaterials::fileUVs2) for textures on
+/// another set or transform, an occlusion texture on TEXCOORD_1 as
+/// exporters often write it.
+struct MaterialInfo : TextureCoords {
+    std::string name;
+    glm::vec4 baseColor{1.0f};  ///< baseColorFactor
+    int image = -1;             ///< index into SceneMaterials::images of the base colour texture, or -1
     AlphaMode alphaMode = AlphaMode::Opaque;
     float alphaCutoff = 0.5f;
     bool doubleSided = false;
@@ -44,14 +59,19 @@ struct MaterialInfo {
     glm::vec3 emissive{0.0f};  ///< emissiveFactor (linear), times KHR_materials_emissive_strength's strength
     /// The metallic-roughness texture (G roughness, B metallic, linear), the
     /// emissive texture (sRGB-coded) and the occlusion texture (R, linear),
-    /// indices into SceneMaterials::images (-1: none), read through the same
-    /// UVs, transform and sampler as the base colour texture (texCoord and
-    /// the rest above: the first of the four a material has sets them).
+    /// indices into SceneMaterials::images (-1: none).  Each is read through
+    /// the first UV channel (channel 0: the base colour texture's UVs,
+    /// transform and sampler) or the second (1: `second`).
     int metallicRoughnessImage = -1, emissiveImage = -1, occlusionImage = -1;
+    int metallicRoughnessChannel = 0, emissiveChannel = 0, occlusionChannel = 0;
+    TextureCoords second;      ///< the second channel's UVs, where a texture above uses it
+    bool hasSecond = false;    ///< whether one does
     float occlusionStrength = 1.0f;  ///< the occlusion texture's strength
-    /// Of those three, how many are on another UV set or transform than the
-    /// first texture's, or have no image Strata decodes (not read).
+    /// Of those three, how many are on a third UV set or transform, or have
+    /// no image Strata decodes (not read).
     int unreadTextures = 0;
+    /// UV channel c's coordinates (0: the first, 1: `second`).
+    const TextureCoords& channel(int c) const { return c == 1 ? second : *this; }
     /// Whether any of its four textures is read (its UVs are then needed).
     bool textured() const
     {
@@ -70,6 +90,10 @@ struct SceneMaterials {
     std::vector<int> partMaterial;        ///< per rig.parts entry: index into materials
     std::vector<glm::vec2> fileUVs;       ///< per file vertex: its part's base colour texture's UVs, transformed
                                           ///< (MaterialInfo::textureUV); (0, 0) without
+    /// Per file vertex: its part's second UV channel, transformed
+    /// (MaterialInfo::second.textureUV); (0, 0) without; empty when no
+    /// material has one.
+    std::vector<glm::vec2> fileUVs2;
     /// Per file vertex: its COLOR_0 as linear RGBA (RGB with alpha 1 from a
     /// VEC3), white where a part has none; empty when no part has one.
     std::vector<glm::vec4> fileColours;
@@ -83,7 +107,7 @@ double linearToSrgb(double linear);
 
 /// The image at `uv` through `material`'s sampler, its RGB sRGB-decoded
 /// (a base colour or emissive texture as glTF reads it), alpha as stored.
-glm::dvec4 sampleLinear(const MaterialInfo& material, const ImageRGBA& image, const glm::dvec2& uv,
+glm::dvec4 sampleLinear(const TextureCoords& material, const ImageRGBA& image, const glm::dvec2& uv,
                         bool nearest = false);
 
 /// The base colour glTF draws with, linear RGBA: the material's factor
@@ -95,17 +119,18 @@ glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, co
                         const glm::dvec4& vertexColour = glm::dvec4(1.0), bool nearest = false);
 
 /// The metallic (x) and roughness (y) glTF draws with at `uv` (a texture
-/// UV): the factors times the metallic-roughness texture's B and G
-/// (`image`: its decoded image, or null).
+/// UV of the texture's channel, metallicRoughnessChannel: SceneMaterials'
+/// fileUVs or fileUVs2): the factors times the metallic-roughness
+/// texture's B and G (`image`: its decoded image, or null).
 glm::dvec2 metallicRoughnessAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,
                                bool nearest = false);
 
-/// The emissive colour glTF draws with at `uv`, linear RGB: the factor
-/// times the emissive texture (sRGB-decoded; `image` or null).
+/// The emissive colour glTF draws with at `uv` (of emissiveChannel), linear
+/// RGB: the factor times the emissive texture (sRGB-decoded; `image` or null).
 glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
 
-/// The ambient occlusion glTF draws with at `uv`: 1 + strength x (R - 1) of
-/// the occlusion texture (`image`), 1 without.
+/// The ambient occlusion glTF draws with at `uv` (of occlusionChannel):
+/// 1 + strength x (R - 1) of the occlusion texture (`image`), 1 without.
 double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
 
 /// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
@@ -124,9 +149,9 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// colour, metallic, roughness and emissive re-baked into textures of one
 /// material with `main`'s alpha mode and sidedness, its shape one skinned
 /// mesh), as a list for one line: normal textures, metallic-roughness,
-/// emissive and occlusion textures not read (on another UV set or
-/// transform than the material's base colour texture, or no image Strata
-/// decodes; `materials` says, where given), material extensions,
+/// emissive and occlusion textures not read (on a third UV set or
+/// transform, past the base colour texture's and a second, or no image
+/// Strata decodes; `materials` says, where given), material extensions,
 /// materials whose alpha mode or sidedness differ from `main` (-1: none),
 /// vertex colours other than COLOR_0 (which the re-baked texture carries),
 /// point and line primitives, morph targets, cameras and lights, each with

@@ -50,11 +50,13 @@ struct SurfaceMaterial {
     int alphaMode = 0;                     ///< 0 opaque, 1 mask, 2 blend
     float alphaCutoff = 0.5f;
     /// glTF's emissive colour (linear), times its texture (sRGB-coded, read
-    /// through the base colour texture's UVs and size; null: none), added
-    /// to the lit colour.
+    /// through the base colour texture's UVs, or the second corner UVs with
+    /// emissiveSecond; null: none), added to the lit colour.
     glm::vec3 emissive{0.0f};
     int emissiveWidth = 0, emissiveHeight = 0;
     const uint8_t* emissiveRGBA = nullptr;  ///< copied at setMaterials()
+    bool emissiveSecond = false;            ///< read through the second UV channel (its own wraps below)
+    int emissiveWrapS = 0x2901, emissiveWrapT = 0x2901;
 };
 
 /// A run of refined faces drawn with one material.
@@ -103,9 +105,12 @@ public:
     /// multiplies COLOR_0.  Textures are read as sRGB-coded, the factor and
     /// colours as linear; the result is shown sRGB-coded.  Without
     /// materials the surface is drawn in DrawParams::baseColor.  Blended
-    /// ranges are drawn last, without depth writes.
+    /// ranges are drawn last, without depth writes.  cornerUVs2: the second
+    /// UV channel's (the same count), for materials whose emissive texture
+    /// reads it; empty where none does.
     Status setMaterials(const std::vector<SurfaceMaterial>& materials, const std::vector<MaterialRange>& ranges,
-                        const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours = {});
+                        const std::vector<glm::vec2>& cornerUVs, const std::vector<glm::vec4>& cornerColours = {},
+                        const std::vector<glm::vec2>& cornerUVs2 = {});
 
     /// Uploads the control positions and normals (count must match the
     /// plan) and runs the evaluator's passes.
@@ -121,10 +126,11 @@ public:
     /// The shaded view of the adaptive frame set last with setMaterials'
     /// materials: ranges of the frame's triangles (each range's material
     /// an index into setMaterials' list), the texture sampled through
-    /// cornerUVs (3 per frame triangle) times cornerColours (as
-    /// setMaterials).  Cleared by setAdaptive.
+    /// cornerUVs (3 per frame triangle) times cornerColours, and the second
+    /// channel's cornerUVs2 (as setMaterials).  Cleared by setAdaptive.
     Status setAdaptiveMaterials(const std::vector<MaterialRange>& ranges, const std::vector<glm::vec2>& cornerUVs,
-                                const std::vector<glm::vec4>& cornerColours = {});
+                                const std::vector<glm::vec4>& cornerColours = {},
+                                const std::vector<glm::vec2>& cornerUVs2 = {});
     Status updateAdaptive(const glm::vec3* controlPositions, const glm::vec3* controlNormals, size_t count);
     void drawAdaptive(const DrawParams& params);
 
@@ -143,9 +149,9 @@ public:
 private:
     GpuSurface() = default;
     // Corner-ordered draws of `ranges` (gl_VertexID a corner of `triangles`).
-    // cornerColours: 0 for none.
+    // cornerColours, cornerUVs2: 0 for none.
     void drawMaterials(GLuint program, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
-                       GLuint cornerColours, GLuint vao);
+                       GLuint cornerColours, GLuint cornerUVs2, GLuint vao);
     void sortBlendedLast(std::vector<MaterialRange>* ranges) const;
     void upload(GLuint* buffer, size_t* capacity, const void* data, size_t bytes);
     void takeTimings();  // the evaluator's stage times of the last update, when timing
@@ -163,15 +169,15 @@ private:
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
-    GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0, cornerColours_ = 0;  // buffers of the draw pass only
+    GLuint errors_ = 0, feedback_ = 0, cornerUVs_ = 0, cornerColours_ = 0, cornerUVs2_ = 0;  // the draw pass's only
     GLuint vao_ = 0, cornerVao_ = 0;
     GLuint surface_ = 0, feedbackProgram_ = 0;
     GLuint adaptiveProgram_ = 0, adaptiveVao_ = 0, triangleLevels_ = 0;  // the adaptive draw
     size_t triangleLevelsCapacity_ = 0;
     std::vector<MaterialRange> adaptiveRanges_;  // over the adaptive frame's triangles
-    GLuint adaptiveCornerUVs_ = 0, adaptiveCornerColours_ = 0;
-    size_t adaptiveCornerUVsCapacity_ = 0, adaptiveCornerColoursCapacity_ = 0;
-    bool adaptiveHasColours_ = false;
+    GLuint adaptiveCornerUVs_ = 0, adaptiveCornerColours_ = 0, adaptiveCornerUVs2_ = 0;
+    size_t adaptiveCornerUVsCapacity_ = 0, adaptiveCornerColoursCapacity_ = 0, adaptiveCornerUVs2Capacity_ = 0;
+    bool adaptiveHasColours_ = false, adaptiveHasUVs2_ = false;
     GLuint feedbackTarget_ = 0, feedbackColor_ = 0;
     GpuTimings timings_;
 };
