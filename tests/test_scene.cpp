@@ -1694,6 +1694,23 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     EXPECT_NEAR(io::emissiveAt(m, &image, uv).g, 0.5 * io::srgbToLinear(t.g), 1e-6);
     EXPECT_NEAR(io::occlusionAt(m, &image, uv), 1.0 + 0.5 * (t.r - 1.0), 1e-12);
     EXPECT_EQ(io::featuresNotCarried(rig, 0, &after).find("metallic-roughness"), std::string::npos);
+    // The same UVs through another sampler (clamped): the second channel,
+    // with that sampler's wraps.
+    const int image0 = m.image;
+    tinygltf::Sampler clamp;
+    clamp.wrapS = clamp.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    model.samplers.push_back(clamp);
+    tinygltf::Texture clamped = model.textures[size_t(texture)];
+    clamped.sampler = int(model.samplers.size()) - 1;
+    model.textures.push_back(clamped);
+    mat.occlusionTexture.index = int(model.textures.size()) - 1;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/clamped.glb", &rig, &after));
+    EXPECT_EQ(after.materials[0].occlusionImage, image0);
+    EXPECT_EQ(after.materials[0].occlusionChannel, 1);
+    EXPECT_EQ(after.materials[0].second.wrapS, io::TextureWrap::ClampToEdge);
+    EXPECT_NE(after.materials[0].wrapS, io::TextureWrap::ClampToEdge);
+    EXPECT_EQ(after.fileUVs2, before.fileUVs);
+    mat.occlusionTexture.index = texture;
     // On another UV set: read through the second channel, that set's UVs.
     mat.emissiveTexture.texCoord = 1;
     for (tinygltf::Primitive& prim : model.meshes[0].primitives)
@@ -1701,7 +1718,7 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     std::vector<std::string> warnings;
     ASSERT_TRUE(writeAndReadMaterials(model, dir + "/other_set.glb", &rig, &after, &warnings));
     EXPECT_TRUE(warnings.empty()) << warnings.front();
-    EXPECT_EQ(after.materials[0].emissiveImage, m.image);
+    EXPECT_EQ(after.materials[0].emissiveImage, image0);
     EXPECT_EQ(after.materials[0].emissiveChannel, 1);
     EXPECT_EQ(after.materials[0].occlusionChannel, 0);
     EXPECT_TRUE(after.materials[0].hasSecond);
@@ -1714,7 +1731,7 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     mat.occlusionTexture.extensions["KHR_texture_transform"] = tinygltf::Value(shift);
     model.extensionsUsed.push_back("KHR_texture_transform");
     ASSERT_TRUE(writeAndReadMaterials(model, dir + "/third.glb", &rig, &after));
-    EXPECT_EQ(after.materials[0].emissiveImage, m.image);
+    EXPECT_EQ(after.materials[0].emissiveImage, image0);
     EXPECT_EQ(after.materials[0].occlusionImage, -1);
     EXPECT_EQ(after.materials[0].unreadTextures, 1);
     EXPECT_NE(io::featuresNotCarried(rig, 0, &after)

@@ -256,7 +256,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         }
         // The metallic-roughness, emissive and occlusion textures, each read
         // through the base colour texture's UVs (the first texture's,
-        // without one) where it shares their set and transform, else
+        // without one) where it shares their set, transform and wraps, else
         // through the second channel, which the first to differ sets.
         const auto alongside = [&](int index, int set, const tinygltf::ExtensionMap& extensions, int* image,
                                    int* channel) {
@@ -273,9 +273,9 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             if (!mat.textured()) {
                 static_cast<TextureCoords&>(mat) = probe;
                 *channel = 0;
-            } else if (probe.sameUVs(mat)) {
+            } else if (probe.sameSampling(mat)) {
                 *channel = 0;
-            } else if (!mat.hasSecond || probe.sameUVs(mat.second)) {
+            } else if (!mat.hasSecond || probe.sameSampling(mat.second)) {
                 if (!mat.hasSecond)
                     mat.second = probe;
                 mat.hasSecond = true;

@@ -35,10 +35,11 @@ struct TextureCoords {
     TextureWrap wrapS = TextureWrap::Repeat, wrapT = TextureWrap::Repeat;
     /// The texture's UV for a vertex's `uv` (the transform above applied).
     glm::vec2 textureUV(glm::vec2 uv) const;
-    /// Whether `o` reads the same UVs (set and transform; the sampler aside).
-    bool sameUVs(const TextureCoords& o) const
+    /// Whether `o` reads the same texels: the same set, transform and wraps.
+    bool sameSampling(const TextureCoords& o) const
     {
-        return texCoord == o.texCoord && uvOffset == o.uvOffset && uvScale == o.uvScale && uvRotation == o.uvRotation;
+        return texCoord == o.texCoord && uvOffset == o.uvOffset && uvScale == o.uvScale &&
+               uvRotation == o.uvRotation && wrapS == o.wrapS && wrapT == o.wrapT;
     }
 };
 
@@ -46,8 +47,8 @@ struct TextureCoords {
 /// first (the TextureCoords a MaterialInfo is: the base colour texture's,
 /// or its first other texture's without one, SceneMaterials::fileUVs) and a
 /// second (MaterialInfo::second, SceneMaterials::fileUVs2) for textures on
-/// another set or transform, an occlusion texture on TEXCOORD_1 as
-/// exporters often write it.
+/// another set, transform or sampler wrap, an occlusion texture on
+/// TEXCOORD_1 as exporters often write it.
 struct MaterialInfo : TextureCoords {
     std::string name;
     glm::vec4 baseColor{1.0f};  ///< baseColorFactor
@@ -67,8 +68,8 @@ struct MaterialInfo : TextureCoords {
     TextureCoords second;      ///< the second channel's UVs, where a texture above uses it
     bool hasSecond = false;    ///< whether one does
     float occlusionStrength = 1.0f;  ///< the occlusion texture's strength
-    /// Of those three, how many are on a third UV set or transform, or have
-    /// no image Strata decodes (not read).
+    /// Of those three, how many are on a third UV set, transform or wrap,
+    /// or have no image Strata decodes (not read).
     int unreadTextures = 0;
     /// UV channel c's coordinates (0: the first, 1: `second`).
     const TextureCoords& channel(int c) const { return c == 1 ? second : *this; }
