@@ -1238,6 +1238,94 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
     }
 }
 
+// A capture of rigid parts and no skin, one moved by its node's animation
+// (a body sphere at the origin, an arm sphere at x = 3 turning a quarter
+// about z): the rig keeps the animation, the parts riding on their nodes as
+// joints, and posed it stands where the source does, closed form: at the
+// end, every vertex lies on the body or on the arm turned to y = 3.
+// Before, the animation was dropped, with nothing said, and the rig stood.
+TEST(BakeLibrary, AutomaticCageCarriesRigidPartsTheirNodesAnimate)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_rigid_parts");
+    {
+        const ControlMesh ball = examples::makeIcosphere(3);
+        tinygltf::Model model;
+        model.asset.version = "2.0";
+        for (const float x : {0.0f, 3.0f}) {
+            std::vector<glm::vec3> p;
+            for (const glm::vec3& q : ball.positions)
+                p.push_back(q + glm::vec3(x, 0.0f, 0.0f));
+            tinygltf::Primitive prim;
+            prim.attributes["POSITION"] = test::addAccessor(model, p.data(), p.size() * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                            TINYGLTF_TYPE_VEC3, p.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+            model.accessors.back().minValues = {x - 1.0, -1.0, -1.0};
+            model.accessors.back().maxValues = {x + 1.0, 1.0, 1.0};
+            prim.indices = test::addAccessor(model, ball.triangles.data(), ball.triangles.size() * 4,
+                                             TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                                             ball.triangles.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+            model.meshes.emplace_back().primitives.push_back(prim);
+            tinygltf::Node& node = model.nodes.emplace_back();
+            node.name = x == 0.0f ? "body" : "arm";
+            node.mesh = int(model.meshes.size()) - 1;
+            model.scenes.resize(1);
+            model.scenes[0].nodes.push_back(int(model.nodes.size()) - 1);
+        }
+        const float times[2] = {0.0f, 1.0f};
+        const glm::quat turn = glm::angleAxis(glm::half_pi<float>(), glm::vec3(0.0f, 0.0f, 1.0f));
+        const float keys[8] = {0.0f, 0.0f, 0.0f, 1.0f, turn.x, turn.y, turn.z, turn.w};
+        tinygltf::AnimationSampler sampler;
+        sampler.input = test::addAccessor(model, times, 8, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 2, 0);
+        model.accessors.back().minValues = {0.0};
+        model.accessors.back().maxValues = {1.0};
+        sampler.output = test::addAccessor(model, keys, 32, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, 2, 0);
+        tinygltf::AnimationChannel channel;
+        channel.sampler = 0;
+        channel.target_node = 1;
+        channel.target_path = "rotation";
+        tinygltf::Animation& wave = model.animations.emplace_back();
+        wave.name = "wave";
+        wave.samplers.push_back(sampler);
+        wave.channels.push_back(channel);
+        model.defaultScene = 0;
+        tinygltf::TinyGLTF gltf;
+        ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/parts.glb", true, true, false, true));
+    }
+    baker::BakeRequest request;
+    request.high = dir + "/parts.glb";
+    request.control = "auto";
+    request.output = dir + "/rig.glb";
+    request.controlFaces = 640;
+    baker::BakeResult result;
+    ASSERT_TRUE(baker::bakeRig(request, &result).isOk());
+    for (const std::string& w : result.warnings)
+        EXPECT_EQ(w.find("not carried"), std::string::npos) << w;
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &rig).isOk());
+    ASSERT_EQ(rig.skeleton.animations.size(), 1u);
+    EXPECT_EQ(rig.skeleton.animations[0].name, "wave");
+    EXPECT_EQ(rig.skeleton.skin.joints.size(), 2u);
+    std::unique_ptr<Surface> surface;
+    ASSERT_TRUE(Surface::create(&surface, rig, nullptr).isOk());
+    for (const float t : {0.0f, 1.0f}) {
+        ASSERT_TRUE(surface->setAnimationTime(0, t).isOk());
+        std::vector<glm::vec3> p(surface->vertexCount());
+        ASSERT_TRUE(surface->evaluate(p.data(), nullptr, p.size()).isOk());
+        const glm::vec3 arm = t == 0.0f ? glm::vec3(3.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 3.0f, 0.0f);
+        size_t onArm = 0;
+        float worst = 0.0f;
+        for (const glm::vec3& q : p) {
+            const float body = std::abs(glm::length(q) - 1.0f), limb = std::abs(glm::length(q - arm) - 1.0f);
+            worst = std::max(worst, std::min(body, limb));
+            onArm += limb < body;
+        }
+        // The icosphere's facets (level 3) lie within 0.5% of its radius.
+        EXPECT_LT(worst, 0.01f) << "time " << t;
+        EXPECT_GT(onArm, p.size() / 3) << "time " << t;
+        EXPECT_LT(onArm, 2 * p.size() / 3) << "time " << t;
+    }
+}
+
 namespace {
 
 // `high` baked with --control auto to `out`, which must leave nothing of its

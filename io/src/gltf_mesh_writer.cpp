@@ -190,6 +190,28 @@ void buildGltfMesh(tinygltf::Model* out, const MeshView& m, const char* name, co
             else
                 scene.nodes.push_back(int(i));
         }
+        // glTF asks a skin's joints for a common root: where they hang from
+        // several (rigid parts on nodes of their own), one node above them,
+        // at rest, is theirs.
+        std::vector<int> roots;
+        for (const int joint : skeleton->skin.joints) {
+            int r = joint;
+            const size_t nn = skeleton->nodes.size();
+            for (size_t steps = 0; r >= 0 && size_t(r) < nn && skeleton->nodes[size_t(r)].parent >= 0 && steps < nn;
+                 ++steps)
+                r = skeleton->nodes[size_t(r)].parent;
+            if (r >= 0 && std::find(roots.begin(), roots.end(), r) == roots.end())
+                roots.push_back(r);
+        }
+        if (roots.size() > 1) {
+            tinygltf::Node above;
+            above.name = "joints";
+            above.children = roots;
+            model.nodes.push_back(above);
+            const auto joint = [&](int n) { return std::find(roots.begin(), roots.end(), n) != roots.end(); };
+            scene.nodes.erase(std::remove_if(scene.nodes.begin(), scene.nodes.end(), joint), scene.nodes.end());
+            scene.nodes.push_back(int(model.nodes.size()) - 1);
+        }
         tinygltf::Skin skin;
         skin.joints = skeleton->skin.joints;
         view = appendBufferView(model, skeleton->skin.inverseBindMatrices.data(),

@@ -182,7 +182,22 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
             break;
         }
     Status st;
-    if (!skins.skins.empty()) {
+    // Without a skin, meshes an animation moves (it targets their node or
+    // a node above it) are rigid parts of a skeleton all the same: played
+    // and carried as one, where they were left standing.
+    bool rigidAnimated = false;
+    if (skins.skins.empty()) {
+        std::vector<uint8_t> animated(nn, 0);
+        for (const tinygltf::Animation& a : model.animations)
+            for (const tinygltf::AnimationChannel& c : a.channels)
+                if (c.target_node >= 0 && size_t(c.target_node) < nn)
+                    animated[size_t(c.target_node)] = 1;
+        for (const RigPart& part : rig->parts)
+            for (int n = part.node, steps = 0; n >= 0 && size_t(n) < nn && steps <= int(nn) && !rigidAnimated;
+                 n = sk.nodes[size_t(n)].parent, ++steps)
+                rigidAnimated = animated[size_t(n)] != 0;
+    }
+    if (!skins.skins.empty() || rigidAnimated) {
         sk.skin.joints = skins.joints;
         sk.skin.inverseBindMatrices = skins.inverseBindMatrices;
         // The bind space was read at the scene's scale (bindSpaceScale):

@@ -2,8 +2,8 @@
 // (headless, through puppeteer-core) runs three's GLTFLoader on the source
 // and on the rig strata-bake --control auto made of it, plays the first
 // animation to its middle, and compares.  The rig must load with a skinned
-// mesh, every animation and a textured material whose image decoded, and
-// stand, posed, within 3% of the source's box.
+// mesh, every animation and (where the source has one) a textured material
+// whose image decoded, and stand, posed, within 3% of the source's box.
 //
 //   node js/tools/threejs-character.mjs --build BUILD_DIR [--work DIR]
 //
@@ -34,16 +34,26 @@ try {
   process.exit(1);
 }
 
-const characters = ['Fox', 'CesiumMan'];
+// Fox, CesiumMan, and rigid parts their nodes animate, no skin (made by
+// tests/tools/rigid_parts_capture.py).
+const characters = ['Fox', 'CesiumMan', 'rigid_parts'];
+const made = spawnSync('python3', [path.join(root, 'tests', 'tools', 'rigid_parts_capture.py'),
+  path.join(work, 'rigid_parts_source.glb')], { encoding: 'utf8' });
+if (made.status !== 0) {
+  console.error(`tests/tools/rigid_parts_capture.py failed:\n${made.stderr}`);
+  process.exit(1);
+}
 for (const name of characters) {
+  const source = name === 'rigid_parts' ? path.join(work, 'rigid_parts_source.glb')
+    : path.join(root, 'tests', 'data', `${name}.glb`);
   const r = spawnSync(path.join(build, 'tools', 'strata-bake'),
-    ['--high', path.join(root, 'tests', 'data', `${name}.glb`), '--control', 'auto', '-o', path.join(work, `${name}.glb`)],
-    { encoding: 'utf8' });
+    ['--high', source, '--control', 'auto', '-o', path.join(work, `${name}.glb`)], { encoding: 'utf8' });
   if (r.status !== 0) {
     console.error(`strata-bake ${name} failed:\n${r.stderr}`);
     process.exit(1);
   }
-  fs.copyFileSync(path.join(root, 'tests', 'data', `${name}.glb`), path.join(work, `${name}_source.glb`));
+  if (name !== 'rigid_parts')
+    fs.copyFileSync(source, path.join(work, `${name}_source.glb`));
 }
 
 const page = `<!doctype html><html><body>
@@ -109,7 +119,8 @@ try {
       ++failed;
       console.log(`${name}: FAILED: ${problems.join('; ')}`);
     } else {
-      console.log(`${name}: plays in three.js: ${rig.skinned} skinned mesh, ${rig.animations} animations, texture decoded, ` +
+      console.log(`${name}: plays in three.js: ${rig.skinned} skinned mesh, ${rig.animations} animations, ` +
+        `${source.textured ? 'texture decoded, ' : ''}` +
         `posed at ${rig.time.toFixed(2)} s within ${(100 * off).toFixed(2)}% of the source's box`);
     }
   }
