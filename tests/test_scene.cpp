@@ -7,6 +7,7 @@
 #include "strata/io/exr.h"
 #include "strata/io/reconstruct.h"
 #include "strata/io/materials.h"
+#include "strata/io/png.h"
 #include "strata/io/mesh_io.h"
 #include "strata/io/render_mesh.h"
 #include "strata/io/rig_io.h"
@@ -1620,6 +1621,46 @@ TEST(Scene, ATextureOnlyAnExtensionNamesIsNamed)
     EXPECT_NE(warnings[0].find("its base colour texture is only in EXT_texture_webp, an image Strata does not decode"),
               std::string::npos)
         << warnings[0];
+}
+
+// A PNG whose IDAT chunk declares 1.7 GB in a file of a few hundred bytes
+// (what fuzz_rig found: stb_image grows its buffer to a chunk's declared
+// length before reading it, and asked for 1.7 GB) is named and drawn
+// untextured, as is an image that is neither PNG nor JPEG (a BMP, which
+// stb would decode but glTF does not have).
+TEST(Scene, AnImageWhoseChunkRunsPastItsBytesIsNamed)
+{
+    const std::string dir = test::tempDir("scene_png_chunks");
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb", test::SphereColour::HalfTexture));
+    tinygltf::Model model;
+    Rig rig;
+    io::SceneMaterials before;
+    ASSERT_TRUE(readToEdit(dir + "/sphere.glb", dir, &model, &rig, &before));
+    ASSERT_GE(before.materials[0].image, 0);
+    const tinygltf::BufferView& view = model.bufferViews[size_t(model.images[0].bufferView)];
+    unsigned char* png = model.buffers[0].data.data() + view.byteOffset;
+    EXPECT_TRUE(io::pngChunksFit(png, view.byteLength));
+    // The IDAT chunk's length becomes 0x68000016.
+    size_t at = 8;
+    while (at + 12 <= view.byteLength && std::string(reinterpret_cast<const char*>(png) + at + 4, 4) != "IDAT")
+        at += 12 + (size_t(png[at]) << 24 | size_t(png[at + 1]) << 16 | size_t(png[at + 2]) << 8 | png[at + 3]);
+    ASSERT_LE(at + 12, view.byteLength);
+    const unsigned char hostile[4] = {0x68, 0x00, 0x00, 0x16};
+    std::copy(hostile, hostile + 4, png + at);
+    EXPECT_FALSE(io::pngChunksFit(png, view.byteLength));
+    io::SceneMaterials after;
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/hostile.glb", &rig, &after, &warnings));
+    EXPECT_EQ(after.materials[0].image, -1);
+    ASSERT_FALSE(warnings.empty());
+    EXPECT_NE(warnings[0].find("image 0 () cannot be decoded; drawn untextured"), std::string::npos) << warnings[0];
+    // A BMP in its place: not glTF's, not read.
+    const unsigned char bmp[2] = {'B', 'M'};
+    std::copy(bmp, bmp + 2, png);
+    warnings.clear();
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/bmp.glb", &rig, &after, &warnings));
+    EXPECT_EQ(after.materials[0].image, -1);
+    EXPECT_FALSE(warnings.empty());
 }
 
 // A material in KHR_materials_pbrSpecularGlossiness (older exports, many of

@@ -312,7 +312,8 @@ Status readPngHeader(const std::string& path, std::vector<unsigned char>* bytes,
     Status st = readFile(path, bytes, size_t(1) << 30);
     if (!st)
         return st;
-    if (!stbi_info_from_memory(bytes->data(), int(bytes->size()), w, h, comp))
+    if (!pngChunksFit(bytes->data(), bytes->size()) ||
+        !stbi_info_from_memory(bytes->data(), int(bytes->size()), w, h, comp))
         return Status(StatusCode::InvalidData, path + ": not a readable PNG image");
     if (*w > 16384 || *h > 16384)
         return Status(StatusCode::InvalidData, path + ": image is larger than 16384 per side");
@@ -338,12 +339,7 @@ Status readPngRgb(const std::filesystem::path& pathFile, int* width, int* height
     return Status::ok();
 }
 
-namespace {
-
-// True when every chunk after the signature lies inside the file and the
-// last is IEND.  stb_image grows its buffer to a chunk's declared length
-// before it reads the data, so a hostile length would buy gigabytes.
-bool chunksFit(const unsigned char* data, size_t size)
+bool pngChunksFit(const unsigned char* data, size_t size)
 {
     static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     if (size < 8 || std::memcmp(data, kSignature, 8) != 0)
@@ -362,13 +358,11 @@ bool chunksFit(const unsigned char* data, size_t size)
     return false;
 }
 
-}  // namespace
-
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
                      std::vector<uint16_t>* samples, int expectWidth, int expectHeight)
 {
     int w = 0, h = 0, comp = 0;
-    if (size > size_t(1) << 30 || !chunksFit(data, size) || !stbi_info_from_memory(data, int(size), &w, &h, &comp))
+    if (size > size_t(1) << 30 || !pngChunksFit(data, size) || !stbi_info_from_memory(data, int(size), &w, &h, &comp))
         return Status(StatusCode::InvalidData, what + ": not a readable PNG image");
     if (w > 16384 || h > 16384)
         return Status(StatusCode::InvalidData, what + ": image is larger than 16384 per side");

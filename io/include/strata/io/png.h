@@ -26,6 +26,11 @@ Status encodePngGray(int width, int height, int bits, const std::vector<uint16_t
 /// otherwise buy gigabytes of decoder memory).
 Status decodePngGray(const unsigned char* data, size_t size, const std::string& what, int* width, int* height, int* bits,
                      std::vector<uint16_t>* samples, int expectWidth = 0, int expectHeight = 0);
+/// Whether `data` is a PNG whose every chunk lies inside its `size` bytes,
+/// the last IEND.  stb_image grows its buffer to a chunk's declared length
+/// before it reads the chunk, so a hostile length (a few bytes) would buy
+/// gigabytes: every PNG Strata decodes is checked so first.
+bool pngChunksFit(const unsigned char* data, size_t size);
 /// The distinct colours of an RGBA image (4 bytes a pixel, each read as one
 /// native uint32), sorted, when there are at most 256 (a palette); false,
 /// `colours` empty, when there are more.
