@@ -1818,6 +1818,14 @@ TEST(Scene, VertexColoursAreRead)
     EXPECT_EQ(after.fileUVs, before.fileUVs);
     const std::string left = io::featuresNotCarried(rig, 0);
     EXPECT_NE(left.find("vertex colour sets past COLOR_0 (1 set)"), std::string::npos) << left;
+    // A primitive's own extension (a material per variant) is named too.
+    tinygltf::Value::Object variants;
+    variants["mappings"] = tinygltf::Value(tinygltf::Value::Array{});
+    prim.extensions["KHR_materials_variants"] = tinygltf::Value(variants);
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/variants.glb", &rig, &after));
+    EXPECT_NE(io::featuresNotCarried(rig, 0).find("KHR_materials_variants (1 primitive)"), std::string::npos)
+        << io::featuresNotCarried(rig, 0);
+    prim.extensions.clear();
     // Two components are no colour.
     model.accessors.back().type = TINYGLTF_TYPE_VEC2;
     warnings.clear();

@@ -411,6 +411,7 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
     // Only the materials and primitives the rig's parts use count.
     std::vector<bool> usedMaterial(m.materials.size(), false);
     size_t colours = 0, morphs = 0;
+    std::map<std::string, size_t> primitiveExtensions;  // extension -> primitives
     for (const RigPart& part : rig.parts) {
         if (part.mesh < 0 || size_t(part.mesh) >= m.meshes.size() || part.primitive < 0 ||
             size_t(part.primitive) >= m.meshes[size_t(part.mesh)].primitives.size())
@@ -421,6 +422,11 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
         for (const auto& a : prim.attributes)
             colours += a.first.rfind("COLOR_", 0) == 0 && a.first != "COLOR_0";
         morphs += !prim.targets.empty();
+        // A primitive's own extensions (KHR_materials_variants' material
+        // per variant, for one); Draco's geometry is decoded.
+        for (const auto& e : prim.extensions)
+            if (e.first != "KHR_draco_mesh_compression")
+                ++primitiveExtensions[e.first];
     }
     std::map<std::string, size_t> counts;  // feature -> materials
     const tinygltf::Material* kept =
@@ -458,6 +464,8 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
     add(colours, "vertex colour sets past COLOR_0", "set", "sets");
     add(lines, "point and line primitives", "primitive", "primitives");
     add(morphs, "morph targets", "primitive", "primitives");
+    for (const auto& [what, n] : primitiveExtensions)
+        add(n, what, "primitive", "primitives");
     add(m.cameras.size(), "cameras", "camera", "cameras");
     add(m.lights.size(), "lights", "light", "lights");
     return out;

@@ -155,7 +155,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
 /// Strata decodes; `materials` says, where given), material extensions,
 /// materials whose alpha mode or sidedness differ from `main` (-1: none),
 /// vertex colours other than COLOR_0 (which the re-baked texture carries),
-/// point and line primitives, morph targets, cameras and lights, each with
+/// point and line primitives, morph targets, primitives' own extensions
+/// (KHR_materials_variants'; Draco's is decoded), cameras and lights, each with
 /// how many materials, primitives or nodes have it.  Empty when nothing is
 /// left behind, or the rig is not from glTF.
 std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* materials = nullptr);
