@@ -1826,6 +1826,13 @@ TEST(Scene, VertexColoursAreRead)
     EXPECT_NE(io::featuresNotCarried(rig, 0).find("KHR_materials_variants (1 primitive)"), std::string::npos)
         << io::featuresNotCarried(rig, 0);
     prim.extensions.clear();
+    // And an extension of the document's that nothing here reads (animated
+    // material properties, whose channels are not carried).
+    model.extensionsUsed.push_back("KHR_animation_pointer");
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/pointer.glb", &rig, &after));
+    EXPECT_NE(io::featuresNotCarried(rig, 0).find("KHR_animation_pointer (the document's)"), std::string::npos)
+        << io::featuresNotCarried(rig, 0);
+    model.extensionsUsed.pop_back();
     // Two components are no colour.
     model.accessors.back().type = TINYGLTF_TYPE_VEC2;
     warnings.clear();

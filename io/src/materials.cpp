@@ -468,6 +468,21 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
         add(n, what, "primitive", "primitives");
     add(m.cameras.size(), "cameras", "camera", "cameras");
     add(m.lights.size(), "lights", "light", "lights");
+    // Any other extension the document uses (KHR_animation_pointer's
+    // channels, KHR_xmp_json_ld's metadata): what is read, decoded or named
+    // above is not named again.
+    static const char* const kAccountedFor[] = {"KHR_texture_transform",       "KHR_mesh_quantization",
+                                                "KHR_draco_mesh_compression",  "EXT_meshopt_compression",
+                                                "STRATA_layered_displacement", "EXT_mesh_gpu_instancing",
+                                                "KHR_lights_punctual",         "KHR_texture_basisu",
+                                                "EXT_texture_webp",            "EXT_texture_avif"};
+    for (const std::string& e : m.extensionsUsed) {
+        const bool listed =
+            std::find(std::begin(kAccountedFor), std::end(kAccountedFor), e) != std::end(kAccountedFor);
+        const bool accounted = listed || e.rfind("KHR_materials_", 0) == 0 || primitiveExtensions.count(e);
+        if (!accounted)
+            out += (out.empty() ? "" : ", ") + printable(e, 60) + " (the document's)";
+    }
     return out;
 }
 
