@@ -11,11 +11,12 @@ layout(std430, binding = 12) readonly buffer Errors { float errors[]; };
 layout(std430, binding = 14) readonly buffer CornerUVs { vec2 cornerUVs[]; };
 // Corner mode with u_hasColours: each corner's COLOR_0 (linear RGBA).
 layout(std430, binding = 15) readonly buffer CornerColours { vec4 cornerColours[]; };
-// Corner mode with u_emissiveSecond: the emissive texture's UVs, a second set.
+// Corner mode with u_hasSecondUVs: each corner's second UV channel (the
+// textures of a material on another set or transform).
 layout(std430, binding = 16) readonly buffer CornerUVs2 { vec2 cornerUVs2[]; };
 uniform int u_corners;
 uniform int u_hasColours;
-uniform int u_emissiveSecond;
+uniform int u_hasSecondUVs;
 #ifdef STRATA_ADAPTIVE_DRAW
 // An adaptive frame (adaptive.h): gl_VertexID is a frame vertex, already
 // displaced by the evaluator; frameVertices gives its refined vertex.
@@ -34,7 +35,7 @@ out vec3 v_normal;
 out float v_displacement;
 out float v_error;
 out vec2 v_materialUV;
-out vec2 v_emissiveUV;
+out vec2 v_secondUV;
 out vec4 v_vertexColour;
 
 void main()
@@ -48,7 +49,7 @@ void main()
     v_displacement = strata_vertex_displacement(refined, sampleUVs[refined]);
     v_error = 0.0;  // the fragment shader reads its triangle's level
     v_materialUV = u_corners != 0 ? cornerUVs[gl_VertexID] : vec2(0.0);
-    v_emissiveUV = u_corners != 0 && u_emissiveSecond != 0 ? cornerUVs2[gl_VertexID] : v_materialUV;
+    v_secondUV = u_corners != 0 && u_hasSecondUVs != 0 ? cornerUVs2[gl_VertexID] : v_materialUV;
     v_vertexColour = u_corners != 0 && u_hasColours != 0 ? cornerColours[gl_VertexID] : vec4(1.0);
     gl_Position = u_viewProjection * vec4(v_position, 1.0);
     return;
@@ -57,14 +58,14 @@ void main()
     vec2 uv = a_uv;
     float error = a_error;
     v_materialUV = vec2(0.0);
-    v_emissiveUV = vec2(0.0);
+    v_secondUV = vec2(0.0);
     v_vertexColour = vec4(1.0);
     if (u_corners != 0) {
         v = triangles[gl_VertexID];
         uv = sampleUVs[v];
         error = errors[v];
         v_materialUV = cornerUVs[gl_VertexID];
-        v_emissiveUV = u_emissiveSecond != 0 ? cornerUVs2[gl_VertexID] : v_materialUV;
+        v_secondUV = u_hasSecondUVs != 0 ? cornerUVs2[gl_VertexID] : v_materialUV;
         if (u_hasColours != 0)
             v_vertexColour = cornerColours[gl_VertexID];
     }

@@ -220,6 +220,59 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
                 middle(second, secondRig), middle(secondAdaptive, secondRig));
 }
 
+// glTF's metallic-roughness model: one sphere of linear 0.5 grey drawn as
+// a rough dielectric (metallic 0), a rough metal (glTF's default, 1) and a
+// smooth metal (roughness 0.2).  The dielectric's diffuse light makes it
+// brighter than the rough metal, whose grey tints only its reflections;
+// the smooth metal gathers the key light into a small highlight, brighter
+// than anything on the rough one.  (strata-view drew all three alike.)
+TEST(Viewer, MetallicAndRoughnessShadeAsGltfDefinesThem)
+{
+    const std::string dir = test::tempDir("viewer_metallic_roughness");
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/metal.glb", test::SphereColour::HalfFactor));
+    tinygltf::TinyGLTF gltf;
+    tinygltf::Model model;
+    std::string err, warn;
+    ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, dir + "/metal.glb")) << err;
+    ASSERT_EQ(model.materials[0].pbrMetallicRoughness.metallicFactor, 1.0);
+    model.materials[0].pbrMetallicRoughness.metallicFactor = 0.0;
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/dielectric.glb", true, true, false, true));
+    model.materials[0].pbrMetallicRoughness.metallicFactor = 1.0;
+    model.materials[0].pbrMetallicRoughness.roughnessFactor = 0.2;
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/smooth.glb", true, true, false, true));
+    const Image metal = shoot(dir + "/metal.glb", "", dir + "/metal.png");
+    const Image dielectric = shoot(dir + "/dielectric.glb", "", dir + "/dielectric.png");
+    const Image smooth = shoot(dir + "/smooth.glb", "", dir + "/smooth.png");
+    const Coverage c = coverage(dielectric);
+    ASSERT_GT(c.fraction, 0.05);
+    // Mean and brightest grey over the disc (its pixels in any of the three).
+    const auto grey = [&](const Image& img, double* mean, int* brightest) {
+        double sum = 0.0;
+        size_t n = 0;
+        *brightest = 0;
+        for (int y = c.y0; y <= c.y1; ++y)
+            for (int x = c.x0; x <= c.x1; ++x) {
+                const uint8_t* p = img.at(x, y);
+                if (isBackground(p))
+                    continue;
+                sum += (p[0] + p[1] + p[2]) / 3.0;
+                *brightest = std::max(*brightest, (p[0] + p[1] + p[2]) / 3);
+                ++n;
+            }
+        *mean = n ? sum / double(n) : 0.0;
+    };
+    double meanMetal, meanDielectric, meanSmooth;
+    int topMetal, topDielectric, topSmooth;
+    grey(metal, &meanMetal, &topMetal);
+    grey(dielectric, &meanDielectric, &topDielectric);
+    grey(smooth, &meanSmooth, &topSmooth);
+    std::printf("mean / brightest: dielectric %.1f / %d, rough metal %.1f / %d, smooth metal %.1f / %d\n",
+                meanDielectric, topDielectric, meanMetal, topMetal, meanSmooth, topSmooth);
+    EXPECT_GT(meanDielectric, meanMetal + 20.0);
+    EXPECT_GT(topSmooth, topMetal + 40);
+    EXPECT_GT(meanDifference(metal, smooth, c.x0, c.y0, c.x1, c.y1), 5.0);
+}
+
 TEST(Viewer, BadFileIsAOneLineErrorAndNoImage)
 {
     const std::string dir = test::tempDir("viewer_bad");

@@ -237,9 +237,17 @@ Status Scene::uploadMaterials()
         };
         image(m.image, &g.textureWidth, &g.textureHeight, &g.textureRGBA);
         image(m.emissiveImage, &g.emissiveWidth, &g.emissiveHeight, &g.emissiveRGBA);
+        image(m.metallicRoughnessImage, &g.metallicRoughnessWidth, &g.metallicRoughnessHeight,
+              &g.metallicRoughnessRGBA);
+        image(m.occlusionImage, &g.occlusionWidth, &g.occlusionHeight, &g.occlusionRGBA);
+        g.metallic = m.metallic;
+        g.roughness = m.roughness;
+        g.occlusionStrength = m.occlusionStrength;
         g.emissiveSecond = m.emissiveChannel == 1;
-        g.emissiveWrapS = int(m.second.wrapS);
-        g.emissiveWrapT = int(m.second.wrapT);
+        g.metallicRoughnessSecond = m.metallicRoughnessChannel == 1;
+        g.occlusionSecond = m.occlusionChannel == 1;
+        g.secondWrapS = int(m.second.wrapS);
+        g.secondWrapT = int(m.second.wrapT);
         mats.push_back(g);
     }
     const size_t per = size_t(1) << (2 * settings.level);

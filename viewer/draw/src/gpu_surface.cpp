@@ -76,7 +76,8 @@ GpuSurface::~GpuSurface()
         glDeleteProgram(adaptiveProgram_);
     glDeleteVertexArrays(1, &cornerVao_);
     for (GpuMaterial& m : materials_)
-        glDeleteTextures(1, &m.texture);
+        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture})
+            glDeleteTextures(1, t);
     for (GLuint p : {surface_, feedbackProgram_})
         glDeleteProgram(p);
     glDeleteFramebuffers(1, &feedbackTarget_);
@@ -126,19 +127,21 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
                                                        " second UVs for " + std::to_string(faceCount_) + " faces");
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
-    for (GpuMaterial& m : materials_) {
-        glDeleteTextures(1, &m.texture);
-        glDeleteTextures(1, &m.emissiveTexture);
-    }
+    for (GpuMaterial& m : materials_)
+        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture})
+            glDeleteTextures(1, t);
     materials_.clear();
-    // sRGB-coded, as glTF's base colour and emissive textures are: read linear.
-    const auto texture = [](const uint8_t* rgba, int width, int height, int wrapS, int wrapT) {
+    // Base colour and emissive textures are sRGB-coded (read linear by the
+    // sampler); metallic-roughness and occlusion are linear already.
+    const auto texture = [](const uint8_t* rgba, int width, int height, int wrapS, int wrapT, bool srgb = true) {
         GLuint t = 0;
+        if (!rgba || width <= 0 || height <= 0)
+            return t;
         glCreateTextures(GL_TEXTURE_2D, 1, &t);
         int levels = 1;
         while ((std::max(width, height) >> levels) > 0)
             ++levels;
-        glTextureStorage2D(t, levels, GL_SRGB8_ALPHA8, width, height);
+        glTextureStorage2D(t, levels, srgb ? GL_SRGB8_ALPHA8 : GL_RGBA8, width, height);
         glTextureSubImage2D(t, 0, 0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
         glGenerateTextureMipmap(t);
         glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
@@ -150,14 +153,18 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     for (const SurfaceMaterial& in : materials) {
         GpuMaterial m;
         m.material = in;
-        if (in.textureRGBA && in.textureWidth > 0 && in.textureHeight > 0)
-            m.texture = texture(in.textureRGBA, in.textureWidth, in.textureHeight, in.wrapS, in.wrapT);
-        if (in.emissiveRGBA && in.emissiveWidth > 0 && in.emissiveHeight > 0)
-            m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight,
-                                        in.emissiveSecond ? in.emissiveWrapS : in.wrapS,
-                                        in.emissiveSecond ? in.emissiveWrapT : in.wrapT);
-        m.material.textureRGBA = nullptr;
-        m.material.emissiveRGBA = nullptr;
+        const auto wrapS = [&](bool second) { return second ? in.secondWrapS : in.wrapS; };
+        const auto wrapT = [&](bool second) { return second ? in.secondWrapT : in.wrapT; };
+        m.texture = texture(in.textureRGBA, in.textureWidth, in.textureHeight, in.wrapS, in.wrapT);
+        m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight, wrapS(in.emissiveSecond),
+                                    wrapT(in.emissiveSecond));
+        m.metallicRoughnessTexture =
+            texture(in.metallicRoughnessRGBA, in.metallicRoughnessWidth, in.metallicRoughnessHeight,
+                    wrapS(in.metallicRoughnessSecond), wrapT(in.metallicRoughnessSecond), false);
+        m.occlusionTexture = texture(in.occlusionRGBA, in.occlusionWidth, in.occlusionHeight,
+                                     wrapS(in.occlusionSecond), wrapT(in.occlusionSecond), false);
+        m.material.textureRGBA = m.material.emissiveRGBA = nullptr;
+        m.material.metallicRoughnessRGBA = m.material.occlusionRGBA = nullptr;
         materials_.push_back(m);
     }
     ranges_ = ranges;
@@ -252,6 +259,9 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 1);
     glUniform1i(glGetUniformLocation(prog, "u_baseColorTexture"), 1);
     glUniform1i(glGetUniformLocation(prog, "u_emissiveTexture"), 2);
+    glUniform1i(glGetUniformLocation(prog, "u_metallicRoughnessTexture"), 3);
+    glUniform1i(glGetUniformLocation(prog, "u_occlusionTexture"), 4);
+    glUniform1i(glGetUniformLocation(prog, "u_hasSecondUVs"), cornerUVs2 ? 1 : 0);
     glBindVertexArray(vao);
     bool blending = false;
     for (const MaterialRange& r : ranges) {
@@ -269,7 +279,17 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
         glUniform3fv(glGetUniformLocation(prog, "u_emissive"), 1, glm::value_ptr(m.material.emissive));
         glUniform1i(glGetUniformLocation(prog, "u_hasEmissiveTexture"), m.emissiveTexture ? 1 : 0);
-        glUniform1i(glGetUniformLocation(prog, "u_emissiveSecond"), m.material.emissiveSecond && cornerUVs2 ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_emissiveSecond"), m.material.emissiveSecond ? 1 : 0);
+        glUniform1f(glGetUniformLocation(prog, "u_metallic"), m.material.metallic);
+        glUniform1f(glGetUniformLocation(prog, "u_roughness"), m.material.roughness);
+        glUniform1i(glGetUniformLocation(prog, "u_hasMetallicRoughnessTexture"), m.metallicRoughnessTexture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_metallicRoughnessSecond"),
+                    m.material.metallicRoughnessSecond ? 1 : 0);
+        glBindTextureUnit(3, m.metallicRoughnessTexture);
+        glUniform1i(glGetUniformLocation(prog, "u_hasOcclusionTexture"), m.occlusionTexture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_occlusionSecond"), m.material.occlusionSecond ? 1 : 0);
+        glUniform1f(glGetUniformLocation(prog, "u_occlusionStrength"), m.material.occlusionStrength);
+        glBindTextureUnit(4, m.occlusionTexture);
         glBindTextureUnit(2, m.emissiveTexture);
         glUniform1i(glGetUniformLocation(prog, "u_flatShading"), r.flat ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
@@ -280,8 +300,8 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glDisable(GL_BLEND);
         glDepthMask(GL_TRUE);
     }
-    glBindTextureUnit(1, 0);
-    glBindTextureUnit(2, 0);
+    for (GLuint unit = 1; unit <= 4; ++unit)
+        glBindTextureUnit(unit, 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_hasColours"), 0);

@@ -39,9 +39,12 @@ struct DrawParams {
     bool flatShading = false;
 };
 
-/// A material as the draw pass applies it (glTF metallic-roughness reduced
-/// to what a preview needs): base colour factor times an optional RGBA8
-/// texture, and the alpha mode.
+/// A material as the draw pass applies it, glTF's metallic-roughness model:
+/// base colour factor times an optional RGBA8 texture, metallic and
+/// roughness factors times an optional metallic-roughness texture (B, G),
+/// ambient occlusion, emission, and the alpha mode.  Each texture is read
+/// through the corner UVs, or the second corner UVs where its `...Second`
+/// says (glTF's texCoord on another set or transform).
 struct SurfaceMaterial {
     glm::vec4 baseColor{1.0f};
     int textureWidth = 0, textureHeight = 0;
@@ -55,8 +58,20 @@ struct SurfaceMaterial {
     glm::vec3 emissive{0.0f};
     int emissiveWidth = 0, emissiveHeight = 0;
     const uint8_t* emissiveRGBA = nullptr;  ///< copied at setMaterials()
-    bool emissiveSecond = false;            ///< read through the second UV channel (its own wraps below)
-    int emissiveWrapS = 0x2901, emissiveWrapT = 0x2901;
+    bool emissiveSecond = false;            ///< read through the second UV channel
+    float metallic = 1.0f, roughness = 1.0f;  ///< glTF's factors (and defaults)
+    /// The metallic-roughness texture (linear: G roughness, B metallic) and
+    /// the occlusion texture (linear R, mixed in by occlusionStrength);
+    /// null: none.  Copied at setMaterials().
+    int metallicRoughnessWidth = 0, metallicRoughnessHeight = 0;
+    const uint8_t* metallicRoughnessRGBA = nullptr;
+    bool metallicRoughnessSecond = false;
+    int occlusionWidth = 0, occlusionHeight = 0;
+    const uint8_t* occlusionRGBA = nullptr;
+    bool occlusionSecond = false;
+    float occlusionStrength = 1.0f;
+    /// The second UV channel's wraps (for the textures read through it).
+    int secondWrapS = 0x2901, secondWrapT = 0x2901;
 };
 
 /// A run of refined faces drawn with one material.
@@ -165,7 +180,7 @@ private:
     size_t ownBytes_ = 0;
     struct GpuMaterial {
         SurfaceMaterial material;
-        GLuint texture = 0, emissiveTexture = 0;
+        GLuint texture = 0, emissiveTexture = 0, metallicRoughnessTexture = 0, occlusionTexture = 0;
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
