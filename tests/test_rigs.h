@@ -155,16 +155,23 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
         prim.attributes["TEXCOORD_0"] = addAccessor(model, uvs.data(), n * 8, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                     TINYGLTF_TYPE_VEC2, n, kVertices);
-        std::string png;
-        if (!io::encodePngRgba(2, 2, std::vector<uint8_t>{188, 188, 188, 255, 188, 188, 188, 255, 188, 188, 188, 255,
-                                                         188, 188, 188, 255},
-                               &png))
+        // A PNG of `rgba` as the next image and texture.
+        const auto addTexture = [&](int width, int height, const std::vector<uint8_t>& rgba) {
+            std::string png;
+            if (!io::encodePngRgba(width, height, rgba, &png))
+                return false;
+            tinygltf::Image image;
+            image.bufferView = addBufferView(model, png.data(), png.size(), 0);
+            image.mimeType = "image/png";
+            model.images.push_back(image);
+            model.textures.emplace_back().source = int(model.images.size()) - 1;
+            return true;
+        };
+        std::vector<uint8_t> grey;  // 2x2 of sRGB code 188, opaque
+        for (int texel = 0; texel < 4; ++texel)
+            grey.insert(grey.end(), {188, 188, 188, 255});
+        if (!addTexture(2, 2, grey))
             return false;
-        tinygltf::Image image;
-        image.bufferView = addBufferView(model, png.data(), png.size(), 0);
-        image.mimeType = "image/png";
-        model.images.push_back(image);
-        model.textures.emplace_back().source = 0;
         material.pbrMetallicRoughness.baseColorTexture.index = 0;
         if (how == SphereColour::SecondUVSet) {
             std::vector<glm::vec2> second;
@@ -178,13 +185,8 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
                 for (int x = 0; x < kRamp; ++x)
                     for (int k = 0; k < 4; ++k)
                         ramp.push_back(k == 3 ? 255 : uint8_t(std::lround(255.0 * (x + 0.5) / kRamp)));
-            if (!io::encodePngRgba(kRamp, 2, ramp, &png))
+            if (!addTexture(kRamp, 2, ramp))
                 return false;
-            tinygltf::Image rampImage;
-            rampImage.bufferView = addBufferView(model, png.data(), png.size(), 0);
-            rampImage.mimeType = "image/png";
-            model.images.push_back(rampImage);
-            model.textures.emplace_back().source = 1;
             material.occlusionTexture.index = 1;
             material.occlusionTexture.texCoord = 1;
             material.emissiveTexture.index = 1;

@@ -166,12 +166,18 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
     EXPECT_LT(middle(factor, vertex), 0.5);
     EXPECT_LT(middle(factor, texture), 0.5);
 
-    ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb"));
-    const test::CommandResult bake = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
-                                                      "/sphere.glb' --control auto -o '" + dir + "/rig.glb'");
-    ASSERT_EQ(bake.code, 0) << bake.output;
+    // dir/STEM.glb, a sphere coloured as `how` says, and its --control auto
+    // rig, dir/STEM_rig.glb.
+    const auto sphereAndRig = [&](test::SphereColour how, const std::string& stem) {
+        EXPECT_TRUE(test::writeColouredSphere(dir + "/" + stem + ".glb", how));
+        const test::CommandResult bake = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir + "/" +
+                                                          stem + ".glb' --control auto -o '" + dir + "/" + stem +
+                                                          "_rig.glb'");
+        EXPECT_EQ(bake.code, 0) << bake.output;
+    };
+    sphereAndRig(test::SphereColour::VertexAndFactor, "sphere");
     const Image source = shoot(dir + "/sphere.glb", "", dir + "/source.png");
-    const Image rig = shoot(dir + "/rig.glb", "", dir + "/rig.png");
+    const Image rig = shoot(dir + "/sphere_rig.glb", "", dir + "/rig.png");
     const Image grey = shoot(dir + "/sphere.glb", "--no-materials", dir + "/grey.png");
     EXPECT_LT(middle(source, rig), 3.0);
     EXPECT_GT(middle(source, grey), 10.0);
@@ -180,10 +186,7 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
     // orange by its material's factor draws as its rig, which glows by an
     // emissive texture, and both glow (red well over blue) over a tenth of
     // the disc's box (18% from this camera, which looks down on it).
-    ASSERT_TRUE(test::writeColouredSphere(dir + "/two.glb", test::SphereColour::TwoMaterials));
-    const test::CommandResult bakeTwo = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
-                                                         "/two.glb' --control auto -o '" + dir + "/two_rig.glb'");
-    ASSERT_EQ(bakeTwo.code, 0) << bakeTwo.output;
+    sphereAndRig(test::SphereColour::TwoMaterials, "two");
     const Image two = shoot(dir + "/two.glb", "", dir + "/two.png");
     const Image twoRig = shoot(dir + "/two_rig.glb", "", dir + "/two_rig.png");
     const auto glowing = [&](const Image& img) {
@@ -206,10 +209,7 @@ TEST(Viewer, VertexColoursFactorsAndTexturesDrawAsGltfDefinesThem)
     // as its rig, which carries the ramp through its one UV set, refined
     // uniformly and adaptively.  (strata-view read it through the base
     // colour's UVs, one texel of the ramp everywhere: 5 levels off.)
-    ASSERT_TRUE(test::writeColouredSphere(dir + "/second.glb", test::SphereColour::SecondUVSet));
-    const test::CommandResult bakeSecond = test::runCommand(
-        std::string(STRATA_BAKE_EXE) + " --high '" + dir + "/second.glb' --control auto -o '" + dir + "/second_rig.glb'");
-    ASSERT_EQ(bakeSecond.code, 0) << bakeSecond.output;
+    sphereAndRig(test::SphereColour::SecondUVSet, "second");
     const Image second = shoot(dir + "/second.glb", "", dir + "/second.png");
     const Image secondAdaptive = shoot(dir + "/second.glb", "--adaptive --no-level-colours", dir + "/second_lod.png");
     const Image secondRig = shoot(dir + "/second_rig.glb", "", dir + "/second_rig.png");
