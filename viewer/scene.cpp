@@ -225,29 +225,29 @@ Status Scene::uploadMaterials()
         g.alphaMode = int(m.alphaMode);
         g.alphaCutoff = m.alphaCutoff;
         g.emissive = m.emissive;
-        g.wrapS = int(m.wrapS);  // the first UV channel's sampler
+        g.wrapS = int(m.wrapS);
         g.wrapT = int(m.wrapT);
-        const auto image = [&](int index, int* width, int* height, const uint8_t** rgba) {
+        g.secondWrapS = int(m.second.wrapS);
+        g.secondWrapT = int(m.second.wrapT);
+        // Image `index` (none: -1), read through UV channel `channel`.
+        const auto texture = [&](int index, int channel) {
+            gl::SurfaceTexture t;
             if (index < 0 || size_t(index) >= materials_.images.size() || materials_.images[size_t(index)].rgba.empty())
-                return;
+                return t;
             const io::ImageRGBA& im = materials_.images[size_t(index)];
-            *width = im.width;
-            *height = im.height;
-            *rgba = im.rgba.data();
+            t.width = im.width;
+            t.height = im.height;
+            t.rgba = im.rgba.data();
+            t.second = channel == 1;
+            return t;
         };
-        image(m.image, &g.textureWidth, &g.textureHeight, &g.textureRGBA);
-        image(m.emissiveImage, &g.emissiveWidth, &g.emissiveHeight, &g.emissiveRGBA);
-        image(m.metallicRoughnessImage, &g.metallicRoughnessWidth, &g.metallicRoughnessHeight,
-              &g.metallicRoughnessRGBA);
-        image(m.occlusionImage, &g.occlusionWidth, &g.occlusionHeight, &g.occlusionRGBA);
+        g.baseColorTexture = texture(m.image, 0);
+        g.emissiveTexture = texture(m.emissiveImage, m.emissiveChannel);
+        g.metallicRoughnessTexture = texture(m.metallicRoughnessImage, m.metallicRoughnessChannel);
+        g.occlusionTexture = texture(m.occlusionImage, m.occlusionChannel);
         g.metallic = m.metallic;
         g.roughness = m.roughness;
         g.occlusionStrength = m.occlusionStrength;
-        g.emissiveSecond = m.emissiveChannel == 1;
-        g.metallicRoughnessSecond = m.metallicRoughnessChannel == 1;
-        g.occlusionSecond = m.occlusionChannel == 1;
-        g.secondWrapS = int(m.second.wrapS);
-        g.secondWrapT = int(m.second.wrapT);
         mats.push_back(g);
     }
     const size_t per = size_t(1) << (2 * settings.level);

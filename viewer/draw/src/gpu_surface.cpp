@@ -132,39 +132,35 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
             glDeleteTextures(1, t);
     materials_.clear();
     // Base colour and emissive textures are sRGB-coded (read linear by the
-    // sampler); metallic-roughness and occlusion are linear already.
-    const auto texture = [](const uint8_t* rgba, int width, int height, int wrapS, int wrapT, bool srgb = true) {
+    // sampler); metallic-roughness and occlusion are linear already.  Each
+    // through its UV channel's wraps.
+    const auto texture = [](const SurfaceMaterial& in, const SurfaceTexture& tex, bool srgb) {
         GLuint t = 0;
-        if (!rgba || width <= 0 || height <= 0)
+        if (!tex.rgba || tex.width <= 0 || tex.height <= 0)
             return t;
         glCreateTextures(GL_TEXTURE_2D, 1, &t);
         int levels = 1;
-        while ((std::max(width, height) >> levels) > 0)
+        while ((std::max(tex.width, tex.height) >> levels) > 0)
             ++levels;
-        glTextureStorage2D(t, levels, srgb ? GL_SRGB8_ALPHA8 : GL_RGBA8, width, height);
-        glTextureSubImage2D(t, 0, 0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+        glTextureStorage2D(t, levels, srgb ? GL_SRGB8_ALPHA8 : GL_RGBA8, tex.width, tex.height);
+        glTextureSubImage2D(t, 0, 0, 0, tex.width, tex.height, GL_RGBA, GL_UNSIGNED_BYTE, tex.rgba);
         glGenerateTextureMipmap(t);
         glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
         glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTextureParameteri(t, GL_TEXTURE_WRAP_S, wrapS);
-        glTextureParameteri(t, GL_TEXTURE_WRAP_T, wrapT);
+        glTextureParameteri(t, GL_TEXTURE_WRAP_S, tex.second ? in.secondWrapS : in.wrapS);
+        glTextureParameteri(t, GL_TEXTURE_WRAP_T, tex.second ? in.secondWrapT : in.wrapT);
         return t;
     };
     for (const SurfaceMaterial& in : materials) {
         GpuMaterial m;
         m.material = in;
-        const auto wrapS = [&](bool second) { return second ? in.secondWrapS : in.wrapS; };
-        const auto wrapT = [&](bool second) { return second ? in.secondWrapT : in.wrapT; };
-        m.texture = texture(in.textureRGBA, in.textureWidth, in.textureHeight, in.wrapS, in.wrapT);
-        m.emissiveTexture = texture(in.emissiveRGBA, in.emissiveWidth, in.emissiveHeight, wrapS(in.emissiveSecond),
-                                    wrapT(in.emissiveSecond));
-        m.metallicRoughnessTexture =
-            texture(in.metallicRoughnessRGBA, in.metallicRoughnessWidth, in.metallicRoughnessHeight,
-                    wrapS(in.metallicRoughnessSecond), wrapT(in.metallicRoughnessSecond), false);
-        m.occlusionTexture = texture(in.occlusionRGBA, in.occlusionWidth, in.occlusionHeight,
-                                     wrapS(in.occlusionSecond), wrapT(in.occlusionSecond), false);
-        m.material.textureRGBA = m.material.emissiveRGBA = nullptr;
-        m.material.metallicRoughnessRGBA = m.material.occlusionRGBA = nullptr;
+        m.texture = texture(in, in.baseColorTexture, true);
+        m.emissiveTexture = texture(in, in.emissiveTexture, true);
+        m.metallicRoughnessTexture = texture(in, in.metallicRoughnessTexture, false);
+        m.occlusionTexture = texture(in, in.occlusionTexture, false);
+        for (SurfaceTexture* t : {&m.material.baseColorTexture, &m.material.emissiveTexture,
+                                  &m.material.metallicRoughnessTexture, &m.material.occlusionTexture})
+            t->rgba = nullptr;
         materials_.push_back(m);
     }
     ranges_ = ranges;
@@ -279,15 +275,15 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform1i(glGetUniformLocation(prog, "u_alphaMode"), m.material.alphaMode);
         glUniform3fv(glGetUniformLocation(prog, "u_emissive"), 1, glm::value_ptr(m.material.emissive));
         glUniform1i(glGetUniformLocation(prog, "u_hasEmissiveTexture"), m.emissiveTexture ? 1 : 0);
-        glUniform1i(glGetUniformLocation(prog, "u_emissiveSecond"), m.material.emissiveSecond ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_emissiveSecond"), m.material.emissiveTexture.second ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_metallic"), m.material.metallic);
         glUniform1f(glGetUniformLocation(prog, "u_roughness"), m.material.roughness);
         glUniform1i(glGetUniformLocation(prog, "u_hasMetallicRoughnessTexture"), m.metallicRoughnessTexture ? 1 : 0);
         glUniform1i(glGetUniformLocation(prog, "u_metallicRoughnessSecond"),
-                    m.material.metallicRoughnessSecond ? 1 : 0);
+                    m.material.metallicRoughnessTexture.second ? 1 : 0);
         glBindTextureUnit(3, m.metallicRoughnessTexture);
         glUniform1i(glGetUniformLocation(prog, "u_hasOcclusionTexture"), m.occlusionTexture ? 1 : 0);
-        glUniform1i(glGetUniformLocation(prog, "u_occlusionSecond"), m.material.occlusionSecond ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_occlusionSecond"), m.material.occlusionTexture.second ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_occlusionStrength"), m.material.occlusionStrength);
         glBindTextureUnit(4, m.occlusionTexture);
         glBindTextureUnit(2, m.emissiveTexture);

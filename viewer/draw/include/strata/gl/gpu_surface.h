@@ -39,39 +39,36 @@ struct DrawParams {
     bool flatShading = false;
 };
 
+/// One of a material's textures: RGBA8 pixels (null: none; copied at
+/// setMaterials()), read through the corner UVs or, with `second`, the
+/// second corner UVs (glTF's texCoord on another set or transform).
+struct SurfaceTexture {
+    int width = 0, height = 0;
+    const uint8_t* rgba = nullptr;
+    bool second = false;
+};
+
 /// A material as the draw pass applies it, glTF's metallic-roughness model:
-/// base colour factor times an optional RGBA8 texture, metallic and
-/// roughness factors times an optional metallic-roughness texture (B, G),
-/// ambient occlusion, emission, and the alpha mode.  Each texture is read
-/// through the corner UVs, or the second corner UVs where its `...Second`
-/// says (glTF's texCoord on another set or transform).
+/// base colour factor times an optional texture, metallic and roughness
+/// factors times an optional metallic-roughness texture (B, G), ambient
+/// occlusion, emission, and the alpha mode.
 struct SurfaceMaterial {
     glm::vec4 baseColor{1.0f};
-    int textureWidth = 0, textureHeight = 0;
-    const uint8_t* textureRGBA = nullptr;  ///< null: untextured; copied at setMaterials()
-    int wrapS = 0x2901, wrapT = 0x2901;    ///< the texture's wrap modes (GL's codes, as glTF's samplers give them)
-    int alphaMode = 0;                     ///< 0 opaque, 1 mask, 2 blend
+    SurfaceTexture baseColorTexture;  ///< sRGB-coded, through the first UV channel
+    /// The wrap modes of the first and second UV channels' textures (GL's
+    /// codes, as glTF's samplers give them).
+    int wrapS = 0x2901, wrapT = 0x2901, secondWrapS = 0x2901, secondWrapT = 0x2901;
+    int alphaMode = 0;  ///< 0 opaque, 1 mask, 2 blend
     float alphaCutoff = 0.5f;
-    /// glTF's emissive colour (linear), times its texture (sRGB-coded, read
-    /// through the base colour texture's UVs, or the second corner UVs with
-    /// emissiveSecond; null: none), added to the lit colour.
+    /// glTF's emissive colour (linear), times its texture (sRGB-coded),
+    /// added to the lit colour.
     glm::vec3 emissive{0.0f};
-    int emissiveWidth = 0, emissiveHeight = 0;
-    const uint8_t* emissiveRGBA = nullptr;  ///< copied at setMaterials()
-    bool emissiveSecond = false;            ///< read through the second UV channel
+    SurfaceTexture emissiveTexture;
     float metallic = 1.0f, roughness = 1.0f;  ///< glTF's factors (and defaults)
     /// The metallic-roughness texture (linear: G roughness, B metallic) and
-    /// the occlusion texture (linear R, mixed in by occlusionStrength);
-    /// null: none.  Copied at setMaterials().
-    int metallicRoughnessWidth = 0, metallicRoughnessHeight = 0;
-    const uint8_t* metallicRoughnessRGBA = nullptr;
-    bool metallicRoughnessSecond = false;
-    int occlusionWidth = 0, occlusionHeight = 0;
-    const uint8_t* occlusionRGBA = nullptr;
-    bool occlusionSecond = false;
+    /// the occlusion texture (linear R, mixed in by occlusionStrength).
+    SurfaceTexture metallicRoughnessTexture, occlusionTexture;
     float occlusionStrength = 1.0f;
-    /// The second UV channel's wraps (for the textures read through it).
-    int secondWrapS = 0x2901, secondWrapT = 0x2901;
 };
 
 /// A run of refined faces drawn with one material.
