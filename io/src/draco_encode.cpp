@@ -151,9 +151,7 @@ Status encodeDracoPrimitives(tinygltf::Model& model, double positionError, size_
             ++coded;
         }
     if (coded)
-        for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
-            if (std::find(list->begin(), list->end(), kDracoExtension) == list->end())
-                list->push_back(kDracoExtension);
+        useExtension(model, kDracoExtension, true);
     if (codedCount)
         *codedCount = coded;
     return Status::ok();

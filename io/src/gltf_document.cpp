@@ -486,6 +486,13 @@ Status gatherAccessor(tinygltf::Model& model, int index, const std::vector<uint3
 }
 
 
+void useExtension(tinygltf::Model& model, const std::string& name, bool required)
+{
+    for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
+        if ((list == &model.extensionsUsed || required) && std::find(list->begin(), list->end(), name) == list->end())
+            list->push_back(name);
+}
+
 // Extensions known not to reference accessors or bufferViews: with only
 // these in use, unreferenced accessors and views can be dropped safely.
 bool onlyKnownExtensions(const tinygltf::Model& model)

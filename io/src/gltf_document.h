@@ -57,6 +57,9 @@ void setDracoView(tinygltf::Primitive* p, int view);
 /// `bin` (the BIN chunk, buffer 0), and drops the extension.  Counts are
 /// checked against the accessors; errors name `path`.
 Status decodeDracoJson(nlohmann::json& doc, std::vector<unsigned char>* bin, const std::string& path);
+/// Lists extension `name` in the model's extensionsUsed and, where
+/// `required`, its extensionsRequired, each at most once.
+void useExtension(tinygltf::Model& model, const std::string& name, bool required);
 /// Removes extension `name` from a document's extensionsUsed and
 /// extensionsRequired (dropping a list it leaves empty).
 void dropExtension(nlohmann::json& doc, const char* name);

@@ -583,11 +583,7 @@ Status encodeCompressedGlb(const std::string& path, tinygltf::Model& model, std:
     if (coded.empty())
         return plainGlb(path, model, out);
     model.buffers[0].data = bin;
-    for (const char* e : {kMeshoptExtension})
-        if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), e) == model.extensionsUsed.end()) {
-            model.extensionsUsed.push_back(e);
-            model.extensionsRequired.push_back(e);
-        }
+    useExtension(model, kMeshoptExtension, true);
     // tinygltf cannot write a buffer without data: serialise, then set the
     // compressed views and the fallback buffer in the JSON.
     tinygltf::TinyGLTF writer;

@@ -597,9 +597,7 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
         tinygltf::Value::Object strength;
         strength["emissiveStrength"] = tinygltf::Value(double(colour.emissiveStrength));
         material.extensions["KHR_materials_emissive_strength"] = tinygltf::Value(strength);
-        if (std::find(model.extensionsUsed.begin(), model.extensionsUsed.end(), "KHR_materials_emissive_strength") ==
-            model.extensionsUsed.end())
-            model.extensionsUsed.push_back("KHR_materials_emissive_strength");
+        useExtension(model, "KHR_materials_emissive_strength", false);
     }
     material.pbrMetallicRoughness.metallicFactor = double(colour.metallic);
     material.pbrMetallicRoughness.roughnessFactor = double(colour.roughness);
