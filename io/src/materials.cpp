@@ -140,10 +140,14 @@ double linearToSrgb(double linear)
     return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
 }
 
+glm::dvec4 srgbToLinear(const glm::dvec4& coded)
+{
+    return glm::dvec4(srgbToLinear(coded.r), srgbToLinear(coded.g), srgbToLinear(coded.b), coded.a);
+}
+
 glm::dvec4 sampleLinear(const TextureCoords& material, const ImageRGBA& image, const glm::dvec2& uv, bool nearest)
 {
-    const glm::dvec4 t = sampleImage(image, uv, nearest, material.wrapS, material.wrapT);
-    return glm::dvec4(srgbToLinear(t.r), srgbToLinear(t.g), srgbToLinear(t.b), t.a);
+    return srgbToLinear(sampleImage(image, uv, nearest, material.wrapS, material.wrapT));
 }
 
 glm::dvec4 baseColourAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv,

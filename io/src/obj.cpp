@@ -232,9 +232,8 @@ Status parseObj(const unsigned char* data, size_t size, const std::string& path,
                 stats.colours[i] = glm::vec4(1.0f);
                 continue;
             }
-            const auto channel = [&](float x) { return float(srgbToLinear(std::clamp(double(x) * scale, 0.0, 1.0))); };
-            stats.colours[i] = glm::vec4(channel(c.r), channel(c.g), channel(c.b),
-                                         c.a < -1.5f ? 1.0f : float(std::clamp(double(c.a) * scale, 0.0, 1.0)));
+            const glm::dvec4 coded = glm::clamp(glm::dvec4(c) * scale, 0.0, 1.0);
+            stats.colours[i] = glm::vec4(srgbToLinear(glm::dvec4(glm::dvec3(coded), c.a < -1.5f ? 1.0 : coded.a)));
         }
     }
     *out = std::move(mesh);

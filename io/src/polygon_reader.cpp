@@ -466,8 +466,7 @@ Status readPly(const std::string& path, const std::vector<unsigned char>& bytes,
                     return fail(path, "vertex " + std::to_string(i) + " is not finite");
                 out->positions.push_back(f);
                 if (coloured)
-                    out->colours.emplace_back(float(srgbToLinear(colour.r)), float(srgbToLinear(colour.g)),
-                                              float(srgbToLinear(colour.b)), float(colour.a));
+                    out->colours.emplace_back(srgbToLinear(colour));
             }
         }
         if (isVertex)

@@ -105,6 +105,9 @@ struct SceneMaterials {
 /// base colour factors and vertex colours are linear.
 double srgbToLinear(double coded);
 double linearToSrgb(double linear);
+/// An sRGB-coded colour (a texel, a PLY's or OBJ's vertex colour) in linear
+/// light: RGB decoded, alpha as it is.
+glm::dvec4 srgbToLinear(const glm::dvec4& coded);
 
 /// The image at `uv` through `material`'s sampler, its RGB sRGB-decoded
 /// (a base colour or emissive texture as glTF reads it), alpha as stored.
