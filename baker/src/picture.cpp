@@ -103,8 +103,8 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                         colour[ch] *= value;
                     }
                 if (part.image && part.uvs) {
-                    const io::MaterialInfo plain;  // glTF's default sampler
-                    const io::MaterialInfo& mat = part.material ? *part.material : plain;
+                    const io::TextureCoords plain;  // glTF's default sampler
+                    const io::TextureCoords& mat = part.material ? *part.material : plain;
                     colour *= io::sampleLinear(mat, *part.image,
                                                part.material ? glm::dvec2(mat.textureUV(glm::vec2(uv))) : uv);
                 }

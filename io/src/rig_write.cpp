@@ -553,13 +553,12 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     model.samplers.push_back(sampler);
     // Each image a texture through that sampler; the texture's index.
     // Colours as JPEG or PNG, whichever is smaller; metallic, roughness and
-    // occlusion, values rather than colours, as PNG (JPEG's chroma would
-    // move one channel's values by the others').
-    const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, int* index) {
+    // occlusion (`values`: values rather than colours) as PNG, since JPEG's
+    // chroma would move one channel's values by the others'.
+    const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, bool values, int* index) {
         std::string bytes, mimeType = "image/png";
-        Status st = &rgba == &colour.metallicRoughness
-                        ? encodePngRgba(colour.width, colour.height, rgba, &bytes)
-                        : encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
+        Status st = values ? encodePngRgba(colour.width, colour.height, rgba, &bytes)
+                           : encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
         if (!st)
             return Status(st.code(), "the " + name + " texture: " + st.message());
         const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
@@ -580,11 +579,11 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     if (model.materials.empty())
         model.materials.emplace_back();
     int base = -1, mr = -1, emissive = -1;
-    Status st = addTexture(colour.rgba, colour.name.empty() ? "base_colour" : colour.name, &base);
+    Status st = addTexture(colour.rgba, colour.name.empty() ? "base_colour" : colour.name, false, &base);
     if (st && !colour.metallicRoughness.empty())
-        st = addTexture(colour.metallicRoughness, "metallic_roughness", &mr);
+        st = addTexture(colour.metallicRoughness, "metallic_roughness", true, &mr);
     if (st && !colour.emissiveRGBA.empty())
-        st = addTexture(colour.emissiveRGBA, "emissive", &emissive);
+        st = addTexture(colour.emissiveRGBA, "emissive", false, &emissive);
     if (!st)
         return st;
     tinygltf::Material& material = model.materials[0];
