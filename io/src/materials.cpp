@@ -332,11 +332,11 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
         // an image expand past deflate's limit (about 1032:1; a flat 4096^2
         // PNG is 64 MB from 64 KB): at most 2048x its bytes, plus 16 MB.
         // glTF's images are PNG or JPEG, and stb_image would read others;
-        // a PNG's chunks must lie inside it (pngChunksFit).
-        const bool png = bytes.size() >= 4 && bytes[0] == 0x89 && bytes[1] == 'P' && bytes[2] == 'N' && bytes[3] == 'G';
+        // a PNG's chunks must lie inside it (pngChunksFit, which checks its
+        // signature too).
         const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
         const bool readable = bytes.size() <= (size_t(1) << 30) &&
-                              ((png && pngChunksFit(bytes.data(), bytes.size())) || jpeg) &&
+                              (jpeg || pngChunksFit(bytes.data(), bytes.size())) &&
                               stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp) && w > 0 &&
                               h > 0 && w <= 16384 && h <= 16384 &&
                               4 * size_t(w) * size_t(h) <= 2048 * bytes.size() + (size_t(16) << 20);
