@@ -43,6 +43,11 @@ uniform int u_hasOcclusionTexture;
 uniform int u_occlusionSecond;
 uniform float u_occlusionStrength;
 uniform sampler2D u_occlusionTexture;
+// Its tangent-space normal texture (glTF's: X along +u, Y along -v).
+uniform int u_hasNormalTexture;
+uniform int u_normalSecond;
+uniform float u_normalScale;
+uniform sampler2D u_normalTexture;
 
 out vec4 o_color;
 
@@ -75,6 +80,30 @@ vec3 directLight(vec3 l, vec3 radiance, vec3 n, vec3 view, vec3 diffuse, vec3 f0
     float vis = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
     vec3 f = f0 + (1.0 - f0) * pow(1.0 - vh, 5.0);
     return ((1.0 - f) * diffuse / kPi + f * d * vis) * radiance * nl;
+}
+
+// The normal n turned by the normal texture at `uv`, in the frame glTF
+// gives a mesh without TANGENT, derived per pixel: X the surface's dP/du
+// made perpendicular to n, Y n x X pointing along -dP/dv, Z n (the baker's
+// transferNormals writes in this frame).
+vec3 perturbNormal(vec3 n, vec2 uv)
+{
+    vec3 dpx = dFdx(v_position), dpy = dFdy(v_position);
+    vec2 dx = dFdx(uv), dy = dFdy(uv);
+    float det = dx.x * dy.y - dy.x * dx.y;
+    if (abs(det) < 1e-20)
+        return n;
+    vec3 dPdu = (dpx * dy.y - dpy * dx.y) / det, dPdv = (dpy * dx.x - dpx * dy.x) / det;
+    vec3 t = dPdu - n * dot(n, dPdu);
+    if (dot(t, t) < 1e-30)
+        return n;
+    t = normalize(t);
+    vec3 b = cross(n, t);
+    if (dot(b, dPdv) > 0.0)
+        b = -b;
+    vec3 m = texture(u_normalTexture, uv).xyz * 2.0 - 1.0;
+    m.xy *= u_normalScale;
+    return normalize(m.x * t + m.y * b + m.z * n);
 }
 
 // The material lit by the key, the fill and the hemisphere, linear.
@@ -132,6 +161,8 @@ void main()
         if (u_alphaMode == 1 && c.a < u_alphaCutoff)
             discard;
         alpha = u_alphaMode == 2 ? c.a : 1.0;
+        if (u_hasNormalTexture != 0)
+            n = perturbNormal(n, u_normalSecond != 0 ? v_secondUV : v_materialUV);
         emitted = u_emissive;
         if (u_hasEmissiveTexture != 0)
             emitted *= texture(u_emissiveTexture, u_emissiveSecond != 0 ? v_secondUV : v_materialUV).rgb;

@@ -1579,6 +1579,106 @@ TEST(BakeLibrary, AutomaticCageCarriesTexturesOnASecondUVSet)
     EXPECT_LT(worst, 0.03);
 }
 
+// A normal texture is carried: a sphere whose one normal tilts every
+// shading normal the same way in its tangent frame (a projection along z,
+// glTF's +u and -v) re-bakes into a normal texture that, read as glTF
+// reads it in the frame of the surface Strata draws (the rig refined to its
+// recommended level: each triangle's dP/du and the blended vertex
+// normals), gives that tilted normal wherever the projection has a frame.
+// Before, the normal texture was named as not carried, and the rig drew
+// the bare surface's normals, 22 degrees off.
+TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_normal_texture");
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb", test::SphereColour::NormalTexture));
+    {
+        Rig capture;
+        ASSERT_TRUE(io::loadRig(dir + "/sphere.glb", &capture).isOk());
+        io::SceneMaterials read;
+        ASSERT_TRUE(io::loadSceneMaterials(capture, &read).isOk());
+        EXPECT_EQ(read.materials[0].normalImage, 1);
+        EXPECT_EQ(read.materials[0].normalChannel, 0);
+        EXPECT_FLOAT_EQ(read.materials[0].normalScale, test::kNormalScale);
+    }
+    std::string summary;
+    ASSERT_TRUE(bakeCarryingEverything(dir + "/sphere.glb", dir + "/rig.glb", &summary));
+    EXPECT_NE(summary.find("with a normal one"), std::string::npos) << summary;
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &rig).isOk());
+    io::SceneMaterials sm;
+    ASSERT_TRUE(io::loadSceneMaterials(rig, &sm).isOk());
+    const io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
+    ASSERT_GE(carried.normalImage, 0);
+    EXPECT_FALSE(carried.hasSecond);
+    DisplacementMap map;
+    ASSERT_TRUE(io::loadRigDisplacementMap(dir + "/rig.glb", rig, &map).isOk());
+    io::Reconstruction rec;
+    ASSERT_TRUE(io::reconstruct(&rec, rig, &map, rig.displacement.scheme, rig.displacement.recommendedLevel).isOk());
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> corners;
+    rec.plan().refinedUVs(&uvs, &corners);
+    const std::vector<uint32_t>& tri = rec.plan().refinedTriangles();
+    ASSERT_EQ(corners.size(), tri.size());
+    // The capture's normal in its tangent frame, decoded as glTF does.
+    glm::dvec3 tilt;
+    for (int k = 0; k < 3; ++k)
+        tilt[k] = 2.0 * test::kNormalCode[k] / 255.0 - 1.0;
+    tilt.x *= test::kNormalScale;
+    tilt.y *= test::kNormalScale;
+    tilt = glm::normalize(tilt);
+    double worst = 0.0, sum = 0.0, bareSum = 0.0;
+    size_t checked = 0, within2 = 0;
+    for (size_t t = 0; 3 * t < tri.size(); t += 7) {
+        glm::dvec3 p[3], n(0.0), c(0.0);
+        glm::dvec2 uv[3], uc(0.0);
+        for (int k = 0; k < 3; ++k) {
+            p[k] = glm::dvec3(rec.positions[tri[3 * t + size_t(k)]]);
+            n += glm::dvec3(rec.normals[tri[3 * t + size_t(k)]]) / 3.0;
+            c += p[k] / 3.0;
+            uv[k] = glm::dvec2(uvs[corners[3 * t + size_t(k)]]);
+            uc += uv[k] / 3.0;
+        }
+        const glm::dvec3 radial = glm::normalize(c);
+        if (std::abs(radial.z) < 0.4)
+            continue;  // the projection's rim: no frame there
+        // The rig's frame, as a viewer derives it from the triangle.
+        n = glm::normalize(n);
+        const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+        const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+        const double det = d1.x * d2.y - d2.x * d1.y;
+        const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
+        const glm::dvec3 tangent = glm::normalize(dPdu - n * glm::dot(n, dPdu));
+        glm::dvec3 bitangent = glm::cross(n, tangent);
+        if (glm::dot(bitangent, dPdv) > 0.0)
+            bitangent = -bitangent;
+        const glm::dvec3 local = io::normalAt(carried, &sm.images[size_t(carried.normalImage)], uc);
+        const glm::dvec3 drawn = glm::normalize(local.x * tangent + local.y * bitangent + local.z * n);
+        // The capture's: its frame on the sphere, the point (x, y, z(x, y))
+        // with u along x and -v along y: dP/du along (1, 0, -x / z).
+        const glm::dvec3 ct = glm::normalize(glm::dvec3(1.0, 0.0, -radial.x / radial.z));
+        glm::dvec3 cb = glm::cross(radial, ct);
+        if (cb.y < 0.0)
+            cb = -cb;
+        const glm::dvec3 expected = tilt.x * ct + tilt.y * cb + tilt.z * radial;
+        const double angle = glm::degrees(std::acos(std::clamp(glm::dot(drawn, expected), -1.0, 1.0)));
+        worst = std::max(worst, angle);
+        within2 += angle < 2.0;
+        sum += angle;
+        bareSum += glm::degrees(std::acos(std::clamp(glm::dot(n, expected), -1.0, 1.0)));
+        ++checked;
+    }
+    ASSERT_GT(checked, 100u);
+    std::printf("normal texture: %zu triangles, mean %.2f, worst %.2f degrees, %.1f%% within 2 (bare surface %.2f)\n",
+                checked, sum / double(checked), worst, 100.0 * double(within2) / double(checked),
+                bareSum / double(checked));
+    // 8-bit texels (a quarter degree), and at chart borders bilinear reads
+    // that blend the frames of faces folded apart in UV.
+    EXPECT_LT(sum / double(checked), 1.0);
+    EXPECT_GT(double(within2), 0.97 * double(checked));
+    EXPECT_LT(worst, 10.0);
+}
+
 // A character whose animation throws it out of range (two nested joints
 // scaled by 1e20: posed, its vertices overflow a float) cannot be played,
 // so --control auto refuses it before decimating in its poses: one line

@@ -85,7 +85,22 @@ enum class SphereColour {
     /// TEXCOORD_1, as exporters write baked occlusion: a grey ramp whose
     /// code at u is 255 u, through u = secondSetU(point), v = 0.5.
     SecondUVSet,
+    /// HalfTexture's base colour through a planar projection along z
+    /// (normalTextureUV), and a normal texture of one tangent-space normal
+    /// (kNormalCode, scale kNormalScale) through the same UVs; smooth
+    /// (radial) NORMALs.
+    NormalTexture,
 };
+
+/// NormalTexture's texel (RGB codes) and normalTexture.scale.
+constexpr uint8_t kNormalCode[3] = {173, 93, 242};
+constexpr float kNormalScale = 0.8f;
+
+/// NormalTexture's TEXCOORD_0 at a point: a projection along z, v running down.
+inline glm::vec2 normalTextureUV(const glm::vec3& p)
+{
+    return glm::vec2(0.5f + 0.4f * p.x, 0.5f - 0.4f * p.y);
+}
 
 /// SecondUVSet's emissive factor: red alone, under the lit grey's white.
 constexpr float kSecondSetEmissive = 0.4f;
@@ -152,7 +167,16 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.extensionsUsed.push_back("KHR_materials_emissive_strength");
         model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
-        const std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
+        std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
+        if (how == SphereColour::NormalTexture) {
+            std::vector<glm::vec3> normals;
+            for (size_t v = 0; v < n; ++v) {
+                uvs[v] = normalTextureUV(sphere.positions[v]);
+                normals.push_back(glm::normalize(sphere.positions[v]));
+            }
+            prim.attributes["NORMAL"] = addAccessor(model, normals.data(), n * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                    TINYGLTF_TYPE_VEC3, n, kVertices);
+        }
         prim.attributes["TEXCOORD_0"] = addAccessor(model, uvs.data(), n * 8, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                     TINYGLTF_TYPE_VEC2, n, kVertices);
         // A PNG of `rgba` as the next image and texture.
@@ -192,6 +216,15 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
             material.emissiveTexture.index = 1;
             material.emissiveTexture.texCoord = 1;
             material.emissiveFactor = {double(kSecondSetEmissive), 0.0, 0.0};
+        }
+        if (how == SphereColour::NormalTexture) {
+            std::vector<uint8_t> normal;
+            for (int texel = 0; texel < 4; ++texel)
+                normal.insert(normal.end(), {kNormalCode[0], kNormalCode[1], kNormalCode[2], 255});
+            if (!addTexture(2, 2, normal))
+                return false;
+            material.normalTexture.index = 1;
+            material.normalTexture.scale = double(kNormalScale);
         }
     }
     std::vector<uint32_t> halves[2];  // faces above y = 0, then below

@@ -1015,10 +1015,10 @@ TEST(Scene, ACharactersUnusedVerticesAreLeftOutWithTheirWeights)
 // (an emissive colour and its KHR_materials_emissive_strength into an
 // emissive one, an occlusion texture into a metallic-roughness one's R,
 // under the metallic and roughness factors it then holds) with the alpha
-// mode and cutoff and sidedness of the material most of it wears.  What
-// that and one skinned mesh cannot carry (here a normal texture, a morph
-// target, a camera and a point primitive) is named in one line, not
-// dropped silently.
+// mode and cutoff and sidedness of the material most of it wears, and its
+// normal texture into one of the rig's own.  What that and one skinned mesh
+// cannot carry (here a morph target, a camera and a point primitive) is
+// named in one line, not dropped silently.
 TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -1062,10 +1062,10 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     const size_t at = r.output.find("not carried: ");
     ASSERT_NE(at, std::string::npos) << r.output;
     const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
-    for (const char* what : {"normal textures (1 material)",
-                             "morph targets (1 primitive)", "cameras (1 camera)",
+    for (const char* what : {"morph targets (1 primitive)", "cameras (1 camera)",
                              "point and line primitives (1 primitive)"})
         EXPECT_NE(line.find(what), std::string::npos) << what << " in " << line;
+    EXPECT_EQ(line.find("normal"), std::string::npos) << line;
     // Not the control's "kept in the file": an automatic cage keeps none of them.
     EXPECT_EQ(r.output.find("kept in the file"), std::string::npos) << r.output;
     EXPECT_EQ(line.find("metallic"), std::string::npos) << line;  // one material: its factors are kept
@@ -1081,6 +1081,7 @@ TEST(Scene, AutomaticCageNamesTheMaterialFeaturesItDoesNotCarry)
     EXPECT_EQ(out.alphaCutoff, 0.375);
     EXPECT_GE(out.pbrMetallicRoughness.baseColorTexture.index, 0);
     EXPECT_GE(out.emissiveTexture.index, 0);
+    EXPECT_GE(out.normalTexture.index, 0);
     EXPECT_EQ(out.emissiveFactor, std::vector<double>({1.0, 1.0, 1.0}));
     // The occlusion in the metallic-roughness texture's R, the factors in
     // its G and B: roughness 0.25 (64 of 255), metallic 0.125 (32); a PNG,
@@ -1776,8 +1777,8 @@ TEST(Scene, MetallicRoughnessAndEmissiveTexturesAreRead)
     EXPECT_EQ(after.materials[0].occlusionImage, -1);
     EXPECT_EQ(after.materials[0].unreadTextures, 1);
     EXPECT_NE(io::featuresNotCarried(rig, 0, &after)
-                  .find("metallic-roughness, emissive or occlusion textures on a third UV set or transform, or not "
-                        "decoded (1 material)"),
+                  .find("metallic-roughness, emissive, occlusion or normal textures on a third UV set or "
+                        "transform, or not decoded (1 material)"),
               std::string::npos)
         << io::featuresNotCarried(rig, 0, &after);
 }

@@ -245,6 +245,8 @@ Status Scene::uploadMaterials()
         g.emissiveTexture = texture(m.emissiveImage, m.emissiveChannel);
         g.metallicRoughnessTexture = texture(m.metallicRoughnessImage, m.metallicRoughnessChannel);
         g.occlusionTexture = texture(m.occlusionImage, m.occlusionChannel);
+        g.normalTexture = texture(m.normalImage, m.normalChannel);
+        g.normalScale = m.normalScale;
         g.metallic = m.metallic;
         g.roughness = m.roughness;
         g.occlusionStrength = m.occlusionStrength;

@@ -968,10 +968,10 @@ void BakeJob::carryCharacter()
 // rig's one material, and the summary's words for it.
 void BakeJob::carryColour()
 {
-    const CaptureAppearance capture{captureMaterials, high.colours, high.triangles, highRig.fileCorners,
-                                    faceMaterial,     mainMaterial, high.positions.size()};
-    const Status st = carryAppearance(capture, control, map, highIndex, request.maxMemoryMB, options.threads,
-                                      &baseColour, &colourNote);
+    const CaptureAppearance capture{captureMaterials,    high.colours, high.positions, high.triangles,
+                                    highRig.fileCorners, faceMaterial, mainMaterial, highStats.drawnFlat};
+    const Status st = carryAppearance(capture, control, map, options.scheme, recommended, highIndex,
+                                      request.maxMemoryMB, options.threads, &baseColour, &colourNote);
     if (!st)
         throw BakeError(request.high + ": " + st.message());
     writeOptions.baseColour = &baseColour;

@@ -86,6 +86,7 @@ void snapToPalette(std::vector<uint8_t>* rgba, const std::vector<uint32_t>& pale
 struct MaterialNeeds {
     std::vector<const io::MaterialInfo*> used;
     bool varyingMR = false, emits = false, occludes = false, mrTextured = false, emissiveTextured = false;
+    bool normalTextured = false;
     float emissiveScale = 1.0f;
 };
 
@@ -104,6 +105,7 @@ MaterialNeeds needsOf(const io::SceneMaterials& sm, const std::vector<int>& face
         n.mrTextured = n.mrTextured || m->metallicRoughnessImage >= 0 || m->occlusionImage >= 0;
         n.occludes = n.occludes || m->occlusionImage >= 0;
         n.emissiveTextured = n.emissiveTextured || m->emissiveImage >= 0;
+        n.normalTextured = n.normalTextured || m->normalImage >= 0;
         n.emits = n.emits || m->emissive != glm::vec3(0.0f);
         n.emissiveScale = std::max({n.emissiveScale, m->emissive.r, m->emissive.g, m->emissive.b});
     }
@@ -151,11 +153,97 @@ void snapFactorImages(const MaterialNeeds& need, std::vector<ColorImage>* images
     }
 }
 
+// The capture's shading frames per file vertex, as glTF draws a mesh
+// without TANGENT: its normal the area-weighted face normals around its
+// point, over the faces whose own normals lie within 60 degrees of its
+// faces' (the file's hard edges stay hard, its UV seams smooth), and its
+// tangent and bitangent (along +u and -v of its normal texture's UVs) the
+// faces' directions summed, MikkTSpace's construction without its splits.
+struct ShadingFrames {
+    std::vector<glm::dvec3> normal, tangent, bitangent;  // per file vertex
+};
+
+ShadingFrames shadingFrames(const CaptureAppearance& capture, size_t fileVertices)
+{
+    const io::SceneMaterials& sm = capture.materials;
+    const std::vector<uint32_t>& tri = capture.triangles;
+    const size_t faces = tri.size() / 3, nv = capture.positions.size();
+    std::vector<glm::dvec3> faceNormal(faces);
+    for (size_t f = 0; f < faces; ++f) {
+        const glm::dvec3 a(capture.positions[tri[3 * f]]);
+        faceNormal[f] = glm::cross(glm::dvec3(capture.positions[tri[3 * f + 1]]) - a,
+                                   glm::dvec3(capture.positions[tri[3 * f + 2]]) - a);
+    }
+    ShadingFrames s;
+    s.normal.assign(fileVertices, glm::dvec3(0.0));
+    s.tangent.assign(fileVertices, glm::dvec3(0.0));
+    s.bitangent.assign(fileVertices, glm::dvec3(0.0));
+    std::vector<glm::dvec3> own(fileVertices, glm::dvec3(0.0));  // its own corners' faces
+    for (size_t c = 0; c < tri.size(); ++c)
+        own[capture.fileCorners[c]] += faceNormal[c / 3];
+    // The faces around each capture vertex (compressed rows).
+    std::vector<uint32_t> start(nv + 1, 0), around(tri.size());
+    for (uint32_t v : tri)
+        ++start[v + 1];
+    for (size_t v = 0; v < nv; ++v)
+        start[v + 1] += start[v];
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t c = 0; c < tri.size(); ++c)
+        around[fill[tri[c]]++] = uint32_t(c / 3);
+    const double kCos60 = 0.5;
+    for (size_t c = 0; c < tri.size(); ++c) {
+        const uint32_t file = capture.fileCorners[c], v = tri[c];
+        if (s.normal[file] != glm::dvec3(0.0))
+            continue;  // done from another of its corners
+        const double ol = glm::length(own[file]);
+        for (uint32_t k = start[v]; k < start[v + 1]; ++k) {
+            const glm::dvec3& fn = faceNormal[around[k]];
+            const double fl = glm::length(fn);
+            if (fl > 0.0 && ol > 0.0 && glm::dot(fn, own[file]) > kCos60 * fl * ol)
+                s.normal[file] += fn;
+        }
+        if (s.normal[file] == glm::dvec3(0.0))
+            s.normal[file] = own[file] != glm::dvec3(0.0) ? own[file] : glm::dvec3(0.0, 0.0, 1.0);
+    }
+    for (glm::dvec3& n : s.normal)
+        n = glm::normalize(n);
+    // Tangents in each face's normal-texture UVs, weighted by its area.
+    for (size_t f = 0; f < faces; ++f) {
+        const int mi = capture.faceMaterial[f];
+        if (mi < 0 || size_t(mi) >= sm.materials.size() || sm.materials[size_t(mi)].normalImage < 0)
+            continue;
+        const std::vector<glm::vec2>& uvs = sm.materials[size_t(mi)].normalChannel == 1 ? sm.fileUVs2 : sm.fileUVs;
+        if (uvs.size() != fileVertices)
+            continue;
+        uint32_t file[3];
+        for (int k = 0; k < 3; ++k)
+            file[k] = capture.fileCorners[3 * f + size_t(k)];
+        const glm::dvec3 a(capture.positions[tri[3 * f]]);
+        const glm::dvec3 e1 = glm::dvec3(capture.positions[tri[3 * f + 1]]) - a;
+        const glm::dvec3 e2 = glm::dvec3(capture.positions[tri[3 * f + 2]]) - a;
+        const glm::dvec2 d1 = glm::dvec2(uvs[file[1]]) - glm::dvec2(uvs[file[0]]);
+        const glm::dvec2 d2 = glm::dvec2(uvs[file[2]]) - glm::dvec2(uvs[file[0]]);
+        const double det = d1.x * d2.y - d2.x * d1.y;
+        const double area = glm::length(faceNormal[f]);
+        if (!(std::fabs(det) > 0.0) || !(area > 0.0))
+            continue;
+        const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
+        const double lu = glm::length(dPdu), lv = glm::length(dPdv);
+        if (!(lu > 0.0) || !(lv > 0.0) || !std::isfinite(lu + lv))
+            continue;
+        for (uint32_t fv : file) {
+            s.tangent[fv] += area * dPdu / lu;
+            s.bitangent[fv] -= area * dPdv / lv;
+        }
+    }
+    return s;
+}
+
 }  // namespace
 
 Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& control, const DisplacementMap& map,
-                       const TriangleIndex& highIndex, double maxMemoryMB, int threads, io::BaseColourTexture* out,
-                       std::string* note)
+                       Scheme scheme, int level, const TriangleIndex& highIndex, double maxMemoryMB, int threads,
+                       io::BaseColourTexture* out, std::string* note)
 {
     const io::SceneMaterials& sm = capture.materials;
     const std::vector<int>& faceMaterial = capture.faceMaterial;
@@ -166,7 +254,7 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     // or so (1.5 for the atlas's gutters and packing).
     const bool vertexColours = !sm.fileColours.empty() || !capture.vertexColours.empty();
     if (vertexColours)
-        largest = std::max(largest, int(std::ceil(std::sqrt(1.5 * double(capture.vertexCount)))));
+        largest = std::max(largest, int(std::ceil(std::sqrt(1.5 * double(capture.positions.size())))));
     int side = 256;
     while (side < largest && side < 2048)
         side *= 2;
@@ -260,8 +348,11 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
                           },
                           true});
     // Per texel: its face and barycentrics (16 bytes), four float channels
-    // and four bytes a texture.
-    const double needMB = double(side) * double(side) * (16.0 + 20.0 * double(textures.size())) / (1024.0 * 1024.0);
+    // and four bytes a texture; the normal texture as one more (and its
+    // refined surface, under a texel's worth).
+    const bool normals = need.normalTextured && corners;
+    const double needMB = double(side) * double(side) *
+                          (16.0 + 20.0 * double(textures.size()) + (normals ? 52.0 : 0.0)) / (1024.0 * 1024.0);
     if (needMB > maxMemoryMB)
         return Status(StatusCode::InvalidArgument,
                       "re-baking its materials into " + std::to_string(textures.size()) + " " + std::to_string(side) +
@@ -271,6 +362,44 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     Status st = transferColours(control, map, highIndex, textures, side, &images, threads);
     if (!st)
         return st;
+    if (normals) {
+        // The capture's shading normals, its normal textures applied.
+        const ShadingFrames frames = shadingFrames(capture, sm.fileUVs.size());
+        const CaptureNormal normal = [&](uint32_t face, double b1, double b2) {
+            const double w[3] = {1.0 - b1 - b2, b1, b2};
+            glm::dvec3 n(0.0), t(0.0), b(0.0);
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t file = capture.fileCorners[3 * size_t(face) + size_t(k)];
+                n += w[k] * frames.normal[file];
+                t += w[k] * frames.tangent[file];
+                b += w[k] * frames.bitangent[file];
+            }
+            if (capture.drawnFlat) {  // drawn faceted: each triangle's own normal
+                const uint32_t* v = &capture.triangles[3 * size_t(face)];
+                const glm::dvec3 a(capture.positions[v[0]]);
+                n = glm::cross(glm::dvec3(capture.positions[v[1]]) - a, glm::dvec3(capture.positions[v[2]]) - a);
+            }
+            n = glm::normalize(n);
+            const Point p = pointOf(face, b1, b2);
+            const io::MaterialInfo& m = *p.material;
+            t -= n * glm::dot(n, t);
+            const double tl = glm::length(t);
+            if (m.normalImage < 0 || !(tl > 0.0) || !std::isfinite(tl))
+                return glm::vec3(n);
+            t /= tl;
+            glm::dvec3 bitangent = glm::cross(n, t);
+            if (glm::dot(bitangent, b) < 0.0)
+                bitangent = -bitangent;
+            const glm::dvec3 local = io::normalAt(m, imageOf(m.normalImage), p.uv[m.normalChannel]);
+            return glm::vec3(glm::normalize(local.x * t + local.y * bitangent + local.z * n));
+        };
+        ColorImage normalImage;
+        st = transferNormals(control, map, scheme, level, capture.drawnFlat, highIndex, normal, side, &normalImage,
+                             threads);
+        if (!st)
+            return st;
+        out->normalRGBA = std::move(normalImage.rgba);
+    }
     snapFactorImages(need, &images);
     ColorImage& image = images[0];
     size_t next = 1;
@@ -306,13 +435,14 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
                       "its vertex colours carried as one %dx%d base colour texture in the cage's UVs", side, side);
     else
         std::snprintf(text, sizeof(text),
-                      "%zu material%s%s carried as one %dx%d base colour texture%s in the cage's UVs",
+                      "%zu material%s%s carried as one %dx%d base colour texture%s%s in the cage's UVs",
                       sm.materials.size() - 1, sm.materials.size() == 2 ? "" : "s",
                       vertexColours ? " and vertex colours" : "", side, side,
                       need.varyingMR && need.emits ? " with metallic-roughness and emissive ones"
                       : need.varyingMR             ? " with a metallic-roughness one"
                       : need.emits                 ? " with an emissive one"
-                                                   : "");
+                                                   : "",
+                      !normals ? "" : need.varyingMR || need.emits ? " and a normal one" : " with a normal one");
     *note = text;
     return Status::ok();
 }

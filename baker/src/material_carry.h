@@ -22,11 +22,12 @@ namespace baker {
 struct CaptureAppearance {
     const io::SceneMaterials& materials;         ///< a glTF capture's (no materials: vertexColours alone)
     const std::vector<glm::vec4>& vertexColours;  ///< a PLY's or OBJ's, linear, per capture vertex (or empty)
+    const std::vector<glm::vec3>& positions;      ///< the capture's vertices (its shading normals' geometry)
     const std::vector<uint32_t>& triangles;       ///< the capture's, 3 per face
     const std::vector<uint32_t>& fileCorners;     ///< per capture corner, its file vertex (materials' UVs, colours)
     const std::vector<int>& faceMaterial;         ///< per capture face, its material in `materials`
     size_t mainMaterial = 0;                      ///< the one most faces wear: its alpha mode and sidedness
-    size_t vertexCount = 0;                       ///< the capture's vertices (a texel each for vertex colours)
+    bool drawnFlat = false;                       ///< drawn faceted (and so its rig: the normal texture's frame)
 };
 
 /// The capture's colour, as glTF draws it (every material's base colour
@@ -35,14 +36,17 @@ struct CaptureAppearance {
 /// vertex where the vertices carry colours (256 to 2048 texels a side);
 /// metallic-roughness (with occlusion in R) and emission as textures of
 /// their own where the materials differ in them or have them as
-/// textures.  Each texel reads the capture where the displaced cage
-/// (`control`, `map`) meets it, found through `captureIndex`, on `threads`.  `out` gets
+/// textures; where a material has a normal texture, a normal texture that
+/// gives the rig's surface (`control` displaced by `map` in `scheme` at
+/// `level`) the capture's shading normals (transferNormals).  Each texel
+/// reads the capture where the displaced cage (`control`, `map`) meets it,
+/// found through `captureIndex`, on `threads`.  `out` gets
 /// the rig's one material, `note` the summary's words for what was
 /// carried.  Fails, before any work, where the textures would need more
 /// than `maxMemoryMB`.
 Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& control, const DisplacementMap& map,
-                       const TriangleIndex& captureIndex, double maxMemoryMB, int threads, io::BaseColourTexture* out,
-                       std::string* note);
+                       Scheme scheme, int level, const TriangleIndex& captureIndex, double maxMemoryMB, int threads,
+                       io::BaseColourTexture* out, std::string* note);
 
 }  // namespace baker
 }  // namespace strata

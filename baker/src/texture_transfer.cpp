@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 namespace strata {
 namespace baker {
@@ -118,6 +119,112 @@ Status transferColours(const ControlMesh& cage, const DisplacementMap& map, cons
             }
             std::vector<float>().swap(values);
         }
+    }
+    return Status::ok();
+}
+
+Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Scheme scheme, int level, bool flat,
+                       const TriangleIndex& capture, const CaptureNormal& normal, int size, ColorImage* out,
+                       int threads)
+{
+    if (!out || size <= 0 || size > 16384 || !cage.hasUVs() || !normal)
+        return Status(StatusCode::InvalidArgument, "transferNormals: a cage with UVs, normals and a size are needed");
+    // The surface as drawn: refined, displaced, shaded by vertex normals.
+    std::unique_ptr<Plan> plan;
+    Status st = Plan::create(&plan, cage, scheme, level);
+    if (st && !map.texels.empty())
+        st = plan->setDisplacement(map);
+    if (!st)
+        return st;
+    std::vector<glm::vec3> controlNormals(cage.vertexCount());
+    computeControlNormals(controlNormals.data(), cage.positions.data(), controlNormals.size(), cage.triangles.data(),
+                          cage.faceCount());
+    const size_t nr = plan->refinedVertexCount();
+    std::vector<glm::vec3> positions(nr), normals(nr);
+    if (!(st = plan->evaluate(positions.data(), nullptr, 0, nr, cage.positions.data(), controlNormals.data(),
+                              cage.vertexCount())))
+        return st;
+    plan->computeShadingNormals(normals.data(), positions.data());
+    std::vector<glm::vec2> uvs;
+    std::vector<uint32_t> uvIndex;
+    plan->refinedUVs(&uvs, &uvIndex);
+    const std::vector<uint32_t>& triangles = plan->refinedTriangles();
+    const size_t texels = size_t(size) * size_t(size);
+    std::vector<int32_t> faceOf(texels, -1);
+    std::vector<glm::vec3> baryOf(texels);
+    for (size_t t = 0; 3 * t + 2 < uvIndex.size(); ++t) {
+        const glm::vec2 uv[3] = {uvs[uvIndex[3 * t]], uvs[uvIndex[3 * t + 1]], uvs[uvIndex[3 * t + 2]]};
+        forEachTexelInUVTriangle(uv, size, size, [&](int x, int y, double b0, double b1, double b2) {
+            const size_t i = size_t(y) * size_t(size) + size_t(x);
+            if (faceOf[i] >= 0)
+                return;
+            faceOf[i] = int32_t(t);
+            baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
+        });
+    }
+    std::vector<std::vector<float>> channel(3, std::vector<float>(texels, 0.0f));
+    std::vector<uint8_t> covered(texels, 0);  // a normal found (a frame, a capture point)
+    parallelFor(texels, threads, [&](size_t begin, size_t end) {
+        int64_t hint = -1;
+        for (size_t i = begin; i < end; ++i) {
+            const int32_t t = faceOf[i];
+            if (t < 0)
+                continue;
+            glm::dvec3 p[3], q(0.0), n(0.0);
+            glm::dvec2 uv[3];
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = triangles[3 * size_t(t) + size_t(k)];
+                p[k] = glm::dvec3(positions[v]);
+                uv[k] = glm::dvec2(uvs[uvIndex[3 * size_t(t) + size_t(k)]]);
+                q += double(baryOf[i][k]) * p[k];
+                n += double(baryOf[i][k]) * glm::dvec3(normals[v]);
+            }
+            // The triangle's dP/du and dP/dv, from its edges in space and in UV.
+            const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+            const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+            const double det = d1.x * d2.y - d2.x * d1.y;
+            if (flat) {
+                const glm::dvec3 face = glm::cross(e1, e2);
+                n = glm::dot(face, n) < 0.0 ? -face : face;
+            }
+            const double length = glm::length(n);
+            if (!(std::fabs(det) > 0.0) || !(length > 0.0))
+                continue;
+            n /= length;
+            const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
+            glm::dvec3 tangent = dPdu - n * glm::dot(n, dPdu);
+            const double tl = glm::length(tangent);
+            if (!(tl > 0.0))
+                continue;
+            tangent /= tl;
+            glm::dvec3 bitangent = glm::cross(n, tangent);
+            if (glm::dot(bitangent, dPdv) > 0.0)
+                bitangent = -bitangent;  // along -v
+            uint32_t face = 0;
+            double b1 = 0.0, b2 = 0.0;
+            if (capture.nearest(q, &face, &b1, &b2, hint) < 0.0)
+                continue;
+            hint = int64_t(face);
+            const glm::dvec3 s(normal(face, b1, b2));
+            // Below the surface is no direction a normal texture can hold.
+            glm::dvec3 local(glm::dot(s, tangent), glm::dot(s, bitangent), std::max(glm::dot(s, n), 0.02));
+            local = glm::normalize(local);
+            for (int k = 0; k < 3; ++k)
+                channel[size_t(k)][i] = float(local[k]);
+            covered[i] = 1;
+        }
+    });
+    // Gutters grown from the texels found; (0, 0, 1) past them.
+    out->width = out->height = size;
+    out->rgba.assign(texels * 4, 255);
+    for (size_t k = 0; k < 3; ++k) {
+        std::vector<uint8_t> valid = covered;
+        dilate(&channel[k], &valid, size, 8, k == 2 ? 1.0f : 0.0f, threads);
+        for (size_t i = 0; i < texels; ++i) {
+            const double coded = std::clamp(0.5 * double(channel[k][i]) + 0.5, 0.0, 1.0);
+            out->rgba[4 * i + k] = uint8_t(std::lround(coded * 255.0));
+        }
+        std::vector<float>().swap(channel[k]);
     }
     return Status::ok();
 }

@@ -187,6 +187,19 @@ double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const g
     return 1.0 + double(material.occlusionStrength) * (r - 1.0);
 }
 
+glm::dvec3 normalAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest)
+{
+    if (!image || image->width <= 0 || image->height <= 0)
+        return glm::dvec3(0.0, 0.0, 1.0);
+    const TextureCoords& c = material.channel(material.normalChannel);
+    const glm::dvec4 t = sampleImage(*image, uv, nearest, c.wrapS, c.wrapT);
+    glm::dvec3 n(2.0 * t.x - 1.0, 2.0 * t.y - 1.0, 2.0 * t.z - 1.0);
+    n.x *= double(material.normalScale);
+    n.y *= double(material.normalScale);
+    const double length = glm::length(n);
+    return length > 1e-12 && std::isfinite(length) ? n / length : glm::dvec3(0.0, 0.0, 1.0);
+}
+
 Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::string>* warnings)
 {
     SceneMaterials s;
@@ -300,6 +313,10 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                   &mat.occlusionImage, &mat.occlusionChannel);
         if (std::isfinite(in.occlusionTexture.strength))
             mat.occlusionStrength = float(std::clamp(in.occlusionTexture.strength, 0.0, 1.0));
+        alongside(in.normalTexture.index, in.normalTexture.texCoord, in.normalTexture.extensions, &mat.normalImage,
+                  &mat.normalChannel);
+        if (std::isfinite(in.normalTexture.scale))
+            mat.normalScale = float(std::clamp(in.normalTexture.scale, -100.0, 100.0));
         const std::vector<double>& ef = in.emissiveFactor;
         if (ef.size() == 3 && std::isfinite(ef[0] + ef[1] + ef[2]))
             mat.emissive = glm::clamp(glm::vec3(float(ef[0]), float(ef[1]), float(ef[2])), glm::vec3(0.0f),
@@ -349,7 +366,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                                     ") cannot be decoded; drawn untextured");
             for (MaterialInfo& mat : s.materials)
                 for (int* texture :
-                     {&mat.image, &mat.metallicRoughnessImage, &mat.emissiveImage, &mat.occlusionImage})
+                     {&mat.image, &mat.metallicRoughnessImage, &mat.emissiveImage, &mat.occlusionImage,
+                      &mat.normalImage})
                     if (*texture == int(i))
                         *texture = -1;
             continue;
@@ -439,12 +457,12 @@ std::string featuresNotCarried(const Rig& rig, int main, const SceneMaterials* m
         if (!usedMaterial[i])
             continue;
         const tinygltf::Material& in = m.materials[i];
-        if (in.normalTexture.index >= 0)
+        if (!materials && in.normalTexture.index >= 0)
             ++counts["normal textures"];
         if (!materials && in.occlusionTexture.index >= 0)
             ++counts["occlusion textures"];
         if (materials && i < materials->materials.size() && materials->materials[i].unreadTextures > 0)
-            ++counts["metallic-roughness, emissive or occlusion textures on a third UV set or transform, "
+            ++counts["metallic-roughness, emissive, occlusion or normal textures on a third UV set or transform, "
                      "or not decoded"];
         for (const auto& e : in.extensions)
             if (e.first != "KHR_materials_emissive_strength")  // carried

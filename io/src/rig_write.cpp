@@ -553,8 +553,8 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     model.samplers.push_back(sampler);
     // Each image a texture through that sampler; the texture's index.
     // Colours as JPEG or PNG, whichever is smaller; metallic, roughness and
-    // occlusion (`values`: values rather than colours) as PNG, since JPEG's
-    // chroma would move one channel's values by the others'.
+    // occlusion and normals (`values`: values rather than colours) as PNG,
+    // since JPEG's chroma would move one channel's values by the others'.
     const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, bool values, int* index) {
         std::string bytes, mimeType = "image/png";
         Status st = values ? encodePngRgba(colour.width, colour.height, rgba, &bytes)
@@ -578,12 +578,14 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     // The control mesh's own material (every primitive of mesh 0 wears it).
     if (model.materials.empty())
         model.materials.emplace_back();
-    int base = -1, mr = -1, emissive = -1;
+    int base = -1, mr = -1, emissive = -1, normal = -1;
     Status st = addTexture(colour.rgba, colour.name.empty() ? "base_colour" : colour.name, false, &base);
     if (st && !colour.metallicRoughness.empty())
         st = addTexture(colour.metallicRoughness, "metallic_roughness", true, &mr);
     if (st && !colour.emissiveRGBA.empty())
         st = addTexture(colour.emissiveRGBA, "emissive", false, &emissive);
+    if (st && !colour.normalRGBA.empty())  // a direction: JPEG's chroma would turn it
+        st = addTexture(colour.normalRGBA, "normal", true, &normal);
     if (!st)
         return st;
     tinygltf::Material& material = model.materials[0];
@@ -591,6 +593,7 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     material.pbrMetallicRoughness.metallicRoughnessTexture.index = mr;
     material.occlusionTexture.index = colour.occlusion ? mr : -1;  // its R: an ORM texture
     material.emissiveTexture.index = emissive;
+    material.normalTexture.index = normal;
     material.emissiveFactor = {double(colour.emissive[0]), double(colour.emissive[1]), double(colour.emissive[2])};
     if (colour.emissiveStrength > 1.0f) {
         tinygltf::Value::Object strength;

@@ -76,7 +76,8 @@ GpuSurface::~GpuSurface()
         glDeleteProgram(adaptiveProgram_);
     glDeleteVertexArrays(1, &cornerVao_);
     for (GpuMaterial& m : materials_)
-        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture})
+        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture,
+                          &m.normalTexture})
             glDeleteTextures(1, t);
     for (GLuint p : {surface_, feedbackProgram_})
         glDeleteProgram(p);
@@ -128,7 +129,8 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
     for (GpuMaterial& m : materials_)
-        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture})
+        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture,
+                          &m.normalTexture})
             glDeleteTextures(1, t);
     materials_.clear();
     // Base colour and emissive textures are sRGB-coded (read linear by the
@@ -158,8 +160,10 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
         m.emissiveTexture = texture(in, in.emissiveTexture, true);
         m.metallicRoughnessTexture = texture(in, in.metallicRoughnessTexture, false);
         m.occlusionTexture = texture(in, in.occlusionTexture, false);
+        m.normalTexture = texture(in, in.normalTexture, false);
         for (SurfaceTexture* t : {&m.material.baseColorTexture, &m.material.emissiveTexture,
-                                  &m.material.metallicRoughnessTexture, &m.material.occlusionTexture})
+                                  &m.material.metallicRoughnessTexture, &m.material.occlusionTexture,
+                                  &m.material.normalTexture})
             t->rgba = nullptr;
         materials_.push_back(m);
     }
@@ -257,6 +261,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
     glUniform1i(glGetUniformLocation(prog, "u_emissiveTexture"), 2);
     glUniform1i(glGetUniformLocation(prog, "u_metallicRoughnessTexture"), 3);
     glUniform1i(glGetUniformLocation(prog, "u_occlusionTexture"), 4);
+    glUniform1i(glGetUniformLocation(prog, "u_normalTexture"), 5);
     glUniform1i(glGetUniformLocation(prog, "u_hasSecondUVs"), cornerUVs2 ? 1 : 0);
     glBindVertexArray(vao);
     bool blending = false;
@@ -286,6 +291,10 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glUniform1i(glGetUniformLocation(prog, "u_occlusionSecond"), m.material.occlusionTexture.second ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_occlusionStrength"), m.material.occlusionStrength);
         glBindTextureUnit(4, m.occlusionTexture);
+        glUniform1i(glGetUniformLocation(prog, "u_hasNormalTexture"), m.normalTexture ? 1 : 0);
+        glUniform1i(glGetUniformLocation(prog, "u_normalSecond"), m.material.normalTexture.second ? 1 : 0);
+        glUniform1f(glGetUniformLocation(prog, "u_normalScale"), m.material.normalScale);
+        glBindTextureUnit(5, m.normalTexture);
         glBindTextureUnit(2, m.emissiveTexture);
         glUniform1i(glGetUniformLocation(prog, "u_flatShading"), r.flat ? 1 : 0);
         glUniform1f(glGetUniformLocation(prog, "u_alphaCutoff"), m.material.alphaCutoff);
@@ -296,7 +305,7 @@ void GpuSurface::drawMaterials(GLuint prog, const std::vector<MaterialRange>& ra
         glDisable(GL_BLEND);
         glDepthMask(GL_TRUE);
     }
-    for (GLuint unit = 1; unit <= 4; ++unit)
+    for (GLuint unit = 1; unit <= 5; ++unit)
         glBindTextureUnit(unit, 0);
     glUniform1i(glGetUniformLocation(prog, "u_material"), 0);
     glUniform1i(glGetUniformLocation(prog, "u_corners"), 0);

@@ -6,6 +6,7 @@
 #include "strata/baker/distance.h"
 #include "strata/control_mesh.h"
 #include "strata/displacement_map.h"
+#include "strata/plan.h"
 #include "strata/status.h"
 
 #include <glm/vec4.hpp>
@@ -50,6 +51,27 @@ struct ColourLayer {
 /// texel for all of them: `out` gets one image per layer, in order.
 Status transferColours(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
                        const std::vector<ColourLayer>& layers, int size, std::vector<ColorImage>* out,
+                       int threads = 1);
+
+/// The capture's shading normal at a point of its triangle `face`
+/// (barycentrics b1, b2 of corners 1 and 2): a unit vector in the capture's
+/// space, its normal texture applied where it has one.
+using CaptureNormal = std::function<glm::vec3(uint32_t face, double b1, double b2)>;
+
+/// A size x size tangent-space normal texture in the cage's UVs that gives
+/// the surface Strata draws the capture's shading normals: `cage` refined
+/// in `scheme` to `level` and displaced by `map` (the rig's recommended
+/// level: what strata-view and the browser draw), shaded by its refined
+/// vertices' normals (Plan::computeShadingNormals), or by its triangles'
+/// own where `flat` (a rig drawn faceted, DisplacementInfo::flatShading).  Each texel centre
+/// inside a refined triangle's UVs is its point there; the nearest capture
+/// point (`capture`) gives the normal, written in the frame a glTF viewer
+/// derives from that triangle without TANGENT: X along its dP/du, made
+/// perpendicular to the blended normal, Y the normal's cross X signed to
+/// point along -dP/dv, Z the blended normal; coded (X, Y, Z) / 2 + 1/2,
+/// alpha 255.  Texels outside every triangle take their chart's (dilated).
+Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Scheme scheme, int level, bool flat,
+                       const TriangleIndex& capture, const CaptureNormal& normal, int size, ColorImage* out,
                        int threads = 1);
 
 }  // namespace baker

@@ -68,15 +68,21 @@ struct MaterialInfo : TextureCoords {
     TextureCoords second;      ///< the second channel's UVs, where a texture above uses it
     bool hasSecond = false;    ///< whether one does
     float occlusionStrength = 1.0f;  ///< the occlusion texture's strength
-    /// Of those three, how many are on a third UV set, transform or wrap,
+    /// The normal texture (tangent space, linear, glTF's: +X along +u, +Y
+    /// along -v), an index into SceneMaterials::images (-1: none), its UV
+    /// channel as the three above, and its scale (X and Y's).
+    int normalImage = -1, normalChannel = 0;
+    float normalScale = 1.0f;
+    /// Of those four, how many are on a third UV set, transform or wrap,
     /// or have no image Strata decodes (not read).
     int unreadTextures = 0;
     /// UV channel c's coordinates (0: the first, 1: `second`).
     const TextureCoords& channel(int c) const { return c == 1 ? second : *this; }
-    /// Whether any of its four textures is read (its UVs are then needed).
+    /// Whether any of its five textures is read (its UVs are then needed).
     bool textured() const
     {
-        return image >= 0 || metallicRoughnessImage >= 0 || emissiveImage >= 0 || occlusionImage >= 0;
+        return image >= 0 || metallicRoughnessImage >= 0 || emissiveImage >= 0 || occlusionImage >= 0 ||
+               normalImage >= 0;
     }
 };
 
@@ -136,6 +142,14 @@ glm::dvec3 emissiveAt(const MaterialInfo& material, const ImageRGBA* image, cons
 /// The ambient occlusion glTF draws with at `uv` (of occlusionChannel):
 /// 1 + strength x (R - 1) of the occlusion texture (`image`), 1 without.
 double occlusionAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
+
+/// The tangent-space normal glTF draws with at `uv` (a texture UV of the
+/// normal texture's channel, normalChannel): the texel's RGB as a vector in
+/// [-1, 1] (linear), X and Y times normalScale, normalised; (0, 0, 1)
+/// without an image.  Its frame is the surface's: X along the tangent (+u),
+/// Y along the bitangent (-v, glTF's V running down its images), Z along
+/// the normal.
+glm::dvec3 normalAt(const MaterialInfo& material, const ImageRGBA* image, const glm::dvec2& uv, bool nearest = false);
 
 /// The image at UV `uv` as a glTF sampler reads it: bilinear (texel (x, y)
 /// centred at ((x + 0.5) / width, (y + 0.5) / height)), or its nearest texel

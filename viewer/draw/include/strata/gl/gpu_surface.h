@@ -69,6 +69,11 @@ struct SurfaceMaterial {
     /// the occlusion texture (linear R, mixed in by occlusionStrength).
     SurfaceTexture metallicRoughnessTexture, occlusionTexture;
     float occlusionStrength = 1.0f;
+    /// The tangent-space normal texture (linear, glTF's: X along +u, Y
+    /// along -v, each frame derived per pixel from the surface's position
+    /// and UV derivatives), its X and Y times normalScale.
+    SurfaceTexture normalTexture;
+    float normalScale = 1.0f;
 };
 
 /// A run of refined faces drawn with one material.
@@ -177,7 +182,8 @@ private:
     size_t ownBytes_ = 0;
     struct GpuMaterial {
         SurfaceMaterial material;
-        GLuint texture = 0, emissiveTexture = 0, metallicRoughnessTexture = 0, occlusionTexture = 0;
+        GLuint texture = 0, emissiveTexture = 0, metallicRoughnessTexture = 0, occlusionTexture = 0,
+               normalTexture = 0;
     };
     std::vector<GpuMaterial> materials_;
     std::vector<MaterialRange> ranges_;
