@@ -82,28 +82,23 @@ vec3 directLight(vec3 l, vec3 radiance, vec3 n, vec3 view, vec3 diffuse, vec3 f0
     return ((1.0 - f) * diffuse / kPi + f * d * vis) * radiance * nl;
 }
 
-// The normal n turned by the normal texture at `uv`, in the frame glTF
-// gives a mesh without TANGENT, derived per pixel: X the surface's dP/du
-// made perpendicular to n, Y n x X pointing along -dP/dv, Z n (the baker's
-// transferNormals writes in this frame).
+// The normal n turned by the normal texture at `uv`, in the frame a glTF
+// viewer derives per pixel for a mesh without TANGENT (three.js's, after
+// Schueler): X and Y the gradients of u and -v across n, both over the
+// longer, Z n.  The baker's transferNormals writes in this frame.
 vec3 perturbNormal(vec3 n, vec2 uv)
 {
-    vec3 dpx = dFdx(v_position), dpy = dFdy(v_position);
-    vec2 dx = dFdx(uv), dy = dFdy(uv);
-    float det = dx.x * dy.y - dy.x * dx.y;
-    if (abs(det) < 1e-20)
+    vec3 q0 = dFdx(v_position), q1 = dFdy(v_position);
+    vec2 st0 = dFdx(uv), st1 = dFdy(uv);
+    vec3 q1perp = cross(q1, n), q0perp = cross(n, q0);
+    vec3 t = q1perp * st0.x + q0perp * st1.x, b = q1perp * st0.y + q0perp * st1.y;
+    float longer = max(dot(t, t), dot(b, b));
+    if (longer <= 0.0)
         return n;
-    vec3 dPdu = (dpx * dy.y - dpy * dx.y) / det, dPdv = (dpy * dx.x - dpx * dy.x) / det;
-    vec3 t = dPdu - n * dot(n, dPdu);
-    if (dot(t, t) < 1e-30)
-        return n;
-    t = normalize(t);
-    vec3 b = cross(n, t);
-    if (dot(b, dPdv) > 0.0)
-        b = -b;
+    float scale = inversesqrt(longer);
     vec3 m = texture(u_normalTexture, uv).xyz * 2.0 - 1.0;
     m.xy *= u_normalScale;
-    return normalize(m.x * t + m.y * b + m.z * n);
+    return normalize(m.x * scale * t - m.y * scale * b + m.z * n);
 }
 
 // The material lit by the key, the fill and the hemisphere, linear.

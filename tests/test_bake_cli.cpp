@@ -1580,11 +1580,12 @@ TEST(BakeLibrary, AutomaticCageCarriesTexturesOnASecondUVSet)
 }
 
 // A normal texture is carried: a sphere whose one normal tilts every
-// shading normal the same way in its tangent frame (a projection along z,
-// glTF's +u and -v) re-bakes into a normal texture that, read as glTF
-// reads it in the frame of the surface Strata draws (the rig refined to its
-// recommended level: each triangle's dP/du and the blended vertex
-// normals), gives that tilted normal wherever the projection has a frame.
+// shading normal the same way in its tangent frame (glTF's +u and -v, of a
+// stereographic projection: conformal, so every frame viewers derive
+// agrees) re-bakes into a normal texture that, read as glTF reads it in
+// the frame of the surface Strata draws (the rig refined to its
+// recommended level, each triangle's UV gradients across the blended
+// vertex normals, as three.js derives it), gives that tilted normal.
 // Before, the normal texture was named as not carried, and the rig drew
 // the bare surface's normals, 22 degrees off.
 TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
@@ -1640,26 +1641,29 @@ TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
             uc += uv[k] / 3.0;
         }
         const glm::dvec3 radial = glm::normalize(c);
-        if (std::abs(radial.z) < 0.4)
-            continue;  // the projection's rim: no frame there
-        // The rig's frame, as a viewer derives it from the triangle.
+        if (radial.z < -0.5)
+            continue;  // towards the projection's pole
+        // The rig's frame, as a viewer derives it per pixel without TANGENT
+        // (three.js): the gradients of u and -v across n, over the longer.
         n = glm::normalize(n);
         const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
         const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
         const double det = d1.x * d2.y - d2.x * d1.y;
-        const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
-        const glm::dvec3 tangent = glm::normalize(dPdu - n * glm::dot(n, dPdu));
-        glm::dvec3 bitangent = glm::cross(n, tangent);
-        if (glm::dot(bitangent, dPdv) > 0.0)
-            bitangent = -bitangent;
+        glm::dvec3 a = (e1 * d2.y - e2 * d1.y) / det, b = (e2 * d1.x - e1 * d2.x) / det;
+        a -= n * glm::dot(n, a);
+        b -= n * glm::dot(n, b);
+        const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b);
+        const double gram = aa * bb - ab * ab;
+        const glm::dvec3 gradU = (bb * a - ab * b) / gram, gradV = (aa * b - ab * a) / gram;
+        const double m = std::sqrt(std::max(glm::dot(gradU, gradU), glm::dot(gradV, gradV)));
         const glm::dvec3 local = io::normalAt(carried, &sm.images[size_t(carried.normalImage)], uc);
-        const glm::dvec3 drawn = glm::normalize(local.x * tangent + local.y * bitangent + local.z * n);
-        // The capture's: its frame on the sphere, the point (x, y, z(x, y))
-        // with u along x and -v along y: dP/du along (1, 0, -x / z).
-        const glm::dvec3 ct = glm::normalize(glm::dvec3(1.0, 0.0, -radial.x / radial.z));
-        glm::dvec3 cb = glm::cross(radial, ct);
-        if (cb.y < 0.0)
-            cb = -cb;
+        const glm::dvec3 drawn = glm::normalize(local.x * gradU / m - local.y * gradV / m + local.z * n);
+        // The capture's: +u and -v on the sphere, u and v multiples of
+        // x / (1 + z) and -y / (1 + z): their gradients across the radius.
+        const double w = 1.0 + radial.z;
+        glm::dvec3 ct(1.0 / w, 0.0, -radial.x / (w * w)), cb(0.0, 1.0 / w, -radial.y / (w * w));
+        ct = glm::normalize(ct - radial * glm::dot(radial, ct));
+        cb = glm::normalize(cb - radial * glm::dot(radial, cb));
         const glm::dvec3 expected = tilt.x * ct + tilt.y * cb + tilt.z * radial;
         const double angle = glm::degrees(std::acos(std::clamp(glm::dot(drawn, expected), -1.0, 1.0)));
         worst = std::max(worst, angle);
@@ -1672,8 +1676,8 @@ TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
     std::printf("normal texture: %zu triangles, mean %.2f, worst %.2f degrees, %.1f%% within 2 (bare surface %.2f)\n",
                 checked, sum / double(checked), worst, 100.0 * double(within2) / double(checked),
                 bareSum / double(checked));
-    // 8-bit texels (a quarter degree), and at chart borders bilinear reads
-    // that blend the frames of faces folded apart in UV.
+    // 8-bit texels (a quarter degree), and at cage edges, where the atlas's
+    // flattening bends, bilinear reads that blend two triangles' frames.
     EXPECT_LT(sum / double(checked), 1.0);
     EXPECT_GT(double(within2), 0.97 * double(checked));
     EXPECT_LT(worst, 10.0);

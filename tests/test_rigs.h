@@ -85,7 +85,7 @@ enum class SphereColour {
     /// TEXCOORD_1, as exporters write baked occlusion: a grey ramp whose
     /// code at u is 255 u, through u = secondSetU(point), v = 0.5.
     SecondUVSet,
-    /// HalfTexture's base colour through a planar projection along z
+    /// HalfTexture's base colour through a stereographic projection
     /// (normalTextureUV), and a normal texture of one tangent-space normal
     /// (kNormalCode, scale kNormalScale) through the same UVs; smooth
     /// (radial) NORMALs.
@@ -96,10 +96,13 @@ enum class SphereColour {
 constexpr uint8_t kNormalCode[3] = {173, 93, 242};
 constexpr float kNormalScale = 0.8f;
 
-/// NormalTexture's TEXCOORD_0 at a point: a projection along z, v running down.
+/// NormalTexture's TEXCOORD_0 at a point: a stereographic projection from
+/// the pole at -z (conformal: every tangent frame glTF viewers derive
+/// agrees), v running down; held at z = -0.9 past there.
 inline glm::vec2 normalTextureUV(const glm::vec3& p)
 {
-    return glm::vec2(0.5f + 0.4f * p.x, 0.5f - 0.4f * p.y);
+    const float k = 0.4f / (1.0f + std::max(p.z, -0.9f));
+    return glm::vec2(0.5f + k * p.x, 0.5f - k * p.y);
 }
 
 /// SecondUVSet's emissive factor: red alone, under the lit grey's white.

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 namespace strata {
@@ -162,6 +163,44 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
         });
     }
+    // The texels a chart's border cuts (their centres just outside it): a
+    // bilinear read at the border blends them in, so each takes the frame
+    // and the point of its nearest triangle within 1.5 texels, extrapolated
+    // (dilated values, in another triangle's frame, draw a seam).
+    std::vector<float> borderDistance(texels, std::numeric_limits<float>::infinity());
+    std::vector<uint8_t> interior(texels);
+    for (size_t i = 0; i < texels; ++i)
+        interior[i] = faceOf[i] >= 0;
+    constexpr double kReach = 1.5;  // texels
+    for (size_t t = 0; 3 * t + 2 < uvIndex.size(); ++t) {
+        glm::dvec2 c[3];
+        for (int k = 0; k < 3; ++k)  // texel-centre space
+            c[k] = glm::dvec2(uvs[uvIndex[3 * t + size_t(k)]]) * double(size) - 0.5;
+        const double area = orient2(c[0], c[1], c[2]);
+        if (!(std::fabs(area) > 0.0))
+            continue;
+        const TexelRect r = texelRect(c, size, size, kReach);
+        for (int y = r.y0; y <= r.y1; ++y)
+            for (int x = r.x0; x <= r.x1; ++x) {
+                const size_t i = size_t(y) * size_t(size) + size_t(x);
+                if (interior[i])
+                    continue;
+                const glm::dvec2 q(x, y);
+                double distance = std::numeric_limits<double>::infinity();
+                for (int k = 0; k < 3; ++k) {  // to the nearest edge (the centre lies outside)
+                    const glm::dvec2 a = c[k], e = c[(k + 1) % 3] - a;
+                    const double along = std::clamp(glm::dot(q - a, e) / glm::dot(e, e), 0.0, 1.0);
+                    distance = std::min(distance, glm::length(q - (a + along * e)));
+                }
+                if (distance > kReach || float(distance) >= borderDistance[i])
+                    continue;
+                borderDistance[i] = float(distance);
+                faceOf[i] = int32_t(t);
+                const double b1 = orient2(c[0], q, c[2]) / area, b2 = orient2(c[0], c[1], q) / area;
+                baryOf[i] = glm::vec3(float(1.0 - b1 - b2), float(b1), float(b2));
+            }
+    }
+    std::vector<float>().swap(borderDistance);
     std::vector<std::vector<float>> channel(3, std::vector<float>(texels, 0.0f));
     std::vector<uint8_t> covered(texels, 0);  // a normal found (a frame, a capture point)
     parallelFor(texels, threads, [&](size_t begin, size_t end) {
@@ -191,23 +230,26 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             if (!(std::fabs(det) > 0.0) || !(length > 0.0))
                 continue;
             n /= length;
+            // dP/du and dP/dv in the plane across n, and the gradients of u
+            // and v there (their dual basis): the frame is (grad u, -grad v)
+            // over the longer of the two, and n.
             const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
-            glm::dvec3 tangent = dPdu - n * glm::dot(n, dPdu);
-            const double tl = glm::length(tangent);
-            if (!(tl > 0.0))
+            const glm::dvec3 a = dPdu - n * glm::dot(n, dPdu), b = dPdv - n * glm::dot(n, dPdv);
+            const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b), gram = aa * bb - ab * ab;
+            if (!(gram > 1e-12 * aa * bb) || !std::isfinite(gram))
                 continue;
-            tangent /= tl;
-            glm::dvec3 bitangent = glm::cross(n, tangent);
-            if (glm::dot(bitangent, dPdv) > 0.0)
-                bitangent = -bitangent;  // along -v
+            const glm::dvec3 gradU = (bb * a - ab * b) / gram, gradV = (aa * b - ab * a) / gram;
+            const double m = std::sqrt(std::max(glm::dot(gradU, gradU), glm::dot(gradV, gradV)));
             uint32_t face = 0;
             double b1 = 0.0, b2 = 0.0;
             if (capture.nearest(q, &face, &b1, &b2, hint) < 0.0)
                 continue;
             hint = int64_t(face);
             const glm::dvec3 s(normal(face, b1, b2));
-            // Below the surface is no direction a normal texture can hold.
-            glm::dvec3 local(glm::dot(s, tangent), glm::dot(s, bitangent), std::max(glm::dot(s, n), 0.02));
+            // x X + y Y = s's part across n, X = grad u / m and Y = -grad v / m:
+            // x = m (s . dP/du), y = -m (s . dP/dv).  Below the surface is no
+            // direction a normal texture can hold.
+            glm::dvec3 local(m * glm::dot(s, a), -m * glm::dot(s, b), std::max(glm::dot(s, n), 0.02));
             local = glm::normalize(local);
             for (int k = 0; k < 3; ++k)
                 channel[size_t(k)][i] = float(local[k]);

@@ -1,7 +1,9 @@
 # The rig of materials_carried.sh as Blender 3.4's glTF importer reads it:
 # the Principled BSDF's Metallic, Roughness and Emission each fed from an
 # image, the metallic-roughness image holding both halves' values (B 0 and
-# 1, G 0.9 and 0.3) and the emissive image the orange glow and black.
+# 1, G 0.9 and 0.3) and the emissive image the orange glow and black; its
+# Normal through a Normal Map node from an image whose texels tilt the
+# normal as the source's did (most of them well off (0.5, 0.5, 1)).
 #   blender -b --factory-startup --python tests/blender/materials_carried.py -- RIG.glb
 import sys
 import numpy as np
@@ -67,7 +69,17 @@ if emission is not None:
     black = np.mean(np.all(pixels[:, :3] < 0.03, axis=1))
     if orange < 0.1 or black < 0.1:
         problems.append(f"the emissive image is {orange:.0%} orange and {black:.0%} black")
+normal_maps = [l.from_node for l in bsdf.inputs["Normal"].links if l.from_node.type == "NORMAL_MAP"]
+normal = image_behind(normal_maps[0].inputs["Color"]) if normal_maps else None
+if normal is None:
+    problems.append("the Normal is not read from an image through a Normal Map node")
+else:
+    pixels = np.array(normal.pixels[:], dtype=np.float32).reshape(-1, 4)
+    tilted = np.mean(np.hypot(pixels[:, 0] - 0.5, pixels[:, 1] - 0.5) > 0.1)
+    if tilted < 0.5:
+        problems.append(f"the normal image tilts {tilted:.0%} of its texels")
 if problems:
     print("FAILED: " + "; ".join(problems))
     sys.exit(1)
-print(f"CARRIED: one material, metallic and roughness from {metallic.name}, emission from {emission.name}")
+print(f"CARRIED: one material, metallic and roughness from {metallic.name}, emission from {emission.name}, "
+      f"normal from {normal.name} ({tilted:.0%} of its texels tilted)")

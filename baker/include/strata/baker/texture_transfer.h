@@ -65,11 +65,14 @@ using CaptureNormal = std::function<glm::vec3(uint32_t face, double b1, double b
 /// vertices' normals (Plan::computeShadingNormals), or by its triangles'
 /// own where `flat` (a rig drawn faceted, DisplacementInfo::flatShading).  Each texel centre
 /// inside a refined triangle's UVs is its point there; the nearest capture
-/// point (`capture`) gives the normal, written in the frame a glTF viewer
-/// derives from that triangle without TANGENT: X along its dP/du, made
-/// perpendicular to the blended normal, Y the normal's cross X signed to
-/// point along -dP/dv, Z the blended normal; coded (X, Y, Z) / 2 + 1/2,
-/// alpha 255.  Texels outside every triangle take their chart's (dilated).
+/// point (`capture`) gives the normal, written in the frame a viewer
+/// derives per pixel for a glTF mesh without TANGENT, as three.js (and
+/// strata-view) do: X and Y the surface gradients of u and -v across the
+/// blended normal, both over the longer of the two, Z the blended normal;
+/// the texel holds the unit (x, y, z) with x X + y Y + z Z along the
+/// capture's normal, coded (x, y, z) / 2 + 1/2, alpha 255.  (Where the UVs
+/// are conformal this is MikkTSpace's frame too.)  Texels outside every
+/// triangle take their chart's (dilated).
 Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Scheme scheme, int level, bool flat,
                        const TriangleIndex& capture, const CaptureNormal& normal, int size, ColorImage* out,
                        int threads = 1);
