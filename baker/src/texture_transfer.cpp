@@ -13,7 +13,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <memory>
 
 namespace strata {
@@ -163,44 +162,6 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
         });
     }
-    // The texels a chart's border cuts (their centres just outside it): a
-    // bilinear read at the border blends them in, so each takes the frame
-    // and the point of its nearest triangle within 1.5 texels, extrapolated
-    // (dilated values, in another triangle's frame, draw a seam).
-    std::vector<float> borderDistance(texels, std::numeric_limits<float>::infinity());
-    std::vector<uint8_t> interior(texels);
-    for (size_t i = 0; i < texels; ++i)
-        interior[i] = faceOf[i] >= 0;
-    constexpr double kReach = 1.5;  // texels
-    for (size_t t = 0; 3 * t + 2 < uvIndex.size(); ++t) {
-        glm::dvec2 c[3];
-        for (int k = 0; k < 3; ++k)  // texel-centre space
-            c[k] = glm::dvec2(uvs[uvIndex[3 * t + size_t(k)]]) * double(size) - 0.5;
-        const double area = orient2(c[0], c[1], c[2]);
-        if (!(std::fabs(area) > 0.0))
-            continue;
-        const TexelRect r = texelRect(c, size, size, kReach);
-        for (int y = r.y0; y <= r.y1; ++y)
-            for (int x = r.x0; x <= r.x1; ++x) {
-                const size_t i = size_t(y) * size_t(size) + size_t(x);
-                if (interior[i])
-                    continue;
-                const glm::dvec2 q(x, y);
-                double distance = std::numeric_limits<double>::infinity();
-                for (int k = 0; k < 3; ++k) {  // to the nearest edge (the centre lies outside)
-                    const glm::dvec2 a = c[k], e = c[(k + 1) % 3] - a;
-                    const double along = std::clamp(glm::dot(q - a, e) / glm::dot(e, e), 0.0, 1.0);
-                    distance = std::min(distance, glm::length(q - (a + along * e)));
-                }
-                if (distance > kReach || float(distance) >= borderDistance[i])
-                    continue;
-                borderDistance[i] = float(distance);
-                faceOf[i] = int32_t(t);
-                const double b1 = orient2(c[0], q, c[2]) / area, b2 = orient2(c[0], c[1], q) / area;
-                baryOf[i] = glm::vec3(float(1.0 - b1 - b2), float(b1), float(b2));
-            }
-    }
-    std::vector<float>().swap(borderDistance);
     std::vector<std::vector<float>> channel(3, std::vector<float>(texels, 0.0f));
     std::vector<uint8_t> covered(texels, 0);  // a normal found (a frame, a capture point)
     parallelFor(texels, threads, [&](size_t begin, size_t end) {
