@@ -1454,11 +1454,18 @@ void BakeJob::summarize()
         }
         const double images = double(kinds.images), animations = double(kinds.animations);
         const double mesh = rigBytes - images - animations - double(kinds.skins);
+        std::string textures = "base colour";  // the re-baked ones, by name
+        for (const auto& [image, name] : {std::pair{&baseColour.metallicRoughness, ", metallic-roughness"},
+                                          std::pair{&baseColour.emissiveRGBA, ", emissive"},
+                                          std::pair{&baseColour.normalRGBA, ", normal"}})
+            if (!image->empty())
+                textures += name;
+        const bool several = textures.find(',') != std::string::npos;
         if (rigBytes > plain && coloured && images >= std::max(animations, mesh))
-            warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is the %dx%d base colour "
-                 "texture re-baked into the cage's UVs (%.1f KB)",
+            warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is the %dx%d %s "
+                 "texture%s re-baked into the cage's UVs (%.1f KB)",
                  request.output.c_str(), rigBytes / 1024.0, what, plain / 1024.0, baseColour.width, baseColour.height,
-                 images / 1024.0);
+                 textures.c_str(), several ? "s" : "", images / 1024.0);
         else if (rigBytes > plain && animations >= std::max(images, mesh))
             warn("%s: the rig (%.1f KB) is larger than the capture %s (%.1f KB); most of it is its animations "
                  "(%.1f KB), keyed as the capture keys them",

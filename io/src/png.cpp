@@ -62,7 +62,7 @@ void filterRow(int type, const uint8_t* row, const uint8_t* prev, size_t n, size
 // (libpng's heuristic), which suits smooth displacement maps; indexed rows
 // are not filtered (their bytes are names, not amounts, as libpng does).
 Status encodePng(int width, int height, int bits, int colourType, int channels, const std::vector<uint8_t>& rowBytes,
-                 std::string* out, const std::string& palette = std::string())
+                 std::string* out, const std::string& palette = std::string(), int level = 9)
 {
     if (width <= 0 || height <= 0)
         return Status(StatusCode::InvalidArgument, "empty image");
@@ -93,7 +93,7 @@ Status encodePng(int width, int height, int bits, int colourType, int channels, 
     uLongf zsize = compressBound(uLong(raw.size()));
     std::string z(zsize, '\0');
     if (compress2(reinterpret_cast<Bytef*>(&z[0]), &zsize, reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()),
-                  9) != Z_OK)
+                  level) != Z_OK)
         return Status(StatusCode::IoError, "PNG compression failed");
     z.resize(zsize);
     *out = std::string("\x89PNG\r\n\x1a\n", 8);
@@ -230,7 +230,7 @@ bool encodeIndexed(int width, int height, const std::vector<uint8_t>& rgba, std:
 
 }  // namespace
 
-Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png)
+Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, std::string* png, int level)
 {
     if (rgba.size() != size_t(std::max(width, 0)) * size_t(std::max(height, 0)) * 4)
         return Status(StatusCode::InvalidArgument, "pixel count does not match the image size");
@@ -240,11 +240,11 @@ Status encodePngRgba(int width, int height, const std::vector<uint8_t>& rgba, st
     for (size_t i = 3; i < rgba.size() && opaque; i += 4)
         opaque = rgba[i] == 255;
     if (!opaque)
-        return encodePng(width, height, 8, 6, 4, rgba, png);
+        return encodePng(width, height, 8, 6, 4, rgba, png, std::string(), level);
     std::vector<uint8_t> rgb(rgba.size() / 4 * 3);
     for (size_t i = 0, j = 0; i < rgba.size(); i += 4, j += 3)
         std::copy_n(&rgba[i], 3, &rgb[j]);
-    return encodePng(width, height, 8, 2, 3, rgb, png);
+    return encodePng(width, height, 8, 2, 3, rgb, png, std::string(), level);
 }
 
 Status encodeColourImage(int width, int height, const std::vector<uint8_t>& rgba, int quality, std::string* bytes,

@@ -555,9 +555,10 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     // Colours as JPEG or PNG, whichever is smaller; metallic, roughness and
     // occlusion and normals (`values`: values rather than colours) as PNG,
     // since JPEG's chroma would move one channel's values by the others'.
-    const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, bool values, int* index) {
+    const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, bool values, int* index,
+                                int level = 9) {
         std::string bytes, mimeType = "image/png";
-        Status st = values ? encodePngRgba(colour.width, colour.height, rgba, &bytes)
+        Status st = values ? encodePngRgba(colour.width, colour.height, rgba, &bytes, level)
                            : encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
         if (!st)
             return Status(st.code(), "the " + name + " texture: " + st.message());
@@ -584,8 +585,11 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
         st = addTexture(colour.metallicRoughness, "metallic_roughness", true, &mr);
     if (st && !colour.emissiveRGBA.empty())
         st = addTexture(colour.emissiveRGBA, "emissive", false, &emissive);
-    if (st && !colour.normalRGBA.empty())  // a direction: JPEG's chroma would turn it
-        st = addTexture(colour.normalRGBA, "normal", true, &normal);
+    // A direction: JPEG's chroma would turn it.  Every texel differs from
+    // its neighbours (no flat factors), where zlib's level 9 costs a second
+    // a megatexel, and a bake writes one per cage it tries: level 6.
+    if (st && !colour.normalRGBA.empty())
+        st = addTexture(colour.normalRGBA, "normal", true, &normal, 6);
     if (!st)
         return st;
     tinygltf::Material& material = model.materials[0];
