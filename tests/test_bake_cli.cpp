@@ -694,6 +694,68 @@ TEST(BakeCli, ARigWhoseLayerNoLongerMatchesBakesAgain)
     EXPECT_TRUE(rig.hasDisplacement);
 }
 
+// A rig whose control carries a WebP texture (EXT_texture_webp names its
+// image) baked again: the old map's image goes, and the images after it
+// move down, the extension's reference with them.  Before, only a texture's
+// own source moved: the WebP texture pointed at the new map's image.
+TEST(BakeCli, ARebakeKeepsAWebPTextureOnItsImage)
+{
+    const std::string dir = strata::test::tempDir("bake_cli_rebake_webp");
+    writeInputs(dir);
+    const std::string args = "--high " + dir + "/high.obj --error-levels none --map-coding png " + kFixedMapSizeFlag;
+    ASSERT_EQ(run(args + " --control " + dir + "/control.obj -o " + dir + "/rig.glb").code, 0);
+    const std::string glb = strata::test::readText(dir + "/rig.glb");
+    nlohmann::json doc = strata::test::glbJson(glb);
+    ASSERT_EQ(doc["images"].size(), 1u);  // the map
+    ASSERT_TRUE(doc["meshes"][0]["primitives"][0]["attributes"].contains("TEXCOORD_0"));
+    // A 4x4 lossless WebP, texel i (row by row) (16 i, 128, 255 - 16 i), after
+    // the map, in the BIN chunk.
+    static const uint8_t kWebP[] = {
+        82, 73, 70, 70, 52, 0, 0, 0, 87, 69, 66, 80, 86, 80, 56, 76, 40, 0, 0, 0, 47, 3, 192, 0, 0,
+        127, 32, 16, 72, 66, 223, 126, 133, 129, 56, 252, 255, 252, 103, 150, 3, 65, 0, 196, 130, 22,
+        45, 90, 180, 104, 209, 162, 69, 71, 68, 255, 3, 148, 211, 29};
+    uint32_t jsonLength = 0, binLength = 0;
+    std::memcpy(&jsonLength, glb.data() + 12, 4);
+    std::memcpy(&binLength, glb.data() + 20 + jsonLength, 4);
+    std::string bin = glb.substr(28 + jsonLength, binLength);
+    doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", sizeof(kWebP)}});
+    bin.append(reinterpret_cast<const char*>(kWebP), sizeof(kWebP));
+    while (bin.size() % 4)
+        bin += '\0';
+    doc["buffers"][0]["byteLength"] = bin.size();
+    doc["images"].push_back({{"bufferView", doc["bufferViews"].size() - 1}, {"mimeType", "image/webp"}});
+    doc["textures"] = nlohmann::json::array({{{"extensions", {{"EXT_texture_webp", {{"source", 1}}}}}}});
+    doc["materials"] = nlohmann::json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+    for (nlohmann::json& p : doc["meshes"][0]["primitives"])
+        p["material"] = 0;
+    doc["extensionsUsed"].push_back("EXT_texture_webp");
+    binLength = uint32_t(bin.size());
+    std::string chunk(8, '\0');
+    std::memcpy(&chunk[0], &binLength, 4);
+    std::memcpy(&chunk[4], "BIN", 4);
+    const std::string withImage = strata::test::glbWithJson(glb.substr(0, 20 + jsonLength) + chunk + bin, doc);
+    writeText(dir + "/textured.glb", withImage);
+    const Result r = run(args + " --control " + dir + "/textured.glb -o " + dir + "/again.glb");
+    ASSERT_EQ(r.code, 0) << r.output;
+    strata::Rig rig;
+    ASSERT_TRUE(strata::io::loadRig(dir + "/again.glb", &rig).isOk());
+    strata::io::SceneMaterials sm;
+    std::vector<std::string> warnings;
+    ASSERT_TRUE(strata::io::loadSceneMaterials(rig, &sm, &warnings).isOk());
+    const int image = sm.materials[size_t(sm.partMaterial.at(0))].image;
+    ASSERT_GE(image, 0) << (warnings.empty() ? "" : warnings[0]);
+    const strata::io::ImageRGBA& read = sm.images[size_t(image)];
+    ASSERT_EQ(read.width, 4);
+    ASSERT_EQ(read.height, 4);
+    for (int i = 0; i < 16; ++i) {
+        EXPECT_EQ(read.rgba[4 * size_t(i)], 16 * i) << i;
+        EXPECT_EQ(read.rgba[4 * size_t(i) + 1], 128) << i;
+        EXPECT_EQ(read.rgba[4 * size_t(i) + 2], 255 - 16 * i) << i;
+    }
+    EXPECT_GE(rig.displacement.image, 0);
+    EXPECT_NE(rig.displacement.image, image);
+}
+
 TEST(BakeCli, SkinnedControlRigIsCarriedThrough)
 {
     STRATA_REQUIRE_DATA(cesium, "CesiumMan.glb");

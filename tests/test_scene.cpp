@@ -16,6 +16,8 @@
 
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
+#include <webp/decode.h>
+#include <webp/encode.h>
 
 #include <set>
 
@@ -1597,29 +1599,69 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     EXPECT_EQ(after.fileUVs[5], before.fileUVs[5]);
 }
 
-// A base colour texture whose image only an extension names (a web
-// pipeline's WebP or KTX2, gltf-transform optimize's default) cannot be
-// read: the material is drawn in its factor alone, and the warning names
-// the extension, where the colour went without a word.
-TEST(Scene, ATextureOnlyAnExtensionNamesIsNamed)
+// A base colour texture whose image only EXT_texture_webp names (glTF
+// Transform's optimize writes them so by default) is decoded: CesiumMan's
+// texture as a lossless WebP reads back as its JPEG decodes, texel for
+// texel.  (It was drawn in its factor alone, white, and named.)  One only
+// another extension names (KTX2 under KHR_texture_basisu) cannot be read:
+// drawn in its factor, and the warning names the extension.
+TEST(Scene, AWebPTextureIsReadAndOtherExtensionsAreNamed)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_texture_extension");
     tinygltf::Model model;
     ASSERT_TRUE(readModel(man, &model));
+    Rig original;
+    io::SceneMaterials before;
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/man.glb", &original, &before));
+    const int image = before.materials[0].image;
+    ASSERT_GE(image, 0);
+    const io::ImageRGBA& jpeg = before.images[size_t(image)];
+    uint8_t* webpBytes = nullptr;
+    const size_t webpSize =
+        WebPEncodeLosslessRGBA(jpeg.rgba.data(), jpeg.width, jpeg.height, 4 * jpeg.width, &webpBytes);
+    ASSERT_GT(webpSize, 0u);
+    const std::vector<unsigned char> webp(webpBytes, webpBytes + webpSize);
+    WebPFree(webpBytes);
+    // The WebP as a new image, the texture's only through the extension.
     tinygltf::Texture& texture = model.textures[size_t(model.materials[0].pbrMetallicRoughness.baseColorTexture.index)];
-    tinygltf::Value::Object webp;
-    webp["source"] = tinygltf::Value(texture.source);
-    texture.extensions["EXT_texture_webp"] = tinygltf::Value(webp);
+    tinygltf::Buffer& buffer = model.buffers[0];
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buffer.data.size();
+    view.byteLength = webp.size();
+    buffer.data.insert(buffer.data.end(), webp.begin(), webp.end());
+    model.bufferViews.push_back(view);
+    tinygltf::Image webpImage;
+    webpImage.bufferView = int(model.bufferViews.size()) - 1;
+    webpImage.mimeType = "image/webp";
+    model.images.push_back(webpImage);
+    tinygltf::Value::Object extension;
+    extension["source"] = tinygltf::Value(int(model.images.size()) - 1);
+    texture.extensions["EXT_texture_webp"] = tinygltf::Value(extension);
     texture.source = -1;
     model.extensionsUsed.push_back("EXT_texture_webp");
+    model.extensionsRequired.push_back("EXT_texture_webp");
     Rig rig;
     io::SceneMaterials materials;
     std::vector<std::string> warnings;
     ASSERT_TRUE(writeAndReadMaterials(model, dir + "/webp.glb", &rig, &materials, &warnings));
+    EXPECT_TRUE(warnings.empty()) << warnings[0];
+    const int read = materials.materials[0].image;
+    ASSERT_GE(read, 0);
+    EXPECT_EQ(materials.images[size_t(read)].width, jpeg.width);
+    EXPECT_EQ(materials.images[size_t(read)].height, jpeg.height);
+    EXPECT_TRUE(materials.images[size_t(read)].rgba == jpeg.rgba);
+    EXPECT_EQ(io::featuresNotCarried(rig, 0, &materials), "");
+    // KTX2 (here its extension over the same image): named, not read.
+    texture.extensions.erase("EXT_texture_webp");
+    texture.extensions["KHR_texture_basisu"] = tinygltf::Value(extension);
+    model.extensionsUsed.back() = "KHR_texture_basisu";
+    model.extensionsRequired.back() = "KHR_texture_basisu";
+    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/ktx2.glb", &rig, &materials, &warnings));
     EXPECT_EQ(materials.materials[0].image, -1);
     ASSERT_EQ(warnings.size(), 1u);
-    EXPECT_NE(warnings[0].find("its base colour texture is only in EXT_texture_webp, an image Strata does not decode"),
+    EXPECT_NE(warnings[0].find("its base colour texture is only in KHR_texture_basisu, an image Strata does not decode"),
               std::string::npos)
         << warnings[0];
 }

@@ -929,8 +929,8 @@ void BakeJob::loadCharacter()
     const std::string left =
         io::featuresNotCarried(highRig, mainIsTheFiles ? int(mainMaterial) : -1, &captureMaterials);
     if (!left.empty())
-        warn("%s: --control auto makes one skinned mesh of one material, its base colour, metallic, roughness and "
-             "emissive re-baked into textures, its alpha mode and sidedness the material most of the capture "
+        warn("%s: --control auto makes one skinned mesh of one material, its base colour, metallic, roughness, "
+             "emissive and normals re-baked into textures, its alpha mode and sidedness the material most of the capture "
              "wears; not carried: %s",
              request.high.c_str(), left.c_str());
 }

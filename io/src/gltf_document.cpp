@@ -384,18 +384,30 @@ Status parseGltfDocument(const unsigned char* data, size_t size, bool binary, co
 
 
 
-// Removes image `index`, renumbering texture sources (textures that used it
-// lose their source).
+// Removes image `index`, renumbering texture sources, their extensions'
+// too (textures that used it lose their source).
 void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* bytes, int index)
 {
     model.images.erase(model.images.begin() + index);
     if (bytes && size_t(index) < bytes->size())
         bytes->erase(bytes->begin() + index);
-    for (tinygltf::Texture& t : model.textures)
-        if (t.source == index)
-            t.source = -1;
-        else if (t.source > index)
-            --t.source;
+    // An image an extension names (EXT_texture_webp, KHR_texture_basisu,
+    // EXT_texture_avif: {"source": n}) renumbered alike.
+    const auto renumber = [index](int source) { return source == index ? -1 : source > index ? source - 1 : source; };
+    for (tinygltf::Texture& t : model.textures) {
+        t.source = renumber(t.source);
+        for (auto& [name, value] : t.extensions) {
+            if (!value.IsObject() || !value.Get("source").IsInt())
+                continue;
+            tinygltf::Value::Object o = value.Get<tinygltf::Value::Object>();
+            const int source = renumber(value.Get("source").Get<int>());
+            if (source < 0)
+                o.erase("source");
+            else
+                o["source"] = tinygltf::Value(source);
+            value = tinygltf::Value(std::move(o));
+        }
+    }
 }
 
 static std::string sniffMime(const std::vector<unsigned char>& b)

@@ -7,9 +7,11 @@
 #include "refined_attributes.h"
 
 #include <stb/stb_image.h>
+#include <webp/decode.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 
 namespace strata {
@@ -32,6 +34,71 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
         return {};
     }
     return i < doc.imageBytes.size() ? doc.imageBytes[i] : std::vector<unsigned char>();
+}
+
+// The image texture `tex` reads: its source, else EXT_texture_webp's (an
+// image only that extension names, as glTF Transform's optimize writes
+// them); -1 for neither.
+int textureImage(const tinygltf::Model& m, int tex)
+{
+    const tinygltf::Texture& t = m.textures[size_t(tex)];
+    if (t.source >= 0 && size_t(t.source) < m.images.size())
+        return t.source;
+    const auto webp = t.extensions.find("EXT_texture_webp");
+    if (webp == t.extensions.end() || !webp->second.IsObject() || !webp->second.Get("source").IsInt())
+        return -1;
+    const int source = webp->second.Get("source").Get<int>();
+    return source >= 0 && size_t(source) < m.images.size() ? source : -1;
+}
+
+// Decodes a PNG, JPEG or WebP image into 4 bytes a pixel; false for any
+// other or a broken one.  The header's size first: a hostile one would have
+// the decoder allocate gigabytes before it finds no pixels behind it.  Nor
+// can a PNG or JPEG expand past deflate's limit (about 1032:1; a flat
+// 4096^2 PNG is 64 MB from 64 KB): at most 2048x its bytes, plus 16 MB; a
+// lossless WebP of one colour codes 4096^2 in a few hundred bytes, so any
+// WebP up to 4096^2 is decoded.  glTF's images are PNG, JPEG and (through
+// EXT_texture_webp) WebP, and stb_image would read others; a PNG's chunks
+// must lie inside it (pngChunksFit, which checks its signature too).
+bool decodeImage(const std::vector<unsigned char>& bytes, ImageRGBA* out)
+{
+    const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
+    const bool webp = bytes.size() >= 12 && std::memcmp(bytes.data(), "RIFF", 4) == 0 &&
+                      std::memcmp(bytes.data() + 8, "WEBP", 4) == 0;
+    if (bytes.size() > (size_t(1) << 30))
+        return false;
+    const auto fits = [&](int w, int h) {
+        const size_t pixels = 4 * size_t(w) * size_t(h);
+        return w > 0 && h > 0 && w <= 16384 && h <= 16384 &&
+               (pixels <= 2048 * bytes.size() + (size_t(16) << 20) || (webp && pixels <= (size_t(64) << 20)));
+    };
+    int w = 0, h = 0, comp = 0;
+    if (webp) {
+        if (!WebPGetInfo(bytes.data(), bytes.size(), &w, &h) || !fits(w, h))
+            return false;
+        uint8_t* px = WebPDecodeRGBA(bytes.data(), bytes.size(), &w, &h);
+        if (!px)
+            return false;
+        out->width = w;
+        out->height = h;
+        out->rgba.assign(px, px + size_t(w) * size_t(h) * 4);
+        WebPFree(px);
+        return true;
+    }
+    if (!(jpeg || pngChunksFit(bytes.data(), bytes.size())) ||
+        !stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp) || !fits(w, h))
+        return false;
+    stbi_uc* px = stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4);
+    if (!px)
+        return false;
+    const bool sized = w > 0 && h > 0 && w <= 16384 && h <= 16384;
+    if (sized) {
+        out->width = w;
+        out->height = h;
+        out->rgba.assign(px, px + size_t(w) * size_t(h) * 4);
+    }
+    stbi_image_free(px);
+    return sized;
 }
 
 // Texture `tex`'s sampler's wraps, into `mat` (glTF's default: repeat).
@@ -249,13 +316,13 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
             }
         }
         if (tex >= 0 && size_t(tex) < m.textures.size()) {
-            const int src = m.textures[size_t(tex)].source;
-            if (src >= 0 && size_t(src) < m.images.size()) {
+            const int src = textureImage(m, tex);
+            if (src >= 0) {
                 mat.image = src;
                 used[size_t(src)] = true;
             } else if (warnings) {
-                // An image only an extension names (WebP, KTX2, AVIF, DDS:
-                // no PNG or JPEG fallback in `source`) is one stb cannot read.
+                // An image only an extension other than EXT_texture_webp
+                // names (KTX2, AVIF, DDS: no fallback in `source`).
                 std::string coded;
                 for (const auto& [name, value] : m.textures[size_t(tex)].extensions)
                     coded += (coded.empty() ? "" : ", ") + name;
@@ -280,10 +347,10 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                                    int* channel) {
             if (index < 0 || size_t(index) >= m.textures.size())
                 return;
-            const int src = m.textures[size_t(index)].source;
+            const int src = textureImage(m, index);
             TextureCoords probe;
             probe.texCoord = std::clamp(set, 0, 7);
-            if (src < 0 || size_t(src) >= m.images.size() || !readTextureTransform(extensions, &probe)) {
+            if (src < 0 || !readTextureTransform(extensions, &probe)) {
                 ++mat.unreadTextures;
                 return;
             }
@@ -342,25 +409,7 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     for (size_t i = 0; i < m.images.size(); ++i) {
         if (!used[i])
             continue;
-        const std::vector<unsigned char> bytes = encodedImage(*rig.source, i);
-        int w = 0, h = 0, comp = 0;
-        // The header's size first: a hostile one would have the decoder
-        // allocate gigabytes before it finds no pixels behind it.  Nor can
-        // an image expand past deflate's limit (about 1032:1; a flat 4096^2
-        // PNG is 64 MB from 64 KB): at most 2048x its bytes, plus 16 MB.
-        // glTF's images are PNG or JPEG, and stb_image would read others;
-        // a PNG's chunks must lie inside it (pngChunksFit, which checks its
-        // signature too).
-        const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
-        const bool readable = bytes.size() <= (size_t(1) << 30) &&
-                              (jpeg || pngChunksFit(bytes.data(), bytes.size())) &&
-                              stbi_info_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp) && w > 0 &&
-                              h > 0 && w <= 16384 && h <= 16384 &&
-                              4 * size_t(w) * size_t(h) <= 2048 * bytes.size() + (size_t(16) << 20);
-        stbi_uc* px = readable ? stbi_load_from_memory(bytes.data(), int(bytes.size()), &w, &h, &comp, 4) : nullptr;
-        if (!px || w > 16384 || h > 16384) {
-            if (px)
-                stbi_image_free(px);
+        if (!decodeImage(encodedImage(*rig.source, i), &s.images[i])) {
             if (warnings)
                 warnings->push_back("image " + std::to_string(i) + " (" + printable(m.images[i].name, 60) +
                                     ") cannot be decoded; drawn untextured");
@@ -372,10 +421,6 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                         *texture = -1;
             continue;
         }
-        s.images[i].width = w;
-        s.images[i].height = h;
-        s.images[i].rgba.assign(px, px + size_t(w) * size_t(h) * 4);
-        stbi_image_free(px);
     }
     for (const RigPart& part : rig.parts) {
         const tinygltf::Primitive& prim = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];

@@ -424,6 +424,25 @@ const reads = [];
   }
 }
 
+// A character whose texture glTF Transform made WebP (`gltf-transform
+// webp`; EXT_texture_webp, no PNG or JPEG left): --control auto re-bakes
+// its colour from the WebP at the texture's own size, and names nothing as
+// not decoded (Strata decoded PNG and JPEG only: it re-baked white).
+{
+  const webp = path.join(work, 'CesiumMan_webp.glb');
+  const o = run(gltfTransform, ['webp', path.join(data, 'CesiumMan.glb'), webp], { cwd: jsDir });
+  const json = o.code === 0 ? readGlb(webp).json : { extensionsUsed: [] };
+  const b = o.code === 0 ? run(bake, ['--high', webp, '--control', 'auto', '--error-levels', 'none', '-o',
+                                      path.join(work, 'CesiumMan_webp_rig.glb')]) : { code: -1, out: o.out };
+  const colour = (/colour\s+(.*)/.exec(b.out) || [])[1] || '';
+  const ok = b.code === 0 && (json.extensionsUsed || []).includes('EXT_texture_webp') &&
+             !/does not decode|cannot be decoded/.test(b.out) && /1024x1024 base colour texture/.test(colour);
+  if (!ok) ++wrong;
+  reads.push(['gltf-transform webp of CesiumMan, then `--control auto`', 'its texture only in EXT_texture_webp',
+              ok ? `colour re-baked from the WebP: ${colour.trim()}`
+                 : `FAILED: ${(b.out.match(/.*(decode|error).*/) || [colour || b.out.trim().split('\n').pop()])[0].slice(0, 200)}`]);
+}
+
 // Which tools open which mesh coding: the claims README.md makes, checked.
 // [tool, expected for plain, meshopt, draco, run(input, output)].
 const openers = [
