@@ -90,7 +90,17 @@ enum class SphereColour {
     /// (kNormalCode, scale kNormalScale) through the same UVs; smooth
     /// (radial) NORMALs.
     NormalTexture,
+    /// NormalTexture with NORMALs bent off the radius (normalTextureNormal):
+    /// an exporter's custom normals, which glTF draws as they are.
+    NormalTextureBent,
 };
+
+/// NormalTexture's and NormalTextureBent's NORMAL at a point.
+inline glm::vec3 normalTextureNormal(const glm::vec3& p, SphereColour how)
+{
+    const glm::vec3 radial = glm::normalize(p);
+    return how == SphereColour::NormalTextureBent ? glm::normalize(radial + glm::vec3(0.4f, 0.0f, 0.0f)) : radial;
+}
 
 /// NormalTexture's texel (RGB codes) and normalTexture.scale.
 constexpr uint8_t kNormalCode[3] = {173, 93, 242};
@@ -171,11 +181,12 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
         std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
-        if (how == SphereColour::NormalTexture) {
+        const bool normalTexture = how == SphereColour::NormalTexture || how == SphereColour::NormalTextureBent;
+        if (normalTexture) {
             std::vector<glm::vec3> normals;
             for (size_t v = 0; v < n; ++v) {
                 uvs[v] = normalTextureUV(sphere.positions[v]);
-                normals.push_back(glm::normalize(sphere.positions[v]));
+                normals.push_back(normalTextureNormal(sphere.positions[v], how));
             }
             prim.attributes["NORMAL"] = addAccessor(model, normals.data(), n * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                     TINYGLTF_TYPE_VEC3, n, kVertices);
@@ -220,7 +231,7 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
             material.emissiveTexture.texCoord = 1;
             material.emissiveFactor = {double(kSecondSetEmissive), 0.0, 0.0};
         }
-        if (how == SphereColour::NormalTexture) {
+        if (normalTexture) {
             std::vector<uint8_t> normal;
             for (int texel = 0; texel < 4; ++texel)
                 normal.insert(normal.end(), {kNormalCode[0], kNormalCode[1], kNormalCode[2], 255});

@@ -153,62 +153,22 @@ void snapFactorImages(const MaterialNeeds& need, std::vector<ColorImage>* images
     }
 }
 
-// The capture's shading frames per file vertex, as glTF draws a mesh
-// without TANGENT: its normal the area-weighted face normals around its
-// point, over the faces whose own normals lie within 60 degrees of its
-// faces' (the file's hard edges stay hard, its UV seams smooth), and its
-// tangent and bitangent (along +u and -v of its normal texture's UVs) the
-// faces' directions summed, MikkTSpace's construction without its splits.
-struct ShadingFrames {
-    std::vector<glm::dvec3> normal, tangent, bitangent;  // per file vertex
+// The tangents of the capture's normal textures per file vertex, as glTF
+// draws a mesh without TANGENT: along +u and -v of each face's normal-
+// texture UVs, the faces' directions summed by area (MikkTSpace's
+// construction without its splits).
+struct Tangents {
+    std::vector<glm::dvec3> tangent, bitangent;
 };
 
-ShadingFrames shadingFrames(const CaptureAppearance& capture, size_t fileVertices)
+Tangents normalTextureTangents(const CaptureAppearance& capture, size_t fileVertices)
 {
     const io::SceneMaterials& sm = capture.materials;
     const std::vector<uint32_t>& tri = capture.triangles;
-    const size_t faces = tri.size() / 3, nv = capture.positions.size();
-    std::vector<glm::dvec3> faceNormal(faces);
-    for (size_t f = 0; f < faces; ++f) {
-        const glm::dvec3 a(capture.positions[tri[3 * f]]);
-        faceNormal[f] = glm::cross(glm::dvec3(capture.positions[tri[3 * f + 1]]) - a,
-                                   glm::dvec3(capture.positions[tri[3 * f + 2]]) - a);
-    }
-    ShadingFrames s;
-    s.normal.assign(fileVertices, glm::dvec3(0.0));
+    Tangents s;
     s.tangent.assign(fileVertices, glm::dvec3(0.0));
     s.bitangent.assign(fileVertices, glm::dvec3(0.0));
-    std::vector<glm::dvec3> own(fileVertices, glm::dvec3(0.0));  // its own corners' faces
-    for (size_t c = 0; c < tri.size(); ++c)
-        own[capture.fileCorners[c]] += faceNormal[c / 3];
-    // The faces around each capture vertex (compressed rows).
-    std::vector<uint32_t> start(nv + 1, 0), around(tri.size());
-    for (uint32_t v : tri)
-        ++start[v + 1];
-    for (size_t v = 0; v < nv; ++v)
-        start[v + 1] += start[v];
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (size_t c = 0; c < tri.size(); ++c)
-        around[fill[tri[c]]++] = uint32_t(c / 3);
-    const double kCos60 = 0.5;
-    for (size_t c = 0; c < tri.size(); ++c) {
-        const uint32_t file = capture.fileCorners[c], v = tri[c];
-        if (s.normal[file] != glm::dvec3(0.0))
-            continue;  // done from another of its corners
-        const double ol = glm::length(own[file]);
-        for (uint32_t k = start[v]; k < start[v + 1]; ++k) {
-            const glm::dvec3& fn = faceNormal[around[k]];
-            const double fl = glm::length(fn);
-            if (fl > 0.0 && ol > 0.0 && glm::dot(fn, own[file]) > kCos60 * fl * ol)
-                s.normal[file] += fn;
-        }
-        if (s.normal[file] == glm::dvec3(0.0))
-            s.normal[file] = own[file] != glm::dvec3(0.0) ? own[file] : glm::dvec3(0.0, 0.0, 1.0);
-    }
-    for (glm::dvec3& n : s.normal)
-        n = glm::normalize(n);
-    // Tangents in each face's normal-texture UVs, weighted by its area.
-    for (size_t f = 0; f < faces; ++f) {
+    for (size_t f = 0; f < tri.size() / 3; ++f) {
         const int mi = capture.faceMaterial[f];
         if (mi < 0 || size_t(mi) >= sm.materials.size() || sm.materials[size_t(mi)].normalImage < 0)
             continue;
@@ -224,7 +184,7 @@ ShadingFrames shadingFrames(const CaptureAppearance& capture, size_t fileVertice
         const glm::dvec2 d1 = glm::dvec2(uvs[file[1]]) - glm::dvec2(uvs[file[0]]);
         const glm::dvec2 d2 = glm::dvec2(uvs[file[2]]) - glm::dvec2(uvs[file[0]]);
         const double det = d1.x * d2.y - d2.x * d1.y;
-        const double area = glm::length(faceNormal[f]);
+        const double area = glm::length(glm::cross(e1, e2));
         if (!(std::fabs(det) > 0.0) || !(area > 0.0))
             continue;
         const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
@@ -363,23 +323,32 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     if (!st)
         return st;
     if (normals) {
-        // The capture's shading normals, its normal textures applied.
-        const ShadingFrames frames = shadingFrames(capture, sm.fileUVs.size());
+        // The capture's shading normals as glTF draws them (its NORMALs
+        // blended; a face of a part without, its own), its normal textures
+        // applied.
+        const Tangents frames = normalTextureTangents(capture, sm.fileUVs.size());
         const CaptureNormal normal = [&](uint32_t face, double b1, double b2) {
             const double w[3] = {1.0 - b1 - b2, b1, b2};
             glm::dvec3 n(0.0), t(0.0), b(0.0);
+            bool faceted = capture.drawnFlat || sm.fileNormals.size() != sm.fileUVs.size();
             for (int k = 0; k < 3; ++k) {
                 const uint32_t file = capture.fileCorners[3 * size_t(face) + size_t(k)];
-                n += w[k] * frames.normal[file];
+                if (!faceted) {
+                    faceted = sm.fileNormals[file] == glm::vec3(0.0f);
+                    n += w[k] * glm::dvec3(sm.fileNormals[file]);
+                }
                 t += w[k] * frames.tangent[file];
                 b += w[k] * frames.bitangent[file];
             }
-            if (capture.drawnFlat) {  // drawn faceted: each triangle's own normal
+            if (faceted) {
                 const uint32_t* v = &capture.triangles[3 * size_t(face)];
                 const glm::dvec3 a(capture.positions[v[0]]);
                 n = glm::cross(glm::dvec3(capture.positions[v[1]]) - a, glm::dvec3(capture.positions[v[2]]) - a);
             }
-            n = glm::normalize(n);
+            const double nl = glm::length(n);
+            if (!(nl > 0.0) || !std::isfinite(nl))
+                return glm::vec3(0.0f);  // no direction (transferNormals fills it)
+            n /= nl;
             const Point p = pointOf(face, b1, b2);
             const io::MaterialInfo& m = *p.material;
             t -= n * glm::dot(n, t);

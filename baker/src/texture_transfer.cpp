@@ -207,6 +207,8 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
                 continue;
             hint = int64_t(face);
             const glm::dvec3 s(normal(face, b1, b2));
+            if (!(glm::dot(s, s) > 0.25))
+                continue;  // no direction there: the gutters' fill
             // x X + y Y = s's part across n, X = grad u / m and Y = -grad v / m:
             // x = m (s . dP/du), y = -m (s . dP/dv).  Below the surface is no
             // direction a normal texture can hold.

@@ -6,6 +6,9 @@
 #include "gltf_document.h"
 #include "refined_attributes.h"
 
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
 #include <stb/stb_image.h>
 #include <webp/decode.h>
 
@@ -442,6 +445,25 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                     for (int k = 0; k < components; ++k)
                         s.fileColours[part.firstVertex + v][k] =
                             std::clamp(rgba[size_t(components) * v + size_t(k)], 0.0f, 1.0f);
+            }
+        }
+        // NORMAL, into the scene's space as the positions went.
+        if (const auto nAttr = prim.attributes.find("NORMAL"); nAttr != prim.attributes.end()) {
+            std::vector<float> normals;
+            if (!readFloatAccessor(m, nAttr->second, 3, "NORMAL", &normals) ||
+                normals.size() != 3 * size_t(part.vertexCount)) {
+                if (warnings)
+                    warnings->push_back(part.name + ": its NORMAL is not one direction per vertex; ignored");
+            } else {
+                if (s.fileNormals.empty())
+                    s.fileNormals.assign(rig.sourceVertex.size(), glm::vec3(0.0f));
+                const glm::mat3 toScene = glm::transpose(glm::inverse(glm::mat3(part.toScene)));
+                for (uint32_t v = 0; v < part.vertexCount; ++v) {
+                    const glm::vec3 n = toScene * glm::vec3(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
+                    const float length = glm::length(n);
+                    if (length > 0.0f && std::isfinite(length))
+                        s.fileNormals[part.firstVertex + v] = n / length;
+                }
             }
         }
         const MaterialInfo& mat = s.materials[size_t(mi)];

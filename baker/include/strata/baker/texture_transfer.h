@@ -55,7 +55,8 @@ Status transferColours(const ControlMesh& cage, const DisplacementMap& map, cons
 
 /// The capture's shading normal at a point of its triangle `face`
 /// (barycentrics b1, b2 of corners 1 and 2): a unit vector in the capture's
-/// space, its normal texture applied where it has one.
+/// space, its normal texture applied where it has one; zero where it has
+/// no direction (the texel then takes its neighbours').
 using CaptureNormal = std::function<glm::vec3(uint32_t face, double b1, double b2)>;
 
 /// A size x size tangent-space normal texture in the cage's UVs that gives

@@ -104,6 +104,11 @@ struct SceneMaterials {
     /// Per file vertex: its COLOR_0 as linear RGBA (RGB with alpha 1 from a
     /// VEC3), white where a part has none; empty when no part has one.
     std::vector<glm::vec4> fileColours;
+    /// Per file vertex: its NORMAL in the scene's space (through its part's
+    /// RigPart::toScene, as its position), unit; (0, 0, 0) where its part
+    /// has none (glTF draws that part flat) or the normal is not a
+    /// direction; empty when no part has one.
+    std::vector<glm::vec3> fileNormals;
 };
 
 /// The sRGB transfer function (IEC 61966-2-1) and its inverse, on one
