@@ -255,6 +255,24 @@ TEST(Viewer, NormalTexturesTurnTheShadingAsGltfDefinesThem)
     EXPECT_GT(middle(source, plain), 4.0);
     EXPECT_LT(middle(source, rig), 2.0);
     EXPECT_LT(middle(source, rigAdaptive), 2.5);
+
+    // Without NORMAL glTF draws the sphere faceted, its normal texture about
+    // each face's own normal; so does the rig (the layer's flat shading),
+    // its normal texture written about its triangles' normals.  The tilt
+    // drawn wrong or not at all would show as above (6 levels); the facets
+    // themselves are small here.
+    for (tinygltf::Primitive& p : model.meshes[0].primitives)
+        p.attributes.erase("NORMAL");
+    model.materials[0].normalTexture.index = 1;
+    ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/faceted.glb", true, true, false, true));
+    const test::CommandResult flatBake = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high '" + dir +
+                                                          "/faceted.glb' --control auto -o '" + dir + "/flat_rig.glb'");
+    ASSERT_EQ(flatBake.code, 0) << flatBake.output;
+    const Image faceted = shoot(dir + "/faceted.glb", "", dir + "/faceted.png");
+    const Image flatRig = shoot(dir + "/flat_rig.glb", "", dir + "/flat_rig.png");
+    std::printf("faceted: rig %.2f, against the smooth source %.2f\n", middle(faceted, flatRig),
+                middle(faceted, source));
+    EXPECT_LT(middle(faceted, flatRig), 2.5);
 }
 
 // glTF's metallic-roughness model: one sphere of linear 0.5 grey drawn as
