@@ -435,8 +435,15 @@ std::vector<glm::vec3> plainLbs(const tinygltf::Model& m, const Rig& rig, const 
         const tinygltf::Primitive& p = m.meshes[size_t(part.mesh)].primitives[size_t(part.primitive)];
         const std::vector<float> pos = accessorData<float>(m, p.attributes.at("POSITION"), 3);
         if (!part.skinned) {
+            glm::mat4 place = world[size_t(part.node)];
+            if (part.instance >= 0) {  // EXT_mesh_gpu_instancing: the instance's TRANSLATION in its node
+                const tinygltf::Value& attributes =
+                    m.nodes[size_t(part.node)].extensions.at("EXT_mesh_gpu_instancing").Get("attributes");
+                const std::vector<float> t = accessorData<float>(m, attributes.Get("TRANSLATION").Get<int>(), 3);
+                place = glm::translate(place, glm::make_vec3(&t[3 * size_t(part.instance)]));
+            }
             for (size_t v = 0; v < pos.size() / 3; ++v)
-                out.push_back(glm::vec3(world[size_t(part.node)] * glm::vec4(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], 1.0f)));
+                out.push_back(glm::vec3(place * glm::vec4(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], 1.0f)));
             continue;
         }
         const std::vector<uint16_t> j = accessorData<uint16_t>(m, p.attributes.at("JOINTS_0"), 4);
@@ -804,10 +811,11 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
 // other's mirror) is read at both places, follows each node and faces
 // outward at each, as glTF draws it; before, the second place was dropped
 // without a word.  A third node outside the scene adds nothing; a fourth
-// that draws it through EXT_mesh_gpu_instancing is read where the node
-// places it, and named.  A bake onto such a file as its own control mesh,
-// whose rig would need UVs of their own at each place, is refused naming
-// the mesh and its nodes.
+// that draws it at two places through EXT_mesh_gpu_instancing is read at
+// both (it was read once, where the node itself places it, and named).  A
+// bake onto such a file as its own control mesh, whose rig would need UVs
+// of their own at each place, is refused naming the mesh and its nodes, or
+// its node and the extension.
 TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -858,16 +866,24 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
     Rig source, rig;
     ASSERT_TRUE(io::loadRig(man, &source).isOk());
     ASSERT_TRUE(io::loadRig(input, &rig).isOk());
-    ASSERT_EQ(rig.parts.size(), source.parts.size() + 3);
-    const RigPart& left = rig.parts[rig.parts.size() - 3];
-    const RigPart& right = rig.parts[rig.parts.size() - 2];
-    EXPECT_NE(std::find(rig.warnings.begin(), rig.warnings.end(),
-                        "1 node draws its mesh at many places through EXT_mesh_gpu_instancing; read once each, where "
-                        "the node itself places it"),
-              rig.warnings.end());
+    ASSERT_EQ(rig.parts.size(), source.parts.size() + 4);
+    const RigPart& left = rig.parts[rig.parts.size() - 4];
+    const RigPart& right = rig.parts[rig.parts.size() - 3];
+    for (const std::string& w : rig.warnings)
+        EXPECT_EQ(w.find("EXT_mesh_gpu_instancing"), std::string::npos) << w;
     EXPECT_EQ(left.mesh, right.mesh);
     EXPECT_NE(left.node, right.node);
-    EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size() + 12);
+    EXPECT_EQ(rig.mesh.positions.size(), source.mesh.positions.size() + 16);
+    // The instances: one node, each instance's place (its node is at rest
+    // where the scene's root is).
+    for (int k = 0; k < 2; ++k) {
+        const RigPart& instance = rig.parts[rig.parts.size() - 2 + size_t(k)];
+        EXPECT_EQ(instance.node, rig.parts.back().node);
+        EXPECT_EQ(instance.instance, k);
+        EXPECT_NE(instance.name.find("instance " + std::to_string(k)), std::string::npos) << instance.name;
+        const glm::vec3 first = rig.mesh.positions[rig.sourceVertex[instance.firstVertex]];
+        EXPECT_LT(glm::length(first - glm::vec3(0.02f, 0.02f + (k ? -0.05f : 0.05f), 0.02f)), 1e-6f) << k;
+    }
     // Both eyes face outward, the mirrored one too (glTF draws a mirrored
     // node's triangles with their winding reversed).
     for (const RigPart* eye : {&left, &right}) {
@@ -928,6 +944,48 @@ TEST(Scene, AMeshTwoNodesPlaceIsReadAtBoth)
         << r.output;
     EXPECT_NE(r.output.find("give each node its own copy of the mesh"), std::string::npos) << r.output;
     EXPECT_FALSE(std::filesystem::exists(dir + "/rig.glb"));
+    // The instanced node alone: the capture is both its places; as its own
+    // control it is refused, naming the node and the extension.
+    tinygltf::Model crowd;
+    crowd.asset.version = "2.0";
+    crowd.buffers.emplace_back();
+    {
+        const tinygltf::Mesh& eyeMesh = m.meshes[size_t(left.mesh)];
+        tinygltf::Primitive prim;
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        const std::vector<float> eye = accessorData<float>(m, eyeMesh.primitives[0].attributes.at("POSITION"), 3);
+        const std::vector<uint32_t> eyeIdx = indicesOf(m, eyeMesh.primitives[0].indices);
+        prim.attributes["POSITION"] = addAccessor(crowd, eye.data(), eye.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                  TINYGLTF_TYPE_VEC3, eye.size() / 3, TINYGLTF_TARGET_ARRAY_BUFFER);
+        crowd.accessors.back().minValues = {-0.02, -0.02, -0.02};
+        crowd.accessors.back().maxValues = {0.02, 0.02, 0.02};
+        prim.indices = addAccessor(crowd, eyeIdx.data(), eyeIdx.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                   TINYGLTF_TYPE_SCALAR, eyeIdx.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+        const float shift[6] = {0.0f, 0.05f, 0.0f, 0.0f, -0.05f, 0.0f};
+        tinygltf::Value::Object instancing, attributes;
+        attributes["TRANSLATION"] = tinygltf::Value(addAccessor(
+            crowd, shift, sizeof(shift), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, 2, 0));
+        instancing["attributes"] = tinygltf::Value(attributes);
+        const int node = addMeshNode(crowd, "eye", prim);
+        crowd.nodes[size_t(node)].extensions["EXT_mesh_gpu_instancing"] = tinygltf::Value(instancing);
+        crowd.extensionsUsed.push_back("EXT_mesh_gpu_instancing");
+        crowd.scenes.emplace_back().nodes.push_back(node);
+        crowd.defaultScene = 0;
+        tinygltf::TinyGLTF io;
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&crowd, dir + "/crowd.glb", true, true, false, true));
+    }
+    Rig both;
+    ASSERT_TRUE(io::loadRig(dir + "/crowd.glb", &both).isOk());
+    ASSERT_EQ(both.parts.size(), 2u);
+    EXPECT_EQ(both.mesh.positions.size(), 8u);
+    const test::CommandResult own = test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + dir +
+                                                     "/crowd.glb --control " + dir + "/crowd.glb -o " + dir +
+                                                     "/crowd_rig.glb");
+    EXPECT_NE(own.code, 0);
+    EXPECT_NE(own.output.find("is placed many times by node 0 (eye) through EXT_mesh_gpu_instancing"),
+              std::string::npos)
+        << own.output;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/crowd_rig.glb"));
 }
 
 // A primitive whose normals are its faces' own (an exporter's faceted mesh,

@@ -421,6 +421,13 @@ Status checkEachMeshPlacedOnce(const std::string& path, const Rig& rig)
         auto nodeName = [&](int node) {
             return std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) + ")";
         };
+        if (part.node == it.first->second)
+            return Status(StatusCode::Unsupported,
+                          path + ": mesh " + std::to_string(part.mesh) + " (" +
+                              printable(model.meshes[size_t(part.mesh)].name, 60) + ") is placed many times by node " +
+                              nodeName(part.node) +
+                              " through EXT_mesh_gpu_instancing, and a rig written as this file needs UVs of its own "
+                              "at each place: give each instance a node and a copy of the mesh of its own");
         return Status(StatusCode::Unsupported,
                       path + ": mesh " + std::to_string(part.mesh) + " (" +
                           printable(model.meshes[size_t(part.mesh)].name, 60) + ") is placed by nodes " +

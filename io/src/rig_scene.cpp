@@ -248,6 +248,53 @@ float bindSpaceScale(const tinygltf::Model& model, int skin, const std::vector<g
 
 namespace {
 
+// EXT_mesh_gpu_instancing's instances, each one's transform in its node's
+// space (translation x rotation x scale, each optional): float accessors, or
+// normalized unsigned ones, of one count, at most 2^20.  False where they
+// cannot be read (signed normalized rotations, counts that differ).
+bool readInstances(const tinygltf::Model& model, const tinygltf::Value& extension, std::vector<glm::mat4>* out)
+{
+    out->clear();
+    if (!extension.IsObject() || !extension.Get("attributes").IsObject())
+        return false;
+    const tinygltf::Value& attributes = extension.Get("attributes");
+    std::vector<float> t, r, s;
+    size_t count = 0;
+    bool any = false;
+    const auto read = [&](const char* name, int components, std::vector<float>* values) {
+        if (!attributes.Has(name))
+            return true;
+        const tinygltf::Value& index = attributes.Get(name);
+        if (!index.IsInt() || !readFloatAccessor(model, index.Get<int>(), components, name, values))
+            return false;
+        const size_t n = values->size() / size_t(components);
+        if (any && n != count)
+            return false;
+        count = n;
+        any = true;
+        return true;
+    };
+    if (!read("TRANSLATION", 3, &t) || !read("ROTATION", 4, &r) || !read("SCALE", 3, &s) || !any || count == 0 ||
+        count > (size_t(1) << 20))
+        return false;
+    for (size_t i = 0; i < count; ++i) {
+        glm::mat4 m(1.0f);
+        if (!t.empty())
+            m = glm::translate(m, glm::vec3(t[3 * i], t[3 * i + 1], t[3 * i + 2]));
+        if (!r.empty()) {
+            const glm::quat q(r[4 * i + 3], r[4 * i], r[4 * i + 1], r[4 * i + 2]);  // w, x, y, z
+            const float length = glm::length(q);
+            if (!(length > 0.0f))
+                return false;
+            m *= glm::mat4_cast(q / length);
+        }
+        if (!s.empty())
+            m = glm::scale(m, glm::vec3(s[3 * i], s[3 * i + 1], s[3 * i + 2]));
+        out->push_back(m);
+    }
+    return true;
+}
+
 // A primitive whose every corner's NORMAL is its triangle's own normal (to
 // about a degree, either way round): an exporter's faceted mesh, its
 // vertices split at every face.  glTF draws it faceted, as it draws a
@@ -373,17 +420,29 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             stack.insert(stack.end(), model.nodes[size_t(n)].children.begin(), model.nodes[size_t(n)].children.end());
         }
     }
-    std::vector<std::vector<int>> nodesOf(model.meshes.size());
+    // Every place each mesh is drawn: its node's, or, through
+    // EXT_mesh_gpu_instancing, each instance's transform within its node.
+    struct Place {
+        int node = -1, instance = -1;
+        glm::mat4 local{1.0f};  // the instance's transform in its node's space
+    };
+    std::vector<std::vector<Place>> placesOf(model.meshes.size());
     std::vector<int> firstNode(model.meshes.size(), -1);
-    // EXT_mesh_gpu_instancing draws a node's mesh at every instance's
-    // transform; its fallback, the node's own place, is what is read.
-    size_t gpuInstanced = 0;
+    size_t readOnce = 0;  // instanced nodes whose instances cannot be read (or are skinned)
+    Rig& rig = out->rig;
     for (size_t i = 0; i < model.nodes.size(); ++i) {
         const int m = model.nodes[i].mesh;
         if (m >= 0 && size_t(m) < model.meshes.size()) {
             if (inScene[i]) {
-                nodesOf[size_t(m)].push_back(int(i));
-                gpuInstanced += model.nodes[i].extensions.count("EXT_mesh_gpu_instancing");
+                std::vector<glm::mat4> instances;
+                const auto e = model.nodes[i].extensions.find("EXT_mesh_gpu_instancing");
+                if (e != model.nodes[i].extensions.end() &&
+                    !(model.nodes[i].skin < 0 && readInstances(model, e->second, &instances)))
+                    ++readOnce;
+                if (instances.empty())
+                    placesOf[size_t(m)].push_back({int(i), -1, glm::mat4(1.0f)});
+                for (size_t k = 0; k < instances.size(); ++k)
+                    placesOf[size_t(m)].push_back({int(i), int(k), instances[k]});
             }
             if (firstNode[size_t(m)] < 0)
                 firstNode[size_t(m)] = int(i);
@@ -392,12 +451,12 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                                                        std::to_string(m));
         }
     }
-    Rig& rig = out->rig;
-    if (gpuInstanced)
-        rig.warnings.push_back(std::to_string(gpuInstanced) +
-                               (gpuInstanced == 1 ? " node draws its mesh" : " nodes draw their meshes") +
-                               " at many places through EXT_mesh_gpu_instancing; read once each, where the node "
-                               "itself places it");
+    if (readOnce)
+        rig.warnings.push_back(std::to_string(readOnce) +
+                               (readOnce == 1 ? " node draws its mesh" : " nodes draw their meshes") +
+                               " at many places through EXT_mesh_gpu_instancing, skinned or with instances Strata "
+                               "cannot read (float TRANSLATION, ROTATION and SCALE, or normalized unsigned); read "
+                               "once each, where the node itself places it");
     std::vector<float> pos;  // all file vertices, scene space
     std::vector<glm::vec2> uv;
     std::vector<uint32_t> tri;  // file-vertex triangles
@@ -408,9 +467,10 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
         if (legacy && int(m) != out->blockMesh)
             continue;
         const tinygltf::Mesh& mesh = model.meshes[m];
-        if (nodesOf[m].empty())
-            nodesOf[m].push_back(firstNode[m]);
-        for (size_t instance = 0; instance < nodesOf[m].size(); ++instance) {
+        if (placesOf[m].empty())
+            placesOf[m].push_back({firstNode[m], -1, glm::mat4(1.0f)});
+        for (size_t instance = 0; instance < placesOf[m].size(); ++instance) {
+            const Place& place = placesOf[m][instance];
             for (size_t p = 0; p < mesh.primitives.size(); ++p) {
                 const tinygltf::Primitive& prim = mesh.primitives[p];
                 if (!isTriangles(prim.mode)) {
@@ -420,13 +480,16 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 RigPart part;
                 part.mesh = int(m);
                 part.primitive = int(p);
-                part.node = nodesOf[m][instance];
+                part.node = place.node;
+                part.instance = place.instance;
+                part.instanceTransform = place.local;
                 part.material = prim.material;
                 part.skinned = part.node >= 0 && model.nodes[size_t(part.node)].skin >= 0;
                 // glTF shades it flat without NORMAL, and draws it faceted
                 // with its faces' normals (below; finishRig asks the layer).
                 part.flat = attributeOf(prim, "NORMAL") < 0;
-                part.toScene = part.node >= 0 && !part.skinned ? world[size_t(part.node)] : glm::mat4(1.0f);
+                part.toScene =
+                    part.node >= 0 && !part.skinned ? world[size_t(part.node)] * place.local : glm::mat4(1.0f);
                 if (part.skinned) {
                     glm::vec2 spread(1.0f);
                     const int skin = model.nodes[size_t(part.node)].skin;
@@ -450,6 +513,8 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 if (instance > 0)
                     part.name += " on node " + std::to_string(part.node) + " (" +
                                  printable(model.nodes[size_t(part.node)].name, 60) + ")";
+                if (part.instance >= 0)
+                    part.name += " instance " + std::to_string(part.instance);
                 const std::string what = path + ": " + part.name;
                 if (attributeOf(prim, "POSITION") < 0)
                     return Status(StatusCode::InvalidData, what + " has no POSITION attribute");

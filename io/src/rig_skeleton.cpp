@@ -227,7 +227,8 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
             const tinygltf::Primitive& prim = *scene.primitives[p];
             if (!part.skinned) {
                 // A rigid part follows its node: one extra joint whose inverse
-                // bind matrix undoes the node's rest transform.
+                // bind matrix undoes the node's rest transform (an instance's
+                // own transform within the node stays in its positions).
                 uint16_t j = 0;
                 if (part.node >= 0) {
                     auto it = rigidJoint.find(part.node);
@@ -236,7 +237,8 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
                             return Status(StatusCode::InvalidData, path + ": too many joints");
                         it = rigidJoint.emplace(part.node, uint16_t(sk.skin.joints.size())).first;
                         sk.skin.joints.push_back(part.node);
-                        sk.skin.inverseBindMatrices.push_back(glm::inverse(part.toScene));
+                        sk.skin.inverseBindMatrices.push_back(
+                            glm::inverse(part.toScene * glm::inverse(part.instanceTransform)));
                     }
                     j = it->second;
                 }

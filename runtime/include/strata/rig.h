@@ -66,6 +66,8 @@ struct DisplacementInfo {
 struct RigPart {
     int mesh = -1, primitive = -1;  ///< glTF mesh and primitive index
     int node = -1;                  ///< the node that instances it (its first), or -1
+    int instance = -1;              ///< its EXT_mesh_gpu_instancing instance on that node, or -1
+    glm::mat4 instanceTransform{1.0f};  ///< that instance's transform in its node's space (in toScene)
     int material = -1;              ///< glTF material, -1 for the default one
     bool skinned = false;           ///< the node has a skin (else rigid on its node)
     /// Drawn with face normals: a glTF primitive without NORMAL, which glTF
