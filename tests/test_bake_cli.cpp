@@ -1648,18 +1648,23 @@ TEST(BakeLibrary, AutomaticCageCarriesTexturesOnASecondUVSet)
 // the frame of the surface Strata draws (the rig refined to its
 // recommended level, each triangle's UV gradients across the blended
 // vertex normals, as three.js derives it), gives that tilted normal: about
-// the radius, and about NORMALs an exporter bent off it (glTF draws them
-// as they are).  Before, the normal texture was named as not carried, and
+// the radius, about NORMALs an exporter bent off it (glTF draws them as
+// they are), and in the frame of TANGENTs a quarter turn from the UVs' +u
+// (30.4 degrees off while the tangents were always the UVs').  Before, the normal texture was named as not carried, and
 // the rig drew the bare surface's normals, 22 degrees off (35 for the bent
 // ones); while the capture's normals were the geometry's, the bent ones
 // came 16.6 degrees off on average.
 TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
 {
     using namespace strata;
-    for (const test::SphereColour how : {test::SphereColour::NormalTexture, test::SphereColour::NormalTextureBent}) {
+    for (const test::SphereColour how : {test::SphereColour::NormalTexture, test::SphereColour::NormalTextureBent,
+                                         test::SphereColour::NormalTextureTangents}) {
         const bool bent = how == test::SphereColour::NormalTextureBent;
-        SCOPED_TRACE(bent ? "bent NORMALs" : "radial NORMALs");
-        const std::string dir = test::tempDir(bent ? "bake_normal_texture_bent" : "bake_normal_texture");
+        const bool tangents = how == test::SphereColour::NormalTextureTangents;
+        const char* what = bent ? "bent NORMALs" : tangents ? "TANGENTs" : "radial NORMALs";
+        SCOPED_TRACE(what);
+        const std::string dir = test::tempDir(bent ? "bake_normal_texture_bent" : tangents ? "bake_normal_texture_tangents"
+                                                                                          : "bake_normal_texture");
         ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb", how));
         {
             Rig capture;
@@ -1737,8 +1742,11 @@ TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
             glm::dvec3 ct(1.0 / w, 0.0, -radial.x / (w * w)), cb(0.0, 1.0 / w, -radial.y / (w * w));
             ct -= radial * glm::dot(radial, ct);
             cb -= radial * glm::dot(radial, cb);
+            if (tangents)  // the file's TANGENT (along -v), its bitangent n x t
+                ct = glm::dvec3(glm::vec3(test::normalTextureTangent(glm::vec3(radial))));
             ct = glm::normalize(ct - normal * glm::dot(normal, ct));
-            cb = glm::cross(normal, ct) * (glm::dot(glm::cross(normal, ct), cb) < 0.0 ? -1.0 : 1.0);
+            cb = tangents ? glm::cross(normal, ct)
+                          : glm::cross(normal, ct) * (glm::dot(glm::cross(normal, ct), cb) < 0.0 ? -1.0 : 1.0);
             const glm::dvec3 expected = tilt.x * ct + tilt.y * cb + tilt.z * normal;
             const double angle = glm::degrees(std::acos(std::clamp(glm::dot(drawn, expected), -1.0, 1.0)));
             worst = std::max(worst, angle);
@@ -1748,9 +1756,9 @@ TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
             ++checked;
         }
         ASSERT_GT(checked, 100u);
-        std::printf("normal texture (%s NORMALs): %zu triangles, mean %.2f, worst %.2f degrees, %.1f%% within 2 "
+        std::printf("normal texture (%s): %zu triangles, mean %.2f, worst %.2f degrees, %.1f%% within 2 "
                     "(bare surface %.2f)\n",
-                    bent ? "bent" : "radial", checked, sum / double(checked), worst,
+                    what, checked, sum / double(checked), worst,
                     100.0 * double(within2) / double(checked), bareSum / double(checked));
         // 8-bit texels (a quarter degree), and at cage edges, where the
         // atlas's flattening bends, bilinear reads that blend two

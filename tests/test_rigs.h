@@ -93,7 +93,21 @@ enum class SphereColour {
     /// NormalTexture with NORMALs bent off the radius (normalTextureNormal):
     /// an exporter's custom normals, which glTF draws as they are.
     NormalTextureBent,
+    /// NormalTexture with TANGENTs a quarter turn from its UVs' +u
+    /// (normalTextureTangent): glTF reads the normal texture in their frame.
+    NormalTextureTangents,
 };
+
+/// NormalTextureTangents' TANGENT at a point: along its UVs' -v (the
+/// gradient of -v across the radius), w 1.
+inline glm::vec4 normalTextureTangent(const glm::vec3& p)
+{
+    const glm::vec3 radial = glm::normalize(p);
+    const float w = 1.0f + std::max(radial.z, -0.9f);
+    glm::vec3 g(0.0f, 1.0f / w, -radial.y / (w * w));
+    g -= radial * glm::dot(radial, g);
+    return glm::vec4(glm::normalize(g), 1.0f);
+}
 
 /// NormalTexture's and NormalTextureBent's NORMAL at a point.
 inline glm::vec3 normalTextureNormal(const glm::vec3& p, SphereColour how)
@@ -181,15 +195,22 @@ inline bool writeColouredSphere(const std::string& path, SphereColour how = Sphe
         model.materials.push_back(bottom);  // material 1; material 0 below
     } else {
         std::vector<glm::vec2> uvs(n, glm::vec2(0.5f));
-        const bool normalTexture = how == SphereColour::NormalTexture || how == SphereColour::NormalTextureBent;
+        const bool normalTexture = how == SphereColour::NormalTexture || how == SphereColour::NormalTextureBent ||
+                                   how == SphereColour::NormalTextureTangents;
         if (normalTexture) {
             std::vector<glm::vec3> normals;
+            std::vector<glm::vec4> tangents;
             for (size_t v = 0; v < n; ++v) {
                 uvs[v] = normalTextureUV(sphere.positions[v]);
                 normals.push_back(normalTextureNormal(sphere.positions[v], how));
+                tangents.push_back(normalTextureTangent(sphere.positions[v]));
             }
             prim.attributes["NORMAL"] = addAccessor(model, normals.data(), n * 12, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                     TINYGLTF_TYPE_VEC3, n, kVertices);
+            if (how == SphereColour::NormalTextureTangents)
+                prim.attributes["TANGENT"] = addAccessor(model, tangents.data(), n * 16,
+                                                         TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, n,
+                                                         kVertices);
         }
         prim.attributes["TEXCOORD_0"] = addAccessor(model, uvs.data(), n * 8, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                     TINYGLTF_TYPE_VEC2, n, kVertices);

@@ -325,7 +325,7 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     if (normals) {
         // The capture's shading normals as glTF draws them (its NORMALs
         // blended; a face of a part without, its own), its normal textures
-        // applied.
+        // applied in its TANGENTs' frame, or its UVs' without.
         const Tangents frames = normalTextureTangents(capture, sm.fileUVs.size());
         const CaptureNormal normal = [&](uint32_t face, double b1, double b2) {
             const double w[3] = {1.0 - b1 - b2, b1, b2};
@@ -351,6 +351,21 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
             n /= nl;
             const Point p = pointOf(face, b1, b2);
             const io::MaterialInfo& m = *p.material;
+            // The file's TANGENTs where each corner has one (its bitangent's
+            // sign the blend's); else the directions of its UVs.
+            if (sm.fileTangents.size() == sm.fileUVs.size()) {
+                glm::dvec4 given(0.0);
+                bool all = true;
+                for (int k = 0; k < 3; ++k) {
+                    const glm::vec4& g = sm.fileTangents[capture.fileCorners[3 * size_t(face) + size_t(k)]];
+                    all = all && g.w != 0.0f;
+                    given += w[k] * glm::dvec4(g);
+                }
+                if (all) {
+                    t = glm::dvec3(given);
+                    b = glm::cross(n, t) * (given.w < 0.0 ? -1.0 : 1.0);
+                }
+            }
             t -= n * glm::dot(n, t);
             const double tl = glm::length(t);
             if (m.normalImage < 0 || !(tl > 0.0) || !std::isfinite(tl))

@@ -466,6 +466,27 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 }
             }
         }
+        // TANGENT likewise (xyz with the positions, w turned by a mirror).
+        if (const auto tAttr = prim.attributes.find("TANGENT"); tAttr != prim.attributes.end()) {
+            std::vector<float> tangents;
+            if (!readFloatAccessor(m, tAttr->second, 4, "TANGENT", &tangents) ||
+                tangents.size() != 4 * size_t(part.vertexCount)) {
+                if (warnings)
+                    warnings->push_back(part.name + ": its TANGENT is not one tangent per vertex; ignored");
+            } else {
+                if (s.fileTangents.empty())
+                    s.fileTangents.assign(rig.sourceVertex.size(), glm::vec4(0.0f));
+                const glm::mat3 toScene(part.toScene);
+                const float mirror = glm::determinant(toScene) < 0.0f ? -1.0f : 1.0f;
+                for (uint32_t v = 0; v < part.vertexCount; ++v) {
+                    const float* t = &tangents[4 * size_t(v)];
+                    const glm::vec3 d = toScene * glm::vec3(t[0], t[1], t[2]);
+                    const float length = glm::length(d);
+                    if (length > 0.0f && std::isfinite(length))
+                        s.fileTangents[part.firstVertex + v] = glm::vec4(d / length, t[3] < 0.0f ? -mirror : mirror);
+                }
+            }
+        }
         const MaterialInfo& mat = s.materials[size_t(mi)];
         if (!mat.textured())
             continue;

@@ -109,6 +109,11 @@ struct SceneMaterials {
     /// has none (glTF draws that part flat) or the normal is not a
     /// direction; empty when no part has one.
     std::vector<glm::vec3> fileNormals;
+    /// Per file vertex: its TANGENT in the scene's space (xyz through its
+    /// part's toScene, unit; w its bitangent's sign, turned where toScene
+    /// mirrors); (0, 0, 0, 0) where its part has none; empty when no part
+    /// has one.
+    std::vector<glm::vec4> fileTangents;
 };
 
 /// The sRGB transfer function (IEC 61966-2-1) and its inverse, on one
