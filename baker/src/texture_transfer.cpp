@@ -18,6 +18,31 @@
 namespace strata {
 namespace baker {
 
+namespace {
+
+// Per texel of a size x size image: the first of the UV triangles
+// (uvIndex, 3 a triangle, into uvs) whose UVs cover its centre, or -1, and
+// its barycentrics there.
+void texelTriangles(const std::vector<glm::vec2>& uvs, const std::vector<uint32_t>& uvIndex, int size,
+                    std::vector<int32_t>* faceOf, std::vector<glm::vec3>* baryOf)
+{
+    const size_t texels = size_t(size) * size_t(size);
+    faceOf->assign(texels, -1);
+    baryOf->assign(texels, glm::vec3(0.0f));
+    for (size_t t = 0; 3 * t + 2 < uvIndex.size(); ++t) {
+        const glm::vec2 uv[3] = {uvs[uvIndex[3 * t]], uvs[uvIndex[3 * t + 1]], uvs[uvIndex[3 * t + 2]]};
+        forEachTexelInUVTriangle(uv, size, size, [&](int x, int y, double b0, double b1, double b2) {
+            const size_t i = size_t(y) * size_t(size) + size_t(x);
+            if ((*faceOf)[i] >= 0)
+                return;  // the first triangle over a texel keeps it
+            (*faceOf)[i] = int32_t(t);
+            (*baryOf)[i] = glm::vec3(float(b0), float(b1), float(b2));
+        });
+    }
+}
+
+}  // namespace
+
 Status transferColour(const ControlMesh& cage, const DisplacementMap& map, const TriangleIndex& capture,
                       const CaptureColour& colour, int size, ColorImage* out, int threads)
 {
@@ -40,20 +65,9 @@ Status transferColours(const ControlMesh& cage, const DisplacementMap& map, cons
         return Status(StatusCode::InvalidArgument, "transferColours: a cage with UVs, colours and a size are needed");
     const size_t texels = size_t(size) * size_t(size);
     // Each texel's cage triangle and its barycentrics there.
-    std::vector<int32_t> faceOf(texels, -1);
-    std::vector<glm::vec3> baryOf(texels);
-    for (size_t f = 0; f < cage.faceCount(); ++f) {
-        glm::vec2 uv[3];
-        for (int k = 0; k < 3; ++k)
-            uv[k] = cage.uvs[cage.uvIndices[3 * f + size_t(k)]];
-        forEachTexelInUVTriangle(uv, size, size, [&](int x, int y, double b0, double b1, double b2) {
-            const size_t i = size_t(y) * size_t(size) + size_t(x);
-            if (faceOf[i] >= 0)
-                return;  // the first triangle over a texel keeps it
-            faceOf[i] = int32_t(f);
-            baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
-        });
-    }
+    std::vector<int32_t> faceOf;
+    std::vector<glm::vec3> baryOf;
+    texelTriangles(cage.uvs, cage.uvIndices, size, &faceOf, &baryOf);
     std::vector<glm::vec3> normals(cage.vertexCount());
     computeControlNormals(normals.data(), cage.positions.data(), normals.size(), cage.triangles.data(),
                           cage.faceCount());
@@ -150,18 +164,9 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
     plan->refinedUVs(&uvs, &uvIndex);
     const std::vector<uint32_t>& triangles = plan->refinedTriangles();
     const size_t texels = size_t(size) * size_t(size);
-    std::vector<int32_t> faceOf(texels, -1);
-    std::vector<glm::vec3> baryOf(texels);
-    for (size_t t = 0; 3 * t + 2 < uvIndex.size(); ++t) {
-        const glm::vec2 uv[3] = {uvs[uvIndex[3 * t]], uvs[uvIndex[3 * t + 1]], uvs[uvIndex[3 * t + 2]]};
-        forEachTexelInUVTriangle(uv, size, size, [&](int x, int y, double b0, double b1, double b2) {
-            const size_t i = size_t(y) * size_t(size) + size_t(x);
-            if (faceOf[i] >= 0)
-                return;
-            faceOf[i] = int32_t(t);
-            baryOf[i] = glm::vec3(float(b0), float(b1), float(b2));
-        });
-    }
+    std::vector<int32_t> faceOf;
+    std::vector<glm::vec3> baryOf;
+    texelTriangles(uvs, uvIndex, size, &faceOf, &baryOf);
     std::vector<std::vector<float>> channel(3, std::vector<float>(texels, 0.0f));
     std::vector<uint8_t> covered(texels, 0);  // a normal found (a frame, a capture point)
     parallelFor(texels, threads, [&](size_t begin, size_t end) {

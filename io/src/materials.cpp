@@ -447,46 +447,41 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                             std::clamp(rgba[size_t(components) * v + size_t(k)], 0.0f, 1.0f);
             }
         }
-        // NORMAL, into the scene's space as the positions went.
-        if (const auto nAttr = prim.attributes.find("NORMAL"); nAttr != prim.attributes.end()) {
-            std::vector<float> normals;
-            if (!readFloatAccessor(m, nAttr->second, 3, "NORMAL", &normals) ||
-                normals.size() != 3 * size_t(part.vertexCount)) {
+        // NORMAL and TANGENT, into the scene's space as the positions went
+        // (a tangent's w turned where the transform mirrors).  Each of its
+        // vertices' values to `store`, or a warning.
+        const auto perVertex = [&](const char* name, int components, const auto& store) {
+            const auto a = prim.attributes.find(name);
+            std::vector<float> values;
+            if (a == prim.attributes.end())
+                return;
+            if (!readFloatAccessor(m, a->second, components, name, &values) ||
+                values.size() != size_t(components) * part.vertexCount) {
                 if (warnings)
-                    warnings->push_back(part.name + ": its NORMAL is not one direction per vertex; ignored");
-            } else {
-                if (s.fileNormals.empty())
-                    s.fileNormals.assign(rig.sourceVertex.size(), glm::vec3(0.0f));
-                const glm::mat3 toScene = glm::transpose(glm::inverse(glm::mat3(part.toScene)));
-                for (uint32_t v = 0; v < part.vertexCount; ++v) {
-                    const glm::vec3 n = toScene * glm::vec3(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
-                    const float length = glm::length(n);
-                    if (length > 0.0f && std::isfinite(length))
-                        s.fileNormals[part.firstVertex + v] = n / length;
-                }
+                    warnings->push_back(part.name + ": its " + name + " is not one per vertex; ignored");
+                return;
             }
-        }
-        // TANGENT likewise (xyz with the positions, w turned by a mirror).
-        if (const auto tAttr = prim.attributes.find("TANGENT"); tAttr != prim.attributes.end()) {
-            std::vector<float> tangents;
-            if (!readFloatAccessor(m, tAttr->second, 4, "TANGENT", &tangents) ||
-                tangents.size() != 4 * size_t(part.vertexCount)) {
-                if (warnings)
-                    warnings->push_back(part.name + ": its TANGENT is not one tangent per vertex; ignored");
-            } else {
-                if (s.fileTangents.empty())
-                    s.fileTangents.assign(rig.sourceVertex.size(), glm::vec4(0.0f));
-                const glm::mat3 toScene(part.toScene);
-                const float mirror = glm::determinant(toScene) < 0.0f ? -1.0f : 1.0f;
-                for (uint32_t v = 0; v < part.vertexCount; ++v) {
-                    const float* t = &tangents[4 * size_t(v)];
-                    const glm::vec3 d = toScene * glm::vec3(t[0], t[1], t[2]);
-                    const float length = glm::length(d);
-                    if (length > 0.0f && std::isfinite(length))
-                        s.fileTangents[part.firstVertex + v] = glm::vec4(d / length, t[3] < 0.0f ? -mirror : mirror);
-                }
-            }
-        }
+            for (uint32_t v = 0; v < part.vertexCount; ++v)
+                store(part.firstVertex + v, &values[size_t(components) * v]);
+        };
+        const glm::mat3 linear(part.toScene), normalMatrix = glm::transpose(glm::inverse(linear));
+        const float mirror = glm::determinant(linear) < 0.0f ? -1.0f : 1.0f;
+        perVertex("NORMAL", 3, [&](uint32_t file, const float* n) {
+            if (s.fileNormals.empty())
+                s.fileNormals.assign(rig.sourceVertex.size(), glm::vec3(0.0f));
+            const glm::vec3 d = normalMatrix * glm::vec3(n[0], n[1], n[2]);
+            const float length = glm::length(d);
+            if (length > 0.0f && std::isfinite(length))
+                s.fileNormals[file] = d / length;
+        });
+        perVertex("TANGENT", 4, [&](uint32_t file, const float* t) {
+            if (s.fileTangents.empty())
+                s.fileTangents.assign(rig.sourceVertex.size(), glm::vec4(0.0f));
+            const glm::vec3 d = linear * glm::vec3(t[0], t[1], t[2]);
+            const float length = glm::length(d);
+            if (length > 0.0f && std::isfinite(length))
+                s.fileTangents[file] = glm::vec4(d / length, t[3] < 0.0f ? -mirror : mirror);
+        });
         const MaterialInfo& mat = s.materials[size_t(mi)];
         if (!mat.textured())
             continue;
