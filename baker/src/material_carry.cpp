@@ -4,6 +4,7 @@
 #include "material_carry.h"
 
 #include "strata/baker/texture_transfer.h"
+#include "strata/uv_raster.h"
 
 #include <algorithm>
 #include <cmath>
@@ -183,11 +184,10 @@ Tangents normalTextureTangents(const CaptureAppearance& capture, size_t fileVert
         const glm::dvec3 e2 = glm::dvec3(capture.positions[tri[3 * f + 2]]) - a;
         const glm::dvec2 d1 = glm::dvec2(uvs[file[1]]) - glm::dvec2(uvs[file[0]]);
         const glm::dvec2 d2 = glm::dvec2(uvs[file[2]]) - glm::dvec2(uvs[file[0]]);
-        const double det = d1.x * d2.y - d2.x * d1.y;
         const double area = glm::length(glm::cross(e1, e2));
-        if (!(std::fabs(det) > 0.0) || !(area > 0.0))
+        glm::dvec3 dPdu, dPdv;
+        if (!(area > 0.0) || !uvDerivatives(e1, e2, d1, d2, &dPdu, &dPdv))
             continue;
-        const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
         const double lu = glm::length(dPdu), lv = glm::length(dPdv);
         if (!(lu > 0.0) || !(lv > 0.0) || !std::isfinite(lu + lv))
             continue;
@@ -351,6 +351,8 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
             n /= nl;
             const Point p = pointOf(face, b1, b2);
             const io::MaterialInfo& m = *p.material;
+            if (m.normalImage < 0)
+                return glm::vec3(n);
             // The file's TANGENTs where each corner has one (its bitangent's
             // sign the blend's); else the directions of its UVs.
             if (sm.fileTangents.size() == sm.fileUVs.size()) {
@@ -368,7 +370,7 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
             }
             t -= n * glm::dot(n, t);
             const double tl = glm::length(t);
-            if (m.normalImage < 0 || !(tl > 0.0) || !std::isfinite(tl))
+            if (!(tl > 0.0) || !std::isfinite(tl))
                 return glm::vec3(n);
             t /= tl;
             glm::dvec3 bitangent = glm::cross(n, t);

@@ -186,20 +186,20 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             }
             // The triangle's dP/du and dP/dv, from its edges in space and in UV.
             const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
-            const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
-            const double det = d1.x * d2.y - d2.x * d1.y;
+            glm::dvec3 dPdu, dPdv;
+            if (!uvDerivatives(e1, e2, uv[1] - uv[0], uv[2] - uv[0], &dPdu, &dPdv))
+                continue;
             if (flat) {
                 const glm::dvec3 face = glm::cross(e1, e2);
                 n = glm::dot(face, n) < 0.0 ? -face : face;
             }
             const double length = glm::length(n);
-            if (!(std::fabs(det) > 0.0) || !(length > 0.0))
+            if (!(length > 0.0))
                 continue;
             n /= length;
             // dP/du and dP/dv in the plane across n, and the gradients of u
             // and v there (their dual basis): the frame is (grad u, -grad v)
             // over the longer of the two, and n.
-            const glm::dvec3 dPdu = (e1 * d2.y - e2 * d1.y) / det, dPdv = (e2 * d1.x - e1 * d2.x) / det;
             const glm::dvec3 a = dPdu - n * glm::dot(n, dPdu), b = dPdv - n * glm::dot(n, dPdv);
             const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b), gram = aa * bb - ab * ab;
             if (!(gram > 1e-12 * aa * bb) || !std::isfinite(gram))

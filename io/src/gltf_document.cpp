@@ -410,7 +410,7 @@ void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>
     }
 }
 
-static std::string sniffMime(const std::vector<unsigned char>& b)
+std::string sniffMime(const std::vector<unsigned char>& b)
 {
     if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G')
         return "image/png";

@@ -85,7 +85,12 @@ int dropLayers(tinygltf::Model& model);
 int strataVertexView(const tinygltf::Value& extras);
 void setStrataVertexView(tinygltf::Value* extras, int view);
 
-/// Removes image `index`, renumbering texture sources (and imageBytes).
+/// An image's MIME type from its first bytes ("image/png", "image/jpeg",
+/// "image/webp" or "image/ktx2"), or "" for none of them.
+std::string sniffMime(const std::vector<unsigned char>& bytes);
+
+/// Removes image `index`, renumbering texture sources, those texture
+/// extensions name too (EXT_texture_webp, KHR_texture_basisu), and imageBytes.
 void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* imageBytes, int index);
 
 /// Moves every image that is not in a bufferView into one, from imageBytes

@@ -14,7 +14,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <map>
 
 namespace strata {
@@ -65,9 +64,8 @@ int textureImage(const tinygltf::Model& m, int tex)
 // must lie inside it (pngChunksFit, which checks its signature too).
 bool decodeImage(const std::vector<unsigned char>& bytes, ImageRGBA* out)
 {
-    const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
-    const bool webp = bytes.size() >= 12 && std::memcmp(bytes.data(), "RIFF", 4) == 0 &&
-                      std::memcmp(bytes.data() + 8, "WEBP", 4) == 0;
+    const std::string mime = sniffMime(bytes);
+    const bool jpeg = mime == "image/jpeg", webp = mime == "image/webp";
     if (bytes.size() > (size_t(1) << 30))
         return false;
     const auto fits = [&](int w, int h) {

@@ -277,20 +277,21 @@ bool readInstances(const tinygltf::Model& model, const tinygltf::Value& extensio
     if (!read("TRANSLATION", 3, &t) || !read("ROTATION", 4, &r) || !read("SCALE", 3, &s) || !any || count == 0 ||
         count > (size_t(1) << 20))
         return false;
+    // Each instance's TRS as a node's, through the nodes' own composition.
     for (size_t i = 0; i < count; ++i) {
-        glm::mat4 m(1.0f);
+        tinygltf::Node place;
         if (!t.empty())
-            m = glm::translate(m, glm::vec3(t[3 * i], t[3 * i + 1], t[3 * i + 2]));
+            place.translation = {t[3 * i], t[3 * i + 1], t[3 * i + 2]};
         if (!r.empty()) {
-            const glm::quat q(r[4 * i + 3], r[4 * i], r[4 * i + 1], r[4 * i + 2]);  // w, x, y, z
-            const float length = glm::length(q);
-            if (!(length > 0.0f))
+            const glm::dvec4 q(r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]);  // x, y, z, w
+            const double length = glm::length(q);
+            if (!(length > 0.0))
                 return false;
-            m *= glm::mat4_cast(q / length);
+            place.rotation = {q.x / length, q.y / length, q.z / length, q.w / length};
         }
         if (!s.empty())
-            m = glm::scale(m, glm::vec3(s[3 * i], s[3 * i + 1], s[3 * i + 2]));
-        out->push_back(m);
+            place.scale = {s[3 * i], s[3 * i + 1], s[3 * i + 2]};
+        out->push_back(rigfile::localMatrix(place));
     }
     return true;
 }

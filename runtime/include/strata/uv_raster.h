@@ -1,4 +1,5 @@
-// Strata runtime: the texels a UV triangle covers, with their barycentrics.
+// Strata runtime: the texels a UV triangle covers, with their barycentrics,
+// and a triangle's rates against its UVs.
 // One home for the loop over a triangle's texels: its rectangle
 // (texelRect: the baker's UV overlap check, chart owners and the rig
 // writer's map coverage) and the texels with their barycentrics
@@ -8,6 +9,8 @@
 
 #include "strata/plane.h"
 
+#include <glm/ext/vector_double2.hpp>
+#include <glm/ext/vector_double3.hpp>
 #include <glm/vec2.hpp>
 
 #include <algorithm>
@@ -60,6 +63,20 @@ void forEachTexelInUVTriangle(const glm::vec2 uv[3], int width, int height, F&& 
                 continue;
             f(x, y, b0, b1, b2);
         }
+}
+
+/// A triangle's rates of change of its points against its UVs, dP/du and
+/// dP/dv, from its edges e1 = P1 - P0, e2 = P2 - P0 and the same edges d1,
+/// d2 in UV.  False where its UVs have no area.
+inline bool uvDerivatives(const glm::dvec3& e1, const glm::dvec3& e2, const glm::dvec2& d1, const glm::dvec2& d2,
+                          glm::dvec3* dPdu, glm::dvec3* dPdv)
+{
+    const double det = d1.x * d2.y - d2.x * d1.y;
+    if (!(std::fabs(det) > 0.0))
+        return false;
+    *dPdu = (e1 * d2.y - e2 * d1.y) / det;
+    *dPdv = (e2 * d1.x - e1 * d2.x) / det;
+    return true;
 }
 
 }  // namespace strata

@@ -75,14 +75,19 @@ GpuSurface::~GpuSurface()
     if (adaptiveProgram_)
         glDeleteProgram(adaptiveProgram_);
     glDeleteVertexArrays(1, &cornerVao_);
-    for (GpuMaterial& m : materials_)
-        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture,
-                          &m.normalTexture})
-            glDeleteTextures(1, t);
+    deleteMaterialTextures();
     for (GLuint p : {surface_, feedbackProgram_})
         glDeleteProgram(p);
     glDeleteFramebuffers(1, &feedbackTarget_);
     glDeleteRenderbuffers(1, &feedbackColor_);
+}
+
+void GpuSurface::deleteMaterialTextures()
+{
+    for (GpuMaterial& m : materials_)
+        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture,
+                          &m.normalTexture})
+            glDeleteTextures(1, t);
 }
 
 void GpuSurface::setTiming(bool on)
@@ -128,10 +133,7 @@ Status GpuSurface::setMaterials(const std::vector<SurfaceMaterial>& materials, c
                                                        " second UVs for " + std::to_string(faceCount_) + " faces");
     if (!rangesFit(ranges, faceCount_, materials.size()))
         return Status(StatusCode::InvalidArgument, "setMaterials: a face range is out of bounds");
-    for (GpuMaterial& m : materials_)
-        for (GLuint* t : {&m.texture, &m.emissiveTexture, &m.metallicRoughnessTexture, &m.occlusionTexture,
-                          &m.normalTexture})
-            glDeleteTextures(1, t);
+    deleteMaterialTextures();
     materials_.clear();
     // Base colour and emissive textures are sRGB-coded (read linear by the
     // sampler); metallic-roughness and occlusion are linear already.  Each

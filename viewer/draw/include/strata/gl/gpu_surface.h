@@ -170,6 +170,7 @@ private:
     void drawMaterials(GLuint program, const std::vector<MaterialRange>& ranges, GLuint triangles, GLuint cornerUVs,
                        GLuint cornerColours, GLuint cornerUVs2, GLuint vao);
     void sortBlendedLast(std::vector<MaterialRange>* ranges) const;
+    void deleteMaterialTextures();  // every material's GL textures
     void upload(GLuint* buffer, size_t* capacity, const void* data, size_t bytes);
     void takeTimings();  // the evaluator's stage times of the last update, when timing
     void setDrawUniforms(GLuint program, const DrawParams& params, ColorMode mode) const;
