@@ -8,7 +8,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git ccache
   libosd-dev libopenmesh-dev libglfw3-dev libglm-dev libopenexr-dev
   libtinygltf-dev nlohmann-json3-dev libstb-dev zlib1g-dev libgtest-dev libmeshoptimizer-dev libdraco-dev libzstd-dev libeigen3-dev
-  libwebp-dev
+  libwebp-dev libavif-dev
   pybind11-dev python3-dev python3-numpy python3-pytest python3-venv python3-distributed
   libegl-dev libegl1-mesa-dev libgl1-mesa-dri libosmesa6-dev xvfb xauth libimgui-dev
   draco gltfpack blender chromium emscripten

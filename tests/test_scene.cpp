@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
+#include <avif/avif.h>
 #include <webp/decode.h>
 #include <webp/encode.h>
 
@@ -1657,13 +1658,74 @@ TEST(Scene, TextureTransformsMoveTheUVsTheTextureReads)
     EXPECT_EQ(after.fileUVs[5], before.fileUVs[5]);
 }
 
-// A base colour texture whose image only EXT_texture_webp names (glTF
-// Transform's optimize writes them so by default) is decoded: CesiumMan's
-// texture as a lossless WebP reads back as its JPEG decodes, texel for
-// texel.  (It was drawn in its factor alone, white, and named.)  One only
-// another extension names (KTX2 under KHR_texture_basisu) cannot be read:
-// drawn in its factor, and the warning names the extension.
-TEST(Scene, AWebPTextureIsReadAndOtherExtensionsAreNamed)
+namespace {
+
+// An image as a lossless AVIF (4:4:4 with the identity matrix at quantiser
+// 0, as avifenc --lossless writes it); empty where libavif cannot encode.
+std::vector<unsigned char> losslessAvif(const io::ImageRGBA& in)
+{
+    avifImage* image = avifImageCreate(uint32_t(in.width), uint32_t(in.height), 8, AVIF_PIXEL_FORMAT_YUV444);
+    image->matrixCoefficients = AVIF_MATRIX_COEFFICIENTS_IDENTITY;
+    image->yuvRange = AVIF_RANGE_FULL;
+    avifRGBImage rgb;
+    avifRGBImageSetDefaults(&rgb, image);
+    rgb.format = AVIF_RGB_FORMAT_RGBA;
+    rgb.depth = 8;
+    std::vector<uint8_t> pixels(in.rgba.begin(), in.rgba.end());
+    rgb.pixels = pixels.data();
+    rgb.rowBytes = uint32_t(4 * in.width);
+    std::vector<unsigned char> out;
+    avifEncoder* encoder = avifEncoderCreate();
+    encoder->minQuantizer = encoder->maxQuantizer = AVIF_QUANTIZER_LOSSLESS;
+    encoder->speed = 9;
+    avifRWData data = AVIF_DATA_EMPTY;
+    if (avifImageRGBToYUV(image, &rgb) == AVIF_RESULT_OK && avifEncoderWrite(encoder, image, &data) == AVIF_RESULT_OK)
+        out.assign(data.data, data.data + data.size);
+    avifRWDataFree(&data);
+    avifEncoderDestroy(encoder);
+    avifImageDestroy(image);
+    return out;
+}
+
+// `bytes` as a new image of `model`, which texture `texture` reaches only
+// through `extension` (as glTF Transform's webp and avif leave it).
+void onlyThroughExtension(tinygltf::Model& model, int texture, const std::string& extension,
+                          const std::vector<unsigned char>& bytes, const std::string& mime)
+{
+    tinygltf::Buffer& buffer = model.buffers[0];
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buffer.data.size();
+    view.byteLength = bytes.size();
+    buffer.data.insert(buffer.data.end(), bytes.begin(), bytes.end());
+    model.bufferViews.push_back(view);
+    tinygltf::Image image;
+    image.bufferView = int(model.bufferViews.size()) - 1;
+    image.mimeType = mime;
+    model.images.push_back(image);
+    tinygltf::Value::Object o;
+    o["source"] = tinygltf::Value(int(model.images.size()) - 1);
+    tinygltf::Texture& t = model.textures[size_t(texture)];
+    t.extensions.clear();
+    t.extensions[extension] = tinygltf::Value(o);
+    t.source = -1;
+    for (std::vector<std::string>* list : {&model.extensionsUsed, &model.extensionsRequired})
+        if (std::find(list->begin(), list->end(), extension) == list->end())
+            list->push_back(extension);
+}
+
+}  // namespace
+
+// A base colour texture whose image only EXT_texture_webp or
+// EXT_texture_avif names (glTF Transform's optimize, webp and avif write
+// them so) is decoded: CesiumMan's texture as a lossless WebP and as a
+// lossless AVIF reads back as its JPEG decodes, texel for texel.  (They
+// were drawn in their factor alone, white, and named.)  An AVIF whose
+// container claims 65536^2 texels is refused before any AV1 is decoded,
+// and named.  One only another extension names (KTX2 under
+// KHR_texture_basisu) cannot be read: drawn in its factor, and the warning
+// names the extension.
+TEST(Scene, WebPAndAvifTexturesAreReadAndOtherExtensionsAreNamed)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
     const std::string dir = test::tempDir("scene_texture_extension");
@@ -1681,41 +1743,52 @@ TEST(Scene, AWebPTextureIsReadAndOtherExtensionsAreNamed)
     ASSERT_GT(webpSize, 0u);
     const std::vector<unsigned char> webp(webpBytes, webpBytes + webpSize);
     WebPFree(webpBytes);
-    // The WebP as a new image, the texture's only through the extension.
-    tinygltf::Texture& texture = model.textures[size_t(model.materials[0].pbrMetallicRoughness.baseColorTexture.index)];
-    tinygltf::Buffer& buffer = model.buffers[0];
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = buffer.data.size();
-    view.byteLength = webp.size();
-    buffer.data.insert(buffer.data.end(), webp.begin(), webp.end());
-    model.bufferViews.push_back(view);
-    tinygltf::Image webpImage;
-    webpImage.bufferView = int(model.bufferViews.size()) - 1;
-    webpImage.mimeType = "image/webp";
-    model.images.push_back(webpImage);
-    tinygltf::Value::Object extension;
-    extension["source"] = tinygltf::Value(int(model.images.size()) - 1);
-    texture.extensions["EXT_texture_webp"] = tinygltf::Value(extension);
-    texture.source = -1;
-    model.extensionsUsed.push_back("EXT_texture_webp");
-    model.extensionsRequired.push_back("EXT_texture_webp");
+    const std::vector<unsigned char> avif = losslessAvif(jpeg);
+    ASSERT_FALSE(avif.empty()) << "libavif encodes no AVIF here";
+    const int texture = model.materials[0].pbrMetallicRoughness.baseColorTexture.index;
+    const tinygltf::Model jpegModel = model;
+    for (const auto& [extension, bytes, mime] :
+         {std::make_tuple("EXT_texture_webp", webp, "image/webp"), std::make_tuple("EXT_texture_avif", avif, "image/avif")}) {
+        SCOPED_TRACE(extension);
+        model = jpegModel;
+        onlyThroughExtension(model, texture, extension, bytes, mime);
+        Rig rig;
+        io::SceneMaterials materials;
+        std::vector<std::string> warnings;
+        ASSERT_TRUE(writeAndReadMaterials(model, dir + "/" + extension + ".glb", &rig, &materials, &warnings));
+        EXPECT_TRUE(warnings.empty()) << warnings[0];
+        const int read = materials.materials[0].image;
+        ASSERT_GE(read, 0);
+        EXPECT_EQ(materials.images[size_t(read)].width, jpeg.width);
+        EXPECT_EQ(materials.images[size_t(read)].height, jpeg.height);
+        EXPECT_TRUE(materials.images[size_t(read)].rgba == jpeg.rgba);
+        EXPECT_EQ(io::featuresNotCarried(rig, 0, &materials), "");
+    }
+    // The AVIF's image spatial extent ('ispe': version and flags, then
+    // width and height) made 65536^2.
+    std::vector<unsigned char> huge = avif;
+    const auto ispe = std::search(huge.begin(), huge.end(), std::begin("ispe"), std::end("ispe") - 1);
+    ASSERT_NE(ispe, huge.end());
+    ASSERT_LT(size_t(ispe - huge.begin()) + 16, huge.size());
+    for (int k = 0; k < 8; ++k)
+        ispe[8 + k] = (k % 4 == 1) ? 1 : 0;  // 0x00010000 each
+    {
+        model = jpegModel;
+        onlyThroughExtension(model, texture, "EXT_texture_avif", huge, "image/avif");
+        Rig rig;
+        io::SceneMaterials materials;
+        std::vector<std::string> warnings;
+        ASSERT_TRUE(writeAndReadMaterials(model, dir + "/huge.glb", &rig, &materials, &warnings));
+        EXPECT_EQ(materials.materials[0].image, -1);
+        ASSERT_EQ(warnings.size(), 1u);
+        EXPECT_NE(warnings[0].find("image 1"), std::string::npos) << warnings[0];
+    }
+    // KTX2 (here its extension over the same image): named, not read.
+    model = jpegModel;
+    onlyThroughExtension(model, texture, "KHR_texture_basisu", webp, "image/webp");
     Rig rig;
     io::SceneMaterials materials;
     std::vector<std::string> warnings;
-    ASSERT_TRUE(writeAndReadMaterials(model, dir + "/webp.glb", &rig, &materials, &warnings));
-    EXPECT_TRUE(warnings.empty()) << warnings[0];
-    const int read = materials.materials[0].image;
-    ASSERT_GE(read, 0);
-    EXPECT_EQ(materials.images[size_t(read)].width, jpeg.width);
-    EXPECT_EQ(materials.images[size_t(read)].height, jpeg.height);
-    EXPECT_TRUE(materials.images[size_t(read)].rgba == jpeg.rgba);
-    EXPECT_EQ(io::featuresNotCarried(rig, 0, &materials), "");
-    // KTX2 (here its extension over the same image): named, not read.
-    texture.extensions.erase("EXT_texture_webp");
-    texture.extensions["KHR_texture_basisu"] = tinygltf::Value(extension);
-    model.extensionsUsed.back() = "KHR_texture_basisu";
-    model.extensionsRequired.back() = "KHR_texture_basisu";
     ASSERT_TRUE(writeAndReadMaterials(model, dir + "/ktx2.glb", &rig, &materials, &warnings));
     EXPECT_EQ(materials.materials[0].image, -1);
     ASSERT_EQ(warnings.size(), 1u);

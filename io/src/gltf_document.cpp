@@ -420,6 +420,14 @@ std::string sniffMime(const std::vector<unsigned char>& b)
         return "image/webp";
     if (b.size() >= 4 && std::memcmp(b.data(), "\xabKTX", 4) == 0)
         return "image/ktx2";
+    // AVIF: an ISO-BMFF file whose ftyp box names the avif (still) or avis
+    // (sequence) brand, major or among its compatible ones.
+    if (b.size() >= 16 && std::memcmp(b.data() + 4, "ftyp", 4) == 0) {
+        const size_t box = std::min(b.size(), (size_t(b[0]) << 24 | size_t(b[1]) << 16 | size_t(b[2]) << 8 | b[3]));
+        for (size_t at = 8; at + 4 <= box; at += at == 8 ? 8 : 4)
+            if (std::memcmp(b.data() + at, "avif", 4) == 0 || std::memcmp(b.data() + at, "avis", 4) == 0)
+                return "image/avif";
+    }
     return std::string();
 }
 

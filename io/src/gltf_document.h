@@ -86,11 +86,12 @@ int strataVertexView(const tinygltf::Value& extras);
 void setStrataVertexView(tinygltf::Value* extras, int view);
 
 /// An image's MIME type from its first bytes ("image/png", "image/jpeg",
-/// "image/webp" or "image/ktx2"), or "" for none of them.
+/// "image/webp", "image/ktx2" or "image/avif"), or "" for none of them.
 std::string sniffMime(const std::vector<unsigned char>& bytes);
 
 /// Removes image `index`, renumbering texture sources, those texture
-/// extensions name too (EXT_texture_webp, KHR_texture_basisu), and imageBytes.
+/// extensions name too (EXT_texture_webp, EXT_texture_avif, KHR_texture_basisu),
+/// and imageBytes.
 void removeImage(tinygltf::Model& model, std::vector<std::vector<unsigned char>>* imageBytes, int index);
 
 /// Moves every image that is not in a bufferView into one, from imageBytes

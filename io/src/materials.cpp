@@ -10,6 +10,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 #include <stb/stb_image.h>
+#include <avif/avif.h>
 #include <webp/decode.h>
 
 #include <algorithm>
@@ -38,41 +39,87 @@ std::vector<unsigned char> encodedImage(const SourceDocument& doc, size_t i)
     return i < doc.imageBytes.size() ? doc.imageBytes[i] : std::vector<unsigned char>();
 }
 
-// The image texture `tex` reads: its source, else EXT_texture_webp's (an
-// image only that extension names, as glTF Transform's optimize writes
-// them); -1 for neither.
+// The image texture `tex` reads: its source, else EXT_texture_webp's or
+// EXT_texture_avif's (an image only that extension names, as glTF
+// Transform's optimize, webp and avif write them); -1 for none.
 int textureImage(const tinygltf::Model& m, int tex)
 {
     const tinygltf::Texture& t = m.textures[size_t(tex)];
     if (t.source >= 0 && size_t(t.source) < m.images.size())
         return t.source;
-    const auto webp = t.extensions.find("EXT_texture_webp");
-    if (webp == t.extensions.end() || !webp->second.IsObject() || !webp->second.Get("source").IsInt())
-        return -1;
-    const int source = webp->second.Get("source").Get<int>();
-    return source >= 0 && size_t(source) < m.images.size() ? source : -1;
+    for (const char* name : {"EXT_texture_webp", "EXT_texture_avif"}) {
+        const auto e = t.extensions.find(name);
+        if (e == t.extensions.end() || !e->second.IsObject() || !e->second.Get("source").IsInt())
+            continue;
+        const int source = e->second.Get("source").Get<int>();
+        if (source >= 0 && size_t(source) < m.images.size())
+            return source;
+    }
+    return -1;
 }
 
-// Decodes a PNG, JPEG or WebP image into 4 bytes a pixel; false for any
-// other or a broken one.  The header's size first: a hostile one would have
-// the decoder allocate gigabytes before it finds no pixels behind it.  Nor
-// can a PNG or JPEG expand past deflate's limit (about 1032:1; a flat
+// An AVIF's first image as 8-bit RGBA (any depth, subsampling or alpha
+// libavif reads), sized from its container before any AV1 is decoded and
+// refused unless `fits` (a sequence gives its first frame).  False for a
+// broken file or one that does not fit.
+template <typename Fits>
+bool decodeAvif(const std::vector<unsigned char>& bytes, const Fits& fits, ImageRGBA* out)
+{
+    avifDecoder* decoder = avifDecoderCreate();
+    if (!decoder)
+        return false;
+    decoder->maxThreads = 1;
+    decoder->ignoreExif = AVIF_TRUE;
+    decoder->ignoreXMP = AVIF_TRUE;
+    decoder->imageSizeLimit = 4096u * 4096u;
+    decoder->imageDimensionLimit = 16384;
+    bool ok = avifDecoderSetIOMemory(decoder, bytes.data(), bytes.size()) == AVIF_RESULT_OK &&
+              avifDecoderParse(decoder) == AVIF_RESULT_OK && decoder->image &&
+              decoder->image->width <= 16384 && decoder->image->height <= 16384 &&
+              fits(int(decoder->image->width), int(decoder->image->height)) &&
+              avifDecoderNextImage(decoder) == AVIF_RESULT_OK;
+    if (ok) {
+        avifRGBImage rgb;
+        avifRGBImageSetDefaults(&rgb, decoder->image);
+        rgb.format = AVIF_RGB_FORMAT_RGBA;
+        rgb.depth = 8;
+        out->width = int(rgb.width);
+        out->height = int(rgb.height);
+        out->rgba.assign(size_t(rgb.width) * size_t(rgb.height) * 4, 0);
+        rgb.pixels = out->rgba.data();
+        rgb.rowBytes = rgb.width * 4;
+        ok = avifImageYUVToRGB(decoder->image, &rgb) == AVIF_RESULT_OK;
+        if (!ok)
+            *out = ImageRGBA();
+    }
+    avifDecoderDestroy(decoder);
+    return ok;
+}
+
+// Decodes a PNG, JPEG, WebP or AVIF image into 4 bytes a pixel; false for
+// any other or a broken one.  The header's size first: a hostile one would
+// have the decoder allocate gigabytes before it finds no pixels behind it.
+// Nor can a PNG or JPEG expand past deflate's limit (about 1032:1; a flat
 // 4096^2 PNG is 64 MB from 64 KB): at most 2048x its bytes, plus 16 MB; a
-// lossless WebP of one colour codes 4096^2 in a few hundred bytes, so any
-// WebP up to 4096^2 is decoded.  glTF's images are PNG, JPEG and (through
-// EXT_texture_webp) WebP, and stb_image would read others; a PNG's chunks
-// must lie inside it (pngChunksFit, which checks its signature too).
+// lossless WebP or an AVIF of one colour codes 4096^2 in a few hundred
+// bytes, so any WebP or AVIF up to 4096^2 is decoded.  glTF's images are
+// PNG, JPEG and (through EXT_texture_webp and EXT_texture_avif) WebP and
+// AVIF, and stb_image would read others; a PNG's chunks must lie inside it
+// (pngChunksFit, which checks its signature too).
 bool decodeImage(const std::vector<unsigned char>& bytes, ImageRGBA* out)
 {
     const std::string mime = sniffMime(bytes);
-    const bool jpeg = mime == "image/jpeg", webp = mime == "image/webp";
+    const bool jpeg = mime == "image/jpeg", webp = mime == "image/webp", avif = mime == "image/avif";
     if (bytes.size() > (size_t(1) << 30))
         return false;
     const auto fits = [&](int w, int h) {
         const size_t pixels = 4 * size_t(w) * size_t(h);
         return w > 0 && h > 0 && w <= 16384 && h <= 16384 &&
-               (pixels <= 2048 * bytes.size() + (size_t(16) << 20) || (webp && pixels <= (size_t(64) << 20)));
+               (pixels <= 2048 * bytes.size() + (size_t(16) << 20) ||
+                ((webp || avif) && pixels <= (size_t(64) << 20)));
     };
+    if (avif)
+        return decodeAvif(bytes, fits, out);
     int w = 0, h = 0, comp = 0;
     if (webp) {
         if (!WebPGetInfo(bytes.data(), bytes.size(), &w, &h) || !fits(w, h))
@@ -323,7 +370,8 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
                 used[size_t(src)] = true;
             } else if (warnings) {
                 // An image only an extension other than EXT_texture_webp
-                // names (KTX2, AVIF, DDS: no fallback in `source`).
+                // and EXT_texture_avif names (KTX2, DDS: no fallback in
+                // `source`).
                 std::string coded;
                 for (const auto& [name, value] : m.textures[size_t(tex)].extensions)
                     coded += (coded.empty() ? "" : ", ") + name;

@@ -424,22 +424,23 @@ const reads = [];
   }
 }
 
-// A character whose texture glTF Transform made WebP (`gltf-transform
-// webp`; EXT_texture_webp, no PNG or JPEG left): --control auto re-bakes
-// its colour from the WebP at the texture's own size, and names nothing as
-// not decoded (Strata decoded PNG and JPEG only: it re-baked white).
-{
-  const webp = path.join(work, 'CesiumMan_webp.glb');
-  const o = run(gltfTransform, ['webp', path.join(data, 'CesiumMan.glb'), webp], { cwd: jsDir });
-  const json = o.code === 0 ? readGlb(webp).json : { extensionsUsed: [] };
-  const b = o.code === 0 ? run(bake, ['--high', webp, '--control', 'auto', '--error-levels', 'none', '-o',
-                                      path.join(work, 'CesiumMan_webp_rig.glb')]) : { code: -1, out: o.out };
+// A character whose texture glTF Transform made WebP or AVIF (`gltf-transform
+// webp` / `avif`; EXT_texture_webp or EXT_texture_avif, no PNG or JPEG
+// left): --control auto re-bakes its colour from that image at the
+// texture's own size, and names nothing as not decoded (Strata decoded PNG
+// and JPEG only: it re-baked white).
+for (const [format, extension, name] of [['webp', 'EXT_texture_webp', 'WebP'], ['avif', 'EXT_texture_avif', 'AVIF']]) {
+  const coded = path.join(work, `CesiumMan_${format}.glb`);
+  const o = run(gltfTransform, [format, path.join(data, 'CesiumMan.glb'), coded], { cwd: jsDir });
+  const json = o.code === 0 ? readGlb(coded).json : { extensionsUsed: [] };
+  const b = o.code === 0 ? run(bake, ['--high', coded, '--control', 'auto', '--error-levels', 'none', '-o',
+                                      path.join(work, `CesiumMan_${format}_rig.glb`)]) : { code: -1, out: o.out };
   const colour = (/colour\s+(.*)/.exec(b.out) || [])[1] || '';
-  const ok = b.code === 0 && (json.extensionsUsed || []).includes('EXT_texture_webp') &&
+  const ok = b.code === 0 && (json.extensionsUsed || []).includes(extension) &&
              !/does not decode|cannot be decoded/.test(b.out) && /1024x1024 base colour texture/.test(colour);
   if (!ok) ++wrong;
-  reads.push(['gltf-transform webp of CesiumMan, then `--control auto`', 'its texture only in EXT_texture_webp',
-              ok ? `colour re-baked from the WebP: ${colour.trim()}`
+  reads.push([`gltf-transform ${format} of CesiumMan, then \`--control auto\``, `its texture only in ${extension}`,
+              ok ? `colour re-baked from the ${name}: ${colour.trim()}`
                  : `FAILED: ${(b.out.match(/.*(decode|error).*/) || [colour || b.out.trim().split('\n').pop()])[0].slice(0, 200)}`]);
 }
 
