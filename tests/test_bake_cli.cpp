@@ -1151,7 +1151,8 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         request.output = dir + "/rig.glb";
         request.options.threads = 2;
         // Fox takes the default face count search (its 576 triangles are
-        // fewer than 1,000: the search may go up to all of them); CesiumMan a
+        // fewer than 1,000: the search may go up to all of them, and does:
+        // no fewer faces meet the tolerance in every pose); CesiumMan a
         // fixed cage (the search is the same code, and three bakes cost a
         // sanitizer build minutes).
         if (std::string(name) == "CesiumMan.glb")
@@ -1232,18 +1233,31 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
         EXPECT_EQ(nlohmann::json::parse(result.report)["shading"], flatSource ? "flat" : "smooth") << name;
         EXPECT_EQ(result.summary.find("shading       flat") != std::string::npos, flatSource) << result.summary;
         // Posed: the bake measured every animation at 10 times, and the
-        // layered surface stays within 0.05% (Fox, on the 480 of its 576
-        // faces that meet the default 0.01% at rest) and 0.2% (CesiumMan's
-        // 400 faces) RMS of the diagonal of the source.  The cage is
-        // decimated in the capture's poses and its weights fitted over
-        // them; decimated at rest, with each cage vertex weighted as its
-        // nearest capture point, the worst frames were 0.67% (Fox on the
-        // 200 faces the search then stopped at) and 0.33%.
+        // layered surface stays within the default tolerance, 0.01% (Fox:
+        // the search holds a try to it in every pose; its 480 faces that
+        // met it at rest went to 0.029% posed), and 0.2% (CesiumMan's 400
+        // faces) RMS of the diagonal of the source.  The cage is decimated
+        // in the capture's poses and its weights fitted over them;
+        // decimated at rest, with each cage vertex weighted as its nearest
+        // capture point, the worst frames were 0.67% (Fox on the 200 faces
+        // the search then stopped at) and 0.33%.
         const bool fox = std::string(name) == "Fox.glb";
         const nlohmann::json report = nlohmann::json::parse(result.report);
         ASSERT_TRUE(report.contains("posed")) << name;
         EXPECT_EQ(report["posed"]["frames"].size(), 10 * source.skeleton.animations.size());
-        const double posedBar = fox ? 0.0005 : 0.002;
+        const double posedBar = fox ? 0.0001 : 0.002;
+        if (fox) {
+            // The search's tries, each measured posed as well as at rest.
+            EXPECT_NE(result.summary.find("closed-loop RMS / diagonal at rest, posed at worst"), std::string::npos)
+                << result.summary;
+            ASSERT_TRUE(report.contains("cageFaces")) << result.summary;
+            for (const nlohmann::json& t : report["cageFaces"]) {
+                EXPECT_GE(t["posedRms"].get<double>(), 0.0) << t.dump();
+                if (t["chosen"].get<bool>()) {
+                    EXPECT_LE(t["posedRms"].get<double>(), 1e-4) << t.dump();
+                }
+            }
+        }
         for (const nlohmann::json& f : report["posed"]["frames"])
             EXPECT_LT(f["rms"].get<double>(), posedBar) << name << " animation " << f["animation"] << " at " << f["time"];
         // And it looks like the source: both drawn at one camera and pose,
@@ -1255,10 +1269,17 @@ TEST(BakeLibrary, AutomaticCageOfACharacterKeepsTheCharacter)
             EXPECT_GT(f["psnr"].get<double>(), psnrBar) << name << " animation " << f["animation"] << " at " << f["time"];
         EXPECT_NE(result.summary.find("picture PSNR mean, worst"), std::string::npos) << result.summary;
         // The cage's weights were fitted over the animations, and moved the
-        // layered surface closer to the capture's motion than as carried.
+        // layered surface closer to the capture's motion than as carried
+        // (Fox's cage is the capture itself: carried, it moves as the
+        // capture, and the fit keeps it there).
         ASSERT_TRUE(report.contains("skinFit")) << name;
         EXPECT_GE(report["skinFit"]["poses"].get<int>(), 12) << name;
-        EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>()) << name;
+        if (fox) {
+            EXPECT_LT(report["skinFit"]["after"].get<double>(), 1e-6) << name;
+        } else {
+            EXPECT_LT(report["skinFit"]["after"].get<double>(), 0.95 * report["skinFit"]["before"].get<double>())
+                << name;
+        }
         EXPECT_NE(result.summary.find("the weights fitted over"), std::string::npos) << result.summary;
         // The first line gives the worst posed frame beside the rest pose's
         // closed loop and, where the rest meets the tolerance but a pose goes
