@@ -508,13 +508,15 @@ void runAdaptive(const char* name, const Rig& rig, const DisplacementMap* map, i
 }
 
 // A rig baked by strata-bake's pipeline into a scratch folder, loaded back.
-bool bakeForBench(const std::string& high, const std::string& stem, Rig* rig, DisplacementMap* map)
+bool bakeForBench(const std::string& high, const std::string& stem, Rig* rig, DisplacementMap* map,
+                  size_t controlFaces = 0)
 {
     const std::string dir = (std::filesystem::temp_directory_path() / ("strata_bench_runtime_" + std::to_string(::getpid()))).string();
     std::filesystem::create_directories(dir);
     baker::BakeRequest request;
     request.high = high;
     request.control = "auto";
+    request.controlFaces = controlFaces;
     request.output = dir + "/" + stem + ".glb";
     baker::BakeResult result;
     const Status st = baker::bakeRig(request, &result);
@@ -546,7 +548,10 @@ void runAdaptiveTables()
     const std::string data = STRATA_SHARED_DATA;
     Rig rig;
     DisplacementMap map;
-    if (bakeForBench(data + "/CesiumMan.glb", "cesium", &rig, &map))
+    // CesiumMan on 1,113 faces, its rig at level 2: the default search's
+    // cage until it met the tolerance in every pose, where it now takes
+    // 2,000 faces at level 0 and leaves a view nothing to choose.
+    if (bakeForBench(data + "/CesiumMan.glb", "cesium", &rig, &map, 1113))
         runAdaptive("CesiumMan", rig, &map, 0, 1.0f);
     Rig scan;
     DisplacementMap scanMap;
