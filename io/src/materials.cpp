@@ -77,7 +77,10 @@ bool decodeAvif(const std::vector<unsigned char>& bytes, const Fits& fits, Image
               avifDecoderParse(decoder) == AVIF_RESULT_OK && decoder->image &&
               decoder->image->width <= 16384 && decoder->image->height <= 16384 &&
               fits(int(decoder->image->width), int(decoder->image->height)) &&
-              avifDecoderNextImage(decoder) == AVIF_RESULT_OK;
+              avifDecoderNextImage(decoder) == AVIF_RESULT_OK &&
+              // The AV1 payload's own size, which may differ from its container's.
+              decoder->image->width <= 16384 && decoder->image->height <= 16384 &&
+              fits(int(decoder->image->width), int(decoder->image->height));
     if (ok) {
         avifRGBImage rgb;
         avifRGBImageSetDefaults(&rgb, decoder->image);
