@@ -261,3 +261,54 @@ TEST(Sampler, BilinearOrNearestWrappedAsGltfsSamplers)
     const glm::dvec4 nan = io::sampleImage(image, {std::nan(""), 0.5});
     EXPECT_TRUE(std::isfinite(nan.r));
 }
+
+// A normal texture read as glTF viewers read one on a mesh without TANGENT:
+// +X along the UVs' +u, +Y along -v, +Z the normal.  One texel tilting the
+// normal towards +X turns a square facing the eye to +x; with its UVs a
+// quarter turn round (+u up the square), to +y; each shaded by its dot
+// product with the light (over the eye's shoulder, up and to the right),
+// 229 and 249 of 255 where facing is 225; at scale 0 the tilt is gone and
+// the square is the facing shade.
+TEST(Picture, NormalTexturesAreReadInTheFrameTheUVsGive)
+{
+    const glm::dvec3 light = glm::normalize(glm::dvec3(0.3, 0.6, 1.0));
+    const glm::dvec3 tilt = glm::normalize(glm::dvec3(0.5, 0.0, 1.0));
+    io::ImageRGBA texel;
+    texel.width = texel.height = 1;
+    texel.rgba = {uint8_t(std::lround(255.0 * (0.5 * tilt.x + 0.5))), uint8_t(std::lround(255.0 * (0.5 * tilt.y + 0.5))),
+                  uint8_t(std::lround(255.0 * (0.5 * tilt.z + 0.5))), 255};
+    // The texel as the picture decodes it (8 bits a channel).
+    const glm::dvec3 stored = glm::normalize(glm::dvec3(2.0 * texel.rgba[0] / 255.0 - 1.0, 2.0 * texel.rgba[1] / 255.0 - 1.0,
+                                                        2.0 * texel.rgba[2] / 255.0 - 1.0));
+    const auto shadeOf = [&](const glm::dvec3& n) {
+        return int(std::lround(255.0 * (0.3 + 0.7 * std::max(0.0, glm::dot(n, light)))));
+    };
+    for (int turn = 0; turn < 3; ++turn) {
+        baker::PictureMesh m;
+        std::vector<float> uvs;
+        addSquare(&m, 0.0f, glm::vec4(1.0f), &uvs);
+        if (turn == 1)  // u up the square (+y), v across it (+x)
+            for (size_t k = 0; k < uvs.size(); k += 2) {
+                const float u = uvs[k], v = uvs[k + 1];
+                uvs[k] = 1.0f - v;
+                uvs[k + 1] = u;
+            }
+        io::MaterialInfo material;
+        material.normalImage = 0;
+        material.normalScale = turn == 2 ? 0.0f : 1.0f;
+        m.parts[0].normalImage = &texel;
+        m.parts[0].normalUvs = uvs.data();
+        m.parts[0].normalMaterial = &material;
+        std::vector<uint8_t> rgb;
+        baker::renderPicture(m, frontCamera(), &rgb);
+        // +u is +x and +v is -y on the square as laid out: X = (1, 0, 0),
+        // Y = (0, 1, 0).  A quarter turn makes +u +y and +v +x: X = (0, 1, 0),
+        // Y = (-1, 0, 0).
+        const glm::dvec3 expected = turn == 0   ? stored
+                                    : turn == 1 ? glm::dvec3(-stored.y, stored.x, stored.z)
+                                                : glm::dvec3(0.0, 0.0, 1.0);
+        EXPECT_EQ(int(pixel(rgb, 64, 32, 32)[0]), shadeOf(expected)) << "turn " << turn;
+        EXPECT_EQ(shadeOf(expected), turn == 0 ? 229 : turn == 1 ? 249 : 225) << "turn " << turn;
+    }
+    EXPECT_EQ(shadeOf(glm::dvec3(0.0, 0.0, 1.0)), int(std::lround(255.0 * facingShade())));
+}

@@ -840,6 +840,11 @@ void BakeJob::measureFrames()
         !(st = io::loadSceneMaterials(written_, &materialsA)) ||
         (captureMaterials.materials.empty() && !(st = io::loadSceneMaterials(highRig, &sourceMaterials))))
         throw BakeError(request.output + ": laying the character out for its pictures: " + st.message());
+    // Normal textures drawn in the frame a viewer derives without TANGENT,
+    // which the rig's is written in and a capture without TANGENTs reads
+    // in; a capture's TANGENTs (not posed here) leave both pictures without
+    // them, so that the two stay alike.
+    const bool normalTextures = materialsB.fileTangents.empty();
     std::vector<uint8_t> pictureA, pictureB;
     for (size_t anim = 0; anim < highRig.skeleton.animations.size(); ++anim) {
         const Animation& an = highRig.skeleton.animations[anim];
@@ -860,8 +865,8 @@ void BakeJob::measureFrames()
             glm::vec3 lo, hi;
             source->bounds(&lo, &hi);  // undisplaced at level 0: the posed source's own box
             const PictureCamera camera = frameBox(lo, hi);
-            renderPicture(pictureOf(layoutA, a, na, materialsA), camera, &pictureA);
-            renderPicture(pictureOf(layoutB, b, nb, materialsB), camera, &pictureB);
+            renderPicture(pictureOf(layoutA, a, na, materialsA, normalTextures), camera, &pictureA);
+            renderPicture(pictureOf(layoutB, b, nb, materialsB, normalTextures), camera, &pictureB);
             frames.push_back({int(anim), t, std::max(ab.rms, ba.rms), std::max(ab.max, ba.max),
                               picturePsnr(pictureA, pictureB)});
         }

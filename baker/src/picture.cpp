@@ -63,6 +63,22 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                 continue;
             const glm::vec3& p0 = mesh.positions[v[0]];
             const glm::vec3 faceNormal = glm::cross(mesh.positions[v[1]] - p0, mesh.positions[v[2]] - p0);
+            // The normal texture's dP/du and dP/dv on this triangle, in the
+            // texture's own UVs (after its transform), as a viewer's screen
+            // derivatives give them.
+            glm::dvec3 dPdu(0.0), dPdv(0.0);
+            bool normalMapped = false;
+            const io::TextureCoords* normalCoords =
+                part.normalMaterial ? &part.normalMaterial->channel(part.normalMaterial->normalChannel) : nullptr;
+            if (part.normalImage && part.normalUvs && normalCoords) {
+                glm::dvec2 st[3];
+                for (int k = 0; k < 3; ++k)
+                    st[k] = glm::dvec2(
+                        normalCoords->textureUV(glm::vec2(part.normalUvs[2 * v[k]], part.normalUvs[2 * v[k] + 1])));
+                const glm::dvec3 q0(p0);
+                normalMapped = uvDerivatives(glm::dvec3(mesh.positions[v[1]]) - q0, glm::dvec3(mesh.positions[v[2]]) - q0,
+                                             st[1] - st[0], st[2] - st[0], &dPdu, &dPdv);
+            }
             forEachTexelInUVTriangle(screen, n, n, [&](int x, int y, double b0, double b1, double b2) {
                 // Depth is affine in the picture; attributes are affine over 1/w.
                 const double bs[3] = {b0, b1, b2};
@@ -78,18 +94,28 @@ void renderPicture(const PictureMesh& mesh, const PictureCamera& camera, std::ve
                 for (double& w : wp)
                     w /= inv;
                 glm::dvec3 position(0.0), normal(0.0);
-                glm::dvec2 uv(0.0);
+                glm::dvec2 uv(0.0), normalUv(0.0);
                 for (int k = 0; k < 3; ++k) {
                     position += wp[k] * glm::dvec3(mesh.positions[v[k]]);
                     if (!part.flat && v[k] < mesh.normals.size())
                         normal += wp[k] * glm::dvec3(mesh.normals[v[k]]);
                     if (part.uvs)
                         uv += wp[k] * glm::dvec2(part.uvs[2 * v[k]], part.uvs[2 * v[k] + 1]);
+                    if (normalMapped)
+                        normalUv += wp[k] * glm::dvec2(part.normalUvs[2 * v[k]], part.normalUvs[2 * v[k] + 1]);
                 }
                 if (part.flat || !(glm::length(normal) > 0.0))
                     normal = glm::dvec3(faceNormal);
                 const double length = glm::length(normal);
                 normal = length > 0.0 ? normal / length : glm::dvec3(0.0, 0.0, 1.0);
+                glm::dvec3 decodeX, decodeY, encodeX, encodeY;
+                if (normalMapped && normalTextureFrame(normal, dPdu, dPdv, &decodeX, &decodeY, &encodeX, &encodeY)) {
+                    const glm::dvec3 local = io::normalAt(*part.normalMaterial, part.normalImage,
+                                                      glm::dvec2(normalCoords->textureUV(glm::vec2(normalUv))));
+                    const glm::dvec3 bent = local.x * decodeX + local.y * decodeY + local.z * normal;
+                    if (glm::length(bent) > 0.0)
+                        normal = glm::normalize(bent);
+                }
                 if (glm::dot(normal, glm::dvec3(camera.eye) - position) < 0.0)
                     normal = -normal;  // either side drawn, lit from the front
                 // glTF's base colour (linear: factor x decoded texture x
@@ -141,7 +167,8 @@ double picturePsnr(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b)
 }
 
 PictureMesh pictureOf(const io::RenderMesh& layout, const std::vector<glm::vec3>& positions,
-                      const std::vector<glm::vec3>& normals, const io::SceneMaterials& materials)
+                      const std::vector<glm::vec3>& normals, const io::SceneMaterials& materials,
+                      bool normalTextures)
 {
     PictureMesh m;
     m.positions.resize(layout.vertexCount());
@@ -157,21 +184,31 @@ PictureMesh pictureOf(const io::RenderMesh& layout, const std::vector<glm::vec3>
         part.firstTriangle = rp.firstIndex / 3;
         part.triangleCount = rp.indexCount / 3;
         part.flat = rp.flat;
-        // The part's material (glTF's default one last), its texture and UV set.
+        // The part's material (glTF's default one last), its textures and UV sets.
+        const auto uvSet = [&](int texCoord) -> const float* {
+            const std::string set = "TEXCOORD_" + std::to_string(texCoord);
+            for (const io::RenderAttribute& a : layout.attributes)
+                if (a.name == set && a.components == 2 && a.values.size() == 2 * layout.vertexCount())
+                    return a.values.data();
+            return nullptr;
+        };
+        const auto image = [&](int index) -> const io::ImageRGBA* {
+            return index >= 0 && size_t(index) < materials.images.size() && !materials.images[size_t(index)].rgba.empty()
+                       ? &materials.images[size_t(index)]
+                       : nullptr;
+        };
         const int material = p < materials.partMaterial.size() ? materials.partMaterial[p] : -1;
         if (material >= 0 && size_t(material) < materials.materials.size()) {
             const io::MaterialInfo& info = materials.materials[size_t(material)];
             part.colour = info.baseColor;
-            if (info.image >= 0 && size_t(info.image) < materials.images.size() &&
-                !materials.images[size_t(info.image)].rgba.empty()) {
-                const std::string set = "TEXCOORD_" + std::to_string(info.texCoord);
-                for (const io::RenderAttribute& a : layout.attributes)
-                    if (a.name == set && a.components == 2 && a.values.size() == 2 * layout.vertexCount())
-                        part.uvs = a.values.data();
-                if (part.uvs) {
-                    part.image = &materials.images[size_t(info.image)];
-                    part.material = &info;
-                }
+            if (image(info.image) && (part.uvs = uvSet(info.texCoord)) != nullptr) {
+                part.image = image(info.image);
+                part.material = &info;
+            }
+            if (normalTextures && image(info.normalImage) &&
+                (part.normalUvs = uvSet(info.channel(info.normalChannel).texCoord)) != nullptr) {
+                part.normalImage = image(info.normalImage);
+                part.normalMaterial = &info;
             }
         }
         for (const io::RenderAttribute& a : layout.attributes)

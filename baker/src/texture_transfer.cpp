@@ -197,15 +197,11 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             if (!(length > 0.0))
                 continue;
             n /= length;
-            // dP/du and dP/dv in the plane across n, and the gradients of u
-            // and v there (their dual basis): the frame is (grad u, -grad v)
-            // over the longer of the two, and n.
-            const glm::dvec3 a = dPdu - n * glm::dot(n, dPdu), b = dPdv - n * glm::dot(n, dPdv);
-            const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b), gram = aa * bb - ab * ab;
-            if (!(gram > 1e-12 * aa * bb) || !std::isfinite(gram))
+            // The frame a viewer derives there (grad u, -grad v over the
+            // longer, and n), and its dual basis to store a direction in.
+            glm::dvec3 decodeX, decodeY, encodeX, encodeY;
+            if (!normalTextureFrame(n, dPdu, dPdv, &decodeX, &decodeY, &encodeX, &encodeY))
                 continue;
-            const glm::dvec3 gradU = (bb * a - ab * b) / gram, gradV = (aa * b - ab * a) / gram;
-            const double m = std::sqrt(std::max(glm::dot(gradU, gradU), glm::dot(gradV, gradV)));
             uint32_t face = 0;
             double b1 = 0.0, b2 = 0.0;
             if (capture.nearest(q, &face, &b1, &b2, hint) < 0.0)
@@ -215,9 +211,9 @@ Status transferNormals(const ControlMesh& cage, const DisplacementMap& map, Sche
             if (!(glm::dot(s, s) > 0.25))
                 continue;  // no direction there: the gutters' fill
             // x X + y Y = s's part across n, X = grad u / m and Y = -grad v / m:
-            // x = m (s . dP/du), y = -m (s . dP/dv).  Below the surface is no
-            // direction a normal texture can hold.
-            glm::dvec3 local(m * glm::dot(s, a), -m * glm::dot(s, b), std::max(glm::dot(s, n), 0.02));
+            // x = m (s . dP/du), y = -m (s . dP/dv), both in the plane.  Below
+            // the surface is no direction a normal texture can hold.
+            glm::dvec3 local(glm::dot(s, encodeX), glm::dot(s, encodeY), std::max(glm::dot(s, n), 0.02));
             local = glm::normalize(local);
             for (int k = 0; k < 3; ++k)
                 channel[size_t(k)][i] = float(local[k]);

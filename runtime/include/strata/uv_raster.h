@@ -11,6 +11,7 @@
 
 #include <glm/ext/vector_double2.hpp>
 #include <glm/ext/vector_double3.hpp>
+#include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 
 #include <algorithm>
@@ -76,6 +77,30 @@ inline bool uvDerivatives(const glm::dvec3& e1, const glm::dvec3& e2, const glm:
         return false;
     *dPdu = (e1 * d2.y - e2 * d1.y) / det;
     *dPdv = (e2 * d1.x - e1 * d2.x) / det;
+    return true;
+}
+
+/// The frame a glTF viewer derives per pixel for a normal texture on a
+/// mesh without TANGENT (three.js's cotangent frame), at a point of unit
+/// normal n on a triangle with dP/du and dP/dv (uvDerivatives): the
+/// gradients of u and v in the plane across n, (grad u, -grad v), both over
+/// the longer of the two.  A texel (x, y, z) reads as the direction
+/// x decodeX + y decodeY + z n (normalised); a unit direction s is stored
+/// as (s . encodeX, s . encodeY, s . n), the dual basis.  False where the
+/// UV gradients are degenerate there.
+inline bool normalTextureFrame(const glm::dvec3& n, const glm::dvec3& dPdu, const glm::dvec3& dPdv,
+                               glm::dvec3* decodeX, glm::dvec3* decodeY, glm::dvec3* encodeX, glm::dvec3* encodeY)
+{
+    const glm::dvec3 a = dPdu - n * glm::dot(n, dPdu), b = dPdv - n * glm::dot(n, dPdv);
+    const double aa = glm::dot(a, a), ab = glm::dot(a, b), bb = glm::dot(b, b), gram = aa * bb - ab * ab;
+    if (!(gram > 1e-12 * aa * bb) || !std::isfinite(gram))
+        return false;
+    const glm::dvec3 gradU = (bb * a - ab * b) / gram, gradV = (aa * b - ab * a) / gram;
+    const double m = std::sqrt(std::max(glm::dot(gradU, gradU), glm::dot(gradV, gradV)));
+    *decodeX = gradU / m;
+    *decodeY = -gradV / m;
+    *encodeX = m * a;
+    *encodeY = -m * b;
     return true;
 }
 

@@ -3,7 +3,9 @@
 // per-frame table).  A small z-buffered rasteriser: perspective-correct UVs,
 // the base colour factor times a bilinear, repeating texture, one light
 // from the eye's side plus an ambient term, smooth or flat shading per part
-// as glTF asks.  No OpenGL: the baker runs on machines without a GPU.
+// as glTF asks, the normal texture read in the frame a viewer derives for a
+// mesh without TANGENT (normalTextureFrame).  No OpenGL: the baker runs on
+// machines without a GPU.
 #pragma once
 
 #include "strata/io/materials.h"
@@ -29,6 +31,9 @@ struct PicturePart {
     const float* colours = nullptr;        ///< COLOR_0 per vertex (linear), or null
     int colourComponents = 0;              ///< 3 (RGB) or 4 (RGBA) per vertex in colours
     bool flat = false;                     ///< face normals (glTF's rule for a primitive without NORMAL)
+    const io::ImageRGBA* normalImage = nullptr;       ///< normal texture (tangent space, linear), or null
+    const float* normalUvs = nullptr;                 ///< 2 per vertex (the normal texture's UV set), or null
+    const io::MaterialInfo* normalMaterial = nullptr;  ///< its scale, UV transform and wraps (io::normalAt)
 };
 
 /// A posed, textured triangle mesh as the picture sees it.
@@ -62,9 +67,11 @@ double picturePsnr(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b)
 /// A rig's surface laid out for a picture: `layout` (buildRenderMesh of the
 /// surface's plan), the surface's positions and normals in plan order, and
 /// the rig's materials (loadSceneMaterials), each part with its material's
-/// factor, texture and UV set, flat where RigPart::flat.
+/// factor, texture and UV set, flat where RigPart::flat, and its normal
+/// texture where `normalTextures`.
 PictureMesh pictureOf(const io::RenderMesh& layout, const std::vector<glm::vec3>& positions,
-                      const std::vector<glm::vec3>& normals, const io::SceneMaterials& materials);
+                      const std::vector<glm::vec3>& normals, const io::SceneMaterials& materials,
+                      bool normalTextures = true);
 
 }  // namespace baker
 }  // namespace strata
