@@ -1790,6 +1790,58 @@ TEST(BakeLibrary, AutomaticCageCarriesANormalTexture)
     }
 }
 
+// Each re-baked texture is as large as the images it comes from: a 600^2
+// base colour image beside a 2x2 normal one gives a 1024^2 base colour
+// texture and a 256^2 normal texture, named so in the summary.  (The
+// normal texture took the colour's size: 1024^2, 4x its texels for a
+// normal texture of one texel's worth.)
+TEST(BakeLibrary, AutomaticCageSizesEachTextureByItsSources)
+{
+    using namespace strata;
+    const std::string dir = test::tempDir("bake_texture_sizes");
+    ASSERT_TRUE(test::writeColouredSphere(dir + "/sphere.glb", test::SphereColour::NormalTexture));
+    tinygltf::Model model;
+    {
+        tinygltf::TinyGLTF gltf;
+        std::string err, warn;
+        ASSERT_TRUE(gltf.LoadBinaryFromFile(&model, &err, &warn, dir + "/sphere.glb")) << err;
+    }
+    ASSERT_EQ(model.images.size(), 2u);
+    const int side = 600;
+    std::vector<uint8_t> grey;
+    for (int texel = 0; texel < side * side; ++texel)
+        grey.insert(grey.end(), {188, 188, 188, 255});
+    std::string png;
+    ASSERT_TRUE(io::encodePngRgba(side, side, grey, &png).isOk());
+    tinygltf::Buffer& buffer = model.buffers[0];
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buffer.data.size();
+    view.byteLength = png.size();
+    buffer.data.insert(buffer.data.end(), png.begin(), png.end());
+    model.bufferViews.push_back(view);
+    model.images[0].bufferView = int(model.bufferViews.size()) - 1;
+    {
+        tinygltf::TinyGLTF gltf;
+        ASSERT_TRUE(gltf.WriteGltfSceneToFile(&model, dir + "/large.glb", true, true, false, true));
+    }
+    std::string summary;
+    ASSERT_TRUE(bakeCarryingEverything(dir + "/large.glb", dir + "/rig.glb", &summary));
+    EXPECT_NE(summary.find("one 1024x1024 base colour texture with a 256x256 normal one"), std::string::npos)
+        << summary;
+    Rig rig;
+    ASSERT_TRUE(io::loadRig(dir + "/rig.glb", &rig).isOk());
+    io::SceneMaterials sm;
+    ASSERT_TRUE(io::loadSceneMaterials(rig, &sm).isOk());
+    const io::MaterialInfo& carried = sm.materials[size_t(sm.partMaterial.at(0))];
+    ASSERT_GE(carried.image, 0);
+    ASSERT_GE(carried.normalImage, 0);
+    EXPECT_EQ(sm.images[size_t(carried.image)].width, 1024);
+    EXPECT_EQ(sm.images[size_t(carried.image)].height, 1024);
+    EXPECT_EQ(sm.images[size_t(carried.normalImage)].width, 256);
+    EXPECT_EQ(sm.images[size_t(carried.normalImage)].height, 256);
+}
+
 // A character whose animation throws it out of range (two nested joints
 // scaled by 1e20: posed, its vertices overflow a float) cannot be played,
 // so --control auto refuses it before decimating in its poses: one line

@@ -207,17 +207,33 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
 {
     const io::SceneMaterials& sm = capture.materials;
     const std::vector<int>& faceMaterial = capture.faceMaterial;
-    int largest = 0;
-    for (const io::ImageRGBA& im : sm.images)
-        largest = std::max({largest, im.width, im.height});
+    // Each texture as large as the capture's images it is re-baked from (a
+    // power of two, 256 to 2048): the colour, metallic-roughness, emissive
+    // and occlusion ones as their largest, the normal texture as the largest
+    // normal image (a 256^2 normal texture beside a 1024^2 colour image was
+    // re-baked at 1024^2: 875 KB where 256^2 takes 300 KB, as close).
+    int largest = 0, largestNormal = 0;
+    const auto grow = [&](int* into, int image) {
+        if (image >= 0 && size_t(image) < sm.images.size())
+            *into = std::max({*into, sm.images[size_t(image)].width, sm.images[size_t(image)].height});
+    };
+    for (const io::MaterialInfo& m : sm.materials) {
+        for (int image : {m.image, m.metallicRoughnessImage, m.emissiveImage, m.occlusionImage})
+            grow(&largest, image);
+        grow(&largestNormal, m.normalImage);
+    }
     // Vertex colours vary from vertex to vertex: a texel per capture vertex
     // or so (1.5 for the atlas's gutters and packing).
     const bool vertexColours = !sm.fileColours.empty() || !capture.vertexColours.empty();
     if (vertexColours)
         largest = std::max(largest, int(std::ceil(std::sqrt(1.5 * double(capture.positions.size())))));
-    int side = 256;
-    while (side < largest && side < 2048)
-        side *= 2;
+    const auto sideFor = [](int texels) {
+        int side = 256;
+        while (side < texels && side < 2048)
+            side *= 2;
+        return side;
+    };
+    const int side = sideFor(largest), normalSide = sideFor(largestNormal);
     const bool corners = capture.fileCorners.size() == capture.triangles.size();
     // An image of flat colours (laid out by hand, as a low-poly
     // character's are) is read at its nearest texel: its colours stay
@@ -311,8 +327,9 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     // and four bytes a texture; the normal texture as one more (and its
     // refined surface, under a texel's worth).
     const bool normals = need.normalTextured && corners;
-    const double needMB = double(side) * double(side) *
-                          (16.0 + 20.0 * double(textures.size()) + (normals ? 52.0 : 0.0)) / (1024.0 * 1024.0);
+    const double needMB = (double(side) * double(side) * (16.0 + 20.0 * double(textures.size())) +
+                           (normals ? double(normalSide) * double(normalSide) * 68.0 : 0.0)) /
+                          (1024.0 * 1024.0);
     if (needMB > maxMemoryMB)
         return Status(StatusCode::InvalidArgument,
                       "re-baking its materials into " + std::to_string(textures.size()) + " " + std::to_string(side) +
@@ -380,11 +397,13 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
             return glm::vec3(glm::normalize(local.x * t + local.y * bitangent + local.z * n));
         };
         ColorImage normalImage;
-        st = transferNormals(control, map, scheme, level, capture.drawnFlat, highIndex, normal, side, &normalImage,
-                             threads);
+        st = transferNormals(control, map, scheme, level, capture.drawnFlat, highIndex, normal, normalSide,
+                             &normalImage, threads);
         if (!st)
             return st;
         out->normalRGBA = std::move(normalImage.rgba);
+        out->normalWidth = normalImage.width;
+        out->normalHeight = normalImage.height;
     }
     snapFactorImages(need, &images);
     ColorImage& image = images[0];
@@ -415,7 +434,15 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
                      : main.alphaMode == io::AlphaMode::Blend ? "BLEND"
                                                               : "OPAQUE";
     out->alphaCutoff = main.alphaCutoff;
-    char text[200];
+    // " with a normal one", its size where it is not the others'.
+    std::string normalOne;
+    if (normals) {
+        char size[32] = "";
+        if (normalSide != side)
+            std::snprintf(size, sizeof(size), "%dx%d ", normalSide, normalSide);
+        normalOne = std::string(need.varyingMR || need.emits ? " and a " : " with a ") + size + "normal one";
+    }
+    char text[240];
     if (sm.materials.empty())
         std::snprintf(text, sizeof(text),
                       "its vertex colours carried as one %dx%d base colour texture in the cage's UVs", side, side);
@@ -428,7 +455,7 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
                       : need.varyingMR             ? " with a metallic-roughness one"
                       : need.emits                 ? " with an emissive one"
                                                    : "",
-                      !normals ? "" : need.varyingMR || need.emits ? " and a normal one" : " with a normal one");
+                      normalOne.c_str());
     *note = text;
     return Status::ok();
 }

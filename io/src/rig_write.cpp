@@ -556,10 +556,12 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     // occlusion and normals (`values`: values rather than colours) as PNG,
     // since JPEG's chroma would move one channel's values by the others'.
     const auto addTexture = [&](const std::vector<uint8_t>& rgba, const std::string& name, bool values, int* index,
-                                int level = 9) {
+                                int level = 9, int width = 0, int height = 0) {
         std::string bytes, mimeType = "image/png";
-        Status st = values ? encodePngRgba(colour.width, colour.height, rgba, &bytes, level)
-                           : encodeColourImage(colour.width, colour.height, rgba, 90, &bytes, &mimeType);
+        width = width > 0 ? width : colour.width;
+        height = height > 0 ? height : colour.height;
+        Status st = values ? encodePngRgba(width, height, rgba, &bytes, level)
+                           : encodeColourImage(width, height, rgba, 90, &bytes, &mimeType);
         if (!st)
             return Status(st.code(), "the " + name + " texture: " + st.message());
         const int view = appendBufferView(model, bytes.data(), bytes.size(), -1);
@@ -589,7 +591,7 @@ Status addBaseColour(tinygltf::Model& model, const BaseColourTexture& colour)
     // its neighbours (no flat factors), where zlib's level 9 costs a second
     // a megatexel, and a bake writes one per cage it tries: level 6.
     if (st && !colour.normalRGBA.empty())
-        st = addTexture(colour.normalRGBA, "normal", true, &normal, 6);
+        st = addTexture(colour.normalRGBA, "normal", true, &normal, 6, colour.normalWidth, colour.normalHeight);
     if (!st)
         return st;
     tinygltf::Material& material = model.materials[0];

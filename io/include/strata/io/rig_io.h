@@ -123,10 +123,11 @@ struct BaseColourTexture {
     /// an emissive texture (sRGB-coded RGB), written with `emissive` as its
     /// factor; empty: none.
     std::vector<uint8_t> metallicRoughness, emissiveRGBA;
-    /// Optional, width x height RGBA like rgba: a tangent-space normal
-    /// texture (glTF's: RGB = (X, Y, Z) / 2 + 1/2, X along +u, Y along -v),
-    /// written as PNG; empty: none.
+    /// Optional, normalWidth x normalHeight RGBA (0: width x height): a
+    /// tangent-space normal texture (glTF's: RGB = (X, Y, Z) / 2 + 1/2, X
+    /// along +u, Y along -v), written as PNG; empty: none.
     std::vector<uint8_t> normalRGBA;
+    int normalWidth = 0, normalHeight = 0;
     bool occlusion = false;
     float emissive[3] = {0.0f, 0.0f, 0.0f};  ///< emissiveFactor
     float emissiveStrength = 1.0f;            ///< past 1: written as KHR_materials_emissive_strength
