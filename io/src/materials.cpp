@@ -461,10 +461,19 @@ Status loadSceneMaterials(const Rig& rig, SceneMaterials* out, std::vector<std::
     for (size_t i = 0; i < m.images.size(); ++i) {
         if (!used[i])
             continue;
-        if (!decodeImage(encodedImage(*rig.source, i), &s.images[i])) {
+        const std::vector<unsigned char> encoded = encodedImage(*rig.source, i);
+        if (!decodeImage(encoded, &s.images[i])) {
+            // What its bytes say it is: a broken or oversized one of the
+            // kinds read, or another kind.
+            const std::string mime = sniffMime(encoded);
+            const bool read =
+                mime == "image/png" || mime == "image/jpeg" || mime == "image/webp" || mime == "image/avif";
+            const std::string why = read ? "a broken " + mime.substr(6) +
+                                               ", or past 16384 texels a side or its bytes' worth"
+                                         : std::string("not PNG, JPEG, WebP or AVIF");
             if (warnings)
                 warnings->push_back("image " + std::to_string(i) + " (" + printable(m.images[i].name, 60) +
-                                    ") cannot be decoded; drawn untextured");
+                                    ") cannot be decoded; drawn untextured (" + why + ")");
             for (MaterialInfo& mat : s.materials)
                 for (int* texture :
                      {&mat.image, &mat.metallicRoughnessImage, &mat.emissiveImage, &mat.occlusionImage,
