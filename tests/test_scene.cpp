@@ -622,7 +622,7 @@ TEST(Scene, AutomaticCageOfAManyPartCharacterKeepsItsParts)
 
 namespace {
 
-enum class SecondSkin { Alike, Moved, Mirrored, Apart };
+enum class SecondSkin { Alike, Moved, Mirrored, Apart, OneJoint, OneJointElsewhere };
 
 // CesiumMan as converters that write a skin per mesh leave it: its
 // triangles in two meshes on two nodes, each with its own skin over the
@@ -632,7 +632,13 @@ enum class SecondSkin { Alike, Moved, Mirrored, Apart };
 // whose bind transform the converter folded into its skin), so it poses the
 // same.  Mirrored: so, with T a mirror (x -> -x) as well.  Apart: the
 // second skin binds one joint elsewhere, which no transform of its mesh
-// reconciles with the first.
+// reconciles with the first.  OneJoint: the second mesh follows one joint
+// alone (kOneJoint, weight 1), bound alike.  OneJointElsewhere: so, bound
+// in another pose: that joint's inverse bind matrix takes a transform T
+// out, and the mesh's vertices are moved by T (as a mesh bound after the
+// skeleton was posed), so it poses as OneJoint does.
+constexpr size_t kOneJoint = 5;  // of CesiumMan's skin
+
 bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin how)
 {
     tinygltf::Model m;
@@ -652,8 +658,9 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     const size_t nj = first.joints.size();
     const std::vector<float> ibm = accessorData<float>(m, first.inverseBindMatrices, 16);
     glm::mat4 t(1.0f);
-    if (how == SecondSkin::Moved || how == SecondSkin::Mirrored)
+    if (how == SecondSkin::Moved || how == SecondSkin::Mirrored || how == SecondSkin::OneJointElsewhere)
         t = glm::rotate(glm::translate(glm::mat4(1.0f), glm::vec3(0.3f, -0.2f, 0.1f)), 0.4f, glm::vec3(0.0f, 0.0f, 1.0f));
+    const bool oneJoint = how == SecondSkin::OneJoint || how == SecondSkin::OneJointElsewhere;
     if (how == SecondSkin::Mirrored)
         t = glm::scale(t, glm::vec3(-1.0f, 1.0f, 1.0f));
     std::vector<float> ibm2(16 * nj);
@@ -662,7 +669,9 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     for (size_t k = 0; k < nj; ++k) {
         const size_t j = nj - 1 - k;
         second.joints.push_back(first.joints[j]);
-        glm::mat4 mk = glm::make_mat4(&ibm[16 * j]) * glm::inverse(t);
+        glm::mat4 mk = glm::make_mat4(&ibm[16 * j]);
+        if (!oneJoint || j == kOneJoint)
+            mk = mk * glm::inverse(t);
         if (how == SecondSkin::Apart && k == 3)
             mk[3][0] += 0.05f;
         std::memcpy(&ibm2[16 * k], &mk[0][0], 64);
@@ -673,6 +682,15 @@ bool skinPerMesh(const std::string& source, const std::string& path, SecondSkin 
     std::vector<uint16_t> joints = accessorData<uint16_t>(m, whole.attributes.at("JOINTS_0"), 4);
     for (uint16_t& j : joints)
         j = uint16_t(nj - 1 - j);
+    if (oneJoint) {
+        std::vector<float> weights(joints.size(), 0.0f);
+        for (size_t v = 0; v < joints.size() / 4; ++v) {
+            joints[4 * v] = uint16_t(nj - 1 - kOneJoint);
+            weights[4 * v] = 1.0f;
+        }
+        b.attributes["WEIGHTS_0"] = addAccessor(m, weights.data(), weights.size() * 4, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                                TINYGLTF_TYPE_VEC4, weights.size() / 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+    }
     b.attributes["JOINTS_0"] = addAccessor(m, joints.data(), joints.size() * 2, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                            TINYGLTF_TYPE_VEC4, joints.size() / 4, TINYGLTF_TARGET_ARRAY_BUFFER);
     std::vector<float> xyz = accessorData<float>(m, whole.attributes.at("POSITION"), 3);
@@ -728,7 +746,9 @@ float farthestFromNearest(const std::vector<glm::vec3>& a, const std::vector<glm
 // with one skin (their union), welded where the meshes meet, whether its
 // skins bind the joints alike or one mesh's bind space is moved by its
 // skin; --control auto keeps its skin and animation.  Skins that bind a
-// joint in poses no transform reconciles are refused, naming the joint.
+// joint in poses no transform reconciles, where a vertex's joints would
+// put it in different places, are refused, naming the joint and the vertex
+// (AMeshBoundInAnotherPoseIsReboundVertexByVertex: where they agree).
 TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
 {
     STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
@@ -806,6 +826,49 @@ TEST(Scene, ACharacterWithASkinPerMeshPosesAsOne)
     ASSERT_FALSE(st.isOk());
     EXPECT_NE(st.message().find("apart.glb: skins 0 and 1 bind joint node "), std::string::npos) << st.message();
     EXPECT_NE(st.message().find("no one transform of their meshes reconciles"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find("of mesh lower primitive 0 lies "), std::string::npos) << st.message();
+}
+
+// A mesh whose skin binds a joint in another pose than the first skin does
+// (converters keep each mesh's own bind pose): no one transform takes its
+// bind space to the first's, so its vertices are rebound one by one, each
+// by its joints' moves.  Exact for a mesh on one joint: it loads and poses
+// as the same mesh bound alike, at every time.  (It was refused, and
+// --control auto carried the shape alone.)  Its refined scene, which would
+// need each mesh back on its own skin, is refused by name; a mesh whose
+// joints disagree (Apart, above) still is.
+TEST(Scene, AMeshBoundInAnotherPoseIsReboundVertexByVertex)
+{
+    STRATA_REQUIRE_DATA(man, "CesiumMan.glb");
+    const std::string dir = test::tempDir("scene_rebound_skin");
+    const std::string alike = dir + "/one_joint.glb", elsewhere = dir + "/one_joint_elsewhere.glb";
+    ASSERT_TRUE(skinPerMesh(man, alike, SecondSkin::OneJoint));
+    ASSERT_TRUE(skinPerMesh(man, elsewhere, SecondSkin::OneJointElsewhere));
+    Rig a, b;
+    ASSERT_TRUE(io::loadRig(alike, &a).isOk());
+    const Status st = io::loadRig(elsewhere, &b);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    ASSERT_EQ(b.mesh.positions.size(), a.mesh.positions.size()) << "welded alike";
+    EXPECT_EQ(b.skeleton.skin.joints.size(), a.skeleton.skin.joints.size());
+    io::Reconstruction ra, rb;
+    io::Pose pose;
+    ASSERT_TRUE(io::reconstruct(&ra, a, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+    ASSERT_TRUE(io::reconstruct(&rb, b, nullptr, Scheme::Linear, 0, 1.0f, &pose).isOk());
+    const Animation& an = a.skeleton.animations.at(0);
+    for (int k = 0; k <= 4; ++k) {
+        pose.animation = 0;
+        pose.time = an.start + (an.end - an.start) * float(k) / 4.0f;
+        ASSERT_TRUE(io::reconstructPose(&ra, pose).isOk());
+        ASSERT_TRUE(io::reconstructPose(&rb, pose).isOk());
+        EXPECT_LT(farthestFromNearest(rb.positions, ra.positions), 1e-5f) << "at " << pose.time;
+        EXPECT_LT(farthestFromNearest(ra.positions, rb.positions), 1e-5f) << "at " << pose.time;
+    }
+    io::Reconstruction rec;
+    ASSERT_TRUE(io::reconstruct(&rec, b, nullptr, Scheme::Linear, 1).isOk());
+    const Status written = io::writeReconstructedScene(dir + "/scene.glb", b, rec);
+    ASSERT_FALSE(written.isOk());
+    EXPECT_NE(written.message().find("binds its meshes in another pose than skin 0"), std::string::npos)
+        << written.message();
 }
 
 // A mesh two nodes place (a pair of eyes, each on its own joint, one the

@@ -89,13 +89,19 @@ Status primitiveTriangles(const tinygltf::Model& model, const tinygltf::Primitiv
 /// meshes are read into the first's through toFirst, the matrix M with
 /// first's inverse bind matrix times M equal to its own at every joint the
 /// two share (the identity where they bind them alike; exporters that write
-/// a skin per mesh do).  Where no one M fits, the skins do not unite.
+/// a skin per mesh do).  Where no one M fits (a mesh bound in another pose),
+/// its vertices are rebound one by one (rebind: M per joint, blended by each
+/// vertex's weights), which rig_scene accepts where a vertex's joints agree
+/// on where it lies.
 struct SkinUnion {
     std::vector<int> skins;                      // the glTF skins, in the order the parts first use them
     std::vector<int> joints;                     // per joint of the union: its node
     std::vector<glm::mat4> inverseBindMatrices;  // per joint of the union, in the first skin's bind space
     std::vector<std::vector<uint16_t>> jointOf;  // per skin in `skins`: its joint -> the union's
     std::vector<glm::mat4> toFirst;              // per skin in `skins`: its bind space -> the first's
+    std::vector<std::vector<glm::mat4>> rebind;  // per skin: per its joint, its bind space -> the union's
+                                                 // (empty: toFirst fits every joint)
+    std::vector<int> apartJoint;                 // per skin: the first joint node toFirst did not fit, or -1
 
     /// Where `skin` is in `skins`, or -1.
     int indexOf(int skin) const;
@@ -103,8 +109,8 @@ struct SkinUnion {
 
 /// The union of the skins `parts` use (none: an empty union).  Refuses a
 /// missing or jointless skin, a joint that is no node, too few inverse bind
-/// matrices, and skins no one transform takes to the first's bind space,
-/// naming the joint where they part.
+/// matrices, or one the union's cannot be inverted against; a skin no one
+/// transform takes to the first's bind space gets `rebind` per joint.
 Status uniteSkins(const std::string& path, const tinygltf::Model& model, const std::vector<RigPart>& parts,
                   SkinUnion* out);
 

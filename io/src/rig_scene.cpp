@@ -379,6 +379,116 @@ void snapOntoUnmoved(std::vector<float>& pos, const std::vector<uint8_t>& moved)
     }
 }
 
+// The vertices of parts on a skin that binds its joints in another pose
+// than the union (SkinUnion::rebind), each moved into the union's bind
+// space by the blend of its joints' moves (weights as its JOINTS_n and
+// WEIGHTS_n give them), then placed by the first skin's part transform.
+// Exact where a vertex follows one joint (a helmet, a rigid piece) or
+// joints bound alike; refused where its joints would put it more than
+// 1e-4 of the scene's diagonal apart (it would bend unlike its source),
+// and then nothing is moved.
+Status rebindVertices(const std::string& path, const tinygltf::Model& model, const glm::mat4& firstToScene,
+                      SceneGeometry* out, std::vector<float>* pos, std::vector<uint8_t>* moved)
+{
+    Rig& rig = out->rig;
+    const SkinUnion& skins = out->skins;
+    glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+    for (size_t v = 0; 3 * v + 2 < pos->size(); ++v) {
+        const glm::vec3 p((*pos)[3 * v], (*pos)[3 * v + 1], (*pos)[3 * v + 2]);
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    const double bound = 1e-4 * double(glm::length(hi - lo));
+    std::vector<std::pair<size_t, glm::vec3>> placed;  // applied once every part agrees
+    double worst = 0.0;
+    std::string worstWhere;
+    int worstSkin = -1;
+    for (size_t p = 0; p < rig.parts.size(); ++p) {
+        const RigPart& part = rig.parts[p];
+        const int k = part.skinned ? skins.indexOf(model.nodes[size_t(part.node)].skin) : -1;
+        if (k <= 0 || skins.rebind[size_t(k)].empty())
+            continue;
+        const std::vector<glm::mat4>& rebind = skins.rebind[size_t(k)];
+        const tinygltf::Primitive& prim = *out->primitives[p];
+        std::vector<uint32_t> joints;
+        std::vector<float> weights;
+        for (int set = 0; set < 4; ++set) {
+            const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
+            if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
+                break;
+            std::vector<uint32_t> j;
+            std::vector<float> w;
+            Status st;
+            if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, &j)) ||
+                !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, &w)))
+                return Status(st.code(), path + ": " + part.name + ": " + st.message());
+            if (j.size() != 4 * size_t(part.vertexCount) || w.size() != j.size())
+                return Status(StatusCode::InvalidData, path + ": " + part.name + ": " + js + "/" + ws +
+                                                           " do not have one element per vertex");
+            joints.insert(joints.end(), j.begin(), j.end());
+            weights.insert(weights.end(), w.begin(), w.end());
+        }
+        const size_t perVertex = 4, sets = joints.size() / std::max<size_t>(1, 4 * size_t(part.vertexCount));
+        const glm::mat4 toLocal = glm::inverse(part.toScene);
+        for (uint32_t v = 0; v < part.vertexCount; ++v) {
+            const size_t i = size_t(part.firstVertex) + v;
+            const glm::vec4 local = toLocal * glm::vec4((*pos)[3 * i], (*pos)[3 * i + 1], (*pos)[3 * i + 2], 1.0f);
+            glm::dvec4 blend(0.0);
+            double sum = 0.0;
+            for (size_t set = 0; set < sets; ++set)
+                for (size_t c = 0; c < perVertex; ++c) {
+                    const size_t slot = (set * size_t(part.vertexCount) + v) * perVertex + c;
+                    const double w = double(weights[slot]);
+                    if (!(w > 0.0) || joints[slot] >= rebind.size())
+                        continue;
+                    blend += w * glm::dvec4(rebind[joints[slot]] * local);
+                    sum += w;
+                }
+            if (!(sum > 0.0))
+                continue;  // no weight: loadSkeleton names it
+            const glm::vec3 at(firstToScene * glm::vec4(glm::vec3(blend / sum), 1.0f));
+            for (size_t set = 0; set < sets; ++set)
+                for (size_t c = 0; c < perVertex; ++c) {
+                    const size_t slot = (set * size_t(part.vertexCount) + v) * perVertex + c;
+                    if (!(weights[slot] > 0.0f) || joints[slot] >= rebind.size())
+                        continue;
+                    const glm::vec3 own(firstToScene * (rebind[joints[slot]] * local));
+                    const double apart = double(glm::length(own - at));
+                    if (apart > worst || !std::isfinite(apart)) {
+                        worst = std::isfinite(apart) ? apart : std::numeric_limits<double>::infinity();
+                        worstWhere = "vertex " + std::to_string(v) + " of " + part.name;
+                        worstSkin = k;
+                    }
+                }
+            placed.emplace_back(i, at);
+        }
+    }
+    if (worst > bound || !std::isfinite(worst)) {
+        const int node = skins.apartJoint[size_t(worstSkin)];
+        char amount[96];
+        std::snprintf(amount, sizeof(amount), "%.3g apart (%.3g%% of the scene's size)", worst,
+                      100.0 * worst / std::max(1e4 * bound, 1e-30));
+        return Status(StatusCode::Unsupported,
+                      path + ": skins " + std::to_string(skins.skins[0]) + " and " +
+                          std::to_string(skins.skins[size_t(worstSkin)]) + " bind joint node " + std::to_string(node) +
+                          " (" + printable(model.nodes[size_t(node)].name, 60) +
+                          ") in poses no one transform of their meshes reconciles, and " + worstWhere +
+                          " lies " + amount + " in the bind spaces of its joints; a Strata rig has one skin");
+    }
+    for (const auto& [i, at] : placed) {
+        for (int c = 0; c < 3; ++c)
+            (*pos)[3 * i + size_t(c)] = at[c];
+        (*moved)[i] = 1;
+    }
+    for (size_t p = 0; p < rig.parts.size(); ++p) {
+        RigPart& part = rig.parts[p];
+        const int k = part.skinned ? skins.indexOf(model.nodes[size_t(part.node)].skin) : -1;
+        if (k > 0 && !skins.rebind[size_t(k)].empty())
+            part.toScene = firstToScene;
+    }
+    return Status::ok();
+}
+
 }  // namespace
 
 Status readSceneGeometry(const std::string& path, const SourceDocument& doc, SceneGeometry* out)
@@ -580,9 +690,13 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                 break;
             }
         std::vector<uint8_t> moved(pos.size() / 3, 0);
+        // Where a skin's vertices are rebound one by one and their joints
+        // disagree, the geometry stands as read (loadSkeleton refuses).
+        if (Status rebound = rebindVertices(path, model, firstToScene, out, &pos, &moved); !rebound)
+            out->skinsUnited = rebound;
         for (RigPart& part : rig.parts) {
             const int k = part.skinned ? out->skins.indexOf(model.nodes[size_t(part.node)].skin) : 0;
-            if (k <= 0)
+            if (k <= 0 || !out->skinsUnited || !out->skins.rebind[size_t(k)].empty())
                 continue;
             const glm::mat4 toScene = firstToScene * out->skins.toFirst[size_t(k)];
             const glm::mat4 move = toScene * glm::inverse(part.toScene);

@@ -121,6 +121,22 @@ Status uniteSkins(const std::string& path, const tinygltf::Model& model, const s
                 return Status(StatusCode::InvalidData,
                               what + "'s inverse bind matrices are not invertible where skin " +
                                   std::to_string(out->skins[0]) + "'s share its joints");
+        // A joint M does not reconcile: the skin's meshes were bound in
+        // another pose (converters keep each mesh's own bind pose).  Its
+        // vertices are then rebound one by one, each by the blend of its
+        // joints' moves from this skin's bind space into the union's
+        // (rig_scene checks that its joints agree where it lies).
+        int apart = -1;
+        for (size_t j = 0; j < skin.joints.size() && k > 0 && apart < 0; ++j) {
+            const auto it = unionJoint.find(skin.joints[j]);
+            if (it != unionJoint.end() && !sameBinding(out->inverseBindMatrices[it->second] * toFirst, ibm[j]))
+                apart = skin.joints[j];
+        }
+        std::vector<glm::mat4> rebind;
+        if (apart >= 0) {
+            toFirst = glm::mat4(1.0f);
+            rebind.assign(skin.joints.size(), glm::mat4(1.0f));
+        }
         std::vector<uint16_t> jointOf(skin.joints.size());
         for (size_t j = 0; j < skin.joints.size(); ++j) {
             const int node = skin.joints[j];
@@ -132,16 +148,21 @@ Status uniteSkins(const std::string& path, const tinygltf::Model& model, const s
                 unionJoint.emplace(node, jointOf[j]);
                 out->joints.push_back(node);
                 out->inverseBindMatrices.push_back(ibm[j] * glm::inverse(toFirst));
-            } else if (k > 0 && !sameBinding(out->inverseBindMatrices[it->second] * toFirst, ibm[j])) {
-                return Status(StatusCode::Unsupported,
-                              path + ": skins " + std::to_string(out->skins[0]) + " and " + std::to_string(skinIndex) +
-                                  " bind joint node " + std::to_string(node) + " (" +
-                                  printable(model.nodes[size_t(node)].name, 60) +
-                                  ") in poses no one transform of their meshes reconciles; a Strata rig has one skin");
             } else {
                 jointOf[j] = it->second;
+                if (!rebind.empty()) {
+                    rebind[j] = glm::inverse(out->inverseBindMatrices[it->second]) * ibm[j];
+                    for (int e = 0; e < 16; ++e)
+                        if (!std::isfinite(rebind[j][e / 4][e % 4]))
+                            return Status(StatusCode::InvalidData,
+                                          what + " binds joint node " + std::to_string(node) +
+                                              " where skin " + std::to_string(out->skins[0]) +
+                                              "'s inverse bind matrix is not invertible");
+                }
             }
         }
+        out->rebind.push_back(std::move(rebind));
+        out->apartJoint.push_back(apart);
         out->jointOf.push_back(std::move(jointOf));
         out->toFirst.push_back(toFirst);
     }

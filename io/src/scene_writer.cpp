@@ -109,6 +109,14 @@ Status writeReconstructedScene(const std::filesystem::path& pathFile, const Rig&
     rigfile::SkinUnion skins;
     if (!(st = rigfile::uniteSkins(path, model, rig.parts, &skins)))
         return st;
+    // A mesh whose vertices were rebound one by one into the union's bind
+    // space has no one transform back to its own skin's.
+    for (size_t k = 0; k < skins.rebind.size(); ++k)
+        if (!skins.rebind[k].empty())
+            return Status(StatusCode::Unsupported,
+                          path + ": skin " + std::to_string(skins.skins[k]) +
+                              " binds its meshes in another pose than skin " + std::to_string(skins.skins[0]) +
+                              "; their refined scene cannot be written back on their own skins");
     size_t droppedTangents = 0, droppedTargets = 0;
     for (const RigPart& part : rig.parts) {
         if (part.faceCount == 0)
