@@ -107,6 +107,12 @@ struct SkinUnion {
     int indexOf(int skin) const;
 };
 
+/// Influence set `set` (JOINTS_n and WEIGHTS_n, 4 a vertex) of `part`'s
+/// primitive: both empty where the primitive lacks the pair; refuses one
+/// that is not one element per vertex.
+Status readInfluenceSet(const std::string& path, const tinygltf::Model& model, const tinygltf::Primitive& prim,
+                        const RigPart& part, int set, std::vector<uint32_t>* joints, std::vector<float>* weights);
+
 /// The union of the skins `parts` use (none: an empty union).  Refuses a
 /// missing or jointless skin, a joint that is no node, too few inverse bind
 /// matrices, or one the union's cannot be inverted against; a skin no one

@@ -413,18 +413,12 @@ Status rebindVertices(const std::string& path, const tinygltf::Model& model, con
         std::vector<uint32_t> joints;
         std::vector<float> weights;
         for (int set = 0; set < 4; ++set) {
-            const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
-            if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
-                break;
             std::vector<uint32_t> j;
             std::vector<float> w;
-            Status st;
-            if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, &j)) ||
-                !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, &w)))
-                return Status(st.code(), path + ": " + part.name + ": " + st.message());
-            if (j.size() != 4 * size_t(part.vertexCount) || w.size() != j.size())
-                return Status(StatusCode::InvalidData, path + ": " + part.name + ": " + js + "/" + ws +
-                                                           " do not have one element per vertex");
+            if (Status st = readInfluenceSet(path, model, prim, part, set, &j, &w); !st)
+                return st;
+            if (j.empty())
+                break;
             joints.insert(joints.end(), j.begin(), j.end());
             weights.insert(weights.end(), w.begin(), w.end());
         }

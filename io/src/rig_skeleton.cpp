@@ -63,6 +63,24 @@ bool sameBinding(const glm::mat4& a, const glm::mat4& b)
 
 }  // namespace
 
+Status readInfluenceSet(const std::string& path, const tinygltf::Model& model, const tinygltf::Primitive& prim,
+                        const RigPart& part, int set, std::vector<uint32_t>* joints, std::vector<float>* weights)
+{
+    joints->clear();
+    weights->clear();
+    const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
+    if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
+        return Status::ok();
+    Status st;
+    if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, joints)) ||
+        !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, weights)))
+        return Status(st.code(), path + ": " + part.name + ": " + st.message());
+    if (joints->size() != 4 * size_t(part.vertexCount) || weights->size() != joints->size())
+        return Status(StatusCode::InvalidData,
+                      path + ": " + part.name + ": " + js + "/" + ws + " do not have one element per vertex");
+    return Status::ok();
+}
+
 Status uniteSkins(const std::string& path, const tinygltf::Model& model, const std::vector<RigPart>& parts,
                   SkinUnion* out)
 {
@@ -276,17 +294,12 @@ Status loadSkeleton(const std::string& path, const tinygltf::Model& model, const
                 return Status(StatusCode::InvalidData, path + ": " + part.name + "'s skin is not among the scene's");
             const std::vector<uint16_t>& jointOf = skins.jointOf[size_t(own)];
             for (int set = 0; set < sets; ++set) {
-                const std::string js = "JOINTS_" + std::to_string(set), ws = "WEIGHTS_" + std::to_string(set);
-                if (attributeOf(prim, js) < 0 || attributeOf(prim, ws) < 0)
-                    continue;
                 std::vector<uint32_t> joints;
                 std::vector<float> weights;
-                if (!(st = readUintAccessor(model, attributeOf(prim, js), 4, js, &joints)) ||
-                    !(st = readFloatAccessor(model, attributeOf(prim, ws), 4, ws, &weights)))
-                    return Status(st.code(), path + ": " + part.name + ": " + st.message());
-                if (joints.size() != 4 * size_t(part.vertexCount) || weights.size() != joints.size())
-                    return Status(StatusCode::InvalidData, path + ": " + part.name + ": " + js + "/" + ws +
-                                                               " do not have one element per vertex");
+                if (!(st = readInfluenceSet(path, model, prim, part, set, &joints, &weights)))
+                    return st;
+                if (joints.empty())
+                    continue;
                 for (uint32_t v = 0; v < part.vertexCount; ++v)
                     for (int k = 0; k < 4; ++k) {
                         const uint32_t j = joints[4 * v + uint32_t(k)];
