@@ -2103,13 +2103,14 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         size_t faces;  // the cage's (the decimation may stop a face short of the count asked)
         size_t asked;
         double rms, bytes;
-        double shape;  // the closed-loop RMS / diagonal before quantisation, or the posed RMS where
-                       // larger: what the face count buys
         double posed;  // a character's worst posed frame, RMS / diagonal (-1: not a character)
-        double beforeQuantisation;  // the closed loop's at rest (the report's)
+        double beforeQuantisation;  // the closed loop's RMS / diagonal at rest, before quantisation
         int level, paperLevel;  // the level the rig recommends; the paper's for its cage
         std::unique_ptr<BakeJob> job;  // the choice's bake, its inputs released (the others' are freed)
         std::string failure;           // why the try's bake failed (rms < 0), empty otherwise
+        // What the face count buys: the error before quantisation, or the
+        // posed one where larger.
+        double shape() const { return std::max(beforeQuantisation, posed); }
     };
     std::vector<Try> tries;
     SearchShared shared;
@@ -2167,15 +2168,14 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             // Listed in the summary with its reason (the first try's failure
             // is the bake's).
             if (st.code() != StatusCode::Cancelled && !tries.empty())
-                tries.push_back({faces, faces, -1.0, 0.0, -1.0, -1.0, -1.0, 0, 0, nullptr, st.message()});
+                tries.push_back({faces, faces, -1.0, 0.0, -1.0, -1.0, 0, 0, nullptr, st.message()});
             return st;
         }
-        const double rms = job->rms(), posed = job->posedRms();
-        const double before = job->rmsBeforeQuantisation(), shape = std::max(before, posed);
+        const double rms = job->rms(), posed = job->posedRms(), before = job->rmsBeforeQuantisation();
         job->reportTo(nullptr);  // `part` ends here
         job->releaseInputs();
-        tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), shape, posed, before, job->recommendedLevel(),
-                         job->capturedLevel(), std::move(job), std::string()});
+        tries.push_back({job->cageFaces(), faces, rms, double(job->rigBytes()), posed, before,
+                         job->recommendedLevel(), job->capturedLevel(), std::move(job), std::string()});
         if (meets(tries.back()))
             shared.sizeCap = std::max(shared.sizeCap, shared.mapSize);
         // Only the choice can be delivered, and a try that is not the
@@ -2234,13 +2234,13 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
             finer = missed;
             coarser = nullptr;
             for (const Try& t : tries)
-                if (t.faces < missed->faces && t.shape > 0.0 && (!coarser || t.faces > coarser->faces))
+                if (t.faces < missed->faces && t.shape() > 0.0 && (!coarser || t.faces > coarser->faces))
                     coarser = &t;
         } else if (!missed) {
             coarser = met;
             finer = nullptr;
             for (const Try& t : tries)
-                if (t.faces > met->faces && t.shape > 0.0 && (!finer || t.faces < finer->faces))
+                if (t.faces > met->faces && t.shape() > 0.0 && (!finer || t.faces < finer->faces))
                     finer = &t;
         }
         // Unmeasured, the power is 1 going up (from one miss a steeper one
@@ -2251,27 +2251,29 @@ Status bakeRig(const BakeRequest& request, BakeResult* result, const BakeProgres
         // power 1 sent the second try to 1,011, a miss, and a third).
         double power = met && !missed ? 2.0 : 1.0;
         bool measured = false;
-        if (finer && coarser && coarser->faces < finer->faces && coarser->shape > finer->shape && finer->shape > 0.0) {
+        if (finer && coarser && coarser->faces < finer->faces && coarser->shape() > finer->shape() &&
+            finer->shape() > 0.0) {
             // Going down from two tries that met, at least 1: there the
             // error before quantisation is mostly the level's sampling of
             // the capture, nearly flat in the face count (the 100k scan's
             // cages of 1,998 and 1,404 faces measured 0.5), and a flat power
             // sends the next try to a quarter of the faces, a cage too
             // coarse to follow the capture (a 37 s try that missed).
-            power = std::clamp(std::log(coarser->shape / finer->shape) / std::log(double(finer->faces) / double(coarser->faces)),
+            power = std::clamp(std::log(coarser->shape() / finer->shape()) /
+                                   std::log(double(finer->faces) / double(coarser->faces)),
                                met && !missed ? 1.0 : 0.5, 3.0);
             measured = true;
         }
         const Try& anchor = met ? *met : *missed;
         size_t next = 0;
         double reach = 0.0;  // the fewest faces the tolerance may need, for the out-of-reach test
-        if (anchor.shape > 0.0) {
-            const double predicted = double(anchor.faces) * std::pow(anchor.shape / request.tolerance, 1.0 / power) * 1.1;
+        if (anchor.shape() > 0.0) {
+            const double predicted = double(anchor.faces) * std::pow(anchor.shape() / request.tolerance, 1.0 / power) * 1.1;
             next = size_t(std::lround(predicted));
             // By the steepest power allowed: the error is no power law
             // across a change of level or scheme (CesiumMan's fell 3.2x
             // from 400 faces to 800 after 1.26x from 200 to 400).
-            reach = double(anchor.faces) * std::pow(anchor.shape / request.tolerance, 1.0 / 3.0) * 1.1;
+            reach = double(anchor.faces) * std::pow(anchor.shape() / request.tolerance, 1.0 / 3.0) * 1.1;
         } else {
             next = met ? met->faces / 2 : 2 * anchor.faces;  // no error to predict from
         }

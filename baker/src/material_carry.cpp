@@ -211,7 +211,8 @@ Status carryAppearance(const CaptureAppearance& capture, const ControlMesh& cont
     // power of two, 256 to 2048): the colour, metallic-roughness, emissive
     // and occlusion ones as their largest, the normal texture as the largest
     // normal image (a 256^2 normal texture beside a 1024^2 colour image was
-    // re-baked at 1024^2: 875 KB where 256^2 takes 300 KB, as close).
+    // re-baked at 1024^2: a 874.6 KB rig where 256^2 gives 376.8 KB, within
+    // 0.2 dB).
     int largest = 0, largestNormal = 0;
     const auto grow = [&](int* into, int image) {
         if (image >= 0 && size_t(image) < sm.images.size())
