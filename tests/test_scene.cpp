@@ -1586,6 +1586,74 @@ TEST(Scene, StrippedRigsFailLoudlyOrWarn)
         << io::missingLayerCause(out);
 }
 
+// A rig placed elsewhere as a whole by its node since the bake
+// (gltf-transform center, an editor): glTF draws the displaced surface
+// through the node, so Strata draws it moved, turned and scaled with it, its
+// displacements scaled too, in both the map and the per-vertex codings.
+// Such files were refused as "vertices moved after the bake".  A node that
+// scales unevenly would bend the surface out of its baked shape: refused.
+TEST(Scene, ARigPlacedWholeByItsNodeDrawsItsSurfaceThere)
+{
+    const std::string dir = test::tempDir("scene_placed");
+    Rig rig;
+    DisplacementMap map;
+    const std::string mapRig = writeEmbeddedExample(dir, &rig, &map);
+    io::RigWriteOptions vertexCoded;
+    vertexCoded.vertexDisplacements = true;
+    const std::string vertexRig = dir + "/vertex.glb";
+    ASSERT_TRUE(io::saveRig(vertexRig, rig, &map, nullptr, &vertexCoded).isOk());
+    const glm::quat turn = glm::angleAxis(0.7f, glm::normalize(glm::vec3(1.0f, 2.0f, -0.5f)));
+    const glm::vec3 move(3.0f, -1.0f, 0.25f);
+    const float scale = 2.5f;
+    const glm::mat4 M = glm::translate(glm::mat4(1.0f), move) * glm::mat4_cast(turn) *
+                        glm::scale(glm::mat4(1.0f), glm::vec3(scale));
+    for (const std::string& path : {mapRig, vertexRig}) {
+        SCOPED_TRACE(path);
+        tinygltf::TinyGLTF io;
+        tinygltf::Model m;
+        std::string err, warn;
+        ASSERT_TRUE(io.LoadBinaryFromFile(&m, &err, &warn, path)) << err;
+        ASSERT_EQ(m.nodes.size(), 1u);
+        m.nodes[0].translation = {move.x, move.y, move.z};
+        m.nodes[0].rotation = {turn.x, turn.y, turn.z, turn.w};
+        m.nodes[0].scale = {scale, scale, scale};
+        const std::string placed = dir + "/placed.glb";
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, placed, true, true, false, true));
+        Rig a, b;
+        ASSERT_TRUE(io::loadRig(path, &a).isOk());
+        Status st = io::loadRig(placed, &b);
+        ASSERT_TRUE(st.isOk()) << st.message();
+        DisplacementMap ma, mb;
+        if (rigNeedsMap(a)) {
+            ASSERT_TRUE(io::loadRigDisplacementMap(path, a, &ma).isOk());
+            ASSERT_TRUE(io::loadRigDisplacementMap(placed, b, &mb).isOk());
+        }
+        io::Reconstruction ra, rb;
+        ASSERT_TRUE(io::reconstruct(&ra, a, &ma, Scheme::Linear, 3).isOk());
+        ASSERT_TRUE(io::reconstruct(&rb, b, &mb, Scheme::Linear, 3).isOk());
+        ASSERT_EQ(ra.positions.size(), rb.positions.size());
+        // The displacement is no small part of the surface: without its
+        // scale, the placed surface would be this far off.
+        float displaced = 0.0f, worst = 0.0f, size = 0.0f;
+        io::Reconstruction bare;
+        ASSERT_TRUE(io::reconstruct(&bare, a, nullptr, Scheme::Linear, 3).isOk());
+        for (size_t v = 0; v < ra.positions.size(); ++v) {
+            const glm::vec3 expected(M * glm::vec4(ra.positions[v], 1.0f));
+            worst = std::max(worst, glm::length(rb.positions[v] - expected));
+            displaced = std::max(displaced, glm::length(ra.positions[v] - bare.positions[v]));
+            size = std::max(size, glm::length(expected - move));
+        }
+        EXPECT_GT((scale - 1.0f) * displaced, 1e-2f * size);
+        EXPECT_LE(worst, 1e-5f * size);
+        // Scaled unevenly: refused, naming the node.
+        m.nodes[0].scale = {scale, 1.0, 1.0};
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, placed, true, true, false, true));
+        st = io::loadRig(placed, &b);
+        ASSERT_FALSE(st.isOk());
+        EXPECT_NE(st.message().find("scale the rig unevenly"), std::string::npos) << st.message();
+    }
+}
+
 TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
 {
     if (std::system("command -v gltfpack >/dev/null 2>&1") != 0)

@@ -117,10 +117,22 @@ bool fitAffine(const std::vector<glm::dvec3>& current, const std::vector<glm::dv
 
 }  // namespace
 
+bool similarityScale(const glm::dmat3& A, double* s)
+{
+    *s = std::cbrt(std::fabs(glm::determinant(A)));
+    const glm::dmat3 gram = glm::transpose(A) * A;
+    double apart = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            apart = std::max(apart, std::fabs(gram[i][j] - (i == j ? *s * *s : 0.0)));
+    return *s > 0.0 && std::isfinite(*s) && apart <= 1e-4 * *s * *s;
+}
+
 Status carryBakedControl(const std::string& path, const tinygltf::Model& model, const tinygltf::Value& block,
-                         SceneGeometry* scene, glm::mat4* bindFix)
+                         SceneGeometry* scene, glm::mat4* bindFix, Placement* placement)
 {
     *bindFix = glm::mat4(1.0f);
+    *placement = Placement();
     const tinygltf::Value* baked = member(block, "baked");
     const tinygltf::Value* parts = baked ? member(*baked, "parts") : nullptr;
     if (!parts || !parts->IsArray())
@@ -252,7 +264,7 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
     // Every file vertex near its baked place: where the part sits in the
     // control mesh's space (rigid parts), directly; in a skin's bind space,
     // up to the one affine map a tool may have moved the bind space by.
-    const std::vector<glm::vec3>& B = bakedRig.mesh.positions;
+    std::vector<glm::vec3>& B = bakedRig.mesh.positions;
     glm::vec3 lo(INFINITY), hi(-INFINITY);
     for (const glm::vec3& q : B) {
         lo = glm::min(lo, q);
@@ -260,6 +272,7 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
     }
     const double tolerance = std::ldexp(double(glm::length(hi - lo)), -7);
     std::vector<glm::dvec3> current, target;
+    std::vector<glm::dvec3> rigidCurrent, rigidBaked;
     double rigidWorst = 0.0;
     for (const RigPart& part : rig.parts)
         for (uint32_t v = 0; v < part.vertexCount; ++v) {
@@ -270,8 +283,30 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
                 target.push_back(b);
             } else {
                 rigidWorst = std::max(rigidWorst, glm::length(c - b));
+                rigidCurrent.push_back(c);
+                rigidBaked.push_back(b);
             }
         }
+    // A rig without skin that its nodes moved whole after the tool: the
+    // baked mesh goes where they put it (glTF draws it there), if one move,
+    // turn and scale alike takes it to the file's vertices.
+    glm::dmat4 toBakedPlace(1.0);
+    double fitted = 0.0, s = 1.0;
+    if (rigidWorst > tolerance && current.empty() && fitAffine(rigidCurrent, rigidBaked, &toBakedPlace, &fitted) &&
+        fitted <= tolerance) {
+        if (!similarityScale(glm::inverse(glm::dmat3(toBakedPlace)), &s))
+            return Status(StatusCode::InvalidData,
+                          path + ": its nodes scale the rig unevenly or shear it since the bake, which would bend the "
+                                 "displaced surface out of its baked shape: scale it alike on every axis, or bake "
+                                 "again");
+        placement->placed = true;
+        placement->scale = float(s);
+        placement->baked = bakedRig.mesh;
+        const glm::dmat4 A = glm::inverse(toBakedPlace);
+        for (glm::vec3& q : B)
+            q = glm::vec3(A * glm::dvec4(glm::dvec3(q), 1.0));
+        rigidWorst = 0.0;
+    }
     if (rigidWorst > tolerance)
         return refuse(path, "the control mesh's vertices moved up to " + std::to_string(rigidWorst) +
                                 " after the bake, beyond what quantisation explains (" + std::to_string(tolerance) + ")");

@@ -134,6 +134,7 @@ struct SceneGeometry {
     Status skinsUnited;            // why they could not be, for loadSkeleton to say (the geometry stands)
     std::vector<uint32_t> fileTriangles;      // every triangle in file vertices, degenerate ones included
     std::vector<uint32_t> fileTriangleParts;  // per file triangle: its part
+    std::vector<glm::vec3> meshSpace;         // per file vertex: as its accessor holds it, before any transform
 };
 
 /// Welds file vertices (scene space) into rig->mesh: fills sourceVertex,
@@ -154,8 +155,25 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
 /// parts' current one: each skin joint's inverse bind matrix is multiplied
 /// by it on the right (a command that moved the vertices into another
 /// space, as quantize does, changed the inverse bind matrices to match).
+/// A rig placed elsewhere as a whole since the bake (its unskinned parts
+/// moved, turned or scaled alike by their nodes): the control mesh the layer
+/// was baked on, there, and the scale its displacements take with it.
+struct Placement {
+    bool placed = false;
+    float scale = 1.0f;
+    ControlMesh baked;  // the mesh to check the layer's record against
+};
+
+/// The uniform scale s of a linear map that turns and scales alike in every
+/// direction (its columns orthogonal and of one length, to a part in 1e-4),
+/// or false.
+bool similarityScale(const glm::dmat3& A, double* s);
+
+/// *placement is filled where the carried mesh's unskinned parts sit moved
+/// by one similarity from their baked places (a node moved the whole rig
+/// after the tool): the baked mesh is then put there.
 Status carryBakedControl(const std::string& path, const tinygltf::Model& model, const tinygltf::Value& block,
-                         SceneGeometry* scene, glm::mat4* bindFix);
+                         SceneGeometry* scene, glm::mat4* bindFix, Placement* placement);
 
 // ---- The skeleton (rig_skeleton.cpp) ----
 

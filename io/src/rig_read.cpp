@@ -585,6 +585,58 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
     return Status::ok();
 }
 
+// A rig placed elsewhere as a whole since the bake, by its nodes
+// (gltf-transform center, an editor moving or scaling the model): every
+// part unskinned and drawn through one transform, and the control mesh as its
+// accessors hold it is the one the layer was baked on, at the place it was
+// baked (an identity node, as strata-bake writes).  glTF draws the displaced
+// surface through that transform, so the surface moves with it and its
+// displacements scale by its scale; a transform that scales unevenly or
+// shears would bend the surface out of its baked shape, and is refused by
+// name.  *placement says whether the rig is placed so (if not, the usual
+// check says what changed).
+Status placedByNodes(const std::string& path, const tinygltf::Value& block, const tinygltf::Model& model,
+                     const SceneGeometry& scene, const Rig& rig, Placement* placement)
+{
+    *placement = Placement();
+    const tinygltf::Value* control = member(block, "control");
+    const tinygltf::Value* positions = control ? member(*control, "positions") : nullptr;
+    if (!positions || !positions->IsString() || rig.parts.empty() ||
+        scene.meshSpace.size() != rig.sourceVertex.size() ||
+        positions->Get<std::string>() == hex64(fingerprintControlMesh(rig.mesh).positions))
+        return Status::ok();
+    const glm::mat4 M = rig.parts[0].toScene;
+    for (const RigPart& part : rig.parts)
+        if (part.skinned || part.toScene != M)
+            return Status::ok();
+    if (M == glm::mat4(1.0f))
+        return Status::ok();
+    ControlMesh mesh = rig.mesh;
+    for (size_t f = 0; f < rig.sourceVertex.size(); ++f)
+        if (rig.sourceVertex[f] < mesh.positions.size())
+            mesh.positions[rig.sourceVertex[f]] = scene.meshSpace[f];
+    if (positions->Get<std::string>() != hex64(fingerprintControlMesh(mesh).positions))
+        return Status::ok();
+    // One scale in every direction (to what a tool's float composition of a
+    // rotation leaves).
+    double s = 1.0;
+    const bool alike = similarityScale(glm::dmat3(M), &s);
+    const int node = rig.parts[0].node;
+    std::string where = "its nodes";
+    if (node >= 0 && size_t(node) < model.nodes.size())
+        where = "node " + std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) +
+                ") and its parents";
+    if (!alike)
+        return Status(StatusCode::InvalidData,
+                      path + ": " + where + " scale the rig unevenly or shear it since the bake, which would bend the "
+                                        "displaced surface out of its baked shape: scale it alike on every axis, or "
+                                        "bake again");
+    placement->baked = std::move(mesh);
+    placement->scale = float(s);
+    placement->placed = true;
+    return Status::ok();
+}
+
 Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, Rig* out, LayerCheck check,
                  size_t maxBytes)
 {
@@ -595,11 +647,12 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
     // A control mesh that Strata's glTF Transform extension carried through
     // a command that renumbered or moved it: the baked mesh takes its place.
     glm::mat4 bindFix(1.0f);
+    Placement carried;
     if (scene.blockMesh >= 0 && scene.blockIsExtension && check == LayerCheck::Enforce) {
         bool extension = false;
         const tinygltf::Value& block = *layerBlock(doc->model.meshes[size_t(scene.blockMesh)], &extension);
         if (member(block, "baked") && !checkLayerBinding(block, path, scene.rig.mesh, true) &&
-            !(st = carryBakedControl(path, doc->model, block, &scene, &bindFix)))
+            !(st = carryBakedControl(path, doc->model, block, &scene, &bindFix, &carried)))
             return st;
     }
     Rig rig = std::move(scene.rig);
@@ -638,6 +691,17 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                               "STRATA_layered_displacement extension, which such tools keep or drop whole)");
         if (!(st = parseStrataBlock(block, extension, path, model, &rig.displacement)))
             return st;
+        Placement& placement = carried;
+        if (extension && check != LayerCheck::Seal && !placement.placed &&
+            !(st = placedByNodes(path, block, model, scene, rig, &placement)))
+            return st;
+        if (placement.placed) {
+            DisplacementInfo& info = rig.displacement;
+            info.factor *= placement.scale;
+            info.offset *= placement.scale;
+            info.quantized.dmin *= placement.scale;
+            info.quantized.dmax *= placement.scale;
+        }
         // Per-vertex values need no UVs: a tool that dropped the set leaves
         // them intact (there is then no map to rasterise for textures).
         if (scene.missingUV && rig.displacement.texCoord >= 0 && rig.displacement.vertexLevel >= 0)
@@ -647,7 +711,8 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                                                        " has no TEXCOORD_" + std::to_string(rig.displacement.texCoord) +
                                                        " (a tool dropped it: prune, for one, drops texture coordinates "
                                                        "no material uses)");
-        if (extension && !(st = checkLayerBinding(block, path, rig.mesh, check != LayerCheck::Seal)))
+        const ControlMesh& bound = placement.placed ? placement.baked : rig.mesh;
+        if (extension && !(st = checkLayerBinding(block, path, bound, check != LayerCheck::Seal)))
             return st;
         if (rig.displacement.vertexLevel >= 0) {
             DisplacementInfo& info = rig.displacement;

@@ -654,6 +654,7 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
                         return Status(StatusCode::InvalidData, what + ": vertex " + std::to_string(i) +
                                                                    " is not finite in the scene's space");
                     pos.insert(pos.end(), {q.x, q.y, q.z});
+                    out->meshSpace.emplace_back(ppos[3 * i], ppos[3 * i + 1], ppos[3 * i + 2]);
                     uv.push_back(puv.empty() ? glm::vec2(0.0f) : glm::vec2(puv[2 * i], puv[2 * i + 1]));
                 }
                 if (mirrors(part))

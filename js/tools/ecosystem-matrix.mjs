@@ -112,6 +112,15 @@ function writeGlb(file, json, bin) {
   fs.writeFileSync(file, Buffer.concat([head, jsonHead, text, binHead, bin]));
 }
 
+// The translation of the unskinned node that draws the layered mesh, or
+// zero: where glTF places the displaced surface.
+function placement(file) {
+  const { json } = readGlb(file);
+  const layered = (json.meshes || []).findIndex((m) => m.extensions && m.extensions.STRATA_layered_displacement);
+  const node = (json.nodes || []).find((n) => n.mesh === layered && n.skin === undefined);
+  return node && node.translation ? node.translation : [0, 0, 0];
+}
+
 function diagonal(v) {
   const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   for (let i = 0; i < v.length; i += 3)
@@ -272,9 +281,21 @@ for (const [name, description, args] of rigs) {
       const s = await runAsync(reconstruct, [out, '-o', recon]);
       if (s.code === 0) {
         const v = objVertices(recon);
-        let max = v.length === refV.length ? 0 : Infinity;
-        for (let i = 0; i < v.length && max < Infinity; i += 3)
-          max = Math.max(max, Math.hypot(v[i] - refV[i], v[i + 1] - refV[i + 1], v[i + 2] - refV[i + 2]));
+        // In place, or, for a rig the tool moved whole by its node (center),
+        // moved by exactly that node's move: its translation added.
+        const [from, to] = [rig, out].map(placement);
+        const by = [0, 1, 2].map((k) => to[k] - from[k]);
+        const apart = (shift) => {
+          let most = v.length === refV.length ? 0 : Infinity;
+          for (let i = 0; i < v.length && most < Infinity; i += 3)
+            most = Math.max(most, Math.hypot(v[i] - refV[i] - shift[0], v[i + 1] - refV[i + 1] - shift[1], v[i + 2] - refV[i + 2] - shift[2]));
+          return most;
+        };
+        let max = apart([0, 0, 0]), movedBy = '';
+        if (max > tolerance && Math.hypot(...by) > 0 && apart(by) <= tolerance) {
+          max = apart(by);
+          movedBy = `, moved by its node's translation (${by.map((x) => x.toPrecision(3)).join(', ')})`;
+        }
         // A carried layer is still the extension's schema.
         const layer = readGlb(out).json.meshes.map((m) => m.extensions && m.extensions.STRATA_layered_displacement).find(Boolean);
         if (layer && !validateLayer(layer)) {
@@ -304,7 +325,7 @@ for (const [name, description, args] of rigs) {
           }
         }
         if (max <= tolerance) {
-          put([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal${posed}`]);
+          put([name, tool, how, 'same surface', `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(1)} of the diagonal${movedBy}${posed}`]);
         } else {
           put([name, tool, how, 'WRONG SURFACE', v.length === refV.length
             ? `max vertex distance ${(max / (tolerance / 1e-5)).toExponential(2)} of the diagonal`
@@ -346,8 +367,8 @@ const tampers = [];
       const acc = json.accessors[json.meshes[0].primitives[0].indices];
       acc.count -= 3;
     }],
-    ['the mesh moved by its node', /vertices moved up to/, (json) => {
-      json.nodes.find((n) => n.mesh === 0).translation = [0.5, 0, 0];
+    ['the mesh scaled unevenly by its node', /scale the rig unevenly/, (json) => {
+      json.nodes.find((n) => n.mesh === 0).scale = [2, 1, 1];
     }],
   ];
   for (const [label, expect, edit] of cases) {
@@ -366,6 +387,26 @@ const tampers = [];
     if (!ok) ++wrong;
     tampers.push([label, ok ? 'refused' : `FAILED (exit ${r.code})`,
                   (errors[0] || r.out.trim().split('\n').pop() || '').replace(/^strata-reconstruct: error: [^:]*: /, '')]);
+  }
+  // Moved and scaled alike by its node (an editor placing the model): glTF
+  // draws the displaced surface through the node, and so does Strata.
+  if (fs.existsSync(carried)) {
+    const { json, bin } = readGlb(carried);
+    Object.assign(json.nodes.find((n) => n.mesh === 0), { translation: [0.5, 0, 0], scale: [2, 2, 2] });
+    const file = path.join(work, 'tampered_placed.glb');
+    writeGlb(file, json, bin);
+    const r = run(reconstruct, [file, '-o', file.replace(/\.glb$/, '.obj')]);
+    const refV = objVertices(path.join(work, 'spot_ref.obj'));
+    const v = r.code === 0 ? objVertices(file.replace(/\.glb$/, '.obj')) : new Float64Array(0);
+    let max = v.length === refV.length ? 0 : Infinity;
+    for (let i = 0; i < v.length && max < Infinity; i += 3)
+      max = Math.max(max, Math.hypot(v[i] - 2 * refV[i] - 0.5, v[i + 1] - 2 * refV[i + 1], v[i + 2] - 2 * refV[i + 2]));
+    max /= 2 * diagonal(refV);
+    const ok = max <= 1e-5;
+    if (!ok) ++wrong;
+    tampers.push(['the mesh moved by 0.5 and scaled 2x by its node', ok ? 'drawn there' : `WRONG SURFACE (exit ${r.code})`,
+                  r.code === 0 ? `max vertex distance ${max.toExponential(1)} of the diagonal from the reference moved and scaled so`
+                    : r.stderr.trim().split('\n').pop()]);
   }
 }
 
@@ -519,9 +560,14 @@ baked control mesh beside the layer (docs/STRATA_layered_displacement.md,
 the surface moves only by the skin weights the command quantised ("posed
 at 0.7 s", a fraction of the diagonal, after any translation of the
 whole scene such as center's).  Commands that change the
-triangles (simplify, optimize where it simplifies) are refused.
+triangles (simplify, optimize where it simplifies) are refused.  A rig
+without skin that a command or an editor moves, turns or scales alike as a
+whole through its node (center) is drawn where the node puts it, as glTF
+draws it, its displacements scaled with it ("moved by its node's
+translation"); a node that scales it unevenly or shears it would bend the
+surface out of its baked shape and is refused.
 
-## A carried file, damaged or edited afterwards, is refused
+## A carried file, damaged or edited afterwards, is refused (or, moved whole, drawn there)
 
 ${tamperTable}
 ## Valid glTF from other tools is read
@@ -530,7 +576,13 @@ ${tamperTable}
 a strip with a morph target, and that strip as \`sparse\` wrote it (a morph
 target as a sparse accessor without a bufferView); each is baked onto itself
 with \`strata-bake\` and refined plain with \`strata-reconstruct
---no-displacement\`.
+--no-displacement\`.  And CesiumMan through \`gltf-transform webp\` and
+\`gltf-transform avif\` (its texture only in EXT_texture_webp or
+EXT_texture_avif, as glTF Transform's WebP and AVIF compression leave it),
+baked with \`--control auto\`: its colour is re-baked from the WebP or AVIF
+(Strata decodes PNG, JPEG and, with libwebp and libavif, WebP and AVIF;
+before, it re-baked the colour factor alone, white, and named the texture as
+not decoded).
 
 ${readTable}
 ## Which tools open which mesh coding
