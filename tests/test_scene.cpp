@@ -1654,6 +1654,52 @@ TEST(Scene, ARigPlacedWholeByItsNodeDrawsItsSurfaceThere)
     }
 }
 
+// A rig merged with another model (gltf-transform merge): in a scene of its
+// own, which a glTF viewer shows alone, the rig is read as before and the
+// other scene's mesh named; in one scene with it, the refusal names the
+// other model, where it blamed a weld or a simplification.
+TEST(Scene, ARigMergedWithAnotherModelIsReadInItsSceneOrRefusedByName)
+{
+    const std::string dir = test::tempDir("scene_merged");
+    Rig rig;
+    DisplacementMap map;
+    const std::string path = writeEmbeddedExample(dir, &rig, &map);
+    tinygltf::TinyGLTF io;
+    tinygltf::Model m;
+    std::string err, warn;
+    ASSERT_TRUE(io.LoadBinaryFromFile(&m, &err, &warn, path)) << err;
+    // Another model: the rig's first triangle, far away, plain.
+    tinygltf::Mesh other;
+    other.name = "floor";
+    tinygltf::Primitive prim;
+    prim.attributes["POSITION"] = m.meshes[0].primitives[0].attributes.at("POSITION");
+    prim.mode = TINYGLTF_MODE_TRIANGLES;
+    other.primitives.push_back(prim);
+    m.meshes.push_back(other);
+    tinygltf::Node node;
+    node.mesh = int(m.meshes.size()) - 1;
+    node.translation = {100.0, 0.0, 0.0};
+    m.nodes.push_back(node);
+    tinygltf::Scene second;
+    second.nodes.push_back(int(m.nodes.size()) - 1);
+    m.scenes.push_back(second);
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&m, dir + "/scenes.glb", true, true, false, true));
+    Rig a, b;
+    ASSERT_TRUE(io::loadRig(path, &a).isOk());
+    Status st = io::loadRig(dir + "/scenes.glb", &b);
+    ASSERT_TRUE(st.isOk()) << st.message();
+    EXPECT_EQ(b.mesh.positions, a.mesh.positions);
+    ASSERT_EQ(b.warnings.size(), 1u);
+    EXPECT_NE(b.warnings[0].find("another scene"), std::string::npos) << b.warnings[0];
+    // Both in the default scene.
+    m.scenes[0].nodes.push_back(int(m.nodes.size()) - 1);
+    m.scenes.pop_back();
+    ASSERT_TRUE(io.WriteGltfSceneToFile(&m, dir + "/one.glb", true, true, false, true));
+    st = io::loadRig(dir + "/one.glb", &b);
+    ASSERT_FALSE(st.isOk());
+    EXPECT_NE(st.message().find("mesh 1 (floor) beside the layered mesh"), std::string::npos) << st.message();
+}
+
 TEST(Scene, QuantizedGltfpackOutputLoadsInPlace)
 {
     if (std::system("command -v gltfpack >/dev/null 2>&1") != 0)

@@ -585,6 +585,55 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
     return Status::ok();
 }
 
+// A rig merged into one scene with other models (gltf-transform merge
+// --merge-scenes, an editor adding a floor): where the layered mesh alone
+// welds to the counts the layer was baked on, the rest is another model,
+// and the refusal names it rather than blaming a weld or a simplification.
+Status checkNoOtherModel(const tinygltf::Value& block, const std::string& path, const tinygltf::Model& model,
+                         const Rig& rig)
+{
+    const tinygltf::Value* control = member(block, "control");
+    double vertices = 0, triangles = 0;
+    if (!control || !numberField(*control, "vertices", path, &vertices) ||
+        !numberField(*control, "triangles", path, &triangles) ||
+        (vertices == double(rig.mesh.vertexCount()) && triangles == double(rig.mesh.faceCount())))
+        return Status::ok();
+    int layered = -1;
+    for (size_t m = 0; m < model.meshes.size() && layered < 0; ++m)
+        if (model.meshes[m].extensions.count(kLayerExtension))
+            layered = int(m);
+    std::vector<uint8_t> used(rig.mesh.vertexCount(), 0);
+    size_t ownVertices = 0, ownTriangles = 0;
+    std::vector<std::string> others;
+    for (const RigPart& part : rig.parts) {
+        if (part.mesh != layered) {
+            const std::string name = "mesh " + std::to_string(part.mesh) + " (" +
+                                     printable(model.meshes[size_t(part.mesh)].name, 40) + ")";
+            if (std::find(others.begin(), others.end(), name) == others.end())
+                others.push_back(name);
+            continue;
+        }
+        ownTriangles += part.faceCount;
+        for (uint32_t v = 0; v < part.vertexCount; ++v) {
+            const uint32_t t = rig.sourceVertex[part.firstVertex + v];
+            ownVertices += t < used.size() && !used[t];
+            if (t < used.size())
+                used[t] = 1;
+        }
+    }
+    if (others.empty() || double(ownVertices) != vertices || double(ownTriangles) != triangles)
+        return Status::ok();
+    std::string names = others[0];
+    for (size_t i = 1; i < others.size() && i < 3; ++i)
+        names += ", " + others[i];
+    if (others.size() > 3)
+        names += " and " + std::to_string(others.size() - 3) + " more";
+    return Status(StatusCode::InvalidData,
+                  path + ": the scene draws " + names + " beside the layered mesh, which the layer was not baked "
+                         "with (another model merged into its scene): keep the rig in a scene of its own (gltf-transform "
+                         "merge without --merge-scenes), or bake again");
+}
+
 // A rig placed elsewhere as a whole since the bake, by its nodes
 // (gltf-transform center, an editor moving or scaling the model): every
 // part unskinned and drawn through one transform, and the control mesh as its
@@ -690,6 +739,8 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                               "no longer finds its displacements: bake again (this strata-bake writes the layer as the "
                               "STRATA_layered_displacement extension, which such tools keep or drop whole)");
         if (!(st = parseStrataBlock(block, extension, path, model, &rig.displacement)))
+            return st;
+        if (extension && check != LayerCheck::Seal && !(st = checkNoOtherModel(block, path, model, rig)))
             return st;
         Placement& placement = carried;
         if (extension && check != LayerCheck::Seal && !placement.placed &&

@@ -568,9 +568,18 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
     std::vector<uint32_t> partOfTri;
     const std::string uvName = "TEXCOORD_" + std::to_string(texCoord);
     std::map<int, float> skinScales;  // per skin: bindSpaceScale, measured once
+    // A rig whose file holds other models in other scenes (gltf-transform
+    // merge puts each model in a scene of its own): the layered model is
+    // what its scene draws, as a glTF viewer shows the default scene alone.
+    const bool sceneAlone = out->blockMesh >= 0 && !placesOf[size_t(out->blockMesh)].empty();
+    size_t elsewhere = 0;
     for (size_t m = 0; m < model.meshes.size(); ++m) {
         if (legacy && int(m) != out->blockMesh)
             continue;
+        if (sceneAlone && placesOf[m].empty()) {
+            ++elsewhere;
+            continue;
+        }
         const tinygltf::Mesh& mesh = model.meshes[m];
         if (placesOf[m].empty())
             placesOf[m].push_back({firstNode[m], -1, glm::mat4(1.0f)});
@@ -667,6 +676,10 @@ Status readSceneGeometry(const std::string& path, const SourceDocument& doc, Sce
             }
         }
     }
+    if (elsewhere)
+        rig.warnings.push_back(std::to_string(elsewhere) + (elsewhere == 1 ? " mesh" : " meshes") +
+                               " that only another scene draws (another model merged into the file) " +
+                               (elsewhere == 1 ? "is" : "are") + " not read: the rig is the default scene's");
     if (rig.parts.empty())
         return Status(StatusCode::InvalidData, path + ": no triangle mesh in the file");
     const size_t nFile = pos.size() / 3;

@@ -204,6 +204,12 @@ const tools = [];
 for (const c of transformCommands) tools.push([`gltf-transform ${c.join(' ')}`, 'config', gt(c, true)]);
 for (const c of transformCommands.slice(0, transformCommands.length - 6))
   tools.push([`gltf-transform ${c.join(' ')}`, 'none', gt(c, false)]);
+// A rig merged with another model: in a scene of its own (merge's default,
+// which a viewer shows alone), or in one scene with it.
+for (const [label, extra] of [['merge with Fox.glb', []], ['merge --merge-scenes with Fox.glb', ['--merge-scenes']]])
+  for (const withConfig of [true, false])
+    tools.push([`gltf-transform ${label}`, withConfig ? 'config' : 'none',
+      (input, output) => gtRun(['merge', input, path.join(data, 'Fox.glb'), output, ...extra], withConfig)]);
 tools.push(['gltfpack', 'defaults', (input, output) => runAsync('gltfpack', ['-i', input, '-o', output])]);
 tools.push(['Blender 3.4 import -> export', 'defaults', (input, output) =>
   runAsync('blender', ['-b', '--factory-startup', '--python', path.join(root, 'tools', 'blender_roundtrip.py'), '--',
@@ -565,7 +571,12 @@ without skin that a command or an editor moves, turns or scales alike as a
 whole through its node (center) is drawn where the node puts it, as glTF
 draws it, its displacements scaled with it ("moved by its node's
 translation"); a node that scales it unevenly or shears it would bend the
-surface out of its baked shape and is refused.
+surface out of its baked shape and is refused.  A rig merged with another
+model (\`gltf-transform merge\`) is read in its own scene, the default one
+that a viewer shows, and the other scene's mesh is named in a warning;
+merged into one scene with it (\`--merge-scenes\`), it is refused, naming
+the other model's mesh (it was refused as "welded, split, simplified or
+rebuilt").
 
 ## A carried file, damaged or edited afterwards, is refused (or, moved whole, drawn there)
 
