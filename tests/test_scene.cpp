@@ -1651,6 +1651,13 @@ TEST(Scene, ARigPlacedWholeByItsNodeDrawsItsSurfaceThere)
         st = io::loadRig(placed, &b);
         ASSERT_FALSE(st.isOk());
         EXPECT_NE(st.message().find("scale the rig unevenly"), std::string::npos) << st.message();
+        // Mirrored: its faces turn over, and the refinement's numbering with
+        // them, so it is refused, by name.
+        m.nodes[0].scale = {-scale, -scale, -scale};
+        ASSERT_TRUE(io.WriteGltfSceneToFile(&m, placed, true, true, false, true));
+        st = io::loadRig(placed, &b);
+        ASSERT_FALSE(st.isOk());
+        EXPECT_NE(st.message().find("mirror the rig"), std::string::npos) << st.message();
     }
 }
 

@@ -299,6 +299,8 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
                           path + ": its nodes scale the rig unevenly or shear it since the bake, which would bend the "
                                  "displaced surface out of its baked shape: scale it alike on every axis, or bake "
                                  "again");
+        if (glm::determinant(glm::dmat3(toBakedPlace)) < 0.0)
+            return Status(StatusCode::InvalidData, path + ": " + kMirrored);
         placement->placed = true;
         placement->scale = float(s);
         placement->baked = bakedRig.mesh;

@@ -164,6 +164,11 @@ struct Placement {
     ControlMesh baked;  // the mesh to check the layer's record against
 };
 
+/// Why a rig its nodes mirror since the bake is refused.
+inline constexpr const char* kMirrored =
+    "its nodes mirror the rig since the bake (a negative scale), which turns its faces over and so renumbers the "
+    "refinement its displacements follow: mirror the model before baking, or bake the mirrored one again";
+
 /// The uniform scale s of a linear map that turns and scales alike in every
 /// direction (its columns orthogonal and of one length, to a part in 1e-4),
 /// or false.

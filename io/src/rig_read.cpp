@@ -675,6 +675,8 @@ Status placedByNodes(const std::string& path, const tinygltf::Value& block, cons
     if (node >= 0 && size_t(node) < model.nodes.size())
         where = "node " + std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) +
                 ") and its parents";
+    if (alike && glm::determinant(glm::dmat3(M)) < 0.0)
+        return Status(StatusCode::InvalidData, path + ": " + kMirrored);
     if (!alike)
         return Status(StatusCode::InvalidData,
                       path + ": " + where + " scale the rig unevenly or shear it since the bake, which would bend the "

@@ -571,7 +571,8 @@ without skin that a command or an editor moves, turns or scales alike as a
 whole through its node (center) is drawn where the node puts it, as glTF
 draws it, its displacements scaled with it ("moved by its node's
 translation"); a node that scales it unevenly or shears it would bend the
-surface out of its baked shape and is refused.  A rig merged with another
+surface out of its baked shape, and one that mirrors it turns its faces
+over (renumbering the refinement the values follow): both are refused.  A rig merged with another
 model (\`gltf-transform merge\`) is read in its own scene, the default one
 that a viewer shows, and the other scene's mesh is named in a warning;
 merged into one scene with it (\`--merge-scenes\`), it is refused, naming
