@@ -200,10 +200,34 @@ Status bake(DisplacementMap* out, std::vector<uint16_t>* layersOut, BakeReport* 
     if (!(st = buildBakeSurface(&surface, control, options.scheme, options.denseLevel)))
         return st;
     SurfaceIndex index;
+    std::vector<uint32_t> pointShells;
+    if (const ShellLabels* shells = options.shells.get();
+        shells && shells->highVertex.size() == high.positions.size() &&
+        shells->controlFace.size() == control.faceCount()) {
+        // Each surface face stands for its control face's piece (a smooth
+        // surface's faces are 4^level per control face, in order); a point
+        // whose piece has no face left (a piece the decimation lost) maps
+        // onto any.
+        const int shift = options.scheme == Scheme::Linear ? 0 : 2 * options.denseLevel;
+        std::vector<uint32_t> faceShells(surface.faceCount());
+        std::vector<uint8_t> present;
+        for (size_t f = 0; f < faceShells.size(); ++f) {
+            const uint32_t piece = shells->controlFace[f >> shift];
+            faceShells[f] = piece;
+            if (piece >= present.size())
+                present.resize(size_t(piece) + 1, 0);
+            present[piece] = 1;
+        }
+        pointShells = shells->highVertex;
+        for (uint32_t& piece : pointShells)
+            if (piece >= present.size() || !present[piece])
+                piece = SurfaceIndex::kAnyShell;
+        index.setShells(std::move(faceShells));
+    }
     std::vector<VertexMapping> mapping;
     MappingStats ms;
     if (!(st = mapVertices(&mapping, &index, surface, high.positions.data(), high.positions.size(), options.threads,
-                           &ms)))
+                           &ms, 0.25, pointShells.empty() ? nullptr : pointShells.data())))
         return st;
     rep.fallbackVertices = ms.fallbacks;
     rep.searchDistance = ms.searchDistance;

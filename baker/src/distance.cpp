@@ -49,7 +49,8 @@ glm::dvec3 TriangleIndex::closestOn(uint32_t f, const glm::dvec3& x, double* b1,
                                   glm::dvec3(corners_[3 * size_t(f) + 2]), b1, b2);
 }
 
-int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hint) const
+int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hint, const uint32_t* labels,
+                                   uint32_t label) const
 {
     // A non-finite point is near nothing: its box distances compare false
     // with everything, which would walk every triangle.
@@ -57,10 +58,29 @@ int64_t TriangleIndex::nearestFace(const glm::dvec3& x, float bound2, int64_t hi
         return -1;
     float best2 = 0.0f;
     return bvh_->nearest(glm::vec3(x), bound2, [&](uint32_t t) {
+        if (labels && labels[t] != label)
+            return std::numeric_limits<float>::infinity();  // never nearer than the bound
         double u, v;
         const glm::dvec3 c = closestOn(t, x, &u, &v);
         return float(glm::dot(c - x, c - x));
     }, &best2, hint);
+}
+
+double TriangleIndex::nearestLabelled(const glm::dvec3& x, const uint32_t* labels, uint32_t label, uint32_t* face,
+                                      double* b1, double* b2, int64_t hint) const
+{
+    const int64_t f = nearestFace(x, 3.0e38f, hint, labels, label);
+    if (f < 0)
+        return -1.0;
+    if (face)
+        *face = uint32_t(f);
+    double u, v;
+    const glm::dvec3 c = closestOn(uint32_t(f), x, &u, &v);
+    if (b1)
+        *b1 = u;
+    if (b2)
+        *b2 = v;
+    return glm::length(c - x);
 }
 
 double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const

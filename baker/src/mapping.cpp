@@ -63,12 +63,23 @@ void SurfaceIndex::buildPrisms(double searchDistance)
     prismBoxes_ = std::move(prisms);
 }
 
-bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) const
+double SurfaceIndex::nearestFace(const glm::dvec3& x, uint32_t shell, uint32_t* face, double* b1, double* b2,
+                                 int64_t hint) const
+{
+    if (shell == kAnyShell || faceShells_.empty())
+        return faces_.nearest(x, face, b1, b2, hint);
+    return faces_.nearestLabelled(x, faceShells_.data(), shell, face, b1, b2, hint);
+}
+
+bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint, uint32_t shell) const
 {
     bool found = false;
     NormalVolumeHit best;
     uint32_t bestFace = 0;
+    const bool anyShell = shell == kAnyShell || faceShells_.empty();
     auto consider = [&](uint32_t f) {
+        if (!anyShell && faceShells_[f] != shell)
+            return;  // another piece's face
         if (!prismBoxes_[f].contains(glm::vec3(x)))
             return;  // outside the volume's bounding box
         NormalVolumeHit hit;
@@ -88,7 +99,7 @@ bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) co
     // First the volumes around the nearest surface triangle (its corners'
     // rings): the point's own neighbourhood, a handful of cubic solves.
     uint32_t nearest = 0;
-    if (faces_.nearest(x, &nearest, nullptr, nullptr, hint) >= 0) {
+    if (nearestFace(x, shell, &nearest, nullptr, nullptr, hint) >= 0) {
         const BakeSurface& s = *surface_;
         uint32_t seen[96];
         int nseen = 0;
@@ -128,12 +139,12 @@ bool SurfaceIndex::map(const glm::dvec3& x, VertexMapping* out, int64_t hint) co
     return found;
 }
 
-VertexMapping SurfaceIndex::mapNearest(const glm::dvec3& x) const
+VertexMapping SurfaceIndex::mapNearest(const glm::dvec3& x, uint32_t shell) const
 {
     VertexMapping m{0, 0.0f, 0.0f, 0.0f};
     uint32_t face = 0;
     double b1 = 0.0, b2 = 0.0;
-    if (faces_.nearest(x, &face, &b1, &b2) < 0.0)
+    if (nearestFace(x, shell, &face, &b1, &b2, -1) < 0.0)
         return m;
     const NormalVolumeTriangle t = triangle(face);
     const glm::dvec3 c = evaluateNormalVolume(t, b1, b2, 0.0);
@@ -147,14 +158,16 @@ VertexMapping SurfaceIndex::mapNearest(const glm::dvec3& x) const
     return m;
 }
 
-double SurfaceIndex::nearestDistance(const glm::vec3& x) const
+double SurfaceIndex::nearestDistance(const glm::vec3& x, uint32_t shell) const
 {
-    return faces_.nearest(glm::dvec3(x));
+    return nearestFace(glm::dvec3(x), shell, nullptr, nullptr, nullptr, -1);
 }
 
 Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const BakeSurface& surface,
-                   const glm::vec3* points, size_t n, int threads, MappingStats* stats, double maxSearchFraction)
+                   const glm::vec3* points, size_t n, int threads, MappingStats* stats, double maxSearchFraction,
+                   const uint32_t* pointShells)
 {
+    auto shellOf = [&](size_t i) { return pointShells ? pointShells[i] : SurfaceIndex::kAnyShell; };
     if (surface.faceCount() == 0)
         return Status(StatusCode::InvalidArgument, "empty bake surface");
     Box bounds;
@@ -167,7 +180,7 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
     std::vector<double> sample((n + step - 1) / step, 0.0);
     parallelFor(sample.size(), threads, [&](size_t b, size_t e) {
         for (size_t i = b; i < e; ++i)
-            sample[i] = index->nearestDistance(points[i * step]);
+            sample[i] = index->nearestDistance(points[i * step], shellOf(i * step));
     });
     double far = 0.0;
     for (double s : sample)
@@ -181,10 +194,10 @@ Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const B
         int64_t hint = -1;  // consecutive vertices are usually neighbours
         for (size_t i = b; i < e; ++i) {
             const glm::dvec3 x(points[i]);
-            if (index->map(x, &(*out)[i], hint)) {
+            if (index->map(x, &(*out)[i], hint, shellOf(i))) {
                 hint = (*out)[i].face;
             } else {
-                (*out)[i] = index->mapNearest(x);
+                (*out)[i] = index->mapNearest(x, shellOf(i));
                 fellBack[i] = 1;
             }
         }

@@ -44,12 +44,18 @@ public:
     /// smallest |d|; if none contains x, the same over every volume of the
     /// index.  False when x lies in none.
     /// `hint`: a face to start the nearest-triangle search from (speed only).
-    bool map(const glm::dvec3& x, VertexMapping* out, int64_t hint = -1) const;
+    /// `shell`: only faces of that piece (setShells), or kAnyShell.
+    bool map(const glm::dvec3& x, VertexMapping* out, int64_t hint = -1, uint32_t shell = kAnyShell) const;
     /// Fallback: the nearest surface point, with d the projection of the
     /// offset onto the interpolated normal there.
-    VertexMapping mapNearest(const glm::dvec3& x) const;
-    /// Nearest distance from x to the surface triangles.
-    double nearestDistance(const glm::vec3& x) const;
+    VertexMapping mapNearest(const glm::dvec3& x, uint32_t shell = kAnyShell) const;
+    /// Nearest distance from x to the surface triangles (of `shell`).
+    double nearestDistance(const glm::vec3& x, uint32_t shell = kAnyShell) const;
+    /// Per surface face, the capture piece it stands for (ShellLabels), or
+    /// empty: a point of a piece then maps onto that piece's faces alone.
+    void setShells(std::vector<uint32_t> faceShells) { faceShells_ = std::move(faceShells); }
+    bool hasShells() const { return !faceShells_.empty(); }
+    static constexpr uint32_t kAnyShell = 0xffffffffu;
 
 private:
     const BakeSurface* surface_ = nullptr;
@@ -59,15 +65,21 @@ private:
     TriangleIndex faces_;
     std::vector<NormalVolumeTriangle> triangles_;  // per face, in double
     std::vector<NormalVolumeCubic> cubics_;        // per face: the point-independent part of eq. 2's cubic
+    std::vector<uint32_t> faceShells_;             // per face: its piece, or empty
+    // The nearest face of `shell` (any without shells), or -1.
+    double nearestFace(const glm::dvec3& x, uint32_t shell, uint32_t* face, double* b1, double* b2,
+                       int64_t hint) const;
 };
 
 /// Maps n points in parallel (threads >= 1; the result does not depend on
 /// the thread count).  The search distance is 2x the largest nearest
 /// distance over a deterministic sample of the points, capped at
 /// maxSearchFraction of the surface's bounding-box diagonal.
+/// pointShells (optional, with index->setShells done): per point, the
+/// piece whose faces it maps onto, or kAnyShell.
 Status mapVertices(std::vector<VertexMapping>* out, SurfaceIndex* index, const BakeSurface& surface,
                    const glm::vec3* points, size_t n, int threads, MappingStats* stats,
-                   double maxSearchFraction = 0.25);
+                   double maxSearchFraction = 0.25, const uint32_t* pointShells = nullptr);
 
 }  // namespace baker
 }  // namespace strata

@@ -548,7 +548,7 @@ Simplifier::Simplifier(const TriangleMesh& high, std::vector<glm::vec3> posed)
 }
 Simplifier::~Simplifier() = default;
 
-Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
+Status Simplifier::simplify(size_t targetFaces, ControlMesh* out, std::vector<uint32_t>* originals)
 {
     QuietOpenMesh quiet;
     if (targetFaces < 4)
@@ -656,9 +656,11 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     state_->faces = om.n_faces();
 
     ControlMesh cm;
+    std::vector<uint32_t> from;
     for (auto v : om.vertices()) {
         const auto p = om.point(v);
         cm.positions.emplace_back(p[0], p[1], p[2]);
+        from.push_back(om.property(state_->original, v));
     }
     for (auto f : om.faces())
         for (auto v : om.fv_range(f))
@@ -672,6 +674,7 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
             if (at[c] < 0) {
                 at[c] = int64_t(cm.positions.size());
                 cm.positions.push_back(high_.positions[c]);
+                from.push_back(c);
             }
             cm.triangles.push_back(uint32_t(at[c]));
         }
@@ -680,7 +683,40 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out)
     if (!st)
         return Status(st.code(), "the simplified control mesh is unusable: " + st.message());
     *out = std::move(cm);
+    if (originals)
+        *originals = std::move(from);
     return Status::ok();
+}
+
+std::vector<uint32_t> captureShells(const TriangleMesh& high, size_t* count)
+{
+    const std::vector<uint32_t> first = firstAtPosition(high.positions);
+    std::vector<uint32_t> parent(high.positions.size());
+    for (uint32_t v = 0; v < parent.size(); ++v)
+        parent[v] = first[v];
+    auto root = [&](uint32_t v) {
+        while (parent[v] != v)
+            v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    for (size_t t = 0; t + 2 < high.triangles.size(); t += 3) {
+        for (int k = 1; k < 3; ++k) {
+            const uint32_t a = root(high.triangles[t]), b = root(high.triangles[t + size_t(k)]);
+            if (a != b)
+                parent[std::max(a, b)] = std::min(a, b);
+        }
+    }
+    std::vector<uint32_t> shell(parent.size()), label(parent.size(), UINT32_MAX);
+    size_t n = 0;
+    for (uint32_t v = 0; v < parent.size(); ++v) {
+        const uint32_t r = root(v);
+        if (label[r] == UINT32_MAX)
+            label[r] = uint32_t(n++);
+        shell[v] = label[r];
+    }
+    if (count)
+        *count = n;
+    return shell;
 }
 
 size_t Simplifier::refusedFaces() const

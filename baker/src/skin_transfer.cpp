@@ -76,9 +76,19 @@ bool writeStrongest(JointWeights* sum, size_t most, uint16_t* joints, float* wei
 
 }  // namespace
 
-Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, const TriangleIndex& index,
-                           const VertexWeights& highWeights, VertexWeights* out, int threads)
+// The nearest capture point to x, of `piece` where the shells are given.
+double nearestOfPiece(const TriangleIndex& index, const SkinShells& shells, uint32_t piece, const glm::dvec3& x,
+                      uint32_t* face, double* b1, double* b2)
 {
+    return shells.highFace ? index.nearestLabelled(x, shells.highFace, piece, face, b1, b2)
+                           : index.nearest(x, face, b1, b2);
+}
+
+Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, const TriangleIndex& index,
+                           const VertexWeights& highWeights, VertexWeights* out, int threads, SkinShells shells)
+{
+    if (!shells.cageVertex)
+        shells.highFace = nullptr;
     const int k = highWeights.influences;
     if (!out || k <= 0 || highWeights.joints.size() != high.positions.size() * size_t(k) ||
         highWeights.weights.size() != highWeights.joints.size())
@@ -93,7 +103,9 @@ Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, co
     auto weigh = [&](size_t v) {
         uint32_t face = 0;
         double b1 = 0.0, b2 = 0.0;
-        if (index.nearest(glm::dvec3(cage.positions[v]), &face, &b1, &b2) < 0.0 || face >= high.faceCount())
+        const uint32_t piece = shells.cageVertex ? shells.cageVertex[v] : 0;
+        if (nearestOfPiece(index, shells, piece, glm::dvec3(cage.positions[v]), &face, &b1, &b2) < 0.0 ||
+            face >= high.faceCount())
             return false;
         JointWeights sum;
         captureWeightsAt(&sum, high, highWeights, face, b1, b2);
@@ -279,8 +291,10 @@ void skinPositions(const glm::vec3* positions, size_t count, const VertexWeights
 
 Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleMesh& high, const TriangleIndex& index,
                       const VertexWeights& highWeights, const Skeleton& skeleton, VertexWeights* weights,
-                      SkinFitReport* report, int threads)
+                      SkinFitReport* report, int threads, SkinShells shells)
 {
+    if (!shells.cageVertex)
+        shells.highFace = nullptr;
     const size_t nc = cage.positions.size(), nj = skeleton.skin.joints.size();
     const int most = weights ? weights->influences : 0;
     if (!weights || most <= 0 || weights->weights.size() != nc * size_t(most) ||
@@ -338,8 +352,14 @@ Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleM
         for (size_t p = begin; p < end; ++p) {
             uint32_t face = 0;
             double b1 = 0.0, b2 = 0.0;
+            // A point's piece: its stencil's control vertices' (refinement
+            // never joins two pieces).
+            const uint32_t piece = shells.cageVertex && stencils.offsets[p] < stencils.offsets[p + 1]
+                                       ? shells.cageVertex[stencils.indices[stencils.offsets[p]]]
+                                       : 0;
             if (stencils.offsets[p] == stencils.offsets[p + 1] || !std::isfinite(displaced[p].x) ||
-                index.nearest(glm::dvec3(displaced[p]), &face, &b1, &b2) < 0.0 || face >= high.faceCount())
+                nearestOfPiece(index, shells, piece, glm::dvec3(displaced[p]), &face, &b1, &b2) < 0.0 ||
+                face >= high.faceCount())
                 continue;
             captureWeightsAt(&sum, high, highWeights, face, b1, b2);
             double total = 0.0;

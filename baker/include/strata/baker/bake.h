@@ -44,6 +44,16 @@ struct TriangleMesh {
     size_t faceCount() const { return triangles.size() / 3; }
 };
 
+/// The connected pieces of a capture ("shells", its vertices welded by
+/// position), and the piece each control face was built from.  A capture
+/// of separate parts that pass through each other (a robot's rigid pieces
+/// meeting at its joints) maps each part's vertices onto its own part's
+/// cage, so that no part rides on a neighbour's cage when posed.
+struct ShellLabels {
+    std::vector<uint32_t> highVertex;   ///< per high-resolution vertex: its piece
+    std::vector<uint32_t> controlFace;  ///< per control face: the piece it was built from
+};
+
 struct BakeOptions {
     Scheme scheme = Scheme::Linear;
     int size = 0;                       ///< map side; 0 = automatic (paper 2.3 rule)
@@ -53,6 +63,9 @@ struct BakeOptions {
     int denseLevel = 3;                 ///< smooth scheme: limit-surface sampling level
     int gutter = 4;                     ///< dilation passes (texels)
     int lineRings = 0;                  ///< gutter rings measured by line intersection before dilation
+    /// Each high-resolution vertex maps onto control faces of its own piece
+    /// (null: onto any face; used where its counts match the meshes baked).
+    std::shared_ptr<const ShellLabels> shells;
 };
 
 struct StageTimes {

@@ -31,6 +31,9 @@ public:
     /// `hint` (a face to try first, or -1) only speeds the search up.
     double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr,
                    int64_t hint = -1) const;
+    /// nearest() among the faces f with labels[f] == label (-1 when none).
+    double nearestLabelled(const glm::dvec3& x, const uint32_t* labels, uint32_t label, uint32_t* face = nullptr,
+                           double* b1 = nullptr, double* b2 = nullptr, int64_t hint = -1) const;
     /// The same, for a run of nearby queries: starts from *hint and leaves
     /// the answer's face there (-1 when none) for the next query.
     double nearest(const glm::dvec3& x, int64_t* hint) const
@@ -57,7 +60,8 @@ public:
 
 private:
     // The walk: the nearest face within sqrt(bound2) (-1: none, or x not finite).
-    int64_t nearestFace(const glm::dvec3& x, float bound2, int64_t hint) const;
+    int64_t nearestFace(const glm::dvec3& x, float bound2, int64_t hint, const uint32_t* labels = nullptr,
+                        uint32_t label = 0) const;
     // Face f's point closest to x, and its barycentrics.
     glm::dvec3 closestOn(uint32_t f, const glm::dvec3& x, double* b1, double* b2) const;
 

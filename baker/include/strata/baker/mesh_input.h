@@ -78,7 +78,9 @@ public:
     ~Simplifier();
     Simplifier(const Simplifier&) = delete;
     Simplifier& operator=(const Simplifier&) = delete;
-    Status simplify(size_t targetFaces, ControlMesh* out);
+    /// `originals` (optional): per cage vertex, the capture vertex it is
+    /// (collapses keep one end of each edge where it was).
+    Status simplify(size_t targetFaces, ControlMesh* out, std::vector<uint32_t>* originals = nullptr);
     /// The capture's faces (duplicates aside) the last simplify could not
     /// join to the mesh it decimates (non-manifold: a fin on an edge two
     /// faces already share, a second fan at a vertex): their corners are
@@ -91,6 +93,10 @@ private:
     std::vector<glm::vec3> posed_;
     std::unique_ptr<State> state_;
 };
+
+/// Per vertex of the capture, its connected piece (0..*count-1), vertices
+/// at one position joined: the shells of ShellLabels.
+std::vector<uint32_t> captureShells(const TriangleMesh& high, size_t* count);
 
 /// Number of edges used by exactly one triangle (0 for a closed mesh).
 size_t countBoundaryEdges(const uint32_t* triangles, size_t faceCount);

@@ -15,13 +15,23 @@
 namespace strata {
 namespace baker {
 
+/// The pieces of a capture of separate parts (bake.h's ShellLabels) for the
+/// weights' nearest-point searches: a cage vertex, and a point of its
+/// refinement, take their weights from their own piece of the capture
+/// alone, not from a neighbouring part that passes close by.  Null: any.
+struct SkinShells {
+    const uint32_t* cageVertex = nullptr;  ///< per cage vertex: its piece
+    const uint32_t* highFace = nullptr;    ///< per capture triangle: its piece
+};
+
 /// Weights for every vertex of `cage` from the capture's (`highWeights`,
 /// one set per capture vertex): each cage vertex takes the weights at its
 /// nearest point on the capture (`index`, built over `high`), blended over
 /// that triangle's corners by its barycentrics, keeping the strongest
 /// highWeights.influences joints, renormalised to sum to 1.
 Status transferSkinWeights(const ControlMesh& cage, const TriangleMesh& high, const TriangleIndex& index,
-                           const VertexWeights& highWeights, VertexWeights* out, int threads = 1);
+                           const VertexWeights& highWeights, VertexWeights* out, int threads = 1,
+                           SkinShells shells = {});
 
 /// What fitSkinWeights did: how far the layered surface's points move from
 /// where the capture moves them, RMS over the points and poses, in model
@@ -69,7 +79,7 @@ void skinPositions(const glm::vec3* positions, size_t count, const VertexWeights
 /// fit).  Without animations the weights are left as they are.
 Status fitSkinWeights(const Plan& plan, const ControlMesh& cage, const TriangleMesh& high, const TriangleIndex& index,
                       const VertexWeights& highWeights, const Skeleton& skeleton, VertexWeights* weights,
-                      SkinFitReport* report = nullptr, int threads = 1);
+                      SkinFitReport* report = nullptr, int threads = 1, SkinShells shells = {});
 
 }  // namespace baker
 }  // namespace strata
