@@ -3,7 +3,8 @@
 
     python3 bench/bench_character.py [--build build] [--work DIR] [--times 3] [--bake-args "FLAGS"] [CHARACTER ...]
 
-Bakes Fox and CesiumMan (tests/data; or the glTF characters named) with `strata-bake --control auto`,
+Bakes Fox, CesiumMan (tests/data) and the 59-piece robot of bench/make_robot.py
+(a stand-in for BrainStem; or the glTF characters named) with `strata-bake --control auto`,
 then for every animation prints the bake's own per-frame geometry (RMS and
 maximum distance between the layered surface at the recommended level and
 the source's mesh, the larger side of each, over 10 evenly spaced times)
@@ -20,6 +21,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -89,25 +91,32 @@ def main():
     ap.add_argument("--work", default="")
     ap.add_argument("--times", type=int, default=3)
     ap.add_argument("--bake-args", default="", help="more strata-bake flags, e.g. \"--control-faces 200\"")
-    ap.add_argument("characters", nargs="*", default=["Fox", "CesiumMan"],
-                    help="names in tests/data (Fox, CesiumMan) or paths to glTF characters")
+    ap.add_argument("characters", nargs="*", default=["Fox", "CesiumMan", "robot"],
+                    help="names in tests/data (Fox, CesiumMan), robot (bench/make_robot.py's stand-in for "
+                         "BrainStem, made in --work) or paths to glTF characters")
     args = ap.parse_args()
     work = args.work or tempfile.mkdtemp(prefix="strata-character-")
     os.makedirs(work, exist_ok=True)
     bake = os.path.join(args.build, "tools", "strata-bake")
     view = os.path.join(args.build, "viewer", "strata-view")
-    print("| character | animation | rig bytes | source bytes | level | RMS mean | RMS worst | max worst |"
-          " strata-view PSNR (dB) at " + ", ".join(f"{k}/{args.times - 1}" for k in range(args.times)) + " of it |"
-          " the bake's own picture PSNR (dB), mean and worst of 10 |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| character | animation | rig bytes | source bytes | cage faces | bake s | level | RMS mean | RMS worst |"
+          " max worst | strata-view PSNR (dB) at " + ", ".join(f"{k}/{args.times - 1}" for k in range(args.times)) +
+          " of it | the bake's own picture PSNR (dB), mean and worst of 10 |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for character in args.characters:
         source = character if os.path.exists(character) else os.path.join(ROOT, "tests", "data", character + ".glb")
+        if character == "robot":
+            source = os.path.join(work, "robot_source.glb")
+            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "make_robot.py"), source], check=True,
+                           stdout=subprocess.DEVNULL)
         name = os.path.splitext(os.path.basename(character))[0]
         rig = os.path.join(work, name + ".glb")
         report = os.path.join(work, name + ".json")
+        started = time.monotonic()
         subprocess.run([bake, "--high", source, "--control", "auto", "-o", rig, "--report", report] +
                        args.bake_args.split(),
                        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        seconds = time.monotonic() - started
         rep = json.load(open(report))
         frames = rep["posed"]["frames"]
         level = rep["posed"]["level"]
@@ -127,7 +136,8 @@ def main():
                 scores.append(psnr(a, b))
             rms = [f["rms"] for f in mine]
             own = [f["psnr"] for f in mine]
-            print(f"| {name} | {anim} | {os.path.getsize(rig):,} | {os.path.getsize(source):,} | {level} | "
+            print(f"| {name} | {anim} | {os.path.getsize(rig):,} | {os.path.getsize(source):,} | "
+                  f"{rep['control']['triangles']:,} | {seconds:.1f} | {level} | "
                   f"{100 * sum(rms) / len(rms):.3f}% | {100 * max(rms):.3f}% | {100 * max(f['max'] for f in mine):.2f}% | "
                   + ", ".join(f"{s:.1f}" for s in scores) + f" | {sum(own) / len(own):.1f}, {min(own):.1f} |")
             sys.stdout.flush()
