@@ -203,7 +203,7 @@ def write_glb(path, world, pieces):
         samplers.append({"input": key_times, "output": accessor(keys, 5126, len(times), "VEC4"),
                          "interpolation": "LINEAR"})
         channels.append({"sampler": len(samplers) - 1, "target": {"node": joint, "path": "rotation"}})
-    gltf = {"asset": {"version": "2.0", "generator": "Strata bench/make_robot.py"}, "scene": 0,
+    gltf = {"asset": {"version": "2.0", "generator": "bench/make_robot.py"}, "scene": 0,
             "scenes": [{"nodes": [0] + list(range(len(JOINTS), len(nodes)))}], "nodes": nodes, "meshes": meshes,
             "materials": materials,
             "skins": [{"joints": list(range(len(JOINTS))), "inverseBindMatrices": ibm, "skeleton": 0}],
