@@ -85,18 +85,7 @@ double TriangleIndex::nearestLabelled(const glm::dvec3& x, const uint32_t* label
 
 double TriangleIndex::nearest(const glm::dvec3& x, uint32_t* face, double* b1, double* b2, int64_t hint) const
 {
-    const int64_t f = nearestFace(x, 3.0e38f, hint);
-    if (f < 0)
-        return -1.0;
-    if (face)
-        *face = uint32_t(f);
-    double u, v;
-    const glm::dvec3 c = closestOn(uint32_t(f), x, &u, &v);
-    if (b1)
-        *b1 = u;
-    if (b2)
-        *b2 = v;
-    return glm::length(c - x);
+    return nearestLabelled(x, nullptr, 0, face, b1, b2, hint);
 }
 
 double TriangleIndex::nearestWithin(const glm::dvec3& x, double maxDistance, int64_t* hint) const

@@ -31,7 +31,8 @@ public:
     /// `hint` (a face to try first, or -1) only speeds the search up.
     double nearest(const glm::dvec3& x, uint32_t* face = nullptr, double* b1 = nullptr, double* b2 = nullptr,
                    int64_t hint = -1) const;
-    /// nearest() among the faces f with labels[f] == label (-1 when none).
+    /// nearest() among the faces f with labels[f] == label (-1 when none;
+    /// null labels: every face).
     double nearestLabelled(const glm::dvec3& x, const uint32_t* labels, uint32_t label, uint32_t* face = nullptr,
                            double* b1 = nullptr, double* b2 = nullptr, int64_t hint = -1) const;
     /// The same, for a run of nearby queries: starts from *hint and leaves
