@@ -720,7 +720,10 @@ TEST(Scene, AutomaticCageOfPiecesThatPassThroughEachOtherKeepsEachOnItsJoint)
         test::runCommand(std::string(STRATA_BAKE_EXE) + " --high " + input + " --control auto --control-faces 600 " +
                          kFixedMapSizeFlag + " -o " + rigPath + " --report " + dir + "/report.json");
     ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("the capture's 3 separate pieces each mapped onto its own"), std::string::npos)
+        << r.output;
     const json report = json::parse(test::readText(dir + "/report.json"));
+    EXPECT_EQ(report["control"]["pieces"], 3);
     // Every cage vertex follows its piece's one joint, as the capture does.
     ASSERT_TRUE(report.contains("skinFit"));
     EXPECT_LT(report["skinFit"]["after"].get<double>(), 1e-6) << report["skinFit"].dump();

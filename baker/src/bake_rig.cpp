@@ -561,6 +561,7 @@ private:
         }
         labels->highVertex = std::move(shells);
         options.shells = std::move(labels);
+        pieces_ = pieces;
     }
 
     // A capture far from the origin against its size has lost, in 32-bit
@@ -640,6 +641,7 @@ private:
     ChartCache chartCache;  // the charts, made once per cage the layouts start from
     std::string atlasNote, sizeReason, schemeReason;
     size_t atlasVertices = 0;  // a generated atlas's vertices once split at its seams
+    size_t pieces_ = 1;        // the capture's separate pieces, where the cage is labelled by them
     bool fitting = false, fitSkippedForMaps = false;
     Fitted fitted[2];
     FitOptions fitOptions;
@@ -1600,8 +1602,11 @@ void BakeJob::summarize()
     if (highStats.drawnFlat)
         appendf(&result->summary, "  shading       flat, as glTF draws the capture (no primitive has NORMAL)\n");
     result->summary += searchNote_;
-    appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s\n", control.positions.size(),
-                control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
+    appendf(&result->summary, "  control       %zu vertices, %zu triangles, UVs %s", control.positions.size(),
+            control.faceCount(), uvMode == "auto" ? ("generated, " + atlasNote).c_str() : "kept");
+    if (options.shells)
+        appendf(&result->summary, "; the capture's %zu separate pieces each mapped onto its own", pieces_);
+    result->summary += "\n";
     if (character) {
         appendf(&result->summary,
                 "  character     %zu joints, %zu animations and skin weights carried from the capture",
@@ -1709,7 +1714,8 @@ void BakeJob::writeReport()
     report["control"] = {{"path", request.control},
                          {"vertices", control.positions.size()},
                          {"triangles", control.faceCount()},
-                         {"uv", uvMode}};
+                         {"uv", uvMode},
+                         {"pieces", options.shells ? pieces_ : size_t(1)}};
     if (uvMode == "auto") {
         report["atlas"] = {{"charts", chartStats.charts},  // 0: the per-triangle atlas
                            {"kind", chartStats.wholeMap ? "whole map" : chartStats.charts ? "charts" : "triangles"},
