@@ -54,7 +54,6 @@ public:
     /// Per surface face, the capture piece it stands for (ShellLabels), or
     /// empty: a point of a piece then maps onto that piece's faces alone.
     void setShells(std::vector<uint32_t> faceShells) { faceShells_ = std::move(faceShells); }
-    bool hasShells() const { return !faceShells_.empty(); }
     static constexpr uint32_t kAnyShell = 0xffffffffu;
 
 private:

@@ -295,10 +295,7 @@ Status carryBakedControl(const std::string& path, const tinygltf::Model& model, 
     if (rigidWorst > tolerance && current.empty() && fitAffine(rigidCurrent, rigidBaked, &toBakedPlace, &fitted) &&
         fitted <= tolerance) {
         if (!similarityScale(glm::inverse(glm::dmat3(toBakedPlace)), &s))
-            return Status(StatusCode::InvalidData,
-                          path + ": its nodes scale the rig unevenly or shear it since the bake, which would bend the "
-                                 "displaced surface out of its baked shape: scale it alike on every axis, or bake "
-                                 "again");
+            return Status(StatusCode::InvalidData, path + ": its nodes " + kUnevenlyScaled);
         if (glm::determinant(glm::dmat3(toBakedPlace)) < 0.0)
             return Status(StatusCode::InvalidData, path + ": " + kMirrored);
         placement->placed = true;

@@ -168,6 +168,11 @@ struct Placement {
 inline constexpr const char* kMirrored =
     "its nodes mirror the rig since the bake (a negative scale), which turns its faces over and so renumbers the "
     "refinement its displacements follow: mirror the model before baking, or bake the mirrored one again";
+/// Why a rig its nodes scale unevenly or shear since the bake is refused,
+/// after the nodes that do it.
+inline constexpr const char* kUnevenlyScaled =
+    "scale the rig unevenly or shear it since the bake, which would bend the displaced surface out of its baked "
+    "shape: scale it alike on every axis, or bake again";
 
 /// The uniform scale s of a linear map that turns and scales alike in every
 /// direction (its columns orthogonal and of one length, to a part in 1e-4),

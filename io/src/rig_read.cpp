@@ -586,11 +586,12 @@ Status layerVertexBytes(const tinygltf::Model& model, const DisplacementInfo& in
 }
 
 // A rig merged into one scene with other models (gltf-transform merge
-// --merge-scenes, an editor adding a floor): where the layered mesh alone
-// welds to the counts the layer was baked on, the rest is another model,
-// and the refusal names it rather than blaming a weld or a simplification.
+// --merge-scenes, an editor adding a floor): where the mesh carrying the
+// layer (`layered`) alone welds to the counts the layer was baked on, the
+// rest is another model, and the refusal names it rather than blaming a
+// weld or a simplification.
 Status checkNoOtherModel(const tinygltf::Value& block, const std::string& path, const tinygltf::Model& model,
-                         const Rig& rig)
+                         int layered, const Rig& rig)
 {
     const tinygltf::Value* control = member(block, "control");
     double vertices = 0, triangles = 0;
@@ -598,10 +599,6 @@ Status checkNoOtherModel(const tinygltf::Value& block, const std::string& path, 
         !numberField(*control, "triangles", path, &triangles) ||
         (vertices == double(rig.mesh.vertexCount()) && triangles == double(rig.mesh.faceCount())))
         return Status::ok();
-    int layered = -1;
-    for (size_t m = 0; m < model.meshes.size() && layered < 0; ++m)
-        if (model.meshes[m].extensions.count(kLayerExtension))
-            layered = int(m);
     std::vector<uint8_t> used(rig.mesh.vertexCount(), 0);
     size_t ownVertices = 0, ownTriangles = 0;
     std::vector<std::string> others;
@@ -669,19 +666,16 @@ Status placedByNodes(const std::string& path, const tinygltf::Value& block, cons
     // One scale in every direction (to what a tool's float composition of a
     // rotation leaves).
     double s = 1.0;
-    const bool alike = similarityScale(glm::dmat3(M), &s);
-    const int node = rig.parts[0].node;
-    std::string where = "its nodes";
-    if (node >= 0 && size_t(node) < model.nodes.size())
-        where = "node " + std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) +
-                ") and its parents";
-    if (alike && glm::determinant(glm::dmat3(M)) < 0.0)
+    if (!similarityScale(glm::dmat3(M), &s)) {
+        const int node = rig.parts[0].node;
+        std::string where = "its nodes";
+        if (node >= 0 && size_t(node) < model.nodes.size())
+            where = "node " + std::to_string(node) + " (" + printable(model.nodes[size_t(node)].name, 60) +
+                    ") and its parents";
+        return Status(StatusCode::InvalidData, path + ": " + where + " " + kUnevenlyScaled);
+    }
+    if (glm::determinant(glm::dmat3(M)) < 0.0)
         return Status(StatusCode::InvalidData, path + ": " + kMirrored);
-    if (!alike)
-        return Status(StatusCode::InvalidData,
-                      path + ": " + where + " scale the rig unevenly or shear it since the bake, which would bend the "
-                                        "displaced surface out of its baked shape: scale it alike on every axis, or "
-                                        "bake again");
     placement->baked = std::move(mesh);
     placement->scale = float(s);
     placement->placed = true;
@@ -742,7 +736,7 @@ Status finishRig(const std::string& path, std::shared_ptr<SourceDocument> doc, R
                               "STRATA_layered_displacement extension, which such tools keep or drop whole)");
         if (!(st = parseStrataBlock(block, extension, path, model, &rig.displacement)))
             return st;
-        if (extension && check != LayerCheck::Seal && !(st = checkNoOtherModel(block, path, model, rig)))
+        if (extension && check != LayerCheck::Seal && !(st = checkNoOtherModel(block, path, model, scene.blockMesh, rig)))
             return st;
         Placement& placement = carried;
         if (extension && check != LayerCheck::Seal && !placement.placed &&
