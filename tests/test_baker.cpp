@@ -1336,6 +1336,53 @@ TEST(Simplifier, FinsAreCountedAndRepeatsAreNot)
 // gives, but for collapses of equal cost taken in another order (this
 // sphere's relief is symmetric); a larger count starts over and gives the
 // same mesh exactly.
+// A character of separate pieces (a robot's bolts on its body: six balls of
+// radius 0.02, 1,280 triangles each, half sunk into a unit sphere of
+// 5,120) decimated to 300 faces: the quadrics see each bolt as a speck of
+// error and took it to a tetrahedron (4 faces, its face centres a third
+// of its radius from its centre; the bolt's points 0.47-0.64 of its
+// radius from it, RMS), which no displacement draws back as a ball.  Every
+// piece keeps 12 faces or more, the body gives up the faces, and each
+// bolt's cage lies within 0.35 of its radius of it (0.29-0.32 measured).
+TEST(Simplifier, ASmallPieceKeepsEnoughFacesToBeDrawnBack)
+{
+    TriangleMesh high = icosphereMesh(4, 1.0f);
+    const TriangleMesh bolt = icosphereMesh(3, 0.02f);
+    const glm::vec3 at[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0.6f, 0.8f, 0}, {0, 0.6f, -0.8f}};
+    for (const glm::vec3& c : at) {
+        const uint32_t first = uint32_t(high.positions.size());
+        for (const glm::vec3& p : bolt.positions)
+            high.positions.push_back(c + p);
+        for (uint32_t v : bolt.triangles)
+            high.triangles.push_back(first + v);
+    }
+    size_t pieces = 0;
+    const std::vector<uint32_t> shell = strata::baker::captureShells(high, &pieces);
+    ASSERT_EQ(pieces, 7u);
+    strata::baker::Simplifier simplifier(high, high.positions);  // a character, in one pose
+    ControlMesh cage;
+    std::vector<uint32_t> originals;
+    ASSERT_TRUE(simplifier.simplify(300, &cage, &originals).isOk());
+    EXPECT_EQ(cage.faceCount(), 300u);
+    std::vector<size_t> faces(pieces, 0);
+    for (size_t f = 0; f < cage.faceCount(); ++f)
+        ++faces[shell[originals[cage.triangles[3 * f]]]];
+    for (size_t p = 0; p < pieces; ++p)
+        EXPECT_GE(faces[p], 12u) << "piece " << p;
+    for (size_t b = 0; b < 6; ++b) {
+        std::vector<glm::vec3> points;
+        ControlMesh piece;
+        piece.positions = cage.positions;
+        for (size_t f = 0; f < cage.faceCount(); ++f)
+            if (shell[originals[cage.triangles[3 * f]]] == shell[high.positions.size() - bolt.positions.size() * (6 - b)])
+                piece.triangles.insert(piece.triangles.end(), &cage.triangles[3 * f], &cage.triangles[3 * f] + 3);
+        for (size_t v = 0; v < bolt.positions.size(); ++v)
+            points.push_back(high.positions[high.positions.size() - bolt.positions.size() * (6 - b) + v]);
+        ASSERT_FALSE(piece.triangles.empty()) << "bolt " << b;
+        EXPECT_LT(rmsFromPointsToMesh(points, piece), 0.35 * 0.02) << "bolt " << b;
+    }
+}
+
 TEST(Simplifier, ContinuingGivesTheDirectDecimation)
 {
     const ControlMesh sphere = strata::examples::makeHead(4);

@@ -522,6 +522,82 @@ private:
     std::vector<OpenMesh::Geometry::Quadricd> quadrics_;           // the same layout
 };
 
+// A character of many separate pieces (a robot's bolts, fingers, plates)
+// keeps each piece at kPieceFloorFaces faces or more (or all it had): the
+// quadrics see a bolt as a speck of error and collapse it to a
+// tetrahedron, which no displacement draws back as a ball (the map's few
+// texels over its four corners drew cones, half its radius out).  A piece
+// that reaches its floor has its vertices locked, so no collapse whose
+// priority was queued before can take it lower.
+template <class MeshT>
+class ModPieceFloorT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+public:
+    DECIMATING_MODULE(ModPieceFloorT, MeshT, PieceFloor);
+
+    explicit ModPieceFloorT(MeshT& mesh) : Base(mesh, true) {}
+
+    // Per mesh vertex (its index), its piece.
+    void setPieces(std::vector<uint32_t> piece, size_t floor)
+    {
+        piece_ = std::move(piece);
+        floor_ = floor;
+    }
+
+    void initialize() override
+    {
+        MeshT& mesh = Base::mesh();
+        size_t count = 0;
+        for (uint32_t p : piece_)
+            count = std::max<size_t>(count, size_t(p) + 1);
+        faces_.assign(count, 0);
+        members_.assign(count, {});
+        for (auto f : mesh.faces())
+            ++faces_[piece_[size_t(mesh.fv_begin(f)->idx())]];
+        for (auto v : mesh.vertices())
+            members_[piece_[size_t(v.idx())]].push_back(v);
+        least_.resize(count);
+        for (size_t p = 0; p < count; ++p) {
+            least_[p] = std::min(faces_[p], floor_);
+            lockAtFloor(p);
+        }
+    }
+
+    float collapse_priority(const CollapseInfo& ci) override
+    {
+        const size_t p = piece_[size_t(ci.v0.idx())];
+        return faces_[p] >= least_[p] + removed(ci) ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
+    }
+
+    void postprocess_collapse(const CollapseInfo& ci) override
+    {
+        const size_t p = piece_[size_t(ci.v1.idx())];
+        faces_[p] -= std::min(faces_[p], removed(ci));
+        lockAtFloor(p);
+    }
+
+private:
+    static size_t removed(const CollapseInfo& ci) { return size_t(ci.fl.is_valid()) + size_t(ci.fr.is_valid()); }
+
+    // A collapse of a closed piece takes two faces: under its floor + 2, none may.
+    void lockAtFloor(size_t p)
+    {
+        if (faces_[p] >= least_[p] + 2)
+            return;
+        for (auto v : members_[p])
+            Base::mesh().status(v).set_locked(true);
+        members_[p].clear();
+    }
+
+    size_t floor_ = 0;
+    std::vector<uint32_t> piece_;                                   // per mesh vertex
+    std::vector<size_t> faces_, least_;                             // per piece: its live faces, its floor
+    std::vector<std::vector<typename MeshT::VertexHandle>> members_;  // per piece, until locked
+};
+
+// ModPieceFloorT's floor.  The robot stand-in (59 pieces, 28 of them taken
+// to 4 faces by the default search's 2,257-face cage): see docs/RESULTS.md.
+constexpr size_t kPieceFloorFaces = 12;
+
 // The rims' weight against the faces' (ModPosedQuadricT::setBoundaryWeight).
 // Nefertiti with ten holes cut (3% of its diagonal across) on 1,400 faces:
 // recon -> capture RMS 0.121% with none (max 2.6%: cage faces over the
@@ -537,6 +613,7 @@ struct Simplifier::State {
     OpenMesh::Decimater::ModQuadricT<OMesh>::Handle quadric;
     ModPosedQuadricT<OMesh>::Handle posedQuadric;  // a character's, instead of `quadric`
     OpenMesh::Decimater::ModNormalFlippingT<OMesh>::Handle flipping;
+    ModPieceFloorT<OMesh>::Handle pieceFloor;  // a capture of more than one piece
     size_t faces = 0;  // the live faces after the last simplify
     std::vector<uint32_t> refused;  // the capture's faces OpenMesh could not join, 3 corners each
     OpenMesh::VPropHandleT<uint32_t> original;  // the capture vertex of each mesh vertex
@@ -638,6 +715,17 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out, std::vector<ui
         }
         decimater.add(state->flipping);
         decimater.module(state->flipping).set_max_normal_deviation(60.0);
+        // A character's pieces only: a scan's specks of debris are no parts
+        // to keep.
+        size_t pieces = 0;
+        const std::vector<uint32_t> shells = posed ? captureShells(high_, &pieces) : std::vector<uint32_t>();
+        if (pieces > 1) {
+            std::vector<uint32_t> piece(om.n_vertices());
+            for (auto v : om.vertices())
+                piece[size_t(v.idx())] = shells[om.property(original, v)];
+            decimater.add(state->pieceFloor);
+            decimater.module(state->pieceFloor).setPieces(std::move(piece), kPieceFloorFaces);
+        }
         if (!decimater.initialize())
             return Status(StatusCode::InvalidData, "OpenMesh's decimater could not be initialised");
         state->faces = om.n_faces();
