@@ -30,7 +30,8 @@ def ellipsoid(c, r, seg, rings):
         th = math.pi * i / rings
         for j in range(seg):
             ph = 2 * math.pi * j / seg
-            d = (math.sin(th) * math.cos(ph), math.cos(th), math.sin(th) * math.sin(ph))
+            st = 0.0 if i in (0, rings) else math.sin(th)  # the poles one point each
+            d = (st * math.cos(ph), math.cos(th), st * math.sin(ph))
             pos.append(tuple(c[k] + r[k] * d[k] for k in range(3)))
             g = tuple(d[k] / r[k] for k in range(3))
             n = math.sqrt(sum(x * x for x in g)) or 1.0
@@ -73,7 +74,7 @@ def cylinder(c, r, h, axis, seg, stacks):
             nrm.append(turn(0, s, 0))
         for j in range(seg):
             a, b = base + 1 + j, base + 1 + (j + 1) % seg
-            tri.append((base, a, b) if s > 0 else (base, b, a))
+            tri.append((base, b, a) if s > 0 else (base, a, b))
     # Which way the faces turn depends on the axis's handedness: outwards.
     if axis == 0 or axis == 2:
         tri = [(a, c2, b) for a, b, c2 in tri]
