@@ -21,6 +21,7 @@
 #include <array>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 
 namespace strata {
 namespace baker {
@@ -631,66 +632,82 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out, std::vector<ui
     if (targetFaces < 4)
         return Status(StatusCode::InvalidArgument, "--control-faces must be at least 4");
     if (!state_ || targetFaces > state_->faces + refusedFaces()) {
-        auto state = std::make_unique<State>();
-        OMesh& om = state->om;
-        // Deleting (isolated vertices, collapsed elements) needs status flags.
-        om.request_vertex_status();
-        om.request_edge_status();
-        om.request_face_status();
+        // The mesh OpenMesh decimates, from a capture's welded faces.
+        const auto meshOf = [&](const std::vector<uint32_t>& start) {
+            auto state = std::make_unique<State>();
+            OMesh& om = state->om;
+            // Deleting (isolated vertices, collapsed elements) needs status flags.
+            om.request_vertex_status();
+            om.request_edge_status();
+            om.request_face_status();
+            std::vector<OMesh::VertexHandle> vh(high_.positions.size());
+            OpenMesh::VPropHandleT<uint32_t> original;  // the capture vertex of each mesh vertex
+            om.add_property(original);
+            for (uint32_t v : start)
+                if (!vh[v].is_valid()) {
+                    const glm::vec3& p = high_.positions[v];
+                    vh[v] = om.add_vertex(OMesh::Point(p.x, p.y, p.z));
+                    om.property(original, vh[v]) = v;
+                }
+            // A face on the corners of an earlier one (a duplicate, either way
+            // round) is no more surface.  A face OpenMesh cannot join to the
+            // rest (a fin on an edge two faces already share, a second fan at a
+            // vertex) is kept aside: its corners are locked against collapses,
+            // and it joins every cage as it is (the runtime refines any
+            // topology).  Given corners of its own instead, it would be a crack
+            // of coincident vertices, which the rig's glTF welds: a rig that
+            // does not load back.  Spot with 50 fins: 0.073% RMS on the capture
+            // itself without them, 0.0000% with them.
+            std::vector<std::array<uint32_t, 3>> sorted(start.size() / 3);
+            std::vector<uint32_t> order(sorted.size());
+            for (uint32_t f = 0; f < order.size(); ++f) {
+                sorted[f] = {start[3 * f], start[3 * f + 1], start[3 * f + 2]};
+                std::sort(sorted[f].begin(), sorted[f].end());
+                order[f] = f;
+            }
+            std::stable_sort(order.begin(), order.end(),
+                             [&](uint32_t a, uint32_t b) { return sorted[a] < sorted[b]; });
+            std::vector<uint8_t> repeated(sorted.size(), 0);
+            for (size_t i = 1; i < order.size(); ++i)
+                repeated[order[i]] = sorted[order[i]] == sorted[order[i - 1]];
+            for (size_t f = 0; f < start.size() / 3; ++f)
+                if (!repeated[f] &&
+                    !om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]).is_valid())
+                    state->refused.insert(state->refused.end(), &start[3 * f], &start[3 * f] + 3);
+            om.delete_isolated_vertices();
+            om.garbage_collection();
+            if (!state->refused.empty()) {
+                std::vector<uint8_t> corner(high_.positions.size(), 0);
+                for (uint32_t v : state->refused)
+                    corner[v] = 1;
+                for (auto v : om.vertices())
+                    if (corner[om.property(original, v)])
+                        om.status(v).set_locked(true);
+            }
+            state->original = original;
+            return state;
+        };
         // A large capture first goes most of the way with meshoptimizer's
         // quadric simplifier (topology kept, no flips), held to a tenth of
         // a percent of its size: ten times the faces asked for, at least
         // 20,000.  OpenMesh's decimater then takes the last collapses, with
         // quadrics of a surface that close to the capture, in a fifth of the
         // time the whole capture took (single-threaded, it was a third of
-        // an automatic bake of a 100k-triangle scan).
-        const std::vector<uint32_t> start = preSimplified(high_, std::max<size_t>(20000, 10 * targetFaces));
-        std::vector<OMesh::VertexHandle> vh(high_.positions.size());
-        OpenMesh::VPropHandleT<uint32_t> original;  // the capture vertex of each mesh vertex
-        om.add_property(original);
-        for (uint32_t v : start)
-            if (!vh[v].is_valid()) {
-                const glm::vec3& p = high_.positions[v];
-                vh[v] = om.add_vertex(OMesh::Point(p.x, p.y, p.z));
-                om.property(original, vh[v]) = v;
-            }
-        // A face on the corners of an earlier one (a duplicate, either way
-        // round) is no more surface.  A face OpenMesh cannot join to the
-        // rest (a fin on an edge two faces already share, a second fan at a
-        // vertex) is kept aside: its corners are locked against collapses,
-        // and it joins every cage as it is (the runtime refines any
-        // topology).  Given corners of its own instead, it would be a crack
-        // of coincident vertices, which the rig's glTF welds: a rig that
-        // does not load back.  Spot with 50 fins: 0.073% RMS on the capture
-        // itself without them, 0.0000% with them.
-        std::vector<std::array<uint32_t, 3>> sorted(start.size() / 3);
-        std::vector<uint32_t> order(sorted.size());
-        for (uint32_t f = 0; f < order.size(); ++f) {
-            sorted[f] = {start[3 * f], start[3 * f + 1], start[3 * f + 2]};
-            std::sort(sorted[f].begin(), sorted[f].end());
-            order[f] = f;
+        // an automatic bake of a 100k-triangle scan).  Where its collapses
+        // leave a face OpenMesh cannot join that the capture did not have
+        // (a sliver along a crease, three faces on an edge: the robot's
+        // hands), the cage would not be closed; the whole capture is then
+        // decimated instead.
+        auto state = meshOf(preSimplified(high_, std::max<size_t>(20000, 10 * targetFaces)));
+        if (!state->refused.empty()) {
+            auto whole = meshOf(preSimplified(high_, std::numeric_limits<size_t>::max()));
+            if (whole->refused.size() < state->refused.size())
+                state = std::move(whole);
         }
-        std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return sorted[a] < sorted[b]; });
-        std::vector<uint8_t> repeated(sorted.size(), 0);
-        for (size_t i = 1; i < order.size(); ++i)
-            repeated[order[i]] = sorted[order[i]] == sorted[order[i - 1]];
-        state->refused.clear();
-        for (size_t f = 0; f < start.size() / 3; ++f)
-            if (!repeated[f] && !om.add_face(vh[start[3 * f]], vh[start[3 * f + 1]], vh[start[3 * f + 2]]).is_valid())
-                state->refused.insert(state->refused.end(), &start[3 * f], &start[3 * f] + 3);
-        om.delete_isolated_vertices();
-        om.garbage_collection();
+        OMesh& om = state->om;
+        const OpenMesh::VPropHandleT<uint32_t> original = state->original;
         if (om.n_faces() == 0)
             return Status(StatusCode::InvalidData, "the high-resolution mesh has no manifold faces to simplify");
-        if (!state->refused.empty()) {
-            std::vector<uint8_t> corner(high_.positions.size(), 0);
-            for (uint32_t v : state->refused)
-                corner[v] = 1;
-            for (auto v : om.vertices())
-                if (corner[om.property(original, v)])
-                    om.status(v).set_locked(true);
-        }
-        state->original = original;
         state->decimater = std::make_unique<State::Decimater>(om);
         State::Decimater& decimater = *state->decimater;
         const size_t poses = posed_.size() / std::max<size_t>(1, high_.positions.size());
