@@ -11,7 +11,11 @@ the source's mesh, the larger side of each, over 10 evenly spaced times)
 and the texture: at `--times` of those times, the source and the rig are
 rendered headless by strata-view at one camera (the source's), and the two
 pictures compared by PSNR over the pixels either draws; beside it, the
-bake's own picture PSNR (its CPU pictures, every one of the 10 times).
+bake's own picture PSNR (its CPU pictures, every one of the 10 times); and
+whether the rig is watertight, as an acceptance checks it: the directed edges
+of strata-reconstruct's surface at the rig's level and of an adaptive one
+(a camera 3 diagonals out, 1 pixel), welded by position, that no edge
+matches once the other way (0: closed and manifold).
 """
 import argparse
 import json
@@ -67,6 +71,25 @@ def read_png(path):
     return width, height, channels, rows
 
 
+def open_edges(obj_path):
+    """Directed edges of an OBJ, its vertices welded by position, not matched by exactly one the other way
+    (0: closed, manifold and consistently turned), and its bounds (lowest, highest corner)."""
+    key, welded, uses = {}, [], {}
+    lo, hi = [math.inf] * 3, [-math.inf] * 3
+    for line in open(obj_path):
+        if line.startswith("v "):
+            p = line.split()[1:4]
+            welded.append(key.setdefault(tuple(p), len(key)))
+            lo = [min(lo[k], float(p[k])) for k in range(3)]
+            hi = [max(hi[k], float(p[k])) for k in range(3)]
+        elif line.startswith("f "):
+            f = [welded[int(x.split("/")[0]) - 1] for x in line.split()[1:]]
+            for k in range(len(f)):
+                e = (f[k], f[(k + 1) % len(f)])
+                uses[e] = uses.get(e, 0) + 1
+    return sum(1 for (a, b), n in uses.items() if n != 1 or uses.get((b, a), 0) != 1), lo, hi
+
+
 def psnr(a_path, b_path):
     """PSNR (dB) of two renders over the pixels either draws (not the background)."""
     wa, ha, ca, ra = read_png(a_path)
@@ -101,8 +124,8 @@ def main():
     view = os.path.join(args.build, "viewer", "strata-view")
     print("| character | animation | rig bytes | source bytes | cage faces | bake s | level | RMS mean | RMS worst |"
           " max worst | strata-view PSNR (dB) at " + ", ".join(f"{k}/{args.times - 1}" for k in range(args.times)) +
-          " of it | the bake's own picture PSNR (dB), mean and worst of 10 |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          " of it | the bake's own picture PSNR (dB), mean and worst of 10 | open edges: at its level, a 1-px view |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for character in args.characters:
         source = character if os.path.exists(character) else os.path.join(ROOT, "tests", "data", character + ".glb")
         if character == "robot":
@@ -118,6 +141,20 @@ def main():
                        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         seconds = time.monotonic() - started
         rep = json.load(open(report))
+        # Watertightness as an acceptance checks it: the rig at its level, and
+        # adaptive for a camera 3 diagonals out at a 1-pixel tolerance.
+        reconstruct = os.path.join(args.build, "tools", "strata-reconstruct")
+        surface = os.path.join(work, name + "_surface.obj")
+        subprocess.run([reconstruct, rig, "-o", surface], check=True, capture_output=True)
+        unmatched, lo, hi = open_edges(surface)
+        opened = [unmatched]
+        centre = [(lo[k] + hi[k]) / 2 for k in range(3)]
+        diagonal = math.dist(lo, hi)
+        eye = [centre[0], centre[1], centre[2] + 3 * diagonal]
+        eye_view = ",".join(f"{x:.6g}" for x in eye) + ":" + ",".join(f"{x:.6g}" for x in centre) + ":45:1080"
+        subprocess.run([reconstruct, rig, "--view", eye_view, "--pixel-error", "1", "-o", surface], check=True,
+                       capture_output=True)
+        opened.append(open_edges(surface)[0])
         frames = rep["posed"]["frames"]
         level = rep["posed"]["level"]
         for anim in sorted({f["animation"] for f in frames}):
@@ -139,7 +176,8 @@ def main():
             print(f"| {name} | {anim} | {os.path.getsize(rig):,} | {os.path.getsize(source):,} | "
                   f"{rep['control']['triangles']:,} | {seconds:.1f} | {level} | "
                   f"{100 * sum(rms) / len(rms):.3f}% | {100 * max(rms):.3f}% | {100 * max(f['max'] for f in mine):.2f}% | "
-                  + ", ".join(f"{s:.1f}" for s in scores) + f" | {sum(own) / len(own):.1f}, {min(own):.1f} |")
+                  + ", ".join(f"{s:.1f}" for s in scores) + f" | {sum(own) / len(own):.1f}, {min(own):.1f} | "
+                  f"{opened[0]}, {opened[1]} |")
             sys.stdout.flush()
 
 
