@@ -696,13 +696,18 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out, std::vector<ui
         // an automatic bake of a 100k-triangle scan).  Where its collapses
         // leave a face OpenMesh cannot join that the capture did not have
         // (a sliver along a crease, three faces on an edge: the robot's
-        // hands), the cage would not be closed; the whole capture is then
-        // decimated instead.
-        auto state = meshOf(preSimplified(high_, std::max<size_t>(20000, 10 * targetFaces)));
-        if (!state->refused.empty()) {
-            auto whole = meshOf(preSimplified(high_, std::numeric_limits<size_t>::max()));
-            if (whole->refused.size() < state->refused.size())
-                state = std::move(whole);
+        // hands), the cage would not be closed: meshoptimizer is then held
+        // to four times as many faces, and past the capture's own count
+        // the whole capture is decimated (a million-triangle scan is not
+        // taken whole to OpenMesh for one sliver).  The start with the
+        // fewest such faces is kept, the first of equals.
+        size_t preFaces = std::max<size_t>(20000, 10 * targetFaces);
+        auto state = meshOf(preSimplified(high_, preFaces));
+        while (!state->refused.empty() && preFaces < high_.faceCount()) {
+            preFaces = preFaces > high_.faceCount() / 4 ? std::numeric_limits<size_t>::max() : 4 * preFaces;
+            auto next = meshOf(preSimplified(high_, preFaces));
+            if (next->refused.size() < state->refused.size())
+                state = std::move(next);
         }
         OMesh& om = state->om;
         const OpenMesh::VPropHandleT<uint32_t> original = state->original;
