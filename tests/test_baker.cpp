@@ -1389,10 +1389,11 @@ TEST(Simplifier, ASmallPieceKeepsEnoughFacesToBeDrawnBack)
 // outwards: meshoptimizer's collapses, which take a capture this large
 // most of the way, left slivers along the boxes' edges (three faces on an
 // edge), which OpenMesh cannot join, so the cage kept them aside and was
-// not closed (an adaptive frame of it then had holes): 3 of them at 1,500
-// and 800 faces on the first, 72 on the second.  Now meshoptimizer is held
-// to four times as many faces (the second: none left) or the whole capture
-// is decimated (the first), and every edge of the cage is matched.
+// not closed (an adaptive frame of it then had holes): 3 of them and 9
+// unmatched edges at 1,500 and 800 faces on the first, 72 and 212 on the
+// second.  Now meshoptimizer is held to four times as many faces (the
+// second: none left) or the whole capture is decimated (the first), and
+// every edge of the cage is matched.
 TEST(Simplifier, AClosedCaptureOfSmallBoxesGivesAClosedCage)
 {
     const auto boxes = [](int largeGrid) {
@@ -1424,13 +1425,13 @@ TEST(Simplifier, AClosedCaptureOfSmallBoxesGivesAClosedCage)
         box(glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(0.5f), largeGrid);
         return high;
     };
-    const std::pair<int, std::vector<size_t>> cases[] = {{40, {3000, 1500, 800}}, {80, {1500}}};
+    const std::pair<int, std::vector<size_t>> cases[] = {{40, {1500, 800}}, {80, {1500}}};
     for (const auto& [largeGrid, targets] : cases) {
         const TriangleMesh high = boxes(largeGrid);
         ASSERT_EQ(high.faceCount(), largeGrid == 40 ? 45120u : 102720u);
+        strata::baker::Simplifier simplifier(high, high.positions);  // each count continues from the last
         for (size_t target : targets) {
             SCOPED_TRACE(std::to_string(largeGrid) + " " + std::to_string(target));
-            strata::baker::Simplifier simplifier(high, high.positions);
             ControlMesh cage;
             ASSERT_TRUE(simplifier.simplify(target, &cage).isOk());
             EXPECT_EQ(simplifier.refusedFaces(), 0u);
