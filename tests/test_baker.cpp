@@ -1383,69 +1383,87 @@ TEST(Simplifier, ASmallPieceKeepsEnoughFacesToBeDrawnBack)
     }
 }
 
-// A closed capture gives a closed cage.  Sixty small boxes (a robot's
-// hands and feet, a 6x6 grid on each side) and a large one (a 40x40 grid,
-// 45,120 triangles in all; an 80x80 one, 102,720), each closed and turned
-// outwards: meshoptimizer's collapses, which take a capture this large
-// most of the way, left slivers along the boxes' edges (three faces on an
-// edge), which OpenMesh cannot join, so the cage kept them aside and was
-// not closed (an adaptive frame of it then had holes): 3 of them and 9
-// unmatched edges at 1,500 and 800 faces on the first, 72 and 212 on the
-// second.  Now meshoptimizer is held to four times as many faces (the
-// second: none left) or the whole capture is decimated (the first), and
-// every edge of the cage is matched.
+// Sixty small boxes (a robot's hands and feet, a 6x6 grid on each side)
+// and a large one on a largeGrid x largeGrid grid, each closed and turned
+// outwards.
+static TriangleMesh boxesCapture(int largeGrid)
+{
+    TriangleMesh high;
+    const auto box = [&](glm::vec3 centre, glm::vec3 half, int n) {
+        for (int axis = 0; axis < 3; ++axis)
+            for (int side : {-1, 1}) {
+                const uint32_t base = uint32_t(high.positions.size());
+                const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+                for (int i = 0; i <= n; ++i)
+                    for (int j = 0; j <= n; ++j) {
+                        glm::vec3 p(0.0f);
+                        p[axis] = float(side) * half[axis];
+                        p[u] = half[u] * (2.0f * float(i) / float(n) - 1.0f);
+                        p[v] = half[v] * (2.0f * float(j) / float(n) - 1.0f);
+                        high.positions.push_back(centre + p);
+                    }
+                for (int i = 0; i < n; ++i)
+                    for (int j = 0; j < n; ++j) {
+                        const uint32_t a = base + uint32_t(i * (n + 1) + j), b = a + 1, c = a + uint32_t(n + 1);
+                        const uint32_t outwards[6] = {a, c, b, b, c, c + 1}, inwards[6] = {a, b, c, b, c + 1, c};
+                        const uint32_t* t = side > 0 ? outwards : inwards;
+                        high.triangles.insert(high.triangles.end(), t, t + 6);
+                    }
+            }
+    };
+    for (int k = 0; k < 60; ++k)
+        box(glm::vec3(0.04f * float(k), 0.0f, 0.0f), glm::vec3(0.012f + 0.0003f * float(k), 0.007f, 0.01f), 6);
+    box(glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(0.5f), largeGrid);
+    return high;
+}
+
+// `high` decimated to each of `targets` in turn (each continuing from the
+// last) is closed: no face kept aside, every edge used once each way.
+static void expectClosedCages(const TriangleMesh& high, const std::vector<size_t>& targets)
+{
+    strata::baker::Simplifier simplifier(high, high.positions);
+    for (size_t target : targets) {
+        SCOPED_TRACE(target);
+        ControlMesh cage;
+        ASSERT_TRUE(simplifier.simplify(target, &cage).isOk());
+        EXPECT_EQ(simplifier.refusedFaces(), 0u);
+        EXPECT_EQ(cage.faceCount(), target);
+        std::map<std::pair<uint32_t, uint32_t>, int> uses;
+        for (size_t f = 0; f < cage.faceCount(); ++f)
+            for (int k = 0; k < 3; ++k)
+                ++uses[{cage.triangles[3 * f + size_t(k)], cage.triangles[3 * f + size_t(k + 1) % 3]}];
+        size_t unmatched = 0;
+        for (const auto& e : uses)
+            unmatched += e.second != 1 || uses.count({e.first.second, e.first.first}) == 0;
+        EXPECT_EQ(unmatched, 0u);
+    }
+}
+
+// A closed capture gives a closed cage.  Small boxes and a large one on a
+// 40x40 grid, 45,120 triangles: meshoptimizer's collapses, which take a
+// capture this large most of the way, left slivers along the boxes' edges
+// (three faces on an edge), which OpenMesh cannot join, so the cage kept
+// them aside and was not closed (an adaptive frame of it then had holes):
+// 3 of them and 9 unmatched edges at 1,500 and 800 faces.  Its 20,000-face
+// start is past a quarter of the capture, so the whole capture is now
+// decimated, and every edge of the cage is matched.
 TEST(Simplifier, AClosedCaptureOfSmallBoxesGivesAClosedCage)
 {
-    const auto boxes = [](int largeGrid) {
-        TriangleMesh high;
-        const auto box = [&](glm::vec3 centre, glm::vec3 half, int n) {
-            for (int axis = 0; axis < 3; ++axis)
-                for (int side : {-1, 1}) {
-                    const uint32_t base = uint32_t(high.positions.size());
-                    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-                    for (int i = 0; i <= n; ++i)
-                        for (int j = 0; j <= n; ++j) {
-                            glm::vec3 p(0.0f);
-                            p[axis] = float(side) * half[axis];
-                            p[u] = half[u] * (2.0f * float(i) / float(n) - 1.0f);
-                            p[v] = half[v] * (2.0f * float(j) / float(n) - 1.0f);
-                            high.positions.push_back(centre + p);
-                        }
-                    for (int i = 0; i < n; ++i)
-                        for (int j = 0; j < n; ++j) {
-                            const uint32_t a = base + uint32_t(i * (n + 1) + j), b = a + 1, c = a + uint32_t(n + 1);
-                            const uint32_t outwards[6] = {a, c, b, b, c, c + 1}, inwards[6] = {a, b, c, b, c + 1, c};
-                            const uint32_t* t = side > 0 ? outwards : inwards;
-                            high.triangles.insert(high.triangles.end(), t, t + 6);
-                        }
-                }
-        };
-        for (int k = 0; k < 60; ++k)
-            box(glm::vec3(0.04f * float(k), 0.0f, 0.0f), glm::vec3(0.012f + 0.0003f * float(k), 0.007f, 0.01f), 6);
-        box(glm::vec3(1.0f, 0.0f, 0.0f), glm::vec3(0.5f), largeGrid);
-        return high;
-    };
-    const std::pair<int, std::vector<size_t>> cases[] = {{40, {1500, 800}}, {80, {1500}}};
-    for (const auto& [largeGrid, targets] : cases) {
-        const TriangleMesh high = boxes(largeGrid);
-        ASSERT_EQ(high.faceCount(), largeGrid == 40 ? 45120u : 102720u);
-        strata::baker::Simplifier simplifier(high, high.positions);  // each count continues from the last
-        for (size_t target : targets) {
-            SCOPED_TRACE(std::to_string(largeGrid) + " " + std::to_string(target));
-            ControlMesh cage;
-            ASSERT_TRUE(simplifier.simplify(target, &cage).isOk());
-            EXPECT_EQ(simplifier.refusedFaces(), 0u);
-            EXPECT_EQ(cage.faceCount(), target);
-            std::map<std::pair<uint32_t, uint32_t>, int> uses;
-            for (size_t f = 0; f < cage.faceCount(); ++f)
-                for (int k = 0; k < 3; ++k)
-                    ++uses[{cage.triangles[3 * f + size_t(k)], cage.triangles[3 * f + size_t(k + 1) % 3]}];
-            size_t unmatched = 0;
-            for (const auto& e : uses)
-                unmatched += e.second != 1 || uses.count({e.first.second, e.first.first}) == 0;
-            EXPECT_EQ(unmatched, 0u);
-        }
-    }
+    const TriangleMesh high = boxesCapture(40);
+    ASSERT_EQ(high.faceCount(), 45120u);
+    expectClosedCages(high, {1500, 800});
+}
+
+// The same with the large box on an 80x80 grid, 102,720 triangles: 72
+// faces kept aside and 212 unmatched edges at 1,500 faces.  meshoptimizer
+// is now held to 80,000 faces, where it leaves none, rather than the whole
+// capture going to OpenMesh.  (Under the sanitizers it repeats the test
+// above at twice the size: left out there.)
+TEST(Simplifier, ALargerCaptureHoldsMeshoptimizerToMoreFaces)
+{
+    const TriangleMesh high = boxesCapture(80);
+    ASSERT_EQ(high.faceCount(), 102720u);
+    expectClosedCages(high, {1500});
 }
 
 TEST(Simplifier, ContinuingGivesTheDirectDecimation)
