@@ -1370,14 +1370,15 @@ TEST(Simplifier, ASmallPieceKeepsEnoughFacesToBeDrawnBack)
     for (size_t p = 0; p < pieces; ++p)
         EXPECT_GE(faces[p], 12u) << "piece " << p;
     for (size_t b = 0; b < 6; ++b) {
+        const size_t first = high.positions.size() - bolt.positions.size() * (6 - b);  // the bolt's first vertex
         std::vector<glm::vec3> points;
         ControlMesh piece;
         piece.positions = cage.positions;
         for (size_t f = 0; f < cage.faceCount(); ++f)
-            if (shell[originals[cage.triangles[3 * f]]] == shell[high.positions.size() - bolt.positions.size() * (6 - b)])
+            if (shell[originals[cage.triangles[3 * f]]] == shell[first])
                 piece.triangles.insert(piece.triangles.end(), &cage.triangles[3 * f], &cage.triangles[3 * f] + 3);
         for (size_t v = 0; v < bolt.positions.size(); ++v)
-            points.push_back(high.positions[high.positions.size() - bolt.positions.size() * (6 - b) + v]);
+            points.push_back(high.positions[first + v]);
         ASSERT_FALSE(piece.triangles.empty()) << "bolt " << b;
         EXPECT_LT(rmsFromPointsToMesh(points, piece), 0.35 * 0.02) << "bolt " << b;
     }
