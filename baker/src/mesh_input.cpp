@@ -377,18 +377,24 @@ size_t orientConsistently(std::vector<uint32_t>* triangles)
     return turned;
 }
 
-// The capture's triangles, simplified by meshoptimizer towards `faces`
-// triangles while its error stays within 0.1% of the capture's size; the
-// triangles themselves when they are already that few.
-std::vector<uint32_t> preSimplified(const TriangleMesh& high, size_t faces)
+// The capture's triangles as the decimation starts from them.  Vertices at
+// one position (a capture's UV or normal seams) become one: kept apart, a
+// seam is a boundary the decimation must keep whole, and the cage carries
+// it as a crack of coincident vertices (which a glTF tool then welds).
+// Triangles that collapse in the welding are dropped.
+std::vector<uint32_t> weldedTriangles(const TriangleMesh& high)
 {
-    // Vertices at one position (a capture's UV or normal seams) become one:
-    // kept apart, a seam is a boundary the decimation must keep whole, and
-    // the cage carries it as a crack of coincident vertices (which a glTF
-    // tool then welds).  Triangles that collapse in the welding are dropped.
     std::vector<uint32_t> welded = high.triangles;
     weldFaces(firstAtPosition(high.positions), &welded);
     orientConsistently(&welded);
+    return welded;
+}
+
+// `welded` (weldedTriangles of `high`) simplified by meshoptimizer towards
+// `faces` triangles while its error stays within 0.1% of the capture's
+// size; `welded` itself when it is already that few.
+std::vector<uint32_t> preSimplified(const TriangleMesh& high, const std::vector<uint32_t>& welded, size_t faces)
+{
     if (welded.size() / 3 <= faces)
         return welded;
     std::vector<uint32_t> out(welded.size());
@@ -701,11 +707,13 @@ Status Simplifier::simplify(size_t targetFaces, ControlMesh* out, std::vector<ui
         // the whole capture is decimated (a million-triangle scan is not
         // taken whole to OpenMesh for one sliver).  The start with the
         // fewest such faces is kept, the first of equals.
+        const std::vector<uint32_t> welded = weldedTriangles(high_);
         size_t preFaces = std::max<size_t>(20000, 10 * targetFaces);
-        auto state = meshOf(preSimplified(high_, preFaces));
-        while (!state->refused.empty() && preFaces < high_.faceCount()) {
-            preFaces = preFaces > high_.faceCount() / 4 ? std::numeric_limits<size_t>::max() : 4 * preFaces;
-            auto next = meshOf(preSimplified(high_, preFaces));
+        auto state = meshOf(preSimplified(high_, welded, preFaces));
+        const size_t weldedFaces = welded.size() / 3;
+        while (!state->refused.empty() && preFaces < weldedFaces) {
+            preFaces = preFaces > weldedFaces / 4 ? std::numeric_limits<size_t>::max() : 4 * preFaces;
+            auto next = meshOf(preSimplified(high_, welded, preFaces));
             if (next->refused.size() < state->refused.size())
                 state = std::move(next);
         }
